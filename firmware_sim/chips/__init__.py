@@ -1,0 +1,1 @@
+"""Register-level emulations of the board's I2C chips."""

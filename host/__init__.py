@@ -1,0 +1,1 @@
+"""ThermoTouch host: material library, training, export, deployment and the user CLI."""
