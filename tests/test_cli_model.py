@@ -1,0 +1,71 @@
+"""``thermotouch model``: the calculator's output and its errors."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from edge.forward import simulate
+from edge.solids import Solid
+from host.cli import main
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_json_glass_matches_model(capsys):
+    code, out, err = run(capsys, "model", "--k", "1.097", "--rho", "2458.4", "--c", "809", "--json")
+    assert code == 0 and err == ""
+    d = json.loads(out)
+    ref = simulate(Solid(1.097, 2458.4, 809), 7.7e7, 1.95)
+    np.testing.assert_allclose(d["t_s"], ref.t_s)
+    np.testing.assert_allclose(d["T_f_K"], ref.T_f_K, rtol=1e-12)
+    np.testing.assert_allclose(d["q_f_W_m2"], ref.q_f_W_m2, rtol=1e-12)
+    assert d["k_W_mK"] == 1.097 and d["back"] == "fixed" and d["scheme"] == "default"
+
+
+def test_material_and_options(capsys):
+    code, out, _ = run(capsys, "model", "--material", "pmma", "--back", "infinite", "--duration", "1", "--json")
+    d = json.loads(out)
+    assert code == 0 and d["material"] == "pmma" and d["thickness_m"] is None
+    assert len(d["t_s"]) == 101 and d["T_f_K"][-1] > 0.5
+
+
+def test_table_output(capsys):
+    code, out, _ = run(capsys, "model", "--material", "tempered_glass", "--scheme", "paper")
+    assert code == 0
+    assert "T_f (K)" in out and "scheme paper" in out
+    assert len(out.strip().splitlines()) >= 12
+
+
+@pytest.mark.parametrize(
+    "argv,needle",
+    [
+        (["model", "--k", "1", "--rho", "2"], "--c"),
+        (["model", "--k", "-1", "--rho", "2", "--c", "3"], "k_W_mK"),
+        (["model", "--material", "unobtainium"], "unobtainium"),
+        (["model", "--k", "x", "--rho", "1", "--c", "1"], "--k"),
+        (["model", "--k", "1", "--rho", "1", "--c", "1", "--duration", "0"], "duration_s"),
+        (["model", "--k", "1", "--rho", "1", "--c", "1", "--back", "wobbly"], "--back"),
+        (["model"], "required"),
+    ],
+)
+def test_bad_arguments_one_line_exit_2(capsys, argv, needle):
+    code, out, err = run(capsys, *argv)
+    assert code == 2
+    assert out == ""
+    assert len(err.strip().splitlines()) == 1 and needle in err
+
+
+def test_console_script_runs():
+    r = subprocess.run(
+        [sys.executable, "-m", "host.cli", "model", "--k", "1.097", "--rho", "2458.4", "--c", "809", "--json"],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["T_f_K"][-1] > 0.5
