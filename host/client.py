@@ -1,0 +1,373 @@
+"""Host-side client for a ThermoTouch probe on a serial port.
+
+::
+
+    with DeviceClient("/dev/ttyACM0") as dev:
+        print(dev.info())
+        record = dev.measure(power_W=0.5, contact_time_s=2.0)
+
+Requests carry incrementing request ids; replies are matched by id and stale
+replies (to earlier, timed-out requests) are dropped.  Idempotent commands
+are resent after a timeout (``retries`` times) with the *same* id, so a late
+reply to the first attempt still counts.  Failures raise:
+
+* :class:`PortUnavailable` - the port does not exist, is locked by another
+  process, or vanished;
+* :class:`DeviceNotAnswering` - no matching reply within the timeout;
+* :class:`DeviceError` - the device answered with an ERROR reply;
+* :class:`BadReply` - the device answered with something that breaks the protocol.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import threading
+import time
+from typing import Any, Callable, Mapping
+
+import serial
+
+from edge.protocol import (
+    CHUNK_HEADER_SIZE,
+    COMMANDS,
+    DEFAULT_MAX_PAYLOAD,
+    Command,
+    ErrorCode,
+    ErrorReply,
+    FrameDecoder,
+    ProtocolError,
+    decode_reply,
+    encode_request,
+)
+
+__all__ = [
+    "ClientError", "PortUnavailable", "DeviceNotAnswering", "DeviceError", "BadReply",
+    "DeviceClient",
+]
+
+
+class ClientError(Exception):
+    """Base of the client's exceptions."""
+
+
+class PortUnavailable(ClientError):
+    """The serial port cannot be used (no such port, busy, or gone)."""
+
+    def __init__(self, port: str, reason: str) -> None:
+        self.port = port
+        self.reason = reason
+        super().__init__(f"serial port {port!r} unavailable: {reason}")
+
+
+class DeviceNotAnswering(ClientError):
+    """No reply to a request within the timeout, after all attempts."""
+
+    def __init__(self, command: Command, timeout_s: float, attempts: int) -> None:
+        self.command = command
+        self.timeout_s = timeout_s
+        self.attempts = attempts
+        super().__init__(f"device did not answer {command.name} within {timeout_s:g} s "
+                         f"({attempts} attempt{'s' if attempts != 1 else ''})")
+
+
+class DeviceError(ClientError):
+    """The device answered with an ERROR reply."""
+
+    def __init__(self, code: ErrorCode, message: str, field: str | None = None,
+                 command: Command | None = None) -> None:
+        self.code = code
+        self.message = message
+        self.field = field
+        self.command = command
+        where = f"{command.name}: " if command is not None else ""
+        extra = f" (field {field!r})" if field else ""
+        super().__init__(f"{where}device error {code.name}: {message}{extra}")
+
+
+class BadReply(ClientError):
+    """A reply with the right id that breaks the protocol (schema, JSON, type)."""
+
+
+def _port_name(ser: Any) -> str:
+    return str(getattr(ser, "port", None) or getattr(ser, "name", None) or ser)
+
+
+class DeviceClient:
+    """Request/reply client for the probe's serial protocol.
+
+    Parameters
+    ----------
+    port_or_serial : str or serial.Serial-like
+        A device path (``/dev/ttyACM0``), a pyserial URL (``loop://``,
+        ``socket://host:port``, ``rfc2217://...``), or an already open
+        pyserial-like object (then the client does not own it unless
+        ``own=True``).
+    timeout_s : float
+        Per-attempt reply timeout, s.
+    retries : int
+        Extra attempts for idempotent commands after a timeout.
+    baudrate : int
+        Line rate when opening a port by name (ignored by ptys).
+    max_payload : int
+        Payload bound, bytes; must not exceed the device's.
+    poll_s : float
+        Read timeout per poll, s (the port's ``timeout`` is set to this).
+    """
+
+    def __init__(self, port_or_serial: Any, timeout_s: float = 2.0, *, retries: int = 1,
+                 baudrate: int = 115200, max_payload: int = DEFAULT_MAX_PAYLOAD,
+                 poll_s: float = 0.02, own: bool | None = None) -> None:
+        if not timeout_s > 0:
+            raise ValueError(f"timeout_s must be > 0, got {timeout_s!r}")
+        if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
+            raise ValueError(f"retries must be an int >= 0, got {retries!r}")
+        self.timeout_s = float(timeout_s)
+        self.retries = retries
+        self.max_payload = max_payload
+        self.poll_s = float(poll_s)
+        if isinstance(port_or_serial, (str, bytes)):
+            port = port_or_serial.decode() if isinstance(port_or_serial, bytes) else port_or_serial
+            self.port = port
+            self.ser = self._open(port, baudrate)
+            self._own = True if own is None else own
+        else:
+            self.ser = port_or_serial
+            self.port = _port_name(port_or_serial)
+            self._own = False if own is None else own
+        try:
+            self.ser.timeout = self.poll_s
+        except (AttributeError, ValueError):
+            pass
+        self.decoder = FrameDecoder(max_payload)
+        self._next_id = 1
+        self._lock = threading.Lock()
+        self.stale_replies = 0
+        # Bytes the device sent before we were listening belong to nobody.
+        reset = getattr(self.ser, "reset_input_buffer", None)
+        if reset is not None:
+            try:
+                reset()
+            except (serial.SerialException, OSError) as exc:
+                raise PortUnavailable(self.port, str(exc)) from exc
+
+    def _open(self, port: str, baudrate: int) -> Any:
+        try:
+            if "://" in port:
+                return serial.serial_for_url(port, baudrate=baudrate, timeout=self.poll_s)
+            # exclusive=True: a second client on the same port fails loudly
+            # instead of stealing half the replies.
+            return serial.Serial(port, baudrate=baudrate, timeout=self.poll_s, exclusive=True)
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise PortUnavailable(port, str(exc)) from exc
+
+    # -- lifecycle -----------------------------------------------------------
+
+    def close(self) -> None:
+        """Close the port if the client opened it."""
+        if self._own and self.ser is not None:
+            try:
+                self.ser.close()
+            finally:
+                self._own = False
+
+    def __enter__(self) -> "DeviceClient":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- core request/reply ------------------------------------------------------
+
+    def _new_id(self) -> int:
+        rid = self._next_id
+        # Wrap within u32, skipping 0 (reserved for unattributed errors).
+        self._next_id = rid % 0xFFFFFFFF + 1
+        return rid
+
+    def _read_available(self) -> bytes:
+        data = self.ser.read(1)
+        if data:
+            waiting = getattr(self.ser, "in_waiting", 0)
+            if waiting:
+                data += self.ser.read(waiting)
+        return data
+
+    def request(self, command: Command | str, args: Mapping[str, Any] | None = None, *,
+                timeout_s: float | None = None, retries: int | None = None) -> dict[str, Any]:
+        """Send one request and return the reply body.
+
+        Parameters
+        ----------
+        command : Command or str
+            Command (enum or name, e.g. ``"INFO"``).
+        args : mapping, optional
+            Arguments per :data:`edge.protocol.COMMANDS`; validated before sending.
+        timeout_s : float, optional
+            Per-attempt timeout, s (default: the client's).
+        retries : int, optional
+            Extra attempts after a timeout (default: the client's, and 0 for
+            non-idempotent commands such as MEASURE).
+
+        Raises
+        ------
+        ProtocolError
+            If ``args`` are invalid (nothing is sent).
+        DeviceError, DeviceNotAnswering, PortUnavailable, BadReply
+        """
+        command = Command[command.upper()] if isinstance(command, str) else Command(command)
+        timeout = self.timeout_s if timeout_s is None else float(timeout_s)
+        if retries is None:
+            retries = self.retries if COMMANDS[command].idempotent else 0
+        with self._lock:
+            rid = self._new_id()
+            frame = encode_request(command, rid, args, max_payload=self.max_payload)
+            attempts = 0
+            for _ in range(retries + 1):
+                attempts += 1
+                self._write(frame)
+                reply = self._await(rid, command, timeout)
+                if reply is not None:
+                    return reply
+            raise DeviceNotAnswering(command, timeout, attempts)
+
+    def _write(self, data: bytes) -> None:
+        try:
+            self.ser.write(data)
+            flush = getattr(self.ser, "flush", None)
+            if flush is not None:
+                flush()
+        except (serial.SerialException, OSError) as exc:
+            raise PortUnavailable(self.port, f"write failed: {exc}") from exc
+
+    def _await(self, rid: int, command: Command, timeout_s: float) -> dict[str, Any] | None:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            try:
+                data = self._read_available()
+            except (serial.SerialException, OSError) as exc:
+                raise PortUnavailable(self.port, f"read failed: {exc}") from exc
+            if not data:
+                continue
+            for frame in self.decoder.feed(data):
+                if frame.request_id != rid:
+                    self.stale_replies += 1
+                    continue
+                try:
+                    reply = decode_reply(frame)
+                except ProtocolError as exc:
+                    raise BadReply(f"{command.name} reply: {exc}") from exc
+                if isinstance(reply, ErrorReply):
+                    raise DeviceError(reply.code, reply.message, reply.field, command)
+                if reply.command != command:
+                    raise BadReply(f"reply id {rid} is for {reply.command.name}, expected {command.name}")
+                return reply.body
+        # A reply cut off mid-frame must not glue onto the next one.
+        self.decoder.discard_partial()
+        return None
+
+    # -- convenience -------------------------------------------------------------
+
+    def ping(self, echo: str | None = None) -> dict[str, Any]:
+        """Liveness check; returns ``{"echo": ...}``."""
+        return self.request(Command.PING, {} if echo is None else {"echo": echo})
+
+    def info(self) -> dict[str, Any]:
+        """Firmware/model versions, model sha256, board, protocol version."""
+        return self.request(Command.INFO)
+
+    def status(self) -> dict[str, Any]:
+        """Device state (``state`` plus free-form fields)."""
+        return self.request(Command.STATUS)
+
+    def measure(self, power_W: float | None = None, voltage_V: float | None = None,
+                contact_time_s: float | None = None, *, timeout_s: float | None = None) -> dict[str, Any]:
+        """Run one measurement and return its result record (never retried).
+
+        The default timeout is the client's plus the contact time (or 5 s)
+        plus 10 s of margin for heating, settling and inference.
+        """
+        args = {k: v for k, v in (("power_W", power_W), ("voltage_V", voltage_V),
+                                  ("contact_time_s", contact_time_s)) if v is not None}
+        if timeout_s is None:
+            timeout_s = self.timeout_s + (contact_time_s if contact_time_s is not None else 5.0) + 10.0
+        return self.request(Command.MEASURE, args, timeout_s=timeout_s)
+
+    def result(self, measurement_id: int | None = None) -> dict[str, Any]:
+        """Result record by id, or the latest when ``measurement_id`` is None."""
+        return self.request(Command.RESULT, {} if measurement_id is None else {"measurement_id": measurement_id})
+
+    def history(self, offset: int = 0, limit: int = 20) -> dict[str, Any]:
+        """One page of stored results: ``{"offset", "total", "items"}``."""
+        return self.request(Command.HISTORY, {"offset": offset, "limit": limit})
+
+    def config_get(self, *keys: str) -> dict[str, Any]:
+        """Configuration values (all, or only ``keys``)."""
+        reply = self.request(Command.CONFIG_GET, {"keys": list(keys)} if keys else {})
+        return reply["config"]
+
+    def config_set(self, **values: Any) -> dict[str, Any]:
+        """Set configuration values; returns the full configuration after the change."""
+        if not values:
+            raise ValueError("config_set needs at least one key=value")
+        return self.request(Command.CONFIG_SET, {"values": values})["config"]
+
+    def upload_model(self, data: bytes, sha256: str | None = None, chunk_size: int | None = None,
+                     progress: Callable[[int, int], None] | None = None, *,
+                     version: str | None = None) -> dict[str, Any]:
+        """Upload a model bundle in chunks and commit it.
+
+        Parameters
+        ----------
+        data : bytes
+            The whole bundle.
+        sha256 : str, optional
+            Expected hex digest; checked locally before sending (computed if None).
+        chunk_size : int, optional
+            Bytes per MODEL_CHUNK (default and maximum: ``max_payload - 4``).
+        progress : callable, optional
+            Called as ``progress(bytes_sent, total_bytes)`` after each chunk.
+        version : str, optional
+            Model version label passed to MODEL_BEGIN.
+
+        Returns
+        -------
+        dict
+            The MODEL_COMMIT reply (``model_sha256`` and whatever the device adds).
+
+        On any failure after MODEL_BEGIN the client sends MODEL_ABORT (best
+        effort) and re-raises.
+        """
+        data = bytes(data)
+        if not data:
+            raise ValueError("data must not be empty")
+        digest = hashlib.sha256(data).hexdigest()
+        if sha256 is not None and sha256.lower() != digest:
+            raise ValueError(f"sha256 {sha256!r} does not match the data (sha256 {digest})")
+        max_chunk = self.max_payload - CHUNK_HEADER_SIZE
+        if chunk_size is None:
+            chunk_size = max_chunk
+        if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or not 1 <= chunk_size <= max_chunk:
+            raise ValueError(f"chunk_size must be an int in [1, {max_chunk}], got {chunk_size!r}")
+        begin = {"size": len(data), "sha256": digest}
+        if version is not None:
+            begin["version"] = version
+        self.request(Command.MODEL_BEGIN, begin)
+        try:
+            for offset in range(0, len(data), chunk_size):
+                chunk = data[offset:offset + chunk_size]
+                reply = self.request(Command.MODEL_CHUNK, {"offset": offset, "data": chunk})
+                if reply["received"] != offset + len(chunk):
+                    raise BadReply(f"device holds {reply['received']} B after chunk at {offset} "
+                                   f"(expected {offset + len(chunk)} B)")
+                if progress is not None:
+                    progress(offset + len(chunk), len(data))
+            result = self.request(Command.MODEL_COMMIT)
+        except BaseException:
+            try:
+                self.request(Command.MODEL_ABORT, retries=0)
+            except ClientError:
+                pass
+            raise
+        if result["model_sha256"].lower() != digest:
+            raise BadReply(f"device installed sha256 {result['model_sha256']}, expected {digest}")
+        return result
