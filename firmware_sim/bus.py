@@ -331,6 +331,21 @@ class SimBus:
         payload = [reg, length] + [self._byte(b, "data byte") for b in data]
         self._transfer(i2c_addr, [("w", payload)], f"write_block_data 0x{reg:02x}")
 
+    def block_process_call(self, i2c_addr: int, register: int, data, force=None) -> list[int]:
+        """Write a counted block, read a counted block back (SMBus 2.0)."""
+        length = len(data)
+        if length > I2C_SMBUS_BLOCK_MAX:
+            raise ValueError("Data length cannot exceed %d bytes" % I2C_SMBUS_BLOCK_MAX)
+        self._use(i2c_addr, force)
+        reg = self._byte(register, "register")
+        payload = [reg, length] + [self._byte(b, "data byte") for b in data]
+        back = self._transfer(i2c_addr, [("w", payload), ("r", 1 + I2C_SMBUS_BLOCK_MAX)],
+                              f"block_process_call 0x{reg:02x}")[0]
+        count = back[0]
+        if not 1 <= count <= I2C_SMBUS_BLOCK_MAX:
+            raise _oserror(_errno.EPROTO)
+        return list(back[1:1 + count])
+
     def read_i2c_block_data(self, i2c_addr: int, register: int, length: int, force=None) -> list[int]:
         if length > I2C_SMBUS_BLOCK_MAX:
             raise ValueError("Desired block length over %d bytes" % I2C_SMBUS_BLOCK_MAX)

@@ -202,3 +202,24 @@ def test_bit_rate_advances_clock():
     bus.attach(0x50, Ram())
     bus.read_i2c_block_data(0x50, 0, 2)   # addr+reg, addr+2 bytes = 5 bytes
     assert clock.now() == pytest.approx((9 * 5 + 4) / 100e3)
+
+
+def test_method_set_and_signatures_match_smbus2():
+    import inspect
+
+    import smbus2
+
+    public = [n for n, f in inspect.getmembers(smbus2.SMBus, inspect.isfunction) if not n.startswith("_")]
+    for name in public + ["__enter__", "__exit__"]:
+        assert hasattr(SimBus, name), name
+        ours = list(inspect.signature(getattr(SimBus, name)).parameters)
+        theirs = list(inspect.signature(getattr(smbus2.SMBus, name)).parameters)
+        assert ours == theirs, name
+    assert isinstance(SimBus.pec, property)
+
+
+def test_block_process_call(setup):
+    _, bus, ram = setup
+    ram.mem[0xA2:0xA5] = bytes([2, 0x11, 0x22])
+    # writes reg 0xA0 <- count 1, 0xA1 <- 0x55; then reads from 0xA2: count 2, data
+    assert bus.block_process_call(0x50, 0xA0, [0x55]) == [0x11, 0x22]
