@@ -20,7 +20,8 @@ Example
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from dataclasses import field as _dc_field
 from typing import Any, Iterable, Mapping
 
 __all__ = ["BitField", "Register", "RegisterMap", "to_signed", "to_unsigned"]
@@ -108,13 +109,10 @@ class BitField:
             raise ValueError(f"{name}: {value!r} is not one of {list(self.enum)}")
         if self.scale is not None:
             value = round(float(value) / self.scale)
-        if isinstance(value, bool) or not isinstance(value, int):
-            if isinstance(value, bool):
-                value = int(value)
-            elif hasattr(value, "__index__"):
-                value = int(value)
-            else:
-                raise ValueError(f"{name}: expected an integer, got {value!r}")
+        elif hasattr(value, "__index__"):      # int, bool, numpy integers
+            value = int(value.__index__())
+        else:
+            raise ValueError(f"{name}: expected an integer, got {value!r}")
         if self.signed:
             lo, hi = -(1 << (self.width - 1)), (1 << (self.width - 1)) - 1
         else:
@@ -154,7 +152,7 @@ class Register:
     name: str
     address: int
     width_bytes: int
-    fields: Mapping[str, BitField] = field(default_factory=dict)
+    fields: Mapping[str, BitField] = _dc_field(default_factory=dict)
     reset: int = 0
     byteorder: str = "big"
     read_only: bool = False

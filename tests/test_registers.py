@@ -75,3 +75,11 @@ def test_register_map_lookup():
         m["C"]
     with pytest.raises(ValueError, match="duplicate"):
         RegisterMap("chip", [Register("A", 0, 1), Register("A", 1, 1)])
+
+
+def test_unscaled_field_rejects_non_integers():
+    with pytest.raises(ValueError, match="expected an integer"):
+        BitField(0x07).set(0, 1.5)
+    import numpy as np
+    assert BitField(0x07).set(0, np.int64(3)) == 3
+    assert BitField(0x01).set(0, True) == 1

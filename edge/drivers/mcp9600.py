@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from edge.drivers.i2c_base import I2CDevice
-from edge.registers import BitField, Register, RegisterMap, to_signed
+from edge.registers import BitField, Register, RegisterMap
 
 try:  # smbus2 is a run-time dependency of edge; keep the import soft for docs builds
     from smbus2 import i2c_msg
