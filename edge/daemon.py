@@ -1,0 +1,637 @@
+"""The probe's daemon: ``thermotouch-edge --config FILE``.
+
+Start-up order matters: the configuration is parsed, then the board is built
+and the heater driven OFF (enable line inactive, PWM duty 0) before anything
+else -- history, model store, sensors, serial port. Then the daemon answers
+protocol requests (:mod:`edge.protocol`) on the serial port until SIGTERM or
+SIGINT, which set the stop event: a running measurement is cut (heater off
+at once through the watchdog), the loop ends, the heater driver, history
+database and board are closed.
+
+:func:`run_daemon` runs the same daemon on a given board and an open
+pyserial-like port (the simulator and the tests use it in a thread).
+
+Commands
+--------
+PING, INFO (firmware/model versions, model sha256, board), STATUS,
+MEASURE (optional ``power_W`` or ``voltage_V``, ``contact_time_s``),
+RESULT (by id or latest), HISTORY (paged, newest first), CONFIG_GET,
+CONFIG_SET (runtime keys only, validated, persisted atomically),
+MODEL_BEGIN/CHUNK/COMMIT/ABORT (verified atomic install through
+:class:`edge.modelstore.ModelStore`).
+
+MEASURE replies with the stored record (``measurement_id``, ``status``,
+``flags``, ``result`` ...). Every measurement is committed to the history
+before the reply. A sensor fault or open thermocouple answers ERROR
+``SENSOR_FAULT`` and a crashed estimation ERROR ``INTERNAL``, each naming the
+stored measurement id; safety cuts (over-temperature, on-time) give a record
+with ``status = "aborted"`` and ``reason``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+import edge
+from edge.board import Board, make_board
+from edge.config import Config, ConfigError, RuntimeOverrides, load_config
+from edge.drivers.heater import Heater, HeaterError, HeaterOffError
+from edge.faults import SensorFault
+from edge.history import History
+from edge.link import SerialEndpoint
+from edge.modelstore import InstallError, ModelStore, ModelStoreError
+from edge.protocol import (
+    DEFAULT_MAX_PAYLOAD,
+    PROTOCOL_VERSION,
+    Command,
+    CommandError,
+    ErrorCode,
+    Request,
+)
+from edge.sequence import (
+    EstimatorFn,
+    HeaterWatchdog,
+    Limits,
+    MeasurementParams,
+    MeasurementSequence,
+    make_sensors,
+)
+
+__all__ = ["FIRMWARE_VERSION", "ModelEstimator", "Daemon", "run_daemon", "DaemonThread", "board_from_config",
+           "main"]
+
+log = logging.getLogger("thermotouch.edge")
+
+FIRMWARE_VERSION = edge.__version__
+#: Bytes kept free in a reply for the frame's JSON envelope.
+_REPLY_MARGIN = 256
+
+
+class ModelEstimator:
+    """The default estimator: :class:`edge.estimate.Estimator` on the store's active bundle.
+
+    Rebuilt when the active bundle changes (after an upload or rollback).
+    """
+
+    def __init__(self, store: ModelStore) -> None:
+        self.store = store
+        self._sha: str | None = None
+        self._est: Any = None
+        self._lock = threading.Lock()
+
+    def model_sha256(self) -> str | None:
+        try:
+            return self.store.current().sha256
+        except ModelStoreError:
+            return None
+
+    def __call__(self, t_s: np.ndarray, dT_K: np.ndarray, q_W_m2: np.ndarray, q_v_W_m3: float,
+                 method: str) -> dict:
+        from edge.estimate import Estimator  # noqa: PLC0415 - loaded on first use
+
+        bundle = self.store.current()
+        with self._lock:
+            if self._sha != bundle.sha256:
+                self._est, self._sha = Estimator.from_bundle(bundle), bundle.sha256
+            est = self._est
+        return est.estimate(t_s, dT_K, q_W_m2, method=method, q_v_W_m3=q_v_W_m3).to_dict()
+
+
+def _factory_bundle(cfg: Config) -> Path | None:
+    if cfg.paths.factory_model:
+        return Path(cfg.paths.factory_model)
+    try:
+        from thermotouch_models import DEFAULT_BUNDLE  # noqa: PLC0415 - optional package data
+    except ImportError:
+        return None
+    return DEFAULT_BUNDLE if (DEFAULT_BUNDLE / "manifest.json").exists() else None
+
+
+def board_from_config(cfg: Config) -> Board:
+    """Build the board named by ``[board] kind`` with the ``[board]`` options."""
+    b = cfg.board
+    if b.kind == "rpi":
+        return make_board("rpi", i2c_bus=b.i2c_bus, gpio_chip=b.gpio_chip,
+                          heater_enable_offset=b.heater_enable_offset, heater_active_low=b.heater_active_low,
+                          trigger_offset=b.trigger_offset, trigger_active_low=b.trigger_active_low,
+                          pwm_root=b.pwm_root, pwm_chip=b.pwm_chip, pwm_channel=b.pwm_channel)
+    return make_board(b.kind)
+
+
+class _Upload:
+    """A model upload in progress (held in memory; bundles are small)."""
+
+    def __init__(self, size: int, sha256: str, version: str | None) -> None:
+        self.size = size
+        self.sha256 = sha256
+        self.version = version
+        self.data = bytearray()
+
+
+class Daemon:
+    """Request handler and measurement owner for one board.
+
+    Construction switches the heater off first. Use :meth:`serve` to answer
+    a serial port and :meth:`close` (or ``with``) to shut down.
+
+    Parameters
+    ----------
+    config : Config
+        The file configuration; stored runtime overrides are applied on top.
+    board : Board
+    estimator : EstimatorFn, optional
+        Default: :class:`ModelEstimator` on the model store.
+    stop_event : threading.Event, optional
+        Set to stop serving; also aborts a running measurement.
+    model_store, history : optional
+        Injected instances (default: built from ``[paths]``).
+    """
+
+    def __init__(self, config: Config, board: Board, *, estimator: EstimatorFn | None = None,
+                 stop_event: threading.Event | None = None, model_store: ModelStore | None = None,
+                 history: History | None = None, max_payload: int = DEFAULT_MAX_PAYLOAD) -> None:
+        self.board = board
+        self.stop_event = stop_event if stop_event is not None else threading.Event()
+        self.max_payload = max_payload
+        h = config.heater
+        # The heater goes OFF before anything else (its constructor drives both channels off).
+        self.heater = Heater(board, supply_voltage_v=h.supply_voltage_V, resistance_ohm=h.resistance_ohm,
+                             pwm_period_ns=h.pwm_period_ns)
+        self.heater.off()
+        self._closers: list[Callable[[], None]] = []
+        self.state = "starting"
+        self.faults: list[str] = []
+        self.t_start = time.monotonic()
+        try:
+            self.base_config = config
+            self.overrides = RuntimeOverrides(config.paths.runtime_overrides or None)
+            self.config = self.overrides.load(config)
+            for err in self.overrides.errors:
+                log.warning("runtime override ignored: %s", err)
+            self._apply_logging()
+            self.history = history if history is not None else History(self.config.paths.history_db)
+            self.store = model_store if model_store is not None else ModelStore(
+                self.config.paths.model_store, _factory_bundle(self.config))
+            try:
+                b = self.store.current()
+                log.info("model %s (%s) from %s", b.model_version, b.sha256[:12], self.store.source)
+            except ModelStoreError as e:
+                log.error("no usable model yet: %s", e)
+            self._model_est = ModelEstimator(self.store)
+            self.estimator = estimator if estimator is not None else self._model_est
+            self.watchdog = HeaterWatchdog(self.heater, board.clock, h.max_on_time_s,
+                                           abort_event=self.stop_event)
+            self.sensors: Any = None
+            self.sensor_error: str | None = None
+            self._init_sensors()
+            self.button: Any = None
+            if self.config.measurement.trigger_button:
+                self._init_button()
+            self.sequence: MeasurementSequence | None = None
+            self.upload: _Upload | None = None
+            self.last_id: int | None = self.history.latest_id()
+            self.measurements = 0
+            self.state = "idle"
+        except BaseException:
+            self.heater.close()
+            raise
+
+    # -- set-up helpers --------------------------------------------------------------
+    def _apply_logging(self) -> None:
+        logging.getLogger("thermotouch").setLevel(self.config.logging.level)
+
+    def _init_sensors(self) -> bool:
+        try:
+            self.sensors = make_sensors(self.board, self.config.sensors)
+            self.sensor_error = None
+            return True
+        except (SensorFault, ValueError) as e:
+            self.sensors, self.sensor_error = None, str(e)
+            log.error("sensors not ready: %s", e)
+            return False
+
+    def _init_button(self) -> None:
+        from edge.drivers.button import Button  # noqa: PLC0415
+
+        try:
+            self.button = Button(self.board)
+        except Exception as e:  # a missing button must not stop the daemon
+            log.warning("trigger button unavailable: %s", e)
+            self.button = None
+
+    def _get_sequence(self) -> MeasurementSequence:
+        if self.sensors is None and not self._init_sensors():
+            raise CommandError(ErrorCode.SENSOR_FAULT, f"sensors not ready: {self.sensor_error}")
+        h = self.config.heater
+        if self.sequence is None or self.sequence.sensors is not self.sensors:
+            self.sequence = MeasurementSequence(
+                self.heater, self.sensors, self.board.clock, Limits(h.max_on_time_s, h.over_temperature_C),
+                self._estimate, self.config.measurement, watchdog=self.watchdog, abort_event=self.stop_event,
+                model_sha256=self._model_sha256, on_state=self._on_state)
+        self.sequence.thresholds = self.config.measurement
+        return self.sequence
+
+    def _estimate(self, *args: Any) -> Mapping[str, Any]:
+        return self.estimator(*args)
+
+    def _model_sha256(self) -> str | None:
+        return self._model_est.model_sha256()
+
+    def _on_state(self, s: str) -> None:
+        if self.state != "fault":
+            self.state = "idle" if s == "idle" else s
+
+    # -- requests --------------------------------------------------------------------
+    def handle(self, req: Request) -> dict[str, Any] | None:
+        """Answer one validated request (raises CommandError for ERROR replies)."""
+        fn = getattr(self, f"_cmd_{req.command.name.lower()}", None)
+        if fn is None:  # pragma: no cover - every command has a handler
+            raise CommandError(ErrorCode.UNKNOWN_COMMAND, f"{req.command.name} is not implemented")
+        return fn(req.args)
+
+    def _cmd_ping(self, args: dict) -> dict:
+        return {"echo": args.get("echo")}
+
+    def _cmd_info(self, args: dict) -> dict:
+        st = self.store.status()
+        return {"protocol_version": PROTOCOL_VERSION, "firmware_version": FIRMWARE_VERSION,
+                "model_version": st.get("model_version"), "model_sha256": st.get("sha256"),
+                "model_source": st.get("source"), "board": self.board.name}
+
+    def _cmd_status(self, args: dict) -> dict:
+        out = {"state": self.state, "heater_on": self.heater.is_on,
+               "heater_on_time_s": round(self.heater.on_time_s, 6), "measurements": self.measurements,
+               "last_measurement_id": self.last_id, "history_total": self.history.count(),
+               "sensor_error": self.sensor_error, "faults": list(self.faults[-5:]),
+               "uptime_s": round(time.monotonic() - self.t_start, 3)}
+        if self.upload is not None:
+            out["upload"] = {"received": len(self.upload.data), "size": self.upload.size}
+        return out
+
+    def _cmd_measure(self, args: dict) -> dict:
+        return self.measure(power_W=args.get("power_W"), voltage_V=args.get("voltage_V"),
+                            contact_time_s=args.get("contact_time_s"))
+
+    def measure(self, *, power_W: float | None = None, voltage_V: float | None = None,
+                contact_time_s: float | None = None) -> dict:
+        """Run one measurement, store it, return its summary (CommandError on failure)."""
+        if self.state == "fault":
+            raise CommandError(ErrorCode.BAD_STATE, "heater fault: measurements are disabled until restart; "
+                               + "; ".join(self.faults[-1:]))
+        if self.stop_event.is_set():
+            raise CommandError(ErrorCode.BAD_STATE, "daemon is stopping")
+        cfg = self.config
+        h, m = cfg.heater, cfg.measurement
+        if voltage_V is not None:
+            if voltage_V > h.supply_voltage_V:
+                raise CommandError(ErrorCode.BAD_ARGUMENT, f"voltage_V={voltage_V} exceeds the supply "
+                                   f"{h.supply_voltage_V} V", "voltage_V")
+            power_W = voltage_V**2 / h.resistance_ohm
+        power = h.power_W if power_W is None else power_W
+        if power > self.heater.max_power_w * (1 + 1e-12):
+            raise CommandError(ErrorCode.BAD_ARGUMENT, f"power_W={power} exceeds the heater's maximum "
+                               f"{self.heater.max_power_w:.4g} W", "power_W")
+        contact = m.contact_time_s if contact_time_s is None else contact_time_s
+        if contact >= h.max_on_time_s:
+            raise CommandError(ErrorCode.BAD_ARGUMENT, f"contact_time_s={contact} must be below "
+                               f"heater.max_on_time_s={h.max_on_time_s}", "contact_time_s")
+        params = MeasurementParams(power_W=power, contact_time_s=contact, baseline_s=m.baseline_s,
+                                   sample_rate_Hz=m.sample_rate_Hz, cooldown_s=m.cooldown_s,
+                                   method=cfg.estimation.method)
+        seq = self._get_sequence()
+        try:
+            outcome = seq.run(params)
+        finally:
+            if self.heater.is_on:  # belt and braces: run() never returns with it on
+                self.heater.off()
+        self.measurements += 1
+        mid = self.history.add(outcome.record(cfg.to_dict()))
+        self.last_id = mid
+        if outcome.compute_s is not None:
+            log.debug("measurement %d: compute %.2f ms", mid, outcome.compute_s * 1e3)
+        log.info("measurement %d: %s%s flags=%s", mid, outcome.status,
+                 f" ({outcome.reason})" if outcome.reason else "", outcome.flags)
+        if outcome.reason == "heater_fault":
+            self.state = "fault"
+            self.faults.append(outcome.error or "heater fault")
+            raise CommandError(ErrorCode.INTERNAL, f"HEATER FAULT ({outcome.error}); measurement {mid} stored")
+        if outcome.reason in ("sensor_fault", "open_thermocouple"):
+            self.sensors = None if outcome.reason == "sensor_fault" else self.sensors
+            self.sensor_error = outcome.error
+            raise CommandError(ErrorCode.SENSOR_FAULT, f"{outcome.reason}: {outcome.error}; measurement {mid} stored")
+        if outcome.status == "failed":
+            raise CommandError(ErrorCode.INTERNAL, f"{outcome.reason}: {outcome.error}; measurement {mid} stored")
+        return self._fit(self.history.get(mid))
+
+    def _fit(self, record: dict) -> dict:
+        """Drop bulky optional fields until a record fits in one reply."""
+        for key in ("error", "result"):
+            if len(json.dumps(record, default=str)) + _REPLY_MARGIN <= self.max_payload:
+                break
+            if key == "result" and isinstance(record.get("result"), dict):
+                record["result"] = {k: v for k, v in record["result"].items()
+                                    if not isinstance(v, (list, dict))}
+            elif record.get(key):
+                record[key] = str(record[key])[:200]
+        return record
+
+    def _cmd_result(self, args: dict) -> dict:
+        mid = args.get("measurement_id")
+        if mid is None:
+            mid = self.history.latest_id()
+            if mid is None:
+                raise CommandError(ErrorCode.NOT_FOUND, "no measurement stored yet", "measurement_id")
+        rec = self.history.get(mid)
+        if rec is None:
+            raise CommandError(ErrorCode.NOT_FOUND, f"no measurement {mid}", "measurement_id")
+        return self._fit(rec)
+
+    def _cmd_history(self, args: dict) -> dict:
+        offset, limit = args.get("offset", 0), args.get("limit", 20)
+        total, items = self.history.page(offset, limit)
+        items = [self._fit(r) for r in items]
+        # A page holds as many records as fit in one reply; the host continues at offset + len(items).
+        while items and len(json.dumps({"offset": offset, "total": total, "items": items})) + _REPLY_MARGIN \
+                > self.max_payload:
+            items.pop()
+        return {"offset": offset, "total": total, "items": items}
+
+    def _cmd_config_get(self, args: dict) -> dict:
+        keys = args.get("keys")
+        try:
+            values = self.config.flat(keys)
+        except ConfigError as e:
+            raise CommandError(ErrorCode.BAD_ARGUMENT, str(e), e.key) from None
+        return {"config": values}
+
+    def _cmd_config_set(self, args: dict) -> dict:
+        values = args["values"]
+        if self.state not in ("idle", "fault"):
+            raise CommandError(ErrorCode.BUSY, f"cannot change the configuration while {self.state}")
+        try:
+            new = self.config.with_updates(values)
+        except ConfigError as e:
+            raise CommandError(ErrorCode.BAD_ARGUMENT, str(e), e.key) from None
+        self.overrides.save(new, self.base_config)
+        self.config = new
+        self._apply_logging()
+        log.info("configuration changed: %s", {k: new.get(k) for k in values})
+        return {"config": new.runtime()}
+
+    def _cmd_model_begin(self, args: dict) -> dict:
+        size = args["size"]
+        if size > self.store.limits.max_blob_bytes:
+            raise CommandError(ErrorCode.MODEL_REJECTED, f"size {size} B exceeds the store's limit of "
+                               f"{self.store.limits.max_blob_bytes} B", "size")
+        self.upload = _Upload(size, args["sha256"], args.get("version"))
+        log.info("model upload started: %d B, sha256 %s", size, args["sha256"][:12])
+        return {"size": size}
+
+    def _cmd_model_chunk(self, args: dict) -> dict:
+        up = self.upload
+        if up is None:
+            raise CommandError(ErrorCode.BAD_STATE, "no upload in progress (send MODEL_BEGIN first)")
+        offset, data = args["offset"], args["data"]
+        held = len(up.data)
+        if offset + len(data) > up.size:
+            raise CommandError(ErrorCode.BAD_ARGUMENT, f"chunk [{offset}, {offset + len(data)}) runs past the "
+                               f"announced size {up.size}", "offset")
+        if offset == held:
+            up.data += data
+        elif offset + len(data) <= held and up.data[offset:offset + len(data)] == data:
+            pass  # a resent chunk we already hold
+        else:
+            raise CommandError(ErrorCode.BAD_ARGUMENT, f"chunk at offset {offset}, expected {held}", "offset")
+        return {"received": len(up.data)}
+
+    def _cmd_model_commit(self, args: dict) -> dict:
+        up = self.upload
+        if up is None:
+            raise CommandError(ErrorCode.BAD_STATE, "no upload in progress")
+        if len(up.data) != up.size:
+            raise CommandError(ErrorCode.BAD_STATE, f"upload incomplete: {len(up.data)} of {up.size} B")
+        self.upload = None
+        try:
+            bundle = self.store.install(bytes(up.data), up.sha256, up.size)
+        except InstallError as e:
+            detail = f"{e}: {e.__cause__}" if e.__cause__ is not None else str(e)
+            log.warning("model upload refused: %s", detail)
+            raise CommandError(ErrorCode.MODEL_REJECTED, detail[:1000]) from None
+        log.info("model %s (%s) installed", bundle.model_version, bundle.sha256[:12])
+        return {"model_sha256": up.sha256, "bundle_sha256": bundle.sha256, "model_version": bundle.model_version}
+
+    def _cmd_model_abort(self, args: dict) -> dict:
+        self.upload = None
+        return {}
+
+    # -- serving ---------------------------------------------------------------------
+    def _poll_button(self) -> None:
+        if self.button is None or self.state != "idle":
+            return
+        try:
+            ev = self.button.wait_for_event(0.0)
+        except Exception as e:
+            log.warning("trigger button failed, disabled: %s", e)
+            self.button = None
+            return
+        if ev is not None and ev.pressed:
+            log.info("trigger button pressed: measuring")
+            try:
+                self.measure()
+            except CommandError as e:
+                log.warning("button measurement: %s", e)
+
+    def serve(self, ser: Any, stop_event: threading.Event | None = None, *, poll_s: float = 0.05) -> None:
+        """Answer requests on ``ser`` until ``stop_event`` (default: the daemon's) is set.
+
+        Port errors propagate (after the heater is made safe).
+        """
+        stop = stop_event if stop_event is not None else self.stop_event
+        endpoint = SerialEndpoint(ser, max_payload=self.max_payload, poll_s=poll_s)
+        try:
+            while not stop.is_set() and not self.stop_event.is_set():
+                for req in endpoint.poll():
+                    endpoint.handle(req, self.handle)
+                    if stop.is_set():
+                        break
+                self._poll_button()
+        finally:
+            self.heater.off()
+
+    def close(self) -> None:
+        """Heater off and closed, watchdog stopped, history closed (idempotent)."""
+        self.stop_event.set()
+        errors: list[BaseException] = []
+        for fn in (self.heater.close, self.watchdog.close,
+                   getattr(self.button, "close", None), self.history.close):
+            if fn is None:
+                continue
+            try:
+                fn()
+            except Exception as e:
+                errors.append(e)
+                log.error("shutdown step failed: %s", e)
+        self.state = "stopped"
+        if errors:
+            raise HeaterError(f"shutdown incomplete: {errors!r}") from errors[0]
+
+    def __enter__(self) -> Daemon:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+
+def run_daemon(config: Config, board: Board, serial_port: Any, stop_event: threading.Event, *,
+               estimator: EstimatorFn | None = None, ready: Callable[[Daemon], None] | None = None,
+               **kwargs: Any) -> None:
+    """Run a daemon on ``board`` answering ``serial_port`` until ``stop_event`` is set.
+
+    Blocking; run it in a thread for the simulator (see :class:`DaemonThread`).
+    ``ready(daemon)`` is called once the daemon answers. The heater is off and
+    the history closed when this returns, whatever happened.
+    """
+    daemon = Daemon(config, board, estimator=estimator, stop_event=stop_event, **kwargs)
+    try:
+        if ready is not None:
+            ready(daemon)
+        daemon.serve(serial_port, stop_event)
+    finally:
+        daemon.close()
+
+
+class DaemonThread:
+    """:func:`run_daemon` in a background thread; ``daemon`` is available after start().
+
+    Use as a context manager: leaving it sets the stop event and joins.
+    """
+
+    def __init__(self, config: Config, board: Board, serial_port: Any, **kwargs: Any) -> None:
+        self.stop_event = threading.Event()
+        self.daemon: Daemon | None = None
+        self.error: BaseException | None = None
+        self._ready = threading.Event()
+        self._args = (config, board, serial_port)
+        self._kwargs = kwargs
+        self.thread = threading.Thread(target=self._run, name="thermotouch-edge", daemon=True)
+
+    def _run(self) -> None:
+        def ready(d: Daemon) -> None:
+            self.daemon = d
+            self._ready.set()
+
+        try:
+            run_daemon(*self._args, self.stop_event, ready=ready, **self._kwargs)
+        except BaseException as e:  # reported to the starter
+            self.error = e
+            log.exception("daemon thread ended with an error")
+        finally:
+            self._ready.set()
+
+    def start(self, timeout_s: float = 10.0) -> Daemon:
+        """Start and wait until the daemon answers; re-raise a start-up error."""
+        self.thread.start()
+        self._ready.wait(timeout_s)
+        if self.daemon is None:
+            raise RuntimeError(f"daemon did not start: {self.error!r}") from self.error
+        return self.daemon
+
+    def stop(self, timeout_s: float = 10.0) -> None:
+        """Set the stop event and wait for the thread."""
+        self.stop_event.set()
+        self.thread.join(timeout_s)
+
+    def __enter__(self) -> DaemonThread:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.stop()
+
+
+# --------------------------------------------------------------------------
+# Console entry point
+
+
+def _parse_args(argv: list[str] | None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(prog="thermotouch-edge", description="ThermoTouch probe daemon")
+    p.add_argument("--config", required=True, help="TOML configuration file")
+    p.add_argument("--check-config", action="store_true", help="validate the configuration and exit")
+    return p.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``thermotouch-edge --config FILE``: exit status 0 on a clean stop, 1 on failure, 2 on bad config."""
+    args = _parse_args(argv)
+    logging.basicConfig(stream=sys.stderr, level=logging.INFO,
+                        format="%(levelname)s %(name)s: %(message)s")
+    try:
+        cfg = load_config(args.config)
+    except ConfigError as e:
+        print(f"thermotouch-edge: bad configuration: {e}", file=sys.stderr)
+        return 2
+    if args.check_config:
+        print(f"{args.config}: OK", file=sys.stderr)
+        return 0
+    stop = threading.Event()
+
+    def on_signal(signum: int, _frame: Any) -> None:
+        # Only set the event: the watchdog cuts a running heating at once, the loops end.
+        log.info("signal %s: stopping", signal.Signals(signum).name)
+        stop.set()
+
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
+    try:
+        board = board_from_config(cfg)
+    except Exception as e:
+        log.critical("cannot build board %r: %s", cfg.board.kind, e)
+        return 1
+    try:
+        daemon = Daemon(cfg, board, stop_event=stop)
+    except Exception as e:
+        log.critical("start-up failed: %s", e)
+        board.close()
+        return 1
+    log.info("thermotouch-edge %s on board %s, serial %s", FIRMWARE_VERSION, board.name, cfg.serial.port)
+    status = 0
+    try:
+        import serial  # noqa: PLC0415
+
+        while not stop.is_set():
+            try:
+                with serial.Serial(cfg.serial.port, cfg.serial.baud, timeout=0.05, exclusive=True) as ser:
+                    daemon.serve(ser, stop)
+            except (serial.SerialException, OSError) as e:
+                # The link can come and go (USB gadget unplugged): heater is off, retry.
+                log.warning("serial port %s: %s; retrying", cfg.serial.port, e)
+                stop.wait(1.0)
+    except Exception:
+        log.exception("daemon failed")
+        status = 1
+    finally:
+        try:
+            daemon.close()
+        except Exception as e:
+            log.critical("shutdown: %s", e)
+            status = 1
+        try:
+            board.close()
+        except Exception as e:
+            log.error("closing the board: %s", e)
+    log.info("stopped")
+    return status
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
