@@ -1,0 +1,270 @@
+"""The simulator's public face: one object per scene.
+
+``load_scene("glass_15V")`` (a shipped scene name or a path) returns a
+:class:`Simulator` that holds a virtual clock, the GPIO and PWM fakes, the
+thermal world and an smbus2-compatible :class:`~firmware_sim.bus.SimBus` with
+the scene's chips attached and wired to the world::
+
+    sim = firmware_sim.load_scene("glass_15V")
+    board = sim.board()                 # an edge.board.Board for the daemon
+    sim.advance(0.5)                    # move virtual time
+    sim.bus.read_i2c_block_data(0x60, 0x00, 2)
+    sim.truth([1.0, 1.5])               # exact surface temperature and flux
+
+Importing :mod:`firmware_sim` registers the board kind ``"sim"``, so
+``edge.board.make_board("sim", scene="glass_15V")`` builds a board on a new
+simulator (reachable as ``board.extras["simulator"]``).
+"""
+
+from __future__ import annotations
+
+import weakref
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from edge.board import Board, register_board_factory
+
+from .bus import SimBus
+from .chips.ads1115 import ADS1115 as ADS1115Model
+from .chips.ads122c04 import ADS122C04 as ADS122C04Model
+from .chips.mcp9600 import MCP9600 as MCP9600Model
+from .clock import VirtualClock
+from .gpio import GpioSim
+from .pwm import SimPwmTree
+from .scene import Fault, MaterialLookup, Scene, read_scene, validate_fault
+from .sim_board import SimBoardParts, make_sim_board
+from .world import BoardDrive, ThermalWorld, Truth, wire_chips
+
+__all__ = ["Simulator", "load_scene", "make_scene_board", "register_scene_board"]
+
+_BUS_FAULTS = ("i2c_nack", "bus_stuck")
+
+
+class Simulator:
+    """Virtual hardware for one scene (see the module docstring).
+
+    Parameters
+    ----------
+    scene : Scene
+        A parsed scene (:func:`firmware_sim.scene.read_scene`).
+    bit_rate_hz : float, optional
+        If given, I2C transfers take their wire time on the virtual clock.
+
+    Attributes
+    ----------
+    scene : Scene
+    clock : VirtualClock
+    gpio : GpioSim
+        Simulated gpiod (``sim.gpio.gpiod`` is the module-like object).
+    pwm : SimPwmTree
+        Simulated sysfs PWM tree.
+    bus : SimBus
+        smbus2-compatible bus with the fitted chips.
+    world : ThermalWorld
+    chips : dict
+        Chip models by name (``"mcp9600"``, ``"ads1115"``, ``"ads122c04"``), fitted ones only.
+    parts : SimBoardParts
+        GPIO chip, PWM channel and line offsets of the board.
+    """
+
+    def __init__(self, scene: Scene, *, bit_rate_hz: float | None = None) -> None:
+        if not isinstance(scene, Scene):
+            raise TypeError(f"scene must be a Scene, got {type(scene).__name__}")
+        self.scene = scene
+        self.clock = VirtualClock()
+        self.gpio = GpioSim(self.clock)
+        self.pwm = SimPwmTree(self.clock)
+        seeds = np.random.SeedSequence(scene.seed).spawn(4)
+        self.bus = SimBus(1, clock=self.clock, rng=np.random.default_rng(seeds[0]), bit_rate_hz=bit_rate_hz)
+        self._board = make_sim_board(clock=self.clock, i2c=self.bus, gpio=self.gpio, pwm_tree=self.pwm)
+        self._board.extras["simulator"] = self
+        self.parts: SimBoardParts = self._board.extras["sim"]
+        self.world = ThermalWorld(scene, self.clock, BoardDrive(self.parts))
+        self.chips: dict[str, Any] = {}
+        self._injected: list[Fault] = []
+        # The PWM tree lives in a temporary directory: remove it even if close() is never called.
+        weakref.finalize(self, self.pwm.close)
+        b, s, w = scene.board, scene.sensors, self.world
+        if b.mcp9600 is not None:
+            self.chips["mcp9600"] = MCP9600Model(
+                self.clock, w.thermocouple_C, w.cold_junction_C, rng=np.random.default_rng(seeds[1]),
+                emf_noise_rms_V=s.mcp9600_emf_noise_rms_V, open_circuit=w.thermocouple_open)
+        if b.ads1115 is not None:
+            self.chips["ads1115"] = ADS1115Model(
+                self.clock, w.ads1115_input_V, noise_rms_V=s.ads1115_noise_rms_V,
+                rng=np.random.default_rng(seeds[2]))
+        if b.ads122c04 is not None:
+            self.chips["ads122c04"] = ADS122C04Model(
+                self.clock, w.ads122c04_input_V, temperature_C=w.cold_junction_C,
+                noise_rms_V=s.ads122c04_noise_rms_V, rng=np.random.default_rng(seeds[3]))
+        wire_chips(w, **self.chips)
+        for name, chip in self.chips.items():
+            self.bus.attach(b.address_of(name), chip)
+        for f in scene.faults:
+            if f.kind in _BUS_FAULTS:
+                self._apply_bus_fault(f)
+        if scene.touch.press_trigger:
+            hold = min(scene.touch.trigger_hold_s, scene.touch.length_s)
+            self.parts.chip.press(self.parts.trigger_offset, scene.touch.start_s, hold)
+
+    # ---- time
+
+    def now(self) -> float:
+        """Current virtual time (s)."""
+        return self.clock.now()
+
+    def advance(self, seconds: float) -> float:
+        """Move virtual time forward by ``seconds``; return the new time."""
+        return self.clock.advance(seconds)
+
+    def advance_to(self, t_s: float) -> float:
+        """Move virtual time forward to ``t_s`` (no-op if already past it)."""
+        return self.clock.advance_to(t_s)
+
+    # ---- the board
+
+    def board(self) -> Board:
+        """The edge Board on this simulator (same object until it is closed, then a new one)."""
+        if self._board.closed:
+            if self.bus.closed:
+                self.bus.open(1)
+            self._board = make_sim_board(clock=self.clock, i2c=self.bus, gpio=self.gpio, pwm_tree=self.pwm)
+            self._board.extras["simulator"] = self
+        return self._board
+
+    # ---- faults
+
+    def inject(self, kind: str, *, at_s: float | None = None, until_s: float | None = None,
+               **params: Any) -> Fault:
+        """Inject a fault from code (same kinds and params as a scene's ``[[faults]]``).
+
+        ``at_s`` defaults to now and may not lie in the past; ``until_s``
+        None means for ever. Returns the validated :class:`Fault`.
+        """
+        at = self.clock.now() if at_s is None else float(at_s)
+        if at < self.clock.now() - 1e-12:
+            raise ValueError(f"at_s={at} s is in the past (now {self.clock.now()} s)")
+        fault = validate_fault(kind, at, until_s, params)
+        if fault.kind == "i2c_nack" and "chip" in fault.params \
+                and self.scene.board.address_of(fault.params["chip"]) is None:
+            raise ValueError(f"params.chip: {fault.params['chip']} is not fitted on this board")
+        if fault.kind in _BUS_FAULTS:
+            self._apply_bus_fault(fault)
+        else:
+            self.world.add_fault(fault)
+        self._injected.append(fault)
+        return fault
+
+    @property
+    def faults(self) -> tuple[Fault, ...]:
+        """Scene faults followed by injected ones."""
+        return tuple(self.scene.faults) + tuple(self._injected)
+
+    def _apply_bus_fault(self, f: Fault) -> None:
+        if f.kind == "bus_stuck":
+            self.bus.stuck(f.at_s, f.until_s)
+            return
+        addr = f.params.get("address")
+        if addr is None:
+            addr = self.scene.board.address_of(f.params["chip"])
+        self.bus.nack(addr, f.at_s, f.until_s)
+
+    # ---- heater invariants for HIL tests
+
+    def heater_intervals(self, t_end_s: float | None = None) -> list[tuple[float, float]]:
+        """Intervals ``(start_s, end_s)`` with electrical power in the film, up to ``t_end_s`` (default now).
+
+        Faults count (a stuck-on heater is on; a dead one is off).
+        """
+        t_end = self.clock.now() if t_end_s is None else float(t_end_s)
+        sched = self.world.power_schedule(t_end)
+        out: list[tuple[float, float]] = []
+        edges = list(sched.t_start_s) + [t_end]
+        for a, b, q in zip(edges[:-1], edges[1:], sched.q_v_W_m3):
+            if q > 0 and b > a:
+                if out and out[-1][1] == a:
+                    out[-1] = (out[-1][0], b)
+                else:
+                    out.append((float(a), float(b)))
+        return out
+
+    def heater_on_time_s(self, t_end_s: float | None = None) -> float:
+        """Total time (s) the heater dissipated power, from 0 to ``t_end_s`` (default now)."""
+        return float(sum(b - a for a, b in self.heater_intervals(t_end_s)))
+
+    def heater_is_on(self) -> bool:
+        """Whether the film dissipates power now."""
+        return self.world.heater_power_W(self.clock.now()) > 0.0
+
+    def heater_energy_J(self, t_end_s: float | None = None) -> float:
+        """Electrical energy dissipated in the film (J) from 0 to ``t_end_s`` (default now)."""
+        t_end = self.clock.now() if t_end_s is None else float(t_end_s)
+        sched = self.world.power_schedule(t_end)
+        return sched.energy_density(t_end) * self.scene.stack.heater_area_m2 * self.scene.stack.heater_thickness_m
+
+    # ---- truth
+
+    def truth(self, t_s: Sequence[float] | None = None, *, dt_s: float = 0.01) -> Truth:
+        """Exact surface temperature, thermocouple reading and flux at ``t_s``.
+
+        Default times: 0, dt_s, ... up to now.
+        """
+        if t_s is None:
+            n = int(np.floor(self.clock.now() / dt_s + 1e-9))
+            t_s = np.arange(n + 1) * dt_s
+        return self.world.truth(t_s)
+
+    # ---- lifecycle
+
+    def close(self) -> None:
+        """Close the board and remove the temporary PWM tree."""
+        try:
+            if not self._board.closed:
+                self._board.close()
+        finally:
+            self.pwm.close()
+
+    def __enter__(self) -> Simulator:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<Simulator scene={self.scene.name!r} t={self.clock.now():.6f}s chips={sorted(self.chips)}>"
+
+
+def load_scene(path_or_name: str | Path, *, material_lookup: MaterialLookup | None = None,
+               bit_rate_hz: float | None = None) -> Simulator:
+    """A :class:`Simulator` for a scene file or shipped scene name (e.g. ``"glass_15V"``).
+
+    Raises
+    ------
+    SceneError
+        If the file is invalid (the message names the key).
+    FileNotFoundError
+        If there is no such file or shipped scene.
+    """
+    return Simulator(read_scene(path_or_name, material_lookup=material_lookup), bit_rate_hz=bit_rate_hz)
+
+
+def make_scene_board(scene: str | Path | Scene | None = None, **options: Any) -> Board:
+    """Board factory for ``make_board("sim", scene=...)``.
+
+    With ``scene`` (a name, path or Scene) the board sits on a new
+    :class:`Simulator` (``board.extras["simulator"]``); without it this is
+    :func:`firmware_sim.sim_board.make_sim_board` with ``options``.
+    """
+    if scene is None:
+        return make_sim_board(**options)
+    if options:
+        raise ValueError(f"options {sorted(options)} cannot be combined with scene=")
+    sim = Simulator(scene) if isinstance(scene, Scene) else load_scene(scene)
+    return sim.board()
+
+
+def register_scene_board(name: str = "sim") -> None:
+    """Register :func:`make_scene_board` as board kind ``name``."""
+    register_board_factory(name, make_scene_board, replace=True)
