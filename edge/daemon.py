@@ -68,7 +68,7 @@ from edge.sequence import (
 )
 
 __all__ = ["FIRMWARE_VERSION", "ModelEstimator", "Daemon", "run_daemon", "DaemonThread", "board_from_config",
-           "main"]
+           "install_signal_handlers", "main"]
 
 log = logging.getLogger("thermotouch.edge")
 
@@ -563,6 +563,23 @@ class DaemonThread:
 # Console entry point
 
 
+def install_signal_handlers(stop_event: threading.Event) -> None:
+    """SIGTERM and SIGINT set ``stop_event`` (call from the main thread).
+
+    The handler only sets the event: the heater watchdog then cuts a running
+    heating within its poll period, the sampling loop ends, the serve loop
+    returns and :meth:`Daemon.close` runs. Switching the heater from inside
+    the handler could interleave with a half-finished ``Heater.on``.
+    """
+
+    def on_signal(signum: int, _frame: Any) -> None:
+        log.info("signal %s: stopping", signal.Signals(signum).name)
+        stop_event.set()
+
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
+
+
 def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="thermotouch-edge", description="ThermoTouch probe daemon")
     p.add_argument("--config", required=True, help="TOML configuration file")
@@ -584,14 +601,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{args.config}: OK", file=sys.stderr)
         return 0
     stop = threading.Event()
-
-    def on_signal(signum: int, _frame: Any) -> None:
-        # Only set the event: the watchdog cuts a running heating at once, the loops end.
-        log.info("signal %s: stopping", signal.Signals(signum).name)
-        stop.set()
-
-    signal.signal(signal.SIGTERM, on_signal)
-    signal.signal(signal.SIGINT, on_signal)
+    install_signal_handlers(stop)
     try:
         board = board_from_config(cfg)
     except Exception as e:

@@ -358,13 +358,17 @@ def quality_flags(base_t: np.ndarray, base_T: np.ndarray, base_q: np.ndarray, he
     if saturated:
         flags.append("saturated")
     if base_T.size >= 3:
-        if float(np.std(base_T)) > thresholds.noise_T_K or float(np.std(base_q)) > thresholds.noise_q_W_m2:
-            flags.append("noisy")
-        span = float(base_t[-1] - base_t[0])
+        # Noise is the scatter about the baseline's trend; the trend itself is drift.
+        x = base_t - base_t[0]
+        span = float(x[-1])
+        slope, resid_T = 0.0, base_T - np.mean(base_T)
         if span > 0:
-            slope = float(np.polyfit(base_t - base_t[0], base_T, 1)[0])
-            if abs(slope) * span > thresholds.unstable_baseline_K:
-                flags.append("unstable_baseline")
+            coef = np.polyfit(x, base_T, 1)
+            slope, resid_T = float(coef[0]), base_T - np.polyval(coef, x)
+        if float(np.std(resid_T)) > thresholds.noise_T_K or float(np.std(base_q)) > thresholds.noise_q_W_m2:
+            flags.append("noisy")
+        if abs(slope) * span > thresholds.unstable_baseline_K:
+            flags.append("unstable_baseline")
     return flags
 
 
@@ -551,7 +555,10 @@ class MeasurementSequence:
         out = Outcome(started_utc=utc_now(), power_W=params.power_W,
                       contact_time_s=params.contact_time_s, sample_rate_Hz=params.sample_rate_Hz)
         period = 1.0 / params.sample_rate_Hz
-        heat_s = min(params.contact_time_s, self.limits.max_on_time_s)  # hard cap on the request
+        # Hard cap on the request, below the watchdog's trip point.
+        heat_s = min(params.contact_time_s, self.limits.max_on_time_s - 2 * self.watchdog.guard_s)
+        if heat_s < params.contact_time_s:
+            log.warning("contact_time_s=%g s clamped to %g s by max_on_time_s", params.contact_time_s, heat_s)
         ts: list[float] = []
         Ts: list[float] = []
         qs: list[float] = []
@@ -582,7 +589,8 @@ class MeasurementSequence:
                 for k in range(int(math.floor(heat_s * params.sample_rate_Hz + 1e-9)) + 1):
                     self._wait(t_on + k * period)
                     if not self.heater.is_on:
-                        raise _Stop(self.watchdog.tripped or "heater_cut", "heater was cut by the watchdog")
+                        why = {"abort": "stopped"}.get(self.watchdog.tripped, self.watchdog.tripped)
+                        raise _Stop(why or "heater_cut", f"heater was cut by the watchdog ({why})")
                     on_s = self.clock.monotonic() - t_on
                     # Watchdog in the loop: no read may end past the limit.
                     if on_s + self._max_read_s >= self.limits.max_on_time_s - guard:

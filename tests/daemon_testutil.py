@@ -1,0 +1,92 @@
+"""Shared helpers for the daemon / sequence / safety tests."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from edge.config import Config
+from edge.drivers.heater import Heater
+from edge.sequence import Limits, MeasurementParams, MeasurementSequence, make_sensors
+from firmware_sim.daemon_rig import heater_invariant, make_rig
+
+
+def sim_config(tmp: Path, **sections) -> Config:
+    """A sim-board config with every path under ``tmp``; ``sections`` override tables."""
+    values = {
+        "board": {"kind": "sim"},
+        "paths": {"model_store": str(tmp / "models"), "history_db": str(tmp / "history.db"),
+                  "runtime_overrides": str(tmp / "runtime.json")},
+        "measurement": {"cooldown_s": 1.0},
+    }
+    for name, table in sections.items():
+        values.setdefault(name, {}).update(table)
+    return Config(values, source="test")
+
+
+class FakeEstimator:
+    """Semi-infinite-body effusivity from the end point; records its calls.
+
+    ``parts``: if given, the simulated heater state is sampled at each call
+    (to prove the heater is off before estimation starts).
+    """
+
+    def __init__(self, parts=None, flags=()) -> None:
+        self.calls = []
+        self.parts = parts
+        self.flags = list(flags)
+        self.heater_on_at_call = []
+
+    def __call__(self, t, dT, q, q_v, method):
+        if self.parts is not None:
+            self.heater_on_at_call.append(self.parts.chip.level(self.parts.heater_enable_offset) == 1)
+        self.calls.append((np.array(t), np.array(dT), np.array(q), q_v, method))
+        e = 2.0 * float(np.mean(q)) * math.sqrt(t[-1] / math.pi) / float(dT[-1]) if dT[-1] > 0 else None
+        return {"effusivity_W_s05_m2K": e, "method": method, "model_sha256": "f" * 64, "flags": list(self.flags)}
+
+
+class CrashingEstimator(FakeEstimator):
+    def __call__(self, *args):
+        super().__call__(*args)
+        raise FloatingPointError("estimator blew up")
+
+
+def assert_heater_safe(parts, max_on_time_s: float) -> dict:
+    """The heater invariant, read from the simulated GPIO/PWM history."""
+    inv = heater_invariant(parts, max_on_time_s)
+    assert inv["off_now"], f"heater still on: {inv}"
+    assert inv["longest_on_s"] <= max_on_time_s + 1e-9, f"heater on too long: {inv}"
+    return inv
+
+
+def make_sequence(rig=None, *, cfg: Config | None = None, estimator=None, sensors=None, **rig_kw):
+    """(rig, heater, sequence, params) on a fresh rig."""
+    rig = rig or make_rig(**rig_kw)
+    cfg = cfg or Config()
+    heater = Heater(rig.board, supply_voltage_v=cfg.heater.supply_voltage_V, resistance_ohm=cfg.heater.resistance_ohm)
+    sensors = sensors or make_sensors(rig.board, cfg.sensors)
+    est = estimator if estimator is not None else FakeEstimator(rig.parts)
+    seq = MeasurementSequence(heater, sensors, rig.clock,
+                              Limits(cfg.heater.max_on_time_s, cfg.heater.over_temperature_C), est, cfg.measurement)
+    m = cfg.measurement
+    params = MeasurementParams(power_W=cfg.heater.power_W, contact_time_s=m.contact_time_s, baseline_s=m.baseline_s,
+                               sample_rate_Hz=m.sample_rate_Hz, cooldown_s=m.cooldown_s)
+    return rig, heater, seq, params
+
+
+class HookedSensors:
+    """Wraps real sensors; ``hook(n, heater_on)`` runs before read number n (0-based)."""
+
+    def __init__(self, inner, heater, hook) -> None:
+        self.inner = inner
+        self.heater = heater
+        self.hook = hook
+        self.n = 0
+
+    def read(self):
+        n = self.n
+        self.n += 1
+        self.hook(n, self.heater.is_on)
+        return self.inner.read()
