@@ -73,6 +73,8 @@ __all__ = ["FIRMWARE_VERSION", "ModelEstimator", "Daemon", "run_daemon", "Daemon
 log = logging.getLogger("thermotouch.edge")
 
 FIRMWARE_VERSION = edge.__version__
+#: Largest model upload held in memory (bytes); keeps the daemon within its RAM budget.
+MAX_UPLOAD_BYTES = 8 * 1024 * 1024
 #: Bytes kept free in a reply for the frame's JSON envelope.
 _REPLY_MARGIN = 256
 
@@ -155,14 +157,20 @@ class Daemon:
         Set to stop serving; also aborts a running measurement.
     model_store, history : optional
         Injected instances (default: built from ``[paths]``).
+    max_payload : int
+        Frame payload bound, bytes (replies are cut to fit).
+    max_upload_bytes : int
+        Largest model upload accepted (held in memory until commit).
     """
 
     def __init__(self, config: Config, board: Board, *, estimator: EstimatorFn | None = None,
                  stop_event: threading.Event | None = None, model_store: ModelStore | None = None,
-                 history: History | None = None, max_payload: int = DEFAULT_MAX_PAYLOAD) -> None:
+                 history: History | None = None, max_payload: int = DEFAULT_MAX_PAYLOAD,
+                 max_upload_bytes: int = MAX_UPLOAD_BYTES) -> None:
         self.board = board
         self.stop_event = stop_event if stop_event is not None else threading.Event()
         self.max_payload = max_payload
+        self.max_upload_bytes = int(max_upload_bytes)
         h = config.heater
         # The heater goes OFF before anything else (its constructor drives both channels off).
         self.heater = Heater(board, supply_voltage_v=h.supply_voltage_V, resistance_ohm=h.resistance_ohm,
@@ -390,9 +398,10 @@ class Daemon:
 
     def _cmd_model_begin(self, args: dict) -> dict:
         size = args["size"]
-        if size > self.store.limits.max_blob_bytes:
-            raise CommandError(ErrorCode.MODEL_REJECTED, f"size {size} B exceeds the store's limit of "
-                               f"{self.store.limits.max_blob_bytes} B", "size")
+        limit = min(self.store.limits.max_blob_bytes, self.max_upload_bytes)
+        if size > limit:
+            raise CommandError(ErrorCode.MODEL_REJECTED, f"size {size} B exceeds the upload limit of {limit} B",
+                               "size")
         self.upload = _Upload(size, args["sha256"], args.get("version"))
         log.info("model upload started: %d B, sha256 %s", size, args["sha256"][:12])
         return {"size": size}
@@ -424,7 +433,7 @@ class Daemon:
         try:
             bundle = self.store.install(bytes(up.data), up.sha256, up.size)
         except InstallError as e:
-            detail = f"{e}: {e.__cause__}" if e.__cause__ is not None else str(e)
+            detail = str(e)  # InstallError's message already carries the cause
             log.warning("model upload refused: %s", detail)
             raise CommandError(ErrorCode.MODEL_REJECTED, detail[:1000]) from None
         log.info("model %s (%s) installed", bundle.model_version, bundle.sha256[:12])

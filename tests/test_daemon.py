@@ -1,0 +1,257 @@
+"""The daemon over a virtual null-modem cable, driven by host.client.DeviceClient."""
+
+import contextlib
+import hashlib
+import json
+
+import numpy as np
+import pytest
+import serial
+
+from bundle_testutil import make_arrays, make_golden, manifest_extra, npz_bytes, write_raw_bundle
+from daemon_testutil import FakeEstimator, assert_heater_safe, sim_config
+from edge import bundle as B
+from edge.config import Config
+from edge.daemon import FIRMWARE_VERSION, DaemonThread, main
+from edge.protocol import Command, ErrorCode, encode_frame, encode_request
+from firmware_sim.daemon_rig import make_rig
+from firmware_sim.ptylink import NullModem
+from host.client import DeviceClient, DeviceError
+
+pytestmark = pytest.mark.hil
+MAX_ON = Config().heater.max_on_time_s
+
+
+@pytest.fixture(scope="module")
+def bundles(tmp_path_factory):
+    d = tmp_path_factory.mktemp("bundles")
+    out = {}
+    for tag, seed in (("factory", 1), ("new", 2)):
+        arrays = make_arrays(seed=seed, hidden=(12, 5))
+        b = B.write_bundle(d / tag, arrays, make_golden(arrays), manifest_extra(tag))
+        out[tag] = b
+    arrays = make_arrays(seed=3, hidden=(12, 5))
+    g = make_golden(arrays)
+    g["mlp_outputs"] = g["mlp_outputs"] + 0.01  # golden vectors that do not reproduce
+    bad = write_raw_bundle(d / "bad_golden", npz_bytes(arrays), npz_bytes(g))
+    out["bad_golden_blob"] = B.pack_entries([(n.encode(), (bad / n).read_bytes()) for n in B.BUNDLE_FILES])
+    arrays = make_arrays(seed=4, hidden=(12, 5))
+    arrays["x_mean"] = arrays["x_mean"].copy()
+    arrays["x_mean"][0] = np.nan
+    nan = write_raw_bundle(d / "nan", npz_bytes(arrays), npz_bytes(make_golden(make_arrays(seed=4, hidden=(12, 5)))))
+    out["nan_blob"] = B.pack_entries([(n.encode(), (nan / n).read_bytes()) for n in B.BUNDLE_FILES])
+    arrays = make_arrays(seed=5, hidden=(12, 5))
+    arrays["x_mean"] = np.array([object()] * 8, dtype=object)
+    obj = write_raw_bundle(d / "obj", npz_bytes(arrays, allow_pickle=True), npz_bytes(make_golden(make_arrays(seed=5))))
+    out["object_blob"] = B.pack_entries([(n.encode(), (obj / n).read_bytes()) for n in B.BUNDLE_FILES])
+    return out
+
+
+@contextlib.contextmanager
+def running(tmp_path, bundles=None, estimator=None, rig=None, **sections):
+    rig = rig or make_rig()
+    if bundles is not None:
+        sections.setdefault("paths", {})["factory_model"] = str(bundles["factory"].path)
+    cfg = sim_config(tmp_path, **sections)
+    with NullModem() as nm, serial.Serial(nm.device_port, timeout=0.05) as port:
+        with DaemonThread(cfg, rig.board, port, estimator=estimator or FakeEstimator(rig.parts)) as dt:
+            with DeviceClient(nm.host_port, timeout_s=5.0) as client:
+                yield client, dt.daemon, rig, nm
+            assert dt.thread.is_alive()
+        assert not dt.thread.is_alive() and dt.error is None
+    assert_heater_safe(rig.parts, cfg.heater.max_on_time_s)
+
+
+def test_info_status_ping(tmp_path, bundles):
+    with running(tmp_path, bundles) as (c, d, rig, nm):
+        info = c.info()
+        assert info["firmware_version"] == FIRMWARE_VERSION and info["board"] == "sim"
+        assert info["model_sha256"] == bundles["factory"].sha256 and info["model_version"] == "factory"
+        assert info["model_source"] == "factory" and info["protocol_version"] == 1
+        st = c.status()
+        assert st["state"] == "idle" and st["heater_on"] is False and st["history_total"] == 0
+        assert c.ping("hi") == {"echo": "hi"}
+
+
+def test_measure_result_and_history_paging(tmp_path, bundles):
+    with running(tmp_path, bundles) as (c, d, rig, nm):
+        recs = [c.measure(contact_time_s=1.0 + 0.2 * i) for i in range(5)]
+        assert [r["measurement_id"] for r in recs] == [1, 2, 3, 4, 5]
+        assert all(r["status"] == "ok" and r["result"]["effusivity_W_s05_m2K"] > 0 for r in recs)
+        assert recs[2]["contact_time_s"] == pytest.approx(1.4)
+        assert c.result()["measurement_id"] == 5
+        assert c.result(2)["contact_time_s"] == pytest.approx(1.2)
+        with pytest.raises(DeviceError) as ei:
+            c.result(99)
+        assert ei.value.code == ErrorCode.NOT_FOUND
+        p = c.history(0, 2)
+        assert p["total"] == 5 and [r["measurement_id"] for r in p["items"]] == [5, 4]
+        p = c.history(2, 2)
+        assert [r["measurement_id"] for r in p["items"]] == [3, 2]
+        assert [r["measurement_id"] for r in c.history(4, 100)["items"]] == [1]
+        assert c.history(5, 2)["items"] == []
+        assert c.status()["last_measurement_id"] == 5
+
+
+def test_history_page_is_cut_to_fit_one_reply(tmp_path):
+    big = {"effusivity_W_s05_m2K": 1.0, "note": "x" * 900, "flags": []}
+    with running(tmp_path, estimator=lambda *a: dict(big)) as (c, d, rig, nm):
+        for _ in range(6):
+            c.measure(contact_time_s=0.5)
+        p = c.history(0, 6)
+        assert p["total"] == 6 and 1 <= len(p["items"]) < 6
+        assert len(json.dumps(p)) <= 4096
+        rest = c.history(len(p["items"]), 6)["items"]
+        assert rest[0]["measurement_id"] == 6 - len(p["items"])
+
+
+def test_measure_arguments_are_checked(tmp_path):
+    with running(tmp_path) as (c, d, rig, nm):
+        with pytest.raises(DeviceError) as ei:
+            c.measure(power_W=20.0)
+        assert ei.value.code == ErrorCode.BAD_ARGUMENT and ei.value.field == "power_W"
+        with pytest.raises(DeviceError) as ei:
+            c.measure(contact_time_s=15.0)
+        assert ei.value.field == "contact_time_s"
+        with pytest.raises(DeviceError) as ei:
+            c.measure(voltage_V=30.0)
+        assert ei.value.field == "voltage_V"
+        rec = c.measure(voltage_V=10.0, contact_time_s=1.0)
+        assert rec["power_W"] == pytest.approx(100 / 44.0)
+        assert c.status()["history_total"] == 1
+
+
+def test_config_get_set_validation_and_persistence(tmp_path):
+    with running(tmp_path) as (c, d, rig, nm):
+        assert c.config_get("heater.power_W", "heater.max_on_time_s") == {"heater.power_W": 5.0,
+                                                                          "heater.max_on_time_s": 10.0}
+        assert len(c.config_get()) > 40
+        for values, field in ((({"heater.power_W": 99.0}), "heater.power_W"),
+                              ({"heater.max_on_time_s": 30.0}, "heater.max_on_time_s"),
+                              ({"measurement.sample_rate_Hz": "fast"}, "measurement.sample_rate_Hz"),
+                              ({"nosuch.key": 1}, "nosuch.key"),
+                              ({"measurement.contact_time_s": 10.0}, "measurement.contact_time_s")):
+            with pytest.raises(DeviceError) as ei:
+                c.config_set(**values)
+            assert ei.value.code == ErrorCode.BAD_ARGUMENT and ei.value.field == field
+        with pytest.raises(DeviceError) as ei:
+            c.config_get("nosuch.key")
+        assert ei.value.field == "nosuch.key"
+        new = c.config_set(**{"heater.power_W": 2.0, "measurement.contact_time_s": 1.0})
+        assert new["heater.power_W"] == 2.0
+        rec = c.measure()
+        assert rec["power_W"] == 2.0 and rec["contact_time_s"] == 1.0
+    # A restarted daemon keeps the runtime settings and the history.
+    with running(tmp_path) as (c, d, rig, nm):
+        assert c.config_get("heater.power_W") == {"heater.power_W": 2.0}
+        assert c.history()["total"] == 1
+
+
+def _raw_upload(c, blob, sha=None, size=None):
+    sha = sha or hashlib.sha256(blob).hexdigest()
+    c.request(Command.MODEL_BEGIN, {"size": size or len(blob), "sha256": sha})
+    for off in range(0, len(blob), 4000):
+        c.request(Command.MODEL_CHUNK, {"offset": off, "data": blob[off:off + 4000]})
+    return c.request(Command.MODEL_COMMIT)
+
+
+def test_model_upload_switches_and_hostile_bundles_are_refused(tmp_path, bundles):
+    with running(tmp_path, bundles) as (c, d, rig, nm):
+        factory = bundles["factory"].sha256
+        hostile = {
+            "wrong_hash": lambda blob: _raw_upload(c, blob, sha="0" * 64),
+            "bad_golden": lambda blob: _raw_upload(c, bundles["bad_golden_blob"]),
+            "nan": lambda blob: _raw_upload(c, bundles["nan_blob"]),
+            "object_array": lambda blob: _raw_upload(c, bundles["object_blob"]),
+            "truncated": lambda blob: _raw_upload(c, blob[:-100]),
+            "garbage": lambda blob: _raw_upload(c, b"TTBUNDLE" + bytes(range(256)) * 4),
+        }
+        new_blob = B.bundle_to_bytes(bundles["new"].path)
+        for name, attempt in hostile.items():
+            with pytest.raises(DeviceError) as ei:
+                attempt(new_blob)
+            assert ei.value.code == ErrorCode.MODEL_REJECTED, name
+            assert c.info()["model_sha256"] == factory, name
+        # Incomplete upload: commit refused, nothing changes.
+        c.request(Command.MODEL_BEGIN, {"size": len(new_blob), "sha256": hashlib.sha256(new_blob).hexdigest()})
+        c.request(Command.MODEL_CHUNK, {"offset": 0, "data": new_blob[:100]})
+        with pytest.raises(DeviceError) as ei:
+            c.request(Command.MODEL_COMMIT)
+        assert ei.value.code == ErrorCode.BAD_STATE
+        # The upload stays open and can continue after a premature commit; then it is abandoned.
+        assert c.request(Command.MODEL_CHUNK, {"offset": 100, "data": new_blob[100:200]})["received"] == 200
+        c.request(Command.MODEL_ABORT)
+        with pytest.raises(DeviceError) as ei:
+            c.request(Command.MODEL_CHUNK, {"offset": 200, "data": new_blob[200:300]})
+        assert ei.value.code == ErrorCode.BAD_STATE
+        # Oversized announcement.
+        with pytest.raises(DeviceError) as ei:
+            c.request(Command.MODEL_BEGIN, {"size": 64 * 1024 * 1024, "sha256": "1" * 64})
+        assert ei.value.code in (ErrorCode.MODEL_REJECTED, ErrorCode.BAD_ARGUMENT)
+        assert c.measure(contact_time_s=0.5)["model_sha256"] == "f" * 64  # the old model keeps serving
+        # A valid upload switches, with a resent chunk in the middle.
+        res = c.upload_model(new_blob, chunk_size=1000)
+        assert res["bundle_sha256"] == bundles["new"].sha256 and res["model_version"] == "new"
+        info = c.info()
+        assert info["model_sha256"] == bundles["new"].sha256 and info["model_source"] == "current"
+        assert d._model_sha256() == bundles["new"].sha256
+    with running(tmp_path, bundles) as (c, d, rig, nm):
+        assert c.info()["model_sha256"] == bundles["new"].sha256  # survives a restart
+
+
+def test_chunks_must_be_contiguous(tmp_path, bundles):
+    blob = B.bundle_to_bytes(bundles["new"].path)
+    with running(tmp_path, bundles) as (c, d, rig, nm):
+        c.request(Command.MODEL_BEGIN, {"size": len(blob), "sha256": hashlib.sha256(blob).hexdigest()})
+        assert c.request(Command.MODEL_CHUNK, {"offset": 0, "data": blob[:500]})["received"] == 500
+        assert c.request(Command.MODEL_CHUNK, {"offset": 0, "data": blob[:500]})["received"] == 500  # resend
+        with pytest.raises(DeviceError) as ei:
+            c.request(Command.MODEL_CHUNK, {"offset": 900, "data": blob[900:1000]})
+        assert ei.value.field == "offset"
+        with pytest.raises(DeviceError) as ei:
+            c.request(Command.MODEL_CHUNK, {"offset": len(blob) - 10, "data": b"\0" * 100})
+        assert ei.value.field == "offset"
+        c.request(Command.MODEL_ABORT)
+        with pytest.raises(DeviceError) as ei:
+            c.request(Command.MODEL_COMMIT)
+        assert ei.value.code == ErrorCode.BAD_STATE
+
+
+def test_garbage_on_the_line_does_not_stop_the_daemon(tmp_path):
+    rng = np.random.default_rng(7)
+    with running(tmp_path) as (c, d, rig, nm):
+        raw = c.ser
+        good = encode_request(Command.PING, 1000, {"echo": "x"})
+        junk = [rng.bytes(int(rng.integers(1, 3000))) for _ in range(20)]
+        for i in range(30):  # mutated valid frames
+            b = bytearray(good)
+            for _ in range(int(rng.integers(1, 4))):
+                b[int(rng.integers(1, len(b) - 1))] = int(rng.integers(0, 256))
+            junk.append(bytes(b))
+        junk += [b"\x00" * 50, b"\xff" * 20000, good[:-3],
+                 encode_frame(0x7E, 5, b"{}"), encode_frame(Command.MEASURE, 6, b"[1,2]"),
+                 encode_frame(Command.CONFIG_SET, 8, b'{"values": {"heater.power_W": 1e400}}'),
+                 encode_frame(Command.HISTORY, 9, b'{"offset": -1}')]
+        for j in junk:
+            raw.write(j)
+        raw.flush()
+        # Whatever the junk provoked (error replies, a measurement), the daemon answers.
+        for _ in range(3):
+            try:
+                assert c.ping("after")["echo"] == "after"
+                break
+            except Exception:
+                continue
+        else:
+            pytest.fail("daemon stopped answering")
+        assert c.info()["board"] == "sim" and d.state in ("idle",)
+        assert c.status()["heater_on"] is False
+
+
+def test_console_script_rejects_a_bad_config(tmp_path, capsys):
+    p = tmp_path / "edge.toml"
+    p.write_text("[heater]\nmax_on_time_s = 99\n")
+    assert main(["--config", str(p)]) == 2
+    assert "heater.max_on_time_s" in capsys.readouterr().err
+    p.write_text("[heater]\npower_W = 1.0\n")
+    assert main(["--config", str(p), "--check-config"]) == 0
