@@ -193,7 +193,18 @@ SCHEMA_V1 = Schema(
         "lib_class": ArraySpec(
             "U", ("n_materials",), required=False, group="lib", max_str_len=64, doc="Material class labels."
         ),
-        "prior_coef": ArraySpec("f", ("n_coef",), required=False, doc="Prior-model coefficients."),
+        "prior_coef": ArraySpec(
+            "f", ("n_coef",), required=False,
+            doc="Prior-model coefficients (edge.estimate.PRIOR_COEF_NAMES: kernel width and spreads in ln units).",
+        ),
+        "pca_score_min": ArraySpec(
+            "f", ("n_components",), required=False, group="pca_range",
+            doc="Smallest PCA score per component over the training set (range flag).",
+        ),
+        "pca_score_max": ArraySpec(
+            "f", ("n_components",), required=False, group="pca_range",
+            doc="Largest PCA score per component over the training set (range flag).",
+        ),
     },
     golden={
         "mlp_inputs": ArraySpec(
@@ -201,6 +212,14 @@ SCHEMA_V1 = Schema(
         ),
         "mlp_outputs": ArraySpec(
             "f", ("n_golden",), max_elements=100_000, doc="Expected raw MLP outputs (before y_transform)."
+        ),
+        "pipeline_features": ArraySpec(
+            "f", ("n_golden_pipeline", "n_features"), required=False, group="pipeline_golden",
+            max_elements=100_000, doc="Raw features u1..u8 fed to the whole paper pipeline.",
+        ),
+        "pipeline_k": ArraySpec(
+            "f", ("n_golden_pipeline",), required=False, group="pipeline_golden", max_elements=100_000,
+            doc="Expected k (W/m/K) from the whole paper pipeline for pipeline_features.",
         ),
     },
     families=(

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 
 import numpy as np
@@ -117,9 +118,146 @@ def cmd_model(args) -> int:
     return 0
 
 
+# --- train / evaluate / estimate ----------------------------------------------------
+
+def _load_estimator(path, method="default"):
+    from edge.bundle import BundleError, load_bundle
+    from edge.estimate import Estimator, pipeline_golden_check
+
+    if path is None:
+        from thermotouch_models import DEFAULT_BUNDLE
+
+        path = DEFAULT_BUNDLE
+    try:
+        bundle = load_bundle(path, golden_check=pipeline_golden_check)
+    except BundleError as exc:
+        raise CliError(f"thermotouch: bundle {path} refused: {exc}", 2) from None
+    est = Estimator.from_bundle(bundle)
+    if method == "paper" and not est.has_paper:
+        raise CliError(f"thermotouch: bundle {path} has no paper network", 2)
+    return est, bundle
+
+
+def _add_train(sub):
+    p = sub.add_parser("train", help="generate the training set, train the paper network, write a bundle")
+    p.add_argument("--out", required=True, help="bundle directory to create")
+    p.add_argument("--quick", action="store_true", help="6 power levels, no noisy copies, fewer iterations")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--overwrite", action="store_true")
+    p.set_defaults(func=cmd_train)
+
+
+def cmd_train(args) -> int:
+    import warnings
+
+    from host.train import train_bundle
+
+    try:
+        from tqdm import tqdm
+    except ImportError:  # pragma: no cover - tqdm is in the host extra
+        tqdm = None
+    bar = tqdm(total=0, desc="training set", unit="material", file=sys.stderr) if tqdm else None
+
+    def progress(i, n):
+        if bar is not None:
+            bar.total = n
+            bar.n = i
+            bar.refresh()
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # sklearn convergence chatter; metrics tell the truth
+        try:
+            train_bundle(args.out, quick=args.quick, seed=args.seed, progress=progress, overwrite=args.overwrite,
+                         log=lambda s: print(s, file=sys.stderr))
+        except FileExistsError:
+            raise CliError(f"thermotouch train: {args.out} exists (use --overwrite)") from None
+        finally:
+            if bar is not None:
+                bar.close()
+    return 0
+
+
+def _add_evaluate(sub):
+    p = sub.add_parser("evaluate", help="accuracy tables of a bundle on simulated measurements")
+    p.add_argument("bundle", nargs="?", default=None, help="bundle directory (default: the shipped one)")
+    p.add_argument("--instrument", choices=("mcp9600", "ads122c04"), default="ads122c04")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_evaluate)
+
+
+def cmd_evaluate(args) -> int:
+    from host.evaluate import identification, paper_cases
+
+    est, bundle = _load_estimator(args.bundle)
+    rows = paper_cases(est, args.instrument, repeats=3)
+    ident = identification(est, args.instrument, touches=2)
+    if args.json:
+        print(json.dumps({"paper_cases": rows, "identification": ident, "model_sha256": bundle.sha256}))
+        return 0
+    print(f"bundle {bundle.sha256[:12]}, instrument {args.instrument}; mean errors over 3 noisy touches")
+    print(f"{'sample':16} {'V':>4} {'method':8} {'e err':>7} {'k err':>7} {'alpha err':>9}")
+    for r in rows:
+        f = lambda x: "   -   " if x is None else f"{x * 100:+6.1f}%"
+        print(f"{r['sample']:16} {r['voltage_V']:4.0f} {r['method']:8} {f(r['e_err']):>7} {f(r['k_err']):>7} "
+              f"{f(r['alpha_err']):>9}")
+    print(f"identification: top-1 {ident['top1'] * 100:.1f} % of {ident['touches']} touches; "
+          f"{(ident['top1_resolvable'] or 0) * 100:.1f} % where effusivities differ by > 2 u")
+    print("by class: " + ", ".join(f"{c} {v * 100:.0f} %" for c, v in ident["by_class"].items()))
+    return 0
+
+
+def _add_estimate(sub):
+    p = sub.add_parser("estimate", help="e, k, alpha and the material from a recorded series")
+    p.add_argument("--bundle", default=None, help="bundle directory (default: the shipped one)")
+    p.add_argument("--csv", required=True, help="record: columns t_s, T_K or dT_K, q_W_m2")
+    p.add_argument("--method", choices=("paper", "default"), default="default")
+    p.add_argument("--thickness", type=_float("--thickness"), default=None, help="known object thickness, m")
+    p.add_argument("--back", choices=("insulated", "fixed"), default="insulated",
+                   help="back boundary when --thickness is given")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_estimate)
+
+
+def cmd_estimate(args) -> int:
+    from host.records import RecordError, read_record
+
+    est, _ = _load_estimator(args.bundle, args.method)
+    try:
+        t, dT, q = read_record(args.csv)
+    except RecordError as exc:
+        raise CliError(f"thermotouch estimate: {exc}") from None
+    try:
+        r = est.estimate(t, dT, q, method=args.method, thickness_m=args.thickness,
+                         back=args.back if args.thickness else "infinite")
+    except ValueError as exc:
+        raise CliError(f"thermotouch estimate: {exc}") from None
+    d = r.to_dict()
+    if args.json:
+        print(json.dumps(d))
+        return 0
+    print_result(d)
+    return 0
+
+
+def print_result(d: dict) -> None:
+    """Human-readable estimate (rounded to its uncertainty)."""
+    def fmt(v, u, unit):
+        if v is None:
+            return "n/a"
+        digits = max(0, 1 - int(math.floor(math.log10(u)))) if u and u > 0 else 3
+        return f"{v:.{2}g} ± {u:.1g} {unit}" if digits == 0 else f"{v:.4g} ± {u:.2g} {unit}"
+
+    print(f"effusivity  {fmt(d['effusivity_W_s05_m2K'], d['effusivity_W_s05_m2K_u'], 'W s^0.5/m^2/K')}")
+    print(f"conductivity {fmt(d['k_W_mK'], d['k_W_mK_u'], 'W/m/K')}")
+    print(f"diffusivity {fmt(d['alpha_m2_s'], d['alpha_m2_s_u'], 'm^2/s')}")
+    if d["material"]:
+        print(f"material    {d['material']} (confidence {d['material_confidence'] * 100:.0f} %)")
+    print(f"method {d['method']}, model {d['model_sha256'][:12]}, flags: {', '.join(d['flags']) or 'none'}")
+
+
 # --- entry point -----------------------------------------------------------------
 
-_ADDERS = [_add_model]
+_ADDERS = [_add_model, _add_train, _add_evaluate, _add_estimate]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,127 @@
+"""Training sets: the forward model for every material x power level.
+
+The paper's set (section 3.2): every library material at 21 heater power
+densities from 4.0e7 to 1.4e8 W/m^3 for 1.95 s.  The model is linear in q_v,
+so each material is simulated once (edge.forward, default scheme) and scaled
+to every level.  Each series is then observed as the instruments observe it
+(edge.instrument: own sampling rate, noise, ADC quantisation, flux range) and
+resampled onto the model's 0.01-s grid by cubic spline before features are
+taken - the same path a real measurement follows on the device.  Optional
+noisy copies augment the clean series.  Deterministic for a seed; cached on
+disk (``$THERMOTOUCH_CACHE`` or ``~/.cache/thermotouch``) under a hash of
+every input, including the library's content and the feature version.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from edge.features import FEATURE_VERSION, paper_features
+from edge.forward import step_response
+from edge.instrument import INSTRUMENTS
+from edge.solids import STACKS, Solid
+from edge.spline import resample
+from host.materials import MaterialLibrary
+
+PAPER_LEVELS_W_M3 = tuple(np.round(np.arange(4.0e7, 1.4e8 + 1.0, 5e6)).tolist())
+CODE_VERSION = 1  # bump when the generation procedure changes
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """Everything that determines a training set."""
+
+    levels_W_m3: tuple = PAPER_LEVELS_W_M3
+    duration_s: float = 1.95
+    dt_s: float = 0.01
+    back: str = "infinite"
+    thickness_m: float | None = None
+    stack: str = "0.42"
+    instrument: str | None = "mcp9600"
+    noisy_copies: int = 2
+    seed: int = 20240108
+    exclude: tuple = field(default_factory=tuple)
+
+
+@dataclass
+class Dataset:
+    features: np.ndarray  # (N, 8)
+    k_W_mK: np.ndarray
+    rho_c_J_m3K: np.ndarray
+    q_v_W_m3: np.ndarray
+    material_index: np.ndarray
+    noisy: np.ndarray  # bool: an augmented copy
+    names: list
+    sha256: str
+
+
+def _cache_dir() -> Path:
+    return Path(os.environ.get("THERMOTOUCH_CACHE", Path.home() / ".cache" / "thermotouch"))
+
+
+def spec_key(spec: DatasetSpec, lib: MaterialLibrary) -> str:
+    """Hash of the spec, the library's content and the code versions."""
+    h = hashlib.sha256()
+    h.update(json.dumps(asdict(spec), sort_keys=True, default=list).encode())
+    for m in lib:
+        h.update(f"{m.name},{m.k_W_mK!r},{m.rho_kg_m3!r},{m.c_J_kgK!r};".encode())
+    h.update(f"features={FEATURE_VERSION};code={CODE_VERSION}".encode())
+    return h.hexdigest()
+
+
+def generate(spec: DatasetSpec, lib: MaterialLibrary, *, cache: bool = True, progress=None) -> Dataset:
+    """Build (or load from the cache) the training set for ``spec``."""
+    key = spec_key(spec, lib)
+    path = _cache_dir() / f"dataset-{key[:24]}.npz"
+    names = [m.name for m in lib if m.name not in spec.exclude]
+    if cache and path.exists():
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                return Dataset(z["features"], z["k"], z["rho_c"], z["q_v"], z["material_index"], z["noisy"],
+                               names, key)
+        except (OSError, ValueError, KeyError):
+            pass  # a damaged cache entry is rebuilt
+    rng = np.random.default_rng(spec.seed)
+    t = np.arange(int(round(spec.duration_s / spec.dt_s)) + 1) * spec.dt_s
+    levels = np.asarray(spec.levels_W_m3, float)
+    inst = INSTRUMENTS[spec.instrument] if spec.instrument else None
+    feats, ks, rcs, qvs, idx, noisy = [], [], [], [], [], []
+    mats = [m for m in lib if m.name not in spec.exclude]
+    for i, m in enumerate(mats):
+        unit = step_response(Solid(m.k_W_mK, m.rho_kg_m3, m.c_J_kgK), spec.duration_s, t_s=t,
+                             back=spec.back, thickness_m=spec.thickness_m, stack=STACKS[spec.stack])
+        T = np.outer(levels, unit.T_f_K)
+        q = np.outer(levels, unit.q_f_W_m2)
+        batches = [(T, q, False)]
+        for _ in range(spec.noisy_copies if inst else 0):
+            Tn = np.empty_like(T)
+            qn = np.empty_like(q)
+            for j in range(levels.size):
+                tT, Tm, tq, qm = inst.sample(t, T[j], q[j], rng, t0_offset_K=rng.uniform(0, inst.T_lsb_K))
+                Tn[j] = resample(tT, Tm, t)
+                qn[j] = resample(tq, qm, t)
+            batches.append((Tn, qn, True))
+        for TT, qq, is_noisy in batches:
+            feats.append(paper_features(t, qq, TT))
+            ks.append(np.full(levels.size, m.k_W_mK))
+            rcs.append(np.full(levels.size, m.rho_c_J_m3K))
+            qvs.append(levels)
+            idx.append(np.full(levels.size, i))
+            noisy.append(np.full(levels.size, is_noisy))
+        if progress:
+            progress(i + 1, len(mats))
+    ds = Dataset(np.vstack(feats), np.concatenate(ks), np.concatenate(rcs), np.concatenate(qvs),
+                 np.concatenate(idx), np.concatenate(noisy), names, key)
+    if cache:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp.npz")
+        np.savez(tmp, features=ds.features, k=ds.k_W_mK, rho_c=ds.rho_c_J_m3K, q_v=ds.q_v_W_m3,
+                 material_index=ds.material_index, noisy=ds.noisy)
+        os.replace(tmp, path)
+    return ds

@@ -1,0 +1,78 @@
+"""Recorded touch series as CSV files.
+
+Schema: a header row, then one row per sample; columns (any order)
+
+* ``t_s`` - time since heater-on (s), strictly increasing;
+* ``T_K`` (absolute temperature, K) or ``dT_K`` (excess over the baseline, K);
+  with ``T_K`` the baseline is the mean of samples with t_s <= 0 if any, else
+  the first sample;
+* ``q_W_m2`` - heat flux into the object (W/m^2).
+
+Lines starting with ``#`` are comments.  Errors name the line and column.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+
+class RecordError(ValueError):
+    """A malformed record file; the message names the line and column."""
+
+
+def read_record(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t_s, dT_K, q_W_m2) from a CSV file, samples with t_s >= 0 only."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise RecordError(f"{path}: cannot read ({exc.strerror})") from None
+    rows = [(i + 1, line) for i, line in enumerate(text.splitlines()) if line.strip() and not line.lstrip().startswith("#")]
+    if not rows:
+        raise RecordError(f"{path}: empty file")
+    header_line, header = rows[0]
+    cols = [c.strip() for c in next(csv.reader([header]))]
+    if "t_s" not in cols or "q_W_m2" not in cols or not ({"T_K", "dT_K"} & set(cols)):
+        raise RecordError(f"{path}, line {header_line}: header must have t_s, q_W_m2 and T_K or dT_K, got {cols}")
+    tcol = "dT_K" if "dT_K" in cols else "T_K"
+    want = {"t_s": cols.index("t_s"), tcol: cols.index(tcol), "q_W_m2": cols.index("q_W_m2")}
+    data = {k: [] for k in want}
+    for line_no, line in rows[1:]:
+        fields = next(csv.reader([line]))
+        if len(fields) != len(cols):
+            raise RecordError(f"{path}, line {line_no}: expected {len(cols)} fields, got {len(fields)}")
+        for name, j in want.items():
+            try:
+                v = float(fields[j])
+            except ValueError:
+                raise RecordError(f"{path}, line {line_no}, column '{name}': {fields[j].strip()!r} is not a number") from None
+            if not math.isfinite(v):
+                raise RecordError(f"{path}, line {line_no}, column '{name}': value must be finite")
+            data[name].append(v)
+    t = np.array(data["t_s"])
+    if t.size < 4:
+        raise RecordError(f"{path}: need at least 4 samples, got {t.size}")
+    bad = np.nonzero(np.diff(t) <= 0)[0]
+    if bad.size:
+        raise RecordError(f"{path}, line {rows[1 + bad[0] + 1][0]}, column 't_s': times must increase")
+    T = np.array(data[tcol])
+    q = np.array(data["q_W_m2"])
+    if tcol == "T_K":
+        pre = t <= 0
+        T = T - (T[pre].mean() if pre.any() else T[0])
+    keep = t >= 0
+    return t[keep], T[keep], q[keep]
+
+
+def write_record(path: str | Path, t_s, dT_K, q_W_m2) -> None:
+    """Write a record in the schema above (dT_K column)."""
+    with open(path, "w", newline="") as f:
+        f.write("# ThermoTouch record: time since heater-on, excess temperature, flux into the object\n")
+        w = csv.writer(f)
+        w.writerow(["t_s", "dT_K", "q_W_m2"])
+        for row in zip(t_s, dT_K, q_W_m2):
+            w.writerow([f"{v:.9g}" for v in row])

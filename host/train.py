@@ -1,0 +1,134 @@
+"""Training the paper's network and writing a model bundle.
+
+Pipeline (paper section 3.2): u1..u8 -> ln (with per-feature floors, see
+edge.features) -> standardisation -> PCA to 2 components -> MLPRegressor
+(2 inputs, hidden 100 and 20 tanh units, 1 output).  The target is ln k: k
+spans four decades, and a network fitted on k itself spends its capacity on
+the metals.  The bundle also carries the material library and the prior
+coefficients used by the default method, so the device needs nothing else.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from sklearn.decomposition import PCA
+from sklearn.neural_network import MLPRegressor
+from sklearn.preprocessing import StandardScaler
+
+from edge.estimate import DEFAULT_PRIOR_COEF, pipeline_golden_check
+from edge.features import FEATURE_VERSION
+from host.dataset import Dataset, DatasetSpec, generate
+from host.export import export_paper_model, pca_arrays_from_sklearn
+from host.materials import MaterialLibrary, load_materials
+
+
+@dataclass
+class PaperModel:
+    """The fitted preprocessing and network (scikit-learn objects)."""
+
+    floor: np.ndarray
+    scaler: StandardScaler
+    pca: PCA
+    mlp: MLPRegressor
+
+    def scores(self, u: np.ndarray) -> np.ndarray:
+        x = np.log(np.maximum(u, self.floor))
+        return self.pca.transform(self.scaler.transform(x))
+
+    def predict_k(self, u: np.ndarray) -> np.ndarray:
+        """k (W/m/K) for raw features (n, 8)."""
+        return np.exp(self.mlp.predict(self.scores(np.atleast_2d(u))))
+
+
+def fit_paper_model(ds: Dataset, *, seed: int = 0, max_iter: int = 3000) -> PaperModel:
+    """Fit the paper's pipeline on a training set."""
+    u = ds.features
+    pos_min = np.array([np.min(col[col > 0]) if np.any(col > 0) else 1e-12 for col in u.T])
+    floor = 1e-3 * pos_min
+    x = np.log(np.maximum(u, floor))
+    scaler = StandardScaler().fit(x)
+    pca = PCA(n_components=2, random_state=seed).fit(scaler.transform(x))
+    p = pca.transform(scaler.transform(x))
+    mlp = MLPRegressor(hidden_layer_sizes=(100, 20), activation="tanh", solver="lbfgs", max_iter=max_iter,
+                       tol=1e-7, random_state=seed)
+    mlp.fit(p, np.log(ds.k_W_mK))
+    return PaperModel(floor, scaler, pca, mlp)
+
+
+def library_arrays(lib: MaterialLibrary) -> dict:
+    return {
+        "lib_effusivity": np.asarray(lib.effusivity, float),
+        "lib_k": np.asarray(lib.k, float),
+        "lib_rho_c": np.asarray(lib.rho_c, float),
+        "lib_names": np.array(list(lib.names), dtype="<U64"),
+        "lib_class": np.array([lib.group(n) for n in lib.names], dtype="<U64"),
+    }
+
+
+def train_bundle(out: str | Path, *, quick: bool = False, seed: int = 0, lib: MaterialLibrary | None = None,
+                 progress=None, overwrite: bool = False, log=print):
+    """Generate the training set, fit, evaluate on held-back materials and write a bundle.
+
+    Returns the written :class:`edge.bundle.Bundle` and the metrics dict.
+    """
+    t0 = time.perf_counter()
+    lib = lib or load_materials()
+    spec = DatasetSpec(noisy_copies=0 if quick else 1, levels_W_m3=DatasetSpec.levels_W_m3[::4] if quick
+                       else DatasetSpec.levels_W_m3)
+    log(f"training set: {len(lib)} materials x {len(spec.levels_W_m3)} power levels"
+        f" x {1 + spec.noisy_copies} copies")
+    ds = generate(spec, lib, progress=progress)
+    t_data = time.perf_counter() - t0
+    # Held-back check: every 7th material is left out of a first fit.
+    held = np.arange(len(ds.names))[3::7]
+    train_mask = ~np.isin(ds.material_index, held)
+    sub = Dataset(ds.features[train_mask], ds.k_W_mK[train_mask], ds.rho_c_J_m3K[train_mask],
+                  ds.q_v_W_m3[train_mask], ds.material_index[train_mask], ds.noisy[train_mask], ds.names, ds.sha256)
+    max_iter = 300 if quick else 800
+    log("fitting on held-in materials ...")
+    pm_held = fit_paper_model(sub, seed=seed, max_iter=max_iter // 2)
+    k_pred = pm_held.predict_k(ds.features[~train_mask])
+    held_err = np.abs(k_pred / ds.k_W_mK[~train_mask] - 1)
+    log("fitting on all materials ...")
+    pm = fit_paper_model(ds, seed=seed, max_iter=max_iter)
+    k_fit = pm.predict_k(ds.features)
+    train_err = np.abs(k_fit / ds.k_W_mK - 1)
+    p = pm.pca.transform(pm.scaler.transform(np.log(np.maximum(ds.features, pm.floor))))
+    evr = pm.pca.explained_variance_ratio_
+    u_ln_k = float(np.sqrt(np.mean(np.log(k_pred / ds.k_W_mK[~train_mask]) ** 2)))
+    metrics = {
+        "n_series": int(ds.features.shape[0]),
+        "n_materials": len(ds.names),
+        "pca_explained_variance_ratio": [float(v) for v in evr],
+        "pca_explained_variance_2": float(evr.sum()),
+        "train_k_median_rel_err": float(np.median(train_err)),
+        "heldout_k_median_rel_err": float(np.median(held_err)),
+        "heldout_k_p90_rel_err": float(np.percentile(held_err, 90)),
+        "heldout_u_ln_k": u_ln_k,
+        "dataset_seconds": t_data,
+        "train_seconds": time.perf_counter() - t0 - t_data,
+        "quick": bool(quick),
+    }
+    pre = {"feature_version": np.int64(FEATURE_VERSION), "x_log_offset": pm.floor,
+           "x_mean": pm.scaler.mean_, "x_scale": pm.scaler.scale_, "y_transform": np.int64(1)}
+    pre.update(pca_arrays_from_sklearn(pm.pca))
+    coef = np.array(DEFAULT_PRIOR_COEF, float)
+    coef[3] = max(u_ln_k, 0.02)
+    extra = library_arrays(lib)
+    extra.update(prior_coef=coef, pca_score_min=p.min(axis=0), pca_score_max=p.max(axis=0))
+    rng = np.random.default_rng(seed)
+    gi = rng.choice(ds.features.shape[0], size=min(32, ds.features.shape[0]), replace=False)
+    golden_u = ds.features[gi]
+    bundle = export_paper_model(
+        out, pm.mlp, pre, p[gi], metrics, ds.sha256, extra,
+        extra_golden={"pipeline_features": golden_u, "pipeline_k": pm.predict_k(golden_u)},
+        model_version=f"paper-mlp-{'quick' if quick else 'full'}-seed{seed}",
+        overwrite=overwrite, golden_check=pipeline_golden_check,
+    )
+    log(f"PCA explained variance (p1+p2): {evr.sum() * 100:.2f} %; held-out k median error "
+        f"{metrics['heldout_k_median_rel_err'] * 100:.1f} %; wrote {out} (sha256 {bundle.sha256[:12]})")
+    return bundle, metrics

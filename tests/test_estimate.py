@@ -1,0 +1,154 @@
+"""Estimation: default (Duhamel + prior) and paper (features -> PCA -> MLP -> alpha scan)."""
+
+import json
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from edge.bundle import load_bundle
+from edge.estimate import Estimator, pipeline_golden_check
+from edge.features import paper_features
+from edge.forward import simulate
+from edge.instrument import INSTRUMENTS
+from edge.solids import Solid
+from host.evaluate import TouchSimulator, q_v_for_voltage
+from host.materials import load_materials
+from host.records import RecordError, read_record, write_record
+
+GLASS = Solid(1.097, 2458.4, 809.0)
+PMMA = Solid(0.185, 1178.35, 1429.0)
+ALU = Solid(120.4, 2651.5, 873.0)
+
+
+@pytest.fixture(scope="module")
+def quick_bundle(tmp_path_factory):
+    from host.train import train_bundle
+
+    out = tmp_path_factory.mktemp("b") / "bundle"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        bundle, metrics = train_bundle(out, quick=True, log=lambda s: None)
+    return out, bundle, metrics
+
+
+@pytest.fixture(scope="module")
+def est(quick_bundle):
+    return Estimator.from_bundle(quick_bundle[1])
+
+
+def test_features_of_a_ramp():
+    t = np.linspace(0, 2, 201)
+    u = paper_features(t, 100 * t, 0.5 * t)
+    np.testing.assert_allclose(u[[0, 1]], [100.0, 0.5])
+    np.testing.assert_allclose(u[[2, 3, 4, 5, 6, 7]], [100.0, 0.5, 1.0, 0.5, 0.5, 200.0])
+
+
+def test_bundle_reloads_with_pipeline_golden_and_reports_pca(quick_bundle):
+    path, bundle, metrics = quick_bundle
+    b = load_bundle(path, golden_check=pipeline_golden_check)
+    assert b.sha256 == bundle.sha256
+    assert metrics["pca_explained_variance_2"] > 0.95
+    assert len(b.arrays["lib_names"]) == len(load_materials())
+
+
+@pytest.mark.parametrize("solid", [GLASS, PMMA, ALU], ids=["glass", "pmma", "alu"])
+def test_default_recovers_effusivity_from_exact_signals(est, solid):
+    r = simulate(solid, 7.7e7, 2.0, back="infinite", scheme="exact", dt_s=0.01)
+    res = est.estimate(r.t_s, r.T_f_K, r.q_f_W_m2)
+    assert abs(res.effusivity_W_s05_m2K / solid.effusivity_W_s05_m2K - 1) < 2e-3
+    # k and alpha lie within a few stated uncertainties of the truth (prior-limited).
+    assert abs(math.log(res.k_W_mK / solid.k_W_mK)) < 3 * res.k_W_mK_u / res.k_W_mK
+    assert abs(math.log(res.alpha_m2_s / solid.alpha_m2_s)) < 3 * res.alpha_m2_s_u / res.alpha_m2_s
+
+
+def test_default_with_known_thickness_separates_k_and_alpha(est):
+    # A 0.5 mm PMMA sheet on an insulating table: thickness^2/alpha ~ 2 s is visible in 4 s.
+    r = simulate(PMMA, 7.7e7, 4.0, thickness_m=0.5e-3, back="insulated", scheme="exact", dt_s=0.01)
+    res = est.estimate(r.t_s, r.T_f_K, r.q_f_W_m2, thickness_m=0.5e-3, back="insulated")
+    assert abs(res.alpha_m2_s / PMMA.alpha_m2_s - 1) < 0.12
+    assert abs(res.k_W_mK / PMMA.k_W_mK - 1) < 0.08
+
+
+def test_noisy_touch_uncertainty_covers_error(est):
+    rng = np.random.default_rng(7)
+    sim = TouchSimulator(GLASS)
+    z = []
+    for _ in range(12):
+        t = sim.touch(q_v_for_voltage(15), "mcp9600", rng)
+        r = est.estimate(t.tT, t.T, t.q, t_q_s=t.tq)
+        z.append((r.effusivity_W_s05_m2K - GLASS.effusivity_W_s05_m2K) / r.effusivity_W_s05_m2K_u)
+    # Standard uncertainties: most errors within 2 u, and not wildly over-stated either.
+    assert np.mean(np.abs(z) < 2) >= 0.75
+    assert np.std(z) > 0.1
+
+
+def test_paper_method_runs_and_alpha_follows_k(est):
+    r = simulate(GLASS, 7.7e7, 1.95, back="infinite", scheme="exact", dt_s=0.01)
+    res = est.estimate(r.t_s, r.T_f_K, r.q_f_W_m2, method="paper", q_v_W_m3=7.7e7)
+    assert res.method == "paper" and res.k_W_mK > 0
+    # On a thick body the scan can only return alpha = (k/e)^2.
+    e = GLASS.effusivity_W_s05_m2K
+    assert abs(res.alpha_m2_s / (res.k_W_mK / e) ** 2 - 1) < 0.05
+    assert "power_outside_training_range" not in res.flags
+    low = est.estimate(r.t_s, r.T_f_K / 4, r.q_f_W_m2 / 4, method="paper", q_v_W_m3=7.7e7 / 4)
+    assert "power_outside_training_range" in low.flags
+
+
+def test_paper_scan_schemes_agree(quick_bundle):
+    b = quick_bundle[1]
+    r = simulate(PMMA, 7.7e7, 1.95, scheme="exact", dt_s=0.01)
+    fast = Estimator.from_bundle(b).estimate(r.t_s, r.T_f_K, r.q_f_W_m2, method="paper")
+    slow = Estimator.from_bundle(b, paper_scan_scheme="paper").estimate(r.t_s, r.T_f_K, r.q_f_W_m2, method="paper")
+    assert abs(slow.alpha_m2_s / fast.alpha_m2_s - 1) < 0.1
+
+
+def test_identification_names_distinct_materials(est):
+    rng = np.random.default_rng(3)
+    for name in ("pmma", "tempered_glass"):
+        m = load_materials().get(name)
+        sim = TouchSimulator(Solid(m.k_W_mK, m.rho_kg_m3, m.c_J_kgK))
+        t = sim.touch(7.7e7, "ads122c04", rng)
+        r = est.estimate(t.tT, t.T, t.q, t_q_s=t.tq)
+        assert name in [c[0] for c in r.candidates]
+
+
+def test_no_contact_is_flagged_not_faked(est):
+    t = np.linspace(0, 2, 100)
+    r = est.estimate(t, 0.3 * t, np.zeros_like(t))
+    assert "no_signal" in r.flags and r.effusivity_W_s05_m2K is None
+    assert json.loads(json.dumps(r.to_dict()))["k_W_mK"] is None
+
+
+def test_json_keys(est):
+    r = simulate(GLASS, 7.7e7, 2.0, scheme="exact", dt_s=0.01)
+    d = est.estimate(r.t_s, r.T_f_K, r.q_f_W_m2).to_dict()
+    for key in ("effusivity_W_s05_m2K", "k_W_mK", "alpha_m2_s"):
+        assert d[key] > 0 and d[key + "_u"] > 0
+    assert {"material", "material_confidence", "method", "model_sha256", "flags"} <= set(d)
+
+
+def test_estimate_validation(est):
+    t = np.linspace(0, 2, 50)
+    with pytest.raises(ValueError, match="method"):
+        est.estimate(t, t, t, method="magic")
+    with pytest.raises(ValueError, match="dT_K"):
+        est.estimate(t, t[:-1], t)
+    with pytest.raises(ValueError, match="q_W_m2"):
+        est.estimate(t, t, np.full(50, np.nan))
+
+
+def test_record_csv_roundtrip_and_errors(tmp_path):
+    p = tmp_path / "r.csv"
+    t = np.linspace(0, 1, 11)
+    write_record(p, t, 0.1 * t, 100 * t)
+    tt, dT, q = read_record(p)
+    np.testing.assert_allclose(dT, 0.1 * t, atol=1e-9)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t_s,dT_K,q_W_m2\n0,0,0\n0.1,0.01,oops\n0.2,0.02,20\n0.3,0.03,30\n")
+    with pytest.raises(RecordError, match=r"line 3, column 'q_W_m2'"):
+        read_record(bad)
+    bad.write_text("time,dT_K,q_W_m2\n0,0,0\n")
+    with pytest.raises(RecordError, match="header"):
+        read_record(bad)
