@@ -18,6 +18,7 @@ simulator (reachable as ``board.extras["simulator"]``).
 
 from __future__ import annotations
 
+import os
 import weakref
 from pathlib import Path
 from typing import Any, Sequence
@@ -37,7 +38,7 @@ from .scene import Fault, MaterialLookup, Scene, read_scene, validate_fault
 from .sim_board import SimBoardParts, make_sim_board
 from .world import BoardDrive, ThermalWorld, Truth, wire_chips
 
-__all__ = ["Simulator", "load_scene", "make_scene_board", "register_scene_board"]
+__all__ = ["Simulator", "load_scene", "make_scene_board", "register_scene_board", "SCENE_ENV"]
 
 _BUS_FAULTS = ("i2c_nack", "bus_stuck")
 
@@ -171,6 +172,15 @@ class Simulator:
             addr = self.scene.board.address_of(f.params["chip"])
         self.bus.nack(addr, f.at_s, f.until_s)
 
+    # ---- touches
+
+    def add_touch(self, start_s: float, length_s: float, *, press_trigger: bool = True,
+                  trigger_hold_s: float = 0.1) -> None:
+        """Touch the object again (e.g. a second measurement); optionally press the trigger at ``start_s``."""
+        self.world.add_touch(start_s, length_s)
+        if press_trigger:
+            self.parts.chip.press(self.parts.trigger_offset, start_s, min(trigger_hold_s, length_s))
+
     # ---- heater invariants for HIL tests
 
     def heater_intervals(self, t_end_s: float | None = None) -> list[tuple[float, float]]:
@@ -197,6 +207,19 @@ class Simulator:
     def heater_is_on(self) -> bool:
         """Whether the film dissipates power now."""
         return self.world.heater_power_W(self.clock.now()) > 0.0
+
+    def heater_invariant(self, max_on_time_s: float) -> dict:
+        """Check the heater safety invariant on the simulated hardware.
+
+        Returns ``{"ok", "longest_on_s", "total_on_s", "off_now", "n_intervals"}``;
+        ``ok`` means no on-interval was longer than ``max_on_time_s`` and the
+        film dissipates nothing now.
+        """
+        iv = self.heater_intervals()
+        longest = max((b - a for a, b in iv), default=0.0)
+        off_now = not self.heater_is_on()
+        return {"ok": longest <= max_on_time_s + 1e-9 and off_now, "longest_on_s": longest,
+                "total_on_s": float(sum(b - a for a, b in iv)), "off_now": off_now, "n_intervals": len(iv)}
 
     def heater_energy_J(self, t_end_s: float | None = None) -> float:
         """Electrical energy dissipated in the film (J) from 0 to ``t_end_s`` (default now)."""
@@ -250,13 +273,21 @@ def load_scene(path_or_name: str | Path, *, material_lookup: MaterialLookup | No
     return Simulator(read_scene(path_or_name, material_lookup=material_lookup), bit_rate_hz=bit_rate_hz)
 
 
+SCENE_ENV = "THERMOTOUCH_SIM_SCENE"
+
+
 def make_scene_board(scene: str | Path | Scene | None = None, **options: Any) -> Board:
     """Board factory for ``make_board("sim", scene=...)``.
 
     With ``scene`` (a name, path or Scene) the board sits on a new
-    :class:`Simulator` (``board.extras["simulator"]``); without it this is
+    :class:`Simulator` (``board.extras["simulator"]``). Without it, the scene
+    named by the environment variable ``THERMOTOUCH_SIM_SCENE`` is used if set
+    and no ``options`` are given (so a daemon configured with ``kind = "sim"``
+    runs on a scene); otherwise this is
     :func:`firmware_sim.sim_board.make_sim_board` with ``options``.
     """
+    if scene is None and not options and os.environ.get(SCENE_ENV):
+        scene = os.environ[SCENE_ENV]
     if scene is None:
         return make_sim_board(**options)
     if options:

@@ -18,7 +18,8 @@ the edge's estimates. Outputs:
 Phases
 ------
 Virtual time is cut into phases with the probe in contact with the object
-(the scene's touch minus ``no_contact`` fault windows) or in still air
+(the scene's touch and any added with :meth:`ThermalWorld.add_touch`, minus
+``no_contact`` fault windows) or in still air
 (before/after the touch, and while ``no_contact`` holds). Within a phase the
 system is linear and time-invariant, so the answer is exact superposition of
 
@@ -170,6 +171,7 @@ class ThermalWorld:
         self._probe = self.stack.material
         self._L = self.stack.total_thickness_m
         self._faults: list[Fault] = [f for f in scene.faults if f.kind in self._world_kinds()]
+        self._touches: list[tuple[float, float]] = [(scene.touch.start_s, scene.touch.end_s)]
         self._cache: dict[float, WorldState] = {}
         self._start_cache: dict[tuple, tuple[float, float]] = {}
 
@@ -243,15 +245,40 @@ class ThermalWorld:
 
     # ---- contact phases
 
+    @property
+    def touches(self) -> tuple[tuple[float, float], ...]:
+        """Contact windows ``(start_s, end_s)``: the scene's touch and any added."""
+        return tuple(self._touches)
+
+    def add_touch(self, start_s: float, length_s: float) -> None:
+        """Put the probe on the object again for ``[start_s, start_s + length_s)``.
+
+        It may not start in the past nor overlap another touch. The object is
+        taken as back at its initial temperature (see the module docstring).
+        """
+        start, length = float(start_s), float(length_s)
+        if not start >= self.clock.now() - 1e-12:
+            raise ValueError(f"start_s={start_s} s is in the past (now {self.clock.now()} s)")
+        if not (length > 0 and math.isfinite(length)):
+            raise ValueError(f"length_s must be a finite number > 0, got {length_s!r}")
+        end = start + length
+        for a, b in self._touches:
+            if start < b and a < end:
+                raise ValueError(f"touch [{start}, {end}) s overlaps the touch [{a}, {b}) s")
+        self._touches.append((start, end))
+        self._touches.sort()
+        self._start_cache.clear()
+
     def contact_at(self, t_s: float) -> bool:
         """Whether the probe touches the object at ``t_s``."""
-        touch = self.scene.touch
-        return touch.start_s <= t_s < touch.end_s and not self._active("no_contact", t_s)
+        on = any(a <= t_s < b for a, b in self._touches)
+        return on and not self._active("no_contact", t_s)
 
     def phases(self) -> list[_Phase]:
         """Contact/air phases covering [0, inf)."""
-        touch = self.scene.touch
-        edges = {0.0, touch.start_s, touch.end_s}
+        edges = {0.0}
+        for a, b in self._touches:
+            edges.update((a, b))
         for f in self._faults:
             if f.kind == "no_contact":
                 edges.add(f.at_s)

@@ -269,3 +269,29 @@ def test_public_face():
     root = sim.pwm.root
     sim.close()
     assert not root.exists()
+
+
+def test_heater_invariant_and_second_touch():
+    sim = load_scene("pmma_8V")
+    run_touch(sim, heat_s=1.0)
+    inv = sim.heater_invariant(max_on_time_s=1.5)
+    assert inv["ok"] and inv["n_intervals"] == 1 and inv["longest_on_s"] == pytest.approx(1.0, abs=0.011)
+    assert not sim.heater_invariant(max_on_time_s=0.5)["ok"]
+    sim.add_touch(sim.now() + 5.0, 2.0)
+    sim.advance(5.05)
+    parts = sim.parts
+    assert parts.chip.level(parts.trigger_offset) == 0  # trigger pressed again
+    assert sim.world.contact_at(sim.now())
+    sim.inject("heater_stuck_on")
+    sim.advance(0.5)
+    inv = sim.heater_invariant(max_on_time_s=1.5)
+    assert not inv["ok"] and not inv["off_now"] and inv["n_intervals"] == 2
+    sim.close()
+
+
+def test_scene_from_environment_for_a_daemon_configured_with_kind_sim(monkeypatch):
+    from firmware_sim.simulator import SCENE_ENV
+    monkeypatch.setenv(SCENE_ENV, "glass_12V")
+    board = make_board("sim")
+    assert board.extras["simulator"].scene.name == "glass_12V"
+    board.extras["simulator"].close()

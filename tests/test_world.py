@@ -231,3 +231,21 @@ def test_past_values_are_cached_and_future_faults_only():
 
 def test_air_is_still_air():
     assert isinstance(AIR, Solid) and 0.02 < AIR.k_W_mK < 0.03 and 1.0 < AIR.rho_kg_m3 < 1.3
+
+
+def test_a_second_touch_is_a_fresh_contact():
+    sc = read_scene("glass_15V")  # first touch 0.5..3.0 without heating
+    clock = VirtualClock()
+    w = ThermalWorld(sc, clock, ScheduleDrive([10.0, 12.0], [1.0, 0.0]))
+    with pytest.raises(ValueError, match="overlaps"):
+        w.add_touch(2.0, 1.0)
+    w.add_touch(10.0, 3.0)
+    clock.advance(20.0)
+    with pytest.raises(ValueError, match="past"):
+        w.add_touch(15.0, 1.0)
+    assert w.touches == ((0.5, 3.0), (10.0, 13.0))
+    assert [p.contact for p in w.phases()] == [False, True, False, True, False]
+    t = np.linspace(0.01, 2.0, 20)
+    ref = forward.simulate(sc.object.solid, sc.q_v_W_m3(), 2.0, t_s=t, thickness_m=0.02, back="insulated",
+                           scheme="exact", stack=sc.stack)
+    np.testing.assert_allclose(w.truth(10.0 + t).surface_C - 25.0, ref.T_f_K, rtol=1e-9, atol=1e-12)
