@@ -209,6 +209,8 @@ class Daemon:
             self.upload: _Upload | None = None
             self.last_id: int | None = self.history.latest_id()
             self.measurements = 0
+            # Presses while a measurement ran (e.g. the touch that started it) are not new requests.
+            self._idle_since = board.clock.monotonic()
             self.state = "idle"
         except BaseException:
             self.heater.close()
@@ -323,6 +325,7 @@ class Daemon:
             if self.heater.is_on:  # belt and braces: run() never returns with it on
                 self.heater.off()
         self.measurements += 1
+        self._idle_since = self.board.clock.monotonic()
         mid = self.history.add(outcome.record(cfg.to_dict()))
         self.last_id = mid
         if outcome.compute_s is not None:
@@ -453,7 +456,7 @@ class Daemon:
             log.warning("trigger button failed, disabled: %s", e)
             self.button = None
             return
-        if ev is not None and ev.pressed:
+        if ev is not None and ev.pressed and ev.t_s >= self._idle_since:
             log.info("trigger button pressed: measuring")
             try:
                 self.measure()

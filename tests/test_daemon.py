@@ -1,6 +1,7 @@
 """The daemon over a virtual null-modem cable, driven by host.client.DeviceClient."""
 
 import contextlib
+import time
 import hashlib
 import json
 
@@ -255,3 +256,77 @@ def test_console_script_rejects_a_bad_config(tmp_path, capsys):
     assert "heater.max_on_time_s" in capsys.readouterr().err
     p.write_text("[heater]\npower_W = 1.0\n")
     assert main(["--config", str(p), "--check-config"]) == 0
+
+
+PAPER_SCENES = ("glass_12V", "glass_15V", "glass_18V", "pmma_8V", "pmma_15V", "pmma_20V",
+                "alu_15V", "alu_20V", "alu_25V")
+
+
+@contextlib.contextmanager
+def sim_daemon(scene, tmp_path, estimator=None):
+    import threading
+
+    from firmware_sim.run import run_sim
+
+    stop, ports, box = threading.Event(), [], {}
+    th = threading.Thread(target=run_sim, args=(scene, stop, ports.append),
+                          kwargs=dict(estimator=estimator or FakeEstimator(), workdir=tmp_path,
+                                      on_ready=lambda d, s: box.update(d=d, s=s)), daemon=True)
+    th.start()
+    deadline = time.monotonic() + 20
+    while "s" not in box and th.is_alive() and time.monotonic() < deadline:
+        time.sleep(0.005)
+    try:
+        with DeviceClient(ports[0], timeout_s=10.0) as c:
+            yield c, box["d"], box["s"]
+    finally:
+        stop.set()
+        th.join(20)
+    assert not th.is_alive()
+
+
+@pytest.mark.parametrize("scene", PAPER_SCENES)
+def test_paper_scene_over_the_virtual_serial_link(tmp_path, scene):
+    with sim_daemon(scene, tmp_path) as (c, d, sim):
+        assert c.info()["board"] == "sim"
+        rec = c.measure()
+        assert rec["status"] == "ok" and rec["flags"] == [], rec
+        assert rec["result"]["effusivity_W_s05_m2K"] > 0
+        assert c.history()["total"] == 1
+        limit = d.config.heater.max_on_time_s
+    # The scene world's own record of the film's power, and the GPIO/PWM history, agree: one safe pulse.
+    (a, b), = sim.heater_intervals()
+    assert b - a == pytest.approx(d.config.measurement.contact_time_s, abs=0.01) and b - a <= limit
+    assert not sim.heater_is_on()
+    assert_heater_safe(sim.parts, limit)
+
+
+def test_fault_scene_reports_a_sensor_fault_with_the_heater_safe(tmp_path):
+    with sim_daemon("glass_15V_faults", tmp_path) as (c, d, sim):
+        with pytest.raises(DeviceError) as ei:
+            c.measure()
+        assert ei.value.code == ErrorCode.SENSOR_FAULT and "open_thermocouple" in ei.value.message
+        assert c.result()["reason"] == "open_thermocouple"
+        assert c.ping("still here")["echo"] == "still here"
+    assert not sim.heater_is_on()
+    assert_heater_safe(sim.parts, d.config.heater.max_on_time_s)
+
+
+def test_run_sim_prints_the_port_first(tmp_path):
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "firmware_sim.run", "pmma_15V", "--workdir", str(tmp_path)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        port = proc.stdout.readline().strip()
+        assert port.startswith("/dev/pts/"), proc.stderr.read()
+        with DeviceClient(port, timeout_s=10.0) as c:
+            assert c.measure()["status"] == "ok"
+        proc.terminate()
+        proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0

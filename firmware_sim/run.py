@@ -1,0 +1,140 @@
+"""``thermotouch sim SCENE.toml``: the edge daemon on a simulated probe behind a virtual serial cable.
+
+:func:`run_sim` loads the scene, builds a daemon configuration that matches
+the scene's board (chips and addresses, heater supply and resistance, flux
+sensitivity, touch timing), opens a :class:`~firmware_sim.ptylink.NullModem`,
+prints the host-side port path as the first line of output and runs the
+daemon until stopped (SIGTERM/SIGINT when run from the main thread, or the
+given stop event). Virtual time only advances while the daemon measures, so
+a host that sends MEASURE right away meets the scene's touch.
+
+The edge daemon itself never imports this package; the simulator hands it a
+board.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import shutil
+import sys
+import tempfile
+import threading
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+from edge.config import Config
+from edge.daemon import install_signal_handlers, run_daemon
+from edge.sequence import EstimatorFn
+
+__all__ = ["config_for_scene", "run_sim", "main"]
+
+log = logging.getLogger("thermotouch.sim")
+
+
+def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Mapping[str, Any]] | None = None
+                     ) -> Config:
+    """A daemon :class:`~edge.config.Config` matching ``scene`` (a firmware_sim Scene).
+
+    Heating runs at full duty (the paper applies a fixed voltage); the
+    baseline lasts until the scene's touch starts and the heating ends
+    before the touch does. ``overrides`` are extra ``{section: {key: value}}``.
+    """
+    w = Path(workdir)
+    b, s, t = scene.board, scene.sensors, scene.touch
+    sensors: dict[str, Any] = {"flux_sensitivity_V_per_W_m2": s.flux_sensitivity_V_per_W_m2}
+    if b.mcp9600 is not None:
+        sensors.update(thermocouple="mcp9600", mcp9600_address=b.mcp9600)
+    else:
+        sensors.update(thermocouple="ads122c04")
+    if b.ads1115 is not None:
+        sensors.update(flux_adc="ads1115", ads1115_address=b.ads1115)
+    else:
+        sensors.update(flux_adc="ads122c04")
+    if b.ads122c04 is not None:
+        sensors["ads122c04_address"] = b.ads122c04
+    baseline = t.start_s if t.start_s >= 0.2 else 0.5
+    contact = max(0.5, min(2.0, t.length_s - 0.3))
+    values: dict[str, dict[str, Any]] = {
+        "board": {"kind": "sim"},
+        "sensors": sensors,
+        "heater": {"supply_voltage_V": scene.heater.supply_voltage_V, "resistance_ohm": scene.heater.resistance_ohm,
+                   "power_W": scene.heater.max_power_W},
+        "measurement": {"baseline_s": baseline, "contact_time_s": contact, "trigger_button": False},
+        "paths": {"model_store": str(w / "models"), "history_db": str(w / "history.sqlite3"),
+                  "runtime_overrides": str(w / "runtime.json")},
+    }
+    for section, table in (overrides or {}).items():
+        values.setdefault(section, {}).update(table)
+    return Config(values, source=f"scene {scene.name}")
+
+
+def run_sim(scene_path: str | Path, stop_event: threading.Event | None = None,
+            print_port: Callable[[str], None] = print, *, estimator: EstimatorFn | None = None,
+            workdir: str | Path | None = None, overrides: Mapping[str, Mapping[str, Any]] | None = None,
+            on_ready: Callable[[Any, Any], None] | None = None) -> int:
+    """Run the daemon on the scene's simulator behind a NullModem until stopped.
+
+    Parameters
+    ----------
+    scene_path : str or path
+        Scene file or shipped scene name.
+    stop_event : threading.Event, optional
+        Stops the daemon when set. If None and called from the main thread,
+        SIGTERM and SIGINT stop it.
+    print_port : callable
+        Receives the host-side port path first (default: ``print``, flushed).
+    estimator : callable, optional
+        Default: the model store's bundle through :mod:`edge.estimate`.
+    workdir : path, optional
+        Model store, history and runtime settings (default: a temporary
+        directory removed at exit).
+    on_ready : callable (daemon, simulator), optional
+        Called once the daemon answers (tests use it).
+
+    Returns
+    -------
+    int
+        Exit status (0 on a clean stop).
+    """
+    import serial  # noqa: PLC0415
+
+    from firmware_sim import load_scene  # noqa: PLC0415
+    from firmware_sim.ptylink import NullModem  # noqa: PLC0415
+
+    stop = stop_event if stop_event is not None else threading.Event()
+    if stop_event is None and threading.current_thread() is threading.main_thread():
+        install_signal_handlers(stop)
+    sim = load_scene(scene_path)
+    tmp = None
+    if workdir is None:
+        tmp = tempfile.mkdtemp(prefix="thermotouch-sim-")
+        workdir = tmp
+    try:
+        cfg = config_for_scene(sim.scene, workdir, overrides)
+        with NullModem() as nm, serial.Serial(nm.device_port, timeout=0.05) as port:
+            if print_port is print:
+                print(nm.host_port, flush=True)
+            else:
+                print_port(nm.host_port)
+            ready = (lambda d: on_ready(d, sim)) if on_ready is not None else None
+            run_daemon(cfg, sim.board(), port, stop, estimator=estimator, ready=ready)
+        return 0
+    finally:
+        sim.close()
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m firmware_sim.run SCENE``: see :func:`run_sim`."""
+    p = argparse.ArgumentParser(prog="thermotouch-sim", description=__doc__.splitlines()[0])
+    p.add_argument("scene", help="scene file or shipped scene name")
+    p.add_argument("--workdir", help="keep model store and history here")
+    a = p.parse_args(argv)
+    logging.basicConfig(stream=sys.stderr, level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    return run_sim(a.scene, workdir=a.workdir)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
