@@ -367,7 +367,8 @@ class ThermalWorld:
         e_heat = float(np.dot(levels, np.diff(edges))) * L_h
 
         lag_ic = t - ph.start_s
-        rows_lag = [lag_ic] if (lag_ic > 0 and theta0 != 0.0) else []
+        # At the very instant of contact, report the right-hand limit (the contact temperature).
+        rows_lag = [max(lag_ic, 1e-9)] if theta0 != 0.0 else []
         w_ic = [theta0] if rows_lag else []
         n_ic = len(rows_lag)
         w_h = []

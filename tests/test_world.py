@@ -127,6 +127,7 @@ def test_contact_of_different_temperatures_starts_at_the_effusivity_mean():
     e_o = sc.object.solid.effusivity_W_s05_m2K
     expect = (e_p * 30.0 + e_o * 20.0) / (e_p + e_o)
     assert w.state(0.5 + 1e-6).surface_C == pytest.approx(expect, abs=0.01)
+    assert w.state(0.5).surface_C == pytest.approx(expect, abs=0.01)  # the instant of contact
     later = w.state(2.5).surface_C
     assert 20.0 < later < expect  # the probe's heat drains into the object
 
