@@ -295,3 +295,35 @@ def test_scene_from_environment_for_a_daemon_configured_with_kind_sim(monkeypatc
     board = make_board("sim")
     assert board.extras["simulator"].scene.name == "glass_12V"
     board.extras["simulator"].close()
+
+
+@pytest.mark.parametrize("name", ["glass_15V", "alu_20V_ads122c04", "pmma_15V_no_contact"])
+def test_edge_measurement_sequence_runs_unchanged_on_the_simulator(name, tmp_path):
+    from edge.config import load_config
+    from edge.sequence import Limits, MeasurementParams, MeasurementSequence, make_sensors
+
+    sim = load_scene(name)
+    sc = sim.scene
+    lines = ["[heater]", f"supply_voltage_V = {sc.heater.supply_voltage_V}",
+             f"resistance_ohm = {sc.heater.resistance_ohm}", f"power_W = {0.99 * sc.heater.max_power_W}"]
+    if sc.board.ads122c04 is not None:
+        lines += ["[sensors]", 'thermocouple = "ads122c04"', 'flux_adc = "ads122c04"']
+    (tmp_path / "edge.toml").write_text("\n".join(lines) + "\n")
+    cfg = load_config(tmp_path / "edge.toml")
+    board = sim.board()
+    heater = Heater(board, supply_voltage_v=sc.heater.supply_voltage_V, resistance_ohm=sc.heater.resistance_ohm)
+    seq = MeasurementSequence(heater, make_sensors(board, cfg.sensors), board.clock,
+                              Limits(cfg.heater.max_on_time_s, 80.0), lambda *a, **k: {"stub": True},
+                              cfg.measurement)
+    sim.advance_to(sc.touch.start_s)
+    out = seq.run(MeasurementParams(power_W=0.99 * sc.heater.max_power_W, contact_time_s=2.0, baseline_s=0.2,
+                                    sample_rate_Hz=20.0, cooldown_s=0.0))
+    seq.close()
+    assert out.status == "ok", (out.reason, out.error)
+    assert ("no_contact" in out.flags) == (name == "pmma_15V_no_contact")
+    assert sim.heater_invariant(cfg.heater.max_on_time_s)["ok"]
+    assert sim.heater_on_time_s() == pytest.approx(out.heater_on_s, abs=0.01)
+    rise = out.raw_T_C[-1] - out.raw_T_C[0]
+    peak_truth = sim.truth(np.linspace(sc.touch.start_s, sim.now(), 50)).thermocouple_C.max()
+    assert 0.0 < rise <= peak_truth - sc.environment.initial_temperature_C + 0.07
+    sim.close()
