@@ -209,6 +209,7 @@ class Daemon:
             self.upload: _Upload | None = None
             self.last_id: int | None = self.history.latest_id()
             self.measurements = 0
+            self.last_timing: dict[str, float | None] = {}
             # Presses while a measurement ran (e.g. the touch that started it) are not new requests.
             self._idle_since = board.clock.monotonic()
             self.state = "idle"
@@ -326,7 +327,13 @@ class Daemon:
                 self.heater.off()
         self.measurements += 1
         self._idle_since = self.board.clock.monotonic()
+        t_commit = time.perf_counter()
         mid = self.history.add(outcome.record(cfg.to_dict()))
+        commit_s = time.perf_counter() - t_commit
+        #: Wall-clock costs of the last measurement after its last sample (for bench/).
+        self.last_timing = {"compute_s": outcome.compute_s, "commit_s": commit_s,
+                            "compute_and_commit_s": None if outcome.compute_s is None
+                            else outcome.compute_s + commit_s}
         self.last_id = mid
         if outcome.compute_s is not None:
             log.debug("measurement %d: compute %.2f ms", mid, outcome.compute_s * 1e3)

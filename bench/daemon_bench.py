@@ -1,0 +1,230 @@
+"""Daemon benchmark: resident memory, compute time after the last sample, and a soak.
+
+The daemon runs in a child process on the simulator (firmware_sim.daemon_rig:
+sim board, MCP9600 + ADS1115 models, an analytic glass-like sample) with its
+real estimator and the shipped model bundle (a stand-in estimator if none is
+installed), behind a virtual null-modem cable. This process is the host: it
+sends N MEASURE requests over the serial link with host.client.DeviceClient
+and samples the child's resident memory (VmRSS) and open file descriptors.
+
+Reported (bench/results/daemon.json):
+
+* ``rss_MB``: the daemon process's VmRSS after warm-up and at the end
+  (includes the simulator living in the same process); ``rss_edge_only_MB``:
+  a process that imports the daemon's modules and loads the estimator on
+  the shipped bundle (what a Pi runs, minus the simulator);
+* ``compute_ms``: wall time from the last sample (heater already off) to the
+  result -- quality flags, resampling and estimation -- median / p95 / max;
+  ``compute_and_commit_ms`` adds the durable SQLite commit;
+* soak: RSS growth and fd count change from measurement 10 to N, the heater
+  invariant read from the simulated GPIO/PWM history (longest on-interval,
+  off at the end), and how many measurements came back ``ok``.
+
+Usage::
+
+    python bench/daemon_bench.py            # N = 1000
+    python bench/daemon_bench.py --n 200
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+def _rss_MB(pid: int | str = "self") -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024.0
+    raise RuntimeError("no VmRSS")
+
+
+def _n_fds(pid: int) -> int:
+    return len(os.listdir(f"/proc/{pid}/fd"))
+
+
+# --------------------------------------------------------------------------- child
+
+
+def child(workdir: str) -> int:
+    import serial
+
+    from edge.config import Config
+    from edge.daemon import DaemonThread
+    from firmware_sim.daemon_rig import heater_invariant, make_rig
+    from firmware_sim.ptylink import NullModem
+
+    w = Path(workdir)
+    cfg = Config({
+        "board": {"kind": "sim"},
+        "heater": {"supply_voltage_V": 15.0, "resistance_ohm": 44.0, "power_W": 5.0},
+        "measurement": {"cooldown_s": 5.0, "trigger_button": False},
+        "paths": {"model_store": str(w / "models"), "history_db": str(w / "history.sqlite3"),
+                  "runtime_overrides": str(w / "runtime.json")},
+        "logging": {"level": "WARNING"},
+    }, source="bench")
+    rig = make_rig(effusivity=1474.0, T_noise_V=1e-6, flux_noise_V=2e-6, seed=1)
+    estimator = None
+    try:
+        from edge.modelstore import ModelStore
+        from thermotouch_models import DEFAULT_BUNDLE
+
+        ModelStore(w / "probe-store", DEFAULT_BUNDLE).current()
+        estimator_kind = "edge.estimate on the shipped bundle"
+    except Exception as e:  # no shipped bundle yet: a physics stand-in keeps the soak meaningful
+        import math
+
+        import numpy as np
+
+        def estimator(t, dT, q, q_v, method):
+            e = 2.0 * float(np.mean(q)) * math.sqrt(t[-1] / math.pi) / max(float(dT[-1]), 1e-9)
+            return {"effusivity_W_s05_m2K": e, "flags": []}
+
+        estimator_kind = f"stand-in ({type(e).__name__}: {e})"
+    timings: list[dict] = []
+    nm = NullModem()
+    port = serial.Serial(nm.device_port, timeout=0.05)
+    dt = DaemonThread(cfg, rig.board, port, estimator=estimator)
+    d = dt.start()
+    measure = d.measure
+
+    def timed_measure(**kw):
+        try:
+            return measure(**kw)
+        finally:
+            timings.append(dict(d.last_timing))
+
+    d.measure = timed_measure
+    print(nm.host_port, flush=True)
+    sys.stdin.readline()  # the parent says when to stop
+    dt.stop()
+    port.close()
+    nm.close()
+    inv = heater_invariant(rig.parts, cfg.heater.max_on_time_s)
+    print(json.dumps({"timings": timings, "invariant": inv, "estimator": estimator_kind,
+                      "max_on_time_s": cfg.heater.max_on_time_s, "daemon_error": repr(dt.error)}), flush=True)
+    return 0
+
+
+def edge_only_rss() -> float:
+    code = (
+        "import sys; sys.path.insert(0, %r)\n"
+        "import edge.daemon, edge.estimate, serial, sqlite3\n"
+        "from thermotouch_models import DEFAULT_BUNDLE\n"
+        "from edge.bundle import load_bundle, mlp_golden_check\n"
+        "b = load_bundle(DEFAULT_BUNDLE, mlp_golden_check)\n"
+        "edge.estimate.Estimator.from_bundle(b)\n"
+        "for l in open('/proc/self/status'):\n"
+        "    if l.startswith('VmRSS:'): print(int(l.split()[1]) / 1024.0)\n"
+    ) % str(ROOT)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    if out.returncode != 0:
+        return float("nan")
+    return float(out.stdout.strip().splitlines()[-1])
+
+
+# --------------------------------------------------------------------------- parent
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=1000, help="measurements in the soak (default 1000)")
+    ap.add_argument("--child", metavar="WORKDIR", help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.child:
+        return child(a.child)
+    if a.n < 20:
+        ap.error("--n must be >= 20")
+
+    from _common import write_json
+    from host.client import DeviceClient
+
+    with tempfile.TemporaryDirectory(prefix="daemon-bench-") as workdir:
+        proc = subprocess.Popen([sys.executable, __file__, "--child", workdir], stdin=subprocess.PIPE,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        stderr_lines: list[str] = []
+        threading.Thread(target=lambda: stderr_lines.extend(proc.stderr), daemon=True).start()
+        try:
+            port = proc.stdout.readline().strip()
+            if not port.startswith("/dev/"):
+                raise SystemExit(f"child failed: {''.join(stderr_lines)}")
+            samples = []
+            statuses: dict[str, int] = {}
+            t0 = time.perf_counter()
+            with DeviceClient(port, timeout_s=10.0) as c:
+                info = c.info()
+                for i in range(a.n):
+                    try:
+                        rec = c.measure()
+                        statuses[rec["status"]] = statuses.get(rec["status"], 0) + 1
+                    except Exception as e:  # counted, the soak goes on
+                        key = type(e).__name__
+                        statuses[key] = statuses.get(key, 0) + 1
+                    if i == 9 or (i + 1) % 50 == 0 or i == a.n - 1:
+                        samples.append({"i": i + 1, "rss_MB": round(_rss_MB(proc.pid), 2),
+                                        "fds": _n_fds(proc.pid)})
+                        print(f"{i + 1:5d}  rss {samples[-1]['rss_MB']:.1f} MB  fds {samples[-1]['fds']}",
+                              file=sys.stderr, flush=True)
+                total = c.history(0, 1)["total"]
+            wall = time.perf_counter() - t0
+            proc.stdin.write("stop\n")
+            proc.stdin.flush()
+            out, _ = proc.communicate(timeout=60)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    report = json.loads(out.strip().splitlines()[-1])
+    comp = [t["compute_s"] * 1e3 for t in report["timings"] if t.get("compute_s") is not None]
+    comm = [t["compute_and_commit_s"] * 1e3 for t in report["timings"] if t.get("compute_and_commit_s") is not None]
+
+    def stats(xs):
+        xs = sorted(xs)
+        return {"median": round(statistics.median(xs), 3), "p95": round(xs[int(0.95 * (len(xs) - 1))], 3),
+                "max": round(xs[-1], 3), "n": len(xs)} if xs else None
+
+    first = samples[0]
+    last = samples[-1]
+    inv = report["invariant"]
+    result = {
+        "command": f"python bench/daemon_bench.py --n {a.n}",
+        "n_measurements": a.n,
+        "estimator": report["estimator"],
+        "model_sha256": info.get("model_sha256"),
+        "statuses": statuses,
+        "history_total": total,
+        "wall_s": round(wall, 2),
+        "wall_per_measurement_ms": round(wall / a.n * 1e3, 2),
+        "rss_MB": {"after_10": first["rss_MB"], "end": last["rss_MB"], "max": max(s["rss_MB"] for s in samples)},
+        "rss_growth_MB_10_to_end": round(last["rss_MB"] - first["rss_MB"], 2),
+        "rss_edge_only_MB": round(edge_only_rss(), 2),
+        "fds": {"after_10": first["fds"], "end": last["fds"]},
+        "compute_ms": stats(comp),
+        "compute_and_commit_ms": stats(comm),
+        "heater_invariant": inv,
+        "heater_invariant_ok": bool(inv["ok"]) and inv["n_intervals"] == a.n,
+        "max_on_time_s": report["max_on_time_s"],
+        "targets": {"rss_MB": 80, "compute_median_ms": 20},
+        "rss_samples": samples,
+    }
+    path = write_json("daemon", result)
+    show = {k: v for k, v in result.items() if k != "rss_samples"}
+    print(json.dumps(show, indent=1))
+    print(f"wrote {path}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
