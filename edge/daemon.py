@@ -44,7 +44,7 @@ import numpy as np
 
 import edge
 from edge.board import Board, make_board
-from edge.config import Config, ConfigError, RuntimeOverrides, load_config
+from edge.config import RUNTIME_KEYS, Config, ConfigError, RuntimeOverrides, load_config
 from edge.drivers.heater import Heater, HeaterError, HeaterOffError
 from edge.faults import SensorFault
 from edge.history import History
@@ -390,6 +390,12 @@ class Daemon:
             values = self.config.flat(keys)
         except ConfigError as e:
             raise CommandError(ErrorCode.BAD_ARGUMENT, str(e), e.key) from None
+        return self._config_reply(values)
+
+    def _config_reply(self, values: dict[str, Any]) -> dict[str, Any]:
+        # Long paths could push the whole set past one frame; the runtime keys always fit.
+        if len(json.dumps(values)) + _REPLY_MARGIN > self.max_payload:
+            return {"config": {k: v for k, v in values.items() if k in RUNTIME_KEYS}, "truncated": True}
         return {"config": values}
 
     def _cmd_config_set(self, args: dict) -> dict:
@@ -404,7 +410,7 @@ class Daemon:
         self.config = new
         self._apply_logging()
         log.info("configuration changed: %s", {k: new.get(k) for k in values})
-        return {"config": new.runtime()}
+        return self._config_reply(new.flat())
 
     def _cmd_model_begin(self, args: dict) -> dict:
         size = args["size"]

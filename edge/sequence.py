@@ -11,7 +11,7 @@ One touch runs::
   while the sensors are sampled at ``sample_rate_Hz`` on the board clock
   (the simulator's virtual clock makes a 2-s touch take milliseconds).
 * **heater off**, then the raw series are resampled onto a uniform grid
-  with a natural cubic spline and handed to the estimator, whose crash can
+  with a cubic spline (edge.spline) and handed to the estimator, whose crash can
   no longer leave the heater on.
 
 Safety (the heater can burn)
@@ -48,13 +48,13 @@ import numpy as np
 from edge.drivers.heater import HEATER_AREA_M2, Heater, HeaterOffError, volumetric_heat_w_m3
 from edge.faults import SensorFault
 from edge.history import utc_now
+from edge.spline import resample
 
 __all__ = [
     "Reading",
     "ProbeSensors",
     "make_sensors",
     "HeaterWatchdog",
-    "natural_cubic_spline",
     "resample_uniform",
     "quality_flags",
     "Limits",
@@ -266,56 +266,6 @@ class HeaterWatchdog:
 # Resampling
 
 
-def natural_cubic_spline(x: np.ndarray, y: np.ndarray, xq: np.ndarray) -> np.ndarray:
-    """Evaluate the natural cubic spline through ``(x, y)`` at ``xq``.
-
-    ``x`` strictly increasing, at least 2 points (2 points: linear). Outside
-    ``[x[0], x[-1]]`` the end polynomials are continued linearly.
-    """
-    x = np.asarray(x, dtype=float)
-    y = np.asarray(y, dtype=float)
-    xq = np.asarray(xq, dtype=float)
-    n = x.size
-    if n < 2 or y.shape != x.shape:
-        raise ValueError(f"need >= 2 points with matching x and y, got {x.shape} and {y.shape}")
-    h = np.diff(x)
-    if not np.all(h > 0):
-        raise ValueError("x must be strictly increasing")
-    m = np.zeros(n)  # second derivatives; natural ends m[0] = m[-1] = 0
-    if n > 2:
-        # Tridiagonal system for m[1..n-2], solved with the Thomas algorithm.
-        a = h[:-1].copy()
-        b = 2.0 * (h[:-1] + h[1:])
-        c = h[1:].copy()
-        d = 6.0 * (np.diff(y[1:]) / h[1:] - np.diff(y[:-1]) / h[:-1])
-        k = n - 2
-        for i in range(1, k):
-            w = a[i] / b[i - 1]
-            b[i] -= w * c[i - 1]
-            d[i] -= w * d[i - 1]
-        sol = np.empty(k)
-        sol[-1] = d[-1] / b[-1]
-        for i in range(k - 2, -1, -1):
-            sol[i] = (d[i] - c[i] * sol[i + 1]) / b[i]
-        m[1:-1] = sol
-    idx = np.clip(np.searchsorted(x, xq, side="right") - 1, 0, n - 2)
-    x0, x1, hi = x[idx], x[idx + 1], h[idx]
-    y0, y1, m0, m1 = y[idx], y[idx + 1], m[idx], m[idx + 1]
-    inside = (xq >= x[0]) & (xq <= x[-1])
-    tq = np.clip(xq, x[0], x[-1])
-    A = (x1 - tq) / hi
-    B = (tq - x0) / hi
-    out = A * y0 + B * y1 + ((A**3 - A) * m0 + (B**3 - B) * m1) * hi * hi / 6.0
-    if not np.all(inside):
-        # Linear continuation with the end slopes.
-        s0 = (y[1] - y[0]) / h[0] - h[0] * (2 * m[0] + m[1]) / 6.0
-        s1 = (y[-1] - y[-2]) / h[-1] + h[-1] * (m[-2] + 2 * m[-1]) / 6.0
-        lo, hi_ = xq < x[0], xq > x[-1]
-        out = np.where(lo, y[0] + s0 * (xq - x[0]), out)
-        out = np.where(hi_, y[-1] + s1 * (xq - x[-1]), out)
-    return out
-
-
 def resample_uniform(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, T0_C: float, q_offset_W_m2: float,
                      rate_Hz: float, t_end_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Heating-phase series on the grid ``k / rate_Hz``, k = 1 .. floor(t_end * rate).
@@ -338,8 +288,8 @@ def resample_uniform(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, T0_C:
         raise ValueError("heating phase too short for the sample rate")
     tT = np.concatenate(([0.0], th)) if th[0] > 0 else th
     dT = np.concatenate(([0.0], Th - T0_C)) if th[0] > 0 else Th - T0_C
-    dT_grid = natural_cubic_spline(tT, dT, grid)
-    q_grid = natural_cubic_spline(th, qh - q_offset_W_m2, np.maximum(grid, th[0]))
+    dT_grid = resample(tT, dT, grid)
+    q_grid = resample(th, qh - q_offset_W_m2, np.maximum(grid, th[0]))
     return grid, dT_grid, q_grid
 
 

@@ -139,7 +139,7 @@ def test_config_get_set_validation_and_persistence(tmp_path):
             c.config_get("nosuch.key")
         assert ei.value.field == "nosuch.key"
         new = c.config_set(**{"heater.power_W": 2.0, "measurement.contact_time_s": 1.0})
-        assert new["heater.power_W"] == 2.0
+        assert new["heater.power_W"] == 2.0 and new["heater.max_on_time_s"] == 10.0  # the full set
         rec = c.measure()
         assert rec["power_W"] == 2.0 and rec["contact_time_s"] == 1.0
     # A restarted daemon keeps the runtime settings and the history.
@@ -330,3 +330,70 @@ def test_run_sim_prints_the_port_first(tmp_path):
             proc.kill()
             proc.wait()
     assert proc.returncode == 0
+
+
+def test_fuzzed_requests_get_a_reply_or_a_clean_error(tmp_path):
+    """Random and mutated requests straight into the handler: only CommandError, valid replies, heater safe."""
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+
+    from edge.daemon import Daemon
+    from edge.protocol import CommandError, Frame, ProtocolError, decode_request, encode_reply
+
+    rig = make_rig()
+    d = Daemon(sim_config(tmp_path, measurement={"cooldown_s": 0.0, "baseline_s": 0.2}), rig.board,
+               estimator=FakeEstimator())
+    scalars = st.one_of(st.none(), st.booleans(), st.integers(-2**40, 2**40),
+                        st.floats(allow_nan=False, allow_infinity=False), st.text(max_size=20))
+    keys = st.sampled_from(["offset", "limit", "keys", "values", "measurement_id", "power_W", "voltage_V",
+                            "contact_time_s", "echo", "size", "sha256", "version", "heater.power_W",
+                            "measurement.sample_rate_Hz", "x"])
+    values = st.recursive(scalars, lambda inner: st.one_of(st.lists(inner, max_size=4),
+                                                           st.dictionaries(keys, inner, max_size=4)), max_leaves=8)
+    payloads = st.one_of(st.dictionaries(keys, values, max_size=4).map(lambda o: json.dumps(o).encode()),
+                         st.binary(max_size=64))
+    seen = {"ok": 0, "error": 0}
+
+    @settings(max_examples=300, deadline=None, derandomize=True,
+              suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+    @given(msg_type=st.sampled_from([int(c) for c in Command] + [0x00, 0x7F, 0x85]), payload=payloads,
+           rid=st.integers(0, 2**32 - 1))
+    def run(msg_type, payload, rid):
+        try:
+            req = decode_request(Frame(msg_type, rid, payload))
+        except ProtocolError:
+            seen["error"] += 1
+            return
+        try:
+            body = d.handle(req)
+        except CommandError:
+            seen["error"] += 1
+            return
+        encode_reply(req.command, rid, body)  # the reply fits the schema and the size bound
+        seen["ok"] += 1
+
+    try:
+        run()
+        assert seen["ok"] > 0 and seen["error"] > 0
+        assert d.handle(decode_request(Frame(int(Command.PING), 1, b'{"echo":"ok"}'))) == {"echo": "ok"}
+        assert d.state == "idle"
+    finally:
+        d.close()
+    assert_heater_safe(rig.parts, MAX_ON)
+
+
+def test_console_script_without_hardware_fails_cleanly(tmp_path, caplog):
+    p = tmp_path / "edge.toml"
+    p.write_text(f'[board]\nkind = "rpi"\ni2c_bus = "{tmp_path}/no-i2c"\ngpio_chip = "{tmp_path}/no-gpio"\n'
+                 f'pwm_root = "{tmp_path}/no-pwm"\n[paths]\nhistory_db = "{tmp_path}/h.db"\n'
+                 f'model_store = "{tmp_path}/m"\n')
+    import signal
+
+    saved = {s: signal.getsignal(s) for s in (signal.SIGTERM, signal.SIGINT)}
+    try:
+        assert main(["--config", str(p)]) == 1
+    finally:
+        for s, h in saved.items():
+            signal.signal(s, h)
+    assert "missing device" in caplog.text
+    assert not (tmp_path / "h.db").exists()  # nothing was started before the board (and heater) existed

@@ -2,27 +2,14 @@ import math
 
 import numpy as np
 import pytest
-from scipy.interpolate import CubicSpline
 
 from daemon_testutil import FakeEstimator, assert_heater_safe, make_sequence
 from edge.config import Config
 from edge.drivers.heater import HEATER_AREA_M2, volumetric_heat_w_m3
-from edge.sequence import MeasurementParams, natural_cubic_spline, quality_flags, resample_uniform
+from edge.sequence import MeasurementParams, quality_flags, resample_uniform
 from firmware_sim.daemon_rig import heater_on_intervals
 
 pytestmark = pytest.mark.hil
-
-
-def test_natural_spline_matches_scipy_and_is_exact_on_lines(rng):
-    x = np.sort(rng.uniform(0, 3, 15))
-    y = np.sin(2 * x)
-    xq = np.linspace(x[0], x[-1], 101)
-    ref = CubicSpline(x, y, bc_type="natural")(xq)
-    assert np.allclose(natural_cubic_spline(x, y, xq), ref, atol=1e-12)
-    assert np.allclose(natural_cubic_spline(x, 3 * x - 1, np.array([-1.0, 0.5, 5.0])), [-4.0, 0.5, 14.0])
-    assert np.allclose(natural_cubic_spline(np.array([0.0, 1.0]), np.array([1.0, 3.0]), np.array([0.25])), [1.5])
-    with pytest.raises(ValueError, match="increasing"):
-        natural_cubic_spline(np.array([0.0, 0.0, 1.0]), np.zeros(3), xq)
 
 
 def test_resample_grid_and_anchor():
