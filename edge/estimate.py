@@ -50,6 +50,8 @@ PRIOR_COEF_NAMES = ("kernel_floor_ln", "rho_c_intrinsic_ln", "material_spread_ln
 DEFAULT_PRIOR_COEF = (0.15, 0.10, 0.05, 0.10)
 #: Relative standard uncertainty of the flux-sensor sensitivity (FHF05 calibration).
 FLUX_CALIBRATION_U_REL = 0.02
+#: Smallest signal-to-noise ratio of 1/e for which an estimate is reported.
+MIN_SNR = 3.0
 
 # The paper's alpha scans (section 5), chosen there per sample; here by the network's k.
 PAPER_ALPHA_SCANS = (
@@ -267,8 +269,9 @@ class Estimator:
             return self._default_finite(grid, Tg, qg, n_eff, flags, thickness_m, back)
         m = _duhamel(grid.size, MODEL_DT_S) @ qg
         a, c, u_a, _, fit = _lstsq_with_offset(m, Tg, n_eff)
-        if not a > 0:
-            flags.append("no_signal")
+        if not a > MIN_SNR * u_a:
+            # The temperature rise is lost in noise or quantisation: an e from it would be a guess.
+            flags.append("insufficient_signal")
             return Estimate(None, None, None, None, None, None, None, 0.0, "default", self.sha256, flags)
         e = 1.0 / a
         u_ln_e = math.hypot(u_a / a, FLUX_CALIBRATION_U_REL)
@@ -294,8 +297,8 @@ class Estimator:
             rss_all.append(rss if a > 0 else np.inf)
             if a > 0 and (best is None or rss < best[0]):
                 best = (rss, al, a, u_a, fit)
-        if best is None:
-            flags.append("no_signal")
+        if best is None or not best[2] > MIN_SNR * best[3]:
+            flags.append("insufficient_signal")
             return Estimate(None, None, None, None, None, None, None, 0.0, "default", self.sha256, flags)
         rss, alpha, a, u_a, fit = best
         e = 1.0 / a

@@ -49,6 +49,8 @@ from typing import Iterable, Iterator, NamedTuple
 
 import numpy as np
 
+from edge.solids import Solid
+
 __all__ = [
     "CLASSES",
     "CLASS_TO_GROUP",
@@ -181,19 +183,16 @@ class Material:
     note: str = ""
 
     @property
-    def rho_c_J_m3K(self) -> float:
-        """Volumetric heat capacity rho*c [J/(m^3 K)]."""
-        return self.rho_kg_m3 * self.c_J_kgK
+    def solid(self) -> Solid:
+        """The material's thermal properties as the physics model takes them."""
+        return Solid(self.k_W_mK, self.rho_kg_m3, self.c_J_kgK)
 
-    @property
-    def alpha_m2_s(self) -> float:
-        """Thermal diffusivity alpha = k / (rho c) [m^2/s]."""
-        return self.k_W_mK / self.rho_c_J_m3K
-
-    @property
-    def effusivity_W_s05_m2K(self) -> float:
-        """Thermal effusivity e = sqrt(k rho c) [W s^0.5 / (m^2 K)]."""
-        return math.sqrt(self.k_W_mK * self.rho_c_J_m3K)
+    # Derived properties come from edge.solids.Solid: one definition of each.
+    rho_c_J_m3K = property(lambda self: self.solid.rho_c_J_m3K, doc="Volumetric heat capacity [J/(m^3 K)].")
+    alpha_m2_s = property(lambda self: self.solid.alpha_m2_s, doc="Thermal diffusivity [m^2/s].")
+    effusivity_W_s05_m2K = property(
+        lambda self: self.solid.effusivity_W_s05_m2K, doc="Thermal effusivity [W s^0.5 / (m^2 K)]."
+    )
 
     @property
     def group(self) -> str:
