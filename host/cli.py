@@ -8,6 +8,7 @@ tracebacks.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import sys
@@ -239,25 +240,268 @@ def cmd_estimate(args) -> int:
     return 0
 
 
+def _pm(v, u, unit, scale=1.0):
+    """``v ± u unit`` rounded to two significant digits of ``u``."""
+    if v is None:
+        return "n/a"
+    v = v * scale
+    if not u or not u > 0:
+        return f"{v:.4g} {unit}"
+    u = u * scale
+    decimals = 1 - int(math.floor(math.log10(u)))
+    if decimals >= 0:
+        return f"{v:.{decimals}f} ± {u:.{decimals}f} {unit}"
+    q = 10.0 ** (-decimals)
+    return f"{round(v / q) * q:.0f} ± {round(u / q) * q:.0f} {unit}"
+
+
 def print_result(d: dict) -> None:
     """Human-readable estimate (rounded to its uncertainty)."""
-    def fmt(v, u, unit):
-        if v is None:
-            return "n/a"
-        digits = max(0, 1 - int(math.floor(math.log10(u)))) if u and u > 0 else 3
-        return f"{v:.{2}g} ± {u:.1g} {unit}" if digits == 0 else f"{v:.4g} ± {u:.2g} {unit}"
-
-    print(f"effusivity  {fmt(d['effusivity_W_s05_m2K'], d['effusivity_W_s05_m2K_u'], 'W s^0.5/m^2/K')}")
-    print(f"conductivity {fmt(d['k_W_mK'], d['k_W_mK_u'], 'W/m/K')}")
-    print(f"diffusivity {fmt(d['alpha_m2_s'], d['alpha_m2_s_u'], 'm^2/s')}")
+    print(f"effusivity   {_pm(d['effusivity_W_s05_m2K'], d['effusivity_W_s05_m2K_u'], 'W s^0.5/m^2/K')}")
+    print(f"conductivity {_pm(d['k_W_mK'], d['k_W_mK_u'], 'W/m/K')}")
+    print(f"diffusivity  {_pm(d['alpha_m2_s'], d['alpha_m2_s_u'], 'mm^2/s', 1e6)}")
     if d["material"]:
-        print(f"material    {d['material']} (confidence {d['material_confidence'] * 100:.0f} %)")
-    print(f"method {d['method']}, model {d['model_sha256'][:12]}, flags: {', '.join(d['flags']) or 'none'}")
+        print(f"material     {d['material']} (confidence {d['material_confidence'] * 100:.0f} %)")
+    print(f"method {d['method']}, model {(d.get('model_sha256') or '')[:12]}, "
+          f"flags: {', '.join(d['flags']) or 'none'}")
+
+
+# --- the probe: sim, measure, info, history, flash, demo -------------------------------
+
+def _add_device_args(p, *, sim_default=None):
+    src = p.add_mutually_exclusive_group(required=sim_default is None)
+    src.add_argument("--port", help="serial port of the probe (e.g. /dev/ttyACM0)")
+    src.add_argument("--sim", default=sim_default, metavar="SCENE",
+                     help="start a simulated probe on SCENE (shipped name or .toml) for the duration")
+    p.add_argument("--workdir", default=None, help="with --sim: keep the simulated probe's models and history here")
+    p.add_argument("--timeout", type=_float("--timeout"), default=3.0, help="reply timeout, s (default 3)")
+
+
+@contextlib.contextmanager
+def _device(args, prog):
+    """open_device with every device problem turned into a one-line CliError."""
+    from host.device import DeviceUnavailable, open_device
+
+    try:
+        with open_device(args.port, args.sim, workdir=args.workdir, timeout_s=args.timeout) as session:
+            yield session
+    except DeviceUnavailable as exc:
+        raise CliError(f"{prog}: {exc}", exc.code) from None
+
+
+def _add_sim(sub):
+    p = sub.add_parser("sim", help="run a simulated probe on a virtual serial port until Ctrl-C")
+    p.add_argument("scene", help="scene file (.toml) or shipped scene name")
+    p.add_argument("--workdir", default=None, help="keep the model store and history here")
+    p.set_defaults(func=cmd_sim)
+
+
+def cmd_sim(args) -> int:
+    import logging
+
+    from firmware_sim.run import run_sim
+    from host.device import DeviceUnavailable, validate_scene
+
+    try:
+        validate_scene(args.scene)
+    except DeviceUnavailable as exc:
+        raise CliError(f"thermotouch sim: {exc}", exc.code) from None
+    logging.basicConfig(stream=sys.stderr, level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    return run_sim(args.scene, workdir=args.workdir)
+
+
+def _add_measure(sub):
+    p = sub.add_parser("measure", help="one touch: e, k and alpha with uncertainties, material, flags")
+    _add_device_args(p)
+    power = p.add_mutually_exclusive_group()
+    power.add_argument("--voltage", type=_float("--voltage"), help="heater voltage, V")
+    power.add_argument("--power", type=_float("--power"), help="heater power, W")
+    p.add_argument("--time", type=_float("--time"), help="contact (heating) time, s")
+    p.add_argument("--method", choices=("paper", "default"), default=None,
+                   help="estimation method for this touch (default: the device's setting)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--plot", metavar="FILE.png", help="save measured and fitted flux and temperature")
+    p.set_defaults(func=cmd_measure)
+
+
+def _result_json(rec: dict) -> dict:
+    out = dict(rec["result"])
+    out.pop("candidates", None)
+    out["flags"] = list(dict.fromkeys(list(rec.get("flags") or []) + list(out.get("flags") or [])))
+    out.update(measurement_id=rec["measurement_id"], power_W=rec.get("power_W"),
+               contact_time_s=rec.get("contact_time_s"))
+    return out
+
+
+def cmd_measure(args) -> int:
+    from host.device import DeviceUnavailable
+    from host.touch import touch
+
+    prog = "thermotouch measure"
+    with _device(args, prog) as session:
+        if args.plot and not session.simulated:
+            raise CliError(f"{prog}: --plot needs the measured series, which the serial protocol does not carry "
+                           "yet; it works with --sim", 2)
+        try:
+            t = touch(session, power_W=args.power, voltage_V=args.voltage, contact_time_s=args.time,
+                      method=args.method, with_series=bool(args.plot))
+        except DeviceUnavailable as exc:
+            raise CliError(f"{prog}: {exc}", exc.code) from None
+        d = _result_json(t.record)
+        if args.plot:
+            from host.plots import plot_touch
+
+            fit = t.fits.get(d["method"])
+            label = session.simulator.scene.name if session.simulated else ""
+            try:
+                plot_touch(args.plot, t.series, d, fit, label)
+            except OSError as exc:
+                raise CliError(f"{prog}: cannot write {args.plot}: {exc}", 1) from None
+    if args.json:
+        print(json.dumps(d))
+        return 0
+    print(f"measurement {d['measurement_id']}: {d['power_W']:.3g} W for {d['contact_time_s']:.3g} s")
+    print_result(d)
+    if args.plot:
+        print(f"plot: {args.plot}")
+    return 0
+
+
+def _add_info(sub):
+    p = sub.add_parser("info", help="firmware, model and board of the probe")
+    _add_device_args(p)
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_info)
+
+
+def cmd_info(args) -> int:
+    with _device(args, "thermotouch info") as session:
+        info = session.client.info()
+        status = session.client.status()
+    if args.json:
+        print(json.dumps({"info": info, "status": status}))
+        return 0
+    print(f"port       {session.port}")
+    print(f"board      {info['board']}, firmware {info['firmware_version']}, protocol {info['protocol_version']}")
+    print(f"model      {info.get('model_version')} (sha256 {info.get('model_sha256')}, "
+          f"{info.get('model_source') or 'unknown source'})")
+    print(f"state      {status['state']}, {status.get('history_total', 0)} measurement(s) stored")
+    return 0
+
+
+def _add_history(sub):
+    p = sub.add_parser("history", help="the probe's stored measurements, newest first")
+    _add_device_args(p)
+    p.add_argument("--json", action="store_true", help="print one JSON list")
+    p.add_argument("--export", metavar="CSV", help="write every record to a CSV file")
+    p.add_argument("--limit", type=int, default=None, help="at most this many records (default: all)")
+    p.set_defaults(func=cmd_history)
+
+
+HISTORY_CSV_COLUMNS = (
+    "measurement_id", "created_utc", "started_utc", "status", "reason", "power_W", "contact_time_s",
+    "heater_on_s", "T0_C", "effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u",
+    "alpha_m2_s", "alpha_m2_s_u", "material", "material_confidence", "method", "model_sha256", "flags",
+)
+
+
+def _history_row(item: dict) -> dict:
+    r = item.get("result") or {}
+    row = {k: item.get(k) for k in HISTORY_CSV_COLUMNS}
+    for k in ("effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u", "alpha_m2_s",
+              "alpha_m2_s_u", "material", "material_confidence", "method"):
+        row[k] = r.get(k)
+    row["model_sha256"] = item.get("model_sha256") or r.get("model_sha256")
+    row["flags"] = " ".join(item.get("flags") or [])
+    return row
+
+
+def cmd_history(args) -> int:
+    import csv
+
+    items: list[dict] = []
+    with _device(args, "thermotouch history") as session:
+        offset = 0
+        while True:
+            page = session.client.history(offset=offset, limit=100)
+            items.extend(page["items"])
+            offset += len(page["items"])
+            if not page["items"] or offset >= page["total"] or (args.limit and len(items) >= args.limit):
+                break
+    if args.limit:
+        items = items[:args.limit]
+    if args.export:
+        try:
+            with open(args.export, "w", newline="") as fh:
+                w = csv.DictWriter(fh, fieldnames=HISTORY_CSV_COLUMNS)
+                w.writeheader()
+                for it in items:
+                    w.writerow(_history_row(it))
+        except OSError as exc:
+            raise CliError(f"thermotouch history: cannot write {args.export}: {exc}", 1) from None
+    if args.json:
+        print(json.dumps(items))
+        return 0
+    print(f"{len(items)} measurement(s)" + (f"; exported to {args.export}" if args.export else ""))
+    if items:
+        print(f"{'id':>5} {'started (UTC)':20} {'status':8} {'e':>9} {'k W/m/K':>9} {'α mm²/s':>9} "
+              f"{'material':24} flags")
+    for it in items:
+        r = _history_row(it)
+        f = lambda v, s=1.0: "-" if v is None else f"{v * s:.4g}"
+        print(f"{r['measurement_id']:>5} {str(r['started_utc'] or '')[:19]:20} {r['status']:8} "
+              f"{f(r['effusivity_W_s05_m2K']):>9} {f(r['k_W_mK']):>9} {f(r['alpha_m2_s'], 1e6):>9} "
+              f"{str(r['material'] or '-'):24} {r['flags'] or '-'}")
+    return 0
+
+
+def _add_flash(sub):
+    p = sub.add_parser("flash", help="verify a model bundle and install it on the probe")
+    p.add_argument("bundle", help="bundle directory (e.g. from 'thermotouch train')")
+    _add_device_args(p)
+    p.set_defaults(func=cmd_flash)
+
+
+def cmd_flash(args) -> int:
+    from host.flash import flash_bundle, load_verified
+    from host.device import DeviceUnavailable
+
+    prog = "thermotouch flash"
+    try:
+        load_verified(args.bundle)  # refuse a bad bundle before touching the device
+    except DeviceUnavailable as exc:
+        raise CliError(f"{prog}: {exc}", exc.code) from None
+    with _device(args, prog) as session:
+        try:
+            r = flash_bundle(session, args.bundle)
+        except DeviceUnavailable as exc:
+            raise CliError(f"{prog}: {exc}", exc.code) from None
+    print(f"flashed {args.bundle} ({r['bytes']} B): device runs {r['model_version']} "
+          f"sha256 {r['model_sha256']}")
+    return 0
+
+
+def _add_demo(sub):
+    p = sub.add_parser("demo", help="simulated probe: deploy a model, touch the paper's samples, print and plot")
+    p.add_argument("--train", action="store_true", help="train a quick model and deploy it instead of the shipped one")
+    p.add_argument("--out", default="thermotouch-demo", help="output directory (default ./thermotouch-demo)")
+    p.set_defaults(func=cmd_demo)
+
+
+def cmd_demo(args) -> int:
+    from host.demo import run_demo
+    from host.device import DeviceUnavailable
+
+    try:
+        return run_demo(args.out, train=args.train)
+    except DeviceUnavailable as exc:
+        raise CliError(f"thermotouch demo: {exc}", exc.code) from None
 
 
 # --- entry point -----------------------------------------------------------------
 
-_ADDERS = [_add_model, _add_train, _add_evaluate, _add_estimate]
+_ADDERS = [_add_model, _add_train, _add_evaluate, _add_estimate, _add_sim, _add_measure, _add_info, _add_history,
+           _add_flash, _add_demo]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -281,6 +525,14 @@ def main(argv=None) -> int:
     except BrokenPipeError:  # output piped into head & co.
         sys.stderr.close()
         return 0
+    except Exception as exc:  # a bug: still one line for the user; THERMOTOUCH_DEBUG=1 shows the traceback
+        import os
+
+        if os.environ.get("THERMOTOUCH_DEBUG"):
+            raise
+        print(f"thermotouch: internal error: {type(exc).__name__}: {exc} (set THERMOTOUCH_DEBUG=1 for details)",
+              file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,0 +1,318 @@
+"""``train-and-deploy``: train a bundle, prove it is no worse than the probe's, flash it, check a touch.
+
+Steps, each printed as it runs::
+
+    1. device     INFO: the model the probe runs now, its thermocouple converter
+    2. train      training set (progress bar) and fit (host.train.train_bundle),
+                  with its held-back-material metrics
+    3. evaluate   both bundles on the paper's nine cases (host.evaluate.paper_cases)
+                  through a model of the probe's instrument
+    4. judge      REFUSE (exit 3, nothing flashed) if the new bundle is worse than
+                  the device's on any compared error, or beyond a threshold
+    5. flash      verified upload over serial (progress bar); the device must report
+                  the new sha256
+    6. self-check one touch: on the simulator the scene's object, on a real probe the
+                  reference sample named by --reference; e must lie within the
+                  evaluated bar and k within two stated uncertainties
+
+The device's current bundle is compared when it is the shipped default
+(loaded locally from ``thermotouch_models``) or when ``--baseline DIR``
+holds it; otherwise only the thresholds apply, and the report says so.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from host.device import DeviceSession, DeviceUnavailable, open_device
+
+__all__ = ["Thresholds", "DeployRefused", "score_bundle", "judge", "self_check", "train_and_deploy", "main"]
+
+#: Relative slack when comparing with the device's bundle: evaluation noise, not a licence to regress.
+COMPARE_TOLERANCE = 0.05
+#: Absolute slack on a relative error (0.5 percentage points).
+COMPARE_SLACK = 0.005
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """Largest errors a bundle may have to be deployed (relative, as fractions).
+
+    ``heldout_k_median`` is the training's held-back-material metric; the
+    others are means of absolute errors over the paper's nine cases through
+    the probe's instrument model.
+    """
+
+    heldout_k_median: float = 0.35
+    paper_k: float = 0.35
+    paper_alpha: float = 0.60
+    default_e: float = 0.10
+    default_k: float = 0.30
+
+
+class DeployRefused(DeviceUnavailable):
+    """The new bundle is not deployed; the message says why (exit status 3)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message, 3)
+
+
+def score_bundle(bundle: Any, instrument: str, *, repeats: int = 2) -> dict:
+    """Mean absolute errors of a bundle on the paper's nine cases.
+
+    Returns ``{"paper_k", "paper_alpha", "default_e", "default_k", "rows"}``.
+    """
+    from edge.estimate import Estimator  # noqa: PLC0415
+    from host.evaluate import paper_cases  # noqa: PLC0415
+
+    rows = paper_cases(Estimator.from_bundle(bundle), instrument, repeats=repeats)
+
+    def mean(method: str, key: str) -> float:
+        v = [r[key] for r in rows if r["method"] == method and r[key] is not None]
+        return float(np.mean(v)) if v else math.inf
+
+    return {"paper_k": mean("paper", "k_err_abs"), "paper_alpha": mean("paper", "alpha_err_abs"),
+            "default_e": mean("default", "e_err"), "default_k": mean("default", "k_err_abs"), "rows": rows}
+
+
+_COMPARED = ("paper_k", "paper_alpha", "default_e", "default_k")
+
+
+def judge(metrics: dict, new: dict, old: dict | None, thresholds: Thresholds = Thresholds()) -> list[str]:
+    """Reasons to refuse the new bundle (empty: deploy).
+
+    Parameters
+    ----------
+    metrics : dict
+        Training metrics (``heldout_k_median_rel_err``).
+    new, old : dict
+        :func:`score_bundle` of the new bundle and of the device's (None: unknown).
+    """
+    why = []
+    held = metrics.get("heldout_k_median_rel_err")
+    if held is None or not held <= thresholds.heldout_k_median:
+        why.append(f"held-back k median error {held if held is None else f'{held * 100:.1f} %'} exceeds "
+                   f"the threshold {thresholds.heldout_k_median * 100:.0f} %")
+    for key in _COMPARED:
+        limit = getattr(thresholds, key)
+        if not new[key] <= limit:
+            why.append(f"{key.replace('_', ' ')} error {new[key] * 100:.1f} % exceeds the threshold "
+                       f"{limit * 100:.0f} %")
+        if old is not None and new[key] > old[key] * (1 + COMPARE_TOLERANCE) + COMPARE_SLACK:
+            why.append(f"{key.replace('_', ' ')} error {new[key] * 100:.1f} % is worse than the device's "
+                       f"model ({old[key] * 100:.1f} %)")
+    return why
+
+
+def _reference_for(session: DeviceSession, reference: str | None) -> tuple[str, Any] | None:
+    from host.evaluate import SAMPLES  # noqa: PLC0415
+
+    if session.simulated:
+        obj = session.simulator.scene.object
+        return session.simulator.scene.name, obj.solid
+    if reference is None:
+        return None
+    return reference, SAMPLES[reference][0]
+
+
+def self_check(session: DeviceSession, score: dict, *, reference: str | None = None,
+               log: Callable[[str], None] = print) -> dict | None:
+    """One touch on a known object; returns the check (``ok`` and numbers) or None if skipped.
+
+    The effusivity bar is three times the evaluated mean error of the
+    closest paper case of the same kind of material (at least 10 %); k must
+    lie within two of the device's stated standard uncertainties.
+    """
+    from host.touch import touch  # noqa: PLC0415
+
+    ref = _reference_for(session, reference)
+    if ref is None:
+        log("self-check: skipped (hold the probe on a reference sample and pass --reference SAMPLE)")
+        return None
+    name, solid = ref
+    t = touch(session, method="default", with_series=False)
+    r = t.result
+    e_ref = solid.effusivity_W_s05_m2K
+    rows = [x for x in score["rows"] if x["method"] == "default" and x["e_err"] is not None]
+    # The evaluated case whose material is closest in effusivity carries the bar.
+    from host.evaluate import SAMPLES  # noqa: PLC0415
+    closest = min(rows, key=lambda x: abs(math.log(SAMPLES[x["sample"]][0].effusivity_W_s05_m2K / e_ref)))
+    same = [x["e_err"] for x in rows if x["sample"] == closest["sample"]]
+    bar_e = max(3.0 * float(np.mean(same)), 0.10)
+    e = r["effusivity_W_s05_m2K"]
+    e_err = (e - e_ref) / e_ref if e else math.inf
+    k, k_u = r["k_W_mK"], r["k_W_mK_u"] or 0.0
+    k_ok = k is not None and abs(k - solid.k_W_mK) <= 2.0 * k_u
+    ok = abs(e_err) <= bar_e and k_ok
+    out = {"ok": ok, "reference": name, "e": e, "e_ref": e_ref, "e_err": e_err, "e_bar": bar_e,
+           "k": k, "k_u": k_u, "k_ref": solid.k_W_mK, "measurement_id": t.record["measurement_id"],
+           "model_sha256": r.get("model_sha256"), "flags": t.record.get("flags", [])}
+    log(f"self-check on {name}: e = {e:.4g} ({e_err * 100:+.1f} %, bar ±{bar_e * 100:.0f} %), "
+        f"k = {k:.3g} ± {k_u:.2g} (reference {solid.k_W_mK:.4g}) -> {'PASS' if ok else 'FAIL'}")
+    return out
+
+
+def _device_baseline(info: dict, baseline: str | Path | None, log: Callable[[str], None]) -> Any:
+    """The bundle the device runs, when the host has it (shipped default or --baseline)."""
+    from host.flash import load_verified  # noqa: PLC0415
+
+    candidates = [baseline] if baseline is not None else []
+    try:
+        from thermotouch_models import DEFAULT_BUNDLE  # noqa: PLC0415
+
+        candidates.append(DEFAULT_BUNDLE)
+    except ImportError:  # pragma: no cover - the package ships it
+        pass
+    for c in candidates:
+        b = load_verified(c)
+        if b.sha256 == info.get("model_sha256"):
+            return b
+    log(f"device model {str(info.get('model_sha256'))[:12]} is not available on this host: "
+        "comparing with the thresholds only")
+    return None
+
+
+def train_and_deploy(session: DeviceSession, out: str | Path, *, quick: bool = False, seed: int = 0,
+                     lib: Any = None, bundle: str | Path | None = None, baseline: str | Path | None = None,
+                     thresholds: Thresholds = Thresholds(), reference: str | None = None,
+                     repeats: int = 2, progress: bool = True, log: Callable[[str], None] = print) -> dict:
+    """The whole flow on an open session (see the module docstring).
+
+    Parameters
+    ----------
+    session : DeviceSession
+    out : path
+        Bundle directory to write (overwritten).
+    quick, seed, lib :
+        Passed to :func:`host.train.train_bundle` (``lib``: a material subset).
+    bundle : path, optional
+        Skip training and deploy this existing bundle (its manifest metrics are used).
+    baseline : path, optional
+        The device's current bundle, if it is not the shipped default.
+
+    Returns
+    -------
+    dict
+        ``{"model_sha256", "metrics", "score", "device_score", "flash", "self_check"}``.
+
+    Raises
+    ------
+    DeployRefused
+        The new bundle does worse (nothing is flashed).
+    DeviceUnavailable
+        Device problems, a refused upload, or a failed self-check.
+    """
+    from host.flash import flash_bundle, load_verified  # noqa: PLC0415
+    from host.progress import ProgressBar  # noqa: PLC0415
+
+    c = session.client
+    info = c.info()
+    instrument = c.config_get("sensors.thermocouple").get("sensors.thermocouple", "mcp9600")
+    log(f"device: {info['board']} board, model {info.get('model_version')} "
+        f"({str(info.get('model_sha256'))[:12]}), thermocouple via {instrument}")
+    if bundle is None:
+        from host.train import train_bundle  # noqa: PLC0415
+
+        with warnings.catch_warnings(), ProgressBar("training set", "material", enabled=progress) as bar:
+            warnings.simplefilter("ignore")  # sklearn convergence chatter; the metrics tell the truth
+            new_bundle, metrics = train_bundle(out, quick=quick, seed=seed, lib=lib, progress=bar,
+                                               overwrite=True, log=lambda s: log(f"train: {s}"))
+        path = Path(out)
+    else:
+        path = Path(bundle)
+        new_bundle = load_verified(path)
+        metrics = dict(new_bundle.manifest.get("metrics", {}))
+    log(f"held-back materials: k median error {metrics.get('heldout_k_median_rel_err', math.nan) * 100:.1f} %, "
+        f"90th percentile {metrics.get('heldout_k_p90_rel_err', math.nan) * 100:.1f} %")
+    score = score_bundle(new_bundle, instrument, repeats=repeats)
+    old_bundle = _device_baseline(info, baseline, log)
+    old = None
+    if old_bundle is not None:
+        old = score if old_bundle.sha256 == new_bundle.sha256 else score_bundle(old_bundle, instrument,
+                                                                                 repeats=repeats)
+    log("paper cases (mean |error|):  new " + _fmt_score(score)
+        + ("" if old is None else "\n                             device " + _fmt_score(old)))
+    why = judge(metrics, score, old, thresholds)
+    if why:
+        raise DeployRefused("not deploying " + str(path) + ": " + "; ".join(why))
+    if old_bundle is not None and old_bundle.sha256 == new_bundle.sha256:
+        log("device already runs this model; flashing anyway to verify the link")
+    fl = flash_bundle(session, path, progress=progress)
+    log(f"flashed {fl['bytes']} B; device reports sha256 {fl['model_sha256']}")
+    check = self_check(session, score, reference=reference, log=log)
+    result = {"model_sha256": fl["model_sha256"], "metrics": metrics,
+              "score": {k: v for k, v in score.items() if k != "rows"},
+              "device_score": None if old is None else {k: v for k, v in old.items() if k != "rows"},
+              "flash": fl, "self_check": check, "bundle": str(path)}
+    if check is not None and not check["ok"]:
+        raise DeviceUnavailable(f"self-check failed on {check['reference']}: e error {check['e_err'] * 100:+.1f} % "
+                                f"(bar ±{check['e_bar'] * 100:.0f} %), k {check['k']:.3g} ± {check['k_u']:.2g} vs "
+                                f"{check['k_ref']:.4g}; the new model stays installed (flash the previous bundle "
+                                "to roll back)")
+    return result
+
+
+def _fmt_score(s: dict) -> str:
+    return (f"paper k {s['paper_k'] * 100:.1f} %, paper α {s['paper_alpha'] * 100:.1f} %, "
+            f"default e {s['default_e'] * 100:.1f} %, default k {s['default_k'] * 100:.1f} %")
+
+
+def _parser() -> argparse.ArgumentParser:
+    from host.cli import _Parser, _float  # noqa: PLC0415 - same one-line error style as thermotouch
+
+    p = _Parser(prog="train-and-deploy", description=__doc__.splitlines()[0])
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--port", help="serial port of the probe")
+    src.add_argument("--sim", metavar="SCENE", help="start a simulated probe on SCENE for the duration "
+                     "(self-check against the scene's object; glass_15V is a good reference)")
+    p.add_argument("--quick", action="store_true", help="6 power levels, no noisy copies, fewer iterations")
+    p.add_argument("--out", default="thermotouch-model", help="bundle directory to write (default ./thermotouch-model)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--bundle", help="deploy this existing bundle instead of training one")
+    p.add_argument("--baseline", help="the device's current bundle directory, if not the shipped default")
+    p.add_argument("--reference", choices=("tempered_glass", "pmma", "aluminium_alloy"),
+                   help="with --port: the reference sample the probe rests on for the self-check touch")
+    p.add_argument("--workdir", help="with --sim: keep the simulated probe's models and history here")
+    p.add_argument("--timeout", type=_float("--timeout"), default=3.0, help="reply timeout, s")
+    for f in Thresholds.__dataclass_fields__:
+        p.add_argument(f"--max-{f.replace('_', '-')}", dest=f"max_{f}", type=_float(f"--max-{f}"),
+                       default=getattr(Thresholds, f), help=f"threshold, fraction (default {getattr(Thresholds, f)})")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Console script ``train-and-deploy`` (exit 0 deployed, 1 device/self-check failure, 2 bad input, 3 refused)."""
+    from host.cli import CliError  # noqa: PLC0415
+
+    try:
+        a = _parser().parse_args(argv)
+        th = Thresholds(**{f: getattr(a, f"max_{f}") for f in Thresholds.__dataclass_fields__})
+        try:
+            with open_device(a.port, a.sim, workdir=a.workdir, timeout_s=a.timeout) as session:
+                r = train_and_deploy(session, a.out, quick=a.quick, seed=a.seed, bundle=a.bundle,
+                                     baseline=a.baseline, thresholds=th, reference=a.reference,
+                                     log=lambda s: print(s, flush=True))
+        except DeviceUnavailable as exc:
+            raise CliError(f"train-and-deploy: {exc}", exc.code) from None
+        except FileExistsError as exc:
+            raise CliError(f"train-and-deploy: {exc}", 2) from None
+    except CliError as exc:
+        print(str(exc), file=sys.stderr)
+        return exc.code
+    except KeyboardInterrupt:
+        print("train-and-deploy: interrupted", file=sys.stderr)
+        return 130
+    print(f"deployed {r['bundle']} (sha256 {r['model_sha256']})")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

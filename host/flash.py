@@ -1,0 +1,71 @@
+"""Flashing a model bundle onto a probe: verify locally, upload in chunks, confirm the device runs it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from host.device import DeviceSession, DeviceUnavailable
+from host.progress import ProgressBar
+
+__all__ = ["BundleRefused", "load_verified", "flash_bundle"]
+
+
+class BundleRefused(DeviceUnavailable):
+    """A bundle fails its own checks on the host (exit status 2)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message, 2)
+
+
+def load_verified(path: str | Path) -> Any:
+    """Load a bundle directory with every check, including the pipeline golden vectors.
+
+    Raises
+    ------
+    BundleRefused
+        Naming the bundle and what is wrong with it.
+    """
+    from edge.bundle import BundleError, load_bundle  # noqa: PLC0415
+    from edge.estimate import pipeline_golden_check  # noqa: PLC0415
+
+    p = Path(path)
+    if not p.is_dir():
+        raise BundleRefused(f"bundle {p} refused: not a bundle directory")
+    try:
+        return load_bundle(p, golden_check=pipeline_golden_check)
+    except BundleError as exc:
+        raise BundleRefused(f"bundle {p} refused: {exc}") from None
+
+
+def flash_bundle(session: DeviceSession, path: str | Path, *, progress: bool = True) -> dict:
+    """Verify ``path``, upload it over the session's link and confirm the device reports its sha256.
+
+    Returns
+    -------
+    dict
+        ``{"model_sha256", "model_version", "bytes", "previous_sha256"}``.
+
+    Raises
+    ------
+    BundleRefused
+        The bundle fails locally.
+    DeviceUnavailable
+        The device refuses it, does not answer, or reports another model afterwards.
+    """
+    from edge.bundle import BundleError, bundle_to_bytes  # noqa: PLC0415
+
+    bundle = load_verified(path)
+    try:
+        blob = bundle_to_bytes(path)
+    except BundleError as exc:
+        raise BundleRefused(f"bundle {path} refused: {exc}") from None
+    c = session.client
+    before = c.info().get("model_sha256")
+    with ProgressBar("flashing", "B", enabled=progress, unit_scale=True) as bar:
+        c.upload_model(blob, progress=bar, version=bundle.model_version)
+    now = c.info().get("model_sha256")
+    if now != bundle.sha256:
+        raise DeviceUnavailable(f"device reports model {now} after flashing {path}, expected {bundle.sha256}")
+    return {"model_sha256": now, "model_version": bundle.model_version, "bytes": len(blob),
+            "previous_sha256": before}
