@@ -1,0 +1,205 @@
+"""The user's device commands (measure, info, history, flash, sim) and the errors a user meets.
+
+Every command runs over a real pseudo-terminal link: ``--sim SCENE`` starts
+the edge daemon on the scene's simulator behind a NullModem; ``--port`` tests
+point at the host side of a simulated probe started by the test.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+import signal
+import subprocess
+import sys
+
+import pytest
+
+from host.cli import main
+from host.client import DeviceClient
+from host.device import DeviceUnavailable, describe_error, open_device, simulated_probe
+
+pytestmark = pytest.mark.hil
+
+RESULT_KEYS = {"effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u", "alpha_m2_s",
+               "alpha_m2_s_u", "material", "material_confidence", "method", "model_sha256", "flags"}
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def one_line_error(err: str) -> str:
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    return lines[0]
+
+
+def test_measure_on_a_simulated_probe_prints_values_with_uncertainties(capsys):
+    code, out, err = run(capsys, "measure", "--sim", "glass_15V")
+    assert code == 0, err
+    assert "effusivity" in out and "±" in out and "W s^0.5/m^2/K" in out
+    assert "conductivity" in out and "diffusivity" in out and "mm^2/s" in out
+    assert "material" in out and "flags: none" in out and "method default" in out
+
+
+def test_measure_json_has_the_estimation_keys_and_a_glass_like_effusivity(capsys):
+    code, out, err = run(capsys, "measure", "--sim", "pmma_15V", "--json", "--voltage", "12", "--time", "1.5")
+    assert code == 0, err
+    d = json.loads(out)
+    assert RESULT_KEYS <= set(d)
+    assert d["contact_time_s"] == pytest.approx(1.5) and d["power_W"] == pytest.approx(12.0 ** 2 / 50.0)
+    # PMMA's effusivity (558 W s^0.5/m^2/K) through the MCP9600 at a reduced voltage: within 15 %.
+    assert d["effusivity_W_s05_m2K"] == pytest.approx(558.0, rel=0.15)
+
+
+def test_measure_with_the_paper_method_restores_the_device_setting(capsys, tmp_path):
+    code, out, err = run(capsys, "measure", "--sim", "glass_15V", "--workdir", str(tmp_path), "--method", "paper",
+                         "--json")
+    assert code == 0, err
+    assert json.loads(out)["method"] == "paper"
+    with open_device(sim="glass_15V", workdir=tmp_path) as s:
+        assert s.client.config_get("estimation.method")["estimation.method"] == "default"
+
+
+def test_measure_plot_writes_a_png_with_both_panels(capsys, tmp_path):
+    png = tmp_path / "touch.png"
+    code, out, err = run(capsys, "measure", "--sim", "glass_15V", "--plot", str(png))
+    assert code == 0, err
+    data = png.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 20_000
+
+
+def test_info_history_and_export_over_a_port(capsys, tmp_path):
+    with simulated_probe("glass_12V", tmp_path / "dev") as (port, daemon, sim):
+        code, out, err = run(capsys, "measure", "--port", port, "--json")
+        assert code == 0, err
+        mid = json.loads(out)["measurement_id"]
+        code, out, err = run(capsys, "info", "--port", port)
+        assert code == 0 and "board      sim" in out and "1 measurement(s) stored" in out, out + err
+        csv_path = tmp_path / "h.csv"
+        code, out, err = run(capsys, "history", "--port", port, "--export", str(csv_path))
+        assert code == 0, err
+        assert "1 measurement(s)" in out
+        rows = list(csv.DictReader(csv_path.open()))
+        assert len(rows) == 1 and int(rows[0]["measurement_id"]) == mid and rows[0]["status"] == "ok"
+        assert float(rows[0]["effusivity_W_s05_m2K"]) == pytest.approx(1477.0, rel=0.1)
+        code, out, err = run(capsys, "history", "--port", port, "--json")
+        assert code == 0 and [i["measurement_id"] for i in json.loads(out)] == [mid]
+        # --plot needs the series, which the serial protocol does not carry: refused before touching.
+        code, out, err = run(capsys, "measure", "--port", port, "--plot", str(tmp_path / "x.png"))
+        assert code == 2 and "--plot" in one_line_error(err)
+        assert daemon.history.count() == 1
+
+
+def test_flash_installs_the_bundle_and_confirms_its_sha(capsys, tmp_path):
+    from thermotouch_models import DEFAULT_BUNDLE
+
+    from edge.bundle import load_bundle
+
+    code, out, err = run(capsys, "flash", str(DEFAULT_BUNDLE), "--sim", "pmma_8V", "--workdir", str(tmp_path))
+    assert code == 0, err
+    sha = load_bundle(DEFAULT_BUNDLE).sha256
+    assert sha in out
+    with open_device(sim="pmma_8V", workdir=tmp_path) as s:
+        info = s.client.info()
+    assert info["model_sha256"] == sha and info["model_source"] == "current"
+
+
+# --- errors a user meets ----------------------------------------------------------------
+
+def test_no_such_port(capsys):
+    code, out, err = run(capsys, "info", "--port", "/dev/thermotouch-does-not-exist")
+    assert code == 1
+    assert one_line_error(err) == "thermotouch info: no such serial port: /dev/thermotouch-does-not-exist"
+
+
+def test_device_busy(capsys):
+    with simulated_probe("glass_15V") as (port, _, _):
+        with DeviceClient(port):  # exclusive: the port is now in use
+            code, out, err = run(capsys, "measure", "--port", port)
+    assert code == 1
+    assert "busy" in one_line_error(err) and port in err
+
+
+def test_device_not_answering(capsys):
+    from firmware_sim.ptylink import NullModem
+
+    with NullModem() as nm:  # nothing runs on the device side
+        code, out, err = run(capsys, "info", "--port", nm.host_port, "--timeout", "0.2")
+    assert code == 1
+    line = one_line_error(err)
+    assert "not answering" in line and "INFO" in line
+
+
+def test_bundle_refused_locally(capsys, tmp_path):
+    from thermotouch_models import DEFAULT_BUNDLE
+
+    bad = tmp_path / "bad"
+    shutil.copytree(DEFAULT_BUNDLE, bad)
+    arrays = bad / "arrays.npz"
+    arrays.write_bytes(arrays.read_bytes()[:-100])
+    code, out, err = run(capsys, "flash", str(bad), "--port", "/dev/thermotouch-not-needed")
+    assert code == 2
+    line = one_line_error(err)
+    assert "refused" in line and "arrays.npz" in line
+
+
+def test_bundle_refused_by_the_device_is_one_line():
+    from edge.protocol import Command, ErrorCode
+    from host.client import DeviceError
+
+    line = describe_error(DeviceError(ErrorCode.MODEL_REJECTED, "golden check failed", None, Command.MODEL_COMMIT),
+                          "/dev/ttyACM0")
+    assert line == "device on /dev/ttyACM0 refused the bundle: golden check failed"
+    busy = describe_error(DeviceError(ErrorCode.BUSY, "cannot change the configuration while measuring"))
+    assert busy.startswith("device busy:")
+
+
+def test_scene_invalid(capsys, tmp_path):
+    scene = tmp_path / "bad.toml"
+    from firmware_sim.scene import scene_path
+
+    text = scene_path("glass_15V").read_text()
+    scene.write_text(text.replace("k_W_mK = 1.097", "k_W_mK = -1.0"))
+    code, out, err = run(capsys, "measure", "--sim", str(scene))
+    assert code == 2
+    line = one_line_error(err)
+    assert "invalid scene" in line and "object.k_W_mK" in line
+    code, out, err = run(capsys, "sim", "no_such_scene")
+    assert code == 2 and "invalid scene" in one_line_error(err)
+
+
+def test_measure_failure_names_the_reason(capsys):
+    code, out, err = run(capsys, "measure", "--sim", "glass_15V_faults")
+    assert code == 1
+    line = one_line_error(err)
+    assert "SENSOR_FAULT" in line and "open_thermocouple" in line
+
+
+def test_open_device_needs_exactly_one_source():
+    with pytest.raises(DeviceUnavailable, match="exactly one"):
+        with open_device():
+            pass
+
+
+def test_sim_command_prints_the_port_first_and_stops_on_sigint(tmp_path):
+    proc = subprocess.Popen([sys.executable, "-m", "host.cli", "sim", "pmma_15V", "--workdir", str(tmp_path)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        port = proc.stdout.readline().strip()
+        assert port.startswith("/dev/pts/"), proc.stderr.read()
+        with DeviceClient(port, timeout_s=10.0) as c:
+            assert c.measure()["status"] == "ok"
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, err
+    assert "Traceback" not in err
