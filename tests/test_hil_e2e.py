@@ -1,0 +1,189 @@
+"""End to end on the simulated probe, over the virtual serial link: train, judge, flash, touch the nine scenes.
+
+The module trains one small quick bundle (12 library materials, a few
+seconds) and runs the user's flows on it:
+
+* train-and-deploy against a probe running the shipped model REFUSES it
+  (it does worse on the paper cases) and flashes nothing;
+* the small bundle flashed by hand, then train-and-deploy of the shipped
+  bundle against it (``baseline``) deploys: verified flash, the device
+  reports the new sha256, a self-check touch on glass_15V passes;
+* the nine paper scenes touched with the quick-trained bundle on the device
+  (effusivity does not depend on the network) and, through ``thermotouch
+  demo``, with the shipped one (k and alpha bars).
+
+Accuracy bars are what the path achieves through the MCP9600 (16-bit, 10 Hz
+sampling, the daemon's defaults) with a margin; measured on this code
+(default method, device result vs paper Table 2):
+
+======== ======= ======= ======= ========
+scene    e err   k err   α err   note
+======== ======= ======= ======= ========
+glass12  +1.3 %  +8.2 %  +14.0 %
+glass15  +1.8 %  +9.0 %  +14.6 %
+glass18  +11.0 % +27.0 % +30.8 %
+pmma8    +11.3 % +19.3 % +14.8 %
+pmma15   +1.4 %  +4.2 %  +5.7 %
+pmma20   +8.4 %  +13.5 % +9.6 %
+alu15    --      --      --      insufficient_signal (0.15 K rise, ~1 LSB)
+alu20    -7.6 %  -29.9 % -42.5 %
+alu25    +6.2 %  -6.4 %  -22.3 %
+======== ======= ======= ======= ========
+
+The thermocouple's 16-bit quantisation (0.19 K steps on a 0.7-2 K rise) is
+what limits e; the paper's 10 % k bar is met on four of nine touches only.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from host.demo import PAPER_SCENES, measure_scenes, run_demo
+from host.deploy import DeployRefused, train_and_deploy
+from host.device import open_device
+from host.flash import flash_bundle, load_verified
+
+pytestmark = pytest.mark.hil
+
+SMALL_LIBRARY = ("tempered_glass", "pmma", "aluminium_alloy", "polystyrene_extruded_foam", "cork_board", "plywood",
+                 "ptfe", "polycarbonate", "fused_silica", "granite", "aisi_304", "copper")
+
+#: |e error| bars per scene (measured above, plus margin); alu_15V must refuse instead.
+E_BAR = {"glass_12V": 0.04, "glass_15V": 0.04, "glass_18V": 0.14, "pmma_8V": 0.14, "pmma_15V": 0.04,
+         "pmma_20V": 0.11, "alu_20V": 0.10, "alu_25V": 0.09}
+#: |k error| and |alpha error| bars of the shipped model's default method.
+K_BAR = {"tempered glass": 0.32, "PMMA": 0.24, "Al alloy": 0.35}
+ALPHA_BAR = {"tempered glass": 0.36, "PMMA": 0.20, "Al alloy": 0.50}
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A quick bundle on 12 materials, via train-and-deploy against a probe running the shipped model."""
+    from host.materials import MaterialLibrary, load_materials
+
+    lib = load_materials()
+    small = MaterialLibrary([lib.get(n) for n in SMALL_LIBRARY])
+    root = tmp_path_factory.mktemp("e2e")
+    logs: list[str] = []
+    with open_device(sim="glass_15V", workdir=root / "dev0") as s:
+        sha_before = s.client.info()["model_sha256"]
+        with pytest.raises(DeployRefused) as ei:
+            train_and_deploy(s, root / "small", quick=True, lib=small, progress=False, log=logs.append)
+        sha_after = s.client.info()["model_sha256"]
+    return {"root": root, "bundle": root / "small", "refusal": ei.value, "logs": logs,
+            "sha_before": sha_before, "sha_after": sha_after}
+
+
+def test_train_and_deploy_refuses_a_model_worse_than_the_devices(trained):
+    msg = str(trained["refusal"])
+    assert trained["refusal"].code == 3
+    assert "worse than the device's model" in msg or "exceeds the threshold" in msg
+    assert trained["sha_after"] == trained["sha_before"], "a refused model must not be flashed"
+    # It was trained, evaluated on held-back materials and compared on the paper cases first.
+    assert any("held-back materials" in m for m in trained["logs"])
+    assert any("paper cases" in m and "device" in m for m in trained["logs"])
+    assert load_verified(trained["bundle"]).sha256 != trained["sha_before"]
+
+
+def test_quick_model_flashed_measures_the_nine_scenes_with_the_heater_safe(trained):
+    """The trained bundle over the link, then every paper scene: e bars and the heater invariant."""
+    work = trained["root"] / "dev1"
+    with open_device(sim="glass_12V", workdir=work) as s:
+        fl = flash_bundle(s, trained["bundle"], progress=False)
+    sha = load_verified(trained["bundle"]).sha256
+    assert fl["model_sha256"] == sha
+    rows = measure_scenes(work, PAPER_SCENES, expect_sha256=sha, log=lambda m: None)
+    assert [r["scene"] for r in rows] == list(PAPER_SCENES)
+    for r in rows:
+        assert r["model_sha256"] == sha
+        h = r["heater"]
+        assert h["ok"] and h["off_now"] and h["longest_on_s"] <= h["limit_s"]
+        assert h["longest_on_s"] == pytest.approx(2.0, abs=0.01)  # one 2-s pulse, no more
+        if r["scene"] == "alu_15V":
+            assert "insufficient_signal" in r["flags"] and r["default"]["e"] is None
+            continue
+        err = r["default"]["errors"]["e"]
+        assert abs(err) <= E_BAR[r["scene"]], (r["scene"], err)
+
+
+def test_deploying_a_better_model_flashes_confirms_and_self_checks(trained):
+    from thermotouch_models import DEFAULT_BUNDLE
+
+    work = trained["root"] / "dev2"
+    shipped = load_verified(DEFAULT_BUNDLE).sha256
+    with open_device(sim="glass_15V", workdir=work) as s:
+        flash_bundle(s, trained["bundle"], progress=False)  # the device now runs the worse model
+    logs: list[str] = []
+    with open_device(sim="glass_15V", workdir=work) as s:
+        r = train_and_deploy(s, work / "unused", bundle=DEFAULT_BUNDLE, baseline=trained["bundle"],
+                             progress=False, log=logs.append)
+        assert s.client.info()["model_sha256"] == shipped
+        inv = s.simulator.heater_invariant(s.daemon.config.heater.max_on_time_s)
+    assert r["model_sha256"] == shipped
+    assert r["device_score"] is not None and r["score"]["paper_k"] < r["device_score"]["paper_k"]
+    chk = r["self_check"]
+    assert chk["ok"] and chk["reference"] == "glass_15V" and abs(chk["e_err"]) <= chk["e_bar"]
+    assert chk["model_sha256"] == shipped
+    assert inv["ok"] and inv["n_intervals"] == 1
+
+
+def test_demo_prints_table2_comparison_and_writes_plots(tmp_path):
+    out = tmp_path / "demo"
+    lines: list[str] = []
+    assert run_demo(out, progress=False, log=lines.append) == 0
+    text = "\n".join(lines)
+    for sample in ("tempered glass", "PMMA", "Al alloy"):
+        assert sample in text
+    assert "heater invariant held on every touch: yes" in text
+    res = json.loads((out / "results.json").read_text())
+    rows = res["rows"]
+    assert len(rows) == 9
+    for scene in PAPER_SCENES:
+        png = out / "plots" / f"{scene}.png"
+        assert png.read_bytes()[:4] == b"\x89PNG"
+    for r in rows:
+        d = r["default"]
+        if d["e"] is None:
+            assert r["scene"] == "alu_15V"
+            continue
+        assert abs(d["errors"]["e"]) <= E_BAR[r["scene"]], r["scene"]
+        assert abs(d["errors"]["k"]) <= K_BAR[r["sample"]], (r["scene"], d["errors"])
+        assert abs(d["errors"]["alpha"]) <= ALPHA_BAR[r["sample"]], (r["scene"], d["errors"])
+        # The stated uncertainty covers the k error within 2 sigma (it carries the prior's spread).
+        assert abs(d["k"] - r["ref"]["k"]) <= 2 * d["k_u"], r["scene"]
+        assert r["paper"] is not None and math.isfinite(r["paper"]["k"])
+    # Table 2 references, as the paper gives them.
+    assert "1.097" in text and "0.185" in text and "120.4" in text
+
+
+def test_train_and_deploy_console_script_refuses_in_one_line(trained, capsys):
+    from host.deploy import main
+
+    code = main(["--sim", "glass_15V", "--bundle", str(trained["bundle"])])
+    out, err = capsys.readouterr()
+    assert code == 3
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("train-and-deploy: not deploying") and "Traceback" not in err
+    assert "paper cases" in out  # it evaluated before refusing
+
+
+def test_judge_compares_with_the_device_and_the_thresholds():
+    from host.deploy import Thresholds, judge
+
+    good = {"paper_k": 0.10, "paper_alpha": 0.20, "default_e": 0.03, "default_k": 0.10}
+    metrics = {"heldout_k_median_rel_err": 0.15}
+    assert judge(metrics, good, dict(good)) == []
+    assert judge(metrics, good, None) == []
+    # Within evaluation noise (5 % relative + 0.5 point) is not worse ...
+    assert judge(metrics, dict(good, paper_k=0.109), good) == []
+    # ... beyond it is, and the reason names the error and both values.
+    why = judge(metrics, dict(good, paper_k=0.13), good)
+    assert len(why) == 1 and "paper k" in why[0] and "13.0 %" in why[0] and "10.0 %" in why[0]
+    # alpha of the paper method is held to its threshold, not compared.
+    assert judge(metrics, dict(good, paper_alpha=0.30), good) == []
+    assert "paper alpha" in judge(metrics, dict(good, paper_alpha=0.70), good)[0]
+    assert "held-back" in judge({"heldout_k_median_rel_err": 0.5}, good, None)[0]
+    assert judge(metrics, good, None, Thresholds(default_e=0.01))[0].startswith("default e error 3.0 %")
