@@ -19,21 +19,28 @@ __all__ = ["result_title", "plot_touch"]
 
 
 def _pm(v: float | None, u: float | None, scale: float = 1.0) -> str:
+    """``v ± u`` rounded to two significant digits of ``u``."""
     if v is None:
         return "n/a"
     v, u = v * scale, (u or 0.0) * scale
-    if u > 0:
-        digits = max(0, 1 - int(math.floor(math.log10(u))))
-        return f"{v:.{digits}f} ± {u:.{digits}f}"
-    return f"{v:.4g}"
+    if not u > 0:
+        return f"{v:.4g}"
+    decimals = 1 - int(math.floor(math.log10(u)))
+    if decimals >= 0:
+        return f"{v:.{decimals}f} ± {u:.{decimals}f}"
+    q = 10.0 ** (-decimals)
+    return f"{round(v / q) * q:.0f} ± {round(u / q) * q:.0f}"
 
 
 def result_title(result: Mapping[str, Any], label: str = "") -> str:
     """Two title lines: e, k and alpha with uncertainties; method, material and flags."""
     r = result
-    line1 = (f"e = {_pm(r['effusivity_W_s05_m2K'], r['effusivity_W_s05_m2K_u'])} W s$^{{0.5}}$/(m$^2$ K),  "
-             f"k = {_pm(r['k_W_mK'], r['k_W_mK_u'])} W/(m K),  "
-             f"α = {_pm(r['alpha_m2_s'], r['alpha_m2_s_u'], 1e6)} mm$^2$/s")
+    if r.get("effusivity_W_s05_m2K") is None:
+        line1 = "no estimate: " + (", ".join(r.get("flags") or []) or "no result")
+    else:
+        line1 = (f"e = {_pm(r['effusivity_W_s05_m2K'], r['effusivity_W_s05_m2K_u'])} W s$^{{0.5}}$/(m$^2$ K),  "
+                 f"k = {_pm(r['k_W_mK'], r['k_W_mK_u'])} W/(m K),  "
+                 f"α = {_pm(r['alpha_m2_s'], r['alpha_m2_s_u'], 1e6)} mm$^2$/s")
     mat = f"{r['material']} ({r['material_confidence'] * 100:.0f} %)" if r.get("material") else "no material"
     flags = ", ".join(r.get("flags") or []) or "no flags"
     line2 = f"{label + ': ' if label else ''}{r['method']} method, {mat}, {flags}"
@@ -86,7 +93,7 @@ def plot_touch(path: str | Path, series: Mapping[str, Any], result: Mapping[str,
     ax_T.set_ylabel("excess temperature $T_f - T_0$ (K)")
     ax_T.set_title("(b) excess temperature")
     ax_T.grid(alpha=0.3)
-    ax_T.legend(loc="lower right")
+    ax_T.legend(loc="upper left")  # the rise fills the lower right
     fig.suptitle(result_title(result, label), fontsize=10)
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
