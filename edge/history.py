@@ -147,6 +147,8 @@ class History:
             if self.path != ":memory:" and str(mode).lower() != "wal":
                 raise HistoryError(f"{self.path}: cannot enable WAL journal (got {mode!r})")
             self._db.execute("PRAGMA synchronous=FULL")
+            # A small page cache keeps the daemon's memory flat however long the history grows.
+            self._db.execute("PRAGMA cache_size=-512")
             version = self._db.execute("PRAGMA user_version").fetchone()[0]
             if version not in (0, SCHEMA_VERSION):
                 raise HistoryError(f"{self.path}: schema version {version}, this software knows {SCHEMA_VERSION}")
