@@ -3,8 +3,9 @@
 Used to make simulated measurements and training-set augmentation match the
 simulated hardware (firmware_sim) and the reference board:
 
-* ``"mcp9600"`` - MCP9600 hot-junction register (0.0625 K LSB) read at ~3 Hz
-  (18-bit conversions take 320 ms; the 16-bit mode at 12.5 Hz is used here)
+* ``"mcp9600"`` - MCP9600 in its 16-bit mode (80-ms conversions, 12.5 Hz):
+  its ADC resolves 8 uV of thermocouple EMF, i.e. 0.197 K steps (the
+  0.0625 K register LSB only pays off at 18 bit, 320 ms per conversion),
   and the FHF05 flux sensor (0.56 uV per W/m^2) on an ADS1115 at +-0.256 V
   (7.8125 uV LSB = 14 W/m^2) at 128 SPS.
 * ``"ads122c04"`` - the precision option: thermocouple EMF and flux on a
@@ -56,7 +57,7 @@ class Instrument:
 
 INSTRUMENTS = {
     "mcp9600": Instrument(
-        name="mcp9600", T_rate_Hz=12.5, T_lsb_K=0.0625, T_noise_K=0.02,
+        name="mcp9600", T_rate_Hz=12.5, T_lsb_K=8e-6 / TYPE_K_SEEBECK_V_PER_K, T_noise_K=0.02,
         q_rate_Hz=128.0, q_lsb_W_m2=7.8125e-6 / FLUX_SENSITIVITY_V_PER_W_M2, q_noise_W_m2=3.0,
     ),
     "ads122c04": Instrument(

@@ -657,3 +657,55 @@ def read_scene(path_or_name: str | Path, *, material_lookup: MaterialLookup | No
     except UnicodeDecodeError as e:
         raise SceneError(p.name, "", f"not UTF-8 text: {e}") from None
     return parse_scene(text, source=p.name, name=p.stem, material_lookup=material_lookup)
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k} = {_toml_value(x)}" for k, x in v.items()) + "}"
+    raise SceneError(f"cannot write a value of type {type(v).__name__} to a scene")
+
+
+def dump_scene_toml(data: Mapping[str, Any]) -> str:
+    """TOML text for a scene mapping (scalars, tables of scalars, arrays of tables)."""
+    head = [f"{k} = {_toml_value(v)}" for k, v in data.items() if not isinstance(v, (dict, list))]
+    body = []
+    for k, v in data.items():
+        if isinstance(v, dict):
+            body.append(f"\n[{k}]")
+            body += [f"{kk} = {_toml_value(vv)}" for kk, vv in v.items()]
+        elif isinstance(v, list):
+            for item in v:
+                body.append(f"\n[[{k}]]")
+                body += [f"{kk} = {_toml_value(vv)}" for kk, vv in item.items()]
+    return "\n".join(head + body) + "\n"
+
+
+def scene_variant(path_or_name: str | Path, dest_dir: str | Path, *, suffix: str,
+                  **tables: Mapping[str, Any]) -> Path:
+    """Write a copy of a scene with whole tables replaced (e.g. ``board={...}``); return its path.
+
+    The copy is validated like any scene; its name gets ``suffix``.
+    """
+    src = scene_path(path_or_name)
+    data = tomllib.loads(src.read_text())
+    data["name"] = f"{data.get('name', src.stem)}{suffix}"
+    for key, table in tables.items():
+        data[key] = dict(table)
+    dest = Path(dest_dir) / f"{src.stem}{suffix}.toml"
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    text = dump_scene_toml(data)
+    parse_scene(text, source=str(dest))
+    dest.write_text(text)
+    return dest
+
+
+#: The precision board: thermocouple EMF and flux on the 24-bit ADS122C04.
+PRECISION_BOARD = {"ads122c04": 0x40, "stack": "0.42"}

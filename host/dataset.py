@@ -72,6 +72,8 @@ def spec_key(spec: DatasetSpec, lib: MaterialLibrary) -> str:
     for m in lib:
         h.update(f"{m.name},{m.k_W_mK!r},{m.rho_kg_m3!r},{m.c_J_kgK!r};".encode())
     h.update(f"features={FEATURE_VERSION};code={CODE_VERSION}".encode())
+    if spec.instrument:
+        h.update(repr(INSTRUMENTS[spec.instrument]).encode())  # noise/ADC model is an input too
     return h.hexdigest()
 
 

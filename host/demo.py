@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
+from firmware_sim.scene import PRECISION_BOARD, scene_variant
 from host.device import DeviceUnavailable, open_device
 
 __all__ = ["PAPER_SCENES", "TABLE2", "run_demo", "measure_scenes", "format_table"]
@@ -49,8 +50,9 @@ def measure_scenes(workdir: Path, scenes=PAPER_SCENES, *, plots: Path | None = N
     from host.touch import touch  # noqa: PLC0415
 
     rows = []
-    for scene in scenes:
-        with open_device(sim=scene, workdir=workdir) as s:
+    for scene_ref in scenes:
+        scene = Path(scene_ref).stem  # a shipped name or a generated variant's path
+        with open_device(sim=str(scene_ref), workdir=workdir) as s:
             sha = s.client.info()["model_sha256"]
             if expect_sha256 is not None and sha != expect_sha256:
                 raise DeviceUnavailable(f"{scene}: device runs model {sha}, expected {expect_sha256}")
@@ -101,17 +103,18 @@ def _num(x, scale=1.0, w=0):
 def format_table(rows: list[dict]) -> str:
     """The per-touch table and the per-sample summary against Table 2."""
     lines = []
+    width = max([10] + [len(r["scene"]) for r in rows])
     hdr = (f"{'scene':10} {'e ref':>7} {'e':>7} {'err':>7} │ {'k ref':>6} {'k':>7} {'err':>7} │ "
            f"{'α ref':>6} {'α':>7} {'err':>7} │ {'paper: k':>8} {'α err':>7} │ {'material (default)':22} flags")
     lines.append("Per touch — default method on the device; paper method on the same record (errors only).")
     lines.append("e in W s^0.5/(m² K), k in W/(m K), α in mm²/s; references: paper Table 2.")
-    lines.append(hdr)
-    lines.append("─" * len(hdr))
+    lines.append(hdr.replace(f"{'scene':10}", f"{'scene':{width}}"))
+    lines.append("─" * (len(hdr) + width - 10))
     for r in rows:
         d, p, ref = r["default"], r["paper"] or {}, r["ref"]
         pe = p.get("errors", {})
         lines.append(
-            f"{r['scene']:10} {ref['e']:7.0f} {_int(d['e']):>7} {_pct(d['errors']['e'])} │ "
+            f"{r['scene']:{width}} {ref['e']:7.0f} {_int(d['e']):>7} {_pct(d['errors']['e'])} │ "
             f"{ref['k']:6.4g} {_num(d['k']):>7} {_pct(d['errors']['k'])} │ "
             f"{ref['alpha'] * 1e6:6.3g} {_num(d['alpha'], 1e6):>7} {_pct(d['errors']['alpha'])} │ "
             f"{_pct(pe.get('k')):>8} {_pct(pe.get('alpha'))} │ {str(d['material'] or '-'):22} {', '.join(r['flags']) or '-'}")
@@ -172,11 +175,19 @@ def run_demo(out: str | Path = "thermotouch-demo", *, train: bool = False, scene
     # The self-check (with --train) used the first scene's touch; every scene gets a fresh power-up.
     log(f"touching the paper's samples ({len(scenes)} scenes) ...")
     rows = measure_scenes(workdir, scenes, plots=out / "plots", expect_sha256=sha, log=log)
-    table = format_table(rows)
+    # The paper read its sensors with a precision DMM; the same nine touches on the
+    # precision board (24-bit ADS122C04 for thermocouple and flux) show what that buys.
+    log("the same nine touches on the precision board (ADS122C04) ...")
+    variants = [scene_variant(sc, out / "scenes", suffix="_precision", board=PRECISION_BOARD) for sc in scenes]
+    rows_p = measure_scenes(workdir, variants, plots=out / "plots", expect_sha256=sha, log=log)
+    table = ("Reference board (MCP9600 thermocouple converter, ADS1115 flux ADC):\n" + format_table(rows)
+             + "\n\nPrecision board (ADS122C04 for thermocouple EMF and flux):\n" + format_table(rows_p))
     log("")
     log(table)
     (out / "table.txt").write_text(table + "\n")
-    (out / "results.json").write_text(json.dumps({"model_sha256": sha, "rows": rows}, indent=1))
+    (out / "results.json").write_text(json.dumps({"model_sha256": sha, "rows": rows, "rows_precision": rows_p},
+                                                 indent=1))
+    rows = rows + rows_p
     heater_ok = all(r["heater"]["ok"] for r in rows)
     log("")
     log(f"heater invariant held on every touch: {'yes' if heater_ok else 'NO'}; "
