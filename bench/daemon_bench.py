@@ -16,7 +16,8 @@ Reported (bench/results/daemon.json):
 * ``compute_ms``: wall time from the last sample (heater already off) to the
   result -- quality flags, resampling and estimation -- median / p95 / max;
   ``compute_and_commit_ms`` adds the durable SQLite commit;
-* soak: RSS growth and fd count change from measurement 10 to N, the heater
+* soak: RSS growth and fd count change from measurement 10 to N, live
+  objects gained per package (edge vs the simulator's own history), the heater
   invariant read from the simulated GPIO/PWM history (longest on-interval,
   off at the end), and how many measurements came back ``ok``.
 
@@ -100,11 +101,29 @@ def child(workdir: str) -> int:
     d = dt.start()
     measure = d.measure
 
+    census: dict[str, object] = {}
+
+    def object_census() -> dict[str, int]:
+        """Live gc-tracked objects per defining package: which side of the simulation grows."""
+        import collections
+        import gc
+
+        gc.collect()
+        c: collections.Counter = collections.Counter()
+        for o in gc.get_objects():
+            mod = getattr(type(o), "__module__", "")
+            top = mod.split(".")[0] if isinstance(mod, str) else ""
+            c[top if top in ("edge", "firmware_sim") else f"other:{type(o).__name__}"] += 1
+        return dict(c)
+
     def timed_measure(**kw):
         try:
             return measure(**kw)
         finally:
             timings.append(dict(d.last_timing))
+            if len(timings) == 10:
+                census["after_10"] = object_census()
+                census["blocks_after_10"] = sys.getallocatedblocks()
 
     d.measure = timed_measure
     print(nm.host_port, flush=True)
@@ -112,8 +131,14 @@ def child(workdir: str) -> int:
     dt.stop()
     port.close()
     nm.close()
+    end = object_census()
+    start = census.get("after_10", {})
+    growth = {k: end.get(k, 0) - start.get(k, 0) for k in set(end) | set(start)}
+    growth = dict(sorted(((k, v) for k, v in growth.items() if v), key=lambda kv: -abs(kv[1]))[:8])
+    blocks = sys.getallocatedblocks() - int(census.get("blocks_after_10", 0))
     inv = heater_invariant(rig.parts, cfg.heater.max_on_time_s)
     print(json.dumps({"timings": timings, "invariant": inv, "estimator": estimator_kind,
+                      "object_growth_10_to_end": growth, "python_blocks_growth_10_to_end": blocks,
                       "max_on_time_s": cfg.heater.max_on_time_s, "daemon_error": repr(dt.error)}), flush=True)
     return 0
 
@@ -186,6 +211,8 @@ def main(argv: list[str] | None = None) -> int:
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()
+    if not out.strip():
+        raise SystemExit(f"daemon child failed (exit {proc.returncode}):\n{''.join(stderr_lines)}")
     report = json.loads(out.strip().splitlines()[-1])
     comp = [t["compute_s"] * 1e3 for t in report["timings"] if t.get("compute_s") is not None]
     comm = [t["compute_and_commit_s"] * 1e3 for t in report["timings"] if t.get("compute_and_commit_s") is not None]
@@ -211,6 +238,8 @@ def main(argv: list[str] | None = None) -> int:
         "rss_growth_MB_10_to_end": round(last["rss_MB"] - first["rss_MB"], 2),
         "rss_edge_only_MB": round(edge_only_rss(), 2),
         "fds": {"after_10": first["fds"], "end": last["fds"]},
+        "object_growth_10_to_end": report["object_growth_10_to_end"],
+        "python_blocks_growth_10_to_end": report["python_blocks_growth_10_to_end"],
         "compute_ms": stats(comp),
         "compute_and_commit_ms": stats(comm),
         "heater_invariant": inv,

@@ -322,7 +322,15 @@ def test_run_sim_prints_the_port_first(tmp_path):
         port = proc.stdout.readline().strip()
         assert port.startswith("/dev/pts/"), proc.stderr.read()
         with DeviceClient(port, timeout_s=10.0) as c:
-            assert c.measure()["status"] == "ok"
+            info = c.info()
+            assert info["board"] == "sim"
+            if info["model_sha256"] is not None:  # the shipped bundle estimates for real
+                rec = c.measure()
+                assert rec["status"] == "ok" and rec["model_sha256"] == info["model_sha256"]
+                assert rec["result"]["effusivity_W_s05_m2K"] > 0
+            else:
+                with pytest.raises(DeviceError, match="estimation_failed"):
+                    c.measure()
         proc.terminate()
         proc.communicate(timeout=30)
     finally:
