@@ -45,7 +45,7 @@ import numpy as np
 import edge
 from edge.board import Board, make_board
 from edge.config import RUNTIME_KEYS, Config, ConfigError, RuntimeOverrides, load_config
-from edge.drivers.heater import Heater, HeaterError, HeaterOffError
+from edge.drivers.heater import Heater, HeaterError
 from edge.faults import SensorFault
 from edge.history import History
 from edge.link import SerialEndpoint
@@ -53,7 +53,6 @@ from edge.modelstore import InstallError, ModelStore, ModelStoreError
 from edge.protocol import (
     DEFAULT_MAX_PAYLOAD,
     PROTOCOL_VERSION,
-    Command,
     CommandError,
     ErrorCode,
     Request,
@@ -176,7 +175,6 @@ class Daemon:
         self.heater = Heater(board, supply_voltage_v=h.supply_voltage_V, resistance_ohm=h.resistance_ohm,
                              pwm_period_ns=h.pwm_period_ns)
         self.heater.off()
-        self._closers: list[Callable[[], None]] = []
         self.state = "starting"
         self.faults: list[str] = []
         self.t_start = time.monotonic()
@@ -214,12 +212,15 @@ class Daemon:
             self._idle_since = board.clock.monotonic()
             self.state = "idle"
         except BaseException:
+            if history is None and getattr(self, "history", None) is not None:
+                self.history.close()
             self.heater.close()
             raise
 
     # -- set-up helpers --------------------------------------------------------------
     def _apply_logging(self) -> None:
-        logging.getLogger("thermotouch").setLevel(self.config.logging.level)
+        for name in ("thermotouch", "edge"):  # the daemon's and the drivers'/sequence's loggers
+            logging.getLogger(name).setLevel(self.config.logging.level)
 
     def _init_sensors(self) -> bool:
         try:
@@ -244,7 +245,9 @@ class Daemon:
         if self.sensors is None and not self._init_sensors():
             raise CommandError(ErrorCode.SENSOR_FAULT, f"sensors not ready: {self.sensor_error}")
         h = self.config.heater
-        if self.sequence is None or self.sequence.sensors is not self.sensors:
+        if self.sequence is not None:
+            self.sequence.sensors = self.sensors  # re-initialised sensors keep the cool-down record
+        else:
             self.sequence = MeasurementSequence(
                 self.heater, self.sensors, self.board.clock, Limits(h.max_on_time_s, h.over_temperature_C),
                 self._estimate, self.config.measurement, watchdog=self.watchdog, abort_event=self.stop_event,
