@@ -53,7 +53,7 @@ def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Ma
         sensors.update(flux_adc="ads122c04")
     if b.ads122c04 is not None:
         sensors["ads122c04_address"] = b.ads122c04
-    baseline = t.start_s if t.start_s >= 0.2 else 0.5
+    baseline = min(t.start_s, 10.0) if t.start_s >= 0.2 else 0.5  # heating begins as the touch does
     contact = max(0.5, min(2.0, t.length_s - 0.3))
     values: dict[str, dict[str, Any]] = {
         "board": {"kind": "sim"},
