@@ -117,7 +117,7 @@ def identification(est: Estimator, instrument: str, *, touches: int = 4, q_v: fl
             ok = r.material == name
             hits[cls] = hits.get(cls, 0) + ok
             if not ok:
-                conf.append((name, r.material))
+                conf.append((name, r.material or "(no estimate)"))
             u = r.effusivity_W_s05_m2K_u / r.effusivity_W_s05_m2K if r.effusivity_W_s05_m2K else 1.0
             u_seen.append(u)
             others = np.delete(ln_e, i)
