@@ -42,6 +42,16 @@ log = logging.getLogger(__name__)
 Handler = Callable[[Request], "Mapping[str, Any] | None"]
 
 
+def read_available(ser) -> bytes:
+    """One blocking read (up to the port's timeout), then whatever else is already waiting."""
+    data = ser.read(1)
+    if data:
+        waiting = getattr(ser, "in_waiting", 0)
+        if waiting:
+            data += ser.read(waiting)
+    return data
+
+
 class SerialEndpoint:
     """Request/reply endpoint on the device side of a serial line.
 
@@ -97,12 +107,7 @@ class SerialEndpoint:
     # -- receiving -----------------------------------------------------------
 
     def _read_available(self) -> bytes:
-        data = self.ser.read(1)
-        if data:
-            waiting = getattr(self.ser, "in_waiting", 0)
-            if waiting:
-                data += self.ser.read(waiting)
-        return data
+        return read_available(self.ser)
 
     def poll(self) -> list[Request]:
         """Read once (waiting at most ``poll_s``); return the valid requests received.

@@ -59,10 +59,15 @@ class PwmState(NamedTuple):
     @property
     def fraction(self) -> float:
         """Active fraction of each period (0 when disabled)."""
-        if not self.enabled or self.period_ns <= 0:
-            return 0.0
-        f = self.duty_ns / self.period_ns
-        return 1.0 - f if self.polarity == "inversed" else f
+        return active_fraction(self.period_ns, self.duty_ns, self.enabled, self.polarity)
+
+
+def active_fraction(period_ns: int, duty_ns: int, enabled: bool, polarity: str) -> float:
+    """Fraction of time a PWM output is active (0 when disabled or without a period)."""
+    if not enabled or period_ns <= 0:
+        return 0.0
+    f = duty_ns / period_ns
+    return 1.0 - f if polarity == "inversed" else f
 
 
 class OsSysfsIO:

@@ -51,6 +51,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
 
+from edge.sysfs_pwm import active_fraction
+
 __all__ = ["PwmSample", "PwmViolation", "SimPwmTree", "SimSysfsIO"]
 
 _U64_MAX = 2**64 - 1
@@ -69,10 +71,7 @@ class PwmSample(NamedTuple):
     @property
     def fraction(self) -> float:
         """Fraction of time the output is active (0 when disabled)."""
-        if not self.enabled or self.period_ns <= 0:
-            return 0.0
-        f = self.duty_ns / self.period_ns
-        return 1.0 - f if self.polarity == "inversed" else f
+        return active_fraction(self.period_ns, self.duty_ns, self.enabled, self.polarity)
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ from typing import Any, Callable, Mapping
 
 import serial
 
+from edge.link import read_available
 from edge.protocol import (
     CHUNK_HEADER_SIZE,
     COMMANDS,
@@ -185,12 +186,7 @@ class DeviceClient:
         return rid
 
     def _read_available(self) -> bytes:
-        data = self.ser.read(1)
-        if data:
-            waiting = getattr(self.ser, "in_waiting", 0)
-            if waiting:
-                data += self.ser.read(waiting)
-        return data
+        return read_available(self.ser)
 
     def request(self, command: Command | str, args: Mapping[str, Any] | None = None, *,
                 timeout_s: float | None = None, retries: int | None = None) -> dict[str, Any]:
