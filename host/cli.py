@@ -157,13 +157,20 @@ def cmd_train(args) -> int:
         from tqdm import tqdm
     except ImportError:  # pragma: no cover - tqdm is in the host extra
         tqdm = None
-    bar = tqdm(total=0, desc="training set", unit="material", file=sys.stderr) if tqdm else None
+    from pathlib import Path
+
+    if Path(args.out).exists() and not args.overwrite:
+        raise CliError(f"thermotouch train: {args.out} exists (use --overwrite)")
+    bar = None
 
     def progress(i, n):
-        if bar is not None:
-            bar.total = n
-            bar.n = i
-            bar.refresh()
+        nonlocal bar
+        if tqdm is None:
+            return
+        if bar is None:
+            bar = tqdm(total=n, desc="training set", unit="material", file=sys.stderr)
+        bar.n = i
+        bar.refresh()
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # sklearn convergence chatter; metrics tell the truth

@@ -1,0 +1,105 @@
+"""``thermotouch estimate`` / ``evaluate`` / ``train``: outputs and one-line errors."""
+
+import json
+
+import numpy as np
+import pytest
+
+from edge.forward import simulate
+from edge.solids import Solid
+from host.cli import main
+from host.records import write_record
+
+GLASS = Solid(1.097, 2458.4, 809.0)
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture
+def glass_csv(tmp_path):
+    r = simulate(GLASS, 7.7e7, 2.0, back="infinite", scheme="exact", dt_s=0.01)
+    p = tmp_path / "glass.csv"
+    write_record(p, r.t_s, r.T_f_K, r.q_f_W_m2)
+    return p
+
+
+@pytest.mark.parametrize("method", ["default", "paper"])
+def test_estimate_json_with_shipped_bundle(capsys, glass_csv, method):
+    code, out, err = run(capsys, "estimate", "--csv", glass_csv, "--method", method, "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    for key in ("effusivity_W_s05_m2K", "k_W_mK", "alpha_m2_s"):
+        assert d[key] > 0 and d[key + "_u"] > 0
+    assert d["method"] == method and len(d["model_sha256"]) == 64 and isinstance(d["flags"], list)
+    assert abs(d["effusivity_W_s05_m2K"] / GLASS.effusivity_W_s05_m2K - 1) < 0.02
+    assert d["material"]
+
+
+def test_estimate_text_and_absolute_temperature_column(capsys, tmp_path):
+    r = simulate(GLASS, 7.7e7, 2.0, back="infinite", scheme="exact", dt_s=0.01)
+    p = tmp_path / "abs.csv"
+    t = np.concatenate(([-0.2, -0.1], r.t_s))
+    T = np.concatenate(([298.15, 298.15], 298.15 + r.T_f_K))
+    q = np.concatenate(([0.0, 0.0], r.q_f_W_m2))
+    p.write_text("t_s,T_K,q_W_m2\n" + "\n".join(f"{a},{b},{c}" for a, b, c in zip(t, T, q)) + "\n")
+    code, out, _ = run(capsys, "estimate", "--csv", p)
+    assert code == 0 and "effusivity" in out and "material" in out
+
+
+@pytest.mark.parametrize(
+    "content,needle",
+    [
+        ("t_s,dT_K,q_W_m2\n0,0,0\n0.1,x,1\n0.2,0.2,2\n0.3,0.3,3\n", "line 3, column 'dT_K'"),
+        ("t_s,dT_K\n0,0\n", "header"),
+        ("t_s,dT_K,q_W_m2\n0,0,0\n0.1,0.1\n", "line 3"),
+        ("", "empty"),
+    ],
+)
+def test_malformed_csv_one_line(capsys, tmp_path, content, needle):
+    p = tmp_path / "bad.csv"
+    p.write_text(content)
+    code, out, err = run(capsys, "estimate", "--csv", p)
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and needle in err
+
+
+def test_corrupt_bundle_refused_one_line(capsys, glass_csv, tmp_path):
+    import shutil
+
+    from thermotouch_models import DEFAULT_BUNDLE
+
+    b = tmp_path / "bundle"
+    shutil.copytree(DEFAULT_BUNDLE, b)
+    data = bytearray((b / "arrays.npz").read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    (b / "arrays.npz").write_bytes(bytes(data))
+    code, _, err = run(capsys, "estimate", "--bundle", b, "--csv", glass_csv)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "refused" in err and "arrays.npz" in err
+
+
+def test_evaluate_json(capsys):
+    code, out, err = run(capsys, "evaluate", "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    assert len(d["paper_cases"]) == 18
+    assert d["identification"]["top1_resolvable"] >= 0.97
+
+
+def test_train_quick_writes_a_loadable_bundle_and_refuses_overwrite(capsys, tmp_path, monkeypatch):
+    from edge.bundle import load_bundle
+    from edge.estimate import pipeline_golden_check
+
+    monkeypatch.setenv("THERMOTOUCH_CACHE", str(tmp_path / "cache"))
+    out = tmp_path / "b"
+    code, _, err = run(capsys, "train", "--out", out, "--quick")
+    assert code == 0, err
+    assert "explained variance" in err
+    b = load_bundle(out, golden_check=pipeline_golden_check)
+    assert b.manifest["metrics"]["quick"] is True
+    assert any((tmp_path / "cache").glob("dataset-*.npz")), "the training set is cached"
+    code, _, err = run(capsys, "train", "--out", out, "--quick")
+    assert code == 2 and "exists" in err and len(err.strip().splitlines()) == 1
