@@ -15,7 +15,8 @@ Commands
 --------
 PING, INFO (firmware/model versions, model sha256, board), STATUS,
 MEASURE (optional ``power_W`` or ``voltage_V``, ``contact_time_s``),
-RESULT (by id or latest), HISTORY (paged, newest first), CONFIG_GET,
+RESULT (by id or latest), HISTORY (paged, newest first), SERIES (a stored
+measurement's raw or resampled series, paged to fit one reply), CONFIG_GET,
 CONFIG_SET (runtime keys only, validated, persisted atomically),
 MODEL_BEGIN/CHUNK/COMMIT/ABORT (verified atomic install through
 :class:`edge.modelstore.ModelStore`).
@@ -33,6 +34,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import signal
 import sys
 import threading
@@ -76,6 +78,9 @@ FIRMWARE_VERSION = edge.__version__
 MAX_UPLOAD_BYTES = 8 * 1024 * 1024
 #: Bytes kept free in a reply for the frame's JSON envelope.
 _REPLY_MARGIN = 256
+#: SERIES reply names and History columns, per ``which``.
+_SERIES_COLUMNS = {"raw": (("t_s", "raw_t_s"), ("T_C", "raw_T_C"), ("q_W_m2", "raw_q_W_m2")),
+                   "grid": (("t_s", "grid_t_s"), ("dT_K", "grid_dT_K"), ("q_W_m2", "grid_q_W_m2"))}
 
 
 class ModelEstimator:
@@ -205,6 +210,7 @@ class Daemon:
                 self._init_button()
             self.sequence: MeasurementSequence | None = None
             self.upload: _Upload | None = None
+            self._series_cache: tuple[int, dict] | None = None
             self.last_id: int | None = self.history.latest_id()
             self.measurements = 0
             self.last_timing: dict[str, float | None] = {}
@@ -386,6 +392,48 @@ class Daemon:
                 > self.max_payload:
             items.pop()
         return {"offset": offset, "total": total, "items": items}
+
+    def _series_record(self, mid: int) -> dict | None:
+        # A host pages through one series after another: keep the last record's arrays
+        # (stored records never change, and ids are never reused).
+        cached = self._series_cache
+        if cached is not None and cached[0] == mid:
+            return cached[1]
+        rec = self.history.get(mid, series=True)
+        if rec is not None:
+            self._series_cache = (mid, rec)
+        return rec
+
+    def _cmd_series(self, args: dict) -> dict:
+        mid, which = args["measurement_id"], args.get("which", "raw")
+        offset, limit = args.get("offset", 0), args.get("limit")
+        rec = self._series_record(mid)
+        if rec is None:
+            raise CommandError(ErrorCode.NOT_FOUND, f"no measurement {mid}", "measurement_id")
+        cols = [(name, rec.get(col)) for name, col in _SERIES_COLUMNS[which]]
+        total = 0 if cols[0][1] is None else int(len(cols[0][1]))
+        if offset > total:
+            raise CommandError(ErrorCode.BAD_ARGUMENT, f"offset {offset} is past the end of the {which} series "
+                               f"({total} samples)", "offset")
+        end = total if limit is None else min(total, offset + limit)
+        body: dict[str, Any] = {"measurement_id": mid, "which": which, "offset": offset, "total": total}
+        body.update((name, []) for name, _ in cols)
+        # JSON has no NaN: a non-finite sample travels as null.
+        values = [[x if math.isfinite(x) else None for x in np.asarray(a[offset:end], float).tolist()]
+                  if end > offset else [] for _, a in cols]
+        budget = self.max_payload - len(json.dumps(body, separators=(",", ":")))
+        n = used = 0
+        for i in range(end - offset):
+            cost = sum(len(json.dumps(v[i])) + 1 for v in values)  # the value and its comma
+            if used + cost > budget:
+                break
+            used += cost
+            n += 1
+        if n == 0 and end > offset:
+            raise CommandError(ErrorCode.INTERNAL, f"max_payload {self.max_payload} B is too small for one sample")
+        for (name, _), v in zip(cols, values):
+            body[name] = v[:n]
+        return body
 
     def _cmd_config_get(self, args: dict) -> dict:
         keys = args.get("keys")

@@ -26,7 +26,12 @@ the raw chunk bytes.  ``ERROR`` payloads are JSON
 ``{"code": "<ErrorCode name>", "message": str, "field": str | null}``.
 
 The command set, with argument and reply schemas, is data: see
-:data:`COMMANDS`.  Requests are validated strictly (unknown fields are
+:data:`COMMANDS`.  Measured series travel as JSON number arrays in pages:
+``SERIES {"measurement_id", "which": "raw"|"grid", "offset", "limit"?}``
+answers ``{"measurement_id", "which", "offset", "total", "t_s", "T_C"
+(raw) | "dT_K" (grid), "q_W_m2"}`` with as many samples as fit in one
+reply (null for a non-finite sample); the host asks again from
+``offset + len(t_s)`` until it holds ``total``.  Requests are validated strictly (unknown fields are
 rejected); replies must carry their required fields and may carry more.
 
 This module is pure Python (no NumPy) so the host can import it cheaply.
@@ -45,6 +50,7 @@ from typing import Any, Mapping
 
 __all__ = [
     "PROTOCOL_VERSION", "DEFAULT_MAX_PAYLOAD", "MAX_PAYLOAD_LIMIT", "MAX_MODEL_SIZE",
+    "SERIES_KINDS", "SERIES_MAX_LIMIT",
     "HEADER_SIZE", "CRC_SIZE", "REPLY_FLAG", "CHUNK_HEADER_SIZE",
     "MsgType", "Command", "ErrorCode", "CommandError", "ProtocolError",
     "Field", "CommandSpec", "COMMANDS",
@@ -90,6 +96,7 @@ class Command(enum.IntEnum):
     HISTORY = 0x06
     CONFIG_GET = 0x07
     CONFIG_SET = 0x08
+    SERIES = 0x09
     MODEL_BEGIN = 0x10
     MODEL_CHUNK = 0x11
     MODEL_COMMIT = 0x12
@@ -164,10 +171,12 @@ class Field:
     """One named value in a request or reply.
 
     ``kind`` is one of ``int``, ``float``, ``bool``, ``str``, ``sha256``,
-    ``bytes``, ``list``, ``list_str``, ``dict``, ``config`` (a dict of
+    ``bytes``, ``list``, ``list_str``, ``list_num`` (finite numbers or null,
+    null standing for a non-finite sample), ``dict``, ``config`` (a dict of
     scalars or flat lists of scalars), ``any``.  Ranges ``lo``/``hi`` apply
     to numbers (value) and to str/bytes/list/dict (length); ``lo_open``
     makes the lower bound exclusive.  ``nullable`` accepts JSON null.
+    ``choices`` restricts a value to the listed ones.
     """
 
     name: str
@@ -178,6 +187,7 @@ class Field:
     lo_open: bool = False
     default: Any = None
     nullable: bool = False
+    choices: tuple[Any, ...] | None = None
     doc: str = ""
 
 
@@ -188,12 +198,18 @@ class CommandSpec:
     ``exclusive`` lists groups of arguments of which at most one may be given.
     ``idempotent`` commands are safe for the host to resend after a timeout.
     ``binary`` requests carry a raw payload instead of JSON (MODEL_CHUNK).
+    ``reply_when`` makes reply fields conditional: ``(field, value, names)``
+    requires ``names`` when the reply's ``field`` equals ``value``.
+    ``same_length`` lists reply fields (lists) that must be equally long
+    when present.
     """
 
     command: Command
     args: tuple[Field, ...] = ()
     reply: tuple[Field, ...] = ()
     exclusive: tuple[tuple[str, ...], ...] = ()
+    reply_when: tuple[tuple[str, Any, tuple[str, ...]], ...] = ()
+    same_length: tuple[str, ...] = ()
     idempotent: bool = True
     binary: bool = False
     doc: str = ""
@@ -201,6 +217,12 @@ class CommandSpec:
 
 _CONFIG_MAX_KEYS = 64
 _STR_MAX = 256
+#: Values of SERIES ``which``: the raw samples or the resampled grid (estimator input).
+SERIES_KINDS = ("raw", "grid")
+#: Most samples one SERIES reply may carry (the payload bound usually allows fewer).
+SERIES_MAX_LIMIT = 2048
+#: Longest stored series SERIES can address (edge.history stores at most 10^6 values).
+_SERIES_MAX_OFFSET = 1_000_000
 
 COMMANDS: dict[Command, CommandSpec] = {spec.command: spec for spec in (
     CommandSpec(
@@ -252,6 +274,25 @@ COMMANDS: dict[Command, CommandSpec] = {spec.command: spec for spec in (
         args=(Field("values", "config", required=True, lo=1, hi=_CONFIG_MAX_KEYS),),
         reply=(Field("config", "dict", required=True, doc="full config after the change"),),
         doc="Set configuration values (the daemon validates each key)."),
+    CommandSpec(
+        Command.SERIES,
+        args=(Field("measurement_id", "int", required=True, lo=0, hi=_MAX_REQUEST_ID),
+              Field("which", "str", default="raw", choices=SERIES_KINDS,
+                    doc="raw: samples (t_s, T_C, q_W_m2); grid: resampled estimator input (t_s, dT_K, q_W_m2)"),
+              Field("offset", "int", lo=0, hi=_SERIES_MAX_OFFSET, default=0, doc="first sample index"),
+              Field("limit", "int", lo=1, hi=SERIES_MAX_LIMIT, doc="most samples wanted; absent = as many as fit")),
+        reply=(Field("measurement_id", "int", required=True, lo=0),
+               Field("which", "str", required=True, choices=SERIES_KINDS),
+               Field("offset", "int", required=True, lo=0),
+               Field("total", "int", required=True, lo=0, doc="samples in the whole series (0: not stored)"),
+               Field("t_s", "list_num", required=True, hi=SERIES_MAX_LIMIT, doc="s from heater on"),
+               Field("T_C", "list_num", hi=SERIES_MAX_LIMIT, doc="raw thermocouple, °C"),
+               Field("dT_K", "list_num", hi=SERIES_MAX_LIMIT, doc="grid excess temperature, K"),
+               Field("q_W_m2", "list_num", required=True, hi=SERIES_MAX_LIMIT, doc="heat flux, W/m^2")),
+        reply_when=(("which", "raw", ("T_C",)), ("which", "grid", ("dT_K",))),
+        same_length=("t_s", "T_C", "dT_K", "q_W_m2"),
+        doc="One page of a stored measurement's series, samples [offset, offset + len(t_s)) of total; "
+            "as many as fit in one reply (the host continues at offset + len(t_s)). Non-finite samples are null."),
     CommandSpec(
         Command.MODEL_BEGIN,
         args=(Field("size", "int", required=True, lo=1, hi=MAX_MODEL_SIZE, doc="bundle size, bytes"),
@@ -544,6 +585,13 @@ def _check_field(f: Field, value: Any, name: str) -> Any:
         if f.nullable:
             return None
         raise ProtocolError(f"{name} must not be null", name)
+    value = _check_kind(f, value, name)
+    if f.choices is not None and value not in f.choices:
+        raise ProtocolError(f"{name} must be one of {', '.join(map(str, f.choices))}, got {value!r}", name)
+    return value
+
+
+def _check_kind(f: Field, value: Any, name: str) -> Any:
     k = f.kind
     if k == "int":
         if not _is_int(value):
@@ -574,10 +622,15 @@ def _check_field(f: Field, value: Any, name: str) -> Any:
         value = bytes(value)
         _check_range(f, len(value), "length", name)
         return value
-    if k in ("list", "list_str"):
+    if k in ("list", "list_str", "list_num"):
         if not isinstance(value, (list, tuple)):
             raise ProtocolError(f"{name} must be a list, got {type(value).__name__}", name)
         _check_range(f, len(value), "length", name)
+        if k == "list_num":
+            for i, item in enumerate(value):
+                if item is not None and not _is_number(item):
+                    raise ProtocolError(f"{name}[{i}] must be a finite number or null, got {item!r}", f"{name}[{i}]")
+            return [None if x is None else float(x) for x in value]
         if k == "list_str":
             for i, item in enumerate(value):
                 if not isinstance(item, str) or not 1 <= len(item) <= _STR_MAX:
@@ -659,6 +712,16 @@ def validate_reply(command: Command, body: Mapping[str, Any]) -> dict[str, Any]:
             out[f.name] = _check_field(f, body[f.name], f.name)
         elif f.required:
             raise ProtocolError(f"{spec.command.name} reply lacks field {f.name!r}", f.name)
+    for key, value, names in spec.reply_when:
+        if out.get(key) == value:
+            for n in names:
+                if n not in out:
+                    raise ProtocolError(f"{spec.command.name} reply with {key}={value!r} lacks field {n!r}", n)
+    lengths = [(n, len(out[n])) for n in spec.same_length if isinstance(out.get(n), list)]
+    for n, length in lengths[1:]:
+        if length != lengths[0][1]:
+            raise ProtocolError(f"{spec.command.name} reply: {n} has {length} values, "
+                                f"{lengths[0][0]} has {lengths[0][1]}", n)
     return out
 
 

@@ -328,6 +328,9 @@ def _add_measure(sub):
                    help="estimation method for this touch (default: the device's setting)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--plot", metavar="FILE.png", help="save measured and fitted flux and temperature")
+    p.add_argument("--bundle", metavar="DIR", default=None,
+                   help="with --plot: the device's model bundle, for the fitted curves (default: the shipped "
+                        "bundle when the device runs it)")
     p.set_defaults(func=cmd_measure)
 
 
@@ -345,13 +348,12 @@ def cmd_measure(args) -> int:
     from host.touch import touch
 
     prog = "thermotouch measure"
+    if args.bundle is not None and not args.plot:
+        raise CliError(f"{prog}: --bundle is for the fitted curves of --plot", 2)
     with _device(args, prog) as session:
-        if args.plot and not session.simulated:
-            raise CliError(f"{prog}: --plot needs the measured series, which the serial protocol does not carry "
-                           "yet; it works with --sim", 2)
         try:
             t = touch(session, power_W=args.power, voltage_V=args.voltage, contact_time_s=args.time,
-                      method=args.method, with_series=bool(args.plot))
+                      method=args.method, with_series=bool(args.plot), bundle_dir=args.bundle)
         except DeviceUnavailable as exc:
             raise CliError(f"{prog}: {exc}", exc.code) from None
         d = _result_json(t.record)
@@ -359,7 +361,9 @@ def cmd_measure(args) -> int:
             from host.plots import plot_touch
 
             fit = t.fits.get(d["method"])
-            label = session.simulator.scene.name if session.simulated else ""
+            label = session.simulator.scene.name if session.simulated else session.port
+            if fit is None:
+                label += f" (measured series only: {t.fit_note or 'no model fit'})"
             try:
                 plot_touch(args.plot, t.series, d, fit, label)
             except OSError as exc:
@@ -370,7 +374,8 @@ def cmd_measure(args) -> int:
     print(f"measurement {d['measurement_id']}: {d['power_W']:.3g} W for {d['contact_time_s']:.3g} s")
     print_result(d)
     if args.plot:
-        print(f"plot: {args.plot}")
+        print(f"plot: {args.plot}" + ("" if t.fits.get(d["method"]) is not None
+                                      else f" (measured series only: {t.fit_note or 'no model fit'})"))
     return 0
 
 

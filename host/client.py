@@ -5,6 +5,7 @@
     with DeviceClient("/dev/ttyACM0") as dev:
         print(dev.info())
         record = dev.measure(power_W=0.5, contact_time_s=2.0)
+        series = dev.series(record["measurement_id"])   # raw and resampled arrays
 
 Requests carry incrementing request ids; replies are matched by id and stale
 replies (to earlier, timed-out requests) are dropped.  Idempotent commands
@@ -25,6 +26,7 @@ import threading
 import time
 from typing import Any, Callable, Mapping
 
+import numpy as np
 import serial
 
 from edge.link import read_available
@@ -36,6 +38,7 @@ from edge.protocol import (
     ErrorCode,
     ErrorReply,
     FrameDecoder,
+    SERIES_KINDS,
     ProtocolError,
     decode_reply,
     encode_request,
@@ -295,6 +298,70 @@ class DeviceClient:
     def history(self, offset: int = 0, limit: int = 20) -> dict[str, Any]:
         """One page of stored results: ``{"offset", "total", "items"}``."""
         return self.request(Command.HISTORY, {"offset": offset, "limit": limit})
+
+    def series_page(self, measurement_id: int, which: str = "raw", offset: int = 0,
+                    limit: int | None = None) -> dict[str, Any]:
+        """One SERIES reply: samples ``[offset, offset + len(t_s))`` of a stored series (see edge.protocol)."""
+        args: dict[str, Any] = {"measurement_id": measurement_id, "which": which, "offset": offset}
+        if limit is not None:
+            args["limit"] = limit
+        return self.request(Command.SERIES, args)
+
+    def series(self, measurement_id: int, which: str | None = None, *,
+               limit: int | None = None) -> dict[str, np.ndarray | None]:
+        """A stored measurement's series, paged over the link until complete.
+
+        Parameters
+        ----------
+        measurement_id : int
+        which : {"raw", "grid"}, optional
+            Only this series (default: both).
+        limit : int, optional
+            Samples asked for per page (default: as many as fit in one reply).
+
+        Returns
+        -------
+        dict
+            The history's names: ``raw_t_s`` (s from heater on), ``raw_T_C``,
+            ``raw_q_W_m2`` and ``grid_t_s``, ``grid_dT_K``, ``grid_q_W_m2``
+            as float arrays (NaN for a sample the device sent as null); None
+            for a series the device did not store.
+
+        Raises
+        ------
+        DeviceError
+            NOT_FOUND for an unknown measurement.
+        BadReply
+            If the pages do not add up (offset, total or lengths inconsistent).
+        """
+        kinds = ("raw", "grid") if which is None else (which,)
+        out: dict[str, np.ndarray | None] = {}
+        for kind in kinds:
+            if kind not in SERIES_KINDS:
+                raise ValueError(f"which must be one of {', '.join(SERIES_KINDS)}, got {kind!r}")
+            names = ("t_s", "T_C", "q_W_m2") if kind == "raw" else ("t_s", "dT_K", "q_W_m2")
+            parts: dict[str, list] = {n: [] for n in names}
+            offset, total = 0, None
+            while total is None or offset < total:
+                page = self.series_page(measurement_id, kind, offset, limit)
+                if page["measurement_id"] != measurement_id or page["which"] != kind or page["offset"] != offset:
+                    raise BadReply(f"SERIES page for {page['measurement_id']}/{page['which']} at "
+                                   f"{page['offset']}, asked {measurement_id}/{kind} at {offset}")
+                if total is not None and page["total"] != total:
+                    raise BadReply(f"SERIES total changed from {total} to {page['total']}")
+                total = page["total"]
+                n = len(page["t_s"])
+                if n == 0 and offset < total:
+                    raise BadReply(f"SERIES page at {offset} of {total} is empty")
+                if offset + n > total:
+                    raise BadReply(f"SERIES page at {offset} runs past total {total}")
+                for name in names:
+                    parts[name].extend(page[name])
+                offset += n
+            for name in names:
+                key = f"{kind}_{name}"
+                out[key] = np.array([np.nan if x is None else x for x in parts[name]], float) if total else None
+        return out
 
     def config_get(self, *keys: str) -> dict[str, Any]:
         """Configuration values (all, or only ``keys``)."""

@@ -99,15 +99,19 @@ class DeviceSession:
     def simulated(self) -> bool:
         return self.simulator is not None
 
-    def series(self, measurement_id: int) -> dict | None:
-        """Raw and resampled series of a stored measurement, or None when not reachable.
+    def series(self, measurement_id: int) -> dict:
+        """A stored measurement read over the serial link: its record and its series.
 
-        The serial protocol carries results, not series; a simulated probe's
-        history database is read in-process instead.
+        The record's fields (``T0_C``, ``q_offset_W_m2``, ``power_W``,
+        ``model_sha256``, ``result`` ...) come from RESULT, the arrays
+        ``raw_t_s``, ``raw_T_C``, ``raw_q_W_m2``, ``grid_t_s``,
+        ``grid_dT_K``, ``grid_q_W_m2`` from SERIES pages (None for a series
+        the device did not store) -- the same for a probe on a port and a
+        simulated one.
         """
-        if self.daemon is None:
-            return None
-        return self.daemon.history.get(int(measurement_id), series=True)
+        out = dict(self.client.result(int(measurement_id)))
+        out.update(self.client.series(int(measurement_id)))
+        return out
 
 
 def validate_scene(scene: str) -> Any:

@@ -1,19 +1,27 @@
 """One touch from the host: MEASURE over the serial link, then the record's series and model fits.
 
-The device estimates on its own (its configured method); the host adds,
-when it can reach the stored series (a simulated probe), the fitted curves
-for plots and the other method's result on the very same record, computed
-with the same bundle the device used.
+The device estimates on its own (its configured method). The host then
+reads the stored series over the link (SERIES pages, for a probe on a port
+and a simulated one alike) and, when it holds the bundle the device used --
+identified by its sha256 -- recomputes the estimate on the very same record:
+the fitted curves for plots, and the other method's result. Without that
+bundle the touch carries the measured series only, and :attr:`Touch.fit_note`
+says why.
 """
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from host.device import DeviceSession, DeviceUnavailable
 
-__all__ = ["Touch", "touch", "reestimate"]
+__all__ = ["Touch", "touch", "reestimate", "host_bundle"]
+
+#: Bundles loaded by :func:`host_bundle`, by (directory, sha256): a verified load takes a moment.
+_LOADED: dict[tuple[str, str], Any] = {}
 
 
 @dataclass
@@ -25,29 +33,106 @@ class Touch:
     record : dict
         The device's MEASURE reply (stored record summary, ``result`` inside).
     series : dict or None
-        Raw and resampled series (only when reachable).
+        The stored record with its raw and resampled series (None unless asked for).
     fits : dict
         ``{method: edge.estimate.Estimate}`` recomputed on the host from
-        ``series`` (empty without series).
+        ``series`` (empty without series or without the device's bundle).
+    fit_note : str or None
+        Why ``fits`` is empty although series were read (e.g. the device's
+        model is not on this host); None when there are fits or no series.
     """
 
     record: dict
     series: dict | None
     fits: dict
+    fit_note: str | None = None
 
     @property
     def result(self) -> dict | None:
         return self.record.get("result")
 
 
-def reestimate(session: DeviceSession, series: dict, methods=("default", "paper")) -> dict:
-    """Estimates of ``series`` by ``methods`` with the bundle active on the (simulated) device."""
+def _manifest_sha256(directory: Path) -> str | None:
+    from edge.bundle import MANIFEST_FILE  # noqa: PLC0415
+
+    try:
+        return hashlib.sha256((directory / MANIFEST_FILE).read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+def _load(directory: Path, sha256: str) -> Any:
+    from edge.bundle import load_bundle  # noqa: PLC0415
+    from edge.estimate import pipeline_golden_check  # noqa: PLC0415
+
+    key = (str(directory.resolve()), sha256)
+    if key not in _LOADED:
+        _LOADED[key] = load_bundle(directory, golden_check=pipeline_golden_check)
+    return _LOADED[key]
+
+
+def host_bundle(model_sha256: str | None, *, bundle_dir: str | Path | None = None,
+                session: DeviceSession | None = None) -> tuple[Any, str]:
+    """The bundle with identity ``model_sha256`` as far as this host has it.
+
+    Looks, in order, at ``bundle_dir`` (e.g. ``--bundle DIR``), the bundle
+    active on an in-process simulated probe, and the shipped default bundle
+    (:data:`thermotouch_models.DEFAULT_BUNDLE`); a bundle counts only when its
+    sha256 (of ``manifest.json``) is the device's.
+
+    Returns
+    -------
+    (bundle or None, note)
+        ``note`` says where the bundle came from, or why there is none.
+
+    Raises
+    ------
+    DeviceUnavailable
+        If ``bundle_dir`` is the device's model but fails verification (exit status 2).
+    """
+    from edge.bundle import BundleError  # noqa: PLC0415
+
+    if not model_sha256:
+        return None, "the device reported no model"
+    sha = model_sha256.lower()
+    if bundle_dir is not None:
+        d = Path(bundle_dir)
+        got = _manifest_sha256(d)
+        if got is None:
+            raise DeviceUnavailable(f"--bundle {d}: not a bundle directory (no readable manifest.json)", 2)
+        if got != sha:
+            return None, f"bundle {d} is model {got[:12]}, the device used {sha[:12]}"
+        try:
+            return _load(d, sha), f"bundle {d}"
+        except BundleError as exc:
+            raise DeviceUnavailable(f"--bundle {d} refused: {exc}", 2) from None
+    daemon = getattr(session, "daemon", None)
+    if daemon is not None:
+        try:
+            b = daemon.store.current()
+        except Exception:  # noqa: BLE001 - a simulated probe without a usable model
+            b = None
+        if b is not None and b.sha256 == sha:
+            return b, "the simulated probe's bundle"
+    try:
+        from thermotouch_models import DEFAULT_BUNDLE  # noqa: PLC0415
+    except ImportError:
+        DEFAULT_BUNDLE = None  # noqa: N806
+    if DEFAULT_BUNDLE is not None and _manifest_sha256(Path(DEFAULT_BUNDLE)) == sha:
+        try:
+            return _load(Path(DEFAULT_BUNDLE), sha), "the shipped default bundle"
+        except BundleError:
+            return None, "the shipped default bundle fails verification on this host"
+    return None, f"the device's model {sha[:12]} is not on this host (give --bundle DIR)"
+
+
+def reestimate(bundle: Any, series: dict, methods=("default", "paper")) -> dict:
+    """Estimates of ``series`` (a record with its grid series) by ``methods`` with ``bundle``."""
     from edge.drivers.heater import volumetric_heat_w_m3  # noqa: PLC0415
     from edge.estimate import Estimator  # noqa: PLC0415
 
-    if session.daemon is None or series.get("grid_t_s") is None:
+    if bundle is None or series.get("grid_t_s") is None:
         return {}
-    bundle = session.daemon.store.current()
     est = Estimator.from_bundle(bundle)
     q_v = volumetric_heat_w_m3(series["power_W"]) if series.get("power_W") else None
     out = {}
@@ -60,11 +145,15 @@ def reestimate(session: DeviceSession, series: dict, methods=("default", "paper"
 
 
 def touch(session: DeviceSession, *, power_W: float | None = None, voltage_V: float | None = None,
-          contact_time_s: float | None = None, method: str | None = None, with_series: bool = True) -> Touch:
+          contact_time_s: float | None = None, method: str | None = None, with_series: bool = True,
+          bundle_dir: str | Path | None = None) -> Touch:
     """Run one measurement (optionally with ``method`` set on the device for it) and collect what is reachable.
 
     The device's estimation method is a runtime setting; when ``method``
-    differs from it, it is set for this touch and restored afterwards.
+    differs from it, it is set for this touch and restored afterwards. With
+    ``with_series`` the stored series are read over the link and, if the
+    host has the device's bundle (see :func:`host_bundle`; ``bundle_dir``
+    is looked at first), re-estimated.
 
     Raises
     ------
@@ -88,6 +177,12 @@ def touch(session: DeviceSession, *, power_W: float | None = None, voltage_V: fl
         why = rec.get("reason") or rec.get("error") or "no result"
         raise DeviceUnavailable(f"measurement {rec.get('measurement_id')} {rec.get('status')}: {why}"
                                 + (f" (flags: {', '.join(rec['flags'])})" if rec.get("flags") else ""))
-    series = session.series(rec["measurement_id"]) if with_series else None
-    fits = reestimate(session, series) if series else {}
-    return Touch(rec, series, fits)
+    if not with_series:
+        return Touch(rec, None, {})
+    series = session.series(rec["measurement_id"])
+    sha = rec.get("model_sha256") or (rec.get("result") or {}).get("model_sha256")
+    bundle, note = host_bundle(sha, bundle_dir=bundle_dir, session=session)
+    fits = reestimate(bundle, series)
+    if bundle is not None and not fits:
+        note = "no resampled series stored"
+    return Touch(rec, series, fits, None if fits else note)

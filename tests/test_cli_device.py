@@ -90,10 +90,88 @@ def test_info_history_and_export_over_a_port(capsys, tmp_path):
         assert float(rows[0]["effusivity_W_s05_m2K"]) == pytest.approx(1477.0, rel=0.1)
         code, out, err = run(capsys, "history", "--port", port, "--json")
         assert code == 0 and [i["measurement_id"] for i in json.loads(out)] == [mid]
-        # --plot needs the series, which the serial protocol does not carry: refused before touching.
-        code, out, err = run(capsys, "measure", "--port", port, "--plot", str(tmp_path / "x.png"))
-        assert code == 2 and "--plot" in one_line_error(err)
         assert daemon.history.count() == 1
+
+
+def _capture_plots(monkeypatch):
+    """Record plot_touch's arguments (and still write the PNG)."""
+    import host.plots
+
+    calls = []
+    real = host.plots.plot_touch
+
+    def spy(path, series, result, fit, label=""):
+        calls.append({"series": series, "result": result, "fit": fit, "label": label})
+        return real(path, series, result, fit, label)
+
+    monkeypatch.setattr(host.plots, "plot_touch", spy)
+    return calls
+
+
+def test_measure_plot_over_a_port_reads_the_series_over_the_link(capsys, tmp_path, monkeypatch):
+    import numpy as np
+
+    calls = _capture_plots(monkeypatch)
+    png = tmp_path / "port.png"
+    with simulated_probe("glass_15V", tmp_path / "dev") as (port, daemon, sim):
+        code, out, err = run(capsys, "measure", "--port", port, "--plot", str(png))
+        assert code == 0, err
+        stored = daemon.history.get(1, series=True)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert f"plot: {png}\n" in out  # the device runs the shipped bundle, which the host has: fitted
+    (c,) = calls
+    # The series came over SERIES pages, bit for bit what the probe stored.
+    for key in ("raw_t_s", "raw_T_C", "raw_q_W_m2", "grid_t_s", "grid_dT_K", "grid_q_W_m2"):
+        assert c["series"][key].dtype == np.float64 and np.array_equal(c["series"][key], stored[key]), key
+    assert c["series"]["T0_C"] == stored["T0_C"] and c["label"] == port
+    # The host's re-estimate with the same bundle reproduces the device's result.
+    assert c["fit"] is not None and c["fit"].fit_T_K is not None
+    assert c["fit"].effusivity_W_s05_m2K == pytest.approx(c["result"]["effusivity_W_s05_m2K"], rel=1e-9)
+
+
+def test_measure_plot_over_a_port_without_the_devices_bundle_plots_the_measurement_only(
+        capsys, tmp_path, monkeypatch):
+    from thermotouch_models import DEFAULT_BUNDLE
+
+    from edge.bundle import load_bundle
+
+    # A bundle the host does not ship: the default one with another version label (hence another sha256).
+    other = tmp_path / "other_bundle"
+    shutil.copytree(DEFAULT_BUNDLE, other)
+    manifest = json.loads((other / "manifest.json").read_text())
+    manifest["model_version"] = "site-retrained"
+    (other / "manifest.json").write_text(json.dumps(manifest))
+    sha = load_bundle(other).sha256
+    calls = _capture_plots(monkeypatch)
+    with simulated_probe("pmma_15V", tmp_path / "dev", overrides={"paths": {"factory_model": str(other)}}) \
+            as (port, daemon, sim):
+        code, out, err = run(capsys, "measure", "--port", port, "--plot", str(tmp_path / "a.png"))
+        assert code == 0, err
+        assert "measured series only" in out and sha[:12] in out and "--bundle" in out
+        assert calls[-1]["fit"] is None and calls[-1]["series"]["raw_t_s"].size > 20
+        assert "measured series only" in calls[-1]["label"] and sha[:12] in calls[-1]["label"]
+        # Given the device's bundle, the host fits again.
+        code, out, err = run(capsys, "measure", "--port", port, "--plot", str(tmp_path / "b.png"),
+                             "--bundle", str(other))
+        assert code == 0, err
+        assert "measured series only" not in out and calls[-1]["fit"] is not None
+        # A bundle that is not the device's model is not used for the fit.
+        code, out, err = run(capsys, "measure", "--port", port, "--plot", str(tmp_path / "c.png"),
+                             "--bundle", str(DEFAULT_BUNDLE))
+        assert code == 0, err
+        assert "measured series only" in out and "the device used" in out and calls[-1]["fit"] is None
+    assert (tmp_path / "a.png").stat().st_size > 20_000 and (tmp_path / "c.png").exists()
+
+
+def test_measure_bundle_option_errors_are_one_line(capsys, tmp_path):
+    code, out, err = run(capsys, "measure", "--port", "/dev/thermotouch-not-needed", "--bundle", str(tmp_path))
+    assert code == 2 and "--bundle" in one_line_error(err)
+    with simulated_probe("glass_12V", tmp_path / "dev") as (port, daemon, sim):
+        code, out, err = run(capsys, "measure", "--port", port, "--plot", str(tmp_path / "x.png"),
+                             "--bundle", str(tmp_path / "nowhere"))
+    assert code == 2
+    line = one_line_error(err)
+    assert "--bundle" in line and "manifest.json" in line
 
 
 def test_flash_installs_the_bundle_and_confirms_its_sha(capsys, tmp_path):

@@ -405,3 +405,48 @@ def test_console_script_without_hardware_fails_cleanly(tmp_path, caplog):
             signal.signal(s, h)
     assert "missing device" in caplog.text
     assert not (tmp_path / "h.db").exists()  # nothing was started before the board (and heater) existed
+
+
+def test_series_pages_fit_the_payload_bound_and_reassemble_exactly(tmp_path):
+    rig = make_rig()
+    with running(tmp_path, rig=rig, measurement={"sample_rate_Hz": 50.0}) as (c, d, _, nm):
+        mid = c.measure(contact_time_s=2.0)["measurement_id"]
+        stored = d.history.get(mid, series=True)
+        whole = c.series(mid)
+        assert stored["raw_t_s"].size > 100 and stored["grid_t_s"].size > 50
+        for key in ("raw_t_s", "raw_T_C", "raw_q_W_m2", "grid_t_s", "grid_dT_K", "grid_q_W_m2"):
+            assert np.array_equal(whole[key], stored[key]), key
+        # One reply carries as many samples as fit in max_payload; the rest follows from offset + len(t_s).
+        first = c.series_page(mid, "raw")
+        n = len(first["t_s"])
+        assert first["total"] == stored["raw_t_s"].size and 0 < n < first["total"]
+        assert len(json.dumps(first, separators=(",", ":"))) <= d.max_payload
+        assert first["T_C"] == stored["raw_T_C"][:n].tolist() and "dT_K" not in first
+        nxt = c.series_page(mid, "raw", offset=n, limit=5)
+        assert nxt["offset"] == n and nxt["t_s"] == stored["raw_t_s"][n:n + 5].tolist()
+        tail = c.series_page(mid, "grid", offset=stored["grid_t_s"].size - 3)
+        assert tail["dT_K"] == stored["grid_dT_K"][-3:].tolist() and "T_C" not in tail
+        end = c.series_page(mid, "grid", offset=stored["grid_t_s"].size)
+        assert end["t_s"] == [] and end["total"] == stored["grid_t_s"].size
+        # Small pages give the same series.
+        assert np.array_equal(c.series(mid, "grid", limit=7)["grid_q_W_m2"], stored["grid_q_W_m2"])
+        for args, code, field in (({"measurement_id": 99}, ErrorCode.NOT_FOUND, "measurement_id"),
+                                  ({"measurement_id": mid, "offset": 10**5}, ErrorCode.BAD_ARGUMENT, "offset")):
+            with pytest.raises(DeviceError) as ei:
+                c.request(Command.SERIES, args)
+            assert (ei.value.code, ei.value.field) == (code, field)
+
+
+def test_series_of_an_aborted_measurement_and_non_finite_samples(tmp_path):
+    with running(tmp_path) as (c, d, rig, nm):
+        rec = {"status": "aborted", "reason": "stopped", "flags": [], "config": {},
+               "raw_t_s": np.linspace(-1.0, 0.5, 40), "raw_T_C": np.full(40, 25.0), "raw_q_W_m2": np.zeros(40)}
+        rec["raw_T_C"][[3, 17]] = (np.nan, np.inf)
+        mid = d.history.add(rec)
+        s = c.series(mid)
+        assert c.series_page(mid, "grid")["total"] == 0
+    assert s["grid_t_s"] is None and s["grid_dT_K"] is None  # no resampled series for a cut-short run
+    assert np.array_equal(s["raw_t_s"], rec["raw_t_s"])
+    # JSON has no NaN: non-finite samples travel as null and come back as NaN.
+    assert np.isnan(s["raw_T_C"][[3, 17]]).all()
+    assert np.array_equal(np.delete(s["raw_T_C"], [3, 17]), np.full(38, 25.0))

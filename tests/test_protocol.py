@@ -178,6 +178,7 @@ VALID = {
     Command.HISTORY: [{}, {"offset": 40, "limit": 100}],
     Command.CONFIG_GET: [{}, {"keys": ["heater.power_W"]}],
     Command.CONFIG_SET: [{"values": {"heater.power_W": 0.4, "name": "probe", "on": True, "cal": [1, 2.5]}}],
+    Command.SERIES: [{"measurement_id": 3}, {"measurement_id": 0, "which": "grid", "offset": 120, "limit": 2048}],
     Command.MODEL_BEGIN: [{"size": 1000, "sha256": SHA}, {"size": 1, "sha256": SHA.upper(), "version": "v2"}],
     Command.MODEL_CHUNK: [{"offset": 0, "data": b"\x00\x01\xff"}, {"offset": 4096, "data": bytes(4092)}],
     Command.MODEL_COMMIT: [{}],
@@ -214,6 +215,14 @@ INVALID = [
     (Command.CONFIG_SET, {"values": {"a": {"nested": 1}}}, "values.a"),
     (Command.CONFIG_SET, {"values": {"a": [[1]]}}, "values.a"),
     (Command.CONFIG_SET, {"values": {"a": "x" * 300}}, "values.a"),
+    (Command.SERIES, {}, "measurement_id"),
+    (Command.SERIES, {"measurement_id": -1}, "measurement_id"),
+    (Command.SERIES, {"measurement_id": 1, "which": "smooth"}, "which"),
+    (Command.SERIES, {"measurement_id": 1, "which": 1}, "which"),
+    (Command.SERIES, {"measurement_id": 1, "offset": -5}, "offset"),
+    (Command.SERIES, {"measurement_id": 1, "limit": 0}, "limit"),
+    (Command.SERIES, {"measurement_id": 1, "limit": 2049}, "limit"),
+    (Command.SERIES, {"measurement_id": 1, "rows": 2}, "rows"),
     (Command.MODEL_BEGIN, {"sha256": SHA}, "size"),
     (Command.MODEL_BEGIN, {"size": 0, "sha256": SHA}, "size"),
     (Command.MODEL_BEGIN, {"size": 2**27, "sha256": SHA}, "size"),
@@ -274,6 +283,8 @@ def test_decode_request_rejects_invalid_json_args(command, args, field):
 
 def test_defaults_filled_in():
     assert validate_args(Command.HISTORY, {}) == {"offset": 0, "limit": 20}
+    # SERIES without a limit: as many samples as fit in one reply.
+    assert validate_args(Command.SERIES, {"measurement_id": 4}) == {"measurement_id": 4, "which": "raw", "offset": 0}
     assert validate_args(Command.MEASURE, {"power_W": 1}) == {"power_W": 1.0}
     assert isinstance(validate_args(Command.MEASURE, {"power_W": 1})["power_W"], float)
 
@@ -364,3 +375,52 @@ def test_decode_reply_rejects_requests_and_unknown_codes():
     with pytest.raises(ProtocolError) as ei:
         decode_reply(Frame(MsgType.ERROR, 1, b'{"code":"NOPE","message":"x"}'))
     assert ei.value.field == "code"
+
+
+def test_series_command_byte_and_choices_error_message():
+    assert Command.SERIES == 0x09 and reply_type(Command.SERIES) == 0x89
+    with pytest.raises(ProtocolError, match="which must be one of raw, grid, got 'smooth'"):
+        validate_args(Command.SERIES, {"measurement_id": 1, "which": "smooth"})
+
+
+def _series_body(**kw):
+    body = {"measurement_id": 2, "which": "raw", "offset": 0, "total": 3,
+            "t_s": [-0.1, 0.0, 0.1], "T_C": [25.0, None, 25.5], "q_W_m2": [0, 10, 12.5]}
+    body.update(kw)
+    return body
+
+
+def test_series_reply_round_trip_with_null_samples():
+    (frame,) = FrameDecoder().feed(encode_reply(Command.SERIES, 5, _series_body()))
+    reply = decode_reply(frame)
+    assert reply.body["T_C"] == [25.0, None, 25.5]
+    assert reply.body["q_W_m2"] == [0.0, 10.0, 12.5] and all(isinstance(x, float) for x in reply.body["q_W_m2"])
+    grid = _series_body(which="grid", dT_K=[0.0, 0.1, 0.2])
+    del grid["T_C"]
+    assert validate_reply(Command.SERIES, grid)["dT_K"] == [0.0, 0.1, 0.2]
+
+
+@pytest.mark.parametrize("change,field", [
+    ({"T_C": None}, "T_C"),                           # raw needs T_C (dropped below)
+    ({"which": "grid"}, "dT_K"),                      # grid needs dT_K
+    ({"which": "both"}, "which"),
+    ({"q_W_m2": [0, 1]}, "q_W_m2"),                   # lengths differ
+    ({"t_s": [0.0, "x", 1.0]}, "t_s[1]"),
+    ({"T_C": [1.0, True, 2.0]}, "T_C[1]"),
+    ({"total": -1}, "total"),
+    ({"t_s": [0.0] * 2049, "T_C": [0.0] * 2049, "q_W_m2": [0.0] * 2049}, "t_s"),
+])
+def test_series_reply_violations_name_the_field(change, field):
+    body = _series_body(**change)
+    if change.get("T_C", 0) is None:
+        del body["T_C"]
+    with pytest.raises(ProtocolError) as ei:
+        validate_reply(Command.SERIES, body)
+    assert ei.value.field == field
+
+
+def test_series_reply_rejects_nan_on_the_wire():
+    payload = json.dumps(_series_body()).replace("null", "NaN").encode()
+    with pytest.raises(ProtocolError) as ei:
+        decode_reply(Frame(reply_type(Command.SERIES), 1, payload))
+    assert ei.value.field == "payload"
