@@ -8,6 +8,15 @@ SIGINT, which set the stop event: a running measurement is cut (heater off
 at once through the watchdog), the loop ends, the heater driver, history
 database and board are closed.
 
+A measurement (MEASURE, or a press of the trigger button when
+``measurement.trigger_button`` is set) runs in a worker thread while the
+serve loop keeps reading the port: STATUS (``state = "measuring"``, its
+``phase`` and ``measurement_elapsed_s`` on the board clock) and PING are
+answered, every other request gets ERROR ``BUSY``, and the MEASURE reply is
+sent with its request's id when the measurement ends. Only the worker
+switches the heater on; the serve loop waits for it before it switches the
+heater off on its way out.
+
 :func:`run_daemon` runs the same daemon on a given board and an open
 pyserial-like port (the simulator and the tests use it in a thread).
 
@@ -55,6 +64,7 @@ from edge.modelstore import InstallError, ModelStore, ModelStoreError
 from edge.protocol import (
     DEFAULT_MAX_PAYLOAD,
     PROTOCOL_VERSION,
+    Command,
     CommandError,
     ErrorCode,
     Request,
@@ -78,6 +88,10 @@ FIRMWARE_VERSION = edge.__version__
 MAX_UPLOAD_BYTES = 8 * 1024 * 1024
 #: Bytes kept free in a reply for the frame's JSON envelope.
 _REPLY_MARGIN = 256
+#: Requests answered while a measurement runs (everything else gets BUSY).
+ANSWERED_WHILE_MEASURING = frozenset({Command.STATUS, Command.PING})
+#: Longest wait for a running measurement when serve() ends, s, before it is stopped.
+WORKER_JOIN_S = 60.0
 #: SERIES reply names and History columns, per ``which``.
 _SERIES_COLUMNS = {"raw": (("t_s", "raw_t_s"), ("T_C", "raw_T_C"), ("q_W_m2", "raw_q_W_m2")),
                    "grid": (("t_s", "grid_t_s"), ("dT_K", "grid_dT_K"), ("q_W_m2", "grid_q_W_m2"))}
@@ -216,6 +230,12 @@ class Daemon:
             self.last_timing: dict[str, float | None] = {}
             # Presses while a measurement ran (e.g. the touch that started it) are not new requests.
             self._idle_since = board.clock.monotonic()
+            # One measurement at a time; serve() runs it in a worker thread so STATUS stays answered.
+            self._measure_lock = threading.Lock()
+            self._worker: threading.Thread | None = None
+            self._busy = threading.Event()  # set while a measurement is requested or running
+            self.phase: str | None = None
+            self._measure_t0: float | None = None
             self.state = "idle"
         except BaseException:
             if history is None and getattr(self, "history", None) is not None:
@@ -268,8 +288,7 @@ class Daemon:
         return self._model_est.model_sha256()
 
     def _on_state(self, s: str) -> None:
-        if self.state != "fault":
-            self.state = "idle" if s == "idle" else s
+        self.phase = None if s == "idle" else s
 
     # -- requests --------------------------------------------------------------------
     def handle(self, req: Request) -> dict[str, Any] | None:
@@ -296,6 +315,10 @@ class Daemon:
                "uptime_s": round(time.monotonic() - self.t_start, 3)}
         if self.upload is not None:
             out["upload"] = {"received": len(self.upload.data), "size": self.upload.size}
+        t0 = self._measure_t0
+        if self.state == "measuring" and t0 is not None:
+            out["phase"] = self.phase
+            out["measurement_elapsed_s"] = round(self.board.clock.monotonic() - t0, 3)  # board clock
         return out
 
     def _cmd_measure(self, args: dict) -> dict:
@@ -304,7 +327,23 @@ class Daemon:
 
     def measure(self, *, power_W: float | None = None, voltage_V: float | None = None,
                 contact_time_s: float | None = None) -> dict:
-        """Run one measurement, store it, return its summary (CommandError on failure)."""
+        """Run one measurement, store it, return its summary (CommandError on failure).
+
+        While it runs, :attr:`state` is ``"measuring"`` (``phase`` names the
+        sequence step); a second call meanwhile raises BUSY.
+        """
+        if not self._measure_lock.acquire(blocking=False):
+            raise CommandError(ErrorCode.BUSY, "a measurement is already running")
+        try:
+            return self._measure(power_W, voltage_V, contact_time_s)
+        finally:
+            self._measure_t0 = None
+            self.phase = None
+            if self.state == "measuring":
+                self.state = "idle"
+            self._measure_lock.release()
+
+    def _measure(self, power_W: float | None, voltage_V: float | None, contact_time_s: float | None) -> dict:
         if self.state == "fault":
             raise CommandError(ErrorCode.BAD_STATE, "heater fault: measurements are disabled until restart; "
                                + "; ".join(self.faults[-1:]))
@@ -329,6 +368,8 @@ class Daemon:
                                    sample_rate_Hz=m.sample_rate_Hz, cooldown_s=m.cooldown_s,
                                    method=cfg.estimation.method)
         seq = self._get_sequence()
+        self._measure_t0 = self.board.clock.monotonic()
+        self.state = "measuring"
         try:
             outcome = seq.run(params)
         finally:
@@ -511,8 +552,68 @@ class Daemon:
         return {}
 
     # -- serving ---------------------------------------------------------------------
+    @property
+    def measuring(self) -> bool:
+        """Whether serve() has a measurement running (its worker may still be sending the reply)."""
+        return self._busy.is_set()
+
+    def _start_worker(self, fn: Callable[[], None], name: str) -> None:
+        def run() -> None:
+            try:
+                fn()
+            except Exception:  # e.g. the reply cannot be written: the host went away (the record is stored)
+                log.exception("%s failed", name)
+            finally:
+                self._busy.clear()
+
+        self._busy.set()
+        self._worker = threading.Thread(target=run, name=f"thermotouch-{name}", daemon=True)
+        self._worker.start()
+
+    def _handle_measure(self, req: Request) -> dict[str, Any] | None:
+        try:
+            return self.handle(req)
+        finally:
+            # Before the reply goes out: a host that reads it and asks again at once is not refused BUSY.
+            self._busy.clear()
+
+    def _join_worker(self, *, abort: bool, timeout_s: float = WORKER_JOIN_S) -> None:
+        """Wait for the measurement worker; ``abort`` (or a timeout) stops it through the stop event."""
+        w = self._worker
+        if w is None:
+            return
+        if abort:
+            self.stop_event.set()
+        w.join(timeout_s)
+        if w.is_alive():
+            log.error("measurement worker still running after %.0f s: stopping it", timeout_s)
+            self.stop_event.set()
+            w.join(timeout_s)
+        if not w.is_alive():
+            self._worker = None
+
+    def _dispatch(self, endpoint: SerialEndpoint, req: Request) -> None:
+        if self.measuring:
+            if req.command in ANSWERED_WHILE_MEASURING:
+                endpoint.handle(req, self.handle)
+            else:
+                endpoint.send_error(req.request_id, ErrorCode.BUSY,
+                                    f"{req.command.name} refused: a measurement is running (STATUS answers)")
+            return
+        if req.command == Command.MEASURE:
+            # The reply, addressed to this request id, is sent by the worker when the measurement ends.
+            self._start_worker(lambda: endpoint.handle(req, self._handle_measure), "measure")
+            return
+        endpoint.handle(req, self.handle)
+
+    def _button_measure(self) -> None:
+        try:
+            self.measure()
+        except CommandError as e:
+            log.warning("button measurement: %s", e)
+
     def _poll_button(self) -> None:
-        if self.button is None or self.state != "idle":
+        if self.button is None or self.state != "idle" or self.measuring:
             return
         try:
             ev = self.button.wait_for_event(0.0)
@@ -522,27 +623,38 @@ class Daemon:
             return
         if ev is not None and ev.pressed and ev.t_s >= self._idle_since:
             log.info("trigger button pressed: measuring")
-            try:
-                self.measure()
-            except CommandError as e:
-                log.warning("button measurement: %s", e)
+            self._start_worker(self._button_measure, "button-measure")
 
     def serve(self, ser: Any, stop_event: threading.Event | None = None, *, poll_s: float = 0.05) -> None:
         """Answer requests on ``ser`` until ``stop_event`` (default: the daemon's) is set.
 
-        Port errors propagate (after the heater is made safe).
+        A measurement (MEASURE or the trigger button) runs in a worker thread;
+        meanwhile STATUS and PING are answered and every other request gets
+        ERROR BUSY. The MEASURE reply carries its request's id. On the way
+        out the worker is waited for -- stopped first through the daemon's
+        stop event when that is set or on KeyboardInterrupt/SystemExit, left
+        to finish and store its record after a port error -- then the heater
+        is switched off. Port errors propagate.
         """
         stop = stop_event if stop_event is not None else self.stop_event
         endpoint = SerialEndpoint(ser, max_payload=self.max_payload, poll_s=poll_s)
+        abort = True
         try:
             while not stop.is_set() and not self.stop_event.is_set():
                 for req in endpoint.poll():
-                    endpoint.handle(req, self.handle)
+                    self._dispatch(endpoint, req)
                     if stop.is_set():
                         break
                 self._poll_button()
+            abort = self.stop_event.is_set()
+        except Exception:
+            abort = False  # a port error: the running measurement completes and is stored
+            raise
         finally:
-            self.heater.off()
+            try:
+                self._join_worker(abort=abort)
+            finally:
+                self.heater.off()
 
     def close(self) -> None:
         """Heater off and closed, watchdog stopped, history closed (idempotent)."""

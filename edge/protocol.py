@@ -240,8 +240,9 @@ COMMANDS: dict[Command, CommandSpec] = {spec.command: spec for spec in (
         doc="Firmware and model versions, model sha256, board name."),
     CommandSpec(
         Command.STATUS,
-        reply=(Field("state", "str", required=True, doc="e.g. idle, measuring, uploading, fault"),),
-        doc="Current device state; extra fields are free-form."),
+        reply=(Field("state", "str", required=True, doc="idle, measuring, fault, ..."),),
+        doc="Current device state; extra fields are free-form (while measuring: phase, "
+            "measurement_elapsed_s). Answered during a measurement."),
     CommandSpec(
         Command.MEASURE,
         args=(Field("power_W", "float", lo=0.0, hi=50.0, lo_open=True, doc="heater power, W"),
@@ -250,7 +251,8 @@ COMMANDS: dict[Command, CommandSpec] = {spec.command: spec for spec in (
         exclusive=(("power_W", "voltage_V"),),
         reply=(Field("measurement_id", "int", required=True, lo=0),),
         idempotent=False,
-        doc="Run one touch measurement synchronously; replies with the result record."),
+        doc="Run one touch measurement; replies with the stored record when it ends. Meanwhile the "
+            "device answers STATUS and PING and refuses other requests with BUSY."),
     CommandSpec(
         Command.RESULT,
         args=(Field("measurement_id", "int", lo=0, hi=_MAX_REQUEST_ID, doc="absent = latest"),),
