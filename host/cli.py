@@ -348,8 +348,15 @@ def cmd_measure(args) -> int:
     from host.touch import touch
 
     prog = "thermotouch measure"
-    if args.bundle is not None and not args.plot:
-        raise CliError(f"{prog}: --bundle is for the fitted curves of --plot", 2)
+    if args.bundle is not None:
+        from host.touch import bundle_identity
+
+        if not args.plot:
+            raise CliError(f"{prog}: --bundle is for the fitted curves of --plot", 2)
+        try:
+            bundle_identity(args.bundle)  # a wrong directory is refused before the touch
+        except DeviceUnavailable as exc:
+            raise CliError(f"{prog}: {exc}", exc.code) from None
     with _device(args, prog) as session:
         try:
             t = touch(session, power_W=args.power, voltage_V=args.voltage, contact_time_s=args.time,

@@ -18,7 +18,7 @@ from typing import Any
 
 from host.device import DeviceSession, DeviceUnavailable
 
-__all__ = ["Touch", "touch", "reestimate", "host_bundle"]
+__all__ = ["Touch", "touch", "reestimate", "host_bundle", "bundle_identity"]
 
 #: Bundles loaded by :func:`host_bundle`, by (directory, sha256): a verified load takes a moment.
 _LOADED: dict[tuple[str, str], Any] = {}
@@ -61,6 +61,18 @@ def _manifest_sha256(directory: Path) -> str | None:
         return None
 
 
+def bundle_identity(bundle_dir: str | Path) -> str:
+    """sha256 of a bundle directory's ``manifest.json`` (its identity); DeviceUnavailable (status 2) if unreadable.
+
+    Cheap: lets the CLI refuse a wrong ``--bundle`` before it touches the device.
+    """
+    d = Path(bundle_dir)
+    sha = _manifest_sha256(d)
+    if sha is None:
+        raise DeviceUnavailable(f"--bundle {d}: not a bundle directory (no readable manifest.json)", 2)
+    return sha
+
+
 def _load(directory: Path, sha256: str) -> Any:
     from edge.bundle import load_bundle  # noqa: PLC0415
     from edge.estimate import pipeline_golden_check  # noqa: PLC0415
@@ -97,9 +109,7 @@ def host_bundle(model_sha256: str | None, *, bundle_dir: str | Path | None = Non
     sha = model_sha256.lower()
     if bundle_dir is not None:
         d = Path(bundle_dir)
-        got = _manifest_sha256(d)
-        if got is None:
-            raise DeviceUnavailable(f"--bundle {d}: not a bundle directory (no readable manifest.json)", 2)
+        got = bundle_identity(d)
         if got != sha:
             return None, f"bundle {d} is model {got[:12]}, the device used {sha[:12]}"
         try:

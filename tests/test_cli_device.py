@@ -166,12 +166,12 @@ def test_measure_plot_over_a_port_without_the_devices_bundle_plots_the_measureme
 def test_measure_bundle_option_errors_are_one_line(capsys, tmp_path):
     code, out, err = run(capsys, "measure", "--port", "/dev/thermotouch-not-needed", "--bundle", str(tmp_path))
     assert code == 2 and "--bundle" in one_line_error(err)
-    with simulated_probe("glass_12V", tmp_path / "dev") as (port, daemon, sim):
-        code, out, err = run(capsys, "measure", "--port", port, "--plot", str(tmp_path / "x.png"),
-                             "--bundle", str(tmp_path / "nowhere"))
+    # Not a bundle: refused before the device is touched.
+    code, out, err = run(capsys, "measure", "--port", "/dev/thermotouch-not-needed", "--plot",
+                         str(tmp_path / "x.png"), "--bundle", str(tmp_path / "nowhere"))
     assert code == 2
     line = one_line_error(err)
-    assert "--bundle" in line and "manifest.json" in line
+    assert "--bundle" in line and "manifest.json" in line and not (tmp_path / "x.png").exists()
 
 
 def test_flash_installs_the_bundle_and_confirms_its_sha(capsys, tmp_path):
