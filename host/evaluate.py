@@ -197,3 +197,53 @@ def contact_time_trade(est: Estimator, instrument: str, *, times=(0.3, 0.5, 1.0,
                                  e_rms_err=float(np.sqrt(np.mean(np.square(e_err)))) if e_err else None,
                                  e_stated_u=float(np.median(e_u)) if e_u else None, n=len(e_err)))
     return rows
+
+
+def leave_out_paper(instrument: str, *, folds: int = 7, seed: int = 5, q_v: float = 7.7e7) -> dict:
+    """Paper method, materials held out in grouped folds: e, k, alpha errors on noisy touches.
+
+    Each fold's network is trained (quick settings: 6 power levels, no noise
+    copies) without the fold's materials, which are then touched and
+    estimated with the paper method (alpha scan by Duhamel, which equals the
+    explicit scan on thick objects - see the compute table).
+    """
+    import warnings
+
+    from edge.features import FEATURE_VERSION
+    from host.dataset import Dataset, DatasetSpec, generate
+    from host.export import mlp_arrays_from_sklearn, pca_arrays_from_sklearn
+    from host.materials import load_materials
+    from host.train import fit_paper_model
+
+    lib = load_materials()
+    ds = generate(DatasetSpec(noisy_copies=0, levels_W_m3=DatasetSpec.levels_W_m3[::4]), lib)
+    rng = np.random.default_rng(seed)
+    idx = np.arange(len(lib))
+    errs = {"e": [], "k": [], "alpha": []}
+    for f in range(folds):
+        held = idx[f::folds]
+        tr = ~np.isin(ds.material_index, held)
+        sub = Dataset(ds.features[tr], ds.k_W_mK[tr], ds.rho_c_J_m3K[tr], ds.q_v_W_m3[tr],
+                      ds.material_index[tr], ds.noisy[tr], ds.names, ds.sha256)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            pm = fit_paper_model(sub, seed=seed, max_iter=300)
+        keep = ~np.isin(idx, held)
+        arrays = {"feature_version": np.int64(FEATURE_VERSION), "x_log_offset": pm.floor,
+                  "x_mean": pm.scaler.mean_, "x_scale": pm.scaler.scale_, "y_transform": np.int64(1),
+                  "lib_effusivity": lib.effusivity[keep], "lib_k": lib.k[keep], "lib_rho_c": lib.rho_c[keep],
+                  "lib_names": np.array(lib.names)[keep], "lib_class": np.array(lib.classes)[keep]}
+        arrays.update(pca_arrays_from_sklearn(pm.pca))
+        arrays.update(mlp_arrays_from_sklearn(pm.mlp))
+        est = Estimator(arrays)
+        for i in held:
+            m = list(lib)[i]
+            solid = m.solid
+            t = TouchSimulator(solid).touch(q_v, instrument, rng)
+            r = est.estimate(t.tT, t.T, t.q, t_q_s=t.tq, method="paper")
+            if r.k_W_mK is None:
+                continue
+            errs["e"].append(abs(rel(r.effusivity_W_s05_m2K, solid.effusivity_W_s05_m2K)))
+            errs["k"].append(abs(rel(r.k_W_mK, solid.k_W_mK)))
+            errs["alpha"].append(abs(rel(r.alpha_m2_s, solid.alpha_m2_s)))
+    return summarize(errs)
