@@ -112,17 +112,19 @@ def _uniform_grid(t_end: float, dt: float) -> np.ndarray:
 
 
 def _lstsq_with_offset(m: np.ndarray, T: np.ndarray, n_eff: int):
-    """Fit T = a m + c; return a, c, u_a, rss, fitted."""
+    """Fit T = a m + c; return a, c, u_a, rss, fitted.
+
+    The residuals of a resampled series are correlated over the spline's
+    support, so the variance is scaled from the grid's point count to the
+    ``n_eff`` raw samples behind it.
+    """
     X = np.column_stack([m, np.ones_like(m)])
     coef, *_ = np.linalg.lstsq(X, T, rcond=None)
     fit = X @ coef
     rss = float(np.sum((T - fit) ** 2))
-    dof = max(1, n_eff - 2)
-    # Residuals of the resampled series are correlated; scale to the raw sample count.
     sigma2 = rss / max(1, T.size - 2) * (T.size / max(n_eff, 3))
     try:
-        cov = sigma2 * np.linalg.inv(X.T @ X)
-        u_a = math.sqrt(max(cov[0, 0], 0.0)) * math.sqrt(max(1.0, (n_eff - 2) / dof))
+        u_a = math.sqrt(max(float(sigma2 * np.linalg.inv(X.T @ X)[0, 0]), 0.0))
     except np.linalg.LinAlgError:
         u_a = math.inf
     return float(coef[0]), float(coef[1]), u_a, rss, fit

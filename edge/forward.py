@@ -190,9 +190,6 @@ def simulate(
     if rc > 0 and scheme != "exact":
         raise ValueError("contact_resistance_m2K_W is only modelled by scheme='exact'")
     if scheme == "exact":
-        T_step, q_step = laplace.probe_step_response(
-            solid, t, stack=stack, thickness_m=thickness_m, back=back, contact_resistance_m2K_W=rc
-        )
         T, q = superpose(schedule, t, lambda tt: laplace.probe_step_response(
             solid, tt, stack=stack, thickness_m=thickness_m, back=back, contact_resistance_m2K_W=rc))
         return ProbeResponse(t, T, q, scheme)
