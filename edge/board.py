@@ -383,3 +383,44 @@ def make_rpi_board(
 
 
 register_board_factory("rpi", make_rpi_board)
+
+
+def force_rpi_heater_off(
+    *,
+    gpio_chip: str = "/dev/gpiochip0",
+    heater_enable_offset: int = 17,
+    heater_active_low: bool = False,
+    pwm_root: str = DEFAULT_PWM_ROOT,
+    pwm_chip: int = 0,
+    pwm_channel: int = 0,
+    gpiod_module: Any = None,
+    pwm_io: Any = None,
+) -> list[str]:
+    """Drive the real heater off without building the board; return what failed.
+
+    Used before anything else at start-up and by the service's
+    ``ExecStopPost``: it needs neither I2C nor a complete board, so a missing
+    sensor bus or a crashed daemon cannot leave the heater on.  Both channels
+    are tried whatever happens to the other: the enable line is driven
+    inactive (it keeps that level after release) and the PWM channel, if it
+    is exported, gets duty 0 and is disabled.  ``gpiod_module`` and
+    ``pwm_io`` replace the real gpiod module and sysfs file access (tests).
+    """
+    failures: list[str] = []
+    try:
+        g = gpiod_module
+        if g is None:
+            import gpiod as g  # noqa: PLC0415 - real hardware only
+        line = GpioLine(g, gpio_chip, heater_enable_offset, active_low=heater_active_low)
+        line.request_output("thermotouch-heater-off", value=False).release()
+    except Exception as e:  # noqa: BLE001 - report and go on to the PWM
+        failures.append(f"enable line {gpio_chip}:{heater_enable_offset}: {e}")
+    try:
+        pwm = SysfsPwm(pwm_root, pwm_chip, pwm_channel, io=pwm_io)
+        if pwm.is_exported:
+            if pwm.period_ns:
+                pwm.set_duty_ns(0)
+            pwm.disable()
+    except Exception as e:  # noqa: BLE001
+        failures.append(f"PWM {pwm_root}/pwmchip{pwm_chip}/pwm{pwm_channel}: {e}")
+    return failures

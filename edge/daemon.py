@@ -56,7 +56,7 @@ import numpy as np
 import edge
 from edge.board import Board, make_board
 from edge.config import RUNTIME_KEYS, Config, ConfigError, RuntimeOverrides, load_config
-from edge.drivers.heater import Heater, HeaterError
+from edge.drivers.heater import Heater, HeaterError, HeaterOffError
 from edge.faults import SensorFault
 from edge.history import History
 from edge.link import SerialEndpoint
@@ -91,7 +91,7 @@ _REPLY_MARGIN = 256
 #: Requests answered while a measurement runs (everything else gets BUSY).
 ANSWERED_WHILE_MEASURING = frozenset({Command.STATUS, Command.PING})
 #: Longest wait for a running measurement when serve() ends, s, before it is stopped.
-WORKER_JOIN_S = 60.0
+WORKER_JOIN_S = 60.0  # margin for estimation and storage beyond a measurement's own phases
 #: SERIES reply names and History columns, per ``which``.
 _SERIES_COLUMNS = {"raw": (("t_s", "raw_t_s"), ("T_C", "raw_T_C"), ("q_W_m2", "raw_q_W_m2")),
                    "grid": (("t_s", "grid_t_s"), ("dT_K", "grid_dT_K"), ("q_W_m2", "grid_q_W_m2"))}
@@ -374,7 +374,11 @@ class Daemon:
             outcome = seq.run(params)
         finally:
             if self.heater.is_on:  # belt and braces: run() never returns with it on
-                self.heater.off()
+                try:
+                    self.heater.off()
+                except HeaterOffError as e:
+                    # run() already reported heater_fault; the record must still be stored.
+                    log.critical("heater still on after the measurement: %s", e)
         self.measurements += 1
         self._idle_since = self.board.clock.monotonic()
         t_commit = time.perf_counter()
@@ -577,11 +581,22 @@ class Daemon:
             # Before the reply goes out: a host that reads it and asks again at once is not refused BUSY.
             self._busy.clear()
 
-    def _join_worker(self, *, abort: bool, timeout_s: float = WORKER_JOIN_S) -> None:
-        """Wait for the measurement worker; ``abort`` (or a timeout) stops it through the stop event."""
+    def _worker_budget_s(self) -> float:
+        """Longest a healthy measurement can take: baseline + heating limit + cooldown + a margin."""
+        m, h = self.config.measurement, self.config.heater
+        return m.baseline_s + h.max_on_time_s + m.cooldown_s + WORKER_JOIN_S
+
+    def _join_worker(self, *, abort: bool, timeout_s: float | None = None) -> None:
+        """Wait for the measurement worker; ``abort`` (or a timeout) stops it through the stop event.
+
+        Without ``abort`` (a lost port) the worker may be in its cooldown, so
+        the wait covers a whole measurement before the worker is stopped.
+        """
         w = self._worker
         if w is None:
             return
+        if timeout_s is None:
+            timeout_s = self._worker_budget_s()
         if abort:
             self.stop_event.set()
         w.join(timeout_s)
@@ -772,7 +787,21 @@ def _parse_args(argv: list[str] | None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="thermotouch-edge", description="ThermoTouch probe daemon")
     p.add_argument("--config", required=True, help="TOML configuration file")
     p.add_argument("--check-config", action="store_true", help="validate the configuration and exit")
+    p.add_argument("--heater-off", action="store_true",
+                   help="drive the heater off (enable line and PWM, no I2C needed) and exit; for ExecStopPost")
     return p.parse_args(argv)
+
+
+def force_heater_off(cfg: Config) -> list[str]:
+    """Drive the configured real heater off before (or without) building the board; failures."""
+    b = cfg.board
+    if b.kind != "rpi":
+        return []  # simulated boards start with the heater off; Daemon() drives it off again
+    from .board import force_rpi_heater_off  # noqa: PLC0415
+
+    return force_rpi_heater_off(gpio_chip=b.gpio_chip, heater_enable_offset=b.heater_enable_offset,
+                                heater_active_low=b.heater_active_low, pwm_root=b.pwm_root,
+                                pwm_chip=b.pwm_chip, pwm_channel=b.pwm_channel)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -788,6 +817,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.check_config:
         print(f"{args.config}: OK", file=sys.stderr)
         return 0
+    # Heater off before anything that can fail (I2C, model store, serial port).
+    failures = force_heater_off(cfg)
+    for f in failures:
+        log.critical("cannot drive the heater off: %s", f)
+    if args.heater_off:
+        return 1 if failures else 0
     stop = threading.Event()
     install_signal_handlers(stop)
     try:

@@ -242,6 +242,13 @@ class Estimator:
         q = finite_array("q_W_m2", q_W_m2)
         if q.size != tq.size:
             raise ValueError(f"q_W_m2 has {q.size} samples but its times have {tq.size}")
+        # At heater-on (t = 0) the excess temperature and the flux are zero by
+        # definition; a record that starts later gets that point, so the
+        # resampling grid never extrapolates backwards.
+        if tT[0] > 0:
+            tT, T = np.concatenate(([0.0], tT)), np.concatenate(([0.0], T))
+        if tq[0] > 0:
+            tq, q = np.concatenate(([0.0], tq)), np.concatenate(([0.0], q))
         t_end = min(tT[-1], tq[-1])
         if t_end < 10 * MODEL_DT_S:
             raise ValueError(f"record too short: {t_end:.3g} s")

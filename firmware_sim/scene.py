@@ -16,7 +16,7 @@ Top level::
 
 ``[object]`` (required) -- the touched solid::
 
-    material?    str    a name from the material library (host/data/materials.csv), or
+    material?    str    a name from the material library (edge/data/materials.csv), or
     k_W_mK?      float  > 0  conductivity     } all three instead of ``material``
     rho_kg_m3?   float  > 0  density          }
     c_J_kgK?     float  > 0  specific heat    }
@@ -75,20 +75,16 @@ At least one thermocouple reader (mcp9600 or ads122c04) and one flux reader
         supply_sag         factor (0 < factor <= 1) or voltage_V (> 0)
         no_contact         -
 
-Material names are resolved without importing the ``host`` package (the
-simulator depends on ``edge`` only): the library CSV shipped as package data
-``host/data/materials.csv`` is located with :func:`importlib.util.find_spec`
-and parsed with :mod:`csv`; callers may pass their own ``material_lookup``.
+Material names are resolved in the validated material library,
+:mod:`edge.materials` (``edge/data/materials.csv``); callers may pass their
+own ``material_lookup``.
 """
 
 from __future__ import annotations
 
-import csv
-import importlib.util
 import math
 import tomllib
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
@@ -368,42 +364,15 @@ class _Ctx:
 # Material library (read from host's package data without importing host)
 
 MaterialLookup = Callable[[str], tuple[float, float, float]]
-_library_cache: dict[str, tuple[float, float, float]] | None = None
-
-
-def _library_text() -> str:
-    spec = importlib.util.find_spec("host")  # locates the package without running its code
-    if spec is None or not spec.submodule_search_locations:
-        raise LookupError("the material library (package 'host', data/materials.csv) is not installed")
-    for loc in spec.submodule_search_locations:
-        p = Path(loc) / "data" / "materials.csv"
-        if p.is_file():
-            return p.read_text(encoding="utf-8-sig")
-    # Fall back to the resource API for zipped installs (this may import host).
-    return resources.files("host").joinpath("data/materials.csv").read_text(encoding="utf-8-sig")
-
-
-def _load_library() -> dict[str, tuple[float, float, float]]:
-    global _library_cache
-    if _library_cache is None:
-        rows = [ln for ln in _library_text().splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-        reader = csv.DictReader(rows)
-        lib = {}
-        for row in reader:
-            lib[row["name"].strip()] = (float(row["k_W_mK"]), float(row["rho_kg_m3"]), float(row["c_J_kgK"]))
-        _library_cache = lib
-    return _library_cache
-
-
 def library_material(name: str) -> tuple[float, float, float]:
-    """``(k_W_mK, rho_kg_m3, c_J_kgK)`` of library material ``name``.
+    """``(k_W_mK, rho_kg_m3, c_J_kgK)`` of library material ``name`` (edge.materials).
 
-    Raises KeyError for an unknown name, LookupError if the library is not installed.
+    Raises KeyError for an unknown name.
     """
-    lib = _load_library()
-    if name not in lib:
-        raise KeyError(name)
-    return lib[name]
+    from edge.materials import load_materials  # noqa: PLC0415 - only scenes naming a material need it
+
+    m = load_materials().get(name)
+    return (m.k_W_mK, m.rho_kg_m3, m.c_J_kgK)
 
 
 # ---------------------------------------------------------------------------

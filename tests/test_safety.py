@@ -305,3 +305,40 @@ def test_real_signal_to_a_daemon_process_mid_heating(tmp_path, sig):
     assert rec["status"] == "aborted" and rec["reason"] == "stopped"
     with History(tmp_path / "history.db") as h:
         assert h.count() == 1
+
+
+def test_both_heater_channels_failing_still_stores_the_record(tmp_path):
+    # Nothing can cut the power: the daemon must say so loudly and still keep the data.
+    rig = make_rig()
+    d = Daemon(sim_config(tmp_path), rig.board, estimator=FakeEstimator())
+    real_req, real_pwm = d.heater._req, d.heater._pwm
+    inactive = rig.parts.gpio.gpiod.line.Value.INACTIVE
+
+    class StuckEnable:
+        def set_value(self, off, value):
+            if value == inactive:
+                raise OSError(5, "EIO: line stuck")
+            real_req.set_value(off, value)
+
+        def release(self):
+            real_req.release()
+
+    class StuckPwm:
+        def __getattr__(self, name):
+            return getattr(real_pwm, name)
+
+        def set_duty_ns(self, duty_ns):
+            if duty_ns == 0:
+                raise OSError(5, "EIO: pwm stuck")
+            real_pwm.set_duty_ns(duty_ns)
+
+    d.heater._req, d.heater._pwm = StuckEnable(), StuckPwm()
+    with pytest.raises(CommandError) as ei:
+        d.measure()
+    assert "HEATER FAULT" in ei.value.message and "stored" in ei.value.message
+    rec = d.history.get(1)
+    assert rec is not None and rec["reason"] == "heater_fault"
+    assert d.state == "fault"
+    d.heater._req, d.heater._pwm = real_req, real_pwm
+    d.heater.off()
+    d.close()

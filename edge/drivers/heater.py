@@ -18,9 +18,9 @@ import math
 import threading
 from typing import Any
 
+from edge.solids import DEFAULT_STACK, ProbeStack
+
 __all__ = [
-    "HEATER_LENGTH_M",
-    "HEATER_WIDTH_M",
     "HEATER_THICKNESS_M",
     "HEATER_AREA_M2",
     "HEATER_VOLUME_M3",
@@ -34,10 +34,9 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-HEATER_LENGTH_M = 55e-3
-HEATER_WIDTH_M = 60e-3
-HEATER_THICKNESS_M = 20e-6
-HEATER_AREA_M2 = HEATER_LENGTH_M * HEATER_WIDTH_M
+# The heater's geometry has one home, the probe stack (edge.solids); these are views of it.
+HEATER_AREA_M2 = DEFAULT_STACK.heater_area_m2
+HEATER_THICKNESS_M = DEFAULT_STACK.heater_thickness_m
 HEATER_VOLUME_M3 = HEATER_AREA_M2 * HEATER_THICKNESS_M
 
 
@@ -97,7 +96,9 @@ def volumetric_heat_w_m3(
     p = float(power_w)
     if not (p >= 0 and math.isfinite(p)):
         raise ValueError(f"power_w must be a finite number >= 0, got {power_w!r}")
-    return p / (_positive("area_m2", area_m2) * _positive("thickness_m", thickness_m))
+    stack = ProbeStack(heater_thickness_m=_positive("thickness_m", thickness_m),
+                       heater_area_m2=_positive("area_m2", area_m2))
+    return stack.q_v_from_power(p)
 
 
 class HeaterError(RuntimeError):
