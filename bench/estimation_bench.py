@@ -123,9 +123,11 @@ def main():
     m = res["manifest_metrics"]
     if m:
         L.append("")
+        ds_s = m.get("dataset_seconds", 0)
         L.append(f"Shipped bundle: PCA p1+p2 explain {m.get('pca_explained_variance_2', 0) * 100:.1f} % of the "
-                 f"variance of the (noise-augmented) training features; dataset {m.get('dataset_seconds', 0):.0f} s + "
-                 f"training {m.get('train_seconds', 0):.0f} s.")
+                 f"variance of the (noise-augmented) training features; training set "
+                 + ("from the cache" if ds_s < 1 else f"{ds_s:.0f} s") + f" + fitting {m.get('train_seconds', 0):.0f} s "
+                 f"(its manifest; `thermotouch train --out DIR` with an empty $THERMOTOUCH_CACHE times both).")
     text = "\n".join(L)
     print(text)
     print(f"\nwrote {write_json('estimation', res)}")
