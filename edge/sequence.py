@@ -98,9 +98,14 @@ class ProbeSensors:
     """
 
     def __init__(self, read_T: Callable[[], tuple[float, bool]], read_q_V: Callable[[], tuple[float, bool]],
-                 flux_sensitivity_V_per_W_m2: float, *, description: str = "") -> None:
+                 flux_sensitivity_V_per_W_m2: float, *, description: str = "", T_age_s: float = 0.0) -> None:
         if not flux_sensitivity_V_per_W_m2 > 0:
             raise ValueError(f"flux_sensitivity_V_per_W_m2 must be > 0, got {flux_sensitivity_V_per_W_m2!r}")
+        if not T_age_s >= 0:
+            raise ValueError(f"T_age_s must be >= 0, got {T_age_s!r}")
+        #: Mean age (s) of a temperature reading when it is read: a converter that
+        #: converts continuously holds a value taken one conversion time ago on average.
+        self.T_age_s = float(T_age_s)
         self._read_T = read_T
         self._read_q_V = read_q_V
         self.sensitivity = float(flux_sensitivity_V_per_W_m2)
@@ -144,7 +149,9 @@ def make_sensors(board: Any, sensors_cfg: Any) -> ProbeSensors:
 
         def read_T() -> tuple[float, bool]:
             return mcp.read_hot_junction_C(), False
+        T_age_s = mcp.conversion_time_s
     else:
+        T_age_s = 0.0  # single-shot conversions, read when done
         adc = get_ads122()
 
         def read_T() -> tuple[float, bool]:
@@ -165,7 +172,7 @@ def make_sensors(board: Any, sensors_cfg: Any) -> ProbeSensors:
             v = adc2.read_flux_voltage_V("AIN2_AIN3", s.ads122c04_gain)
             return v, adc2.saturated
 
-    return ProbeSensors(read_T, read_q, s.flux_sensitivity_V_per_W_m2,
+    return ProbeSensors(read_T, read_q, s.flux_sensitivity_V_per_W_m2, T_age_s=T_age_s,
                         description=f"thermocouple={s.thermocouple} flux={s.flux_adc}")
 
 
@@ -267,12 +274,14 @@ class HeaterWatchdog:
 
 
 def resample_uniform(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, T0_C: float, q_offset_W_m2: float,
-                     rate_Hz: float, t_end_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                     rate_Hz: float, t_end_s: float, T_age_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Heating-phase series on the grid ``k / rate_Hz``, k = 1 .. floor(t_end * rate).
 
     ``t_s`` is time since heater-on; samples with ``t_s < 0`` (baseline) are
     ignored. The temperature rise is anchored at ``(0, 0)`` (temperature is
-    continuous at switch-on; flux is not, so it is not anchored).
+    continuous at switch-on; flux is not, so it is not anchored).  Temperature
+    readings are placed ``T_age_s`` before they were read (the converter's
+    sampling lag), which would otherwise bias e upwards by several percent.
 
     Returns ``(t_s, dT_K, q_W_m2)`` with the flux offset removed.
     """
@@ -281,13 +290,17 @@ def resample_uniform(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, T0_C:
     th, Th, qh = t_s[heat], np.asarray(T_C, float)[heat], np.asarray(q_W_m2, float)[heat]
     if th.size < 2:
         raise ValueError(f"need at least 2 heating samples to resample, got {th.size}")
+    tT, dT = th - T_age_s, Th - T0_C
+    keep = tT > 0  # a reading taken before heater-on belongs to the baseline
+    tT, dT = tT[keep], dT[keep]
+    if tT.size < 1:
+        raise ValueError("no temperature reading taken after heater-on")
+    tT, dT = np.concatenate(([0.0], tT)), np.concatenate(([0.0], dT))
     n = int(math.floor(t_end_s * rate_Hz + 1e-9))
     grid = np.arange(1, n + 1) / rate_Hz
-    grid = grid[grid <= th[-1] + 1e-9]
+    grid = grid[grid <= min(th[-1], tT[-1]) + 1e-9]  # interpolate, never extrapolate
     if grid.size < 2:
         raise ValueError("heating phase too short for the sample rate")
-    tT = np.concatenate(([0.0], th)) if th[0] > 0 else th
-    dT = np.concatenate(([0.0], Th - T0_C)) if th[0] > 0 else Th - T0_C
     dT_grid = resample(tT, dT, grid)
     q_grid = resample(th, qh - q_offset_W_m2, np.maximum(grid, th[0]))
     return grid, dT_grid, q_grid
@@ -615,7 +628,7 @@ class MeasurementSequence:
         self._set_state("resampling")
         try:
             g_t, g_dT, g_q = resample_uniform(t, T, q, out.T0_C, out.q_offset_W_m2, params.sample_rate_Hz,
-                                              t_off - t_on)
+                                              t_off - t_on, getattr(self.sensors, "T_age_s", 0.0))
         except ValueError as e:
             out.status, out.reason, out.error = "failed", "too_few_samples", str(e)
             return
