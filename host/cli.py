@@ -323,7 +323,11 @@ def _add_measure(sub):
     power = p.add_mutually_exclusive_group()
     power.add_argument("--voltage", type=_float("--voltage"), help="heater voltage, V")
     power.add_argument("--power", type=_float("--power"), help="heater power, W")
-    p.add_argument("--time", type=_float("--time"), help="contact (heating) time, s")
+    timing = p.add_mutually_exclusive_group()
+    timing.add_argument("--time", type=_float("--time"), help="contact (heating) time, s")
+    timing.add_argument("--profile", choices=("quick", "standard", "precise"),
+                        help="contact time of a measurement profile: quick 0.5 s, standard 2 s, precise 4 s "
+                             "(accuracy per profile: README, estimation tables)")
     p.add_argument("--method", choices=("paper", "default"), default=None,
                    help="estimation method for this touch (default: the device's setting)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -348,6 +352,10 @@ def cmd_measure(args) -> int:
     from host.touch import touch
 
     prog = "thermotouch measure"
+    if args.profile is not None:
+        from edge.profiles import PROFILES
+
+        args.time = PROFILES[args.profile].contact_time_s
     if args.bundle is not None:
         from host.touch import bundle_identity
 

@@ -103,3 +103,11 @@ def test_train_quick_writes_a_loadable_bundle_and_refuses_overwrite(capsys, tmp_
     assert any((tmp_path / "cache").glob("dataset-*.npz")), "the training set is cached"
     code, _, err = run(capsys, "train", "--out", out, "--quick")
     assert code == 2 and "exists" in err and len(err.strip().splitlines()) == 1
+
+
+def test_measure_profile_sets_the_contact_time(capsys):
+    code, out, err = run(capsys, "measure", "--sim", "glass_15V", "--profile", "quick", "--json")
+    assert code == 0, err
+    assert json.loads(out)["contact_time_s"] == pytest.approx(0.5)
+    code, out, err = run(capsys, "measure", "--sim", "glass_15V", "--profile", "quick", "--time", "1")
+    assert code == 2 and "--profile" in err and len(err.strip().splitlines()) == 1
