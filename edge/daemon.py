@@ -103,8 +103,10 @@ class ModelEstimator:
     Rebuilt when the active bundle changes (after an upload or rollback).
     """
 
-    def __init__(self, store: ModelStore) -> None:
+    def __init__(self, store: ModelStore, T_resolution_K: float = 0.0) -> None:
         self.store = store
+        #: The thermometer's resolution (K), which the estimator carries into u(e).
+        self.T_resolution_K = float(T_resolution_K)
         self._sha: str | None = None
         self._est: Any = None
         self._lock = threading.Lock()
@@ -124,7 +126,22 @@ class ModelEstimator:
             if self._sha != bundle.sha256:
                 self._est, self._sha = Estimator.from_bundle(bundle), bundle.sha256
             est = self._est
-        return est.estimate(t_s, dT_K, q_W_m2, method=method, q_v_W_m3=q_v_W_m3).to_dict()
+        return est.estimate(t_s, dT_K, q_W_m2, method=method, q_v_W_m3=q_v_W_m3,
+                            T_resolution_K=self.T_resolution_K).to_dict()
+
+
+#: MCP9600 ADC step per resolution (datasheet: 2, 8, 32, 128 uV at 18, 16, 14, 12 bit).
+_MCP9600_ADC_STEP_V = {18: 2e-6, 16: 8e-6, 14: 32e-6, 12: 128e-6}
+
+
+def thermocouple_resolution_K(sensors: Any) -> float:
+    """Temperature step (K) of the configured thermocouple converter near room temperature."""
+    from edge.typek import seebeck_uV_per_K  # noqa: PLC0415
+
+    seebeck_V_per_K = float(seebeck_uV_per_K(25.0)) * 1e-6
+    if sensors.thermocouple == "mcp9600":
+        return _MCP9600_ADC_STEP_V[int(sensors.mcp9600_adc_bits)] / seebeck_V_per_K
+    return 2.048 / sensors.ads122c04_gain / 2 ** 23 / seebeck_V_per_K
 
 
 def _factory_bundle(cfg: Config) -> Path | None:
@@ -212,7 +229,7 @@ class Daemon:
                 log.info("model %s (%s) from %s", b.model_version, b.sha256[:12], self.store.source)
             except ModelStoreError as e:
                 log.error("no usable model yet: %s", e)
-            self._model_est = ModelEstimator(self.store)
+            self._model_est = ModelEstimator(self.store, thermocouple_resolution_K(self.config.sensors))
             self.estimator = estimator if estimator is not None else self._model_est
             self.watchdog = HeaterWatchdog(self.heater, board.clock, h.max_on_time_s,
                                            abort_event=self.stop_event)

@@ -50,6 +50,9 @@ PRIOR_COEF_NAMES = ("kernel_floor_ln", "rho_c_intrinsic_ln", "material_spread_ln
 DEFAULT_PRIOR_COEF = (0.06, 0.10, 0.05, 0.10)  # kernel floor chosen by leave-one-out (bench)
 #: Relative standard uncertainty of the flux-sensor sensitivity (FHF05 calibration).
 FLUX_CALIBRATION_U_REL = 0.02
+#: Independent samples per thermometer step crossed (calibrated on simulated touches,
+#: see _quantisation_u_a; 1 is the most pessimistic reading).
+QUANTISATION_SAMPLES_PER_STEP = 8.0
 #: Smallest signal-to-noise ratio of 1/e for which an estimate is reported.
 MIN_SNR = 3.0
 
@@ -128,6 +131,27 @@ def _lstsq_with_offset(m: np.ndarray, T: np.ndarray, n_eff: int):
     except np.linalg.LinAlgError:
         u_a = math.inf
     return float(coef[0]), float(coef[1]), u_a, rss, fit
+
+
+def _quantisation_u_a(m: np.ndarray, Tg: np.ndarray, grid: np.ndarray, lsb_K: float) -> float:
+    """Standard uncertainty of the slope a in T = a m + c from the thermometer's resolution.
+
+    Rounding to steps of ``lsb_K`` is an error of lsb/sqrt(12) that stays
+    correlated while the temperature crosses a step, so only a few samples
+    per step crossed are independent; white-noise statistics of the
+    residuals would understate it (their z-scores spread 1.6x too wide on
+    simulated MCP9600 touches).  :data:`QUANTISATION_SAMPLES_PER_STEP`
+    independent samples per step crossed brings that spread to 0.9.
+    """
+    if not lsb_K > 0 or grid.size < 3:
+        return 0.0
+    span = float(grid[-1] - grid[0])
+    rise = float(np.max(Tg) - np.min(Tg))
+    n_ind = min(float(grid.size), max(1.0, QUANTISATION_SAMPLES_PER_STEP * rise / lsb_K))
+    s_mm = float(np.sum((m - m.mean()) ** 2))
+    if s_mm <= 0 or span <= 0:
+        return math.inf
+    return (lsb_K / math.sqrt(12.0)) * math.sqrt(grid.size / n_ind / s_mm)
 
 
 class Estimator:
@@ -218,7 +242,8 @@ class Estimator:
 
     # -- entry point ------------------------------------------------------------
     def estimate(self, t_s, dT_K, q_W_m2, *, t_q_s=None, method: str = "default", thickness_m: float | None = None,
-                 back: str = "infinite", q_v_W_m3: float | None = None, n_raw: int | None = None) -> Estimate:
+                 back: str = "infinite", q_v_W_m3: float | None = None, n_raw: int | None = None,
+                 T_resolution_K: float = 0.0) -> Estimate:
         """Estimate from a record that starts at heater-on.
 
         Parameters
@@ -231,6 +256,8 @@ class Estimator:
             ``"fixed"`` back) lets the default method separate k and alpha.
         q_v_W_m3 : heater power density, only used to flag powers outside
             the paper network's training range.
+        T_resolution_K : the thermometer's resolution (ADC step in K); its
+            rounding error enters the uncertainty of e (0: none known).
         """
         one_of("method", method, METHODS)
         tT = finite_array("t_s", t_s, min_len=4)
@@ -261,8 +288,8 @@ class Estimator:
             flags.append("no_signal")
             return Estimate(None, None, None, None, None, None, None, 0.0, method, self.sha256, flags)
         if method == "paper":
-            return self._paper(grid, Tg, qg, n_eff, flags, q_v_W_m3)
-        return self._default(grid, Tg, qg, n_eff, flags, thickness_m, back)
+            return self._paper(grid, Tg, qg, n_eff, flags, q_v_W_m3, T_resolution_K)
+        return self._default(grid, Tg, qg, n_eff, flags, thickness_m, back, T_resolution_K)
 
     def _finish(self, e, u_ln_e, k, u_ln_k, alpha, u_ln_alpha, method, flags, fit, grid) -> Estimate:
         cands = self.identify(e, u_ln_e)
@@ -273,11 +300,12 @@ class Estimator:
             flags=flags, candidates=cands, fit_T_K=fit, t_model_s=grid,
         )
 
-    def _default(self, grid, Tg, qg, n_eff, flags, thickness_m, back) -> Estimate:
+    def _default(self, grid, Tg, qg, n_eff, flags, thickness_m, back, lsb_K) -> Estimate:
         if thickness_m is not None and back != "infinite":
-            return self._default_finite(grid, Tg, qg, n_eff, flags, thickness_m, back)
+            return self._default_finite(grid, Tg, qg, n_eff, flags, thickness_m, back, lsb_K)
         m = _duhamel(grid.size, MODEL_DT_S) @ qg
         a, c, u_a, _, fit = _lstsq_with_offset(m, Tg, n_eff)
+        u_a = math.hypot(u_a, _quantisation_u_a(m, Tg, grid, lsb_K))
         if not a > MIN_SNR * u_a:
             # The temperature rise is lost in noise or quantisation: an e from it would be a guess.
             flags.append("insufficient_signal")
@@ -294,7 +322,7 @@ class Estimator:
         u_ln_alpha = math.hypot(2 * u_ln_e, 2 * u_ln_rc)
         return self._finish(e, u_ln_e, k, u_ln_k, alpha, u_ln_alpha, "default", flags, fit, grid)
 
-    def _default_finite(self, grid, Tg, qg, n_eff, flags, thickness_m, back) -> Estimate:
+    def _default_finite(self, grid, Tg, qg, n_eff, flags, thickness_m, back, lsb_K) -> Estimate:
         # For fixed alpha the flux model is linear in 1/e: scan alpha, solve e.
         alphas = np.geomspace(1e-8, 3e-4, 61)
         best = None
@@ -303,6 +331,7 @@ class Estimator:
             unit = Solid(math.sqrt(al), 1.0 / math.sqrt(al), 1.0)  # e = 1
             m = surface_temperature(grid, qg, unit, thickness_m=thickness_m, back=back, scheme="default")
             a, c, u_a, rss, fit = _lstsq_with_offset(m, Tg, n_eff)
+            u_a = math.hypot(u_a, _quantisation_u_a(m, Tg, grid, lsb_K))
             rss_all.append(rss if a > 0 else np.inf)
             if a > 0 and (best is None or rss < best[0]):
                 best = (rss, al, a, u_a, fit)
@@ -324,7 +353,7 @@ class Estimator:
         u_ln_k = math.hypot(u_ln_e, 0.5 * u_ln_alpha)
         return self._finish(e, u_ln_e, k, u_ln_k, alpha, u_ln_alpha, "default", flags, fit, grid)
 
-    def _paper(self, grid, Tg, qg, n_eff, flags, q_v_W_m3) -> Estimate:
+    def _paper(self, grid, Tg, qg, n_eff, flags, q_v_W_m3, lsb_K) -> Estimate:
         u = paper_features(grid, qg, Tg)
         k_arr, p, clipped = self.paper_k(u)
         k = float(k_arr[0])
@@ -357,6 +386,7 @@ class Estimator:
         # The scan fits the data through e = k/sqrt(alpha): e carries the fit's
         # noise (and the scan step), alpha ~ (k/e)^2 carries k's uncertainty twice.
         a, _, u_a, _, _ = _lstsq_with_offset(m, Tg, n_eff)
+        u_a = math.hypot(u_a, _quantisation_u_a(m, Tg, grid, lsb_K))
         u_ln_e_fit = u_a / a if a > 0 else 0.0
         u_ln_e = math.hypot(math.hypot(u_ln_e_fit, FLUX_CALIBRATION_U_REL), 0.5 * step / alpha / math.sqrt(3))
         u_ln_alpha = math.hypot(2 * u_ln_k, 2 * u_ln_e)

@@ -75,7 +75,8 @@ def paper_cases(est: Estimator, instrument: str, *, repeats: int = 5, seed: int 
                 res = None
                 for _ in range(repeats):
                     t = sim.touch(qv, instrument, rng)
-                    res = est.estimate(t.tT, t.T, t.q, t_q_s=t.tq, method=method, q_v_W_m3=qv)
+                    res = est.estimate(t.tT, t.T, t.q, t_q_s=t.tq, T_resolution_K=INSTRUMENTS[instrument].T_lsb_K,
+                                       method=method, q_v_W_m3=qv)
                     if res.k_W_mK is None:
                         continue
                     errs["e"].append(rel(res.effusivity_W_s05_m2K, solid.effusivity_W_s05_m2K))
@@ -112,7 +113,7 @@ def identification(est: Estimator, instrument: str, *, touches: int = 4, q_v: fl
         cls = est.lib_class[i]
         for _ in range(touches):
             t = sim.touch(q_v, instrument, rng)
-            r = est.estimate(t.tT, t.T, t.q, t_q_s=t.tq)
+            r = est.estimate(t.tT, t.T, t.q, t_q_s=t.tq, T_resolution_K=INSTRUMENTS[instrument].T_lsb_K)
             total[cls] = total.get(cls, 0) + 1
             ok = r.material == name
             hits[cls] = hits.get(cls, 0) + ok
@@ -154,7 +155,7 @@ def leave_one_out_default(est: Estimator, instrument: str, *, seed: int = 3, q_v
         e_i = Estimator(arrays)
         solid = Solid(float(est.lib_k[i]), float(est.lib_rho_c[i]), 1.0)
         t = TouchSimulator(solid).touch(q_v, instrument, rng)
-        r = e_i.estimate(t.tT, t.T, t.q, t_q_s=t.tq)
+        r = e_i.estimate(t.tT, t.T, t.q, t_q_s=t.tq, T_resolution_K=INSTRUMENTS[instrument].T_lsb_K)
         if r.k_W_mK is None:
             continue
         errs["e"].append(abs(rel(r.effusivity_W_s05_m2K, solid.effusivity_W_s05_m2K)))
@@ -186,7 +187,7 @@ def contact_time_trade(est: Estimator, instrument: str, *, times=(0.3, 0.5, 1.0,
                 for _ in range(repeats):
                     t = sim.touch(qv, instrument, rng, duration_s=ct)
                     try:
-                        r = est.estimate(t.tT, t.T, t.q, t_q_s=t.tq)
+                        r = est.estimate(t.tT, t.T, t.q, t_q_s=t.tq, T_resolution_K=INSTRUMENTS[instrument].T_lsb_K)
                     except ValueError:
                         continue
                     if r.effusivity_W_s05_m2K is None:
@@ -240,7 +241,8 @@ def leave_out_paper(instrument: str, *, folds: int = 7, seed: int = 5, q_v: floa
             m = list(lib)[i]
             solid = m.solid
             t = TouchSimulator(solid).touch(q_v, instrument, rng)
-            r = est.estimate(t.tT, t.T, t.q, t_q_s=t.tq, method="paper")
+            r = est.estimate(t.tT, t.T, t.q, t_q_s=t.tq, T_resolution_K=INSTRUMENTS[instrument].T_lsb_K,
+                             method="paper")
             if r.k_W_mK is None:
                 continue
             errs["e"].append(abs(rel(r.effusivity_W_s05_m2K, solid.effusivity_W_s05_m2K)))

@@ -152,3 +152,29 @@ def test_record_csv_roundtrip_and_errors(tmp_path):
     bad.write_text("time,dT_K,q_W_m2\n0,0,0\n")
     with pytest.raises(RecordError, match="header"):
         read_record(bad)
+
+
+def test_thermometer_resolution_enters_the_uncertainty(est):
+    # 0.197 K steps (MCP9600, 16 bit) on aluminium, a rise of a few steps:
+    # without the rounding term the stated u(e) is too small for the errors;
+    # with it the z-scores have about unit spread.
+    from edge.instrument import INSTRUMENTS
+
+    lsb = INSTRUMENTS["mcp9600"].T_lsb_K
+    rng = np.random.default_rng(11)
+    z_with, z_without = [], []
+    for solid in (ALU,):
+        sim = TouchSimulator(solid)
+        for v in (20, 25, 30, 35):
+            for _ in range(8):
+                t = sim.touch(q_v_for_voltage(v), "mcp9600", rng)
+                a = est.estimate(t.tT, t.T, t.q, t_q_s=t.tq, T_resolution_K=lsb)
+                b = est.estimate(t.tT, t.T, t.q, t_q_s=t.tq)
+                e0 = solid.effusivity_W_s05_m2K
+                if a.effusivity_W_s05_m2K is not None:
+                    z_with.append((a.effusivity_W_s05_m2K - e0) / a.effusivity_W_s05_m2K_u)
+                if b.effusivity_W_s05_m2K is not None:
+                    z_without.append((b.effusivity_W_s05_m2K - e0) / b.effusivity_W_s05_m2K_u)
+    assert len(z_with) >= 25
+    assert np.std(z_with) < 1.2
+    assert np.std(z_without) > 1.2 * np.std(z_with)
