@@ -56,6 +56,7 @@ from types import MappingProxyType, SimpleNamespace
 from typing import Any, Iterable, Mapping
 
 from edge import durable
+from edge.drivers.heater import heater_power_w
 
 __all__ = [
     "ConfigError",
@@ -245,7 +246,7 @@ def _lookup(key: str) -> Key:
 def _check_consistency(v: Mapping[str, Mapping[str, Any]]) -> None:
     """Cross-key rules; each error names the key that has to change."""
     h, m = v["heater"], v["measurement"]
-    p_max = h["supply_voltage_V"] ** 2 / h["resistance_ohm"]
+    p_max = heater_power_w(1.0, h["supply_voltage_V"], h["resistance_ohm"])
     if h["power_W"] > p_max * (1 + 1e-12):
         raise ConfigError("heater.power_W", f"{h['power_W']} W exceeds the supply's maximum V^2/R = {p_max:.4g} W")
     if m["contact_time_s"] >= h["max_on_time_s"]:

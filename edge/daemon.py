@@ -56,7 +56,7 @@ import numpy as np
 import edge
 from edge.board import Board, make_board
 from edge.config import RUNTIME_KEYS, Config, ConfigError, RuntimeOverrides, load_config
-from edge.drivers.heater import Heater, HeaterError, HeaterOffError
+from edge.drivers.heater import Heater, HeaterError, HeaterOffError, heater_power_w
 from edge.faults import SensorFault
 from edge.history import History
 from edge.link import SerialEndpoint
@@ -130,18 +130,14 @@ class ModelEstimator:
                             T_resolution_K=self.T_resolution_K).to_dict()
 
 
-#: MCP9600 ADC step per resolution (datasheet: 2, 8, 32, 128 uV at 18, 16, 14, 12 bit).
-_MCP9600_ADC_STEP_V = {18: 2e-6, 16: 8e-6, 14: 32e-6, 12: 128e-6}
-
-
 def thermocouple_resolution_K(sensors: Any) -> float:
     """Temperature step (K) of the configured thermocouple converter near room temperature."""
-    from edge.typek import seebeck_uV_per_K  # noqa: PLC0415
+    from edge.drivers.mcp9600 import adc_step_V  # noqa: PLC0415
+    from edge.instrument import ADS122C04_STEP_V, TYPE_K_SEEBECK_V_PER_K  # noqa: PLC0415
 
-    seebeck_V_per_K = float(seebeck_uV_per_K(25.0)) * 1e-6
     if sensors.thermocouple == "mcp9600":
-        return _MCP9600_ADC_STEP_V[int(sensors.mcp9600_adc_bits)] / seebeck_V_per_K
-    return 2.048 / sensors.ads122c04_gain / 2 ** 23 / seebeck_V_per_K
+        return adc_step_V(int(sensors.mcp9600_adc_bits)) / TYPE_K_SEEBECK_V_PER_K
+    return ADS122C04_STEP_V * 128 / sensors.ads122c04_gain / TYPE_K_SEEBECK_V_PER_K
 
 
 def _factory_bundle(cfg: Config) -> Path | None:
@@ -372,7 +368,7 @@ class Daemon:
             if voltage_V > h.supply_voltage_V:
                 raise CommandError(ErrorCode.BAD_ARGUMENT, f"voltage_V={voltage_V} exceeds the supply "
                                    f"{h.supply_voltage_V} V", "voltage_V")
-            power_W = voltage_V**2 / h.resistance_ohm
+            power_W = heater_power_w(1.0, voltage_V, h.resistance_ohm)
         power = h.power_W if power_W is None else power_W
         if power > self.heater.max_power_w * (1 + 1e-12):
             raise CommandError(ErrorCode.BAD_ARGUMENT, f"power_W={power} exceeds the heater's maximum "

@@ -99,8 +99,9 @@ class ProbeStack:
 
     def q_v_from_voltage(self, voltage_V: float, resistance_ohm: float) -> float:
         """Heater power density q_v (W/m^3) for a supply voltage across the heater resistance."""
-        finite_positive("resistance_ohm", resistance_ohm)
-        return self.q_v_from_power(float(voltage_V) ** 2 / resistance_ohm)
+        from .drivers.heater import heater_power_w  # noqa: PLC0415 - the drivers import this module
+
+        return self.q_v_from_power(heater_power_w(1.0, voltage_V, resistance_ohm))
 
 
 STACK_042 = ProbeStack()

@@ -184,7 +184,9 @@ class HeaterSpec:
     @property
     def max_power_W(self) -> float:
         """Power at full duty, V**2 / R (W)."""
-        return self.supply_voltage_V**2 / self.resistance_ohm
+        from edge.drivers.heater import heater_power_w  # noqa: PLC0415
+
+        return heater_power_w(1.0, self.supply_voltage_V, self.resistance_ohm)
 
 
 @dataclass(frozen=True)

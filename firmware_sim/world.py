@@ -51,6 +51,7 @@ from typing import NamedTuple, Protocol, Sequence
 import numpy as np
 
 from edge import laplace, typek
+from edge.drivers.heater import heater_power_w
 from edge.schedule import PowerSchedule
 from edge.solids import Solid
 
@@ -218,8 +219,7 @@ class ThermalWorld:
 
     def heater_power_W(self, t_s: float) -> float:
         """Electrical power in the film at ``t_s`` (W)."""
-        v = self.supply_voltage_at(t_s)
-        return self.duty_at(t_s) * v * v / self.scene.heater.resistance_ohm
+        return heater_power_w(self.duty_at(t_s), self.supply_voltage_at(t_s), self.scene.heater.resistance_ohm)
 
     def q_v_at(self, t_s: float) -> float:
         """Heater power density at ``t_s`` (W/m^3)."""

@@ -52,6 +52,13 @@ COLD_JUNCTION_TIME_S = {0.0625: 0.250, 0.25: 0.063}
 #: lower resolutions leave the low bits at zero).
 RAW_ADC_LSB_V = 2e-6
 
+
+def adc_step_V(resolution_bits: int) -> float:
+    """Thermocouple-EMF step of the ADC at 18/16/14/12 bit: 2, 8, 32, 128 uV (datasheet)."""
+    if resolution_bits not in (18, 16, 14, 12):
+        raise ValueError(f"resolution_bits must be 18, 16, 14 or 12, got {resolution_bits!r}")
+    return RAW_ADC_LSB_V * (1 << (18 - resolution_bits))
+
 REGISTERS = RegisterMap("mcp9600", [
     Register("TH", 0x00, 2, {"TEMP_C": _TEMP}, read_only=True),
     Register("TDELTA", 0x01, 2, {"TEMP_C": _TEMP}, read_only=True),
