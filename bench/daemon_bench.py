@@ -62,8 +62,8 @@ def _n_fds(pid: int) -> int:
 def child(workdir: str) -> int:
     import serial
 
-    from edge.config import Config
-    from edge.daemon import DaemonThread
+    from edge.service.config import Config
+    from edge.service.daemon import DaemonThread
     from firmware_sim.daemon_rig import heater_invariant, make_rig
     from firmware_sim.ptylink import NullModem
 
@@ -79,11 +79,11 @@ def child(workdir: str) -> int:
     rig = make_rig(effusivity=1474.0, T_noise_V=1e-6, flux_noise_V=2e-6, seed=1)
     estimator = None
     try:
-        from edge.modelstore import ModelStore
+        from edge.model.store import ModelStore
         from thermotouch_models import DEFAULT_BUNDLE
 
         ModelStore(w / "probe-store", DEFAULT_BUNDLE).current()
-        estimator_kind = "edge.estimate on the shipped bundle"
+        estimator_kind = "edge.estimation.estimate on the shipped bundle"
     except Exception as e:  # no shipped bundle yet: a physics stand-in keeps the soak meaningful
         import math
 
@@ -146,11 +146,11 @@ def child(workdir: str) -> int:
 def edge_only_rss() -> float:
     code = (
         "import sys; sys.path.insert(0, %r)\n"
-        "import edge.daemon, edge.estimate, serial, sqlite3\n"
+        "import edge.service.daemon, edge.estimation.estimate, serial, sqlite3\n"
         "from thermotouch_models import DEFAULT_BUNDLE\n"
-        "from edge.bundle import load_bundle, mlp_golden_check\n"
+        "from edge.model.bundle import load_bundle, mlp_golden_check\n"
         "b = load_bundle(DEFAULT_BUNDLE, mlp_golden_check)\n"
-        "edge.estimate.Estimator.from_bundle(b)\n"
+        "edge.estimation.estimate.Estimator.from_bundle(b)\n"
         "for l in open('/proc/self/status'):\n"
         "    if l.startswith('VmRSS:'): print(int(l.split()[1]) / 1024.0)\n"
     ) % str(ROOT)

@@ -22,8 +22,8 @@ import time
 import numpy as np
 
 from _common import update_readme, write_json
-from edge.bundle import load_bundle
-from edge.estimate import Estimator, pipeline_golden_check
+from edge.model.bundle import load_bundle
+from edge.estimation.estimate import Estimator, pipeline_golden_check
 from host.evaluate import (SAMPLES, TouchSimulator, contact_time_trade, identification, leave_one_out_default,
                            leave_out_paper, paper_cases, q_v_for_voltage)
 
@@ -99,7 +99,7 @@ def main():
                  + ". Top confusions: " + "; ".join(idn["confusions"][:5]) + ".")
         L.append("")
     L.append("Effusivity RMS error / median stated u vs contact time (default method, 18 V, %); "
-             "profiles (edge/profiles.py): quick = 0.5 s, standard = 2 s, precise = 4 s:")
+             "profiles (edge/measure/profiles.py): quick = 0.5 s, standard = 2 s, precise = 4 s:")
     L.append("")
     for inst, rows in res["contact_time"].items():
         L.append(f"| {inst} | " + " | ".join(f"{t:g} s" for t in (0.3, 0.5, 1, 2, 4)) + " |")

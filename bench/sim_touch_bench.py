@@ -23,9 +23,9 @@ from _common import ROOT, write_json
 sys.path.insert(0, str(ROOT))  # the repo's firmware_sim package, also when run from bench/
 
 import firmware_sim  # noqa: E402
-from edge.drivers.ads1115 import ADS1115  # noqa: E402
-from edge.drivers.heater import Heater  # noqa: E402
-from edge.drivers.mcp9600 import MCP9600  # noqa: E402
+from edge.hw.drivers.ads1115 import ADS1115  # noqa: E402
+from edge.hw.drivers.heater import Heater  # noqa: E402
+from edge.hw.drivers.mcp9600 import MCP9600  # noqa: E402
 
 SCENES = ["glass_12V", "glass_15V", "glass_18V", "pmma_8V", "pmma_15V", "pmma_20V",
           "alu_15V", "alu_20V", "alu_25V"]

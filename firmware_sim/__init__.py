@@ -9,14 +9,14 @@ face::
     sim.bus, sim.advance(0.5), sim.scene, sim.board(), sim.truth(), sim.inject(...)
 
 Importing this package registers the board kind ``"sim"`` with
-:func:`edge.board.register_board_factory`, so
-``edge.board.make_board("sim", scene="glass_15V")`` works. Scene schema and
+:func:`edge.hw.board.register_board_factory`, so
+``edge.hw.board.make_board("sim", scene="glass_15V")`` works. Scene schema and
 examples: ``firmware_sim/scenes/README.md``.
 """
 
-from .scene import Fault, Scene, SceneError, parse_scene, read_scene, scene_names
-from .simulator import Simulator, load_scene, make_scene_board, register_scene_board
-from .world import ThermalWorld, Truth
+from firmware_sim.scene import Fault, Scene, SceneError, parse_scene, read_scene, scene_names
+from firmware_sim.simulator import Simulator, load_scene, make_scene_board, register_scene_board
+from firmware_sim.world import ThermalWorld, Truth
 
 __all__ = [
     "Fault",

@@ -22,7 +22,7 @@ import threading
 from dataclasses import dataclass, field
 from typing import Any
 
-from edge.drivers.heater import HEATER_AREA_M2
+from edge.hw.drivers.heater import HEATER_AREA_M2
 from firmware_sim.bus import SimBus
 from firmware_sim.chips.ads1115 import ADS1115 as SimADS1115
 from firmware_sim.chips.mcp9600 import MCP9600 as SimMCP9600

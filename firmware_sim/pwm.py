@@ -13,7 +13,7 @@ of it. Writes reach that state by two routes:
 
 1. **Synchronously, through** :attr:`SimPwmTree.io` (an object with
    ``read(path)`` / ``write(path, text)``, the I/O seam of
-   :class:`edge.sysfs_pwm.SysfsPwm`). Each write is checked against the
+   :class:`edge.hw.sysfs_pwm.SysfsPwm`). Each write is checked against the
    kernel's rules at once and either applied or refused with the same
    ``OSError`` errno the kernel returns (EINVAL, EBUSY, ENODEV, EACCES), the
    file left unchanged. The edge driver's write-then-read-back therefore
@@ -51,7 +51,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from edge.sysfs_pwm import active_fraction
+from edge.hw.sysfs_pwm import active_fraction
 
 __all__ = ["PwmSample", "PwmViolation", "SimPwmTree", "SimSysfsIO"]
 

@@ -23,9 +23,9 @@ import threading
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-from edge.config import Config
-from edge.daemon import install_signal_handlers, run_daemon
-from edge.sequence import EstimatorFn
+from edge.service.config import Config
+from edge.service.daemon import install_signal_handlers, run_daemon
+from edge.measure.sequence import EstimatorFn
 
 __all__ = ["config_for_scene", "run_sim", "main"]
 
@@ -34,7 +34,7 @@ log = logging.getLogger("thermotouch.sim")
 
 def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Mapping[str, Any]] | None = None
                      ) -> Config:
-    """A daemon :class:`~edge.config.Config` matching ``scene`` (a firmware_sim Scene).
+    """A daemon :class:`~edge.service.config.Config` matching ``scene`` (a firmware_sim Scene).
 
     Heating runs at full duty (the paper applies a fixed voltage); the
     baseline lasts until the scene's touch starts and the heating ends
@@ -85,7 +85,7 @@ def run_sim(scene_path: str | Path, stop_event: threading.Event | None = None,
     print_port : callable
         Receives the host-side port path first (default: ``print``, flushed).
     estimator : callable, optional
-        Default: the model store's bundle through :mod:`edge.estimate`.
+        Default: the model store's bundle through :mod:`edge.estimation.estimate`.
     workdir : path, optional
         Model store, history and runtime settings (default: a temporary
         directory removed at exit).

@@ -16,7 +16,7 @@ Top level::
 
 ``[object]`` (required) -- the touched solid::
 
-    material?    str    a name from the material library (edge/data/materials.csv), or
+    material?    str    a name from the material library (edge/physics/data/materials.csv), or
     k_W_mK?      float  > 0  conductivity     } all three instead of ``material``
     rho_kg_m3?   float  > 0  density          }
     c_J_kgK?     float  > 0  specific heat    }
@@ -39,7 +39,7 @@ Top level::
     mcp9600?    int  I2C address 0x60..0x67 (thermocouple converter)
     ads1115?    int  I2C address 0x48..0x4B (flux sensor on AIN0-AIN1)
     ads122c04?  int  I2C address 0x40..0x4F (thermocouple on AIN0-AIN1, flux on AIN2-AIN3)
-    stack?      str  "0.42" (default) or "0.40": probe layer stack, see edge.solids
+    stack?      str  "0.42" (default) or "0.40": probe layer stack, see edge.physics.solids
 
 At least one thermocouple reader (mcp9600 or ads122c04) and one flux reader
 (ads1115 or ads122c04) must be fitted; addresses must differ.
@@ -76,7 +76,7 @@ At least one thermocouple reader (mcp9600 or ads122c04) and one flux reader
         no_contact         -
 
 Material names are resolved in the validated material library,
-:mod:`edge.materials` (``edge/data/materials.csv``); callers may pass their
+:mod:`edge.physics.materials` (``edge/physics/data/materials.csv``); callers may pass their
 own ``material_lookup``.
 """
 
@@ -88,7 +88,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-from edge.solids import STACKS, ProbeStack, Solid
+from edge.physics.solids import STACKS, ProbeStack, Solid
 
 __all__ = [
     "FAULT_KINDS",
@@ -129,7 +129,7 @@ CHIP_ADDRESSES = {
 #: Default voltage a saturated flux channel shows: above the ADS1115's ±0.256 V
 #: range and the ADS122C04's ±16 mV (gain 128), so either reports full scale.
 FLUX_SATURATION_V = 0.3
-_T_MIN_C = -270.0   # type K table range (edge.typek); the thermocouple must read it
+_T_MIN_C = -270.0   # type K table range (edge.physics.typek); the thermocouple must read it
 _T_MAX_C = 1372.0
 
 
@@ -184,7 +184,7 @@ class HeaterSpec:
     @property
     def max_power_W(self) -> float:
         """Power at full duty, V**2 / R (W)."""
-        from edge.drivers.heater import heater_power_w  # noqa: PLC0415
+        from edge.hw.drivers.heater import heater_power_w  # noqa: PLC0415
 
         return heater_power_w(1.0, self.supply_voltage_V, self.resistance_ohm)
 
@@ -200,7 +200,7 @@ class BoardSpec:
 
     @property
     def stack(self) -> ProbeStack:
-        """The probe layer stack (see :mod:`edge.solids`)."""
+        """The probe layer stack (see :mod:`edge.physics.solids`)."""
         return STACKS[self.stack_name]
 
     def address_of(self, chip: str) -> int | None:
@@ -367,11 +367,11 @@ class _Ctx:
 
 MaterialLookup = Callable[[str], tuple[float, float, float]]
 def library_material(name: str) -> tuple[float, float, float]:
-    """``(k_W_mK, rho_kg_m3, c_J_kgK)`` of library material ``name`` (edge.materials).
+    """``(k_W_mK, rho_kg_m3, c_J_kgK)`` of library material ``name`` (edge.physics.materials).
 
     Raises KeyError for an unknown name.
     """
-    from edge.materials import load_materials  # noqa: PLC0415 - only scenes naming a material need it
+    from edge.physics.materials import load_materials  # noqa: PLC0415 - only scenes naming a material need it
 
     m = load_materials().get(name)
     return (m.k_W_mK, m.rho_kg_m3, m.c_J_kgK)

@@ -1,4 +1,4 @@
-"""A :class:`edge.board.Board` built from the simulator's GPIO and PWM fakes.
+"""A :class:`edge.hw.board.Board` built from the simulator's GPIO and PWM fakes.
 
 ``make_sim_board()`` wires a :class:`~firmware_sim.gpio.GpioSim` chip, a
 :class:`~firmware_sim.pwm.SimPwmTree` and a
@@ -6,7 +6,7 @@
 offsets and PWM channel as the real Pi; the parts stay reachable as
 ``board.extras["sim"]`` (a :class:`SimBoardParts`) so a test or the thermal
 world can press the button and watch the heater. :func:`register_sim_board`
-makes it available as ``edge.board.make_board("sim", ...)``.
+makes it available as ``edge.hw.board.make_board("sim", ...)``.
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from edge.board import Board, GpioLine, register_board_factory
-from edge.sysfs_pwm import SysfsPwm
+from edge.hw.board import Board, GpioLine, register_board_factory
+from edge.hw.sysfs_pwm import SysfsPwm
 from firmware_sim.clock import VirtualClock
 from firmware_sim.gpio import GpioSim, SimChip
 from firmware_sim.pwm import SimPwmTree

@@ -6,13 +6,13 @@ thermal world and an smbus2-compatible :class:`~firmware_sim.bus.SimBus` with
 the scene's chips attached and wired to the world::
 
     sim = firmware_sim.load_scene("glass_15V")
-    board = sim.board()                 # an edge.board.Board for the daemon
+    board = sim.board()                 # an edge.hw.board.Board for the daemon
     sim.advance(0.5)                    # move virtual time
     sim.bus.read_i2c_block_data(0x60, 0x00, 2)
     sim.truth([1.0, 1.5])               # exact surface temperature and flux
 
 Importing :mod:`firmware_sim` registers the board kind ``"sim"``, so
-``edge.board.make_board("sim", scene="glass_15V")`` builds a board on a new
+``edge.hw.board.make_board("sim", scene="glass_15V")`` builds a board on a new
 simulator (reachable as ``board.extras["simulator"]``).
 """
 
@@ -25,18 +25,18 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from edge.board import Board, register_board_factory
+from edge.hw.board import Board, register_board_factory
 
-from .bus import SimBus
-from .chips.ads1115 import ADS1115 as ADS1115Model
-from .chips.ads122c04 import ADS122C04 as ADS122C04Model
-from .chips.mcp9600 import MCP9600 as MCP9600Model
-from .clock import VirtualClock
-from .gpio import GpioSim
-from .pwm import SimPwmTree
-from .scene import Fault, MaterialLookup, Scene, read_scene, validate_fault
-from .sim_board import SimBoardParts, make_sim_board
-from .world import BoardDrive, ThermalWorld, Truth, wire_chips
+from firmware_sim.bus import SimBus
+from firmware_sim.chips.ads1115 import ADS1115 as ADS1115Model
+from firmware_sim.chips.ads122c04 import ADS122C04 as ADS122C04Model
+from firmware_sim.chips.mcp9600 import MCP9600 as MCP9600Model
+from firmware_sim.clock import VirtualClock
+from firmware_sim.gpio import GpioSim
+from firmware_sim.pwm import SimPwmTree
+from firmware_sim.scene import Fault, MaterialLookup, Scene, read_scene, validate_fault
+from firmware_sim.sim_board import SimBoardParts, make_sim_board
+from firmware_sim.world import BoardDrive, ThermalWorld, Truth, wire_chips
 
 __all__ = ["Simulator", "load_scene", "make_scene_board", "register_scene_board", "SCENE_ENV"]
 

@@ -3,7 +3,7 @@
 Heater power comes from the board's enable line and PWM duty (or a fault) times
 ``V**2 / R`` of the scene's supply and film; it is a piecewise-constant power
 density ``q_v(t)`` over virtual time. The probe stack on the object is solved
-exactly in the Laplace domain (:mod:`edge.laplace`: thermal quadrupoles, fixed
+exactly in the Laplace domain (:mod:`edge.physics.laplace`: thermal quadrupoles, fixed
 Talbot inversion) with the scene's finite thickness, back boundary and contact
 resistance -- more faithful than anything the edge inverts, and never fed by
 the edge's estimates. Outputs:
@@ -50,12 +50,12 @@ from typing import NamedTuple, Protocol, Sequence
 
 import numpy as np
 
-from edge import laplace, typek
-from edge.drivers.heater import heater_power_w
-from edge.schedule import PowerSchedule
-from edge.solids import Solid
+from edge.physics import laplace, typek
+from edge.hw.drivers.heater import heater_power_w
+from edge.physics.schedule import PowerSchedule
+from edge.physics.solids import Solid
 
-from .scene import FLUX_SATURATION_V, Fault, Scene
+from firmware_sim.scene import FLUX_SATURATION_V, Fault, Scene
 
 __all__ = ["AIR", "HeaterDrive", "BoardDrive", "ScheduleDrive", "WorldState", "Truth", "ThermalWorld",
            "wire_chips", "OPEN_TC_INPUT_V"]

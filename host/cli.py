@@ -61,7 +61,7 @@ def _add_model(sub):
 
 
 def _solid_from_args(args):
-    from edge.solids import Solid
+    from edge.physics.solids import Solid
 
     if args.material is not None:
         from host.materials import load_materials
@@ -81,8 +81,8 @@ def _solid_from_args(args):
 
 
 def cmd_model(args) -> int:
-    from edge.forward import simulate
-    from edge.solids import STACKS
+    from edge.physics.forward import simulate
+    from edge.physics.solids import STACKS
 
     solid, name = _solid_from_args(args)
     try:
@@ -122,8 +122,8 @@ def cmd_model(args) -> int:
 # --- train / evaluate / estimate ----------------------------------------------------
 
 def _load_estimator(path, method="default"):
-    from edge.bundle import BundleError, load_bundle
-    from edge.estimate import Estimator, pipeline_golden_check
+    from edge.model.bundle import BundleError, load_bundle
+    from edge.estimation.estimate import Estimator, pipeline_golden_check
 
     if path is None:
         from thermotouch_models import DEFAULT_BUNDLE
@@ -353,7 +353,7 @@ def cmd_measure(args) -> int:
 
     prog = "thermotouch measure"
     if args.profile is not None:
-        from edge.profiles import PROFILES
+        from edge.measure.profiles import PROFILES
 
         args.time = PROFILES[args.profile].contact_time_s
     if args.bundle is not None:

@@ -29,8 +29,8 @@ from typing import Any, Callable, Mapping
 import numpy as np
 import serial
 
-from edge.link import read_available
-from edge.protocol import (
+from edge.protocol.endpoint import read_available
+from edge.protocol.messages import (
     CHUNK_HEADER_SIZE,
     COMMANDS,
     DEFAULT_MAX_PAYLOAD,
@@ -200,7 +200,7 @@ class DeviceClient:
         command : Command or str
             Command (enum or name, e.g. ``"INFO"``).
         args : mapping, optional
-            Arguments per :data:`edge.protocol.COMMANDS`; validated before sending.
+            Arguments per :data:`edge.protocol.messages.COMMANDS`; validated before sending.
         timeout_s : float, optional
             Per-attempt timeout, s (default: the client's).
         retries : int, optional
@@ -301,7 +301,7 @@ class DeviceClient:
 
     def series_page(self, measurement_id: int, which: str = "raw", offset: int = 0,
                     limit: int | None = None) -> dict[str, Any]:
-        """One SERIES reply: samples ``[offset, offset + len(t_s))`` of a stored series (see edge.protocol)."""
+        """One SERIES reply: samples ``[offset, offset + len(t_s))`` of a stored series (see edge.protocol.messages)."""
         args: dict[str, Any] = {"measurement_id": measurement_id, "which": which, "offset": offset}
         if limit is not None:
             args["limit"] = limit

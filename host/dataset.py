@@ -2,9 +2,9 @@
 
 The paper's set (section 3.2): every library material at 21 heater power
 densities from 4.0e7 to 1.4e8 W/m^3 for 1.95 s.  The model is linear in q_v,
-so each material is simulated once (edge.forward, default scheme) and scaled
+so each material is simulated once (edge.physics.forward, default scheme) and scaled
 to every level.  Each series is then observed as the instruments observe it
-(edge.instrument: own sampling rate, noise, ADC quantisation, flux range) and
+(edge.measure.instrument: own sampling rate, noise, ADC quantisation, flux range) and
 resampled onto the model's 0.01-s grid by cubic spline before features are
 taken - the same path a real measurement follows on the device.  Optional
 noisy copies augment the clean series.  Deterministic for a seed; cached on
@@ -22,11 +22,11 @@ from pathlib import Path
 
 import numpy as np
 
-from edge.features import FEATURE_VERSION, paper_features
-from edge.forward import step_response
-from edge.instrument import INSTRUMENTS
-from edge.solids import STACKS, Solid
-from edge.spline import resample
+from edge.estimation.features import FEATURE_VERSION, paper_features
+from edge.physics.forward import step_response
+from edge.measure.instrument import INSTRUMENTS
+from edge.physics.solids import STACKS, Solid
+from edge.estimation.spline import resample
 from host.materials import MaterialLibrary
 
 PAPER_LEVELS_W_M3 = tuple(np.round(np.arange(4.0e7, 1.4e8 + 1.0, 5e6)).tolist())

@@ -73,7 +73,7 @@ def score_bundle(bundle: Any, instrument: str, *, repeats: int = 2) -> dict:
 
     Returns ``{"paper_k", "paper_alpha", "default_e", "default_k", "rows"}``.
     """
-    from edge.estimate import Estimator  # noqa: PLC0415
+    from edge.estimation.estimate import Estimator  # noqa: PLC0415
     from host.evaluate import paper_cases  # noqa: PLC0415
 
     rows = paper_cases(Estimator.from_bundle(bundle), instrument, repeats=repeats)

@@ -2,7 +2,7 @@
 
 Simulated touches use the exact (Laplace) probe model on a finite sample
 (20 mm, insulated back, as on a table), observed through an instrument model
-(edge.instrument: sampling, noise, quantisation) - a different model from
+(edge.measure.instrument: sampling, noise, quantisation) - a different model from
 the one either estimator inverts.
 
 Heater: the paper does not give its heater's resistance; 50 ohm is assumed,
@@ -17,10 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from edge.estimate import Estimator
-from edge.forward import simulate
-from edge.instrument import INSTRUMENTS
-from edge.solids import DEFAULT_STACK, Solid
+from edge.estimation.estimate import Estimator
+from edge.physics.forward import simulate
+from edge.measure.instrument import INSTRUMENTS
+from edge.physics.solids import DEFAULT_STACK, Solid
 
 HEATER_RESISTANCE_OHM = 50.0
 SAMPLES = {
@@ -210,7 +210,7 @@ def leave_out_paper(instrument: str, *, folds: int = 7, seed: int = 5, q_v: floa
     """
     import warnings
 
-    from edge.features import FEATURE_VERSION
+    from edge.estimation.features import FEATURE_VERSION
     from host.dataset import Dataset, DatasetSpec, generate
     from host.export import mlp_arrays_from_sklearn, pca_arrays_from_sklearn
     from host.materials import load_materials

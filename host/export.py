@@ -1,7 +1,7 @@
-"""Export a trained scikit-learn pipeline into a device model bundle (see edge.bundle).
+"""Export a trained scikit-learn pipeline into a device model bundle (see edge.model.bundle).
 
 The golden MLP outputs are computed here with scikit-learn's own ``predict``; the device
-re-computes them with the NumPy forward pass in :mod:`edge.mlp`, so the two independent
+re-computes them with the NumPy forward pass in :mod:`edge.estimation.mlp`, so the two independent
 implementations must agree before a bundle is accepted.
 """
 
@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from edge.bundle import Bundle, write_bundle
-from edge.mlp import ACTIVATION_CODES, MLP
+from edge.model.bundle import Bundle, write_bundle
+from edge.estimation.mlp import ACTIVATION_CODES, MLP
 
 MLP_ARRAY_PREFIX = "mlp_"
 
@@ -87,7 +87,7 @@ def export_paper_model(
     preprocessing : mapping
         ``feature_version``, ``x_log_offset``, ``x_mean``, ``x_scale``, ``pca_mean``,
         ``pca_components``, ``pca_explained_variance_ratio``, ``y_transform`` (see
-        :mod:`edge.bundle_schema`); :func:`pca_arrays_from_sklearn` fills the PCA ones.
+        :mod:`edge.model.schema`); :func:`pca_arrays_from_sklearn` fills the PCA ones.
     golden_inputs : array_like, shape (n_golden, n_components)
         MLP inputs (PCA scores) whose outputs the device must reproduce.
     metrics : mapping
@@ -99,7 +99,7 @@ def export_paper_model(
     extra_golden : mapping, optional
         Further golden vectors (e.g. end-to-end pipeline inputs/outputs) declared in the schema.
     golden_check, golden_rtol : optional
-        Passed to :func:`edge.bundle.write_bundle` (defaults: MLP check, 1e-9).
+        Passed to :func:`edge.model.bundle.write_bundle` (defaults: MLP check, 1e-9).
 
     Returns
     -------

@@ -26,8 +26,8 @@ def load_verified(path: str | Path) -> Any:
     BundleRefused
         Naming the bundle and what is wrong with it.
     """
-    from edge.bundle import BundleError, load_bundle  # noqa: PLC0415
-    from edge.estimate import pipeline_golden_check  # noqa: PLC0415
+    from edge.model.bundle import BundleError, load_bundle  # noqa: PLC0415
+    from edge.estimation.estimate import pipeline_golden_check  # noqa: PLC0415
 
     p = Path(path)
     if not p.is_dir():
@@ -53,7 +53,7 @@ def flash_bundle(session: DeviceSession, path: str | Path, *, progress: bool = T
     DeviceUnavailable
         The device refuses it, does not answer, or reports another model afterwards.
     """
-    from edge.bundle import BundleError, bundle_to_bytes  # noqa: PLC0415
+    from edge.model.bundle import BundleError, bundle_to_bytes  # noqa: PLC0415
 
     bundle = load_verified(path)
     try:

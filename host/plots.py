@@ -1,7 +1,7 @@
 """Plots of one touch: measured and model-fitted heat flux and temperature (like the paper's Figs. 10, 12, 14).
 
 The model curve is recomputed on the host from the record's resampled series
-with the same bundle the device used (:class:`edge.estimate.Estimator`
+with the same bundle the device used (:class:`edge.estimation.estimate.Estimator`
 returns the fitted temperature ``fit_T_K`` on its model grid ``t_model_s``);
 the flux panel shows the measured samples and the resampled flux the model
 was driven with.
@@ -60,7 +60,7 @@ def plot_touch(path: str | Path, series: Mapping[str, Any], result: Mapping[str,
         ``grid_t_s``, ``grid_q_W_m2``, ``T0_C`` and ``q_offset_W_m2``.
     result : mapping
         The device's result dict (title).
-    fit : edge.estimate.Estimate
+    fit : edge.estimation.estimate.Estimate
         Host re-estimate on the same record (``t_model_s``, ``fit_T_K``).
     label : str
         Scene or sample name for the title.

@@ -35,7 +35,7 @@ class Touch:
     series : dict or None
         The stored record with its raw and resampled series (None unless asked for).
     fits : dict
-        ``{method: edge.estimate.Estimate}`` recomputed on the host from
+        ``{method: edge.estimation.estimate.Estimate}`` recomputed on the host from
         ``series`` (empty without series or without the device's bundle).
     fit_note : str or None
         Why ``fits`` is empty although series were read (e.g. the device's
@@ -53,7 +53,7 @@ class Touch:
 
 
 def _manifest_sha256(directory: Path) -> str | None:
-    from edge.bundle import MANIFEST_FILE  # noqa: PLC0415
+    from edge.model.bundle import MANIFEST_FILE  # noqa: PLC0415
 
     try:
         return hashlib.sha256((directory / MANIFEST_FILE).read_bytes()).hexdigest()
@@ -74,8 +74,8 @@ def bundle_identity(bundle_dir: str | Path) -> str:
 
 
 def _load(directory: Path, sha256: str) -> Any:
-    from edge.bundle import load_bundle  # noqa: PLC0415
-    from edge.estimate import pipeline_golden_check  # noqa: PLC0415
+    from edge.model.bundle import load_bundle  # noqa: PLC0415
+    from edge.estimation.estimate import pipeline_golden_check  # noqa: PLC0415
 
     key = (str(directory.resolve()), sha256)
     if key not in _LOADED:
@@ -102,7 +102,7 @@ def host_bundle(model_sha256: str | None, *, bundle_dir: str | Path | None = Non
     DeviceUnavailable
         If ``bundle_dir`` is the device's model but fails verification (exit status 2).
     """
-    from edge.bundle import BundleError  # noqa: PLC0415
+    from edge.model.bundle import BundleError  # noqa: PLC0415
 
     if not model_sha256:
         return None, "the device reported no model"
@@ -138,8 +138,8 @@ def host_bundle(model_sha256: str | None, *, bundle_dir: str | Path | None = Non
 
 def reestimate(bundle: Any, series: dict, methods=("default", "paper")) -> dict:
     """Estimates of ``series`` (a record with its grid series) by ``methods`` with ``bundle``."""
-    from edge.drivers.heater import volumetric_heat_w_m3  # noqa: PLC0415
-    from edge.estimate import Estimator  # noqa: PLC0415
+    from edge.hw.drivers.heater import volumetric_heat_w_m3  # noqa: PLC0415
+    from edge.estimation.estimate import Estimator  # noqa: PLC0415
 
     if bundle is None or series.get("grid_t_s") is None:
         return {}

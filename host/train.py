@@ -1,7 +1,7 @@
 """Training the paper's network and writing a model bundle.
 
 Pipeline (paper section 3.2): u1..u8 -> ln (with per-feature floors, see
-edge.features) -> standardisation -> PCA to 2 components -> MLPRegressor
+edge.estimation.features) -> standardisation -> PCA to 2 components -> MLPRegressor
 (2 inputs, hidden 100 and 20 tanh units, 1 output).  The target is ln k: k
 spans four decades, and a network fitted on k itself spends its capacity on
 the metals.  The bundle also carries the material library and the prior
@@ -19,8 +19,8 @@ from sklearn.decomposition import PCA
 from sklearn.neural_network import MLPRegressor
 from sklearn.preprocessing import StandardScaler
 
-from edge.estimate import DEFAULT_PRIOR_COEF, pipeline_golden_check
-from edge.features import FEATURE_VERSION
+from edge.estimation.estimate import DEFAULT_PRIOR_COEF, pipeline_golden_check
+from edge.estimation.features import FEATURE_VERSION
 from host.dataset import Dataset, DatasetSpec, generate
 from host.export import export_paper_model, pca_arrays_from_sklearn
 from host.materials import MaterialLibrary, load_materials
@@ -73,7 +73,7 @@ def train_bundle(out: str | Path, *, quick: bool = False, seed: int = 0, lib: Ma
                  progress=None, overwrite: bool = False, log=print):
     """Generate the training set, fit, evaluate on held-back materials and write a bundle.
 
-    Returns the written :class:`edge.bundle.Bundle` and the metrics dict.
+    Returns the written :class:`edge.model.bundle.Bundle` and the metrics dict.
     """
     t0 = time.perf_counter()
     lib = lib or load_materials()

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from edge.mlp import MLP
+from edge.estimation.mlp import MLP
 
 N_FEATURES = 8
 N_COMPONENTS = 2

@@ -20,7 +20,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import serial  # noqa: E402
 
 from daemon_testutil import FakeEstimator, HookedSensors, sim_config  # noqa: E402
-from edge.daemon import Daemon, install_signal_handlers  # noqa: E402
+from edge.service.daemon import Daemon, install_signal_handlers  # noqa: E402
 from firmware_sim.daemon_rig import heater_invariant, make_rig  # noqa: E402
 from firmware_sim.ptylink import NullModem  # noqa: E402
 
@@ -53,7 +53,7 @@ def main() -> int:
     finally:
         daemon.close()
     inv = heater_invariant(rig.parts, cfg.heater.max_on_time_s)
-    from edge.history import History
+    from edge.storage.history import History
 
     with History(cfg.paths.history_db) as h:
         _, items = h.page(0, 10)

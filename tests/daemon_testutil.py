@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from edge.config import Config
-from edge.drivers.heater import Heater
-from edge.sequence import Limits, MeasurementParams, MeasurementSequence, make_sensors
+from edge.service.config import Config
+from edge.hw.drivers.heater import Heater
+from edge.measure.sequence import Limits, MeasurementParams, MeasurementSequence, make_sensors
 from firmware_sim.daemon_rig import heater_invariant, make_rig
 
 

@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from edge.board import (
+from edge.hw.board import (
     Board,
     BoardError,
     GpioLine,
@@ -16,8 +16,8 @@ from edge.board import (
     register_board_factory,
     unregister_board_factory,
 )
-from edge.drivers.button import Button
-from edge.drivers.heater import Heater
+from edge.hw.drivers.button import Button
+from edge.hw.drivers.heater import Heater
 from firmware_sim.clock import VirtualClock
 from firmware_sim.pwm import SimPwmTree
 from firmware_sim.sim_board import make_sim_board, register_sim_board
@@ -26,7 +26,7 @@ from firmware_sim.sim_board import make_sim_board, register_sim_board
 def test_edge_imports_without_devices_or_hardware_packages():
     code = (
         "import sys\n"
-        "import edge.board, edge.sysfs_pwm, edge.drivers.heater, edge.drivers.button\n"
+        "import edge.hw.board, edge.hw.sysfs_pwm, edge.hw.drivers.heater, edge.hw.drivers.button\n"
         "bad = [m for m in ('gpiod', 'smbus2', 'firmware_sim', 'scipy', 'host') if m in sys.modules]\n"
         "print(','.join(bad))\n"
     )

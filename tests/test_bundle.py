@@ -11,8 +11,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from bundle_testutil import make_arrays, make_golden, manifest_extra, npz_bytes, reseal, write_raw_bundle
-from edge import bundle as B
-from edge.bundle_schema import SCHEMAS, ArraySpec, declare_array
+from edge.model import bundle as B
+from edge.model.schema import SCHEMAS, ArraySpec, declare_array
 
 
 @pytest.fixture(scope="module")

@@ -4,7 +4,7 @@ import errno
 
 import pytest
 
-from edge.drivers.button import Button, ButtonEvent
+from edge.hw.drivers.button import Button, ButtonEvent
 from firmware_sim.sim_board import make_sim_board
 
 TRIG = 27

@@ -1,9 +1,18 @@
 import pytest
 
-from edge import typek
-from edge.drivers.ads122c04 import (ADS122C04, REGISTERS, code_to_volts, conversion_time_s,
-                                    crc16_ccitt, rdata_frame, rreg, temperature_code_to_C, wreg)
-from edge.faults import SensorFault
+from edge.physics import typek
+from edge.hw.drivers.ads122c04 import (
+    ADS122C04,
+    REGISTERS,
+    code_to_volts,
+    conversion_time_s,
+    crc16_ccitt,
+    rdata_frame,
+    rreg,
+    temperature_code_to_C,
+    wreg,
+)
+from edge.hw.faults import SensorFault
 from firmware_sim.bus import SimBus
 from firmware_sim.chips.ads122c04 import ADS122C04 as ADS122C04Chip
 from firmware_sim.clock import VirtualClock

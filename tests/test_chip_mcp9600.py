@@ -3,9 +3,9 @@ import errno
 import pytest
 from smbus2 import i2c_msg
 
-from edge import typek
-from edge.drivers.mcp9600 import MCP9600, REGISTERS
-from edge.faults import SensorFault
+from edge.physics import typek
+from edge.hw.drivers.mcp9600 import MCP9600, REGISTERS
+from edge.hw.faults import SensorFault
 from firmware_sim.bus import SimBus
 from firmware_sim.chips.mcp9600 import MCP9600 as MCP9600Chip
 from firmware_sim.clock import VirtualClock

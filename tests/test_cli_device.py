@@ -133,7 +133,7 @@ def test_measure_plot_over_a_port_without_the_devices_bundle_plots_the_measureme
         capsys, tmp_path, monkeypatch):
     from thermotouch_models import DEFAULT_BUNDLE
 
-    from edge.bundle import load_bundle
+    from edge.model.bundle import load_bundle
 
     # A bundle the host does not ship: the default one with another version label (hence another sha256).
     other = tmp_path / "other_bundle"
@@ -177,7 +177,7 @@ def test_measure_bundle_option_errors_are_one_line(capsys, tmp_path):
 def test_flash_installs_the_bundle_and_confirms_its_sha(capsys, tmp_path):
     from thermotouch_models import DEFAULT_BUNDLE
 
-    from edge.bundle import load_bundle
+    from edge.model.bundle import load_bundle
 
     code, out, err = run(capsys, "flash", str(DEFAULT_BUNDLE), "--sim", "pmma_8V", "--workdir", str(tmp_path))
     assert code == 0, err
@@ -228,7 +228,7 @@ def test_bundle_refused_locally(capsys, tmp_path):
 
 
 def test_bundle_refused_by_the_device_is_one_line():
-    from edge.protocol import Command, ErrorCode
+    from edge.protocol.messages import Command, ErrorCode
     from host.client import DeviceError
 
     line = describe_error(DeviceError(ErrorCode.MODEL_REJECTED, "golden check failed", None, Command.MODEL_COMMIT),

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from edge.forward import simulate
-from edge.solids import Solid
+from edge.physics.forward import simulate
+from edge.physics.solids import Solid
 from host.cli import main
 from host.records import write_record
 
@@ -90,8 +90,8 @@ def test_evaluate_json(capsys):
 
 
 def test_train_quick_writes_a_loadable_bundle_and_refuses_overwrite(capsys, tmp_path, monkeypatch):
-    from edge.bundle import load_bundle
-    from edge.estimate import pipeline_golden_check
+    from edge.model.bundle import load_bundle
+    from edge.estimation.estimate import pipeline_golden_check
 
     monkeypatch.setenv("THERMOTOUCH_CACHE", str(tmp_path / "cache"))
     out = tmp_path / "b"

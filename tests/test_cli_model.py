@@ -7,8 +7,8 @@ import sys
 import numpy as np
 import pytest
 
-from edge.forward import simulate
-from edge.solids import Solid
+from edge.physics.forward import simulate
+from edge.physics.solids import Solid
 from host.cli import main
 
 

@@ -3,7 +3,7 @@ from pathlib import Path
 
 import pytest
 
-from edge.config import (
+from edge.service.config import (
     HARD_MAX_ON_TIME_S,
     RUNTIME_KEYS,
     SCHEMA,
@@ -13,7 +13,7 @@ from edge.config import (
     load_config,
 )
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "edge" / "thermotouch-edge.example.toml"
+EXAMPLE = Path(__file__).resolve().parents[1] / "edge" / "service" / "thermotouch-edge.example.toml"
 
 
 def _write(tmp_path, text):

@@ -11,10 +11,10 @@ import serial
 
 from bundle_testutil import make_arrays, make_golden, manifest_extra, npz_bytes, write_raw_bundle
 from daemon_testutil import FakeEstimator, assert_heater_safe, sim_config
-from edge import bundle as B
-from edge.config import Config
-from edge.daemon import FIRMWARE_VERSION, DaemonThread, main
-from edge.protocol import Command, ErrorCode, encode_frame, encode_request
+from edge.model import bundle as B
+from edge.service.config import Config
+from edge.service.daemon import FIRMWARE_VERSION, DaemonThread, main
+from edge.protocol.messages import Command, ErrorCode, encode_frame, encode_request
 from firmware_sim.daemon_rig import make_rig
 from firmware_sim.ptylink import NullModem
 from host.client import DeviceClient, DeviceError
@@ -345,8 +345,14 @@ def test_fuzzed_requests_get_a_reply_or_a_clean_error(tmp_path):
     from hypothesis import HealthCheck, given, settings
     from hypothesis import strategies as st
 
-    from edge.daemon import Daemon
-    from edge.protocol import CommandError, Frame, ProtocolError, decode_request, encode_reply
+    from edge.service.daemon import Daemon
+    from edge.protocol.messages import (
+        CommandError,
+        Frame,
+        ProtocolError,
+        decode_request,
+        encode_reply,
+    )
 
     rig = make_rig()
     d = Daemon(sim_config(tmp_path, measurement={"cooldown_s": 0.0, "baseline_s": 0.2}), rig.board,

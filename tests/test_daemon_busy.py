@@ -14,9 +14,17 @@ import pytest
 import serial
 
 from daemon_testutil import FakeEstimator, HookedSensors, assert_heater_safe, sim_config
-from edge.config import Config
-from edge.daemon import Daemon, DaemonThread
-from edge.protocol import Command, ErrorCode, ErrorReply, FrameDecoder, Reply, decode_reply, encode_request
+from edge.service.config import Config
+from edge.service.daemon import Daemon, DaemonThread
+from edge.protocol.messages import (
+    Command,
+    ErrorCode,
+    ErrorReply,
+    FrameDecoder,
+    Reply,
+    decode_reply,
+    encode_request,
+)
 from firmware_sim.daemon_rig import make_rig
 from firmware_sim.ptylink import NullModem
 
@@ -142,7 +150,7 @@ def test_stop_during_a_measurement_cuts_the_heater_and_stores_the_record(tmp_pat
     assert d.history.closed and d.state == "stopped"
     inv = assert_heater_safe(rig.parts, MAX_ON)
     assert inv["n_intervals"] == 1 and inv["longest_on_s"] < 1.0
-    from edge.history import History
+    from edge.storage.history import History
 
     with History(tmp_path / "history.db") as h:
         rec = h.get(1)
@@ -226,7 +234,7 @@ def test_keyboard_interrupt_in_the_serve_loop_stops_the_measurement(tmp_path):
 
 
 def test_direct_measure_calls_do_not_overlap(tmp_path):
-    from edge.protocol import CommandError
+    from edge.protocol.messages import CommandError
 
     rig = make_rig()
     d = Daemon(sim_config(tmp_path), rig.board, estimator=FakeEstimator())

@@ -7,12 +7,12 @@ import warnings
 import numpy as np
 import pytest
 
-from edge.bundle import load_bundle
-from edge.estimate import Estimator, pipeline_golden_check
-from edge.features import paper_features
-from edge.forward import simulate
-from edge.instrument import INSTRUMENTS
-from edge.solids import Solid
+from edge.model.bundle import load_bundle
+from edge.estimation.estimate import Estimator, pipeline_golden_check
+from edge.estimation.features import paper_features
+from edge.physics.forward import simulate
+from edge.measure.instrument import INSTRUMENTS
+from edge.physics.solids import Solid
 from host.evaluate import TouchSimulator, q_v_for_voltage
 from host.materials import load_materials
 from host.records import RecordError, read_record, write_record
@@ -158,7 +158,7 @@ def test_thermometer_resolution_enters_the_uncertainty(est):
     # 0.197 K steps (MCP9600, 16 bit) on aluminium, a rise of a few steps:
     # without the rounding term the stated u(e) is too small for the errors;
     # with it the z-scores have about unit spread.
-    from edge.instrument import INSTRUMENTS
+    from edge.measure.instrument import INSTRUMENTS
 
     lsb = INSTRUMENTS["mcp9600"].T_lsb_K
     rng = np.random.default_rng(11)

@@ -7,8 +7,8 @@ from sklearn.decomposition import PCA
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.neural_network import MLPRegressor
 
-from edge import bundle as B
-from edge.bundle_schema import ArraySpec, SCHEMAS
+from edge.model import bundle as B
+from edge.model.schema import ArraySpec, SCHEMAS
 from host.export import export_paper_model, mlp_arrays_from_sklearn, pca_arrays_from_sklearn
 
 

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from edge.fluxmodel import duhamel_matrix, surface_temperature
-from edge.forward import simulate
-from edge.solids import Solid
+from edge.physics.fluxmodel import duhamel_matrix, surface_temperature
+from edge.physics.forward import simulate
+from edge.physics.solids import Solid
 
 GLASS = Solid(1.097, 2458.4, 809.0)
 ALU = Solid(120.4, 2651.5, 873.0)

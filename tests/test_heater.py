@@ -4,7 +4,7 @@ import errno
 
 import pytest
 
-from edge.drivers.heater import (
+from edge.hw.drivers.heater import (
     HEATER_AREA_M2,
     HEATER_THICKNESS_M,
     Heater,
@@ -14,7 +14,7 @@ from edge.drivers.heater import (
     heater_power_w,
     volumetric_heat_w_m3,
 )
-from edge.sysfs_pwm import PwmError
+from edge.hw.sysfs_pwm import PwmError
 from firmware_sim.sim_board import make_sim_board
 
 V_SUPPLY, R_HEATER = 12.0, 24.0  # 6 W at full duty

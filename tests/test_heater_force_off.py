@@ -3,8 +3,8 @@
 from firmware_sim.clock import VirtualClock
 from firmware_sim.gpio import GpioSim
 from firmware_sim.pwm import SimPwmTree
-from edge.board import GpioLine, force_rpi_heater_off
-from edge.sysfs_pwm import SysfsPwm
+from edge.hw.board import GpioLine, force_rpi_heater_off
+from edge.hw.sysfs_pwm import SysfsPwm
 
 
 def _left_on(clock):
@@ -57,7 +57,7 @@ def test_force_off_tries_gpio_when_pwm_missing(tmp_path):
 
 
 def test_daemon_heater_off_mode(tmp_path, capsys):
-    from edge.daemon import main
+    from edge.service.daemon import main
 
     sim = tmp_path / "sim.toml"
     sim.write_text('[board]\nkind = "sim"\n')

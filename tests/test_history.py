@@ -6,7 +6,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from edge.history import History, HistoryError
+from edge.storage.history import History, HistoryError
 
 
 def _rec(i, **kw):
@@ -66,7 +66,7 @@ def test_records_survive_a_process_killed_without_close(tmp_path):
     path = tmp_path / "h.db"
     code = textwrap.dedent(f"""
         import os, numpy as np
-        from edge.history import History
+        from edge.storage.history import History
         h = History({str(path)!r})
         for i in range(3):
             h.add({{"status": "ok", "raw_t_s": np.arange(4.0), "raw_T_C": np.ones(4), "raw_q_W_m2": np.ones(4)}})

@@ -1,4 +1,4 @@
-"""Tests for the material library (edge/materials.py and edge/data/materials.csv)."""
+"""Tests for the material library (edge/materials.py and edge/physics/data/materials.csv)."""
 
 import math
 from importlib import resources
@@ -45,11 +45,11 @@ def test_shipped_library_loads_with_enough_materials(lib):
     assert isinstance(lib, MaterialLibrary)
     assert len(lib) >= 75  # assignment; the paper used 67
     assert len(lib) == len(set(lib.names))
-    assert lib.path == "edge/data/materials.csv"
+    assert lib.path == "edge/physics/data/materials.csv"
 
 
 def test_shipped_library_is_packaged_resource():
-    res = resources.files("edge").joinpath("data/materials.csv")
+    res = resources.files("edge.physics").joinpath("data/materials.csv")
     assert res.is_file()
     assert len(load_materials(str(res))) == len(load_materials())
 
@@ -117,7 +117,7 @@ def test_every_row_is_sourced_and_named_snake_case(lib):
 
 
 def test_csv_header_comment_documents_schema():
-    text = resources.files("edge").joinpath("data/materials.csv").read_text(encoding="utf-8")
+    text = resources.files("edge.physics").joinpath("data/materials.csv").read_text(encoding="utf-8")
     comments = "\n".join(line for line in text.splitlines() if line.startswith("#"))
     for col in REQUIRED_COLUMNS + ("note",):
         assert col in comments, col

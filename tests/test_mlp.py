@@ -5,7 +5,7 @@ import pytest
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.neural_network import MLPRegressor
 
-from edge.mlp import ACTIVATION_CODES, MLP
+from edge.estimation.mlp import ACTIVATION_CODES, MLP
 
 
 def _fit(activation: str, hidden=(100, 20), seed: int = 0, n_in: int = 2) -> MLPRegressor:

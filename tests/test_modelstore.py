@@ -6,9 +6,9 @@ from pathlib import Path
 import pytest
 
 from bundle_testutil import make_arrays, make_golden, manifest_extra, npz_bytes, write_raw_bundle
-from edge import bundle as B
-from edge import durable
-from edge.modelstore import InstallError, ModelStore, ModelStoreError
+from edge.model import bundle as B
+from edge.storage import durable
+from edge.model.store import InstallError, ModelStore, ModelStoreError
 
 
 def _sha(b: bytes) -> str:

@@ -7,7 +7,7 @@ import zlib
 
 import pytest
 
-from edge.protocol import (
+from edge.protocol.messages import (
     COMMANDS,
     CHUNK_HEADER_SIZE,
     PROTOCOL_VERSION,

@@ -3,7 +3,7 @@
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from edge.protocol import (
+from edge.protocol.messages import (
     Command,
     Frame,
     FrameDecoder,

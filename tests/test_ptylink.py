@@ -8,8 +8,8 @@ import time
 import pytest
 import serial
 
-from edge.link import SerialEndpoint
-from edge.protocol import (
+from edge.protocol.endpoint import SerialEndpoint
+from edge.protocol.messages import (
     Command,
     CommandError,
     ErrorCode,

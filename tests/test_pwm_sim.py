@@ -4,7 +4,7 @@ import errno
 
 import pytest
 
-from edge.sysfs_pwm import OsSysfsIO, PwmError, SysfsPwm
+from edge.hw.sysfs_pwm import OsSysfsIO, PwmError, SysfsPwm
 from firmware_sim.clock import VirtualClock
 from firmware_sim.pwm import SimPwmTree
 

@@ -1,6 +1,6 @@
 import pytest
 
-from edge.registers import BitField, Register, RegisterMap, to_signed, to_unsigned
+from edge.hw.registers import BitField, Register, RegisterMap, to_signed, to_unsigned
 
 
 def test_signed_helpers():

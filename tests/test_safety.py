@@ -23,11 +23,11 @@ from daemon_testutil import (
     make_sequence,
     sim_config,
 )
-from edge.config import Config
-from edge.daemon import Daemon, DaemonThread, install_signal_handlers
-from edge.history import History
-from edge.protocol import Command, CommandError, ErrorCode, encode_request
-from edge.sequence import make_sensors
+from edge.service.config import Config
+from edge.service.daemon import Daemon, DaemonThread, install_signal_handlers
+from edge.storage.history import History
+from edge.protocol.messages import Command, CommandError, ErrorCode, encode_request
+from edge.measure.sequence import make_sensors
 from firmware_sim.daemon_rig import make_rig
 from firmware_sim.ptylink import NullModem
 from host.client import DeviceClient, DeviceError

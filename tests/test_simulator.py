@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 import firmware_sim
-from edge import forward
-from edge.board import make_board
-from edge.drivers.ads1115 import ADS1115
-from edge.drivers.ads122c04 import ADS122C04
-from edge.drivers.heater import Heater
-from edge.drivers.mcp9600 import CONVERSION_TIME_S, MCP9600
-from edge.faults import SensorFault
+from edge.physics import forward
+from edge.hw.board import make_board
+from edge.hw.drivers.ads1115 import ADS1115
+from edge.hw.drivers.ads122c04 import ADS122C04
+from edge.hw.drivers.heater import Heater
+from edge.hw.drivers.mcp9600 import CONVERSION_TIME_S, MCP9600
+from edge.hw.faults import SensorFault
 from firmware_sim import SceneError, Simulator, load_scene
 
 PAPER_SCENES = ["glass_12V", "glass_15V", "glass_18V", "pmma_8V", "pmma_15V", "pmma_20V",
@@ -66,7 +66,7 @@ def run_touch(sim, *, heat_s=2.0, dt=0.01, catch=False):
 
 
 def physics(sim, t_on, t_s):
-    """edge.forward.simulate (exact) for full power V^2/R from t_on to sim.t_off (computed independently)."""
+    """edge.physics.forward.simulate (exact) for full power V^2/R from t_on to sim.t_off (computed independently)."""
     sc = sim.scene
     q_v = sc.stack.q_v_from_voltage(sc.heater.supply_voltage_V, sc.heater.resistance_ohm)
     lag, back_map = np.unique(np.clip(np.asarray(t_s, dtype=float) - t_on, 0.0, None), return_inverse=True)
@@ -299,8 +299,8 @@ def test_scene_from_environment_for_a_daemon_configured_with_kind_sim(monkeypatc
 
 @pytest.mark.parametrize("name", ["glass_15V", "alu_20V_ads122c04", "pmma_15V_no_contact"])
 def test_edge_measurement_sequence_runs_unchanged_on_the_simulator(name, tmp_path):
-    from edge.config import load_config
-    from edge.sequence import Limits, MeasurementParams, MeasurementSequence, make_sensors
+    from edge.service.config import load_config
+    from edge.measure.sequence import Limits, MeasurementParams, MeasurementSequence, make_sensors
 
     sim = load_scene(name)
     sc = sim.scene

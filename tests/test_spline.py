@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline as SciSpline
 
-from edge.spline import CubicSpline, resample
+from edge.estimation.spline import CubicSpline, resample
 
 
 @pytest.mark.parametrize("n", [2, 3, 4, 5, 17, 200])

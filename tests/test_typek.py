@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from edge import typek
+from edge.physics import typek
 
 # NIST ITS-90 type K table (mV, reference junction 0 °C), printed to 1 µV.
 NIST_TABLE = [(-270, -6.458), (-200, -5.891), (-100, -3.554), (0, 0.000), (25, 1.000),

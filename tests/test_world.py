@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from edge import forward, typek
-from edge.solids import Solid
+from edge.physics import forward, typek
+from edge.physics.solids import Solid
 from firmware_sim.clock import VirtualClock
 from firmware_sim.scene import Fault, read_scene
 from firmware_sim.world import AIR, OPEN_TC_INPUT_V, ScheduleDrive, ThermalWorld

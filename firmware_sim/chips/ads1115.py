@@ -29,7 +29,7 @@ from typing import Callable
 
 import numpy as np
 
-from edge.drivers.ads1115 import CODE_MAX, CODE_MIN, PGA_FSR_V, REGISTERS
+from edge.hw.drivers.ads1115 import CODE_MAX, CODE_MIN, PGA_FSR_V, REGISTERS
 
 _EPS = 1e-9
 _MAX_BACKLOG = 64
@@ -46,7 +46,7 @@ class ADS1115:
     clock : VirtualClock
     inputs : callable (mux_label, t_s) -> volts
         Input voltage for a multiplexer setting, e.g. ``"AIN0_AIN1"`` (see
-        ``edge.drivers.ads1115.MUX``).
+        ``edge.hw.drivers.ads1115.MUX``).
     noise_rms_V : float
         Input-referred noise added to each conversion.
     rng : numpy Generator or seed, optional

@@ -27,8 +27,16 @@ from typing import Callable
 
 import numpy as np
 
-from edge.drivers.ads122c04 import (CODE_MAX, CODE_MIN, INTERNAL_VREF_V, MUX, REGISTERS,
-                                    TEMP_LSB_C, conversion_time_s, rdata_frame)
+from edge.hw.drivers.ads122c04 import (
+    CODE_MAX,
+    CODE_MIN,
+    INTERNAL_VREF_V,
+    MUX,
+    REGISTERS,
+    TEMP_LSB_C,
+    conversion_time_s,
+    rdata_frame,
+)
 
 _EPS = 1e-9
 _MAX_BACKLOG = 64
@@ -43,7 +51,7 @@ class ADS122C04:
     clock : VirtualClock
     inputs : callable (mux_label, t_s) -> volts
         Differential input for AIN multiplexer settings such as "AIN0_AIN1"
-        or "AIN2_AVSS" (see ``edge.drivers.ads122c04.MUX``).
+        or "AIN2_AVSS" (see ``edge.hw.drivers.ads122c04.MUX``).
     temperature_C : callable t_s -> °C
         Die temperature seen by the internal sensor.
     noise_rms_V : float

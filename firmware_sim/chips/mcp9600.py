@@ -41,9 +41,14 @@ from typing import Callable
 
 import numpy as np
 
-from edge import typek
-from edge.drivers.mcp9600 import (COLD_JUNCTION_TIME_S, CONVERSION_TIME_S, DEVICE_ID,
-                                  RAW_ADC_LSB_V, REGISTERS)
+from edge.physics import typek
+from edge.hw.drivers.mcp9600 import (
+    COLD_JUNCTION_TIME_S,
+    CONVERSION_TIME_S,
+    DEVICE_ID,
+    RAW_ADC_LSB_V,
+    REGISTERS,
+)
 
 _EPS = 1e-9
 _MAX_BACKLOG = 64          # conversions replayed after a long idle gap (filter settles)

@@ -1,0 +1,1 @@
+"""From signals to properties: features, resampling, the MLP forward pass, the estimators."""

@@ -1,0 +1,373 @@
+"""ADS122C04 24-bit delta-sigma ADC with I2C (TI SBAS751): register map,
+command set, conversion timing and driver.
+
+The precision option of the probe: it reads the thermocouple EMF (µV level,
+PGA gain up to 128) and the heat-flux sensor voltage, and its internal
+temperature sensor can serve as the cold junction. Hot-junction temperature is
+``T_hot = T(E_meas + E(T_cj))`` with the NIST type K functions (edge.physics.typek).
+
+The chip is command driven (datasheet 8.5.3): a command byte is the SMBus
+"register" argument, so RREG maps to ``read_byte_data(addr, 0x20 | r << 2)``,
+WREG to ``write_byte_data(addr, 0x40 | r << 2, value)``, RDATA to
+``read_i2c_block_data(addr, 0x10, n)`` and RESET/START/POWERDOWN to
+``write_byte(addr, cmd)``.
+"""
+
+from __future__ import annotations
+
+import errno
+import time
+from typing import Callable
+
+from edge.physics import typek
+from edge.hw.faults import SensorFault
+from edge.hw.drivers.i2c_base import I2CDevice
+from edge.hw.registers import BitField, Register, RegisterMap, to_signed
+
+ADDRESSES = tuple(range(0x40, 0x50))
+
+# Commands (datasheet Table 16).
+CMD_RESET = 0x06
+CMD_START = 0x08
+CMD_POWERDOWN = 0x02
+CMD_RDATA = 0x10
+CMD_RREG = 0x20
+CMD_WREG = 0x40
+
+
+def rreg(reg: int) -> int:
+    return CMD_RREG | ((reg & 0x3) << 2)
+
+
+def wreg(reg: int) -> int:
+    return CMD_WREG | ((reg & 0x3) << 2)
+
+
+MUX = {"AIN0_AIN1": 0, "AIN0_AIN2": 1, "AIN0_AIN3": 2, "AIN1_AIN0": 3, "AIN1_AIN2": 4,
+       "AIN1_AIN3": 5, "AIN2_AIN3": 6, "AIN3_AIN2": 7, "AIN0_AVSS": 8, "AIN1_AVSS": 9,
+       "AIN2_AVSS": 10, "AIN3_AVSS": 11, "REFP_REFN_DIV4": 12, "AVDD_AVSS_DIV4": 13,
+       "SHORTED": 14}
+GAINS = {1: 0, 2: 1, 4: 2, 8: 3, 16: 4, 32: 5, 64: 6, 128: 7}
+#: Nominal data rates (SPS) per DR code in normal mode; turbo doubles them (Table 20).
+DATA_RATES_NORMAL_SPS = (20, 45, 90, 175, 330, 600, 1000)
+
+REGISTERS = RegisterMap("ads122c04", [
+    Register("CONFIG0", 0, 1, {
+        "MUX": BitField(0xF0, enum=MUX),
+        "GAIN": BitField(0x0E, enum=GAINS),
+        "PGA_BYPASS": BitField(0x01),
+    }),
+    Register("CONFIG1", 1, 1, {
+        "DR": BitField(0xE0),
+        "MODE": BitField(0x10, enum={"normal": 0, "turbo": 1}),
+        "CM": BitField(0x08, enum={"single": 0, "continuous": 1}),
+        "VREF": BitField(0x06, enum={"internal": 0, "external": 1, "avdd": 2}),
+        "TS": BitField(0x01),
+    }),
+    Register("CONFIG2", 2, 1, {
+        "DRDY": BitField(0x80),
+        "DCNT": BitField(0x40),
+        "CRC": BitField(0x30, enum={"off": 0, "inverted": 1, "crc16": 2}),
+        "BCS": BitField(0x08),
+        "IDAC_uA": BitField(0x07, enum={0: 0, 10: 1, 50: 2, 100: 3, 250: 4, 500: 5, 1000: 6, 1500: 7}),
+    }),
+    Register("CONFIG3", 3, 1, {
+        "I1MUX": BitField(0xE0, enum={"off": 0, "AIN0": 1, "AIN1": 2, "AIN2": 3, "AIN3": 4, "REFP": 5, "REFN": 6}),
+        "I2MUX": BitField(0x1C, enum={"off": 0, "AIN0": 1, "AIN1": 2, "AIN2": 3, "AIN3": 4, "REFP": 5, "REFN": 6}),
+    }),
+])
+
+# Conversion times in t_CLK cycles (datasheet Table 12). Normal mode counts at
+# f_CLK = 1.024 MHz; turbo-mode times equal the same counts at 2.048 MHz.
+F_CLK_HZ = 1.024e6
+CYCLES_CONTINUOUS = (51192, 22780, 11532, 5916, 3116, 1724, 1036)
+CYCLES_SINGLE_NORMAL = (51213, 22805, 11557, 5941, 3141, 1749, 1061)
+# The last two turbo single-shot entries follow the table's +29-cycle pattern.
+CYCLES_SINGLE_TURBO = (51217, 22809, 11561, 5945, 3145, 1753, 1065)
+
+INTERNAL_VREF_V = 2.048
+TEMP_LSB_C = 0.03125     # 14-bit temperature result, left-justified in 24 bits (8.3.10)
+CODE_MAX, CODE_MIN = 0x7FFFFF, -0x800000
+
+
+def data_rate_sps(dr_code: int, turbo: bool) -> int:
+    if not 0 <= dr_code <= 6:
+        raise ValueError(f"dr_code must be 0..6, got {dr_code!r}")
+    return DATA_RATES_NORMAL_SPS[dr_code] * (2 if turbo else 1)
+
+
+def conversion_time_s(dr_code: int, turbo: bool, single_shot: bool) -> float:
+    """Actual conversion time (Table 12): single-shot from START latch to DRDY,
+    continuous between DRDY edges."""
+    if not 0 <= dr_code <= 6:
+        raise ValueError(f"dr_code must be 0..6, got {dr_code!r}")
+    if single_shot:
+        cycles = (CYCLES_SINGLE_TURBO if turbo else CYCLES_SINGLE_NORMAL)[dr_code]
+    else:
+        cycles = CYCLES_CONTINUOUS[dr_code]
+    return cycles / (F_CLK_HZ * (2.0 if turbo else 1.0))
+
+
+def code_to_volts(code: int, gain: int, vref_V: float = INTERNAL_VREF_V) -> float:
+    """Differential input voltage for a 24-bit code: LSB = 2 Vref / gain / 2^24."""
+    return code * vref_V / (gain * float(1 << 23))
+
+
+def temperature_code_to_C(code24: int) -> float:
+    """Internal temperature from the 24-bit result (14 MSBs, 0.03125 °C/LSB)."""
+    return to_signed((code24 & 0xFFFFFF) >> 10, 14) * TEMP_LSB_C
+
+
+def crc16_ccitt(data: bytes, crc: int = 0xFFFF) -> int:
+    """CRC-16-CCITT (x^16 + x^12 + x^5 + 1), preset 0xFFFF, as in datasheet 8.5.2."""
+    for b in data:
+        crc ^= b << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else (crc << 1)
+            crc &= 0xFFFF
+    return crc
+
+
+def rdata_frame(code24: int, counter: int | None, crc_mode: str) -> bytes:
+    """Bytes the chip sends after RDATA: [counter] data[3] [check].
+
+    ``crc_mode`` "inverted" appends the bitwise inverse of the preceding bytes,
+    "crc16" appends their CRC-16. Shared by the driver and the chip model.
+    """
+    payload = (bytes([counter & 0xFF]) if counter is not None else b"") + \
+        (code24 & 0xFFFFFF).to_bytes(3, "big")
+    if crc_mode == "inverted":
+        return payload + bytes(b ^ 0xFF for b in payload)
+    if crc_mode == "crc16":
+        return payload + crc16_ccitt(payload).to_bytes(2, "big")
+    return payload
+
+
+class _IntegrityError(OSError):
+    """RDATA bytes failed the inverted-data / CRC check."""
+
+
+class ADS122C04(I2CDevice):
+    """Driver for one ADS122C04.
+
+    Parameters
+    ----------
+    bus : smbus2-compatible bus
+    address : int
+        0x40..0x4F.
+    vref_V : float
+        Reference voltage used for code conversion when VREF is not internal.
+    on_saturation : {"raise", "flag"}
+        Full-scale codes 0x7FFFFF / 0x800000 raise SensorFault("saturated")
+        or set :attr:`saturated`.
+    attempts, backoff_s, sleep
+        Retry policy; ``sleep`` also waits for conversions.
+    """
+
+    CHIP = "ads122c04"
+    ADDRESSES = ADDRESSES
+
+    def __init__(self, bus, address: int = 0x40, *, vref_V: float = INTERNAL_VREF_V,
+                 on_saturation: str = "raise", attempts: int = 4, backoff_s: float = 0.002,
+                 sleep: Callable[[float], None] = time.sleep) -> None:
+        super().__init__(bus, address, attempts=attempts, backoff_s=backoff_s, sleep=sleep)
+        if on_saturation not in ("raise", "flag"):
+            raise ValueError(f"on_saturation must be 'raise' or 'flag', got {on_saturation!r}")
+        if not vref_V > 0:
+            raise ValueError(f"vref_V must be > 0, got {vref_V!r}")
+        self.vref_V = float(vref_V)
+        self.on_saturation = on_saturation
+        self.saturated = False
+        self._regs = [0, 0, 0, 0]   # cached configuration (power-on: all zero)
+
+    # -- commands ------------------------------------------------------------
+    def _command(self, cmd: int, what: str) -> None:
+        self._retry(what, lambda: self.bus.write_byte(self.address, cmd))
+
+    def reset(self) -> None:
+        """RESET command: all registers back to 0x00."""
+        self._command(CMD_RESET, "RESET")
+        self._regs = [0, 0, 0, 0]
+
+    def start(self) -> None:
+        """START/SYNC: begin a single-shot conversion or (re)start continuous ones."""
+        self._command(CMD_START, "START/SYNC")
+
+    def powerdown(self) -> None:
+        self._command(CMD_POWERDOWN, "POWERDOWN")
+
+    def read_register(self, reg: int) -> int:
+        if reg not in (0, 1, 2, 3):
+            raise ValueError(f"reg must be 0..3, got {reg!r}")
+        return self._retry(f"RREG {reg}", lambda: self.bus.read_byte_data(self.address, rreg(reg)))
+
+    def write_register(self, reg: int, value: int) -> None:
+        if reg not in (0, 1, 2, 3):
+            raise ValueError(f"reg must be 0..3, got {reg!r}")
+        if not 0 <= value <= 0xFF:
+            raise ValueError(f"value must be 0..255, got {value!r}")
+        self._retry(f"WREG {reg}", lambda: self.bus.write_byte_data(self.address, wreg(reg), value))
+        self._regs[reg] = value
+
+    def _write_if_changed(self, reg: int, value: int) -> None:
+        if self._regs[reg] != value:
+            self.write_register(reg, value)
+
+    # -- configuration ---------------------------------------------------------
+    def configure(self, *, mux: str = "AIN0_AIN1", gain: int = 1, pga_bypass: bool = False,
+                  data_rate_sps: int = 20, turbo: bool = False, continuous: bool = False,
+                  vref: str = "internal", temperature_sensor: bool = False,
+                  data_counter: bool = False, crc: str = "off", burnout_current: bool = False,
+                  idac_uA: int = 0, i1mux: str = "off", i2mux: str = "off") -> None:
+        """Write all four configuration registers.
+
+        ``data_rate_sps`` is the nominal rate for the chosen mode (normal: 20,
+        45, 90, 175, 330, 600, 1000; turbo: twice those).
+        """
+        rates = [r * (2 if turbo else 1) for r in DATA_RATES_NORMAL_SPS]
+        if data_rate_sps not in rates:
+            raise ValueError(f"data_rate_sps must be one of {rates} in "
+                             f"{'turbo' if turbo else 'normal'} mode, got {data_rate_sps!r}")
+        if pga_bypass and gain > 4:
+            raise ValueError("pga_bypass is only allowed for gain 1, 2 or 4 (datasheet 8.3.2.2)")
+        r0 = REGISTERS.CONFIG0.encode(0, MUX=mux, GAIN=gain, PGA_BYPASS=int(pga_bypass))
+        r1 = REGISTERS.CONFIG1.encode(0, DR=rates.index(data_rate_sps),
+                                      MODE="turbo" if turbo else "normal",
+                                      CM="continuous" if continuous else "single",
+                                      VREF=vref, TS=int(temperature_sensor))
+        r2 = REGISTERS.CONFIG2.encode(0, DCNT=int(data_counter), CRC=crc, BCS=int(burnout_current),
+                                      IDAC_uA=idac_uA)
+        r3 = REGISTERS.CONFIG3.encode(0, I1MUX=i1mux, I2MUX=i2mux)
+        for i, v in enumerate((r0, r1, r2, r3)):
+            self.write_register(i, v)
+
+    def read_config(self) -> dict:
+        out = {}
+        for i, reg in enumerate(REGISTERS):
+            out.update(reg.decode(self.read_register(i)))
+        return out
+
+    @property
+    def gain(self) -> int:
+        return REGISTERS.CONFIG0.get(self._regs[0], "GAIN")
+
+    @property
+    def _turbo(self) -> bool:
+        return bool(self._regs[1] & 0x10)
+
+    @property
+    def _dr_code(self) -> int:
+        return min((self._regs[1] >> 5) & 0x7, 6)
+
+    @property
+    def continuous(self) -> bool:
+        return bool(self._regs[1] & 0x08)
+
+    @property
+    def conversion_time_s(self) -> float:
+        return conversion_time_s(self._dr_code, self._turbo, single_shot=not self.continuous)
+
+    # -- data -------------------------------------------------------------------
+    def data_ready(self) -> bool:
+        """DRDY bit of CONFIG2 (set on a new result, cleared by reading it)."""
+        return bool(self.read_register(2) & 0x80)
+
+    def read_data_code(self) -> int:
+        """RDATA: the latest 24-bit two's-complement result (checks CRC if enabled)."""
+        dcnt = bool(self._regs[2] & 0x40)
+        crc_mode = REGISTERS.CONFIG2.get(self._regs[2], "CRC")
+        n = 3 + (1 if dcnt else 0)
+        n += {"inverted": n, "crc16": 2}.get(crc_mode, 0)
+
+        def xfer() -> int:
+            raw = bytes(self.bus.read_i2c_block_data(self.address, CMD_RDATA, n))
+            off = 1 if dcnt else 0
+            code = int.from_bytes(raw[off:off + 3], "big")
+            if crc_mode in ("inverted", "crc16"):
+                expect = rdata_frame(code, raw[0] if dcnt else None, crc_mode)
+                if raw != expect:
+                    # A corrupted transfer is an I/O error: retry it like one.
+                    raise _IntegrityError(errno.EIO, f"RDATA {crc_mode} check failed: {raw.hex()}")
+            return to_signed(code, 24)
+
+        try:
+            return self._retry("RDATA", xfer)
+        except SensorFault as exc:
+            if isinstance(exc.__cause__, _IntegrityError):
+                raise self.fault("crc", str(exc.__cause__)) from exc.__cause__
+            raise
+
+    def convert(self, timeout_s: float | None = None) -> int:
+        """One conversion: START, wait the conversion time, poll DRDY, RDATA.
+
+        In continuous mode this waits for the next DRDY instead of sending START.
+        """
+        t_conv = self.conversion_time_s
+        if timeout_s is None:
+            timeout_s = 3.0 * t_conv + 0.005
+        if not self.continuous:
+            self.start()
+        self.sleep(t_conv)
+        waited = t_conv
+        while not self.data_ready():
+            if waited >= timeout_s:
+                raise self.fault("timeout", f"DRDY not set after {timeout_s:.4f} s")
+            step = max(t_conv / 20.0, 1e-4)
+            self.sleep(step)
+            waited += step
+        return self.read_data_code()
+
+    def _check(self, code: int) -> int:
+        self.saturated = code in (CODE_MAX, CODE_MIN)
+        if self.saturated and self.on_saturation == "raise":
+            raise self.fault("saturated", f"code 0x{code & 0xFFFFFF:06x} at gain {self.gain}")
+        return code
+
+    def _vref(self) -> float:
+        return INTERNAL_VREF_V if (self._regs[1] >> 1) & 0x3 == 0 else self.vref_V
+
+    def read_voltage_V(self, mux: str | None = None, gain: int | None = None) -> float:
+        """Single conversion of ``mux`` at ``gain`` (unchanged if None), in volts."""
+        r0 = self._regs[0]
+        if mux is not None:
+            r0 = REGISTERS.CONFIG0.encode(r0, MUX=mux)
+        if gain is not None:
+            r0 = REGISTERS.CONFIG0.encode(r0, GAIN=gain)
+            if gain > 4:  # PGA cannot be bypassed above gain 4
+                r0 &= ~0x01
+        self._write_if_changed(0, r0)
+        self._write_if_changed(1, self._regs[1] & ~0x01)  # TS off
+        return code_to_volts(self._check(self.convert()), self.gain, self._vref())
+
+    def read_temperature_C(self) -> float:
+        """Internal temperature sensor (TS=1), 0.03125 °C resolution."""
+        r1 = self._regs[1]
+        self._write_if_changed(1, r1 | 0x01)
+        try:
+            return temperature_code_to_C(self.convert() & 0xFFFFFF)
+        finally:
+            self._write_if_changed(1, r1 & ~0x01)
+
+    def read_thermocouple_emf_V(self, mux: str = "AIN0_AIN1", gain: int = 128) -> float:
+        """Thermocouple EMF (V); ±16 mV full scale at gain 128 with the internal reference."""
+        return self.read_voltage_V(mux, gain)
+
+    def read_flux_voltage_V(self, mux: str = "AIN2_AIN3", gain: int = 128) -> float:
+        """Heat-flux sensor voltage (V)."""
+        return self.read_voltage_V(mux, gain)
+
+    def read_thermocouple_C(self, mux: str = "AIN0_AIN1", gain: int = 128,
+                            cold_junction_C: float | None = None) -> float:
+        """Cold-junction-compensated type K hot-junction temperature (°C).
+
+        ``cold_junction_C`` defaults to this chip's internal temperature sensor
+        (pass the MCP9600's cold junction instead if it sits nearer the
+        terminals).
+        """
+        if cold_junction_C is None:
+            cold_junction_C = self.read_temperature_C()
+        e_V = self.read_thermocouple_emf_V(mux, gain)
+        try:
+            return typek.hot_junction_C(e_V * 1e3, cold_junction_C, refine=True)
+        except ValueError as exc:
+            raise self.fault("open_thermocouple", f"EMF {e_V * 1e6:.1f} µV not a type K value: {exc}") from exc

@@ -1,0 +1,275 @@
+"""MCP9600 thermocouple EMF-to-temperature converter (Microchip DS20005426).
+
+Register map as data (datasheet section 5) plus a driver for any
+smbus2-compatible bus.
+
+Why reads go through ``i2c_rdwr`` in two transactions
+-----------------------------------------------------
+The MCP9600 stretches SCL while it fetches register data after the read
+address byte (datasheet Fig. 4-3, "MCP9600 Clock Stretching"). The Raspberry
+Pi's BCM283x I2C controller does not honour clock stretching reliably; the
+symptom is ``OSError: [Errno 121] Remote I/O error`` (EREMOTEIO) or, rarely, a
+corrupted byte. The datasheet's own read sequence sets the register pointer
+with a write terminated by STOP and then reads in a *separate* transaction;
+that is what ``transport="split"`` (the default) does with two ``i2c_rdwr``
+calls. Keeping the pointer write out of the stretched read means a failed read
+costs one short transaction, and the whole pointer-then-read pair is retried a
+bounded number of times before a SensorFault is raised. ``"combined"`` (one
+``i2c_rdwr`` with a repeated start) and ``"smbus"`` (``read_i2c_block_data``)
+are available for adapters where they work better. Lowering the bus clock
+(``dtparam=i2c_baudrate=10000``) further reduces errors on a Pi.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+from edge.hw.drivers.i2c_base import I2CDevice
+from edge.hw.registers import BitField, Register, RegisterMap
+
+try:  # smbus2 is a run-time dependency of edge; keep the import soft for docs builds
+    from smbus2 import i2c_msg
+except ImportError:  # pragma: no cover
+    i2c_msg = None
+
+DEVICE_ID = 0x40
+ADDRESSES = tuple(range(0x60, 0x68))
+
+_TEMP = BitField(0xFFFF, signed=True, scale=0.0625)  # 0.0625 °C/LSB two's complement (Reg 5-2..5-4)
+_ALERT_CFG = {
+    "CLEAR_INTERRUPT": BitField(0x80), "MONITOR_COLD": BitField(0x10), "RISING": BitField(0x08),
+    "ACTIVE_HIGH": BitField(0x04), "INTERRUPT_MODE": BitField(0x02), "ENABLE": BitField(0x01),
+}
+
+ADC_RESOLUTIONS_BITS = {18: 0, 16: 1, 14: 2, 12: 3}
+#: Hot-junction conversion time per ADC resolution, typical (datasheet Register 5-8 / Table 1).
+CONVERSION_TIME_S = {18: 0.320, 16: 0.080, 14: 0.020, 12: 0.005}
+#: Cold-junction conversion time per resolution (datasheet Table 5-2).
+COLD_JUNCTION_TIME_S = {0.0625: 0.250, 0.25: 0.063}
+#: Raw ADC register LSB: 2 µV at 18 bit (we keep the register in 18-bit units;
+#: lower resolutions leave the low bits at zero).
+RAW_ADC_LSB_V = 2e-6
+
+
+def adc_step_V(resolution_bits: int) -> float:
+    """Thermocouple-EMF step of the ADC at 18/16/14/12 bit: 2, 8, 32, 128 uV (datasheet)."""
+    if resolution_bits not in (18, 16, 14, 12):
+        raise ValueError(f"resolution_bits must be 18, 16, 14 or 12, got {resolution_bits!r}")
+    return RAW_ADC_LSB_V * (1 << (18 - resolution_bits))
+
+REGISTERS = RegisterMap("mcp9600", [
+    Register("TH", 0x00, 2, {"TEMP_C": _TEMP}, read_only=True),
+    Register("TDELTA", 0x01, 2, {"TEMP_C": _TEMP}, read_only=True),
+    Register("TC", 0x02, 2, {"TEMP_C": _TEMP}, read_only=True),
+    Register("RAW_ADC", 0x03, 3, {"CODE": BitField(0xFFFFFF, signed=True)}, read_only=True),
+    Register("STATUS", 0x04, 1, {
+        "BURST_COMPLETE": BitField(0x80), "TH_UPDATE": BitField(0x40),
+        "INPUT_RANGE": BitField(0x10), "ALERT4": BitField(0x08), "ALERT3": BitField(0x04),
+        "ALERT2": BitField(0x02), "ALERT1": BitField(0x01),
+    }),
+    Register("THERMOCOUPLE_CONFIG", 0x05, 1, {
+        "TYPE": BitField(0x70, enum={"K": 0, "J": 1, "T": 2, "N": 3, "S": 4, "E": 5, "B": 6, "R": 7}),
+        "FILTER": BitField(0x07),
+    }),
+    Register("DEVICE_CONFIG", 0x06, 1, {
+        "COLD_JUNCTION_RESOLUTION": BitField(0x80, enum={0.0625: 0, 0.25: 1}),
+        "ADC_RESOLUTION": BitField(0x60, enum=ADC_RESOLUTIONS_BITS),
+        "BURST_SAMPLES": BitField(0x1C, enum={1: 0, 2: 1, 4: 2, 8: 3, 16: 4, 32: 5, 64: 6, 128: 7}),
+        "MODE": BitField(0x03, enum={"normal": 0, "shutdown": 1, "burst": 2}),
+    }),
+    *[Register(f"ALERT{i}_CONFIG", 0x07 + i, 1, _ALERT_CFG) for i in range(1, 5)],
+    *[Register(f"ALERT{i}_HYSTERESIS", 0x0B + i, 1, {"HYST_C": BitField(0xFF)}) for i in range(1, 5)],
+    *[Register(f"ALERT{i}_LIMIT", 0x0F + i, 2,
+               {"LIMIT_C": BitField(0xFFFC, signed=True, scale=0.25)}) for i in range(1, 5)],
+    Register("DEVICE_ID", 0x20, 2, {"ID": BitField(0xFF00), "REVISION": BitField(0x00FF)},
+             reset=(DEVICE_ID << 8) | 0x11, read_only=True),
+])
+
+
+@dataclass(frozen=True)
+class MCP9600Reading:
+    """One set of temperature registers (°C) and the status flags."""
+
+    hot_C: float
+    delta_C: float
+    cold_C: float
+    status: dict
+
+
+class MCP9600(I2CDevice):
+    """Driver for one MCP9600.
+
+    Parameters
+    ----------
+    bus : smbus2-compatible bus
+    address : int
+        0x60..0x67.
+    transport : {"split", "combined", "smbus"}
+        How registers are read (see module docstring).
+    attempts, backoff_s, sleep
+        Retry policy (see :class:`edge.hw.drivers.i2c_base.I2CDevice`).
+    """
+
+    CHIP = "mcp9600"
+    ADDRESSES = ADDRESSES
+
+    def __init__(self, bus, address: int = 0x60, *, transport: str = "split",
+                 attempts: int = 4, backoff_s: float = 0.002,
+                 sleep: Callable[[float], None] = time.sleep) -> None:
+        super().__init__(bus, address, attempts=attempts, backoff_s=backoff_s, sleep=sleep)
+        if transport not in ("split", "combined", "smbus"):
+            raise ValueError(f"transport must be 'split', 'combined' or 'smbus', got {transport!r}")
+        if transport != "smbus" and (i2c_msg is None or not hasattr(bus, "i2c_rdwr")):
+            raise ValueError(f"transport={transport!r} needs smbus2.i2c_msg and bus.i2c_rdwr")
+        self.transport = transport
+        self.adc_resolution_bits = 18
+        self.cold_junction_resolution_C = 0.0625
+
+    # -- raw register access ------------------------------------------------
+    def _read_reg(self, reg: Register) -> int:
+        n = reg.width_bytes
+
+        def xfer() -> bytes:
+            if self.transport == "smbus":
+                return bytes(self.bus.read_i2c_block_data(self.address, reg.address, n))
+            wr = i2c_msg.write(self.address, [reg.address])
+            rd = i2c_msg.read(self.address, n)
+            if self.transport == "combined":
+                self.bus.i2c_rdwr(wr, rd)
+            else:
+                self.bus.i2c_rdwr(wr)
+                self.bus.i2c_rdwr(rd)
+            return bytes(rd)
+
+        return reg.from_bytes(self._retry(f"read {reg.name}", xfer))
+
+    def _write_reg(self, reg: Register, value: int) -> None:
+        data = list(reg.to_bytes(value))
+        self._retry(f"write {reg.name}",
+                    lambda: self.bus.write_i2c_block_data(self.address, reg.address, data))
+
+    def read_register(self, name: str) -> int:
+        """Raw value of register ``name`` (see :data:`REGISTERS`)."""
+        return self._read_reg(REGISTERS[name])
+
+    def write_register(self, name: str, value: int) -> None:
+        reg = REGISTERS[name]
+        if reg.read_only:
+            raise ValueError(f"register {name} is read-only")
+        self._write_reg(reg, value)
+
+    # -- identity and configuration ------------------------------------------
+    def probe(self) -> tuple[int, int]:
+        """Check the device ID (0x40); return ``(device_id, revision)``."""
+        raw = self._read_reg(REGISTERS.DEVICE_ID)
+        dev_id, rev = raw >> 8, raw & 0xFF
+        if dev_id != DEVICE_ID:
+            raise self.fault("not_found", f"device ID 0x{dev_id:02x}, expected 0x{DEVICE_ID:02x}")
+        return dev_id, rev
+
+    def configure(self, *, thermocouple_type: str = "K", filter_coefficient: int = 0,
+                  adc_resolution_bits: int = 18, cold_junction_resolution_C: float = 0.0625,
+                  mode: str = "normal", burst_samples: int = 1) -> None:
+        """Write the sensor and device configuration registers.
+
+        ``filter_coefficient`` 0 (off) .. 7 (strongest); keep 0 for fast
+        transients. ``mode``: "normal" (continuous), "shutdown" or "burst".
+        """
+        tc = REGISTERS.THERMOCOUPLE_CONFIG.encode(0, TYPE=thermocouple_type, FILTER=filter_coefficient)
+        dc = REGISTERS.DEVICE_CONFIG.encode(
+            0, COLD_JUNCTION_RESOLUTION=cold_junction_resolution_C,
+            ADC_RESOLUTION=adc_resolution_bits, BURST_SAMPLES=burst_samples, MODE=mode)
+        self._write_reg(REGISTERS.THERMOCOUPLE_CONFIG, tc)
+        self._write_reg(REGISTERS.DEVICE_CONFIG, dc)
+        self.adc_resolution_bits = adc_resolution_bits
+        self.cold_junction_resolution_C = cold_junction_resolution_C
+
+    def read_config(self) -> dict:
+        out = REGISTERS.THERMOCOUPLE_CONFIG.decode(self._read_reg(REGISTERS.THERMOCOUPLE_CONFIG))
+        out.update(REGISTERS.DEVICE_CONFIG.decode(self._read_reg(REGISTERS.DEVICE_CONFIG)))
+        return out
+
+    @property
+    def conversion_time_s(self) -> float:
+        """Typical hot-junction conversion time at the configured resolution."""
+        return CONVERSION_TIME_S[self.adc_resolution_bits]
+
+    # -- status ----------------------------------------------------------------
+    def read_status(self) -> dict:
+        return REGISTERS.STATUS.decode(self._read_reg(REGISTERS.STATUS))
+
+    def clear_flags(self) -> None:
+        """Clear the TH-update and burst-complete flags (write 0 to them)."""
+        self._write_reg(REGISTERS.STATUS, 0x00)
+
+    def _check_range(self, status: dict) -> None:
+        if status["INPUT_RANGE"]:
+            raise self.fault("open_thermocouple",
+                             "STATUS.INPUT_RANGE set: EMF outside the type's range "
+                             "(open or disconnected thermocouple)")
+
+    def wait_for_update(self, timeout_s: float | None = None, poll_s: float | None = None) -> dict:
+        """Clear TH_UPDATE, then poll until the next conversion sets it.
+
+        Returns the status dict; raises SensorFault(reason="timeout") if no
+        conversion completes within ``timeout_s`` (default 3 conversion times).
+        """
+        if timeout_s is None:
+            timeout_s = 3.0 * self.conversion_time_s
+        if poll_s is None:
+            poll_s = self.conversion_time_s / 8.0
+        self.clear_flags()
+        waited = 0.0
+        while True:
+            status = self.read_status()
+            if status["TH_UPDATE"] or status["BURST_COMPLETE"]:
+                return status
+            if waited >= timeout_s:
+                raise self.fault("timeout", f"no conversion within {timeout_s:.3f} s")
+            self.sleep(poll_s)
+            waited += poll_s
+
+    def start_burst(self, samples: int = 1) -> None:
+        """Start a burst of ``samples`` conversions (the chip shuts down after)."""
+        dc_reg = REGISTERS.DEVICE_CONFIG
+        dc = dc_reg.encode(self._read_reg(dc_reg), BURST_SAMPLES=samples, MODE="burst")
+        self.clear_flags()
+        self._write_reg(dc_reg, dc)
+
+    # -- temperatures ------------------------------------------------------------
+    def _temp(self, name: str) -> float:
+        return REGISTERS[name].get(self._read_reg(REGISTERS[name]), "TEMP_C")
+
+    def read_hot_junction_C(self, check_status: bool = True) -> float:
+        """Hot-junction (thermocouple) temperature, 0.0625 °C resolution.
+
+        Raises SensorFault(reason="open_thermocouple") when the chip flags its
+        input out of range (``check_status=False`` skips that status read).
+        """
+        if check_status:
+            self._check_range(self.read_status())
+        return self._temp("TH")
+
+    def read_delta_C(self) -> float:
+        """Junction delta temperature T_H - T_C (°C)."""
+        return self._temp("TDELTA")
+
+    def read_cold_junction_C(self) -> float:
+        """Cold-junction (die) temperature (°C)."""
+        return self._temp("TC")
+
+    def read_raw_adc(self) -> int:
+        """Raw ADC register, sign-extended (18-bit units of 2 µV)."""
+        return REGISTERS.RAW_ADC.get(self._read_reg(REGISTERS.RAW_ADC), "CODE")
+
+    def read_raw_emf_V(self) -> float:
+        """Thermocouple EMF in volts from the raw ADC register."""
+        return self.read_raw_adc() * RAW_ADC_LSB_V
+
+    def read(self) -> MCP9600Reading:
+        """Status, hot, delta and cold junction in one call (raises on open input)."""
+        status = self.read_status()
+        self._check_range(status)
+        return MCP9600Reading(self._temp("TH"), self._temp("TDELTA"), self._temp("TC"), status)

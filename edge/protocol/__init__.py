@@ -1,0 +1,1 @@
+"""The serial protocol: framing, commands, messages and the device-side endpoint."""

@@ -1,0 +1,217 @@
+"""Device-side serial transport: turn a byte stream into requests and back.
+
+:class:`SerialEndpoint` wraps a pyserial-like object (``read(n)``,
+``write(b)``, a settable ``timeout`` and optionally ``in_waiting``), decodes
+request frames, answers malformed ones with ERROR replies by itself, and
+hands valid :class:`~edge.protocol.messages.Request` objects to the caller.  The
+daemon supplies the dispatching as ``handler(request) -> dict``::
+
+    endpoint = SerialEndpoint(serial.Serial("/dev/ttyAMA0", 115200))
+    endpoint.serve(handler, stop_event)
+
+Handler failures never end the loop: :class:`~edge.protocol.messages.CommandError`
+(and its subclass ``ProtocolError``) becomes an ERROR reply with its code,
+any other exception an ``INTERNAL`` ERROR reply.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from typing import Any, Callable, Iterator, Mapping
+
+from edge.protocol.messages import (
+    DEFAULT_MAX_PAYLOAD,
+    CommandError,
+    ErrorCode,
+    FrameDecoder,
+    DecoderStats,
+    ProtocolError,
+    Request,
+    decode_request,
+    encode_error,
+    encode_reply,
+)
+
+__all__ = ["SerialEndpoint", "Handler"]
+
+log = logging.getLogger(__name__)
+
+#: ``handler(request)`` returns the reply body (a JSON-able dict) or None for ``{}``.
+Handler = Callable[[Request], "Mapping[str, Any] | None"]
+
+
+def read_available(ser) -> bytes:
+    """One blocking read (up to the port's timeout), then whatever else is already waiting."""
+    data = ser.read(1)
+    if data:
+        waiting = getattr(ser, "in_waiting", 0)
+        if waiting:
+            data += ser.read(waiting)
+    return data
+
+
+class SerialEndpoint:
+    """Request/reply endpoint on the device side of a serial line.
+
+    Parameters
+    ----------
+    ser : serial.Serial-like
+        Open port.  Its ``timeout`` is set to ``poll_s`` so that loops notice
+        ``stop_event`` promptly.
+    max_payload : int
+        Payload bound for received and sent frames, bytes.
+    partial_timeout_s : float
+        An unfinished frame older than this (s since its last byte) is
+        discarded, so a half-sent frame cannot swallow the next request.
+    poll_s : float
+        Read timeout per poll, s.
+    validate_replies : bool
+        Check handler replies against the command's reply schema; a
+        violation is sent as an INTERNAL error naming the field.
+    clock : callable
+        Monotonic time source in seconds (wall time: serial I/O is real even
+        under the simulator's virtual clock).
+    """
+
+    def __init__(self, ser: Any, *, max_payload: int = DEFAULT_MAX_PAYLOAD,
+                 partial_timeout_s: float = 0.5, poll_s: float = 0.05,
+                 validate_replies: bool = True,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        if not partial_timeout_s > 0:
+            raise ValueError(f"partial_timeout_s must be > 0, got {partial_timeout_s!r}")
+        if not poll_s > 0:
+            raise ValueError(f"poll_s must be > 0, got {poll_s!r}")
+        self.ser = ser
+        self.max_payload = max_payload
+        self.decoder = FrameDecoder(max_payload)
+        self.partial_timeout_s = float(partial_timeout_s)
+        self.poll_s = float(poll_s)
+        self.validate_replies = validate_replies
+        self._clock = clock
+        self._last_rx = clock()
+        self._write_lock = threading.Lock()
+        self.requests_handled = 0
+        self.errors_sent = 0
+        try:
+            ser.timeout = self.poll_s
+        except (AttributeError, ValueError):
+            log.debug("port %r has no settable timeout; polling with its own", ser)
+
+    @property
+    def stats(self) -> DecoderStats:
+        """The decoder's counters (frames, bytes dropped, CRC errors, ...)."""
+        return self.decoder.stats
+
+    # -- receiving -----------------------------------------------------------
+
+    def _read_available(self) -> bytes:
+        return read_available(self.ser)
+
+    def poll(self) -> list[Request]:
+        """Read once (waiting at most ``poll_s``); return the valid requests received.
+
+        Frames that decode but fail validation are answered here with an
+        ERROR reply and not returned.
+        """
+        data = self._read_available()
+        now = self._clock()
+        if data:
+            if self.decoder.pending and now - self._last_rx > self.partial_timeout_s:
+                self._drop_partial()
+            self._last_rx = now
+            frames = self.decoder.feed(data)
+        else:
+            if self.decoder.pending and now - self._last_rx > self.partial_timeout_s:
+                self._drop_partial()
+            return []
+        requests = []
+        for frame in frames:
+            try:
+                requests.append(decode_request(frame))
+            except ProtocolError as exc:
+                log.info("rejected frame id=%d: %s", frame.request_id, exc)
+                self.send_error(frame.request_id, exc.code, exc.message, exc.field)
+        return requests
+
+    def _drop_partial(self) -> None:
+        dropped = self.decoder.discard_partial()
+        log.info("discarded %d bytes of a partial frame after %.3f s silence",
+                 dropped, self.partial_timeout_s)
+
+    def requests(self, stop_event: threading.Event | None = None) -> Iterator[Request]:
+        """Yield valid requests until ``stop_event`` is set (forever if None)."""
+        while stop_event is None or not stop_event.is_set():
+            yield from self.poll()
+
+    # -- sending ---------------------------------------------------------------
+
+    def _write(self, data: bytes) -> None:
+        with self._write_lock:
+            self.ser.write(data)
+            flush = getattr(self.ser, "flush", None)
+            if flush is not None:
+                flush()
+
+    def send_reply(self, request: Request, body: Mapping[str, Any] | None = None) -> None:
+        """Send a successful reply to ``request``.
+
+        Raises
+        ------
+        ProtocolError
+            If ``body`` violates the reply schema or is too large (nothing is sent).
+        """
+        frame = encode_reply(request.command, request.request_id, body,
+                             max_payload=self.max_payload, validate=self.validate_replies)
+        self._write(frame)
+
+    def send_error(self, request_id: int, code: ErrorCode, message: str, field: str | None = None) -> None:
+        """Send an ERROR reply addressed to ``request_id``."""
+        frame = encode_error(request_id, code, message, field, max_payload=self.max_payload)
+        self.errors_sent += 1
+        self._write(frame)
+
+    def handle(self, request: Request, handler: Handler) -> None:
+        """Run ``handler`` on ``request`` and send its reply or an ERROR reply.
+
+        Never raises for handler failures; I/O errors of the port do propagate.
+        """
+        try:
+            body = handler(request)
+        except CommandError as exc:
+            log.info("%s id=%d failed: %s", request.command.name, request.request_id, exc)
+            self.send_error(request.request_id, exc.code, exc.message, exc.field)
+            return
+        except Exception as exc:  # the loop must survive any handler bug
+            log.exception("%s id=%d: handler raised", request.command.name, request.request_id)
+            self.send_error(request.request_id, ErrorCode.INTERNAL, f"{type(exc).__name__}: {exc}")
+            return
+        try:
+            frame = encode_reply(request.command, request.request_id, body,
+                                 max_payload=self.max_payload, validate=self.validate_replies)
+        except ProtocolError as exc:
+            # The handler's reply breaks the schema or the size bound: a
+            # device bug, reported as INTERNAL so the host sees which field.
+            log.error("%s id=%d: bad reply: %s", request.command.name, request.request_id, exc)
+            self.send_error(request.request_id, ErrorCode.INTERNAL, f"bad reply: {exc.message}", exc.field)
+            return
+        except Exception as exc:
+            log.exception("%s id=%d: cannot encode reply", request.command.name, request.request_id)
+            self.send_error(request.request_id, ErrorCode.INTERNAL, f"bad reply: {type(exc).__name__}: {exc}")
+            return
+        self.requests_handled += 1
+        self._write(frame)
+
+    def serve(self, handler: Handler, stop_event: threading.Event) -> None:
+        """Answer requests with ``handler`` until ``stop_event`` is set.
+
+        Requests are handled one at a time in arrival order.  Returns within
+        about ``poll_s`` of ``stop_event`` being set (plus the running
+        handler's duration).  Port errors (e.g. ``serial.SerialException``)
+        propagate to the caller.
+        """
+        for request in self.requests(stop_event):
+            self.handle(request, handler)
+            if stop_event.is_set():
+                break

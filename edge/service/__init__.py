@@ -1,0 +1,1 @@
+"""The daemon: configuration, request handlers, uploads and the process entry point."""

@@ -1,0 +1,424 @@
+"""Daemon configuration: a TOML file, validated key by key, plus runtime overrides.
+
+The file has one table per section; every key is optional and defaults to the
+value in :data:`SCHEMA`. Unknown sections or keys, wrong types and values out
+of range are refused with a :class:`ConfigError` whose ``key`` is the dotted
+name (``"heater.power_W"``). See ``edge/service/thermotouch-edge.example.toml`` for a
+commented example of every key.
+
+Sections
+--------
+board
+    Which board factory (``kind``: ``"rpi"`` or a registered one such as
+    ``"sim"``) and where its devices are (I2C bus, GPIO chip and offsets, PWM
+    root/chip/channel).
+sensors
+    Which chips are fitted, their addresses and settings: the thermocouple
+    converter (``thermocouple``: ``"mcp9600"`` or ``"ads122c04"``) and the
+    heat-flux ADC (``flux_adc``: ``"ads1115"`` or ``"ads122c04"``), the flux
+    sensor's sensitivity, the I2C retry bound.
+heater
+    Supply voltage and film resistance (the power model ``P = d V^2/R``), the
+    default power, and the two safety limits: ``max_on_time_s`` and
+    ``over_temperature_C``.
+measurement
+    Baseline duration, contact (heating) time, sample rate, minimum rest
+    between touches, and the quality-flag thresholds.
+serial
+    Port and baud rate of the host link.
+paths
+    Model store root, factory bundle, history database, runtime-override file.
+estimation
+    Estimation method passed to the estimator.
+logging
+    Log level.
+
+Runtime settings
+----------------
+The keys in :data:`RUNTIME_KEYS` may be changed over the serial link
+(CONFIG_SET). Safety limits are *not* among them: they can only be changed
+in the file on the device. Overrides are validated like the file, checked
+together with the file's values (e.g. ``heater.power_W`` against the
+supply's maximum), and persisted atomically as JSON in
+``paths.runtime_overrides`` by :class:`RuntimeOverrides`.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import os
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType, SimpleNamespace
+from typing import Any, Iterable, Mapping
+
+from edge.storage import durable
+from edge.hw.drivers.heater import heater_power_w
+
+__all__ = [
+    "ConfigError",
+    "Key",
+    "SCHEMA",
+    "RUNTIME_KEYS",
+    "HARD_MAX_ON_TIME_S",
+    "HARD_MAX_TEMPERATURE_C",
+    "Config",
+    "load_config",
+    "RuntimeOverrides",
+]
+
+#: No configuration may let the heater stay on longer than this (s).
+HARD_MAX_ON_TIME_S = 30.0
+#: No configuration may set the over-temperature cut above this (°C).
+HARD_MAX_TEMPERATURE_C = 150.0
+
+
+class ConfigError(ValueError):
+    """A configuration value is wrong; ``key`` is its dotted name (or None)."""
+
+    def __init__(self, key: str | None, message: str) -> None:
+        self.key = key
+        super().__init__(f"{key}: {message}" if key else message)
+
+
+@dataclass(frozen=True)
+class Key:
+    """Schema of one configuration key.
+
+    ``kind`` is ``"int"``, ``"float"``, ``"bool"``, ``"str"`` or ``"int_or_str"``;
+    ``lo``/``hi`` bound numbers (``lo_open`` makes ``lo`` exclusive);
+    ``choices`` restricts the value; ``nullable`` allows an empty string in
+    TOML (TOML has no null) to mean "unset".
+    """
+
+    kind: str
+    default: Any
+    doc: str
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    choices: tuple | None = None
+    runtime: bool = False
+
+
+def _k(kind: str, default: Any, doc: str, **kw: Any) -> Key:
+    return Key(kind, default, doc, **kw)
+
+
+SCHEMA: Mapping[str, Mapping[str, Key]] = MappingProxyType({
+    "board": {
+        "kind": _k("str", "rpi", "board factory name: 'rpi', or 'sim' when the simulator registered it"),
+        "i2c_bus": _k("int_or_str", 1, "I2C bus number or device path", lo=0),
+        "gpio_chip": _k("str", "/dev/gpiochip0", "GPIO character device"),
+        "heater_enable_offset": _k("int", 17, "heater-enable line offset", lo=0, hi=1023),
+        "heater_active_low": _k("bool", False, "heater enable is active low"),
+        "trigger_offset": _k("int", 27, "trigger-button line offset", lo=0, hi=1023),
+        "trigger_active_low": _k("bool", True, "button pulls the line low when pressed"),
+        "pwm_root": _k("str", "/sys/class/pwm", "sysfs PWM class directory"),
+        "pwm_chip": _k("int", 0, "PWM chip number", lo=0, hi=64),
+        "pwm_channel": _k("int", 0, "PWM channel number", lo=0, hi=64),
+    },
+    "sensors": {
+        "thermocouple": _k("str", "mcp9600", "thermocouple converter", choices=("mcp9600", "ads122c04")),
+        "flux_adc": _k("str", "ads1115", "heat-flux sensor ADC", choices=("ads1115", "ads122c04")),
+        "mcp9600_address": _k("int", 0x60, "MCP9600 I2C address", lo=0x60, hi=0x67),
+        "mcp9600_adc_bits": _k("int", 16, "MCP9600 ADC resolution (18: 320 ms, 16: 80 ms per conversion)",
+                               choices=(12, 14, 16, 18)),
+        "ads1115_address": _k("int", 0x48, "ADS1115 I2C address", lo=0x48, hi=0x4B),
+        "ads1115_fsr_V": _k("float", 0.256, "ADS1115 full-scale range, V",
+                            choices=(0.256, 0.512, 1.024, 2.048, 4.096, 6.144)),
+        "ads1115_data_rate_sps": _k("int", 860, "ADS1115 data rate, samples/s",
+                                    choices=(8, 16, 32, 64, 128, 250, 475, 860)),
+        "ads122c04_address": _k("int", 0x40, "ADS122C04 I2C address", lo=0x40, hi=0x4F),
+        "ads122c04_gain": _k("int", 128, "ADS122C04 PGA gain", choices=(1, 2, 4, 8, 16, 32, 64, 128)),
+        "ads122c04_data_rate_sps": _k("int", 1000, "ADS122C04 data rate (normal mode), samples/s",
+                                      choices=(20, 45, 90, 175, 330, 600, 1000)),
+        "flux_sensitivity_V_per_W_m2": _k("float", 0.56e-6, "heat-flux sensor sensitivity, V per W/m^2",
+                                          lo=1e-9, hi=1e-3),
+        "i2c_attempts": _k("int", 4, "tries per I2C transaction before a sensor fault", lo=1, hi=20),
+    },
+    "heater": {
+        "supply_voltage_V": _k("float", 15.0, "heater supply voltage, V", lo=0.0, hi=48.0, lo_open=True),
+        "resistance_ohm": _k("float", 44.0, "heater film resistance, ohm", lo=0.0, hi=1e4, lo_open=True),
+        "power_W": _k("float", 5.0, "default heating power, W (<= V^2/R)", lo=0.0, hi=50.0, lo_open=True,
+                      runtime=True),
+        "max_on_time_s": _k("float", 10.0, "SAFETY: longest the heater may stay on, s",
+                            lo=0.0, hi=HARD_MAX_ON_TIME_S, lo_open=True),
+        "over_temperature_C": _k("float", 80.0, "SAFETY: heater is cut above this thermocouple reading, °C",
+                                 lo=0.0, hi=HARD_MAX_TEMPERATURE_C, lo_open=True),
+        "pwm_period_ns": _k("int", 1_000_000, "PWM period, ns", lo=1000, hi=1_000_000_000),
+    },
+    "measurement": {
+        "baseline_s": _k("float", 0.5, "baseline before heating (T0, flux offset), s",
+                         lo=0.0, hi=10.0, lo_open=True, runtime=True),
+        "contact_time_s": _k("float", 2.0, "heating (contact) time, s; < heater.max_on_time_s",
+                             lo=0.0, hi=HARD_MAX_ON_TIME_S, lo_open=True, runtime=True),
+        "sample_rate_Hz": _k("float", 10.0, "sampling and resampling rate, Hz", lo=1.0, hi=200.0,
+                             runtime=True),
+        "cooldown_s": _k("float", 5.0, "minimum rest between a heater-off and the next heating, s",
+                         lo=0.0, hi=600.0, runtime=True),
+        "no_contact_flux_fraction": _k("float", 0.1, "flag no_contact when mean flux < this x P/A",
+                                       lo=0.0, hi=1.0, runtime=True),
+        "noise_T_K": _k("float", 0.1, "flag noisy when the baseline temperature std exceeds this, K",
+                        lo=0.0, hi=100.0, lo_open=True, runtime=True),
+        "noise_q_W_m2": _k("float", 50.0, "flag noisy when the baseline flux std exceeds this, W/m^2",
+                           lo=0.0, hi=1e6, lo_open=True, runtime=True),
+        "unstable_baseline_K": _k("float", 0.2, "flag unstable_baseline when T drifts more than this "
+                                  "over the baseline, K", lo=0.0, hi=100.0, lo_open=True, runtime=True),
+        "trigger_button": _k("bool", True, "start a measurement when the trigger button is pressed"),
+    },
+    "serial": {
+        "port": _k("str", "/dev/ttyGS0", "serial device of the host link"),
+        "baud": _k("int", 115200, "baud rate", choices=(9600, 19200, 38400, 57600, 115200, 230400,
+                                                         460800, 921600, 1000000)),
+    },
+    "paths": {
+        "model_store": _k("str", "/var/lib/thermotouch/models", "model store root directory"),
+        "factory_model": _k("str", "", "factory bundle directory ('' = the bundle shipped with the package)"),
+        "history_db": _k("str", "/var/lib/thermotouch/history.sqlite3", "SQLite measurement history"),
+        "runtime_overrides": _k("str", "/var/lib/thermotouch/runtime.json",
+                                "where CONFIG_SET persists its values ('' = not persisted)"),
+    },
+    "estimation": {
+        "method": _k("str", "default", "estimation method passed to the estimator", runtime=True),
+    },
+    "logging": {
+        "level": _k("str", "INFO", "log level", choices=("DEBUG", "INFO", "WARNING", "ERROR"), runtime=True),
+    },
+})
+
+#: Dotted keys settable over the link (CONFIG_SET).
+RUNTIME_KEYS: tuple[str, ...] = tuple(
+    f"{s}.{k}" for s, keys in SCHEMA.items() for k, spec in keys.items() if spec.runtime)
+
+
+def _type_name(v: Any) -> str:
+    return "boolean" if isinstance(v, bool) else type(v).__name__
+
+
+def _check_value(key: str, spec: Key, value: Any) -> Any:
+    """Validate one value; return it normalised (ints accepted for floats)."""
+    kind = spec.kind
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise ConfigError(key, f"must be a boolean, got {_type_name(value)} {value!r}")
+    elif kind == "int" or (kind == "int_or_str" and not isinstance(value, str)):
+        if isinstance(value, bool) or not isinstance(value, int):
+            what = "an integer or a string" if kind == "int_or_str" else "an integer"
+            raise ConfigError(key, f"must be {what}, got {_type_name(value)} {value!r}")
+    elif kind == "float":
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(key, f"must be a number, got {_type_name(value)} {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise ConfigError(key, f"must be finite, got {value!r}")
+    elif kind in ("str", "int_or_str"):
+        if not isinstance(value, str):
+            raise ConfigError(key, f"must be a string, got {_type_name(value)} {value!r}")
+        if len(value) > 4096 or "\x00" in value:
+            raise ConfigError(key, "string too long or contains NUL")
+    else:  # pragma: no cover - schema bug
+        raise AssertionError(kind)
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        if spec.lo is not None and (value <= spec.lo if spec.lo_open else value < spec.lo):
+            raise ConfigError(key, f"must be {'>' if spec.lo_open else '>='} {spec.lo:g}, got {value!r}")
+        if spec.hi is not None and value > spec.hi:
+            raise ConfigError(key, f"must be <= {spec.hi:g}, got {value!r}")
+    if spec.choices is not None and value not in spec.choices:
+        raise ConfigError(key, f"must be one of {list(spec.choices)}, got {value!r}")
+    return value
+
+
+def _lookup(key: str) -> Key:
+    if not isinstance(key, str) or key.count(".") != 1:
+        raise ConfigError(str(key), "unknown key (expected 'section.name')")
+    section, name = key.split(".")
+    if section not in SCHEMA:
+        raise ConfigError(key, f"unknown section {section!r}; known: {sorted(SCHEMA)}")
+    if name not in SCHEMA[section]:
+        raise ConfigError(key, f"unknown key; {section} has {sorted(SCHEMA[section])}")
+    return SCHEMA[section][name]
+
+
+def _check_consistency(v: Mapping[str, Mapping[str, Any]]) -> None:
+    """Cross-key rules; each error names the key that has to change."""
+    h, m = v["heater"], v["measurement"]
+    p_max = heater_power_w(1.0, h["supply_voltage_V"], h["resistance_ohm"])
+    if h["power_W"] > p_max * (1 + 1e-12):
+        raise ConfigError("heater.power_W", f"{h['power_W']} W exceeds the supply's maximum V^2/R = {p_max:.4g} W")
+    if m["contact_time_s"] >= h["max_on_time_s"]:
+        raise ConfigError("measurement.contact_time_s",
+                          f"{m['contact_time_s']} s must be below heater.max_on_time_s = {h['max_on_time_s']} s")
+    b = v["board"]
+    if b["heater_enable_offset"] == b["trigger_offset"] and b["kind"] == "rpi":
+        raise ConfigError("board.trigger_offset", "must differ from board.heater_enable_offset")
+    if not v["paths"]["model_store"]:
+        raise ConfigError("paths.model_store", "must not be empty")
+    if not v["paths"]["history_db"]:
+        raise ConfigError("paths.history_db", "must not be empty")
+
+
+class Config:
+    """A validated configuration (immutable; changes give a new object).
+
+    Sections are attributes holding read-only namespaces::
+
+        cfg.heater.power_W, cfg.measurement.sample_rate_Hz
+
+    Parameters
+    ----------
+    values : mapping of section -> mapping of key -> value, optional
+        Values overriding the defaults (e.g. the parsed TOML). Validated.
+    source : str, optional
+        Where the values came from (for messages).
+    """
+
+    def __init__(self, values: Mapping[str, Any] | None = None, *, source: str = "<defaults>") -> None:
+        self.source = source
+        merged: dict[str, dict[str, Any]] = {s: {k: spec.default for k, spec in keys.items()}
+                                             for s, keys in SCHEMA.items()}
+        values = {} if values is None else values
+        if not isinstance(values, Mapping):
+            raise ConfigError(None, f"configuration must be a table, got {_type_name(values)}")
+        for section, table in values.items():
+            if section not in SCHEMA:
+                raise ConfigError(str(section), f"unknown section; known: {sorted(SCHEMA)}")
+            if not isinstance(table, Mapping):
+                raise ConfigError(str(section), f"must be a table, got {_type_name(table)}")
+            for name, value in table.items():
+                key = f"{section}.{name}"
+                spec = _lookup(key)
+                merged[section][name] = _check_value(key, spec, value)
+        _check_consistency(merged)
+        self._values = merged
+
+    # -- access ------------------------------------------------------------------
+    def __getattr__(self, section: str) -> SimpleNamespace:
+        values = self.__dict__.get("_values")
+        if values is None or section not in values:
+            raise AttributeError(section)
+        return SimpleNamespace(**values[section])
+
+    def get(self, key: str) -> Any:
+        """Value of dotted ``key`` (ConfigError if unknown)."""
+        _lookup(key)
+        section, name = key.split(".")
+        return self._values[section][name]
+
+    def to_dict(self) -> dict[str, dict[str, Any]]:
+        """Deep copy as ``{section: {key: value}}``."""
+        return copy.deepcopy(self._values)
+
+    def flat(self, keys: Iterable[str] | None = None) -> dict[str, Any]:
+        """``{"section.key": value}`` for all keys or the given ones."""
+        if keys is None:
+            return {f"{s}.{k}": v for s, t in self._values.items() for k, v in t.items()}
+        return {k: self.get(k) for k in keys}
+
+    def runtime(self) -> dict[str, Any]:
+        """The runtime-settable subset, flat."""
+        return self.flat(RUNTIME_KEYS)
+
+    def with_updates(self, updates: Mapping[str, Any], *, runtime_only: bool = True) -> Config:
+        """A new Config with dotted-key ``updates`` applied and everything re-validated.
+
+        Raises
+        ------
+        ConfigError
+            Unknown key, a key not settable at run time (``runtime_only``),
+            wrong type, out of range, or inconsistent with other keys.
+        """
+        if not isinstance(updates, Mapping):
+            raise ConfigError(None, "updates must be a mapping of 'section.key' to values")
+        values = self.to_dict()
+        for key, value in updates.items():
+            spec = _lookup(key)
+            if runtime_only and not spec.runtime:
+                raise ConfigError(key, "cannot be changed at run time (edit the configuration file)")
+            section, name = key.split(".")
+            values[section][name] = _check_value(key, spec, value)
+        return Config(values, source=self.source)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Config) and other._values == self._values
+
+    def __repr__(self) -> str:
+        return f"<Config from {self.source}>"
+
+
+def load_config(path: str | os.PathLike | None, *, overrides: Mapping[str, Any] | None = None) -> Config:
+    """Read and validate a TOML configuration file (None = defaults only).
+
+    ``overrides`` are dotted runtime keys applied on top (validated).
+
+    Raises
+    ------
+    ConfigError
+        Unreadable file, bad TOML (with line/column), or a bad key.
+    """
+    if path is None:
+        cfg = Config()
+    else:
+        p = Path(path)
+        try:
+            raw = p.read_bytes()
+        except OSError as e:
+            raise ConfigError(None, f"cannot read configuration {p}: {e.strerror or e}") from e
+        try:
+            data = tomllib.loads(raw.decode("utf-8"))
+        except (UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
+            raise ConfigError(None, f"{p}: not valid TOML: {e}") from e
+        cfg = Config(data, source=str(p))
+    if overrides:
+        cfg = cfg.with_updates(overrides)
+    return cfg
+
+
+class RuntimeOverrides:
+    """Persisted CONFIG_SET values: a JSON object of dotted runtime keys.
+
+    Written with write-temp / fsync / rename / fsync-dir, so a power cut
+    leaves the old or the new set. A file that is unreadable or holds
+    values that no longer validate is ignored key by key at load (reported
+    in :attr:`errors`), never fatal: the file configuration still applies.
+
+    Parameters
+    ----------
+    path : path-like or None
+        File location; None keeps overrides in memory only.
+    """
+
+    def __init__(self, path: str | os.PathLike | None) -> None:
+        self.path = Path(path) if path else None
+        self.errors: list[str] = []
+
+    def load(self, base: Config) -> Config:
+        """Apply the stored overrides to ``base``; bad entries are skipped."""
+        self.errors = []
+        if self.path is None or not self.path.exists():
+            return base
+        try:
+            data = json.loads(self.path.read_text("utf-8"))
+            if not isinstance(data, dict):
+                raise ValueError("not a JSON object")
+        except (OSError, ValueError) as e:
+            self.errors.append(f"{self.path}: {e}")
+            return base
+        cfg = base
+        for key, value in data.items():
+            try:
+                cfg = cfg.with_updates({key: value})
+            except ConfigError as e:
+                self.errors.append(str(e))
+        return cfg
+
+    def save(self, cfg: Config, base: Config) -> None:
+        """Persist the runtime keys where ``cfg`` differs from ``base``."""
+        if self.path is None:
+            return
+        diff = {k: v for k, v in cfg.runtime().items() if base.get(k) != v}
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        durable.atomic_write_file(self.path, json.dumps(diff, indent=1, sort_keys=True).encode("utf-8"))

@@ -1,0 +1,1 @@
+"""Durable storage on the device: crash-safe files and the measurement history."""
