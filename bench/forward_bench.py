@@ -20,7 +20,8 @@ import numpy as np
 
 from _common import best_time, rel_err, update_readme, write_json
 from edge.physics.forward import scale_levels, simulate, step_response
-from edge.physics.solids import STACK_040, STACK_042, Solid
+from edge.physics.probe import STACK_040, STACK_042
+from edge.physics.solids import Solid
 from host.materials import load_materials
 
 MATERIALS = {

@@ -22,7 +22,7 @@ import threading
 from dataclasses import dataclass, field
 from typing import Any
 
-from edge.hw.drivers.heater import HEATER_AREA_M2
+from edge.physics.probe import HEATER_AREA_m2
 from firmware_sim.bus import SimBus
 from firmware_sim.chips.ads1115 import ADS1115 as SimADS1115
 from firmware_sim.chips.mcp9600 import MCP9600 as SimMCP9600
@@ -79,7 +79,7 @@ class World:
     def _advance(self, t_old: float, t_new: float) -> None:
         p = self.heater_power_W()
         with self._lock:
-            q = p / HEATER_AREA_M2 if self.contact else 0.0
+            q = p / HEATER_AREA_m2 if self.contact else 0.0
             if not self.contact:
                 self._lump_K += p * (t_new - t_old) / self.C_film_J_K
             elif self._lump_K:

@@ -88,7 +88,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-from edge.physics.solids import STACKS, ProbeStack, Solid
+from edge.physics.probe import FLUX_SENSITIVITY_V_per_W_m2, STACKS, ProbeStack
+from edge.physics.solids import Solid
 
 __all__ = [
     "FAULT_KINDS",
@@ -184,9 +185,9 @@ class HeaterSpec:
     @property
     def max_power_W(self) -> float:
         """Power at full duty, V**2 / R (W)."""
-        from edge.hw.drivers.heater import heater_power_w  # noqa: PLC0415
+        from edge.physics.probe import heater_power_W  # noqa: PLC0415
 
-        return heater_power_w(1.0, self.supply_voltage_V, self.resistance_ohm)
+        return heater_power_W(1.0, self.supply_voltage_V, self.resistance_ohm)
 
 
 @dataclass(frozen=True)
@@ -215,7 +216,7 @@ class SensorSpec:
     """Sensor characteristics and noise (SI)."""
 
     thermocouple_time_constant_s: float = 0.0
-    flux_sensitivity_V_per_W_m2: float = 0.56e-6
+    flux_sensitivity_V_per_W_m2: float = FLUX_SENSITIVITY_V_per_W_m2
     flux_range_W_m2: float = 10_000.0
     mcp9600_emf_noise_rms_V: float = 0.0
     ads1115_noise_rms_V: float = 0.0

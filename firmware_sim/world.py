@@ -51,7 +51,7 @@ from typing import NamedTuple, Protocol, Sequence
 import numpy as np
 
 from edge.physics import laplace, typek
-from edge.hw.drivers.heater import heater_power_w
+from edge.physics.probe import heater_power_W
 from edge.physics.schedule import PowerSchedule
 from edge.physics.solids import Solid
 
@@ -219,7 +219,7 @@ class ThermalWorld:
 
     def heater_power_W(self, t_s: float) -> float:
         """Electrical power in the film at ``t_s`` (W)."""
-        return heater_power_w(self.duty_at(t_s), self.supply_voltage_at(t_s), self.scene.heater.resistance_ohm)
+        return heater_power_W(self.duty_at(t_s), self.supply_voltage_at(t_s), self.scene.heater.resistance_ohm)
 
     def q_v_at(self, t_s: float) -> float:
         """Heater power density at ``t_s`` (W/m^3)."""

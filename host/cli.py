@@ -82,7 +82,7 @@ def _solid_from_args(args):
 
 def cmd_model(args) -> int:
     from edge.physics.forward import simulate
-    from edge.physics.solids import STACKS
+    from edge.physics.probe import STACKS
 
     solid, name = _solid_from_args(args)
     try:

@@ -25,7 +25,8 @@ import numpy as np
 from edge.estimation.features import FEATURE_VERSION, paper_features
 from edge.physics.forward import step_response
 from edge.measure.instrument import INSTRUMENTS
-from edge.physics.solids import STACKS, Solid
+from edge.physics.probe import STACKS
+from edge.physics.solids import Solid
 from edge.estimation.spline import resample
 from host.materials import MaterialLibrary
 

@@ -20,7 +20,8 @@ import numpy as np
 from edge.estimation.estimate import Estimator
 from edge.physics.forward import simulate
 from edge.measure.instrument import INSTRUMENTS
-from edge.physics.solids import DEFAULT_STACK, Solid
+from edge.physics.probe import DEFAULT_STACK
+from edge.physics.solids import Solid
 
 HEATER_RESISTANCE_OHM = 50.0
 SAMPLES = {

@@ -138,13 +138,13 @@ def host_bundle(model_sha256: str | None, *, bundle_dir: str | Path | None = Non
 
 def reestimate(bundle: Any, series: dict, methods=("default", "paper")) -> dict:
     """Estimates of ``series`` (a record with its grid series) by ``methods`` with ``bundle``."""
-    from edge.hw.drivers.heater import volumetric_heat_w_m3  # noqa: PLC0415
+    from edge.physics.probe import volumetric_heat_W_m3  # noqa: PLC0415
     from edge.estimation.estimate import Estimator  # noqa: PLC0415
 
     if bundle is None or series.get("grid_t_s") is None:
         return {}
     est = Estimator.from_bundle(bundle)
-    q_v = volumetric_heat_w_m3(series["power_W"]) if series.get("power_W") else None
+    q_v = volumetric_heat_W_m3(series["power_W"]) if series.get("power_W") else None
     out = {}
     for m in methods:
         if m == "paper" and not est.has_paper:

@@ -9,7 +9,8 @@ from edge.physics import fvm, laplace
 from edge.physics.forward import scale_levels, simulate, step_response
 from edge.physics.integrators import ModalSolver, explicit_march
 from edge.physics.schedule import PowerSchedule
-from edge.physics.solids import STACK_040, STACK_042, Solid
+from edge.physics.probe import STACK_040, STACK_042
+from edge.physics.solids import Solid
 
 GLASS = Solid(1.097, 2458.4, 809.0)
 PMMA = Solid(0.185, 1178.35, 1429.0)

@@ -4,16 +4,14 @@ import errno
 
 import pytest
 
-from edge.hw.drivers.heater import (
-    HEATER_AREA_M2,
-    HEATER_THICKNESS_M,
-    Heater,
-    HeaterError,
-    HeaterOffError,
+from edge.physics.probe import (
+    HEATER_AREA_m2,
+    HEATER_THICKNESS_m,
     duty_for_power,
-    heater_power_w,
-    volumetric_heat_w_m3,
+    heater_power_W,
+    volumetric_heat_W_m3,
 )
+from edge.hw.drivers.heater import Heater, HeaterError, HeaterOffError
 from edge.hw.sysfs_pwm import PwmError
 from firmware_sim.sim_board import make_sim_board
 
@@ -54,17 +52,17 @@ class Failing:
 
 
 def test_power_model():
-    assert heater_power_w(0.5, 12.0, 24.0) == pytest.approx(3.0)
+    assert heater_power_W(0.5, 12.0, 24.0) == pytest.approx(3.0)
     assert duty_for_power(1.5, 12.0, 24.0) == pytest.approx(0.25)
-    assert HEATER_AREA_M2 == pytest.approx(55e-3 * 60e-3)
-    assert volumetric_heat_w_m3(3.3) == pytest.approx(3.3 / (3.3e-3 * 20e-6))
-    assert HEATER_THICKNESS_M == 20e-6
+    assert HEATER_AREA_m2 == pytest.approx(55e-3 * 60e-3)
+    assert volumetric_heat_W_m3(3.3) == pytest.approx(3.3 / (3.3e-3 * 20e-6))
+    assert HEATER_THICKNESS_m == 20e-6
     with pytest.raises(ValueError, match="exceeds the maximum"):
         duty_for_power(7.0, 12.0, 24.0)
     with pytest.raises(ValueError, match="resistance_ohm"):
-        heater_power_w(0.5, 12.0, 0.0)
+        heater_power_W(0.5, 12.0, 0.0)
     with pytest.raises(ValueError, match="duty"):
-        heater_power_w(1.2, 12.0, 24.0)
+        heater_power_W(1.2, 12.0, 24.0)
 
 
 # ---- normal operation

@@ -5,7 +5,7 @@ import pytest
 
 from daemon_testutil import FakeEstimator, assert_heater_safe, make_sequence
 from edge.service.config import Config
-from edge.hw.drivers.heater import HEATER_AREA_M2, volumetric_heat_w_m3
+from edge.physics.probe import HEATER_AREA_m2, volumetric_heat_W_m3
 from edge.measure.sequence import MeasurementParams, quality_flags, resample_uniform
 from firmware_sim.daemon_rig import heater_on_intervals
 
@@ -34,8 +34,8 @@ def test_normal_measurement_on_glass():
     # The estimator got a uniform grid at the sample rate, flux near P/A, and the heater's q_v.
     t, dT, q, q_v, method = est.calls[0]
     assert np.allclose(np.diff(t), 0.1) and t[0] == pytest.approx(0.1)
-    assert np.mean(q) == pytest.approx(params.power_W / HEATER_AREA_M2, rel=0.02)
-    assert q_v == pytest.approx(volumetric_heat_w_m3(params.power_W)) and method == "default"
+    assert np.mean(q) == pytest.approx(params.power_W / HEATER_AREA_m2, rel=0.02)
+    assert q_v == pytest.approx(volumetric_heat_W_m3(params.power_W)) and method == "default"
     assert out.result["effusivity_W_s05_m2K"] == pytest.approx(1400.0, rel=0.15)
     assert est.heater_on_at_call == [False]
     assert out.raw_t_s.size == out.raw_T_C.size == out.raw_q_W_m2.size > 20

@@ -45,7 +45,8 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from edge.hw.drivers.heater import HEATER_AREA_M2, Heater, HeaterOffError, volumetric_heat_w_m3
+from edge.physics.probe import HEATER_AREA_m2, volumetric_heat_W_m3
+from edge.hw.drivers.heater import Heater, HeaterOffError
 from edge.hw.faults import SensorFault
 from edge.storage.history import utc_now
 from edge.estimation.spline import resample
@@ -316,7 +317,7 @@ def quality_flags(base_t: np.ndarray, base_T: np.ndarray, base_q: np.ndarray, he
     flags = []
     if heat_q.size and power_W > 0:
         q_in = float(np.mean(heat_q))
-        if q_in < thresholds.no_contact_flux_fraction * power_W / HEATER_AREA_M2:
+        if q_in < thresholds.no_contact_flux_fraction * power_W / HEATER_AREA_m2:
             flags.append("no_contact")
     if saturated:
         flags.append("saturated")
@@ -639,7 +640,7 @@ class MeasurementSequence:
         except Exception:
             out.model_sha256 = None
         try:
-            res = dict(self.estimator(g_t, g_dT, g_q, volumetric_heat_w_m3(params.power_W), params.method))
+            res = dict(self.estimator(g_t, g_dT, g_q, volumetric_heat_W_m3(params.power_W), params.method))
         except Exception as e:
             out.status, out.reason = "failed", "estimation_failed"
             out.error, out.exception = f"{type(e).__name__}: {e}", e

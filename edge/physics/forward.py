@@ -44,7 +44,8 @@ from edge.checks import (
 )
 from edge.physics.integrators import ModalSolver, explicit_march
 from edge.physics.schedule import PowerSchedule
-from edge.physics.solids import DEFAULT_STACK, ProbeStack, Solid
+from edge.physics.probe import DEFAULT_STACK, ProbeStack
+from edge.physics.solids import Solid
 
 SCHEMES = ("paper", "explicit", "default", "exact")
 PAPER_DX_M = 40e-6

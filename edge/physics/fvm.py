@@ -30,7 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from edge.checks import finite_positive, one_of
-from edge.physics.solids import ProbeStack, Solid
+from edge.physics.probe import ProbeStack
+from edge.physics.solids import Solid
 
 BACKS = ("fixed", "insulated", "infinite")
 

@@ -16,7 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from edge.checks import finite_array, finite_nonnegative, one_of
-from edge.physics.solids import ProbeStack, Solid
+from edge.physics.probe import ProbeStack
+from edge.physics.solids import Solid
 
 _M_TALBOT = 24
 

@@ -56,7 +56,7 @@ from types import MappingProxyType, SimpleNamespace
 from typing import Any, Iterable, Mapping
 
 from edge.storage import durable
-from edge.hw.drivers.heater import heater_power_w
+from edge.physics.probe import FLUX_SENSITIVITY_V_per_W_m2, heater_power_W
 
 __all__ = [
     "ConfigError",
@@ -136,7 +136,7 @@ SCHEMA: Mapping[str, Mapping[str, Key]] = MappingProxyType({
         "ads122c04_gain": _k("int", 128, "ADS122C04 PGA gain", choices=(1, 2, 4, 8, 16, 32, 64, 128)),
         "ads122c04_data_rate_sps": _k("int", 1000, "ADS122C04 data rate (normal mode), samples/s",
                                       choices=(20, 45, 90, 175, 330, 600, 1000)),
-        "flux_sensitivity_V_per_W_m2": _k("float", 0.56e-6, "heat-flux sensor sensitivity, V per W/m^2",
+        "flux_sensitivity_V_per_W_m2": _k("float", FLUX_SENSITIVITY_V_per_W_m2, "heat-flux sensor sensitivity, V per W/m^2",
                                           lo=1e-9, hi=1e-3),
         "i2c_attempts": _k("int", 4, "tries per I2C transaction before a sensor fault", lo=1, hi=20),
     },
@@ -246,7 +246,7 @@ def _lookup(key: str) -> Key:
 def _check_consistency(v: Mapping[str, Mapping[str, Any]]) -> None:
     """Cross-key rules; each error names the key that has to change."""
     h, m = v["heater"], v["measurement"]
-    p_max = heater_power_w(1.0, h["supply_voltage_V"], h["resistance_ohm"])
+    p_max = heater_power_W(1.0, h["supply_voltage_V"], h["resistance_ohm"])
     if h["power_W"] > p_max * (1 + 1e-12):
         raise ConfigError("heater.power_W", f"{h['power_W']} W exceeds the supply's maximum V^2/R = {p_max:.4g} W")
     if m["contact_time_s"] >= h["max_on_time_s"]:

@@ -56,7 +56,8 @@ import numpy as np
 import edge
 from edge.hw.board import Board, make_board
 from edge.service.config import RUNTIME_KEYS, Config, ConfigError, RuntimeOverrides, load_config
-from edge.hw.drivers.heater import Heater, HeaterError, HeaterOffError, heater_power_w
+from edge.hw.drivers.heater import Heater, HeaterError, HeaterOffError
+from edge.physics.probe import heater_power_W
 from edge.hw.faults import SensorFault
 from edge.storage.history import History
 from edge.protocol.endpoint import SerialEndpoint
@@ -368,7 +369,7 @@ class Daemon:
             if voltage_V > h.supply_voltage_V:
                 raise CommandError(ErrorCode.BAD_ARGUMENT, f"voltage_V={voltage_V} exceeds the supply "
                                    f"{h.supply_voltage_V} V", "voltage_V")
-            power_W = heater_power_w(1.0, voltage_V, h.resistance_ohm)
+            power_W = heater_power_W(1.0, voltage_V, h.resistance_ohm)
         power = h.power_W if power_W is None else power_W
         if power > self.heater.max_power_w * (1 + 1e-12):
             raise CommandError(ErrorCode.BAD_ARGUMENT, f"power_W={power} exceeds the heater's maximum "

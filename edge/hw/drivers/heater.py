@@ -18,88 +18,12 @@ import math
 import threading
 from typing import Any
 
-from edge.physics.solids import DEFAULT_STACK, ProbeStack
+from edge.checks import positive_number, unit_fraction
+from edge.physics.probe import duty_for_power, heater_power_W
 
-__all__ = [
-    "HEATER_THICKNESS_M",
-    "HEATER_AREA_M2",
-    "HEATER_VOLUME_M3",
-    "heater_power_w",
-    "duty_for_power",
-    "volumetric_heat_w_m3",
-    "HeaterError",
-    "HeaterOffError",
-    "Heater",
-]
+__all__ = ["HeaterError", "HeaterOffError", "Heater"]
 
 log = logging.getLogger(__name__)
-
-# The heater's geometry has one home, the probe stack (edge.physics.solids); these are views of it.
-HEATER_AREA_M2 = DEFAULT_STACK.heater_area_m2
-HEATER_THICKNESS_M = DEFAULT_STACK.heater_thickness_m
-HEATER_VOLUME_M3 = HEATER_AREA_M2 * HEATER_THICKNESS_M
-
-
-def _positive(name: str, v: Any) -> float:
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a number, got {v!r}") from None
-    if not (f > 0 and math.isfinite(f)):
-        raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
-    return f
-
-
-def _duty(name: str, v: Any) -> float:
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a number, got {v!r}") from None
-    if not 0.0 <= f <= 1.0:
-        raise ValueError(f"{name} must be in [0, 1], got {v!r}")
-    return f
-
-
-def heater_power_w(duty: float, supply_voltage_v: float, resistance_ohm: float) -> float:
-    """Mean electrical power (W) at PWM duty ``duty`` (0..1): ``d * V**2 / R``."""
-    d = _duty("duty", duty)
-    v = _positive("supply_voltage_v", supply_voltage_v)
-    r = _positive("resistance_ohm", resistance_ohm)
-    return d * v * v / r
-
-
-def duty_for_power(power_w: float, supply_voltage_v: float, resistance_ohm: float) -> float:
-    """PWM duty (0..1) that gives mean power ``power_w`` (W).
-
-    Raises ValueError if the supply cannot deliver that much (duty > 1).
-    """
-    p = float(power_w)
-    if not (p >= 0 and math.isfinite(p)):
-        raise ValueError(f"power_w must be a finite number >= 0, got {power_w!r}")
-    v = _positive("supply_voltage_v", supply_voltage_v)
-    r = _positive("resistance_ohm", resistance_ohm)
-    p_max = v * v / r
-    if p > p_max * (1 + 1e-12):
-        raise ValueError(
-            f"power_w={p} W exceeds the maximum {p_max:.6g} W of a {r} ohm heater on {v} V"
-        )
-    return min(1.0, p / p_max)
-
-
-def volumetric_heat_w_m3(
-    power_w: float,
-    *,
-    area_m2: float = HEATER_AREA_M2,
-    thickness_m: float = HEATER_THICKNESS_M,
-) -> float:
-    """Volumetric heat source q_v (W/m^3) of power ``power_w`` spread over the film."""
-    p = float(power_w)
-    if not (p >= 0 and math.isfinite(p)):
-        raise ValueError(f"power_w must be a finite number >= 0, got {power_w!r}")
-    stack = ProbeStack(heater_thickness_m=_positive("thickness_m", thickness_m),
-                       heater_area_m2=_positive("area_m2", area_m2))
-    return stack.q_v_from_power(p)
-
 
 class HeaterError(RuntimeError):
     """A heater command failed."""
@@ -162,11 +86,11 @@ class Heater:
         max_pulse_s: float | None = None,
         consumer: str = "thermotouch-heater",
     ) -> None:
-        self.supply_voltage_v = _positive("supply_voltage_v", supply_voltage_v)
-        self.resistance_ohm = _positive("resistance_ohm", resistance_ohm)
+        self.supply_voltage_v = positive_number("supply_voltage_v", supply_voltage_v)
+        self.resistance_ohm = positive_number("resistance_ohm", resistance_ohm)
         if isinstance(pwm_period_ns, bool) or not isinstance(pwm_period_ns, int) or pwm_period_ns <= 0:
             raise ValueError(f"pwm_period_ns must be an int > 0, got {pwm_period_ns!r}")
-        self.max_pulse_s = None if max_pulse_s is None else _positive("max_pulse_s", max_pulse_s)
+        self.max_pulse_s = None if max_pulse_s is None else positive_number("max_pulse_s", max_pulse_s)
         self.pwm_period_ns = pwm_period_ns
         self._line = board.heater_enable
         self._pwm = board.pwm
@@ -199,7 +123,7 @@ class Heater:
 
     def power_for_duty(self, duty: float) -> float:
         """Mean power (W) at ``duty``."""
-        return heater_power_w(duty, self.supply_voltage_v, self.resistance_ohm)
+        return heater_power_W(duty, self.supply_voltage_v, self.resistance_ohm)
 
     def duty_for_power(self, power_w: float) -> float:
         """Duty (0..1) that gives ``power_w`` (W)."""
@@ -250,7 +174,7 @@ class Heater:
 
         Any failure switches the heater off (both channels) before raising.
         """
-        d = _duty("duty", duty)
+        d = unit_fraction("duty", duty)
         if d == 0.0:
             raise ValueError("duty must be > 0 to switch on; use off()")
         with self._lock:
@@ -319,7 +243,7 @@ class Heater:
         The heater is switched off on every exit path. Returns the on-time
         of this pulse (s).
         """
-        dur = _positive("duration_s", duration_s)
+        dur = positive_number("duration_s", duration_s)
         if self.max_pulse_s is not None and dur > self.max_pulse_s:
             raise ValueError(f"duration_s={dur} s exceeds max_pulse_s={self.max_pulse_s} s")
         before = self.on_time_s
