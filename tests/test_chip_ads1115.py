@@ -1,6 +1,7 @@
 import pytest
 
-from edge.hw.drivers.ads1115 import ADS1115, PGA_FSR_V, REGISTERS, code_to_volts, volts_to_code
+from edge.hw.drivers.ads1115 import ADS1115
+from edge.hw.regmaps.ads1115 import PGA_FSR_V, REGISTERS, code_to_volts, volts_to_code
 from edge.hw.faults import SensorFault
 from firmware_sim.bus import SimBus
 from firmware_sim.chips.ads1115 import ADS1115 as ADS1115Chip

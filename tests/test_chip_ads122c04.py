@@ -1,8 +1,8 @@
 import pytest
 
 from edge.physics import typek
-from edge.hw.drivers.ads122c04 import (
-    ADS122C04,
+from edge.hw.drivers.ads122c04 import ADS122C04
+from edge.hw.regmaps.ads122c04 import (
     REGISTERS,
     code_to_volts,
     conversion_time_s,

@@ -4,7 +4,8 @@ import pytest
 from smbus2 import i2c_msg
 
 from edge.physics import typek
-from edge.hw.drivers.mcp9600 import MCP9600, REGISTERS
+from edge.hw.drivers.mcp9600 import MCP9600
+from edge.hw.regmaps.mcp9600 import REGISTERS
 from edge.hw.faults import SensorFault
 from firmware_sim.bus import SimBus
 from firmware_sim.chips.mcp9600 import MCP9600 as MCP9600Chip

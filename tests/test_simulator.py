@@ -13,7 +13,8 @@ from edge.hw.board import make_board
 from edge.hw.drivers.ads1115 import ADS1115
 from edge.hw.drivers.ads122c04 import ADS122C04
 from edge.hw.drivers.heater import Heater
-from edge.hw.drivers.mcp9600 import CONVERSION_TIME_S, MCP9600
+from edge.hw.regmaps.mcp9600 import CONVERSION_TIME_S
+from edge.hw.drivers.mcp9600 import MCP9600
 from edge.hw.faults import SensorFault
 from firmware_sim import SceneError, Simulator, load_scene
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from edge.hw.drivers.mcp9600 import adc_step_V
+from edge.hw.regmaps.mcp9600 import adc_step_V
 from edge.physics.probe import FLUX_SENSITIVITY_V_per_W_m2
 from edge.physics.typek import seebeck_uV_per_K
 

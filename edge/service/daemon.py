@@ -133,7 +133,7 @@ class ModelEstimator:
 
 def thermocouple_resolution_K(sensors: Any) -> float:
     """Temperature step (K) of the configured thermocouple converter near room temperature."""
-    from edge.hw.drivers.mcp9600 import adc_step_V  # noqa: PLC0415
+    from edge.hw.regmaps.mcp9600 import adc_step_V  # noqa: PLC0415
     from edge.measure.instrument import ADS122C04_STEP_V, TYPE_K_SEEBECK_V_PER_K  # noqa: PLC0415
 
     if sensors.thermocouple == "mcp9600":

@@ -29,7 +29,8 @@ from typing import Callable
 
 import numpy as np
 
-from edge.hw.drivers.ads1115 import CODE_MAX, CODE_MIN, PGA_FSR_V, REGISTERS
+from edge.hw.regmaps.ads1115 import CODE_MAX, CODE_MIN
+from edge.hw.regmaps.ads1115 import PGA_FSR_V, REGISTERS
 
 _EPS = 1e-9
 _MAX_BACKLOG = 64

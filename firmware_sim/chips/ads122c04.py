@@ -27,9 +27,8 @@ from typing import Callable
 
 import numpy as np
 
-from edge.hw.drivers.ads122c04 import (
-    CODE_MAX,
-    CODE_MIN,
+from edge.hw.regmaps.ads122c04 import CODE_MAX, CODE_MIN
+from edge.hw.regmaps.ads122c04 import (
     INTERNAL_VREF_V,
     MUX,
     REGISTERS,

@@ -42,7 +42,7 @@ from typing import Callable
 import numpy as np
 
 from edge.physics import typek
-from edge.hw.drivers.mcp9600 import (
+from edge.hw.regmaps.mcp9600 import (
     COLD_JUNCTION_TIME_S,
     CONVERSION_TIME_S,
     DEVICE_ID,

@@ -14,7 +14,6 @@ duty d, dissipates ``P = d * V**2 / R`` (W); spread over the 55 x 60 mm,
 from __future__ import annotations
 
 import logging
-import math
 import threading
 from typing import Any
 
