@@ -30,19 +30,10 @@ import numpy as np
 import serial
 
 from edge.protocol.endpoint import read_available
-from edge.protocol.messages import (
-    CHUNK_HEADER_SIZE,
-    COMMANDS,
-    DEFAULT_MAX_PAYLOAD,
-    Command,
-    ErrorCode,
-    ErrorReply,
-    FrameDecoder,
-    SERIES_KINDS,
-    ProtocolError,
-    decode_reply,
-    encode_request,
-)
+from edge.protocol.messages import CHUNK_HEADER_SIZE, ErrorReply, decode_reply, encode_request
+from edge.protocol.commands import COMMANDS, Command, SERIES_KINDS
+from edge.protocol.frame import DEFAULT_MAX_PAYLOAD, FrameDecoder
+from edge.protocol.errors import ErrorCode, ProtocolError
 
 __all__ = [
     "ClientError", "PortUnavailable", "DeviceNotAnswering", "DeviceError", "BadReply",
@@ -200,7 +191,7 @@ class DeviceClient:
         command : Command or str
             Command (enum or name, e.g. ``"INFO"``).
         args : mapping, optional
-            Arguments per :data:`edge.protocol.messages.COMMANDS`; validated before sending.
+            Arguments per :data:`edge.protocol.commands.COMMANDS`; validated before sending.
         timeout_s : float, optional
             Per-attempt timeout, s (default: the client's).
         retries : int, optional

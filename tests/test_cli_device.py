@@ -228,7 +228,8 @@ def test_bundle_refused_locally(capsys, tmp_path):
 
 
 def test_bundle_refused_by_the_device_is_one_line():
-    from edge.protocol.messages import Command, ErrorCode
+    from edge.protocol.commands import Command
+    from edge.protocol.errors import ErrorCode
     from host.client import DeviceError
 
     line = describe_error(DeviceError(ErrorCode.MODEL_REJECTED, "golden check failed", None, Command.MODEL_COMMIT),

@@ -14,7 +14,10 @@ from daemon_testutil import FakeEstimator, assert_heater_safe, sim_config
 from edge.model import bundle as B
 from edge.service.config import Config
 from edge.service.daemon import FIRMWARE_VERSION, DaemonThread, main
-from edge.protocol.messages import Command, ErrorCode, encode_frame, encode_request
+from edge.protocol.commands import Command
+from edge.protocol.errors import ErrorCode
+from edge.protocol.frame import encode_frame
+from edge.protocol.messages import encode_request
 from firmware_sim.daemon_rig import make_rig
 from firmware_sim.ptylink import NullModem
 from host.client import DeviceClient, DeviceError
@@ -346,13 +349,9 @@ def test_fuzzed_requests_get_a_reply_or_a_clean_error(tmp_path):
     from hypothesis import strategies as st
 
     from edge.service.daemon import Daemon
-    from edge.protocol.messages import (
-        CommandError,
-        Frame,
-        ProtocolError,
-        decode_request,
-        encode_reply,
-    )
+    from edge.protocol.errors import CommandError, ProtocolError
+    from edge.protocol.frame import Frame
+    from edge.protocol.messages import decode_request, encode_reply
 
     rig = make_rig()
     d = Daemon(sim_config(tmp_path, measurement={"cooldown_s": 0.0, "baseline_s": 0.2}), rig.board,

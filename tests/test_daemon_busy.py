@@ -16,15 +16,10 @@ import serial
 from daemon_testutil import FakeEstimator, HookedSensors, assert_heater_safe, sim_config
 from edge.service.config import Config
 from edge.service.daemon import Daemon, DaemonThread
-from edge.protocol.messages import (
-    Command,
-    ErrorCode,
-    ErrorReply,
-    FrameDecoder,
-    Reply,
-    decode_reply,
-    encode_request,
-)
+from edge.protocol.commands import Command
+from edge.protocol.errors import ErrorCode
+from edge.protocol.messages import ErrorReply, Reply, decode_reply, encode_request
+from edge.protocol.frame import FrameDecoder
 from firmware_sim.daemon_rig import make_rig
 from firmware_sim.ptylink import NullModem
 
@@ -234,7 +229,7 @@ def test_keyboard_interrupt_in_the_serve_loop_stops_the_measurement(tmp_path):
 
 
 def test_direct_measure_calls_do_not_overlap(tmp_path):
-    from edge.protocol.messages import CommandError
+    from edge.protocol.errors import CommandError
 
     rig = make_rig()
     d = Daemon(sim_config(tmp_path), rig.board, estimator=FakeEstimator())

@@ -7,31 +7,33 @@ import zlib
 
 import pytest
 
-from edge.protocol.messages import (
+from edge.protocol.commands import (
     COMMANDS,
-    CHUNK_HEADER_SIZE,
-    PROTOCOL_VERSION,
     Command,
-    ErrorCode,
-    ErrorReply,
-    Frame,
-    FrameDecoder,
     MsgType,
-    ProtocolError,
-    Reply,
-    cobs_decode,
-    cobs_encode,
-    decode_reply,
-    decode_request,
-    encode_error,
-    encode_frame,
-    encode_reply,
-    encode_request,
-    max_encoded_size,
     reply_type,
     validate_args,
     validate_reply,
 )
+from edge.protocol.messages import (
+    CHUNK_HEADER_SIZE,
+    ErrorReply,
+    Reply,
+    decode_reply,
+    decode_request,
+    encode_error,
+    encode_reply,
+    encode_request,
+)
+from edge.protocol.frame import (
+    PROTOCOL_VERSION,
+    Frame,
+    FrameDecoder,
+    encode_frame,
+    max_encoded_size,
+)
+from edge.protocol.errors import ErrorCode, ProtocolError
+from edge.protocol.cobs import cobs_decode, cobs_encode
 
 SHA = "ab" * 32
 

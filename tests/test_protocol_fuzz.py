@@ -3,16 +3,10 @@
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from edge.protocol.messages import (
-    Command,
-    Frame,
-    FrameDecoder,
-    ProtocolError,
-    decode_reply,
-    decode_request,
-    encode_frame,
-    max_encoded_size,
-)
+from edge.protocol.commands import Command
+from edge.protocol.frame import Frame, FrameDecoder, encode_frame, max_encoded_size
+from edge.protocol.errors import ProtocolError
+from edge.protocol.messages import decode_reply, decode_request
 
 MAX_PAYLOAD = 256
 FUZZ = settings(max_examples=150, deadline=None, derandomize=True,

@@ -9,16 +9,11 @@ import pytest
 import serial
 
 from edge.protocol.endpoint import SerialEndpoint
-from edge.protocol.messages import (
-    Command,
-    CommandError,
-    ErrorCode,
-    FrameDecoder,
-    cobs_encode,
-    decode_reply,
-    encode_frame,
-    encode_request,
-)
+from edge.protocol.commands import Command
+from edge.protocol.errors import CommandError, ErrorCode
+from edge.protocol.frame import FrameDecoder, encode_frame
+from edge.protocol.cobs import cobs_encode
+from edge.protocol.messages import decode_reply, encode_request
 from firmware_sim.ptylink import NullModem
 from host.client import (
     BadReply,

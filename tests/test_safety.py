@@ -26,7 +26,9 @@ from daemon_testutil import (
 from edge.service.config import Config
 from edge.service.daemon import Daemon, DaemonThread, install_signal_handlers
 from edge.storage.history import History
-from edge.protocol.messages import Command, CommandError, ErrorCode, encode_request
+from edge.protocol.commands import Command
+from edge.protocol.errors import CommandError, ErrorCode
+from edge.protocol.messages import encode_request
 from edge.measure.sequence import make_sensors
 from firmware_sim.daemon_rig import make_rig
 from firmware_sim.ptylink import NullModem

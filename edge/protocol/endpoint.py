@@ -21,18 +21,9 @@ import threading
 import time
 from typing import Any, Callable, Iterator, Mapping
 
-from edge.protocol.messages import (
-    DEFAULT_MAX_PAYLOAD,
-    CommandError,
-    ErrorCode,
-    FrameDecoder,
-    DecoderStats,
-    ProtocolError,
-    Request,
-    decode_request,
-    encode_error,
-    encode_reply,
-)
+from edge.protocol.frame import DEFAULT_MAX_PAYLOAD, FrameDecoder, DecoderStats
+from edge.protocol.errors import CommandError, ErrorCode, ProtocolError
+from edge.protocol.messages import Request, decode_request, encode_error, encode_reply
 
 __all__ = ["SerialEndpoint", "Handler"]
 

@@ -62,14 +62,10 @@ from edge.hw.faults import SensorFault
 from edge.storage.history import History
 from edge.protocol.endpoint import SerialEndpoint
 from edge.model.store import InstallError, ModelStore, ModelStoreError
-from edge.protocol.messages import (
-    DEFAULT_MAX_PAYLOAD,
-    PROTOCOL_VERSION,
-    Command,
-    CommandError,
-    ErrorCode,
-    Request,
-)
+from edge.protocol.frame import DEFAULT_MAX_PAYLOAD, PROTOCOL_VERSION
+from edge.protocol.commands import Command
+from edge.protocol.errors import CommandError, ErrorCode
+from edge.protocol.messages import Request
 from edge.measure.sequence import (
     EstimatorFn,
     HeaterWatchdog,
