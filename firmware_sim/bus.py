@@ -26,6 +26,13 @@ transaction delivers the bytes after the address, a read transaction asks for
 
 Fault injection (all windows in virtual seconds on ``clock``):
 :meth:`nack`, :meth:`stuck`, :meth:`flaky`, :meth:`clear_faults`.
+
+Time: a clock with ``bus_transaction(n_bytes, n_segments)`` (a
+:class:`firmware_sim.clock.BusClock`) is told about every transaction after it
+ends -- a failed one (NACK, stuck bus) counts as its address byte only -- and
+advances by the transaction's wire time. ``bit_rate_hz`` instead makes each
+successful transaction ``clock.sleep`` its wire time (on a wall clock that
+really takes the time).
 """
 
 from __future__ import annotations
@@ -39,6 +46,8 @@ from dataclasses import dataclass
 from typing import Protocol, Sequence
 
 import numpy as np
+
+from firmware_sim.clock import i2c_transaction_time_s
 
 __all__ = ["SimBus", "I2CTarget", "I2C_SMBUS_BLOCK_MAX"]
 
@@ -85,15 +94,18 @@ class SimBus:
         Accepted for signature compatibility with ``smbus2.SMBus(bus)``; ignored.
     force : bool
         Accepted like smbus2's ``force``; has no effect.
-    clock : VirtualClock, optional
-        Time base for fault windows and transfer durations.
+    clock : SimClock, optional
+        Time base for fault windows and transfer durations
+        (:mod:`firmware_sim.clock`); a BusClock is ticked by each transaction.
     nack_errno : int
         errno for an unanswered address (default EREMOTEIO, the Pi's).
     rng : numpy.random.Generator or int, optional
         Randomness for :meth:`flaky` faults (seeded for reproducibility).
     bit_rate_hz : float, optional
-        If given, each transaction advances ``clock`` by its duration on the
-        wire (9 bit-times per byte incl. address, plus start/stop).
+        If given, each transaction sleeps ``clock`` for its duration on the
+        wire (9 bit-times per byte incl. address, plus start/stop;
+        :func:`firmware_sim.clock.i2c_transaction_time_s`). Not with a
+        BusClock, which counts wire time itself.
     """
 
     def __init__(self, bus=None, force: bool = False, *, clock=None,
@@ -103,6 +115,9 @@ class SimBus:
             raise ValueError(f"bit_rate_hz must be > 0, got {bit_rate_hz!r}")
         if bit_rate_hz is not None and clock is None:
             raise ValueError("bit_rate_hz needs a clock")
+        if bit_rate_hz is not None and callable(getattr(clock, "bus_transaction", None)):
+            raise ValueError("bit_rate_hz cannot be combined with a bus clock, which counts "
+                             "wire time itself (give the BusClock the bit rate)")
         self.clock = clock
         self.nack_errno = nack_errno
         self.bit_rate_hz = bit_rate_hz
@@ -179,6 +194,22 @@ class SimBus:
     def _transfer(self, address: int, segments: Sequence[tuple[str, object]], what: str) -> list[bytes]:
         """One bus transaction (START ... STOP) of write ("w", bytes) and read
         ("r", n) segments to one address; returns the read results."""
+        tick = getattr(self.clock, "bus_transaction", None)
+        try:
+            out, nbytes = self._exchange(address, segments, what)
+        except OSError as e:
+            if tick is not None and e.errno not in (_errno.EBADF, _errno.EINVAL):
+                tick(1, 1)          # the address byte went out, then NACK / bus error
+            raise
+        if self.bit_rate_hz is not None:
+            self.clock.sleep(i2c_transaction_time_s(nbytes, len(segments), self.bit_rate_hz))
+        if tick is not None:
+            tick(max(nbytes, 1), max(len(segments), 1))
+        return out
+
+    def _exchange(self, address: int, segments: Sequence[tuple[str, object]],
+                  what: str) -> tuple[list[bytes], int]:
+        """:meth:`_transfer` without timing; returns (read results, bytes on the wire)."""
         with self._lock:
             if not self._open:
                 raise _oserror(_errno.EBADF)
@@ -219,9 +250,7 @@ class SimBus:
                     out.append(data)
                     nbytes += 1 + n
             self._record(t, address, what, "ok")
-        if self.bit_rate_hz is not None:
-            self.clock.advance((9 * nbytes + 2 * len(segments)) / self.bit_rate_hz)
-        return out
+        return out, nbytes
 
     def _record(self, t: float, address: int, what: str, outcome: str) -> None:
         self.stats[outcome] += 1

@@ -31,7 +31,7 @@ from firmware_sim.bus import SimBus
 from firmware_sim.chips.ads1115 import ADS1115 as ADS1115Model
 from firmware_sim.chips.ads122c04 import ADS122C04 as ADS122C04Model
 from firmware_sim.chips.mcp9600 import MCP9600 as MCP9600Model
-from firmware_sim.clock import VirtualClock
+from firmware_sim.clock import SimClock, check_clock_mode, make_clock
 from firmware_sim.gpio import GpioSim
 from firmware_sim.pwm import SimPwmTree
 from firmware_sim.scene import Fault, MaterialLookup, Scene, read_scene, validate_fault
@@ -51,12 +51,24 @@ class Simulator:
     scene : Scene
         A parsed scene (:func:`firmware_sim.scene.read_scene`).
     bit_rate_hz : float, optional
-        If given, I2C transfers take their wire time on the virtual clock.
+        If given, I2C transfers take their wire time on the clock. With
+        ``clock="bus"`` it is the bus clock's bit rate (default 100 kHz).
+    clock : {"virtual", "wall", "bus"}
+        Time base (:mod:`firmware_sim.clock`). ``"virtual"`` (default): time
+        moves only when the device code sleeps through the board clock or a
+        test advances it -- fast and reproducible. ``"wall"``: simulated time
+        follows wall time (:class:`~firmware_sim.clock.WallClock`), for
+        unmodified third-party drivers that poll with ``time.sleep`` and time
+        out on ``time.time``; :meth:`advance` then jumps ahead. ``"bus"``: each
+        I2C transaction advances time by its wire time
+        (:class:`~firmware_sim.clock.BusClock`), plus sleeps.
 
     Attributes
     ----------
     scene : Scene
-    clock : VirtualClock
+    clock : SimClock
+        VirtualClock, WallClock or BusClock per ``clock``.
+    clock_mode : str
     gpio : GpioSim
         Simulated gpiod (``sim.gpio.gpiod`` is the module-like object).
     pwm : SimPwmTree
@@ -70,11 +82,14 @@ class Simulator:
         GPIO chip, PWM channel and line offsets of the board.
     """
 
-    def __init__(self, scene: Scene, *, bit_rate_hz: float | None = None) -> None:
+    def __init__(self, scene: Scene, *, bit_rate_hz: float | None = None, clock: str = "virtual") -> None:
         if not isinstance(scene, Scene):
             raise TypeError(f"scene must be a Scene, got {type(scene).__name__}")
         self.scene = scene
-        self.clock = VirtualClock()
+        self.clock: SimClock = make_clock(clock, bit_rate_hz=bit_rate_hz)
+        self.clock_mode = clock
+        if clock == "bus":
+            bit_rate_hz = None          # the bus clock counts wire time itself
         self.gpio = GpioSim(self.clock)
         self.pwm = SimPwmTree(self.clock)
         seeds = np.random.SeedSequence(scene.seed).spawn(4)
@@ -113,11 +128,11 @@ class Simulator:
     # ---- time
 
     def now(self) -> float:
-        """Current virtual time (s)."""
+        """Current simulated time (s)."""
         return self.clock.now()
 
     def advance(self, seconds: float) -> float:
-        """Move virtual time forward by ``seconds``; return the new time."""
+        """Move simulated time forward by ``seconds`` (a jump on a wall clock); return the new time."""
         return self.clock.advance(seconds)
 
     def advance_to(self, t_s: float) -> float:
@@ -144,9 +159,10 @@ class Simulator:
         ``at_s`` defaults to now and may not lie in the past; ``until_s``
         None means for ever. Returns the validated :class:`Fault`.
         """
-        at = self.clock.now() if at_s is None else float(at_s)
-        if at < self.clock.now() - 1e-12:
-            raise ValueError(f"at_s={at} s is in the past (now {self.clock.now()} s)")
+        now = self.clock.now()      # read once: on a wall clock every read is later
+        at = now if at_s is None else float(at_s)
+        if at < now - 1e-12:
+            raise ValueError(f"at_s={at} s is in the past (now {now} s)")
         fault = validate_fault(kind, at, until_s, params)
         if fault.kind == "i2c_nack" and "chip" in fault.params \
                 and self.scene.board.address_of(fault.params["chip"]) is None:
@@ -154,7 +170,7 @@ class Simulator:
         if fault.kind in _BUS_FAULTS:
             self._apply_bus_fault(fault)
         else:
-            self.world.add_fault(fault)
+            self.world.add_fault(fault, now_s=now)
         self._injected.append(fault)
         return fault
 
@@ -260,17 +276,26 @@ class Simulator:
 
 
 def load_scene(path_or_name: str | Path, *, material_lookup: MaterialLookup | None = None,
-               bit_rate_hz: float | None = None) -> Simulator:
+               bit_rate_hz: float | None = None, clock: str = "virtual") -> Simulator:
     """A :class:`Simulator` for a scene file or shipped scene name (e.g. ``"glass_15V"``).
+
+    ``clock`` is ``"virtual"`` (default), ``"wall"`` or ``"bus"`` (see
+    :class:`Simulator`); ``clock="wall"`` lets an unmodified third-party
+    driver that polls with ``time.sleep`` see conversions take their
+    datasheet time.
 
     Raises
     ------
+    ValueError
+        If ``clock`` is not one of ``"virtual"``, ``"wall"``, ``"bus"``.
     SceneError
         If the file is invalid (the message names the key).
     FileNotFoundError
         If there is no such file or shipped scene.
     """
-    return Simulator(read_scene(path_or_name, material_lookup=material_lookup), bit_rate_hz=bit_rate_hz)
+    check_clock_mode(clock)
+    return Simulator(read_scene(path_or_name, material_lookup=material_lookup), bit_rate_hz=bit_rate_hz,
+                     clock=clock)
 
 
 SCENE_ENV = "THERMOTOUCH_SIM_SCENE"

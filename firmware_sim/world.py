@@ -187,14 +187,22 @@ class ThermalWorld:
         """Faults the world models (bus faults live on the SimBus)."""
         return tuple(self._faults)
 
-    def add_fault(self, fault: Fault) -> None:
-        """Add a fault; it may not start before the current virtual time."""
+    def add_fault(self, fault: Fault, *, now_s: float | None = None) -> None:
+        """Add a fault; it may not start before the current virtual time.
+
+        ``now_s`` is "now" as the caller read it (default: read the clock);
+        on a wall clock the clock has moved on by the time this runs, and
+        states cached since ``fault.at_s`` are dropped.
+        """
         if fault.kind not in self._world_kinds():
             raise ValueError(f"fault kind {fault.kind!r} is not modelled by the thermal world")
-        if fault.at_s < self.clock.now() - 1e-12:
-            raise ValueError(f"fault at_s={fault.at_s} s is in the past (now {self.clock.now()} s)")
+        now = self.clock.now() if now_s is None else min(float(now_s), self.clock.now())
+        if fault.at_s < now - 1e-12:
+            raise ValueError(f"fault at_s={fault.at_s} s is in the past (now {now} s)")
         self._faults.append(fault)
         self._start_cache.clear()
+        if self._cache and fault.at_s < self.clock.now():
+            self._cache = {t: st for t, st in self._cache.items() if t < fault.at_s}
 
     def _active(self, kind: str, t_s: float) -> list[Fault]:
         return [f for f in self._faults if f.kind == kind and f.active(t_s)]

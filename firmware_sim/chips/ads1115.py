@@ -44,7 +44,9 @@ class ADS1115:
 
     Parameters
     ----------
-    clock : VirtualClock
+    clock : SimClock
+        Any mode of :mod:`firmware_sim.clock`: the model reads ``clock.now()``
+        on each access and catches up, so it never relies on sleeps.
     inputs : callable (mux_label, t_s) -> volts
         Input voltage for a multiplexer setting, e.g. ``"AIN0_AIN1"`` (see
         ``edge.hw.drivers.ads1115.MUX``).

@@ -47,7 +47,9 @@ class ADS122C04:
 
     Parameters
     ----------
-    clock : VirtualClock
+    clock : SimClock
+        Any mode of :mod:`firmware_sim.clock`: the model reads ``clock.now()``
+        on each access and catches up, so it never relies on sleeps.
     inputs : callable (mux_label, t_s) -> volts
         Differential input for AIN multiplexer settings such as "AIN0_AIN1"
         or "AIN2_AVSS" (see ``edge.hw.drivers.ads122c04.MUX``).

@@ -68,7 +68,9 @@ class MCP9600:
 
     Parameters
     ----------
-    clock : VirtualClock
+    clock : SimClock
+        Any mode of :mod:`firmware_sim.clock`: the model reads ``clock.now()``
+        on each access and catches up, so it never relies on sleeps.
     hot_junction_C : callable t_s -> °C
         True temperature of the thermocouple's hot junction.
     cold_junction_C : callable t_s -> °C
