@@ -47,20 +47,22 @@ from __future__ import annotations
 
 import copy
 import json
-import math
 import os
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 from pathlib import Path
-from types import MappingProxyType, SimpleNamespace
+from types import MappingProxyType
 from typing import Any, Iterable, Mapping
 
+from edge.estimation.estimate import METHODS
+from edge.schema import Field, SchemaError, check_value, type_name
 from edge.storage import durable
 from edge.physics.probe import FLUX_SENSITIVITY_V_per_W_m2, heater_power_W
 
 __all__ = [
     "ConfigError",
-    "Key",
+    "setting",
+    "SECTIONS",
     "SCHEMA",
     "RUNTIME_KEYS",
     "HARD_MAX_ON_TIME_S",
@@ -84,155 +86,245 @@ class ConfigError(ValueError):
         super().__init__(f"{key}: {message}" if key else message)
 
 
-@dataclass(frozen=True)
-class Key:
-    """Schema of one configuration key.
+def setting(kind: str, default: Any, doc: str, *, runtime: bool = False, **bounds: Any) -> Any:
+    """A configuration key: a dataclass field whose metadata holds its schema.
 
-    ``kind`` is ``"int"``, ``"float"``, ``"bool"``, ``"str"`` or ``"int_or_str"``;
-    ``lo``/``hi`` bound numbers (``lo_open`` makes ``lo`` exclusive);
-    ``choices`` restricts the value; ``nullable`` allows an empty string in
-    TOML (TOML has no null) to mean "unset".
+    ``runtime`` keys may be changed over the link (CONFIG_SET); the others only
+    in the file on the device.
     """
-
-    kind: str
-    default: Any
-    doc: str
-    lo: float | None = None
-    hi: float | None = None
-    lo_open: bool = False
-    choices: tuple | None = None
-    runtime: bool = False
+    if kind == "str":
+        bounds.setdefault("hi", 4096)  # a path or a name; anything longer is a mistake
+    return field(
+        default=default, metadata={"schema": Field(kind, default, doc, **bounds), "runtime": runtime}
+    )
 
 
-def _k(kind: str, default: Any, doc: str, **kw: Any) -> Key:
-    return Key(kind, default, doc, **kw)
+@dataclass(frozen=True)
+class BoardConfig:
+    """The ``[board]`` section."""
+
+    kind: str = setting("str", "rpi", "board factory name: 'rpi', or 'sim' when the simulator registered it")
+    i2c_bus: int | str = setting("int_or_str", 1, "I2C bus number or device path", lo=0)
+    gpio_chip: str = setting("str", "/dev/gpiochip0", "GPIO character device")
+    heater_enable_offset: int = setting("int", 17, "heater-enable line offset", lo=0, hi=1023)
+    heater_active_low: bool = setting("bool", False, "heater enable is active low")
+    trigger_offset: int = setting("int", 27, "trigger-button line offset", lo=0, hi=1023)
+    trigger_active_low: bool = setting("bool", True, "button pulls the line low when pressed")
+    pwm_root: str = setting("str", "/sys/class/pwm", "sysfs PWM class directory")
+    pwm_chip: int = setting("int", 0, "PWM chip number", lo=0, hi=64)
+    pwm_channel: int = setting("int", 0, "PWM channel number", lo=0, hi=64)
 
 
-SCHEMA: Mapping[str, Mapping[str, Key]] = MappingProxyType({
-    "board": {
-        "kind": _k("str", "rpi", "board factory name: 'rpi', or 'sim' when the simulator registered it"),
-        "i2c_bus": _k("int_or_str", 1, "I2C bus number or device path", lo=0),
-        "gpio_chip": _k("str", "/dev/gpiochip0", "GPIO character device"),
-        "heater_enable_offset": _k("int", 17, "heater-enable line offset", lo=0, hi=1023),
-        "heater_active_low": _k("bool", False, "heater enable is active low"),
-        "trigger_offset": _k("int", 27, "trigger-button line offset", lo=0, hi=1023),
-        "trigger_active_low": _k("bool", True, "button pulls the line low when pressed"),
-        "pwm_root": _k("str", "/sys/class/pwm", "sysfs PWM class directory"),
-        "pwm_chip": _k("int", 0, "PWM chip number", lo=0, hi=64),
-        "pwm_channel": _k("int", 0, "PWM channel number", lo=0, hi=64),
-    },
-    "sensors": {
-        "thermocouple": _k("str", "mcp9600", "thermocouple converter", choices=("mcp9600", "ads122c04")),
-        "flux_adc": _k("str", "ads1115", "heat-flux sensor ADC", choices=("ads1115", "ads122c04")),
-        "mcp9600_address": _k("int", 0x60, "MCP9600 I2C address", lo=0x60, hi=0x67),
-        "mcp9600_adc_bits": _k("int", 16, "MCP9600 ADC resolution (18: 320 ms, 16: 80 ms per conversion)",
-                               choices=(12, 14, 16, 18)),
-        "ads1115_address": _k("int", 0x48, "ADS1115 I2C address", lo=0x48, hi=0x4B),
-        "ads1115_fsr_V": _k("float", 0.256, "ADS1115 full-scale range, V",
-                            choices=(0.256, 0.512, 1.024, 2.048, 4.096, 6.144)),
-        "ads1115_data_rate_sps": _k("int", 860, "ADS1115 data rate, samples/s",
-                                    choices=(8, 16, 32, 64, 128, 250, 475, 860)),
-        "ads122c04_address": _k("int", 0x40, "ADS122C04 I2C address", lo=0x40, hi=0x4F),
-        "ads122c04_gain": _k("int", 128, "ADS122C04 PGA gain", choices=(1, 2, 4, 8, 16, 32, 64, 128)),
-        "ads122c04_data_rate_sps": _k("int", 1000, "ADS122C04 data rate (normal mode), samples/s",
-                                      choices=(20, 45, 90, 175, 330, 600, 1000)),
-        "flux_sensitivity_V_per_W_m2": _k("float", FLUX_SENSITIVITY_V_per_W_m2, "heat-flux sensor sensitivity, V per W/m^2",
-                                          lo=1e-9, hi=1e-3),
-        "i2c_attempts": _k("int", 4, "tries per I2C transaction before a sensor fault", lo=1, hi=20),
-    },
-    "heater": {
-        "supply_voltage_V": _k("float", 15.0, "heater supply voltage, V", lo=0.0, hi=48.0, lo_open=True),
-        "resistance_ohm": _k("float", 44.0, "heater film resistance, ohm", lo=0.0, hi=1e4, lo_open=True),
-        "power_W": _k("float", 5.0, "default heating power, W (<= V^2/R)", lo=0.0, hi=50.0, lo_open=True,
-                      runtime=True),
-        "max_on_time_s": _k("float", 10.0, "SAFETY: longest the heater may stay on, s",
-                            lo=0.0, hi=HARD_MAX_ON_TIME_S, lo_open=True),
-        "over_temperature_C": _k("float", 80.0, "SAFETY: heater is cut above this thermocouple reading, °C",
-                                 lo=0.0, hi=HARD_MAX_TEMPERATURE_C, lo_open=True),
-        "pwm_period_ns": _k("int", 1_000_000, "PWM period, ns", lo=1000, hi=1_000_000_000),
-    },
-    "measurement": {
-        "baseline_s": _k("float", 0.5, "baseline before heating (T0, flux offset), s",
-                         lo=0.0, hi=10.0, lo_open=True, runtime=True),
-        "contact_time_s": _k("float", 2.0, "heating (contact) time, s; < heater.max_on_time_s",
-                             lo=0.0, hi=HARD_MAX_ON_TIME_S, lo_open=True, runtime=True),
-        "sample_rate_Hz": _k("float", 10.0, "sampling and resampling rate, Hz", lo=1.0, hi=200.0,
-                             runtime=True),
-        "cooldown_s": _k("float", 5.0, "minimum rest between a heater-off and the next heating, s",
-                         lo=0.0, hi=600.0, runtime=True),
-        "no_contact_flux_fraction": _k("float", 0.1, "flag no_contact when mean flux < this x P/A",
-                                       lo=0.0, hi=1.0, runtime=True),
-        "noise_T_K": _k("float", 0.1, "flag noisy when the baseline temperature std exceeds this, K",
-                        lo=0.0, hi=100.0, lo_open=True, runtime=True),
-        "noise_q_W_m2": _k("float", 50.0, "flag noisy when the baseline flux std exceeds this, W/m^2",
-                           lo=0.0, hi=1e6, lo_open=True, runtime=True),
-        "unstable_baseline_K": _k("float", 0.2, "flag unstable_baseline when T drifts more than this "
-                                  "over the baseline, K", lo=0.0, hi=100.0, lo_open=True, runtime=True),
-        "trigger_button": _k("bool", True, "start a measurement when the trigger button is pressed"),
-    },
-    "serial": {
-        "port": _k("str", "/dev/ttyGS0", "serial device of the host link"),
-        "baud": _k("int", 115200, "baud rate", choices=(9600, 19200, 38400, 57600, 115200, 230400,
-                                                         460800, 921600, 1000000)),
-    },
-    "paths": {
-        "model_store": _k("str", "/var/lib/thermotouch/models", "model store root directory"),
-        "factory_model": _k("str", "", "factory bundle directory ('' = the bundle shipped with the package)"),
-        "history_db": _k("str", "/var/lib/thermotouch/history.sqlite3", "SQLite measurement history"),
-        "runtime_overrides": _k("str", "/var/lib/thermotouch/runtime.json",
-                                "where CONFIG_SET persists its values ('' = not persisted)"),
-    },
-    "estimation": {
-        "method": _k("str", "default", "estimation method passed to the estimator", runtime=True),
-    },
-    "logging": {
-        "level": _k("str", "INFO", "log level", choices=("DEBUG", "INFO", "WARNING", "ERROR"), runtime=True),
-    },
-})
+@dataclass(frozen=True)
+class SensorsConfig:
+    """The ``[sensors]`` section."""
+
+    thermocouple: str = setting("str", "mcp9600", "thermocouple converter", choices=("mcp9600", "ads122c04"))
+    flux_adc: str = setting("str", "ads1115", "heat-flux sensor ADC", choices=("ads1115", "ads122c04"))
+    mcp9600_address: int = setting("int", 0x60, "MCP9600 I2C address", lo=0x60, hi=0x67)
+    mcp9600_adc_bits: int = setting(
+        "int", 16, "MCP9600 ADC resolution (18: 320 ms, 16: 80 ms per conversion)", choices=(12, 14, 16, 18)
+    )
+    ads1115_address: int = setting("int", 0x48, "ADS1115 I2C address", lo=0x48, hi=0x4B)
+    ads1115_fsr_V: float = setting(
+        "float", 0.256, "ADS1115 full-scale range, V", choices=(0.256, 0.512, 1.024, 2.048, 4.096, 6.144)
+    )
+    ads1115_data_rate_sps: int = setting(
+        "int", 860, "ADS1115 data rate, samples/s", choices=(8, 16, 32, 64, 128, 250, 475, 860)
+    )
+    ads122c04_address: int = setting("int", 0x40, "ADS122C04 I2C address", lo=0x40, hi=0x4F)
+    ads122c04_gain: int = setting("int", 128, "ADS122C04 PGA gain", choices=(1, 2, 4, 8, 16, 32, 64, 128))
+    ads122c04_data_rate_sps: int = setting(
+        "int", 1000, "ADS122C04 data rate (normal mode), samples/s", choices=(20, 45, 90, 175, 330, 600, 1000)
+    )
+    flux_sensitivity_V_per_W_m2: float = setting(
+        "float", FLUX_SENSITIVITY_V_per_W_m2, "heat-flux sensor sensitivity, V per W/m^2", lo=1e-9, hi=1e-3
+    )
+    i2c_attempts: int = setting("int", 4, "tries per I2C transaction before a sensor fault", lo=1, hi=20)
+
+
+@dataclass(frozen=True)
+class HeaterConfig:
+    """The ``[heater]`` section."""
+
+    supply_voltage_V: float = setting(
+        "float", 15.0, "heater supply voltage, V", lo=0.0, hi=48.0, lo_open=True
+    )
+    resistance_ohm: float = setting(
+        "float", 44.0, "heater film resistance, ohm", lo=0.0, hi=1e4, lo_open=True
+    )
+    power_W: float = setting(
+        "float", 5.0, "default heating power, W (<= V^2/R)", lo=0.0, hi=50.0, lo_open=True, runtime=True
+    )
+    max_on_time_s: float = setting(
+        "float",
+        10.0,
+        "SAFETY: longest the heater may stay on, s",
+        lo=0.0,
+        hi=HARD_MAX_ON_TIME_S,
+        lo_open=True,
+    )
+    over_temperature_C: float = setting(
+        "float",
+        80.0,
+        "SAFETY: heater is cut above this thermocouple reading, °C",
+        lo=0.0,
+        hi=HARD_MAX_TEMPERATURE_C,
+        lo_open=True,
+    )
+    pwm_period_ns: int = setting("int", 1_000_000, "PWM period, ns", lo=1000, hi=1_000_000_000)
+
+
+@dataclass(frozen=True)
+class MeasurementConfig:
+    """The ``[measurement]`` section."""
+
+    baseline_s: float = setting(
+        "float",
+        0.5,
+        "baseline before heating (T0, flux offset), s",
+        lo=0.0,
+        hi=10.0,
+        lo_open=True,
+        runtime=True,
+    )
+    contact_time_s: float = setting(
+        "float",
+        2.0,
+        "heating (contact) time, s; < heater.max_on_time_s",
+        lo=0.0,
+        hi=HARD_MAX_ON_TIME_S,
+        lo_open=True,
+        runtime=True,
+    )
+    sample_rate_Hz: float = setting(
+        "float", 10.0, "sampling and resampling rate, Hz", lo=1.0, hi=200.0, runtime=True
+    )
+    cooldown_s: float = setting(
+        "float",
+        5.0,
+        "minimum rest between a heater-off and the next heating, s",
+        lo=0.0,
+        hi=600.0,
+        runtime=True,
+    )
+    no_contact_flux_fraction: float = setting(
+        "float", 0.1, "flag no_contact when mean flux < this x P/A", lo=0.0, hi=1.0, runtime=True
+    )
+    noise_T_K: float = setting(
+        "float",
+        0.1,
+        "flag noisy when the baseline temperature std exceeds this, K",
+        lo=0.0,
+        hi=100.0,
+        lo_open=True,
+        runtime=True,
+    )
+    noise_q_W_m2: float = setting(
+        "float",
+        50.0,
+        "flag noisy when the baseline flux std exceeds this, W/m^2",
+        lo=0.0,
+        hi=1e6,
+        lo_open=True,
+        runtime=True,
+    )
+    unstable_baseline_K: float = setting(
+        "float",
+        0.2,
+        "flag unstable_baseline when T drifts more than this over the baseline, K",
+        lo=0.0,
+        hi=100.0,
+        lo_open=True,
+        runtime=True,
+    )
+    trigger_button: bool = setting("bool", True, "start a measurement when the trigger button is pressed")
+
+
+@dataclass(frozen=True)
+class SerialConfig:
+    """The ``[serial]`` section."""
+
+    port: str = setting("str", "/dev/ttyGS0", "serial device of the host link")
+    baud: int = setting(
+        "int",
+        115200,
+        "baud rate",
+        choices=(9600, 19200, 38400, 57600, 115200, 230400, 460800, 921600, 1000000),
+    )
+
+
+@dataclass(frozen=True)
+class PathsConfig:
+    """The ``[paths]`` section."""
+
+    model_store: str = setting("str", "/var/lib/thermotouch/models", "model store root directory")
+    factory_model: str = setting(
+        "str", "", "factory bundle directory ('' = the bundle shipped with the package)"
+    )
+    history_db: str = setting("str", "/var/lib/thermotouch/history.sqlite3", "SQLite measurement history")
+    runtime_overrides: str = setting(
+        "str",
+        "/var/lib/thermotouch/runtime.json",
+        "where CONFIG_SET persists its values ('' = not persisted)",
+    )
+
+
+@dataclass(frozen=True)
+class EstimationConfig:
+    """The ``[estimation]`` section."""
+
+    method: str = setting(
+        "str", "default", "estimation method passed to the estimator", choices=METHODS, runtime=True
+    )
+
+
+@dataclass(frozen=True)
+class LoggingConfig:
+    """The ``[logging]`` section."""
+
+    level: str = setting(
+        "str", "INFO", "log level", choices=("DEBUG", "INFO", "WARNING", "ERROR"), runtime=True
+    )
+
+
+#: Section name -> its typed, frozen dataclass; the schema is read off their fields.
+SECTIONS: Mapping[str, type] = MappingProxyType(
+    {
+        "board": BoardConfig,
+        "sensors": SensorsConfig,
+        "heater": HeaterConfig,
+        "measurement": MeasurementConfig,
+        "serial": SerialConfig,
+        "paths": PathsConfig,
+        "estimation": EstimationConfig,
+        "logging": LoggingConfig,
+    }
+)
+
+#: Section -> key -> :class:`edge.schema.Field` (derived from :data:`SECTIONS`).
+SCHEMA: Mapping[str, Mapping[str, Field]] = MappingProxyType(
+    {
+        name: MappingProxyType({f.name: f.metadata["schema"] for f in fields(cls)})
+        for name, cls in SECTIONS.items()
+    }
+)
 
 #: Dotted keys settable over the link (CONFIG_SET).
 RUNTIME_KEYS: tuple[str, ...] = tuple(
-    f"{s}.{k}" for s, keys in SCHEMA.items() for k, spec in keys.items() if spec.runtime)
+    f"{s}.{f.name}" for s, cls in SECTIONS.items() for f in fields(cls) if f.metadata["runtime"]
+)
 
 
-def _type_name(v: Any) -> str:
-    return "boolean" if isinstance(v, bool) else type(v).__name__
-
-
-def _check_value(key: str, spec: Key, value: Any) -> Any:
+def _check_value(key: str, spec: Field, value: Any) -> Any:
     """Validate one value; return it normalised (ints accepted for floats)."""
-    kind = spec.kind
-    if kind == "bool":
-        if not isinstance(value, bool):
-            raise ConfigError(key, f"must be a boolean, got {_type_name(value)} {value!r}")
-    elif kind == "int" or (kind == "int_or_str" and not isinstance(value, str)):
-        if isinstance(value, bool) or not isinstance(value, int):
-            what = "an integer or a string" if kind == "int_or_str" else "an integer"
-            raise ConfigError(key, f"must be {what}, got {_type_name(value)} {value!r}")
-    elif kind == "float":
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(key, f"must be a number, got {_type_name(value)} {value!r}")
-        value = float(value)
-        if not math.isfinite(value):
-            raise ConfigError(key, f"must be finite, got {value!r}")
-    elif kind in ("str", "int_or_str"):
-        if not isinstance(value, str):
-            raise ConfigError(key, f"must be a string, got {_type_name(value)} {value!r}")
-        if len(value) > 4096 or "\x00" in value:
-            raise ConfigError(key, "string too long or contains NUL")
-    else:  # pragma: no cover - schema bug
-        raise AssertionError(kind)
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        if spec.lo is not None and (value <= spec.lo if spec.lo_open else value < spec.lo):
-            raise ConfigError(key, f"must be {'>' if spec.lo_open else '>='} {spec.lo:g}, got {value!r}")
-        if spec.hi is not None and value > spec.hi:
-            raise ConfigError(key, f"must be <= {spec.hi:g}, got {value!r}")
-    if spec.choices is not None and value not in spec.choices:
-        raise ConfigError(key, f"must be one of {list(spec.choices)}, got {value!r}")
-    return value
+    try:
+        return check_value(spec, value, key)
+    except SchemaError as e:
+        raise ConfigError(e.path, e.message) from None
 
 
-def _lookup(key: str) -> Key:
+def _lookup(key: str) -> Field:
     if not isinstance(key, str) or key.count(".") != 1:
         raise ConfigError(str(key), "unknown key (expected 'section.name')")
     section, name = key.split(".")
@@ -248,10 +340,14 @@ def _check_consistency(v: Mapping[str, Mapping[str, Any]]) -> None:
     h, m = v["heater"], v["measurement"]
     p_max = heater_power_W(1.0, h["supply_voltage_V"], h["resistance_ohm"])
     if h["power_W"] > p_max * (1 + 1e-12):
-        raise ConfigError("heater.power_W", f"{h['power_W']} W exceeds the supply's maximum V^2/R = {p_max:.4g} W")
+        raise ConfigError(
+            "heater.power_W", f"{h['power_W']} W exceeds the supply's maximum V^2/R = {p_max:.4g} W"
+        )
     if m["contact_time_s"] >= h["max_on_time_s"]:
-        raise ConfigError("measurement.contact_time_s",
-                          f"{m['contact_time_s']} s must be below heater.max_on_time_s = {h['max_on_time_s']} s")
+        raise ConfigError(
+            "measurement.contact_time_s",
+            f"{m['contact_time_s']} s must be below heater.max_on_time_s = {h['max_on_time_s']} s",
+        )
     b = v["board"]
     if b["heater_enable_offset"] == b["trigger_offset"] and b["kind"] == "rpi":
         raise ConfigError("board.trigger_offset", "must differ from board.heater_enable_offset")
@@ -278,16 +374,17 @@ class Config:
 
     def __init__(self, values: Mapping[str, Any] | None = None, *, source: str = "<defaults>") -> None:
         self.source = source
-        merged: dict[str, dict[str, Any]] = {s: {k: spec.default for k, spec in keys.items()}
-                                             for s, keys in SCHEMA.items()}
+        merged: dict[str, dict[str, Any]] = {
+            s: {k: spec.default for k, spec in keys.items()} for s, keys in SCHEMA.items()
+        }
         values = {} if values is None else values
         if not isinstance(values, Mapping):
-            raise ConfigError(None, f"configuration must be a table, got {_type_name(values)}")
+            raise ConfigError(None, f"configuration must be a table, got {type_name(values)}")
         for section, table in values.items():
             if section not in SCHEMA:
                 raise ConfigError(str(section), f"unknown section; known: {sorted(SCHEMA)}")
             if not isinstance(table, Mapping):
-                raise ConfigError(str(section), f"must be a table, got {_type_name(table)}")
+                raise ConfigError(str(section), f"must be a table, got {type_name(table)}")
             for name, value in table.items():
                 key = f"{section}.{name}"
                 spec = _lookup(key)
@@ -296,11 +393,12 @@ class Config:
         self._values = merged
 
     # -- access ------------------------------------------------------------------
-    def __getattr__(self, section: str) -> SimpleNamespace:
+    def __getattr__(self, section: str) -> Any:
+        """The section as its typed, frozen dataclass (e.g. ``cfg.heater`` is a :class:`HeaterConfig`)."""
         values = self.__dict__.get("_values")
         if values is None or section not in values:
             raise AttributeError(section)
-        return SimpleNamespace(**values[section])
+        return SECTIONS[section](**values[section])
 
     def get(self, key: str) -> Any:
         """Value of dotted ``key`` (ConfigError if unknown)."""
@@ -336,7 +434,7 @@ class Config:
         values = self.to_dict()
         for key, value in updates.items():
             spec = _lookup(key)
-            if runtime_only and not spec.runtime:
+            if runtime_only and key not in RUNTIME_KEYS:
                 raise ConfigError(key, "cannot be changed at run time (edit the configuration file)")
             section, name = key.split(".")
             values[section][name] = _check_value(key, spec, value)
