@@ -79,10 +79,11 @@ def child(workdir: str) -> int:
     rig = make_rig(effusivity=1474.0, T_noise_V=1e-6, flux_noise_V=2e-6, seed=1)
     estimator = None
     try:
+        from edge.estimation.estimate import pipeline_golden_check
         from edge.model.store import ModelStore
         from thermotouch_models import DEFAULT_BUNDLE
 
-        ModelStore(w / "probe-store", DEFAULT_BUNDLE).current()
+        ModelStore(w / "probe-store", DEFAULT_BUNDLE, golden_check=pipeline_golden_check).current()
         estimator_kind = "edge.estimation.estimate on the shipped bundle"
     except Exception as e:  # no shipped bundle yet: a physics stand-in keeps the soak meaningful
         import math

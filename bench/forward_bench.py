@@ -22,7 +22,7 @@ from _common import best_time, rel_err, update_readme, write_json
 from edge.physics.forward import scale_levels, simulate, step_response
 from edge.physics.probe import STACK_040, STACK_042
 from edge.physics.solids import Solid
-from host.materials import load_materials
+from edge.physics.materials import load_materials
 
 MATERIALS = {
     "tempered glass": Solid(1.097, 2458.4, 809.0),

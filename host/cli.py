@@ -64,7 +64,7 @@ def _solid_from_args(args):
     from edge.physics.solids import Solid
 
     if args.material is not None:
-        from host.materials import load_materials
+        from edge.physics.materials import load_materials
 
         lib = load_materials()
         try:

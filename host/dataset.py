@@ -28,7 +28,7 @@ from edge.measure.instrument import INSTRUMENTS
 from edge.physics.probe import STACKS
 from edge.physics.solids import Solid
 from edge.estimation.spline import resample
-from host.materials import MaterialLibrary
+from edge.physics.materials import MaterialLibrary
 
 PAPER_LEVELS_W_M3 = tuple(np.round(np.arange(4.0e7, 1.4e8 + 1.0, 5e6)).tolist())
 CODE_VERSION = 1  # bump when the generation procedure changes

@@ -214,7 +214,7 @@ def leave_out_paper(instrument: str, *, folds: int = 7, seed: int = 5, q_v: floa
     from edge.estimation.features import FEATURE_VERSION
     from host.dataset import Dataset, DatasetSpec, generate
     from host.export import mlp_arrays_from_sklearn, pca_arrays_from_sklearn
-    from host.materials import load_materials
+    from edge.physics.materials import load_materials
     from host.train import fit_paper_model
 
     lib = load_materials()

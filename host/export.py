@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from edge.estimation.estimate import mlp_golden_check
 from edge.model.bundle import Bundle, write_bundle
 from edge.estimation.mlp import ACTIVATION_CODES, MLP
 
@@ -144,4 +145,5 @@ def export_paper_model(
         kwargs["golden_check"] = golden_check
     if golden_rtol is not None:
         kwargs["golden_rtol"] = golden_rtol
+    kwargs.setdefault("golden_check", mlp_golden_check)
     return write_bundle(path, arrays, golden, manifest_extra, overwrite=overwrite, **kwargs)

@@ -23,7 +23,7 @@ from edge.estimation.estimate import DEFAULT_PRIOR_COEF, pipeline_golden_check
 from edge.estimation.features import FEATURE_VERSION
 from host.dataset import Dataset, DatasetSpec, generate
 from host.export import export_paper_model, pca_arrays_from_sklearn
-from host.materials import MaterialLibrary, load_materials
+from edge.physics.materials import MaterialLibrary, load_materials
 
 
 @dataclass

@@ -11,6 +11,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from bundle_testutil import make_arrays, make_golden, manifest_extra, npz_bytes, reseal, write_raw_bundle
+from edge.estimation.mlp import MLP
+from edge.estimation.estimate import mlp_golden_check
 from edge.model import bundle as B
 from edge.model.schema import SCHEMAS, ArraySpec, declare_array
 
@@ -27,7 +29,7 @@ def golden(arrays):
 
 @pytest.fixture
 def good(tmp_path, arrays, golden):
-    return B.write_bundle(tmp_path / "good", arrays, golden, manifest_extra()).path
+    return B.write_bundle(tmp_path / "good", arrays, golden, manifest_extra(), golden_check=mlp_golden_check).path
 
 
 def _hostile(tmp_path, arrays, golden, name="bad", **kw):
@@ -38,7 +40,7 @@ def _hostile(tmp_path, arrays, golden, name="bad", **kw):
 
 
 def test_round_trip(good, arrays, golden):
-    b = B.load_bundle(good)
+    b = B.load_bundle(good, golden_check=mlp_golden_check)
     assert set(b.arrays) == set(arrays)
     for k, v in arrays.items():
         np.testing.assert_array_equal(b.arrays[k], v)
@@ -51,11 +53,11 @@ def test_round_trip(good, arrays, golden):
     assert m["files"]["arrays.npz"]["size"] == (good / "arrays.npz").stat().st_size
     assert dict(b.dims) == {"n_features": 8, "n_components": 2, "mlp_d1": 100, "mlp_d2": 20, "n_golden": 16}
     assert sorted(os.listdir(good.parent)) == ["good"]  # no temp dirs left behind
-    np.testing.assert_array_equal(b.mlp().predict(golden["mlp_inputs"]), golden["mlp_outputs"])
+    np.testing.assert_array_equal(MLP.from_arrays(b.arrays).predict(golden["mlp_inputs"]), golden["mlp_outputs"])
 
 
 def test_loaded_bundle_is_read_only(good):
-    b = B.load_bundle(good)
+    b = B.load_bundle(good, golden_check=mlp_golden_check)
     with pytest.raises(ValueError):
         b.arrays["x_mean"][0] = 1.0
     with pytest.raises(TypeError):
@@ -65,26 +67,26 @@ def test_loaded_bundle_is_read_only(good):
 
 
 def test_writer_is_deterministic_and_refuses_overwrite(tmp_path, good, arrays, golden):
-    again = B.write_bundle(tmp_path / "again", arrays, golden, manifest_extra())
-    assert again.sha256 == B.load_bundle(good).sha256
+    again = B.write_bundle(tmp_path / "again", arrays, golden, manifest_extra(), golden_check=mlp_golden_check)
+    assert again.sha256 == B.load_bundle(good, golden_check=mlp_golden_check).sha256
     with pytest.raises(FileExistsError, match="overwrite"):
-        B.write_bundle(good, arrays, golden, manifest_extra())
-    b2 = B.write_bundle(good, arrays, golden, manifest_extra("2.0"), overwrite=True)
-    assert B.load_bundle(good).model_version == "2.0" and b2.path == good
+        B.write_bundle(good, arrays, golden, manifest_extra(), golden_check=mlp_golden_check)
+    b2 = B.write_bundle(good, arrays, golden, manifest_extra("2.0"), overwrite=True, golden_check=mlp_golden_check)
+    assert B.load_bundle(good, golden_check=mlp_golden_check).model_version == "2.0" and b2.path == good
     assert sorted(os.listdir(tmp_path)) == ["again", "good"]
 
 
 def test_writer_refuses_bad_content_and_writes_nothing(tmp_path, arrays, golden):
     bad = dict(arrays, x_scale=np.ones(7))
     with pytest.raises(B.ShapeError, match="x_scale"):
-        B.write_bundle(tmp_path / "b", bad, golden, manifest_extra())
+        B.write_bundle(tmp_path / "b", bad, golden, manifest_extra(), golden_check=mlp_golden_check)
     wrong_golden = dict(golden, mlp_outputs=golden["mlp_outputs"] + 1.0)
     with pytest.raises(B.GoldenMismatchError):
-        B.write_bundle(tmp_path / "b", arrays, wrong_golden, manifest_extra())
+        B.write_bundle(tmp_path / "b", arrays, wrong_golden, manifest_extra(), golden_check=mlp_golden_check)
     with pytest.raises(B.DtypeError, match="float32"):
-        B.write_bundle(tmp_path / "b", dict(arrays, x_mean=np.zeros(8, np.float32)), golden, manifest_extra())
+        B.write_bundle(tmp_path / "b", dict(arrays, x_mean=np.zeros(8, np.float32)), golden, manifest_extra(), golden_check=mlp_golden_check)
     with pytest.raises(ValueError, match="manifest_extra"):
-        B.write_bundle(tmp_path / "b", arrays, golden, dict(manifest_extra(), metrics={"r2": float("nan")}))
+        B.write_bundle(tmp_path / "b", arrays, golden, dict(manifest_extra(), metrics={"r2": float("nan")}), golden_check=mlp_golden_check)
     assert os.listdir(tmp_path) == []
 
 
@@ -96,8 +98,8 @@ def test_unicode_library_tables_round_trip(tmp_path, arrays, golden):
         "lib_names": np.array(["tempered glass", "aluminium 6061"], dtype="<U64"),
         "lib_class": np.array(["glass", "metal"]),
     }
-    b = B.write_bundle(tmp_path / "lib", {**arrays, **lib}, golden, manifest_extra())
-    assert list(B.load_bundle(b.path).arrays["lib_names"]) == ["tempered glass", "aluminium 6061"]
+    b = B.write_bundle(tmp_path / "lib", {**arrays, **lib}, golden, manifest_extra(), golden_check=mlp_golden_check)
+    assert list(B.load_bundle(b.path, golden_check=mlp_golden_check).arrays["lib_names"]) == ["tempered glass", "aluminium 6061"]
     assert b.dims["n_materials"] == 2
 
 
@@ -108,7 +110,7 @@ def test_unicode_library_tables_round_trip(tmp_path, arrays, golden):
 def test_missing_file(good, name):
     (good / name).unlink()
     with pytest.raises(B.MissingFileError, match=name) as ei:
-        B.load_bundle(good)
+        B.load_bundle(good, golden_check=mlp_golden_check)
     assert ei.value.subject == name
 
 
@@ -119,23 +121,23 @@ def test_flipped_byte_is_sha_mismatch_naming_file(good, name):
     data[len(data) // 2] ^= 0x01
     p.write_bytes(bytes(data))
     with pytest.raises(B.HashMismatchError, match=f"sha256 mismatch for {name}"):
-        B.load_bundle(good)
+        B.load_bundle(good, golden_check=mlp_golden_check)
 
 
 def test_truncated_file(good):
     p = good / "arrays.npz"
     p.write_bytes(p.read_bytes()[:-100])
     with pytest.raises(B.HashMismatchError, match="size mismatch for arrays.npz"):
-        B.load_bundle(good)
+        B.load_bundle(good, golden_check=mlp_golden_check)
     reseal(good)  # even with a manifest that agrees, a truncated npz is refused as unreadable
     with pytest.raises(B.CorruptFileError, match="arrays.npz is truncated or not a readable npz"):
-        B.load_bundle(good)
+        B.load_bundle(good, golden_check=mlp_golden_check)
 
 
 def test_garbage_npz_with_matching_hash(tmp_path, golden):
     path = write_raw_bundle(tmp_path / "g", b"this is not a zip file", npz_bytes(golden))
     with pytest.raises(B.CorruptFileError, match="arrays.npz"):
-        B.load_bundle(path)
+        B.load_bundle(path, golden_check=mlp_golden_check)
 
 
 def test_member_data_shorter_than_header_says(tmp_path, arrays, golden):
@@ -148,7 +150,7 @@ def test_member_data_shorter_than_header_says(tmp_path, arrays, golden):
             zf.writestr(k + ".npy", raw[:-8] if k == "x_mean" else raw)
     path = write_raw_bundle(tmp_path / "s", buf.getvalue(), npz_bytes(golden))
     with pytest.raises(B.CorruptFileError, match="'x_mean' holds"):
-        B.load_bundle(path)
+        B.load_bundle(path, golden_check=mlp_golden_check)
 
 
 def test_symlinked_file_refused(good, tmp_path):
@@ -157,7 +159,7 @@ def test_symlinked_file_refused(good, tmp_path):
     (good / "golden.npz").unlink()
     (good / "golden.npz").symlink_to(target)
     with pytest.raises(B.UnsafePathError, match="golden.npz is a symlink"):
-        B.load_bundle(good)
+        B.load_bundle(good, golden_check=mlp_golden_check)
     with pytest.raises(B.UnsafePathError):
         B.bundle_to_bytes(good)
 
@@ -174,7 +176,7 @@ def _edit_manifest(path, fn):
 def test_unknown_schema_version(good):
     _edit_manifest(good, lambda m: m.update(schema_version=99))
     with pytest.raises(B.SchemaVersionError, match="unknown schema_version 99"):
-        B.load_bundle(good)
+        B.load_bundle(good, golden_check=mlp_golden_check)
 
 
 @pytest.mark.parametrize(
@@ -190,20 +192,20 @@ def test_unknown_schema_version(good):
 def test_malformed_manifest(good, text, match):
     (good / "manifest.json").write_bytes(text)
     with pytest.raises(B.ManifestError, match=match):
-        B.load_bundle(good)
+        B.load_bundle(good, golden_check=mlp_golden_check)
 
 
 @pytest.mark.parametrize("key", ["metrics", "files", "training_set_sha256", "model_version", "created_utc"])
 def test_manifest_missing_key(good, key):
     _edit_manifest(good, lambda m: m.pop(key))
     with pytest.raises(B.ManifestError, match=key):
-        B.load_bundle(good)
+        B.load_bundle(good, golden_check=mlp_golden_check)
 
 
 def test_oversize_manifest(good):
     _edit_manifest(good, lambda m: m.update(padding="x" * 70_000))
     with pytest.raises(B.SizeLimitError, match="manifest.json is .* above the limit"):
-        B.load_bundle(good)
+        B.load_bundle(good, golden_check=mlp_golden_check)
 
 
 # ------------------------------------------------------------------ array-level refusals
@@ -212,7 +214,7 @@ def test_oversize_manifest(good):
 def test_wrong_shape_names_array_and_expected(tmp_path, arrays, golden):
     path = _hostile(tmp_path, dict(arrays, x_scale=np.ones(7)), golden)
     with pytest.raises(B.ShapeError) as ei:
-        B.load_bundle(path)
+        B.load_bundle(path, golden_check=mlp_golden_check)
     msg = str(ei.value)
     assert "'x_scale'" in msg and "n_features=8" in msg and "got (7,)" in msg
     assert ei.value.subject == "x_scale"
@@ -221,23 +223,23 @@ def test_wrong_shape_names_array_and_expected(tmp_path, arrays, golden):
 def test_wrong_ndim(tmp_path, arrays, golden):
     path = _hostile(tmp_path, dict(arrays, feature_version=np.array([1], np.int64)), golden)
     with pytest.raises(B.ShapeError, match="'feature_version' expected 0-D"):
-        B.load_bundle(path)
+        B.load_bundle(path, golden_check=mlp_golden_check)
 
 
 def test_mlp_layers_must_chain(tmp_path, arrays, golden):
     path = _hostile(tmp_path, dict(arrays, mlp_W1=np.ones((99, 20))), golden)
     with pytest.raises(B.ShapeError, match="'mlp_W1' expected shape \\(mlp_d1=100, mlp_d2\\)"):
-        B.load_bundle(path)
+        B.load_bundle(path, golden_check=mlp_golden_check)
     path = _hostile(tmp_path, dict(arrays, mlp_W2=np.ones((20, 2)), mlp_b2=np.ones(2)), golden, name="two_out")
     with pytest.raises(B.ShapeError, match="'mlp_W2'"):
-        B.load_bundle(path)
+        B.load_bundle(path, golden_check=mlp_golden_check)
 
 
 def test_golden_shape_consistent_with_model(tmp_path, arrays, golden):
     g = dict(golden, mlp_inputs=np.ones((16, 3)))
     path = write_raw_bundle(tmp_path / "g", npz_bytes(arrays), npz_bytes(g))
     with pytest.raises(B.ShapeError, match="golden.npz: array 'mlp_inputs' expected shape \\(n_golden=16, n_components=2\\)"):
-        B.load_bundle(path)
+        B.load_bundle(path, golden_check=mlp_golden_check)
 
 
 @pytest.mark.parametrize(
@@ -258,7 +260,7 @@ def test_wrong_dtype(tmp_path, arrays, golden, name, value, match):
         }
     path = _hostile(tmp_path, {**arrays, **extra, name: value}, golden)
     with pytest.raises(B.DtypeError, match=match):
-        B.load_bundle(path)
+        B.load_bundle(path, golden_check=mlp_golden_check)
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
@@ -267,14 +269,14 @@ def test_non_finite_names_array(tmp_path, arrays, golden, bad):
     pc[1, 3] = bad
     path = _hostile(tmp_path, dict(arrays, pca_components=pc), golden)
     with pytest.raises(B.NonFiniteError, match="'pca_components' contains 1 NaN/inf"):
-        B.load_bundle(path)
+        B.load_bundle(path, golden_check=mlp_golden_check)
 
 
 def test_non_finite_golden(tmp_path, arrays, golden):
     g = dict(golden, mlp_outputs=np.full(16, np.nan))
     path = write_raw_bundle(tmp_path / "g", npz_bytes(arrays), npz_bytes(g))
     with pytest.raises(B.NonFiniteError, match="golden.npz: array 'mlp_outputs'"):
-        B.load_bundle(path)
+        B.load_bundle(path, golden_check=mlp_golden_check)
 
 
 def test_object_array_refused_without_unpickling(tmp_path, arrays, golden):
@@ -282,23 +284,23 @@ def test_object_array_refused_without_unpickling(tmp_path, arrays, golden):
     hostile = dict(arrays, x_mean=np.array([{"evil": 1}] * 8, dtype=object))
     path = _hostile(tmp_path, hostile, golden, allow_pickle=True)
     with pytest.raises(B.ObjectArrayError, match="'x_mean' has dtype object"):
-        B.load_bundle(path)
+        B.load_bundle(path, golden_check=mlp_golden_check)
 
 
 def test_unknown_and_missing_arrays(tmp_path, arrays, golden):
     p1 = _hostile(tmp_path, dict(arrays, surprise=np.zeros(3)), golden, name="u")
     with pytest.raises(B.UnknownArrayError, match="unknown array 'surprise'"):
-        B.load_bundle(p1)
+        B.load_bundle(p1, golden_check=mlp_golden_check)
     p2 = _hostile(tmp_path, dict(arrays, mlp_W3=np.ones((1, 1)), mlp_b3=np.ones(1)), golden, name="extra_layer")
     with pytest.raises(B.UnknownArrayError, match="'mlp_(W|b)3' is beyond the 3 layer"):
-        B.load_bundle(p2)
+        B.load_bundle(p2, golden_check=mlp_golden_check)
     missing = {k: v for k, v in arrays.items() if k != "x_mean"}
     p3 = _hostile(tmp_path, missing, golden, name="m")
     with pytest.raises(B.MissingArrayError, match="missing required array 'x_mean'"):
-        B.load_bundle(p3)
+        B.load_bundle(p3, golden_check=mlp_golden_check)
     p4 = _hostile(tmp_path, dict(arrays, lib_k=np.ones(3)), golden, name="grp")
     with pytest.raises(B.MissingArrayError, match="group 'lib' is all-or-none"):
-        B.load_bundle(p4)
+        B.load_bundle(p4, golden_check=mlp_golden_check)
 
 
 @pytest.mark.parametrize(
@@ -313,22 +315,22 @@ def test_unknown_and_missing_arrays(tmp_path, arrays, golden):
 def test_value_range(tmp_path, arrays, golden, name, value, match):
     path = _hostile(tmp_path, dict(arrays, **{name: value}), golden)
     with pytest.raises(B.ValueRangeError, match=match):
-        B.load_bundle(path)
+        B.load_bundle(path, golden_check=mlp_golden_check)
 
 
 def test_size_bounds(good):
     with pytest.raises(B.SizeLimitError, match="'mlp_W1' has 2000 elements"):
-        B.load_bundle(good, limits=B.Limits(max_array_elements=1000))
+        B.load_bundle(good, limits=B.Limits(max_array_elements=1000), golden_check=mlp_golden_check)
     with pytest.raises(B.SizeLimitError, match="arrays total more than 10000 bytes"):
-        B.load_bundle(good, limits=B.Limits(max_total_array_bytes=10_000))
+        B.load_bundle(good, limits=B.Limits(max_total_array_bytes=10_000), golden_check=mlp_golden_check)
     with pytest.raises(B.SizeLimitError, match="arrays.npz is .* above the limit"):
-        B.load_bundle(good, limits=B.Limits(max_npz_bytes=1000))
+        B.load_bundle(good, limits=B.Limits(max_npz_bytes=1000), golden_check=mlp_golden_check)
 
 
 def test_spec_max_elements(tmp_path, arrays, golden):
     path = _hostile(tmp_path, dict(arrays, prior_coef=np.zeros(1_000_001)), golden)
     with pytest.raises(B.SizeLimitError, match="'prior_coef' has 1000001 elements, above its limit"):
-        B.load_bundle(path)
+        B.load_bundle(path, golden_check=mlp_golden_check)
 
 
 def test_lying_header_does_not_allocate(tmp_path, arrays, golden):
@@ -345,7 +347,7 @@ def test_lying_header_does_not_allocate(tmp_path, arrays, golden):
             zf.writestr(k + ".npy", one.getvalue())
     path = write_raw_bundle(tmp_path / "lie", buf.getvalue(), npz_bytes(golden))
     with pytest.raises(B.SizeLimitError, match="'prior_coef' has 1000000000000 elements"):
-        B.load_bundle(path)
+        B.load_bundle(path, golden_check=mlp_golden_check)
 
 
 def test_bad_member_names(tmp_path, golden):
@@ -354,7 +356,7 @@ def test_bad_member_names(tmp_path, golden):
         zf.writestr("../escape.npy", b"x")
     path = write_raw_bundle(tmp_path / "n", buf.getvalue(), npz_bytes(golden))
     with pytest.raises(B.CorruptFileError, match="unexpected member '../escape.npy'"):
-        B.load_bundle(path)
+        B.load_bundle(path, golden_check=mlp_golden_check)
 
 
 # ------------------------------------------------------------------ golden check
@@ -364,8 +366,8 @@ def test_golden_mismatch(tmp_path, arrays, golden):
     g = dict(golden, mlp_outputs=golden["mlp_outputs"] * (1 + 1e-6))
     path = write_raw_bundle(tmp_path / "g", npz_bytes(arrays), npz_bytes(g))
     with pytest.raises(B.GoldenMismatchError, match="max relative error 1e-06 > tolerance 1e-09"):
-        B.load_bundle(path)
-    assert B.load_bundle(path, golden_rtol=1e-5).sha256  # looser tolerance accepts
+        B.load_bundle(path, golden_check=mlp_golden_check)
+    assert B.load_bundle(path, golden_rtol=1e-5, golden_check=mlp_golden_check).sha256  # looser tolerance accepts
     assert B.load_bundle(path, golden_check=None).sha256  # inspection without check
 
 
@@ -407,10 +409,10 @@ def test_declare_array_extends_schema(tmp_path, arrays, golden):
         declare_array("zz_test_extra", spec)  # idempotent
         with pytest.raises(ValueError, match="already declared"):
             declare_array("zz_test_extra", ArraySpec("i", ()))
-        b = B.write_bundle(tmp_path / "ext", dict(arrays, zz_test_extra=np.ones(8)), golden, manifest_extra())
+        b = B.write_bundle(tmp_path / "ext", dict(arrays, zz_test_extra=np.ones(8)), golden, manifest_extra(), golden_check=mlp_golden_check)
         assert b.arrays["zz_test_extra"].shape == (8,)
         with pytest.raises(B.ShapeError, match="zz_test_extra"):
-            B.write_bundle(tmp_path / "ext2", dict(arrays, zz_test_extra=np.ones(3)), golden, manifest_extra())
+            B.write_bundle(tmp_path / "ext2", dict(arrays, zz_test_extra=np.ones(3)), golden, manifest_extra(), golden_check=mlp_golden_check)
     finally:
         del SCHEMAS[1].arrays["zz_test_extra"]
 
@@ -422,7 +424,7 @@ def test_blob_round_trip(good, tmp_path):
     blob = B.bundle_to_bytes(good)
     assert blob.startswith(b"TTBUNDLE") and blob == B.bundle_to_bytes(good)
     dest = B.bundle_from_bytes(blob, tmp_path / "copy")
-    assert B.load_bundle(dest).sha256 == B.load_bundle(good).sha256
+    assert B.load_bundle(dest, golden_check=mlp_golden_check).sha256 == B.load_bundle(good, golden_check=mlp_golden_check).sha256
     with pytest.raises(FileExistsError):
         B.bundle_from_bytes(blob, dest)
     link = tmp_path / "link"
@@ -493,7 +495,7 @@ def test_fuzzed_arrays_npz_only_raises_bundle_errors(good, tmp_path, pos, val):
     data[pos % len(data)] ^= val
     write_raw_bundle(work, bytes(data), (good / "golden.npz").read_bytes())
     try:
-        B.load_bundle(work)
+        B.load_bundle(work, golden_check=mlp_golden_check)
     except B.BundleError:
         pass
 

@@ -16,6 +16,7 @@ import sys
 
 import pytest
 
+from edge.estimation.estimate import mlp_golden_check
 from host.cli import main
 from host.client import DeviceClient
 from host.device import DeviceUnavailable, describe_error, open_device, simulated_probe
@@ -141,7 +142,7 @@ def test_measure_plot_over_a_port_without_the_devices_bundle_plots_the_measureme
     manifest = json.loads((other / "manifest.json").read_text())
     manifest["model_version"] = "site-retrained"
     (other / "manifest.json").write_text(json.dumps(manifest))
-    sha = load_bundle(other).sha256
+    sha = load_bundle(other, golden_check=mlp_golden_check).sha256
     calls = _capture_plots(monkeypatch)
     with simulated_probe("pmma_15V", tmp_path / "dev", overrides={"paths": {"factory_model": str(other)}}) \
             as (port, daemon, sim):
@@ -181,7 +182,7 @@ def test_flash_installs_the_bundle_and_confirms_its_sha(capsys, tmp_path):
 
     code, out, err = run(capsys, "flash", str(DEFAULT_BUNDLE), "--sim", "pmma_8V", "--workdir", str(tmp_path))
     assert code == 0, err
-    sha = load_bundle(DEFAULT_BUNDLE).sha256
+    sha = load_bundle(DEFAULT_BUNDLE, golden_check=mlp_golden_check).sha256
     assert sha in out
     with open_device(sim="pmma_8V", workdir=tmp_path) as s:
         info = s.client.info()

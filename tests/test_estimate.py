@@ -14,7 +14,7 @@ from edge.physics.forward import simulate
 from edge.measure.instrument import INSTRUMENTS
 from edge.physics.solids import Solid
 from host.evaluate import TouchSimulator, q_v_for_voltage
-from host.materials import load_materials
+from edge.physics.materials import load_materials
 from host.records import RecordError, read_record, write_record
 
 GLASS = Solid(1.097, 2458.4, 809.0)

@@ -7,6 +7,8 @@ from sklearn.decomposition import PCA
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.neural_network import MLPRegressor
 
+from edge.estimation.mlp import MLP
+from edge.estimation.estimate import mlp_golden_check
 from edge.model import bundle as B
 from edge.model.schema import ArraySpec, SCHEMAS
 from host.export import export_paper_model, mlp_arrays_from_sklearn, pca_arrays_from_sklearn
@@ -54,12 +56,12 @@ def _export(path, trained, **kw):
 def test_export_then_edge_reproduces_sklearn(tmp_path, trained):
     mlp, pca, _pre, p = trained
     b = _export(tmp_path / "paper", trained)
-    loaded = B.load_bundle(tmp_path / "paper")
+    loaded = B.load_bundle(tmp_path / "paper", golden_check=mlp_golden_check)
     assert loaded.sha256 == b.sha256
     assert loaded.manifest["metrics"] == {"val_mape": 0.031}
     assert loaded.manifest["exporter"]["hidden_layer_sizes"] == [100, 20]
     np.testing.assert_array_equal(loaded.arrays["pca_components"], pca.components_)
-    net = loaded.mlp()
+    net = MLP.from_arrays(loaded.arrays)
     X = np.random.default_rng(3).normal(size=(300, 2))
     ref = mlp.predict(X)
     assert np.max(np.abs(net.predict(X) - ref) / np.abs(ref)) <= 1e-9

@@ -71,7 +71,7 @@ ALPHA_BAR = {"tempered glass": 0.36, "PMMA": 0.20, "Al alloy": 0.65}
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     """A quick bundle on 12 materials, via train-and-deploy against a probe running the shipped model."""
-    from host.materials import MaterialLibrary, load_materials
+    from edge.physics.materials import MaterialLibrary, load_materials
 
     lib = load_materials()
     small = MaterialLibrary([lib.get(n) for n in SMALL_LIBRARY])

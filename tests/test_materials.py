@@ -6,7 +6,7 @@ from importlib import resources
 import numpy as np
 import pytest
 
-from host.materials import (
+from edge.physics.materials import (
     CLASSES,
     CLASS_TO_GROUP,
     REPORT_GROUPS,

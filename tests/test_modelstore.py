@@ -6,6 +6,7 @@ from pathlib import Path
 import pytest
 
 from bundle_testutil import make_arrays, make_golden, manifest_extra, npz_bytes, write_raw_bundle
+from edge.estimation.estimate import mlp_golden_check
 from edge.model import bundle as B
 from edge.storage import durable
 from edge.model.store import InstallError, ModelStore, ModelStoreError
@@ -22,10 +23,10 @@ def blobs(tmp_path_factory):
     out = {}
     for i, tag in enumerate("ABC"):
         arrays = make_arrays(seed=10 + i, hidden=(12, 5))
-        b = B.write_bundle(d / tag, arrays, make_golden(arrays), manifest_extra(tag))
+        b = B.write_bundle(d / tag, arrays, make_golden(arrays), manifest_extra(tag), golden_check=mlp_golden_check)
         out[tag] = (B.bundle_to_bytes(b.path), b.sha256)
     arrays = make_arrays(seed=99, hidden=(12, 5))
-    out["factory_path"] = B.write_bundle(d / "factory", arrays, make_golden(arrays), manifest_extra("factory")).path
+    out["factory_path"] = B.write_bundle(d / "factory", arrays, make_golden(arrays), manifest_extra("factory"), golden_check=mlp_golden_check).path
     # Valid container and hashes, but golden vectors that do not reproduce.
     arrays = make_arrays(seed=5, hidden=(12, 5))
     g = make_golden(arrays)
@@ -41,14 +42,14 @@ def _install(store, blobs, tag):
 
 
 def test_empty_store_without_factory_has_no_model(tmp_path):
-    store = ModelStore(tmp_path / "store")
+    store = ModelStore(tmp_path / "store", golden_check=mlp_golden_check)
     with pytest.raises(ModelStoreError, match="no usable model"):
         store.current()
     assert any("no pointer" in e for e in store.boot_errors)
 
 
 def test_factory_used_until_first_install(tmp_path, blobs):
-    store = ModelStore(tmp_path / "s", blobs["factory_path"])
+    store = ModelStore(tmp_path / "s", blobs["factory_path"], golden_check=mlp_golden_check)
     assert store.current().model_version == "factory" and store.source == "factory"
     b = _install(store, blobs, "A")
     assert b.sha256 == blobs["A"][1] and store.current() is b and store.source == "current"
@@ -57,12 +58,12 @@ def test_factory_used_until_first_install(tmp_path, blobs):
 
 def test_install_persists_and_keeps_previous(tmp_path, blobs):
     root = tmp_path / "s"
-    store = ModelStore(root, blobs["factory_path"])
+    store = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
     _install(store, blobs, "A")
     _install(store, blobs, "B")
     assert (root / "current").read_text() == blobs["B"][1] + "\n"
     assert (root / "previous").read_text() == blobs["A"][1] + "\n"
-    fresh = ModelStore(root, blobs["factory_path"])
+    fresh = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
     assert fresh.current().sha256 == blobs["B"][1] and fresh.source == "current"
     _install(fresh, blobs, "C")
     # Only current and previous are kept.
@@ -71,7 +72,7 @@ def test_install_persists_and_keeps_previous(tmp_path, blobs):
 
 
 def test_reinstall_same_bundle_is_harmless(tmp_path, blobs):
-    store = ModelStore(tmp_path / "s")
+    store = ModelStore(tmp_path / "s", golden_check=mlp_golden_check)
     _install(store, blobs, "A")
     _install(store, blobs, "B")
     b = _install(store, blobs, "B")
@@ -91,19 +92,19 @@ def test_reinstall_same_bundle_is_harmless(tmp_path, blobs):
 )
 def test_bad_uploads_leave_current_untouched(tmp_path, blobs, mutate, match):
     root = tmp_path / "s"
-    store = ModelStore(root)
+    store = ModelStore(root, golden_check=mlp_golden_check)
     _install(store, blobs, "A")
     data, sha, size = mutate(blobs["B"][0])
     with pytest.raises(InstallError, match=match):
         store.install(data, sha, size)
     assert store.current().sha256 == blobs["A"][1]
-    assert ModelStore(root).current().sha256 == blobs["A"][1]
+    assert ModelStore(root, golden_check=mlp_golden_check).current().sha256 == blobs["A"][1]
     assert os.listdir(root / "bundles") == [blobs["A"][1]] and os.listdir(root / "tmp") == []
 
 
 def test_rollback_on_bad_golden(tmp_path, blobs):
     root = tmp_path / "s"
-    store = ModelStore(root)
+    store = ModelStore(root, golden_check=mlp_golden_check)
     _install(store, blobs, "A")
     blob = blobs["BAD"][0]
     with pytest.raises(InstallError, match="golden vectors do not reproduce") as ei:
@@ -131,7 +132,7 @@ def _corrupt_bundle(root: Path, sha: str) -> None:
 @pytest.mark.parametrize("how", ["garbage pointer", "empty pointer", "corrupt bundle", "missing bundle"])
 def test_boot_falls_back_to_previous(tmp_path, blobs, how):
     root = tmp_path / "s"
-    store = ModelStore(root, blobs["factory_path"])
+    store = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
     _install(store, blobs, "A")
     _install(store, blobs, "B")
     if how == "garbage pointer":
@@ -142,63 +143,63 @@ def test_boot_falls_back_to_previous(tmp_path, blobs, how):
         _corrupt_bundle(root, blobs["B"][1])
     else:
         shutil.rmtree(root / "bundles" / blobs["B"][1])
-    fresh = ModelStore(root, blobs["factory_path"])
+    fresh = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
     assert fresh.current().sha256 == blobs["A"][1]
     assert fresh.source == "previous" and fresh.boot_errors and fresh.boot_errors[0].startswith("current:")
 
 
 def test_boot_falls_back_to_factory_then_fails(tmp_path, blobs):
     root = tmp_path / "s"
-    store = ModelStore(root, blobs["factory_path"])
+    store = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
     _install(store, blobs, "A")
     _install(store, blobs, "B")
     _corrupt_bundle(root, blobs["A"][1])
     _corrupt_bundle(root, blobs["B"][1])
-    fresh = ModelStore(root, blobs["factory_path"])
+    fresh = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
     assert fresh.current().model_version == "factory" and fresh.source == "factory"
     assert len(fresh.boot_errors) == 2
     with pytest.raises(ModelStoreError, match="sha256 mismatch for arrays.npz"):
-        ModelStore(root, tmp_path / "no_such_factory").current()
+        ModelStore(root, tmp_path / "no_such_factory", golden_check=mlp_golden_check).current()
     # Installing over a broken store works and does not record the broken bundle as previous.
     b = _install(fresh, blobs, "C")
-    assert ModelStore(root).current().sha256 == b.sha256
+    assert ModelStore(root, golden_check=mlp_golden_check).current().sha256 == b.sha256
 
 
 def test_pointer_to_wrong_identity_is_refused(tmp_path, blobs):
     root = tmp_path / "s"
-    store = ModelStore(root, blobs["factory_path"])
+    store = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
     _install(store, blobs, "A")
     _install(store, blobs, "B")
     # Make the "B" directory hold A's files: hashes are fine but the identity is not B.
     dirb = root / "bundles" / blobs["B"][1]
     shutil.rmtree(dirb)
     shutil.copytree(root / "bundles" / blobs["A"][1], dirb)
-    fresh = ModelStore(root)
+    fresh = ModelStore(root, golden_check=mlp_golden_check)
     assert fresh.current().sha256 == blobs["A"][1] and fresh.source == "previous"
     assert "identity" in fresh.boot_errors[0]
 
 
 def test_rollback(tmp_path, blobs):
     root = tmp_path / "s"
-    store = ModelStore(root)
+    store = ModelStore(root, golden_check=mlp_golden_check)
     with pytest.raises(ModelStoreError, match="no previous"):
         store.rollback()
     _install(store, blobs, "A")
     _install(store, blobs, "B")
     assert store.rollback().sha256 == blobs["A"][1]
-    assert ModelStore(root).current().sha256 == blobs["A"][1]
+    assert ModelStore(root, golden_check=mlp_golden_check).current().sha256 == blobs["A"][1]
     assert (root / "previous").read_text().strip() == blobs["B"][1]
-    st = ModelStore(root).status()
+    st = ModelStore(root, golden_check=mlp_golden_check).status()
     assert st["source"] == "current" and st["model_version"] == "A"
 
 
 def test_startup_removes_stale_staging(tmp_path, blobs):
     root = tmp_path / "s"
-    store = ModelStore(root)
+    store = ModelStore(root, golden_check=mlp_golden_check)
     _install(store, blobs, "A")
     (root / "tmp" / "upload-dead").mkdir()
     (root / ".current.tmp123").write_text("junk")
-    ModelStore(root)
+    ModelStore(root, golden_check=mlp_golden_check)
     assert os.listdir(root / "tmp") == [] and not (root / ".current.tmp123").exists()
 
 
@@ -249,7 +250,7 @@ def no_disk_flush(monkeypatch):
 
 
 def _store_with(root, blobs, tags):
-    store = ModelStore(root, blobs["factory_path"])
+    store = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
     for t in tags:
         _install(store, blobs, t)
     return store
@@ -276,7 +277,7 @@ def test_power_cut_at_every_step_leaves_a_working_model(tmp_path, blobs, no_disk
             _arm(mp, i, [])
             _install(store, blobs, new_tag)
         # Reboot: a new process sees whatever reached the disk.
-        rebooted = ModelStore(root, blobs["factory_path"])
+        rebooted = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
         b = rebooted.current()
         assert b.sha256 in {before_sha, blobs[new_tag][1]} or (before_sha is None and rebooted.source == "factory")
         if before_sha is not None:
@@ -285,7 +286,7 @@ def test_power_cut_at_every_step_leaves_a_working_model(tmp_path, blobs, no_disk
         outcomes.append("new" if b.sha256 == blobs[new_tag][1] else "old")
         # The store is still usable: the install can be retried.
         assert _install(rebooted, blobs, new_tag).sha256 == blobs[new_tag][1]
-        assert ModelStore(root).current().sha256 == blobs[new_tag][1]
+        assert ModelStore(root, golden_check=mlp_golden_check).current().sha256 == blobs[new_tag][1]
     # Monotone: once the switch happened, later crashes keep the new model.
     assert outcomes == sorted(outcomes, key=lambda o: o == "new")
     assert outcomes[0] == "old" and "new" in outcomes
@@ -303,6 +304,6 @@ def test_power_cut_during_rollback(tmp_path, blobs, no_disk_flush):
         with pytest.MonkeyPatch.context() as mp, pytest.raises(PowerCut):
             _arm(mp, i, [])
             store.rollback()
-        rebooted = ModelStore(root)
+        rebooted = ModelStore(root, golden_check=mlp_golden_check)
         assert rebooted.current().sha256 in {blobs["A"][1], blobs["B"][1]}
         assert rebooted.source == "current"

@@ -40,6 +40,7 @@ from edge.checks import finite_array, one_of, strictly_increasing
 from edge.estimation.features import FEATURE_VERSION, log_features, paper_features
 from edge.physics.fluxmodel import duhamel_matrix, surface_temperature
 from edge.estimation.mlp import MLP
+from edge.model.bundle import Bundle, max_relative_error
 from edge.physics.solids import Solid
 from edge.estimation.spline import resample
 
@@ -393,10 +394,13 @@ class Estimator:
         return self._finish(e, u_ln_e, k, u_ln_k, alpha, u_ln_alpha, "paper", flags, models[i], grid)
 
 
-def pipeline_golden_check(bundle, golden: Mapping[str, np.ndarray]) -> float:
-    """Golden check of a whole bundle: the MLP vectors and, if present, features -> k."""
-    from edge.model.bundle import max_relative_error, mlp_golden_check
+def mlp_golden_check(bundle: Bundle, golden: Mapping[str, np.ndarray]) -> float:
+    """Golden check of the network alone: the bundle's MLP maps ``mlp_inputs`` to ``mlp_outputs``."""
+    return max_relative_error(MLP.from_arrays(bundle.arrays).predict(golden["mlp_inputs"]), golden["mlp_outputs"])
 
+
+def pipeline_golden_check(bundle: Bundle, golden: Mapping[str, np.ndarray]) -> float:
+    """Golden check of a whole bundle: the MLP vectors and, if present, features -> k."""
     err = mlp_golden_check(bundle, golden)
     if "pipeline_features" in golden:
         k, _, _ = Estimator(bundle.arrays, "").paper_k(np.asarray(golden["pipeline_features"]))

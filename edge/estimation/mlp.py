@@ -12,10 +12,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-ACTIVATION_CODES: dict[str, int] = {"identity": 0, "tanh": 1, "relu": 2, "logistic": 3}
-"""Integer codes stored in a bundle for each activation name (scikit-learn's names)."""
+from edge.model.schema import ACTIVATION_CODES, ACTIVATION_NAMES
 
-ACTIVATION_NAMES: dict[int, str] = {code: name for name, code in ACTIVATION_CODES.items()}
 
 
 def _identity(z: np.ndarray) -> np.ndarray:

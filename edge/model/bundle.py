@@ -47,7 +47,6 @@ import numpy as np
 
 from edge.storage import durable
 from edge.model.schema import CURRENT_SCHEMA_VERSION, NAME_RE, SCHEMAS, ArraySpec, Schema
-from edge.estimation.mlp import MLP
 
 MANIFEST_FILE = "manifest.json"
 ARRAYS_FILE = "arrays.npz"
@@ -181,11 +180,6 @@ def max_relative_error(got: np.ndarray, expected: np.ndarray, floor_fraction: fl
     return float(np.max(np.abs(got - expected) / np.maximum(np.abs(expected), floor)))
 
 
-def mlp_golden_check(bundle: "Bundle", golden: Mapping[str, np.ndarray]) -> float:
-    """Default golden check: the bundle's MLP maps ``mlp_inputs`` to ``mlp_outputs``."""
-    return max_relative_error(bundle.mlp().predict(golden["mlp_inputs"]), golden["mlp_outputs"])
-
-
 class Bundle:
     """A verified, read-only model bundle.
 
@@ -218,7 +212,6 @@ class Bundle:
         self._manifest_json = json.dumps(manifest)
         self.sha256 = sha256
         self.dims: Mapping[str, int] = MappingProxyType(dict(dims))
-        self._mlp: MLP | None = None
 
     @property
     def manifest(self) -> dict[str, Any]:
@@ -232,12 +225,6 @@ class Bundle:
     @property
     def model_version(self) -> str:
         return str(self.manifest["model_version"])
-
-    def mlp(self) -> MLP:
-        """The bundle's network (built once, cached)."""
-        if self._mlp is None:
-            self._mlp = MLP.from_arrays(self.arrays)
-        return self._mlp
 
     def __repr__(self) -> str:
         return f"Bundle(model_version={self.model_version!r}, sha256={self.sha256[:12]}..., path={self.path})"
@@ -549,7 +536,7 @@ def _verify_file(data: bytes, label: str, entry: Mapping[str, Any]) -> None:
 
 def load_bundle(
     path: str | os.PathLike,
-    golden_check: GoldenCheck | None = mlp_golden_check,
+    golden_check: GoldenCheck | None,
     *,
     golden_rtol: float = DEFAULT_GOLDEN_RTOL,
     limits: Limits = DEFAULT_LIMITS,
@@ -562,8 +549,9 @@ def load_bundle(
         Bundle directory.
     golden_check : callable or None
         ``check(bundle, golden) -> max relative error``; the bundle is refused if the result is
-        above ``golden_rtol`` (or not finite, or the check raises). Default
-        :func:`mlp_golden_check`. ``None`` skips the golden check (inspection only; never for a
+        above ``golden_rtol`` (or not finite, or the check raises). The container knows
+        nothing of what the arrays compute, so the caller supplies the check (the device:
+        :func:`edge.estimation.estimate.pipeline_golden_check`). ``None`` skips the golden check (inspection only; never for a
         model that will be used).
     golden_rtol : float
         Tolerance on the golden check's result.
@@ -746,7 +734,7 @@ def write_bundle(
     *,
     overwrite: bool = False,
     schema_version: int = CURRENT_SCHEMA_VERSION,
-    golden_check: GoldenCheck | None = mlp_golden_check,
+    golden_check: GoldenCheck | None,
     golden_rtol: float = DEFAULT_GOLDEN_RTOL,
 ) -> Bundle:
     """Write a bundle directory atomically and return it loaded and verified.

@@ -24,7 +24,6 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Mapping
 
-from edge.estimation.mlp import ACTIVATION_NAMES
 
 Dim = int | str
 """A dimension: a fixed size, or the name of a symbolic size shared across arrays."""
@@ -141,6 +140,11 @@ class Schema:
     golden: dict[str, ArraySpec]
     families: tuple[LayerFamily, ...] = ()
 
+
+ACTIVATION_CODES: dict[str, int] = {"identity": 0, "tanh": 1, "relu": 2, "logistic": 3}
+"""Integer codes stored in a bundle for each activation name (scikit-learn's names)."""
+
+ACTIVATION_NAMES: dict[int, str] = {code: name for name, code in ACTIVATION_CODES.items()}
 
 _ACT_CODES = tuple(sorted(ACTIVATION_NAMES))
 _TINY = 1e-300  # "strictly positive" without an exclusive-bound flag

@@ -33,7 +33,6 @@ from edge.model.bundle import (
     Limits,
     bundle_from_bytes,
     load_bundle,
-    mlp_golden_check,
 )
 
 _HEX64 = re.compile(r"^[0-9a-f]{64}$")
@@ -72,7 +71,7 @@ class ModelStore:
         root: str | os.PathLike,
         factory_path: str | os.PathLike | None = None,
         *,
-        golden_check: GoldenCheck = mlp_golden_check,
+        golden_check: GoldenCheck,
         golden_rtol: float = DEFAULT_GOLDEN_RTOL,
         limits: Limits = DEFAULT_LIMITS,
     ) -> None:

@@ -54,6 +54,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 import edge
+from edge.estimation.estimate import pipeline_golden_check
 from edge.hw.board import Board, make_board
 from edge.service.config import RUNTIME_KEYS, Config, ConfigError, RuntimeOverrides, load_config
 from edge.hw.drivers.heater import Heater, HeaterError, HeaterOffError
@@ -216,7 +217,7 @@ class Daemon:
             self._apply_logging()
             self.history = history if history is not None else History(self.config.paths.history_db)
             self.store = model_store if model_store is not None else ModelStore(
-                self.config.paths.model_store, _factory_bundle(self.config))
+                self.config.paths.model_store, _factory_bundle(self.config), golden_check=pipeline_golden_check)
             try:
                 b = self.store.current()
                 log.info("model %s (%s) from %s", b.model_version, b.sha256[:12], self.store.source)
