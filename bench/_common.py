@@ -5,12 +5,20 @@ from __future__ import annotations
 import json
 import platform
 import re
+import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(1, str(ROOT))  # this checkout's edge/ and host/, before any installed copy
+
+from host.blas import limit_blas_threads  # noqa: E402
+
+limit_blas_threads()  # before NumPy loads OpenBLAS: one thread (see host/blas.py)
+
+import numpy as np  # noqa: E402
+
 RESULTS = ROOT / "bench" / "results"
 
 

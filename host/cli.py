@@ -540,6 +540,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    from host.blas import limit_blas_threads
+
+    limit_blas_threads()
     try:
         args = build_parser().parse_args(argv)
         return args.func(args)

@@ -1,5 +1,16 @@
-import numpy as np
-import pytest
+from host.blas import limit_blas_threads, set_blas_env
+
+set_blas_env()  # before NumPy loads OpenBLAS, and for the suite's child processes
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _one_blas_thread():
+    """One BLAS thread for the whole suite (host/blas.py is the one place that sets it)."""
+    limit_blas_threads()
+    yield
 
 
 @pytest.fixture

@@ -178,3 +178,16 @@ def test_thermometer_resolution_enters_the_uncertainty(est):
     assert len(z_with) >= 25
     assert np.std(z_with) < 1.2
     assert np.std(z_without) > 1.2 * np.std(z_with)
+
+
+def test_alpha_scan_regression_matches_lstsq():
+    from edge.estimation.estimate import _lstsq_with_offset, _slopes_and_rss
+
+    rng = np.random.default_rng(5)
+    T = np.cumsum(rng.normal(0.1, 0.02, 300))
+    models = np.array([np.sqrt(np.arange(300.0)) * s + rng.normal(0, 0.1, 300) for s in (0.5, 1.0, 2.0)])
+    a, rss = _slopes_and_rss(models, T)
+    for i, m in enumerate(models):
+        a_ref, _, _, rss_ref, _ = _lstsq_with_offset(m, T, 300)
+        assert abs(a[i] - a_ref) <= 1e-12 * abs(a_ref)
+        assert abs(rss[i] - rss_ref) <= 1e-10 * rss_ref

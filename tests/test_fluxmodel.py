@@ -72,3 +72,128 @@ def test_flux_model_validation():
         surface_temperature(t[::-1], np.ones(10), GLASS)
     with pytest.raises(ValueError, match="q_W_m2"):
         surface_temperature(t, np.full(10, np.nan), GLASS)
+
+
+# --- Duhamel as an O(n) kernel and an FFT product ------------------------------
+
+def _dense_duhamel_reference(t):
+    """The dense O(n^2) matrix as edge/fluxmodel.py built it before the kernel form."""
+    n = t.size
+    h = np.diff(t)
+    ti = t[:, None]
+    a = np.clip(ti - t[None, 1:], 0.0, None)
+    b = np.clip(ti - t[None, :-1], 0.0, None)
+    active = ti > t[None, :-1]
+    i0 = 2.0 * (np.sqrt(b) - np.sqrt(a))
+    i1 = (2.0 / 3.0) * (b ** 1.5 - a ** 1.5)
+    D = np.zeros((n, n))
+    D[:, :-1] += np.where(active, (-a * i0 + i1) / h, 0.0)
+    D[:, 1:] += np.where(active, (b * i0 - i1) / h, 0.0)
+    return D / math.sqrt(math.pi)
+
+
+@pytest.mark.parametrize("n", [2, 3, 10, 201, 600])
+def test_duhamel_kernel_product_matches_the_dense_matrix(n):
+    from edge.physics.fluxmodel import duhamel_apply
+
+    rng = np.random.default_rng(n)
+    t = np.arange(n) * 0.01
+    q = 800 * (1 - np.exp(-t / 0.3)) + rng.normal(0, 20, n)
+    D = _dense_duhamel_reference(t)
+    ref = D @ q
+    assert rel_err(duhamel_apply(q, 0.01), ref) < 1e-12
+    # Element by element the dense formula itself loses ~k eps to cancellation far below the diagonal.
+    assert np.max(np.abs(duhamel_matrix(t) - D)) <= 1e-10 * np.max(np.abs(D))
+    # several series at once, and through surface_temperature
+    Q = np.column_stack([q, 2 * q])
+    np.testing.assert_allclose(duhamel_apply(Q, 0.01)[:, 1], 2 * duhamel_apply(q, 0.01), rtol=1e-13, atol=1e-13)
+    if n > 2:
+        assert rel_err(surface_temperature(t, q, GLASS) * GLASS.effusivity_W_s05_m2K, ref) < 1e-12
+
+
+@pytest.mark.skipif(np.finfo(np.longdouble).eps > 1e-18, reason="needs extended precision")
+def test_duhamel_kernel_product_against_extended_precision():
+    # At 2000 points the dense formula loses digits to cancellation (~4e-12); the kernel does not.
+    from edge.physics.fluxmodel import duhamel_apply
+
+    n, dt = 2000, 0.01
+    t = np.arange(n, dtype=np.longdouble) * np.longdouble(dt)
+    ti = t[:, None]
+    a = np.clip(ti - t[None, 1:], 0, None)
+    b = np.clip(ti - t[None, :-1], 0, None)
+    active = ti > t[None, :-1]
+    i0 = 2 * (np.sqrt(b) - np.sqrt(a))
+    i1 = np.longdouble(2) / 3 * (b * np.sqrt(b) - a * np.sqrt(a))
+    D = np.zeros((n, n), dtype=np.longdouble)
+    D[:, :-1] += np.where(active, (-a * i0 + i1) / np.longdouble(dt), 0)
+    D[:, 1:] += np.where(active, (b * i0 - i1) / np.longdouble(dt), 0)
+    q = 1000 * (1 - np.exp(-np.arange(n) * dt)) + np.random.default_rng(1).normal(0, 30, n)
+    ref = (D @ q.astype(np.longdouble)).astype(float) / math.sqrt(math.pi)
+    assert rel_err(duhamel_apply(q, dt), ref) < 1e-14
+
+
+def test_duhamel_on_a_non_uniform_grid_matches_the_dense_matrix():
+    rng = np.random.default_rng(7)
+    t = np.arange(301) * 0.01 + np.concatenate(([0.0], rng.uniform(-0.003, 0.003, 300)))  # a jittered clock
+    q = 500 + 100 * np.sin(t)
+    D = _dense_duhamel_reference(t)
+    assert np.max(np.abs(duhamel_matrix(t) - D)) <= 1e-10 * np.max(np.abs(D))
+    T = surface_temperature(t, q, GLASS) * GLASS.effusivity_W_s05_m2K
+    assert rel_err(T, D @ q) < 1e-12
+
+
+def test_duhamel_spectrum_cache_is_small_and_bounded():
+    from edge.physics.fluxmodel import _duhamel_spectrum, duhamel_apply
+
+    for n in (50, 60, 70, 80, 90, 100):
+        duhamel_apply(np.ones(n), 0.01)
+    info = _duhamel_spectrum.cache_info()
+    assert info.currsize <= info.maxsize <= 8
+
+
+# --- the graded-grid flux model, uniform knots as one convolution --------------
+
+def _march_linear_loop_reference(ms, t_knots, u_knots, t_out, rows):
+    """ModalSolver.march_linear as it was: one _psi evaluation per knot."""
+    from edge.physics.integrators import _phi, _psi
+
+    mrows = ms.rows_to_modal(rows)
+    lam, beta = ms.lam, ms.beta
+    dslope = np.diff(np.concatenate(([0.0], np.diff(u_knots) / np.diff(t_knots))))
+    out = (mrows @ (beta[:, None] * _phi(lam[:, None], t_out[None, :]))) * u_knots[0]
+    for t0, d in zip(t_knots[:-1], dslope):
+        m = t_out > t0
+        out[:, m] += d * (mrows @ (beta[:, None] * _psi(lam[:, None], t_out[m][None, :] - t0)))
+    return out
+
+
+@pytest.mark.parametrize("alpha", [1e-8, 1e-7, 1e-6, 3e-4])
+@pytest.mark.parametrize("back", ["insulated", "fixed"])
+@pytest.mark.parametrize("q0", [0.0, 150.0])
+def test_uniform_march_linear_matches_the_knot_loop(alpha, back, q0):
+    from edge.physics import fvm
+    from edge.physics.integrators import ModalSolver
+
+    t = np.arange(401) * 0.01
+    q = q0 + 1000 * (1 - np.exp(-t)) + np.random.default_rng(0).normal(0, 5, t.size)
+    q[0] = q0
+    unit = Solid(math.sqrt(alpha), 1 / math.sqrt(alpha), 1.0)
+    grid = fvm.object_grid(unit, duration_s=4.0, t_first_s=0.01, thickness_m=0.5e-3, back=back)
+    ms = ModalSolver(grid)
+    r = np.zeros(grid.n)
+    r[0] = 1.0
+    ref = _march_linear_loop_reference(ms, t, q, t, r)[0]
+    assert rel_err(ms.march_linear(t, q, t, r)[0], ref) < 1e-12
+
+
+def test_surface_temperature_scan_matches_one_call_per_solid():
+    from edge.physics.fluxmodel import surface_temperature_scan
+
+    t = np.arange(301) * 0.01
+    q = 900 * (1 - np.exp(-t / 0.2))
+    solids = [Solid(math.sqrt(a), 1 / math.sqrt(a), 1.0) for a in (1e-8, 3e-7, 2e-5)]
+    for tt in (t, np.concatenate((t[:100], t[100:] + 0.003))):  # uniform, and not
+        rows = surface_temperature_scan(tt, q, solids, thickness_m=0.6e-3, back="insulated")
+        for s, row in zip(solids, rows):
+            ref = surface_temperature(tt, q, s, thickness_m=0.6e-3, back="insulated", scheme="default")
+            assert rel_err(row, ref) < 1e-12

@@ -31,18 +31,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from functools import lru_cache
 from typing import Mapping
 
 import numpy as np
 
 from edge.checks import finite_array, one_of, strictly_increasing
 from edge.estimation.features import FEATURE_VERSION, log_features, paper_features
-from edge.physics.fluxmodel import duhamel_matrix, surface_temperature
 from edge.estimation.mlp import MLP
-from edge.model.bundle import Bundle, max_relative_error
-from edge.physics.solids import Solid
 from edge.estimation.spline import resample
+from edge.model.bundle import Bundle, max_relative_error
+from edge.physics.fluxmodel import duhamel_apply, surface_temperature, surface_temperature_scan
+from edge.physics.solids import Solid
 
 METHODS = ("default", "paper")
 MODEL_DT_S = 0.01
@@ -105,11 +104,6 @@ class Estimate:
         }
 
 
-@lru_cache(maxsize=8)
-def _duhamel(n: int, dt: float) -> np.ndarray:
-    return duhamel_matrix(np.arange(n) * dt)
-
-
 def _uniform_grid(t_end: float, dt: float) -> np.ndarray:
     n = int(math.floor(t_end / dt + 1e-9)) + 1
     return np.arange(n) * dt
@@ -132,6 +126,18 @@ def _lstsq_with_offset(m: np.ndarray, T: np.ndarray, n_eff: int):
     except np.linalg.LinAlgError:
         u_a = math.inf
     return float(coef[0]), float(coef[1]), u_a, rss, fit
+
+
+def _slopes_and_rss(models: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Slope a and residual sum of squares of T = a m + c for every row m of ``models`` at once."""
+    mc = models - models.mean(axis=1, keepdims=True)
+    Tc = T - T.mean()
+    smm = np.einsum("ij,ij->i", mc, mc)
+    smT = mc @ Tc
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = np.where(smm > 0, smT / smm, 0.0)
+    resid = Tc[None, :] - a[:, None] * mc
+    return a, np.einsum("ij,ij->i", resid, resid)
 
 
 def _quantisation_u_a(m: np.ndarray, Tg: np.ndarray, grid: np.ndarray, lsb_K: float) -> float:
@@ -281,8 +287,11 @@ class Estimator:
         if t_end < 10 * MODEL_DT_S:
             raise ValueError(f"record too short: {t_end:.3g} s")
         grid = _uniform_grid(t_end, MODEL_DT_S)
-        Tg = resample(tT, T, grid)
-        qg = resample(tq, q, grid)
+        if tq is tT or (tq.size == tT.size and np.array_equal(tq, tT)):
+            Tg, qg = resample(tT, np.column_stack((T, q)), grid).T  # one spline solve for both
+        else:
+            Tg = resample(tT, T, grid)
+            qg = resample(tq, q, grid)
         n_eff = n_raw or int(min(tT.size, np.count_nonzero(tT <= t_end)))
         flags: list[str] = []
         if float(np.mean(qg[grid.size // 2:])) < 20.0 or float(np.max(Tg)) <= 0.0:
@@ -304,7 +313,7 @@ class Estimator:
     def _default(self, grid, Tg, qg, n_eff, flags, thickness_m, back, lsb_K) -> Estimate:
         if thickness_m is not None and back != "infinite":
             return self._default_finite(grid, Tg, qg, n_eff, flags, thickness_m, back, lsb_K)
-        m = _duhamel(grid.size, MODEL_DT_S) @ qg
+        m = duhamel_apply(qg, MODEL_DT_S)
         a, c, u_a, _, fit = _lstsq_with_offset(m, Tg, n_eff)
         u_a = math.hypot(u_a, _quantisation_u_a(m, Tg, grid, lsb_K))
         if not a > MIN_SNR * u_a:
@@ -326,16 +335,18 @@ class Estimator:
     def _default_finite(self, grid, Tg, qg, n_eff, flags, thickness_m, back, lsb_K) -> Estimate:
         # For fixed alpha the flux model is linear in 1/e: scan alpha, solve e.
         alphas = np.geomspace(1e-8, 3e-4, 61)
+        units = [Solid(math.sqrt(al), 1.0 / math.sqrt(al), 1.0) for al in alphas]  # e = 1
+        models = surface_temperature_scan(grid, qg, units, thickness_m=thickness_m, back=back)
+        a_all, rss_all = _slopes_and_rss(models, Tg)
+        rss_all = np.where(a_all > 0, rss_all, np.inf)
         best = None
-        rss_all = []
-        for al in alphas:
-            unit = Solid(math.sqrt(al), 1.0 / math.sqrt(al), 1.0)  # e = 1
-            m = surface_temperature(grid, qg, unit, thickness_m=thickness_m, back=back, scheme="default")
+        if np.any(a_all > 0):
+            i = int(np.argmin(rss_all))
+            m = models[i]
             a, c, u_a, rss, fit = _lstsq_with_offset(m, Tg, n_eff)
             u_a = math.hypot(u_a, _quantisation_u_a(m, Tg, grid, lsb_K))
-            rss_all.append(rss if a > 0 else np.inf)
-            if a > 0 and (best is None or rss < best[0]):
-                best = (rss, al, a, u_a, fit)
+            rss_all[i] = rss
+            best = (rss, float(alphas[i]), a, u_a, fit)
         if best is None or not best[2] > MIN_SNR * best[3]:
             flags.append("insufficient_signal")
             return Estimate(None, None, None, None, None, None, None, 0.0, "default", self.sha256, flags)
@@ -369,7 +380,7 @@ class Estimator:
             return Estimate(None, None, None, None, None, None, None, 0.0, "paper", self.sha256, flags)
         lo, hi, step = next(rng for kmax, rng in PAPER_ALPHA_SCANS if k < kmax)
         alphas = np.arange(lo, hi + step / 2, step)
-        m = _duhamel(grid.size, MODEL_DT_S) @ qg
+        m = duhamel_apply(qg, MODEL_DT_S)
         if self.paper_scan_scheme == "duhamel":
             # T_model = m sqrt(alpha) / k for every alpha at once.
             models = np.outer(np.sqrt(alphas) / k, m)

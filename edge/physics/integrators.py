@@ -147,7 +147,17 @@ class ModalSolver:
         lam, beta = self.lam, self.beta
         slopes = np.diff(u_knots) / np.diff(t_knots)
         dslope = np.diff(np.concatenate(([0.0], slopes)))
-        outputs = (mrows @ (beta[:, None] * _phi(lam[:, None], t_out[None, :]))) * u_knots[0]
+        if u_knots[0] == 0.0:  # the usual start from rest: no step term
+            outputs = np.zeros((mrows.shape[0], t_out.size))
+        else:
+            outputs = (mrows @ (beta[:, None] * _phi(lam[:, None], t_out[None, :]))) * u_knots[0]
+        dt = _uniform_from_zero(t_knots)
+        if dt is not None and t_out.shape == t_knots.shape and np.array_equal(t_out, t_knots):
+            # Knots are the outputs on a uniform grid: the ramp started at knot j
+            # reaches output i after (i - j) steps, so the sum over knots is a
+            # causal convolution of dslope with one ramp response g.
+            outputs += causal_convolution(self.ramp_response(mrows, dt, t_out.size), dslope)
+            return outputs
         for t0, d in zip(t_knots[:-1], dslope):
             if d == 0.0:
                 continue
@@ -155,6 +165,65 @@ class ModalSolver:
             tau = t_out[m] - t0
             outputs[:, m] += d * (mrows @ (beta[:, None] * _psi(lam[:, None], tau[None, :])))
         return outputs
+
+    def ramp_response(self, mrows: np.ndarray, dt: float, n: int) -> np.ndarray:
+        """g[:, k] = mrows @ (beta * psi(lam, k dt)), k = 0 .. n-1: the outputs' response to a unit ramp.
+
+        psi(lam, t) = t / lam + expm1(-lam t) / lam^2 (for lam t >= 1e-4).
+        The slowest modes (lam dt < 1e-2, near the series branch) go through
+        :func:`_psi` point by point.  For the others the t / lam terms sum to a
+        line and the expm1 terms are summed as matrix products; expm1(-lam t)
+        is -1 in floating point once lam t > 40, so a mode needs it only for
+        its first 40 / (lam dt) steps (modes are banded by that length).
+        """
+        lam = self.lam
+        w = mrows * self.beta
+        tau = dt * np.arange(n)
+        x1 = lam * dt
+        slow = x1 < 1e-2
+        g = w[:, slow] @ _psi(lam[slow, None], tau[None, :])
+        if slow.all():
+            return g
+        rest = ~slow
+        lr, wr = lam[rest], w[:, rest]
+        inv = 1.0 / lr
+        g += (wr @ inv)[:, None] * tau
+        c = wr * (inv * inv)  # weights of expm1(-lam t)
+        steps = np.minimum(np.ceil(40.0 / x1[rest]), n)  # expm1 = -1 from here on
+        lo = 1
+        for hi in (2, 33, n + 1):  # bands: none (fast modes), up to 32 steps, the rest
+            band = (steps >= lo) & (steps < hi)
+            lo = hi
+            if not band.any():
+                continue
+            k = int(min(n, hi - 1))
+            cb = c[:, band]
+            g[:, :k] += cb @ np.expm1(np.multiply.outer(-lr[band], tau[:k]))
+            if k < n:
+                g[:, k:] -= cb.sum(axis=1)[:, None]
+            if lo > n:
+                break
+        return g
+
+
+def _uniform_from_zero(t: np.ndarray) -> float | None:
+    """The step dt if ``t`` is i * dt (i = 0 .. n-1) to rounding, else None."""
+    n = t.size
+    if n < 2 or t[0] != 0.0:
+        return None
+    dt = float(t[-1]) / (n - 1)
+    tol = 16.0 * np.finfo(float).eps * abs(float(t[-1]))
+    return dt if dt > 0 and float(np.max(np.abs(t - dt * np.arange(n)))) <= tol else None
+
+
+def causal_convolution(g: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """out[..., i] = sum over j <= i of g[..., i - j] d[j], for i < g.shape[-1] (FFT when long)."""
+    n = g.shape[-1]
+    d = d[:n]
+    if n <= 512 and g.size <= 4 * n:
+        return np.stack([np.convolve(row, d)[:n] for row in np.atleast_2d(g)]).reshape(g.shape)
+    size = 1 << (2 * n - 1).bit_length()
+    return np.fft.irfft(np.fft.rfft(g, size) * np.fft.rfft(d, size), size)[..., :n]
 
 
 def explicit_dt_max(grid: Grid) -> float:

@@ -1,0 +1,48 @@
+"""One BLAS thread for host tools, benches and this suite (host/blas.py); none of it on the device."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from host.blas import BLAS_ENV_VARS
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_suite_runs_with_one_blas_thread():
+    from threadpoolctl import threadpool_info
+
+    assert all(os.environ.get(v) == "1" for v in BLAS_ENV_VARS)
+    pools = [p for p in threadpool_info() if p.get("user_api") == "blas"]
+    assert pools and all(p["num_threads"] == 1 for p in pools)
+
+
+def test_cli_entry_limits_blas_threads():
+    # A fresh process without the suite's variables: host.cli.main sets the limit itself.
+    code = (
+        "import numpy, sys\n"
+        "from threadpoolctl import threadpool_info\n"
+        "from host.cli import main\n"
+        "rc = main(['model', '--material', 'pmma', '--duration', '0.2', '--json'])\n"
+        "pools = [p['num_threads'] for p in threadpool_info() if p.get('user_api') == 'blas']\n"
+        "print(rc, pools, file=sys.stderr)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in BLAS_ENV_VARS}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env,
+                         cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    rc, pools = out.stderr.strip().splitlines()[-1].split(" ", 1)
+    assert rc == "0" and pools != "[]" and set(pools.strip("[]").split(", ")) == {"1"}
+
+
+def test_edge_never_imports_threadpoolctl():
+    code = (
+        "import importlib, pkgutil, sys, edge\n"
+        "for m in pkgutil.walk_packages(edge.__path__, 'edge.'):\n"
+        "    importlib.import_module(m.name)\n"
+        "print('threadpoolctl' in sys.modules)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "False"
