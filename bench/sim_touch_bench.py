@@ -50,7 +50,7 @@ def one_touch(name: str, dt: float) -> dict:
     sim.world.state = timed_state
     board = sim.board()
     clk = board.clock
-    heater = Heater(board, supply_voltage_v=sc.heater.supply_voltage_V, resistance_ohm=sc.heater.resistance_ohm)
+    heater = Heater(board, supply_voltage_V=sc.heater.supply_voltage_V, resistance_ohm=sc.heater.resistance_ohm)
     mcp = MCP9600(board.i2c, sc.board.mcp9600, sleep=clk.sleep)
     mcp.configure(adc_resolution_bits=18)
     ads = ADS1115(board.i2c, sc.board.ads1115, sleep=clk.sleep)

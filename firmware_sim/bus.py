@@ -30,7 +30,7 @@ Fault injection (all windows in virtual seconds on ``clock``):
 Time: a clock with ``bus_transaction(n_bytes, n_segments)`` (a
 :class:`firmware_sim.clock.BusClock`) is told about every transaction after it
 ends -- a failed one (NACK, stuck bus) counts as its address byte only -- and
-advances by the transaction's wire time. ``bit_rate_hz`` instead makes each
+advances by the transaction's wire time. ``bit_rate_Hz`` instead makes each
 successful transaction ``clock.sleep`` its wire time (on a wall clock that
 really takes the time).
 """
@@ -101,7 +101,7 @@ class SimBus:
         errno for an unanswered address (default EREMOTEIO, the Pi's).
     rng : numpy.random.Generator or int, optional
         Randomness for :meth:`flaky` faults (seeded for reproducibility).
-    bit_rate_hz : float, optional
+    bit_rate_Hz : float, optional
         If given, each transaction sleeps ``clock`` for its duration on the
         wire (9 bit-times per byte incl. address, plus start/stop;
         :func:`firmware_sim.clock.i2c_transaction_time_s`). Not with a
@@ -110,17 +110,17 @@ class SimBus:
 
     def __init__(self, bus=None, force: bool = False, *, clock=None,
                  nack_errno: int = _errno.EREMOTEIO, rng=None,
-                 bit_rate_hz: float | None = None) -> None:
-        if bit_rate_hz is not None and not bit_rate_hz > 0:
-            raise ValueError(f"bit_rate_hz must be > 0, got {bit_rate_hz!r}")
-        if bit_rate_hz is not None and clock is None:
-            raise ValueError("bit_rate_hz needs a clock")
-        if bit_rate_hz is not None and callable(getattr(clock, "bus_transaction", None)):
-            raise ValueError("bit_rate_hz cannot be combined with a bus clock, which counts "
+                 bit_rate_Hz: float | None = None) -> None:
+        if bit_rate_Hz is not None and not bit_rate_Hz > 0:
+            raise ValueError(f"bit_rate_Hz must be > 0, got {bit_rate_Hz!r}")
+        if bit_rate_Hz is not None and clock is None:
+            raise ValueError("bit_rate_Hz needs a clock")
+        if bit_rate_Hz is not None and callable(getattr(clock, "bus_transaction", None)):
+            raise ValueError("bit_rate_Hz cannot be combined with a bus clock, which counts "
                              "wire time itself (give the BusClock the bit rate)")
         self.clock = clock
         self.nack_errno = nack_errno
-        self.bit_rate_hz = bit_rate_hz
+        self.bit_rate_Hz = bit_rate_Hz
         self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
         self.force = force
         self.address = None
@@ -201,8 +201,8 @@ class SimBus:
             if tick is not None and e.errno not in (_errno.EBADF, _errno.EINVAL):
                 tick(1, 1)          # the address byte went out, then NACK / bus error
             raise
-        if self.bit_rate_hz is not None:
-            self.clock.sleep(i2c_transaction_time_s(nbytes, len(segments), self.bit_rate_hz))
+        if self.bit_rate_Hz is not None:
+            self.clock.sleep(i2c_transaction_time_s(nbytes, len(segments), self.bit_rate_Hz))
         if tick is not None:
             tick(max(nbytes, 1), max(len(segments), 1))
         return out

@@ -110,10 +110,10 @@ class SimClock(Protocol):
 CLOCK_MODES = ("virtual", "wall", "bus")
 
 #: Default I2C bit rate of :class:`BusClock` (standard mode, the Pi's default).
-DEFAULT_BIT_RATE_HZ = 100_000.0
+DEFAULT_BIT_RATE_Hz = 100_000.0
 
 
-def i2c_transaction_time_s(n_bytes: int, n_segments: int, bit_rate_hz: float) -> float:
+def i2c_transaction_time_s(n_bytes: int, n_segments: int, bit_rate_Hz: float) -> float:
     """Time on the wire of one I2C transaction.
 
     ``n_bytes`` counts every byte clocked, address bytes included (one per
@@ -121,9 +121,9 @@ def i2c_transaction_time_s(n_bytes: int, n_segments: int, bit_rate_hz: float) ->
     more (its START or repeated START, and the STOP). A one-byte register read
     (address+W, register, address+R, data) is ``(9*4 + 2*2)/f``: 0.4 ms at
     100 kHz, 0.1 ms at 400 kHz. :class:`firmware_sim.bus.SimBus` uses the same
-    formula for its ``bit_rate_hz``.
+    formula for its ``bit_rate_Hz``.
     """
-    return (9 * int(n_bytes) + 2 * int(n_segments)) / float(bit_rate_hz)
+    return (9 * int(n_bytes) + 2 * int(n_segments)) / float(bit_rate_Hz)
 
 
 class _OrderedClock:
@@ -293,7 +293,7 @@ class BusClock(_OrderedClock):
 
     Each I2C transaction on a :class:`~firmware_sim.bus.SimBus` using this
     clock advances it, after the transaction, by its wire time
-    :func:`i2c_transaction_time_s` at ``bit_rate_hz`` (default 100 kHz) plus
+    :func:`i2c_transaction_time_s` at ``bit_rate_Hz`` (default 100 kHz) plus
     ``per_transaction_s`` (a fixed overhead; 0 by default). :meth:`sleep` and
     :meth:`advance` advance it like :class:`VirtualClock` (no wall waiting).
     A driver that busy-polls a status register thus sees time pass by its own
@@ -302,20 +302,20 @@ class BusClock(_OrderedClock):
     Parameters
     ----------
     start_s : float
-    bit_rate_hz : float
+    bit_rate_Hz : float
         SCL frequency of the emulated bus (100e3 standard, 400e3 fast mode).
     per_transaction_s : float
         Extra time per transaction (e.g. ~1e-4 for the Pi's i2c-dev ioctl).
     """
 
-    def __init__(self, start_s: float = 0.0, *, bit_rate_hz: float = DEFAULT_BIT_RATE_HZ,
+    def __init__(self, start_s: float = 0.0, *, bit_rate_Hz: float = DEFAULT_BIT_RATE_Hz,
                  per_transaction_s: float = 0.0) -> None:
-        if not (bit_rate_hz > 0 and math.isfinite(bit_rate_hz)):
-            raise ValueError(f"bit_rate_hz must be a finite number > 0, got {bit_rate_hz!r}")
+        if not (bit_rate_Hz > 0 and math.isfinite(bit_rate_Hz)):
+            raise ValueError(f"bit_rate_Hz must be a finite number > 0, got {bit_rate_Hz!r}")
         if not per_transaction_s >= 0:
             raise ValueError(f"per_transaction_s must be >= 0, got {per_transaction_s!r}")
         super().__init__(start_s)
-        self.bit_rate_hz = float(bit_rate_hz)
+        self.bit_rate_Hz = float(bit_rate_Hz)
         self.per_transaction_s = float(per_transaction_s)
         #: number of bus transactions counted so far
         self.transactions = 0
@@ -327,7 +327,7 @@ class BusClock(_OrderedClock):
 
     def transaction_time_s(self, n_bytes: int, n_segments: int) -> float:
         """The quantum one transaction advances the clock by."""
-        return i2c_transaction_time_s(n_bytes, n_segments, self.bit_rate_hz) + self.per_transaction_s
+        return i2c_transaction_time_s(n_bytes, n_segments, self.bit_rate_Hz) + self.per_transaction_s
 
     def bus_transaction(self, n_bytes: int, n_segments: int) -> float:
         """Called by SimBus after each transaction; advances by its quantum, returns the new time."""
@@ -363,15 +363,15 @@ def check_clock_mode(mode: object) -> str:
     return mode
 
 
-def make_clock(mode: str = "virtual", *, bit_rate_hz: float | None = None, start_s: float = 0.0) -> SimClock:
+def make_clock(mode: str = "virtual", *, bit_rate_Hz: float | None = None, start_s: float = 0.0) -> SimClock:
     """A clock for ``mode`` in :data:`CLOCK_MODES`.
 
-    ``bit_rate_hz`` sets a :class:`BusClock`'s quantum (default
-    :data:`DEFAULT_BIT_RATE_HZ`); the other modes ignore it.
+    ``bit_rate_Hz`` sets a :class:`BusClock`'s quantum (default
+    :data:`DEFAULT_BIT_RATE_Hz`); the other modes ignore it.
     """
     check_clock_mode(mode)
     if mode == "wall":
         return WallClock(start_s)
     if mode == "bus":
-        return BusClock(start_s, bit_rate_hz=DEFAULT_BIT_RATE_HZ if bit_rate_hz is None else bit_rate_hz)
+        return BusClock(start_s, bit_rate_Hz=DEFAULT_BIT_RATE_Hz if bit_rate_Hz is None else bit_rate_Hz)
     return VirtualClock(start_s)

@@ -50,7 +50,7 @@ class Simulator:
     ----------
     scene : Scene
         A parsed scene (:func:`firmware_sim.scene.read_scene`).
-    bit_rate_hz : float, optional
+    bit_rate_Hz : float, optional
         If given, I2C transfers take their wire time on the clock. With
         ``clock="bus"`` it is the bus clock's bit rate (default 100 kHz).
     clock : {"virtual", "wall", "bus"}
@@ -82,18 +82,18 @@ class Simulator:
         GPIO chip, PWM channel and line offsets of the board.
     """
 
-    def __init__(self, scene: Scene, *, bit_rate_hz: float | None = None, clock: str = "virtual") -> None:
+    def __init__(self, scene: Scene, *, bit_rate_Hz: float | None = None, clock: str = "virtual") -> None:
         if not isinstance(scene, Scene):
             raise TypeError(f"scene must be a Scene, got {type(scene).__name__}")
         self.scene = scene
-        self.clock: SimClock = make_clock(clock, bit_rate_hz=bit_rate_hz)
+        self.clock: SimClock = make_clock(clock, bit_rate_Hz=bit_rate_Hz)
         self.clock_mode = clock
         if clock == "bus":
-            bit_rate_hz = None          # the bus clock counts wire time itself
+            bit_rate_Hz = None          # the bus clock counts wire time itself
         self.gpio = GpioSim(self.clock)
         self.pwm = SimPwmTree(self.clock)
         seeds = np.random.SeedSequence(scene.seed).spawn(4)
-        self.bus = SimBus(1, clock=self.clock, rng=np.random.default_rng(seeds[0]), bit_rate_hz=bit_rate_hz)
+        self.bus = SimBus(1, clock=self.clock, rng=np.random.default_rng(seeds[0]), bit_rate_Hz=bit_rate_Hz)
         self._board = make_sim_board(clock=self.clock, i2c=self.bus, gpio=self.gpio, pwm_tree=self.pwm)
         self._board.extras["simulator"] = self
         self.parts: SimBoardParts = self._board.extras["sim"]
@@ -276,7 +276,7 @@ class Simulator:
 
 
 def load_scene(path_or_name: str | Path, *, material_lookup: MaterialLookup | None = None,
-               bit_rate_hz: float | None = None, clock: str = "virtual") -> Simulator:
+               bit_rate_Hz: float | None = None, clock: str = "virtual") -> Simulator:
     """A :class:`Simulator` for a scene file or shipped scene name (e.g. ``"glass_15V"``).
 
     ``clock`` is ``"virtual"`` (default), ``"wall"`` or ``"bus"`` (see
@@ -294,7 +294,7 @@ def load_scene(path_or_name: str | Path, *, material_lookup: MaterialLookup | No
         If there is no such file or shipped scene.
     """
     check_clock_mode(clock)
-    return Simulator(read_scene(path_or_name, material_lookup=material_lookup), bit_rate_hz=bit_rate_hz,
+    return Simulator(read_scene(path_or_name, material_lookup=material_lookup), bit_rate_Hz=bit_rate_Hz,
                      clock=clock)
 
 

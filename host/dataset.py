@@ -30,7 +30,7 @@ from edge.physics.solids import Solid
 from edge.estimation.spline import resample
 from edge.physics.materials import MaterialLibrary
 
-PAPER_LEVELS_W_M3 = tuple(np.round(np.arange(4.0e7, 1.4e8 + 1.0, 5e6)).tolist())
+PAPER_LEVELS_W_m3 = tuple(np.round(np.arange(4.0e7, 1.4e8 + 1.0, 5e6)).tolist())
 CODE_VERSION = 1  # bump when the generation procedure changes
 
 
@@ -38,7 +38,7 @@ CODE_VERSION = 1  # bump when the generation procedure changes
 class DatasetSpec:
     """Everything that determines a training set."""
 
-    levels_W_m3: tuple = PAPER_LEVELS_W_M3
+    levels_W_m3: tuple = PAPER_LEVELS_W_m3
     duration_s: float = 1.95
     dt_s: float = 0.01
     back: str = "infinite"

@@ -24,10 +24,10 @@ from typing import Any, Iterator
 
 from host.client import BadReply, ClientError, DeviceClient, DeviceError, DeviceNotAnswering, PortUnavailable
 
-__all__ = ["DeviceUnavailable", "DeviceSession", "open_device", "describe_error", "SIM_START_TIMEOUT_S"]
+__all__ = ["DeviceUnavailable", "DeviceSession", "open_device", "describe_error", "SIM_START_TIMEOUT_s"]
 
 #: Longest wait for a simulated probe to answer, s (daemon start-up is well under a second).
-SIM_START_TIMEOUT_S = 20.0
+SIM_START_TIMEOUT_s = 20.0
 
 
 class DeviceUnavailable(Exception):
@@ -149,7 +149,7 @@ def simulated_probe(scene: str, workdir: str | Path | None = None, *,
     logging.getLogger("thermotouch").setLevel(logging.WARNING)
     th = threading.Thread(target=target, name="thermotouch-sim", daemon=True)
     th.start()
-    deadline = time.monotonic() + SIM_START_TIMEOUT_S
+    deadline = time.monotonic() + SIM_START_TIMEOUT_s
     while "sim" not in box and th.is_alive() and time.monotonic() < deadline:
         time.sleep(0.005)
     try:
@@ -159,7 +159,7 @@ def simulated_probe(scene: str, workdir: str | Path | None = None, *,
         yield ports[0], box["daemon"], box["sim"]
     finally:
         stop.set()
-        th.join(SIM_START_TIMEOUT_S)
+        th.join(SIM_START_TIMEOUT_s)
 
 
 @contextlib.contextmanager

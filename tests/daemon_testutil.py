@@ -65,7 +65,7 @@ def make_sequence(rig=None, *, cfg: Config | None = None, estimator=None, sensor
     """(rig, heater, sequence, params) on a fresh rig."""
     rig = rig or make_rig(**rig_kw)
     cfg = cfg or Config()
-    heater = Heater(rig.board, supply_voltage_v=cfg.heater.supply_voltage_V, resistance_ohm=cfg.heater.resistance_ohm)
+    heater = Heater(rig.board, supply_voltage_V=cfg.heater.supply_voltage_V, resistance_ohm=cfg.heater.resistance_ohm)
     sensors = sensors or make_sensors(rig.board, cfg.sensors)
     est = estimator if estimator is not None else FakeEstimator(rig.parts)
     seq = MeasurementSequence(heater, sensors, rig.clock,

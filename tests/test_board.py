@@ -93,7 +93,7 @@ def test_sim_board_via_registry_runs_a_touch_cycle():
     board = make_board("t-sim", heater_enable_offset=5, trigger_offset=6)
     sim = board.extras["sim"]
     try:
-        with Heater(board, supply_voltage_v=12.0, resistance_ohm=24.0) as heater, Button(board) as button:
+        with Heater(board, supply_voltage_V=12.0, resistance_ohm=24.0) as heater, Button(board) as button:
             sim.chip.press(6, at_s=0.4, hold_s=0.2, bounces=2)
             press = button.wait_for_press(timeout_s=10.0)
             assert press is not None

@@ -135,9 +135,9 @@ def test_simulator_clock_modes(mode, cls):
 
 
 def test_simulator_bus_mode_takes_the_bit_rate():
-    with firmware_sim.load_scene("glass_15V", clock="bus", bit_rate_hz=400e3) as sim:
-        assert sim.clock.bit_rate_hz == 400e3
-        assert sim.bus.bit_rate_hz is None          # counted once, by the clock
+    with firmware_sim.load_scene("glass_15V", clock="bus", bit_rate_Hz=400e3) as sim:
+        assert sim.clock.bit_rate_Hz == 400e3
+        assert sim.bus.bit_rate_Hz is None          # counted once, by the clock
         t0 = sim.now()
         sim.bus.read_i2c_block_data(0x60, 0x20, 2)   # MCP9600 device id
         assert sim.now() - t0 == pytest.approx(i2c_transaction_time_s(5, 2, 400e3))
@@ -275,7 +275,7 @@ def test_wall_clock_rate_validated():
 # ---- BusClock ----------------------------------------------------------------------------
 
 def test_bus_clock_advances_per_transaction():
-    clock = BusClock(bit_rate_hz=100e3)
+    clock = BusClock(bit_rate_Hz=100e3)
     bus = SimBus(clock=clock)
     bus.attach(0x50, Ram())
     bus.read_byte_data(0x50, 0x00)                  # addr+W, reg, addr+R, data; 2 segments
@@ -296,24 +296,24 @@ def test_bus_clock_advances_per_transaction():
 
 
 def test_bus_clock_quantum_is_documented_formula():
-    clock = BusClock(bit_rate_hz=400e3, per_transaction_s=1e-4)
+    clock = BusClock(bit_rate_Hz=400e3, per_transaction_s=1e-4)
     assert clock.transaction_time_s(4, 2) == pytest.approx(40 / 400e3 + 1e-4)
     assert i2c_transaction_time_s(4, 2, 100e3) == pytest.approx(0.4e-3)
     with pytest.raises(ValueError):
-        BusClock(bit_rate_hz=0)
+        BusClock(bit_rate_Hz=0)
     with pytest.raises(ValueError):
         BusClock(per_transaction_s=-1)
 
 
 def test_bus_clock_and_bit_rate_not_both():
     with pytest.raises(ValueError, match="bus clock"):
-        SimBus(clock=BusClock(), bit_rate_hz=100e3)
+        SimBus(clock=BusClock(), bit_rate_Hz=100e3)
 
 
 def test_bit_rate_on_wall_clock_sleeps_the_wire_time():
     wall = FakeWall()
     clock = WallClock(wall=wall, sleeper=wall.sleep)
-    bus = SimBus(clock=clock, bit_rate_hz=100e3)
+    bus = SimBus(clock=clock, bit_rate_Hz=100e3)
     bus.attach(0x50, Ram())
     bus.read_byte_data(0x50, 0x00)
     assert wall.slept == [pytest.approx(0.4e-3)]

@@ -4,7 +4,7 @@ from pathlib import Path
 import pytest
 
 from edge.service.config import (
-    HARD_MAX_ON_TIME_S,
+    HARD_MAX_ON_TIME_s,
     RUNTIME_KEYS,
     SCHEMA,
     Config,
@@ -49,7 +49,7 @@ def test_values_and_hex_addresses_are_read(tmp_path):
     ("[board]\npwm_chip = 1.5\n", "board.pwm_chip", "must be an integer"),
     ("[measurement]\ntrigger_button = 1\n", "measurement.trigger_button", "must be a boolean"),
     ("[heater]\npower_W = -1\n", "heater.power_W", "must be >"),
-    ("[heater]\nmax_on_time_s = 100\n", "heater.max_on_time_s", f"<= {HARD_MAX_ON_TIME_S:g}"),
+    ("[heater]\nmax_on_time_s = 100\n", "heater.max_on_time_s", f"<= {HARD_MAX_ON_TIME_s:g}"),
     ("[heater]\nover_temperature_C = 400\n", "heater.over_temperature_C", "<= 150"),
     ("[sensors]\nthermocouple = 'max31855'\n", "sensors.thermocouple", "must be one of"),
     ("[sensors]\nmcp9600_address = 0x70\n", "sensors.mcp9600_address", "<= 103"),

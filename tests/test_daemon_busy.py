@@ -25,7 +25,7 @@ from firmware_sim.ptylink import NullModem
 
 pytestmark = pytest.mark.hil
 MAX_ON = Config().heater.max_on_time_s
-WAIT_S = 20.0  # generous bound on wall-time waits (never reached when things work)
+WAIT_s = 20.0  # generous bound on wall-time waits (never reached when things work)
 
 
 class RawHost:
@@ -40,7 +40,7 @@ class RawHost:
         self.ser.write(encode_request(command, rid, args))
         self.ser.flush()
 
-    def reply(self, rid: int, timeout_s: float = WAIT_S) -> Reply | ErrorReply:
+    def reply(self, rid: int, timeout_s: float = WAIT_s) -> Reply | ErrorReply:
         deadline = time.monotonic() + timeout_s
         while rid not in self.replies:
             if time.monotonic() > deadline:
@@ -70,7 +70,7 @@ def hold_heating(daemon: Daemon, rig, release: threading.Event | None = None) ->
             reads.append(n)
         if heater_on and len(reads) == 5:
             heating.set()
-            deadline = time.monotonic() + WAIT_S
+            deadline = time.monotonic() + WAIT_s
             while time.monotonic() < deadline and rig.parts.chip.level(rig.parts.heater_enable_offset) == 1:
                 if release is not None and release.is_set():
                     return
@@ -91,7 +91,7 @@ def test_status_answers_during_a_measurement_and_other_commands_are_busy(tmp_pat
             host = RawHost(nm.host_port)
             try:
                 host.send(Command.MEASURE, 10, {"contact_time_s": 1.5})
-                assert heating.wait(WAIT_S)
+                assert heating.wait(WAIT_s)
                 st = host.ask(Command.STATUS, 11)
                 assert isinstance(st, Reply) and st.request_id == 11
                 assert st.body["state"] == "measuring" and st.body["phase"] == "heating"
@@ -136,8 +136,8 @@ def test_stop_during_a_measurement_cuts_the_heater_and_stores_the_record(tmp_pat
         host = RawHost(nm.host_port)
         try:
             host.send(Command.MEASURE, 1)
-            assert heating.wait(WAIT_S)
-            dt.stop(WAIT_S)  # what SIGTERM does: set the stop event
+            assert heating.wait(WAIT_s)
+            dt.stop(WAIT_s)  # what SIGTERM does: set the stop event
             assert not dt.thread.is_alive() and dt.error is None
             answer = host.reply(1)  # the worker still answers the request it held
         finally:
@@ -194,7 +194,7 @@ def _serve_with_breaking_port(tmp_path, exc: BaseException):
 
         def release_soon():
             # Give serve() time to fail and start waiting for the worker, then let the measurement go on.
-            heating.wait(WAIT_S)
+            heating.wait(WAIT_s)
             time.sleep(0.2)
             release.set()
 
@@ -238,14 +238,14 @@ def test_direct_measure_calls_do_not_overlap(tmp_path):
     th = threading.Thread(target=lambda: box.update(rec=d.measure()), daemon=True)
     th.start()
     try:
-        assert heating.wait(WAIT_S)
+        assert heating.wait(WAIT_s)
         assert d.state == "measuring"
         with pytest.raises(CommandError) as ei:
             d.measure()
         assert ei.value.code == ErrorCode.BUSY
     finally:
         release.set()
-        th.join(WAIT_S)
+        th.join(WAIT_s)
     assert box["rec"]["status"] == "ok" and d.state == "idle" and d.history.count() == 1
     d.close()
     assert_heater_safe(rig.parts, MAX_ON)

@@ -23,7 +23,7 @@ from host.client import DeviceClient
 
 pytestmark = pytest.mark.hil
 
-BASELINE_S, CONTACT_S, COOLDOWN_S = 0.2, 1.5, 1.0
+BASELINE_s, CONTACT_s, COOLDOWN_s = 0.2, 1.5, 1.0
 
 
 def _wait_for(cond, what: str, timeout_s: float = 30.0) -> None:
@@ -39,10 +39,10 @@ def test_each_press_measures_once_and_presses_during_a_measurement_are_ignored(t
     t1 = sim.scene.touch.start_s
     assert sim.scene.touch.press_trigger
     cfg = config_for_scene(sim.scene, tmp_path, {"measurement": {
-        "trigger_button": True, "baseline_s": BASELINE_S, "contact_time_s": CONTACT_S, "cooldown_s": COOLDOWN_S}})
+        "trigger_button": True, "baseline_s": BASELINE_s, "contact_time_s": CONTACT_s, "cooldown_s": COOLDOWN_s}})
     trig = sim.parts.trigger_offset
     # Presses while the first measurement runs (baseline, heating): not new requests.
-    for at in (t1 + 0.1, t1 + BASELINE_S + 0.8):
+    for at in (t1 + 0.1, t1 + BASELINE_s + 0.8):
         sim.parts.chip.press(trig, at, 0.05)
     with NullModem() as nm, serial.Serial(nm.device_port, timeout=0.05) as port:
         with DaemonThread(cfg, sim.board(), port, estimator=FakeEstimator()) as dt:
@@ -52,14 +52,14 @@ def test_each_press_measures_once_and_presses_during_a_measurement_are_ignored(t
             sim.advance_to(t1 + 0.05)  # the scene's press, past the 20-ms debounce
             _wait_for(lambda: d.history.count() == 1 and d.state == "idle", "the first measurement")
             t_idle = sim.now()
-            assert t_idle > t1 + BASELINE_S + CONTACT_S
+            assert t_idle > t1 + BASELINE_s + CONTACT_s
             # The ignored presses have been read by now; nothing else is pending, so no measurement starts.
             time.sleep(0.3)
             assert d.history.count() == 1 and d.state == "idle" and sim.now() == t_idle
             # A second touch with its own press, after the cool-down, and a press during that measurement.
-            t2 = t_idle + COOLDOWN_S + 0.5
+            t2 = t_idle + COOLDOWN_s + 0.5
             sim.add_touch(t2, 2.5)
-            sim.parts.chip.press(trig, t2 + BASELINE_S + 0.5, 0.05)
+            sim.parts.chip.press(trig, t2 + BASELINE_s + 0.5, 0.05)
             sim.advance_to(t2 + 0.05)
             _wait_for(lambda: d.history.count() == 2 and d.state == "idle", "the second measurement")
             time.sleep(0.3)
@@ -69,13 +69,13 @@ def test_each_press_measures_once_and_presses_during_a_measurement_are_ignored(t
             limit = d.config.heater.max_on_time_s
     assert st["state"] == "idle" and st["measurements"] == 2
     assert [r["measurement_id"] for r in items] == [2, 1]
-    assert all(r["status"] == "ok" and r["contact_time_s"] == pytest.approx(CONTACT_S) for r in items)
+    assert all(r["status"] == "ok" and r["contact_time_s"] == pytest.approx(CONTACT_s) for r in items)
     # One heating per accepted press, starting a baseline after it; none for the presses in between.
     iv = sim.heater_intervals()
     assert len(iv) == 2
     for (a, b), t_press in zip(iv, (t1, t2)):
-        assert t_press + BASELINE_S <= a < t_press + BASELINE_S + 0.2
-        assert b - a == pytest.approx(CONTACT_S, abs=0.02)
+        assert t_press + BASELINE_s <= a < t_press + BASELINE_s + 0.2
+        assert b - a == pytest.approx(CONTACT_s, abs=0.02)
     inv = assert_heater_safe(sim.parts, limit)
     assert inv["n_intervals"] == 2
     sim.close()

@@ -31,7 +31,7 @@ def parts(board):
 
 
 def make_heater(board, **kw):
-    return Heater(board, supply_voltage_v=V_SUPPLY, resistance_ohm=R_HEATER, **kw)
+    return Heater(board, supply_voltage_V=V_SUPPLY, resistance_ohm=R_HEATER, **kw)
 
 
 class Failing:
@@ -73,7 +73,7 @@ def test_construction_holds_heater_off_with_pwm_ready(board):
     h = make_heater(board)
     assert p.chip.level(EN) == 0 and p.chip.consumer(EN) == "thermotouch-heater"
     assert p.pwm_tree.state()[1:4] == (1_000_000, 0, True)
-    assert not h.is_on and h.power_w == 0.0 and h.max_power_w == pytest.approx(6.0)
+    assert not h.is_on and h.power_W == 0.0 and h.max_power_W == pytest.approx(6.0)
 
 
 def test_on_off_drives_both_channels_and_counts_on_time(board):
@@ -82,7 +82,7 @@ def test_on_off_drives_both_channels_and_counts_on_time(board):
     board.clock.sleep(0.5)
     h.on(0.25)
     assert p.chip.level(EN) == 1 and p.pwm_tree.state().duty_ns == 250_000
-    assert h.is_on and h.power_w == pytest.approx(1.5)
+    assert h.is_on and h.power_W == pytest.approx(1.5)
     board.clock.sleep(2.0)
     assert h.current_on_time_s == pytest.approx(2.0)
     h.off()
@@ -146,10 +146,10 @@ def test_on_rejects_bad_duty(board, duty):
 
 
 def test_bad_construction_arguments(board):
-    with pytest.raises(ValueError, match="supply_voltage_v"):
-        Heater(board, supply_voltage_v=-1, resistance_ohm=10)
+    with pytest.raises(ValueError, match="supply_voltage_V"):
+        Heater(board, supply_voltage_V=-1, resistance_ohm=10)
     with pytest.raises(ValueError, match="pwm_period_ns"):
-        Heater(board, supply_voltage_v=5, resistance_ohm=10, pwm_period_ns=0)
+        Heater(board, supply_voltage_V=5, resistance_ohm=10, pwm_period_ns=0)
 
 
 # ---- failure paths: off() must try both channels

@@ -198,7 +198,7 @@ def test_flaky_reads_only_spares_writes():
 
 def test_bit_rate_advances_clock():
     clock = VirtualClock()
-    bus = SimBus(clock=clock, bit_rate_hz=100e3)
+    bus = SimBus(clock=clock, bit_rate_Hz=100e3)
     bus.attach(0x50, Ram())
     bus.read_i2c_block_data(0x50, 0, 2)   # addr+reg, addr+2 bytes = 5 bytes
     assert clock.now() == pytest.approx((9 * 5 + 4) / 100e3)

@@ -13,7 +13,7 @@ from edge.hw.board import make_board
 from edge.hw.drivers.ads1115 import ADS1115
 from edge.hw.drivers.ads122c04 import ADS122C04
 from edge.hw.drivers.heater import Heater
-from edge.hw.regmaps.mcp9600 import CONVERSION_TIME_S
+from edge.hw.regmaps.mcp9600 import CONVERSION_TIME_s
 from edge.hw.drivers.mcp9600 import MCP9600
 from edge.hw.faults import SensorFault
 from firmware_sim import SceneError, Simulator, load_scene
@@ -30,7 +30,7 @@ def drivers(sim):
     sc = sim.scene
     board = sim.board()
     clk = board.clock
-    heater = Heater(board, supply_voltage_v=sc.heater.supply_voltage_V, resistance_ohm=sc.heater.resistance_ohm)
+    heater = Heater(board, supply_voltage_V=sc.heater.supply_voltage_V, resistance_ohm=sc.heater.resistance_ohm)
     mcp = ads = None
     if sc.board.mcp9600 is not None:
         mcp = MCP9600(board.i2c, sc.board.mcp9600, sleep=clk.sleep)
@@ -120,7 +120,7 @@ def test_two_second_touch_on_each_paper_scene_matches_the_physics(name):
 
     # MCP9600: hot junction within register truncation + ADC LSB + 4 sigma of noise
     tol_K = 0.0625 + (EMF_LSB_V + 4 * sc.sensors.mcp9600_emf_noise_rms_V) / SEEBECK_V_K
-    lo, hi = bracket(lambda tt: physics(sim, t_on, tt)[0], t, CONVERSION_TIME_S[MCP_BITS])
+    lo, hi = bracket(lambda tt: physics(sim, t_on, tt)[0], t, CONVERSION_TIME_s[MCP_BITS])
     ok = (T_read >= lo - tol_K) & (T_read <= hi + tol_K)
     assert ok.all(), (t[~ok], T_read[~ok], lo[~ok], hi[~ok])
     T0 = sc.environment.initial_temperature_C
@@ -139,7 +139,7 @@ def test_precision_adc_resolves_a_metal_touch():
     adc.reset()
     adc.configure(mux="AIN0_AIN1", gain=128, data_rate_sps=330)
     t_conv = adc.conversion_time_s
-    heater = Heater(board, supply_voltage_v=sc.heater.supply_voltage_V, resistance_ohm=sc.heater.resistance_ohm)
+    heater = Heater(board, supply_voltage_V=sc.heater.supply_voltage_V, resistance_ohm=sc.heater.resistance_ohm)
     sim.advance_to(sc.touch.start_s)
     rows = []
     with heater:
@@ -312,7 +312,7 @@ def test_edge_measurement_sequence_runs_unchanged_on_the_simulator(name, tmp_pat
     (tmp_path / "edge.toml").write_text("\n".join(lines) + "\n")
     cfg = load_config(tmp_path / "edge.toml")
     board = sim.board()
-    heater = Heater(board, supply_voltage_v=sc.heater.supply_voltage_V, resistance_ohm=sc.heater.resistance_ohm)
+    heater = Heater(board, supply_voltage_V=sc.heater.supply_voltage_V, resistance_ohm=sc.heater.resistance_ohm)
     seq = MeasurementSequence(heater, make_sensors(board, cfg.sensors), board.clock,
                               Limits(cfg.heater.max_on_time_s, 80.0), lambda *a, **k: {"stub": True},
                               cfg.measurement)

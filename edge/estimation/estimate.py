@@ -44,7 +44,7 @@ from edge.physics.fluxmodel import duhamel_apply, surface_temperature, surface_t
 from edge.physics.solids import Solid
 
 METHODS = ("default", "paper")
-MODEL_DT_S = 0.01
+MODEL_DT_s = 0.01
 #: prior_coef entries, in order (all in natural-log units).
 PRIOR_COEF_NAMES = ("kernel_floor_ln", "rho_c_intrinsic_ln", "material_spread_ln", "paper_u_ln_k")
 DEFAULT_PRIOR_COEF = (0.06, 0.10, 0.05, 0.10)  # kernel floor chosen by leave-one-out (bench)
@@ -284,9 +284,9 @@ class Estimator:
         if tq[0] > 0:
             tq, q = np.concatenate(([0.0], tq)), np.concatenate(([0.0], q))
         t_end = min(tT[-1], tq[-1])
-        if t_end < 10 * MODEL_DT_S:
+        if t_end < 10 * MODEL_DT_s:
             raise ValueError(f"record too short: {t_end:.3g} s")
-        grid = _uniform_grid(t_end, MODEL_DT_S)
+        grid = _uniform_grid(t_end, MODEL_DT_s)
         if tq is tT or (tq.size == tT.size and np.array_equal(tq, tT)):
             Tg, qg = resample(tT, np.column_stack((T, q)), grid).T  # one spline solve for both
         else:
@@ -313,7 +313,7 @@ class Estimator:
     def _default(self, grid, Tg, qg, n_eff, flags, thickness_m, back, lsb_K) -> Estimate:
         if thickness_m is not None and back != "infinite":
             return self._default_finite(grid, Tg, qg, n_eff, flags, thickness_m, back, lsb_K)
-        m = duhamel_apply(qg, MODEL_DT_S)
+        m = duhamel_apply(qg, MODEL_DT_s)
         a, c, u_a, _, fit = _lstsq_with_offset(m, Tg, n_eff)
         u_a = math.hypot(u_a, _quantisation_u_a(m, Tg, grid, lsb_K))
         if not a > MIN_SNR * u_a:
@@ -380,7 +380,7 @@ class Estimator:
             return Estimate(None, None, None, None, None, None, None, 0.0, "paper", self.sha256, flags)
         lo, hi, step = next(rng for kmax, rng in PAPER_ALPHA_SCANS if k < kmax)
         alphas = np.arange(lo, hi + step / 2, step)
-        m = duhamel_apply(qg, MODEL_DT_S)
+        m = duhamel_apply(qg, MODEL_DT_s)
         if self.paper_scan_scheme == "duhamel":
             # T_model = m sqrt(alpha) / k for every alpha at once.
             models = np.outer(np.sqrt(alphas) / k, m)

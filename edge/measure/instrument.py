@@ -25,7 +25,7 @@ from edge.hw.regmaps.mcp9600 import adc_step_V
 from edge.physics.probe import FLUX_SENSITIVITY_V_per_W_m2
 from edge.physics.typek import seebeck_uV_per_K
 
-TYPE_K_SEEBECK_V_PER_K = float(seebeck_uV_per_K(25.0)) * 1e-6
+TYPE_K_SEEBECK_V_per_K = float(seebeck_uV_per_K(25.0)) * 1e-6
 #: ADS122C04 step at gain 128 with the internal 2.048 V reference (24-bit two's complement).
 ADS122C04_STEP_V = 2.048 / 128 / 2 ** 23
 
@@ -62,11 +62,11 @@ class Instrument:
 
 INSTRUMENTS = {
     "mcp9600": Instrument(
-        name="mcp9600", T_rate_Hz=12.5, T_lsb_K=adc_step_V(16) / TYPE_K_SEEBECK_V_PER_K, T_noise_K=0.02,
+        name="mcp9600", T_rate_Hz=12.5, T_lsb_K=adc_step_V(16) / TYPE_K_SEEBECK_V_per_K, T_noise_K=0.02,
         q_rate_Hz=128.0, q_lsb_W_m2=7.8125e-6 / FLUX_SENSITIVITY_V_per_W_m2, q_noise_W_m2=3.0,
     ),
     "ads122c04": Instrument(
-        name="ads122c04", T_rate_Hz=90.0, T_lsb_K=ADS122C04_STEP_V / TYPE_K_SEEBECK_V_PER_K,
+        name="ads122c04", T_rate_Hz=90.0, T_lsb_K=ADS122C04_STEP_V / TYPE_K_SEEBECK_V_per_K,
         T_noise_K=0.004, q_rate_Hz=90.0, q_lsb_W_m2=ADS122C04_STEP_V / FLUX_SENSITIVITY_V_per_W_m2,
         q_noise_W_m2=1.0,
     ),

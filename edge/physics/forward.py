@@ -48,8 +48,8 @@ from edge.physics.probe import DEFAULT_STACK, ProbeStack
 from edge.physics.solids import Solid
 
 SCHEMES = ("paper", "explicit", "default", "exact")
-PAPER_DX_M = 40e-6
-PAPER_THICKNESS_M = 0.04
+PAPER_DX_m = 40e-6
+PAPER_THICKNESS_m = 0.04
 
 
 @dataclass(frozen=True)
@@ -120,7 +120,7 @@ def build_grid(
     thickness_m: float | None,
     back: str,
     stack: ProbeStack,
-    dx_m: float = PAPER_DX_M,
+    dx_m: float = PAPER_DX_m,
     n_probe: int = 32,
     growth: float = 1.06,
     depth_factor: float = 5.0,
@@ -129,7 +129,7 @@ def build_grid(
     if scheme in ("paper", "explicit"):
         # The paper models 40 mm; an infinite object gets what heat reaches.
         if back == "infinite":
-            depth = max(PAPER_THICKNESS_M, 6.0 * math.sqrt(solid.alpha_m2_s * duration_s))
+            depth = max(PAPER_THICKNESS_m, 6.0 * math.sqrt(solid.alpha_m2_s * duration_s))
             end = "fixed"
         else:
             depth, end = thickness_m, back
@@ -151,12 +151,12 @@ def simulate(
     q_v_times_s=None,
     t_s=None,
     dt_s: float | None = None,
-    thickness_m: float | None = PAPER_THICKNESS_M,
+    thickness_m: float | None = PAPER_THICKNESS_m,
     back: str = "fixed",
     scheme: str = "default",
     stack: ProbeStack = DEFAULT_STACK,
     contact_resistance_m2K_W: float = 0.0,
-    dx_m: float = PAPER_DX_M,
+    dx_m: float = PAPER_DX_m,
     n_probe: int = 32,
     growth: float = 1.06,
     depth_factor: float = 5.0,

@@ -58,7 +58,7 @@ __all__ = [
     "REQUIRED_COLUMNS",
     "OPTIONAL_COLUMNS",
     "K_RANGE_W_MK",
-    "RHO_RANGE_KG_M3",
+    "RHO_RANGE_kg_m3",
     "C_RANGE_J_KGK",
     "RHO_C_RANGE_J_M3K",
     "Material",
@@ -92,14 +92,14 @@ OPTIONAL_COLUMNS: tuple[str, ...] = ("note",)
 # Physical plausibility bounds. They are wide on purpose: they catch unit slips (g/cm^3 for
 # kg/m^3, J/g/K for J/kg/K, mW for W) rather than judge a handbook value.
 K_RANGE_W_MK = (0.005, 3000.0)
-RHO_RANGE_KG_M3 = (5.0, 25000.0)
+RHO_RANGE_kg_m3 = (5.0, 25000.0)
 C_RANGE_J_KGK = (90.0, 5000.0)
 RHO_C_RANGE_J_M3K = (1e4, 6e6)
 
 _NAME_RE = re.compile(r"^[a-z][a-z0-9_]*$")
 _NUMERIC = {
     "k_W_mK": K_RANGE_W_MK,
-    "rho_kg_m3": RHO_RANGE_KG_M3,
+    "rho_kg_m3": RHO_RANGE_kg_m3,
     "c_J_kgK": C_RANGE_J_KGK,
 }
 _PACKAGE_RESOURCE = ("edge.physics", "data/materials.csv")

@@ -65,7 +65,7 @@ __all__ = [
     "SECTIONS",
     "SCHEMA",
     "RUNTIME_KEYS",
-    "HARD_MAX_ON_TIME_S",
+    "HARD_MAX_ON_TIME_s",
     "HARD_MAX_TEMPERATURE_C",
     "Config",
     "load_config",
@@ -73,7 +73,7 @@ __all__ = [
 ]
 
 #: No configuration may let the heater stay on longer than this (s).
-HARD_MAX_ON_TIME_S = 30.0
+HARD_MAX_ON_TIME_s = 30.0
 #: No configuration may set the over-temperature cut above this (°C).
 HARD_MAX_TEMPERATURE_C = 150.0
 
@@ -161,7 +161,7 @@ class HeaterConfig:
         10.0,
         "SAFETY: longest the heater may stay on, s",
         lo=0.0,
-        hi=HARD_MAX_ON_TIME_S,
+        hi=HARD_MAX_ON_TIME_s,
         lo_open=True,
     )
     over_temperature_C: float = setting(
@@ -193,7 +193,7 @@ class MeasurementConfig:
         2.0,
         "heating (contact) time, s; < heater.max_on_time_s",
         lo=0.0,
-        hi=HARD_MAX_ON_TIME_S,
+        hi=HARD_MAX_ON_TIME_s,
         lo_open=True,
         runtime=True,
     )

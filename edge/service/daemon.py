@@ -89,7 +89,7 @@ _REPLY_MARGIN = 256
 #: Requests answered while a measurement runs (everything else gets BUSY).
 ANSWERED_WHILE_MEASURING = frozenset({Command.STATUS, Command.PING})
 #: Longest wait for a running measurement when serve() ends, s, before it is stopped.
-WORKER_JOIN_S = 60.0  # margin for estimation and storage beyond a measurement's own phases
+WORKER_JOIN_s = 60.0  # margin for estimation and storage beyond a measurement's own phases
 #: SERIES reply names and History columns, per ``which``.
 _SERIES_COLUMNS = {"raw": (("t_s", "raw_t_s"), ("T_C", "raw_T_C"), ("q_W_m2", "raw_q_W_m2")),
                    "grid": (("t_s", "grid_t_s"), ("dT_K", "grid_dT_K"), ("q_W_m2", "grid_q_W_m2"))}
@@ -131,11 +131,11 @@ class ModelEstimator:
 def thermocouple_resolution_K(sensors: Any) -> float:
     """Temperature step (K) of the configured thermocouple converter near room temperature."""
     from edge.hw.regmaps.mcp9600 import adc_step_V  # noqa: PLC0415
-    from edge.measure.instrument import ADS122C04_STEP_V, TYPE_K_SEEBECK_V_PER_K  # noqa: PLC0415
+    from edge.measure.instrument import ADS122C04_STEP_V, TYPE_K_SEEBECK_V_per_K  # noqa: PLC0415
 
     if sensors.thermocouple == "mcp9600":
-        return adc_step_V(int(sensors.mcp9600_adc_bits)) / TYPE_K_SEEBECK_V_PER_K
-    return ADS122C04_STEP_V * 128 / sensors.ads122c04_gain / TYPE_K_SEEBECK_V_PER_K
+        return adc_step_V(int(sensors.mcp9600_adc_bits)) / TYPE_K_SEEBECK_V_per_K
+    return ADS122C04_STEP_V * 128 / sensors.ads122c04_gain / TYPE_K_SEEBECK_V_per_K
 
 
 def _factory_bundle(cfg: Config) -> Path | None:
@@ -202,7 +202,7 @@ class Daemon:
         self.max_upload_bytes = int(max_upload_bytes)
         h = config.heater
         # The heater goes OFF before anything else (its constructor drives both channels off).
-        self.heater = Heater(board, supply_voltage_v=h.supply_voltage_V, resistance_ohm=h.resistance_ohm,
+        self.heater = Heater(board, supply_voltage_V=h.supply_voltage_V, resistance_ohm=h.resistance_ohm,
                              pwm_period_ns=h.pwm_period_ns)
         self.heater.off()
         self.state = "starting"
@@ -368,9 +368,9 @@ class Daemon:
                                    f"{h.supply_voltage_V} V", "voltage_V")
             power_W = heater_power_W(1.0, voltage_V, h.resistance_ohm)
         power = h.power_W if power_W is None else power_W
-        if power > self.heater.max_power_w * (1 + 1e-12):
+        if power > self.heater.max_power_W * (1 + 1e-12):
             raise CommandError(ErrorCode.BAD_ARGUMENT, f"power_W={power} exceeds the heater's maximum "
-                               f"{self.heater.max_power_w:.4g} W", "power_W")
+                               f"{self.heater.max_power_W:.4g} W", "power_W")
         contact = m.contact_time_s if contact_time_s is None else contact_time_s
         if contact >= h.max_on_time_s:
             raise CommandError(ErrorCode.BAD_ARGUMENT, f"contact_time_s={contact} must be below "
@@ -595,7 +595,7 @@ class Daemon:
     def _worker_budget_s(self) -> float:
         """Longest a healthy measurement can take: baseline + heating limit + cooldown + a margin."""
         m, h = self.config.measurement, self.config.heater
-        return m.baseline_s + h.max_on_time_s + m.cooldown_s + WORKER_JOIN_S
+        return m.baseline_s + h.max_on_time_s + m.cooldown_s + WORKER_JOIN_s
 
     def _join_worker(self, *, abort: bool, timeout_s: float | None = None) -> None:
         """Wait for the measurement worker; ``abort`` (or a timeout) stops it through the stop event.

@@ -43,8 +43,8 @@ import numpy as np
 
 from edge.physics import typek
 from edge.hw.regmaps.mcp9600 import (
-    COLD_JUNCTION_TIME_S,
-    CONVERSION_TIME_S,
+    COLD_JUNCTION_TIME_s,
+    CONVERSION_TIME_s,
     DEVICE_ID,
     RAW_ADC_LSB_V,
     REGISTERS,
@@ -121,10 +121,10 @@ class MCP9600:
         return REGISTERS.DEVICE_CONFIG.get(self.regs[0x06], field)
 
     def _t_hot(self) -> float:
-        return CONVERSION_TIME_S[self._dev("ADC_RESOLUTION")]
+        return CONVERSION_TIME_s[self._dev("ADC_RESOLUTION")]
 
     def _t_cold(self) -> float:
-        return COLD_JUNCTION_TIME_S[self._dev("COLD_JUNCTION_RESOLUTION")]
+        return COLD_JUNCTION_TIME_s[self._dev("COLD_JUNCTION_RESOLUTION")]
 
     def _running(self) -> bool:
         mode = self._dev("MODE")

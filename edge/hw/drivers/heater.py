@@ -62,7 +62,7 @@ class Heater:
     ----------
     board : Board
         Provides ``heater_enable`` (GpioLine), ``pwm`` (SysfsPwm), ``clock``.
-    supply_voltage_v : float
+    supply_voltage_V : float
         Heater supply voltage V (V).
     resistance_ohm : float
         Heater film resistance R (ohm).
@@ -79,13 +79,13 @@ class Heater:
         self,
         board: Any,
         *,
-        supply_voltage_v: float,
+        supply_voltage_V: float,
         resistance_ohm: float,
         pwm_period_ns: int = 1_000_000,
         max_pulse_s: float | None = None,
         consumer: str = "thermotouch-heater",
     ) -> None:
-        self.supply_voltage_v = positive_number("supply_voltage_v", supply_voltage_v)
+        self.supply_voltage_V = positive_number("supply_voltage_V", supply_voltage_V)
         self.resistance_ohm = positive_number("resistance_ohm", resistance_ohm)
         if isinstance(pwm_period_ns, bool) or not isinstance(pwm_period_ns, int) or pwm_period_ns <= 0:
             raise ValueError(f"pwm_period_ns must be an int > 0, got {pwm_period_ns!r}")
@@ -116,17 +116,17 @@ class Heater:
     # ---- power model
 
     @property
-    def max_power_w(self) -> float:
+    def max_power_W(self) -> float:
         """Power at full duty, V**2/R (W)."""
-        return self.supply_voltage_v**2 / self.resistance_ohm
+        return self.supply_voltage_V**2 / self.resistance_ohm
 
     def power_for_duty(self, duty: float) -> float:
         """Mean power (W) at ``duty``."""
-        return heater_power_W(duty, self.supply_voltage_v, self.resistance_ohm)
+        return heater_power_W(duty, self.supply_voltage_V, self.resistance_ohm)
 
-    def duty_for_power(self, power_w: float) -> float:
-        """Duty (0..1) that gives ``power_w`` (W)."""
-        return duty_for_power(power_w, self.supply_voltage_v, self.resistance_ohm)
+    def duty_for_power(self, power_W: float) -> float:
+        """Duty (0..1) that gives ``power_W`` (W)."""
+        return duty_for_power(power_W, self.supply_voltage_V, self.resistance_ohm)
 
     # ---- state
 
@@ -143,7 +143,7 @@ class Heater:
             return self._duty if self._on_since is not None else 0.0
 
     @property
-    def power_w(self) -> float:
+    def power_W(self) -> float:
         """Commanded mean power (W)."""
         return self.power_for_duty(self.duty)
 
@@ -195,9 +195,9 @@ class Heater:
                     raise HeaterError(f"switching the heater on failed: {e}") from e
                 raise
 
-    def on_power(self, power_w: float) -> float:
-        """Switch on at mean power ``power_w`` (W); return the duty used."""
-        d = self.duty_for_power(power_w)
+    def on_power(self, power_W: float) -> float:
+        """Switch on at mean power ``power_W`` (W); return the duty used."""
+        d = self.duty_for_power(power_W)
         self.on(d)
         return d
 

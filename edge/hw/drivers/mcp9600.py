@@ -36,7 +36,7 @@ except ImportError:  # pragma: no cover
 from edge.hw.regmaps.mcp9600 import (
     DEVICE_ID,
     ADDRESSES,
-    CONVERSION_TIME_S,
+    CONVERSION_TIME_s,
     RAW_ADC_LSB_V,
     REGISTERS,
 )
@@ -148,7 +148,7 @@ class MCP9600(I2CDevice):
     @property
     def conversion_time_s(self) -> float:
         """Typical hot-junction conversion time at the configured resolution."""
-        return CONVERSION_TIME_S[self.adc_resolution_bits]
+        return CONVERSION_TIME_s[self.adc_resolution_bits]
 
     # -- status ----------------------------------------------------------------
     def read_status(self) -> dict:

@@ -64,7 +64,7 @@ REGISTERS = RegisterMap("ads122c04", [
 
 # Conversion times in t_CLK cycles (datasheet Table 12). Normal mode counts at
 # f_CLK = 1.024 MHz; turbo-mode times equal the same counts at 2.048 MHz.
-F_CLK_HZ = 1.024e6
+F_CLK_Hz = 1.024e6
 CYCLES_CONTINUOUS = (51192, 22780, 11532, 5916, 3116, 1724, 1036)
 CYCLES_SINGLE_NORMAL = (51213, 22805, 11557, 5941, 3141, 1749, 1061)
 # The last two turbo single-shot entries follow the table's +29-cycle pattern.
@@ -90,7 +90,7 @@ def conversion_time_s(dr_code: int, turbo: bool, single_shot: bool) -> float:
         cycles = (CYCLES_SINGLE_TURBO if turbo else CYCLES_SINGLE_NORMAL)[dr_code]
     else:
         cycles = CYCLES_CONTINUOUS[dr_code]
-    return cycles / (F_CLK_HZ * (2.0 if turbo else 1.0))
+    return cycles / (F_CLK_Hz * (2.0 if turbo else 1.0))
 
 
 def code_to_volts(code: int, gain: int, vref_V: float = INTERNAL_VREF_V) -> float:

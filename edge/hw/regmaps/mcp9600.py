@@ -20,9 +20,9 @@ _ALERT_CFG = {
 
 ADC_RESOLUTIONS_BITS = {18: 0, 16: 1, 14: 2, 12: 3}
 #: Hot-junction conversion time per ADC resolution, typical (datasheet Register 5-8 / Table 1).
-CONVERSION_TIME_S = {18: 0.320, 16: 0.080, 14: 0.020, 12: 0.005}
+CONVERSION_TIME_s = {18: 0.320, 16: 0.080, 14: 0.020, 12: 0.005}
 #: Cold-junction conversion time per resolution (datasheet Table 5-2).
-COLD_JUNCTION_TIME_S = {0.0625: 0.250, 0.25: 0.063}
+COLD_JUNCTION_TIME_s = {0.0625: 0.250, 0.25: 0.063}
 #: Raw ADC register LSB: 2 µV at 18 bit (we keep the register in 18-bit units;
 #: lower resolutions leave the low bits at zero).
 RAW_ADC_LSB_V = 2e-6
