@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 import serial
 
-from daemon_testutil import (
+from tests.support.daemons import (
     CrashingEstimator,
     FakeEstimator,
     HookedSensors,
@@ -282,7 +282,7 @@ def test_signal_handler_stops_a_measurement_in_the_main_thread(tmp_path):
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_real_signal_to_a_daemon_process_mid_heating(tmp_path, sig):
-    script = Path(__file__).resolve().parent / "daemon_proc.py"
+    script = Path(__file__).resolve().parents[2] / "support" / "daemon_proc.py"
     proc = subprocess.Popen([sys.executable, str(script), str(tmp_path)], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:

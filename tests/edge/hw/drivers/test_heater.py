@@ -13,17 +13,9 @@ from edge.physics.probe import (
 )
 from edge.hw.drivers.heater import Heater, HeaterError, HeaterOffError
 from edge.hw.sysfs_pwm import PwmError
-from firmware_sim.sim_board import make_sim_board
 
 V_SUPPLY, R_HEATER = 12.0, 24.0  # 6 W at full duty
 EN = 17
-
-
-@pytest.fixture
-def board():
-    b = make_sim_board()
-    yield b
-    b.close()
 
 
 def parts(board):

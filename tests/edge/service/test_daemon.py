@@ -9,8 +9,14 @@ import numpy as np
 import pytest
 import serial
 
-from bundle_testutil import make_arrays, make_golden, manifest_extra, npz_bytes, write_raw_bundle
-from daemon_testutil import FakeEstimator, assert_heater_safe, sim_config
+from tests.support.bundles import (
+    make_arrays,
+    make_golden,
+    manifest_extra,
+    npz_bytes,
+    write_raw_bundle,
+)
+from tests.support.daemons import FakeEstimator, assert_heater_safe, sim_config
 from edge.estimation.estimate import mlp_golden_check
 from edge.model import bundle as B
 from edge.service.config import Config

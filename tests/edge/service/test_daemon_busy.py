@@ -13,7 +13,7 @@ import time
 import pytest
 import serial
 
-from daemon_testutil import FakeEstimator, HookedSensors, assert_heater_safe, sim_config
+from tests.support.daemons import FakeEstimator, HookedSensors, assert_heater_safe, sim_config
 from edge.service.config import Config
 from edge.service.daemon import Daemon, DaemonThread
 from edge.protocol.commands import Command

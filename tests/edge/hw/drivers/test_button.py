@@ -10,13 +10,6 @@ from firmware_sim.sim_board import make_sim_board
 TRIG = 27
 
 
-@pytest.fixture
-def board():
-    b = make_sim_board()
-    yield b
-    b.close()
-
-
 def chip(board):
     return board.extras["sim"].chip
 

@@ -10,7 +10,14 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bundle_testutil import make_arrays, make_golden, manifest_extra, npz_bytes, reseal, write_raw_bundle
+from tests.support.bundles import (
+    make_arrays,
+    make_golden,
+    manifest_extra,
+    npz_bytes,
+    reseal,
+    write_raw_bundle,
+)
 from edge.estimation.mlp import MLP
 from edge.estimation.estimate import mlp_golden_check
 from edge.model import bundle as B

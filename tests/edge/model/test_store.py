@@ -5,7 +5,13 @@ from pathlib import Path
 
 import pytest
 
-from bundle_testutil import make_arrays, make_golden, manifest_extra, npz_bytes, write_raw_bundle
+from tests.support.bundles import (
+    make_arrays,
+    make_golden,
+    manifest_extra,
+    npz_bytes,
+    write_raw_bundle,
+)
 from edge.estimation.estimate import mlp_golden_check
 from edge.model import bundle as B
 from edge.storage import durable

@@ -15,11 +15,11 @@ import threading
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the checkout: tests.support, edge, firmware_sim
 
 import serial  # noqa: E402
 
-from daemon_testutil import FakeEstimator, HookedSensors, sim_config  # noqa: E402
+from tests.support.daemons import FakeEstimator, HookedSensors, sim_config  # noqa: E402
 from edge.service.daemon import Daemon, install_signal_handlers  # noqa: E402
 from firmware_sim.daemon_rig import heater_invariant, make_rig  # noqa: E402
 from firmware_sim.ptylink import NullModem  # noqa: E402

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from host.blas import BLAS_ENV_VARS
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_suite_runs_with_one_blas_thread():

@@ -14,7 +14,7 @@ import time
 import pytest
 import serial
 
-from daemon_testutil import FakeEstimator, assert_heater_safe
+from tests.support.daemons import FakeEstimator, assert_heater_safe
 from edge.service.daemon import DaemonThread
 from firmware_sim import load_scene
 from firmware_sim.ptylink import NullModem

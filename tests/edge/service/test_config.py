@@ -13,7 +13,7 @@ from edge.service.config import (
     load_config,
 )
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "edge" / "service" / "thermotouch-edge.example.toml"
+EXAMPLE = Path(__file__).resolve().parents[3] / "edge" / "service" / "thermotouch-edge.example.toml"
 
 
 def _write(tmp_path, text):

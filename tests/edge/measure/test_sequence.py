@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from daemon_testutil import FakeEstimator, assert_heater_safe, make_sequence
+from tests.support.daemons import FakeEstimator, assert_heater_safe, make_sequence
 from edge.service.config import Config
 from edge.physics.probe import HEATER_AREA_m2, volumetric_heat_W_m3
 from edge.measure.sequence import MeasurementParams, quality_flags, resample_uniform
