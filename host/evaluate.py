@@ -102,16 +102,16 @@ def identification(est: Estimator, instrument: str, *, touches: int = 4, q_v: fl
                    seed: int = 2) -> dict:
     """Top-1 identification over every library material (default method)."""
     rng = np.random.default_rng(seed)
-    names = est.lib_names
-    ln_e = np.log(est.lib_e)
+    names = est.library.names
+    ln_e = np.log(est.library.effusivity)
     hits, total, conf = {}, {}, []
     resolvable_hits = resolvable_total = 0
     u_seen = []
     for i, name in enumerate(names):
-        rc = est.lib_rho_c[i]
-        solid = Solid(float(est.lib_k[i]), float(rc), 1.0)
+        rc = est.library.rho_c[i]
+        solid = Solid(float(est.library.k[i]), float(rc), 1.0)
         sim = TouchSimulator(solid)
-        cls = est.lib_class[i]
+        cls = est.library.classes[i]
         for _ in range(touches):
             t = sim.touch(q_v, instrument, rng)
             r = est.estimate(t.tT, t.T, t.q, t_q_s=t.tq, T_resolution_K=INSTRUMENTS[instrument].T_lsb_K)
@@ -146,15 +146,16 @@ def leave_one_out_default(est: Estimator, instrument: str, *, seed: int = 3, q_v
     rng = np.random.default_rng(seed)
     errs = {"e": [], "k": [], "alpha": []}
     base = dict(
-        lib_effusivity=est.lib_e, lib_k=est.lib_k, lib_rho_c=est.lib_rho_c,
-        lib_names=np.array(est.lib_names), lib_class=np.array(est.lib_class),
+        lib_effusivity=est.library.effusivity, lib_k=est.library.k, lib_rho_c=est.library.rho_c,
+        lib_names=np.array(est.library.names), lib_class=np.array(est.library.classes),
     )
-    for i in range(len(est.lib_names)):
-        keep = np.arange(len(est.lib_names)) != i
+    for i in range(len(est.library.names)):
+        keep = np.arange(len(est.library.names)) != i
         arrays = {k: v[keep] for k, v in base.items()}
-        arrays["prior_coef"] = np.array([est.kernel_floor, est.rho_c_intrinsic, est.material_spread, est.paper_u_ln_k])
+        arrays["prior_coef"] = np.array([est.library.kernel_floor_ln, est.library.rho_c_intrinsic_ln, est.library.material_spread_ln,
+                                        est.paper_u_ln_k])
         e_i = Estimator(arrays)
-        solid = Solid(float(est.lib_k[i]), float(est.lib_rho_c[i]), 1.0)
+        solid = Solid(float(est.library.k[i]), float(est.library.rho_c[i]), 1.0)
         t = TouchSimulator(solid).touch(q_v, instrument, rng)
         r = e_i.estimate(t.tT, t.T, t.q, t_q_s=t.tq, T_resolution_K=INSTRUMENTS[instrument].T_lsb_K)
         if r.k_W_mK is None:

@@ -36,6 +36,7 @@ from typing import Mapping
 import numpy as np
 
 from edge.checks import finite_array, one_of, strictly_increasing
+from edge.estimation.identification import Library
 from edge.estimation.features import FEATURE_VERSION, log_features, paper_features
 from edge.estimation.mlp import MLP
 from edge.estimation.spline import resample
@@ -197,16 +198,11 @@ class Estimator:
             self.mlp = MLP.from_arrays(a)
             self.p_min = np.asarray(a["pca_score_min"], float) if "pca_score_min" in a else None
             self.p_max = np.asarray(a["pca_score_max"], float) if "pca_score_max" in a else None
-        if "lib_effusivity" not in a:
-            raise ValueError("bundle has no material library tables (lib_*): cannot name materials")
-        self.lib_e = np.asarray(a["lib_effusivity"], float)
-        self.lib_k = np.asarray(a["lib_k"], float)
-        self.lib_rho_c = np.asarray(a["lib_rho_c"], float)
-        self.lib_names = [str(s) for s in a["lib_names"]]
-        self.lib_class = [str(s) for s in a["lib_class"]]
         coef = np.asarray(a["prior_coef"], float) if "prior_coef" in a else np.array(DEFAULT_PRIOR_COEF)
-        self.kernel_floor, self.rho_c_intrinsic, self.material_spread, self.paper_u_ln_k = (
+        kernel_floor, rho_c_intrinsic, material_spread, self.paper_u_ln_k = (
             list(coef) + list(DEFAULT_PRIOR_COEF[len(coef):]))[:4]
+        self.library = Library.from_arrays(a, kernel_floor_ln=kernel_floor, rho_c_intrinsic_ln=rho_c_intrinsic,
+                                           material_spread_ln=material_spread)
 
     @classmethod
     def from_bundle(cls, bundle, **kwargs) -> "Estimator":
@@ -224,28 +220,6 @@ class Estimator:
         y = self.mlp.predict(p)
         k = np.exp(y) if self.y_transform == 1 else y
         return k, p, clipped
-
-    # -- prior and identification --------------------------------------------
-    def prior_rho_c(self, e: float, u_ln_e: float) -> tuple[float, float, bool]:
-        """ln(rho c) mean and standard deviation given e; and whether e is outside the library."""
-        width = math.hypot(u_ln_e, self.kernel_floor)
-        z = (math.log(e) - np.log(self.lib_e)) / width
-        w = np.exp(-0.5 * (z ** 2 - np.min(z ** 2)))
-        ln_rc = np.log(self.lib_rho_c)
-        mean = float(np.sum(w * ln_rc) / np.sum(w))
-        var = float(np.sum(w * (ln_rc - mean) ** 2) / np.sum(w)) + self.rho_c_intrinsic ** 2
-        outside = bool(e < self.lib_e.min() / 1.5 or e > self.lib_e.max() * 1.5)
-        return mean, math.sqrt(var), outside
-
-    def identify(self, e: float, u_ln_e: float, top: int = 3) -> list[tuple[str, float]]:
-        """Library materials ranked by likelihood of the measured e, with probabilities."""
-        s = math.hypot(u_ln_e, self.material_spread)
-        z = (math.log(e) - np.log(self.lib_e)) / s
-        ll = -0.5 * z ** 2
-        p = np.exp(ll - ll.max())
-        p /= p.sum()
-        order = np.argsort(-p)[:top]
-        return [(self.lib_names[i], float(p[i])) for i in order]
 
     # -- entry point ------------------------------------------------------------
     def estimate(self, t_s, dT_K, q_W_m2, *, t_q_s=None, method: str = "default", thickness_m: float | None = None,
@@ -302,7 +276,7 @@ class Estimator:
         return self._default(grid, Tg, qg, n_eff, flags, thickness_m, back, T_resolution_K)
 
     def _finish(self, e, u_ln_e, k, u_ln_k, alpha, u_ln_alpha, method, flags, fit, grid) -> Estimate:
-        cands = self.identify(e, u_ln_e)
+        cands = self.library.identify(e, u_ln_e)
         return Estimate(
             effusivity_W_s05_m2K=e, effusivity_W_s05_m2K_u=e * u_ln_e,
             k_W_mK=k, k_W_mK_u=k * u_ln_k, alpha_m2_s=alpha, alpha_m2_s_u=alpha * u_ln_alpha,
@@ -322,7 +296,7 @@ class Estimator:
             return Estimate(None, None, None, None, None, None, None, 0.0, "default", self.sha256, flags)
         e = 1.0 / a
         u_ln_e = math.hypot(u_a / a, FLUX_CALIBRATION_U_REL)
-        ln_rc, u_ln_rc, outside = self.prior_rho_c(e, u_ln_e)
+        ln_rc, u_ln_rc, outside = self.library.prior_rho_c(e, u_ln_e)
         if outside:
             flags.append("outside_training_range")
         rc = math.exp(ln_rc)

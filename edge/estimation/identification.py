@@ -1,0 +1,87 @@
+"""The material library as the device holds it: a prior on ρc given e, and naming a material.
+
+A bundle carries the library as plain arrays (``lib_*``); :class:`Library`
+turns them into the two things an estimate needs from it:
+
+* :meth:`Library.prior_rho_c` -- one touch on a thick body determines the
+  effusivity e only, so k and α need ln(ρc); the library's materials near the
+  measured e, weighted by how well e matches, give its mean and spread;
+* :meth:`Library.identify` -- the library's materials ranked by the
+  likelihood of the measured e, normalised to probabilities.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Mapping
+
+import numpy as np
+
+__all__ = ["Library", "OUTSIDE_FACTOR"]
+
+#: An e beyond this factor of the library's range is flagged as outside it (the prior extrapolates).
+OUTSIDE_FACTOR = 1.5
+
+
+class Library:
+    """Library tables and the widths that turn them into a prior and a ranking.
+
+    Parameters
+    ----------
+    effusivity, k, rho_c : array_like
+        Per material: e (W s^0.5/(m^2 K)), k (W/(m K)), ρc (J/(m^3 K)).
+    names, classes : sequence of str
+        Per material: its name and class.
+    kernel_floor_ln : float
+        Least width in ln e of the prior's kernel (keeps it smooth when u(e) is tiny).
+    rho_c_intrinsic_ln : float
+        Spread of ln ρc among materials of equal e, added to the prior's variance.
+    material_spread_ln : float
+        Specimen-to-specimen spread of ln e assumed when naming a material.
+    """
+
+    def __init__(self, effusivity, k, rho_c, names, classes, *, kernel_floor_ln: float,
+                 rho_c_intrinsic_ln: float, material_spread_ln: float) -> None:
+        self.effusivity = np.asarray(effusivity, float)
+        self.k = np.asarray(k, float)
+        self.rho_c = np.asarray(rho_c, float)
+        self.names = [str(s) for s in names]
+        self.classes = [str(s) for s in classes]
+        if not (self.effusivity.shape == self.k.shape == self.rho_c.shape == (len(self.names),)
+                and len(self.classes) == len(self.names) and self.names):
+            raise ValueError("library tables must be non-empty and of one length")
+        self.kernel_floor_ln = float(kernel_floor_ln)
+        self.rho_c_intrinsic_ln = float(rho_c_intrinsic_ln)
+        self.material_spread_ln = float(material_spread_ln)
+
+    @classmethod
+    def from_arrays(cls, a: Mapping[str, np.ndarray], *, kernel_floor_ln: float, rho_c_intrinsic_ln: float,
+                    material_spread_ln: float) -> "Library":
+        """The library of a bundle's arrays (``lib_effusivity``, ``lib_k``, ``lib_rho_c``, ``lib_names``,
+        ``lib_class``)."""
+        if "lib_effusivity" not in a:
+            raise ValueError("bundle has no material library tables (lib_*): cannot name materials")
+        return cls(a["lib_effusivity"], a["lib_k"], a["lib_rho_c"], a["lib_names"], a["lib_class"],
+                   kernel_floor_ln=kernel_floor_ln, rho_c_intrinsic_ln=rho_c_intrinsic_ln,
+                   material_spread_ln=material_spread_ln)
+
+    def prior_rho_c(self, e: float, u_ln_e: float) -> tuple[float, float, bool]:
+        """ln(ρc) mean and standard deviation given e; and whether e is outside the library."""
+        width = math.hypot(u_ln_e, self.kernel_floor_ln)
+        z = (math.log(e) - np.log(self.effusivity)) / width
+        w = np.exp(-0.5 * (z ** 2 - np.min(z ** 2)))
+        ln_rc = np.log(self.rho_c)
+        mean = float(np.sum(w * ln_rc) / np.sum(w))
+        var = float(np.sum(w * (ln_rc - mean) ** 2) / np.sum(w)) + self.rho_c_intrinsic_ln ** 2
+        outside = bool(e < self.effusivity.min() / OUTSIDE_FACTOR or e > self.effusivity.max() * OUTSIDE_FACTOR)
+        return mean, math.sqrt(var), outside
+
+    def identify(self, e: float, u_ln_e: float, top: int = 3) -> list[tuple[str, float]]:
+        """Library materials ranked by likelihood of the measured e, with probabilities."""
+        s = math.hypot(u_ln_e, self.material_spread_ln)
+        z = (math.log(e) - np.log(self.effusivity)) / s
+        ll = -0.5 * z ** 2
+        p = np.exp(ll - ll.max())
+        p /= p.sum()
+        order = np.argsort(-p)[:top]
+        return [(self.names[i], float(p[i])) for i in order]
