@@ -13,7 +13,9 @@ from bundle_testutil import make_arrays, make_golden, manifest_extra, npz_bytes,
 from daemon_testutil import FakeEstimator, assert_heater_safe, sim_config
 from edge.model import bundle as B
 from edge.service.config import Config
-from edge.service.daemon import FIRMWARE_VERSION, DaemonThread, main
+from edge.service.daemon import FIRMWARE_VERSION
+from edge.service.main import main
+from firmware_sim.daemon_thread import DaemonThread
 from edge.protocol.messages import Command, ErrorCode, encode_frame, encode_request
 from firmware_sim.daemon_rig import make_rig
 from firmware_sim.ptylink import NullModem

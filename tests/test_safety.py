@@ -24,11 +24,13 @@ from daemon_testutil import (
     sim_config,
 )
 from edge.service.config import Config
-from edge.service.daemon import Daemon, DaemonThread, install_signal_handlers
+from edge.service.daemon import Daemon
+from edge.service.main import install_signal_handlers
 from edge.storage.history import History
 from edge.protocol.messages import Command, CommandError, ErrorCode, encode_request
-from edge.measure.sequence import make_sensors
+from edge.measure.sensors import make_sensors
 from firmware_sim.daemon_rig import make_rig
+from firmware_sim.daemon_thread import DaemonThread
 from firmware_sim.ptylink import NullModem
 from host.client import DeviceClient, DeviceError
 
