@@ -63,7 +63,7 @@ def child(workdir: str) -> int:
     import serial
 
     from edge.service.config import Config
-    from edge.service.daemon import DaemonThread
+    from firmware_sim.daemon_thread import DaemonThread
     from firmware_sim.daemon_rig import heater_invariant, make_rig
     from firmware_sim.ptylink import NullModem
 

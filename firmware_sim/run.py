@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 from edge.service.config import Config
-from edge.service.daemon import install_signal_handlers, run_daemon
+from edge.service.main import install_signal_handlers, run_daemon
 from edge.measure.sequence import EstimatorFn
 
 __all__ = ["config_for_scene", "run_sim", "main"]

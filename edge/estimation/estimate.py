@@ -43,6 +43,7 @@ from edge.estimation.spline import resample
 from edge.model.bundle import Bundle, max_relative_error
 from edge.physics.fluxmodel import duhamel_apply, surface_temperature, surface_temperature_scan
 from edge.physics.solids import Solid
+from edge.status import Flag
 
 METHODS = ("default", "paper")
 MODEL_DT_s = 0.01
@@ -267,9 +268,9 @@ class Estimator:
             Tg = resample(tT, T, grid)
             qg = resample(tq, q, grid)
         n_eff = n_raw or int(min(tT.size, np.count_nonzero(tT <= t_end)))
-        flags: list[str] = []
+        flags: list[Flag] = []
         if float(np.mean(qg[grid.size // 2:])) < 20.0 or float(np.max(Tg)) <= 0.0:
-            flags.append("no_signal")
+            flags.append(Flag.NO_SIGNAL)
             return Estimate(None, None, None, None, None, None, None, 0.0, method, self.sha256, flags)
         if method == "paper":
             return self._paper(grid, Tg, qg, n_eff, flags, q_v_W_m3, T_resolution_K)
@@ -292,13 +293,13 @@ class Estimator:
         u_a = math.hypot(u_a, _quantisation_u_a(m, Tg, grid, lsb_K))
         if not a > MIN_SNR * u_a:
             # The temperature rise is lost in noise or quantisation: an e from it would be a guess.
-            flags.append("insufficient_signal")
+            flags.append(Flag.INSUFFICIENT_SIGNAL)
             return Estimate(None, None, None, None, None, None, None, 0.0, "default", self.sha256, flags)
         e = 1.0 / a
         u_ln_e = math.hypot(u_a / a, FLUX_CALIBRATION_U_REL)
         ln_rc, u_ln_rc, outside = self.library.prior_rho_c(e, u_ln_e)
         if outside:
-            flags.append("outside_training_range")
+            flags.append(Flag.OUTSIDE_TRAINING_RANGE)
         rc = math.exp(ln_rc)
         k = e * e / rc
         alpha = k / rc
@@ -322,7 +323,7 @@ class Estimator:
             rss_all[i] = rss
             best = (rss, float(alphas[i]), a, u_a, fit)
         if best is None or not best[2] > MIN_SNR * best[3]:
-            flags.append("insufficient_signal")
+            flags.append(Flag.INSUFFICIENT_SIGNAL)
             return Estimate(None, None, None, None, None, None, None, 0.0, "default", self.sha256, flags)
         rss, alpha, a, u_a, fit = best
         e = 1.0 / a
@@ -334,7 +335,7 @@ class Estimator:
         la = np.log(alphas[ok])
         u_ln_alpha = max(float(la.max() - la.min()) / 2.0, math.log(alphas[1] / alphas[0]) / 2.0)
         if alpha <= alphas[0] * 1.01 or alpha >= alphas[-1] / 1.01:
-            flags.append("alpha_at_scan_edge")
+            flags.append(Flag.ALPHA_AT_SCAN_EDGE)
         k = e * math.sqrt(alpha)
         u_ln_k = math.hypot(u_ln_e, 0.5 * u_ln_alpha)
         return self._finish(e, u_ln_e, k, u_ln_k, alpha, u_ln_alpha, "default", flags, fit, grid)
@@ -344,13 +345,13 @@ class Estimator:
         k_arr, p, clipped = self.paper_k(u)
         k = float(k_arr[0])
         if clipped.any():
-            flags.append("feature_clipped")
+            flags.append(Flag.FEATURE_CLIPPED)
         if self.p_min is not None and (np.any(p < self.p_min) or np.any(p > self.p_max)):
-            flags.append("outside_training_range")
+            flags.append(Flag.OUTSIDE_TRAINING_RANGE)
         if q_v_W_m3 is not None and not (4.0e7 * 0.999 <= q_v_W_m3 <= 1.4e8 * 1.001):
-            flags.append("power_outside_training_range")
+            flags.append(Flag.POWER_OUTSIDE_TRAINING_RANGE)
         if not (k > 0 and math.isfinite(k)):
-            flags.append("no_signal")
+            flags.append(Flag.NO_SIGNAL)
             return Estimate(None, None, None, None, None, None, None, 0.0, "paper", self.sha256, flags)
         lo, hi, step = next(rng for kmax, rng in PAPER_ALPHA_SCANS if k < kmax)
         alphas = np.arange(lo, hi + step / 2, step)
@@ -366,7 +367,7 @@ class Estimator:
         i = int(np.argmin(sse))
         alpha = float(alphas[i])
         if i == 0 or i == alphas.size - 1:
-            flags.append("alpha_at_scan_edge")
+            flags.append(Flag.ALPHA_AT_SCAN_EDGE)
         e = k / math.sqrt(alpha)
         u_ln_k = self.paper_u_ln_k
         # The scan fits the data through e = k/sqrt(alpha): e carries the fit's

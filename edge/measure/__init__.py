@@ -1,1 +1,2 @@
-"""A touch: sensors, the measurement sequence and the heater's safety net, instrument models, profiles."""
+"""A touch: sensors, signal conditioning, the heater's watchdog, the measurement sequence,
+instrument models, profiles."""

@@ -1,1 +1,2 @@
-"""The daemon: configuration, request handlers, uploads and the process entry point."""
+"""The daemon: configuration, request handlers and their argument policy, the measurement worker,
+model uploads, the default estimator and the process entry point."""

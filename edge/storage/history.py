@@ -50,13 +50,16 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from edge.status import Status
+
 __all__ = ["HistoryError", "History", "SCHEMA_VERSION", "utc_now"]
 
 SCHEMA_VERSION = 1
 _SERIES = ("raw_t_s", "raw_T_C", "raw_q_W_m2", "grid_t_s", "grid_dT_K", "grid_q_W_m2")
 _SCALARS = ("started_utc", "status", "reason", "error", "model_sha256", "power_W", "contact_time_s",
             "heater_on_s", "T0_C", "q_offset_W_m2", "sample_rate_Hz")
-_STATUSES = ("ok", "aborted", "failed")
+#: Plain strings, so the error message lists them as it always did.
+_STATUSES = tuple(s.value for s in Status)
 _MAX_SERIES = 1_000_000
 
 _DDL = """

@@ -301,7 +301,9 @@ def test_scene_from_environment_for_a_daemon_configured_with_kind_sim(monkeypatc
 @pytest.mark.parametrize("name", ["glass_15V", "alu_20V_ads122c04", "pmma_15V_no_contact"])
 def test_edge_measurement_sequence_runs_unchanged_on_the_simulator(name, tmp_path):
     from edge.service.config import load_config
-    from edge.measure.sequence import Limits, MeasurementParams, MeasurementSequence, make_sensors
+    from edge.measure.sensors import make_sensors
+    from edge.measure.sequence import MeasurementParams, MeasurementSequence
+    from edge.measure.watchdog import Limits
 
     sim = load_scene(name)
     sc = sim.scene

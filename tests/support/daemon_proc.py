@@ -15,12 +15,14 @@ import threading
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the checkout: tests.support, edge, firmware_sim
+# This checkout's edge and firmware_sim, not whichever one the venv has installed, and the test helpers.
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import serial  # noqa: E402
 
 from tests.support.daemons import FakeEstimator, HookedSensors, sim_config  # noqa: E402
-from edge.service.daemon import Daemon, install_signal_handlers  # noqa: E402
+from edge.service.daemon import Daemon  # noqa: E402
+from edge.service.main import install_signal_handlers  # noqa: E402
 from firmware_sim.daemon_rig import heater_invariant, make_rig  # noqa: E402
 from firmware_sim.ptylink import NullModem  # noqa: E402
 

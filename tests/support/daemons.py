@@ -9,7 +9,9 @@ import numpy as np
 
 from edge.service.config import Config
 from edge.hw.drivers.heater import Heater
-from edge.measure.sequence import Limits, MeasurementParams, MeasurementSequence, make_sensors
+from edge.measure.sensors import make_sensors
+from edge.measure.sequence import MeasurementParams, MeasurementSequence
+from edge.measure.watchdog import Limits
 from firmware_sim.daemon_rig import heater_invariant, make_rig
 
 

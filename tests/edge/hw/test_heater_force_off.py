@@ -57,7 +57,7 @@ def test_force_off_tries_gpio_when_pwm_missing(tmp_path):
 
 
 def test_daemon_heater_off_mode(tmp_path, capsys):
-    from edge.service.daemon import main
+    from edge.service.main import main
 
     sim = tmp_path / "sim.toml"
     sim.write_text('[board]\nkind = "sim"\n')

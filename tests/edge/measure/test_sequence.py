@@ -6,7 +6,8 @@ import pytest
 from tests.support.daemons import FakeEstimator, assert_heater_safe, make_sequence
 from edge.service.config import Config
 from edge.physics.probe import HEATER_AREA_m2, volumetric_heat_W_m3
-from edge.measure.sequence import MeasurementParams, quality_flags, resample_uniform
+from edge.measure.sequence import MeasurementParams
+from edge.measure.signal import quality_flags, resample_uniform
 from firmware_sim.daemon_rig import heater_on_intervals
 
 pytestmark = pytest.mark.hil

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from edge.measure.sequence import resample_uniform
+from edge.measure.signal import resample_uniform
 
 
 def test_converter_lag_is_removed_and_nothing_is_extrapolated():

@@ -20,7 +20,9 @@ from tests.support.daemons import FakeEstimator, assert_heater_safe, sim_config
 from edge.estimation.estimate import mlp_golden_check
 from edge.model import bundle as B
 from edge.service.config import Config
-from edge.service.daemon import FIRMWARE_VERSION, DaemonThread, main
+from edge.service.daemon import FIRMWARE_VERSION
+from edge.service.main import main
+from firmware_sim.daemon_thread import DaemonThread
 from edge.protocol.commands import Command
 from edge.protocol.errors import ErrorCode
 from edge.protocol.frame import encode_frame

@@ -15,7 +15,8 @@ import serial
 
 from tests.support.daemons import FakeEstimator, HookedSensors, assert_heater_safe, sim_config
 from edge.service.config import Config
-from edge.service.daemon import Daemon, DaemonThread
+from edge.service.daemon import Daemon
+from firmware_sim.daemon_thread import DaemonThread
 from edge.protocol.commands import Command
 from edge.protocol.errors import ErrorCode
 from edge.protocol.messages import ErrorReply, Reply, decode_reply, encode_request

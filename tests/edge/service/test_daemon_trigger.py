@@ -15,7 +15,7 @@ import pytest
 import serial
 
 from tests.support.daemons import FakeEstimator, assert_heater_safe
-from edge.service.daemon import DaemonThread
+from firmware_sim.daemon_thread import DaemonThread
 from firmware_sim import load_scene
 from firmware_sim.ptylink import NullModem
 from firmware_sim.run import config_for_scene

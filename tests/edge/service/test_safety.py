@@ -24,13 +24,15 @@ from tests.support.daemons import (
     sim_config,
 )
 from edge.service.config import Config
-from edge.service.daemon import Daemon, DaemonThread, install_signal_handlers
+from edge.service.daemon import Daemon
+from edge.service.main import install_signal_handlers
 from edge.storage.history import History
 from edge.protocol.commands import Command
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.protocol.messages import encode_request
-from edge.measure.sequence import make_sensors
+from edge.measure.sensors import make_sensors
 from firmware_sim.daemon_rig import make_rig
+from firmware_sim.daemon_thread import DaemonThread
 from firmware_sim.ptylink import NullModem
 from host.client import DeviceClient, DeviceError
 

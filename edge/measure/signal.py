@@ -1,0 +1,113 @@
+"""Signal conditioning of one measurement's raw series: pure functions, no hardware, no state.
+
+* :func:`resample_uniform` puts the heating phase on the uniform time grid
+  the estimator expects (cubic spline, :mod:`edge.estimation.spline`).
+* :func:`quality_flags` judges the baseline and the heating flux against the
+  ``[measurement]`` thresholds.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from edge.estimation.spline import resample
+from edge.physics.probe import HEATER_AREA_m2
+from edge.status import Flag
+
+__all__ = ["resample_uniform", "quality_flags"]
+
+
+def resample_uniform(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, T0_C: float, q_offset_W_m2: float,
+                     rate_Hz: float, t_end_s: float, T_age_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Heating-phase series on the grid ``k / rate_Hz``, k = 1 .. floor(t_end * rate).
+
+    ``t_s`` is time since heater-on; samples with ``t_s < 0`` (baseline) are
+    ignored. The temperature rise is anchored at ``(0, 0)`` (temperature is
+    continuous at switch-on; flux is not, so it is not anchored).  Temperature
+    readings are placed ``T_age_s`` before they were read (the converter's
+    sampling lag), which would otherwise bias e upwards by several percent.
+
+    Parameters
+    ----------
+    t_s, T_C, q_W_m2 : ndarray
+        The raw series: time since heater-on (s), thermocouple (°C), flux (W/m^2).
+    T0_C, q_offset_W_m2 : float
+        Baseline temperature and flux offset, subtracted.
+    rate_Hz : float
+        Grid rate.
+    t_end_s : float
+        Heating duration (s); the grid never runs past it nor past the data.
+    T_age_s : float
+        Mean age of a temperature reading when read (s).
+
+    Returns
+    -------
+    t_s, dT_K, q_W_m2 : ndarray
+        The grid and the series on it, flux offset removed.
+    """
+    t_s = np.asarray(t_s, float)
+    heat = t_s >= 0
+    th, Th, qh = t_s[heat], np.asarray(T_C, float)[heat], np.asarray(q_W_m2, float)[heat]
+    if th.size < 2:
+        raise ValueError(f"need at least 2 heating samples to resample, got {th.size}")
+    tT, dT = th - T_age_s, Th - T0_C
+    keep = tT > 0  # a reading taken before heater-on belongs to the baseline
+    tT, dT = tT[keep], dT[keep]
+    if tT.size < 1:
+        raise ValueError("no temperature reading taken after heater-on")
+    tT, dT = np.concatenate(([0.0], tT)), np.concatenate(([0.0], dT))
+    n = int(math.floor(t_end_s * rate_Hz + 1e-9))
+    grid = np.arange(1, n + 1) / rate_Hz
+    grid = grid[grid <= min(th[-1], tT[-1]) + 1e-9]  # interpolate, never extrapolate
+    if grid.size < 2:
+        raise ValueError("heating phase too short for the sample rate")
+    dT_grid = resample(tT, dT, grid)
+    q_grid = resample(th, qh - q_offset_W_m2, np.maximum(grid, th[0]))
+    return grid, dT_grid, q_grid
+
+
+def quality_flags(base_t: np.ndarray, base_T: np.ndarray, base_q: np.ndarray, heat_q: np.ndarray,
+                  power_W: float, saturated: bool, thresholds: Any) -> list[Flag]:
+    """Flags from the baseline and heating series (see the ``[measurement]`` thresholds).
+
+    Parameters
+    ----------
+    base_t, base_T, base_q : ndarray
+        Baseline times (s), thermocouple (°C) and flux (W/m^2).
+    heat_q : ndarray
+        Heating-phase flux with the baseline offset removed (W/m^2).
+    power_W : float
+        Requested heater power.
+    saturated : bool
+        Whether any reading clipped.
+    thresholds : namespace
+        The ``[measurement]`` section.
+
+    Returns
+    -------
+    list of Flag
+        In the order no_contact, saturated, noisy, unstable_baseline.
+    """
+    flags = []
+    if heat_q.size and power_W > 0:
+        q_in = float(np.mean(heat_q))
+        if q_in < thresholds.no_contact_flux_fraction * power_W / HEATER_AREA_m2:
+            flags.append(Flag.NO_CONTACT)
+    if saturated:
+        flags.append(Flag.SATURATED)
+    if base_T.size >= 3:
+        # Noise is the scatter about the baseline's trend; the trend itself is drift.
+        x = base_t - base_t[0]
+        span = float(x[-1])
+        slope, resid_T = 0.0, base_T - np.mean(base_T)
+        if span > 0:
+            coef = np.polyfit(x, base_T, 1)
+            slope, resid_T = float(coef[0]), base_T - np.polyval(coef, x)
+        if float(np.std(resid_T)) > thresholds.noise_T_K or float(np.std(base_q)) > thresholds.noise_q_W_m2:
+            flags.append(Flag.NOISY)
+        if abs(slope) * span > thresholds.unstable_baseline_K:
+            flags.append(Flag.UNSTABLE_BASELINE)
+    return flags

@@ -1,0 +1,170 @@
+"""Argument policy and reply sizing for the daemon's requests -- pure functions, no daemon state.
+
+The protocol layer (:mod:`edge.protocol.messages`) has already checked each
+argument's type and range; what is decided here needs the device's
+configuration or the frame size:
+
+* MEASURE: :func:`measure_params` turns the optional ``power_W`` /
+  ``voltage_V`` / ``contact_time_s`` into :class:`MeasurementParams` within
+  the heater's limits.
+* RESULT, HISTORY, SERIES, CONFIG_GET/SET: a reply must fit one frame, so
+  :func:`fit_record` trims a record, :func:`history_page` and
+  :func:`series_page` return as much of a page as fits (the host continues
+  from where the reply ends), :func:`config_reply` falls back to the
+  runtime keys.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any, Mapping
+
+import numpy as np
+
+from edge.physics.probe import heater_power_W
+from edge.measure.sequence import MeasurementParams
+from edge.protocol.errors import CommandError, ErrorCode
+from edge.service.config import RUNTIME_KEYS, Config
+
+__all__ = ["REPLY_MARGIN", "SERIES_COLUMNS", "measure_params", "fit_record", "history_page", "series_page",
+           "config_reply"]
+
+#: Bytes kept free in a reply for the frame's JSON envelope.
+REPLY_MARGIN = 256
+#: SERIES reply names and History columns, per ``which``.
+SERIES_COLUMNS = {"raw": (("t_s", "raw_t_s"), ("T_C", "raw_T_C"), ("q_W_m2", "raw_q_W_m2")),
+                  "grid": (("t_s", "grid_t_s"), ("dT_K", "grid_dT_K"), ("q_W_m2", "grid_q_W_m2"))}
+
+
+def measure_params(config: Config, max_power_W: float, *, power_W: float | None = None,
+                   voltage_V: float | None = None, contact_time_s: float | None = None) -> MeasurementParams:
+    """One measurement's settings: the configuration, overridden by MEASURE's arguments.
+
+    Parameters
+    ----------
+    config : Config
+        The daemon's current configuration.
+    max_power_W : float
+        The heater's maximum power (full duty at the supply voltage).
+    power_W, voltage_V : float, optional
+        Heater power, or the voltage to apply at full duty (it wins over
+        ``power_W``); default ``heater.power_W``.
+    contact_time_s : float, optional
+        Heating time; default ``measurement.contact_time_s``.
+
+    Returns
+    -------
+    MeasurementParams
+
+    Raises
+    ------
+    CommandError
+        BAD_ARGUMENT for a voltage above the supply, a power above the
+        heater's maximum, or a contact time not below ``heater.max_on_time_s``.
+    """
+    h, m = config.heater, config.measurement
+    if voltage_V is not None:
+        if voltage_V > h.supply_voltage_V:
+            raise CommandError(ErrorCode.BAD_ARGUMENT, f"voltage_V={voltage_V} exceeds the supply "
+                               f"{h.supply_voltage_V} V", "voltage_V")
+        power_W = heater_power_W(1.0, voltage_V, h.resistance_ohm)
+    power = h.power_W if power_W is None else power_W
+    if power > max_power_W * (1 + 1e-12):  # rounding: a full-duty power computed elsewhere is not "above"
+        raise CommandError(ErrorCode.BAD_ARGUMENT, f"power_W={power} exceeds the heater's maximum "
+                           f"{max_power_W:.4g} W", "power_W")
+    contact = m.contact_time_s if contact_time_s is None else contact_time_s
+    if contact >= h.max_on_time_s:
+        raise CommandError(ErrorCode.BAD_ARGUMENT, f"contact_time_s={contact} must be below "
+                           f"heater.max_on_time_s={h.max_on_time_s}", "contact_time_s")
+    return MeasurementParams(power_W=power, contact_time_s=contact, baseline_s=m.baseline_s,
+                             sample_rate_Hz=m.sample_rate_Hz, cooldown_s=m.cooldown_s,
+                             method=config.estimation.method)
+
+
+def fit_record(record: dict, max_payload: int) -> dict:
+    """Drop bulky optional fields until a record fits in one reply (``record`` is changed in place).
+
+    The error text is cut to 200 characters first, then the result keeps
+    only its scalar fields.
+    """
+    for key in ("error", "result"):
+        if len(json.dumps(record, default=str)) + REPLY_MARGIN <= max_payload:
+            break
+        if key == "result" and isinstance(record.get("result"), dict):
+            record["result"] = {k: v for k, v in record["result"].items()
+                                if not isinstance(v, (list, dict))}
+        elif record.get(key):
+            record[key] = str(record[key])[:200]
+    return record
+
+
+def history_page(offset: int, total: int, items: list[dict], max_payload: int) -> dict[str, Any]:
+    """The HISTORY reply: as many of ``items`` (each fitted) as fit in one reply.
+
+    The host continues at ``offset + len(items)``.
+    """
+    items = [fit_record(r, max_payload) for r in items]
+    while items and len(json.dumps({"offset": offset, "total": total, "items": items})) + REPLY_MARGIN \
+            > max_payload:
+        items.pop()
+    return {"offset": offset, "total": total, "items": items}
+
+
+def series_page(record: Mapping[str, Any], measurement_id: int, which: str, offset: int, limit: int | None,
+                max_payload: int) -> dict[str, Any]:
+    """The SERIES reply: samples ``offset`` .. ``offset + limit`` of one stored series, cut to fit one reply.
+
+    Parameters
+    ----------
+    record : mapping
+        The stored record with its series (``History.get(..., series=True)``).
+    measurement_id : int
+    which : {"raw", "grid"}
+    offset : int
+        First sample.
+    limit : int, optional
+        Most samples wanted (default: to the end).
+    max_payload : int
+        Frame payload bound, bytes.
+
+    Raises
+    ------
+    CommandError
+        BAD_ARGUMENT for an offset past the end; INTERNAL if not even one
+        sample fits.
+    """
+    cols = [(name, record.get(col)) for name, col in SERIES_COLUMNS[which]]
+    total = 0 if cols[0][1] is None else int(len(cols[0][1]))
+    if offset > total:
+        raise CommandError(ErrorCode.BAD_ARGUMENT, f"offset {offset} is past the end of the {which} series "
+                           f"({total} samples)", "offset")
+    end = total if limit is None else min(total, offset + limit)
+    body: dict[str, Any] = {"measurement_id": measurement_id, "which": which, "offset": offset, "total": total}
+    body.update((name, []) for name, _ in cols)
+    # JSON has no NaN: a non-finite sample travels as null.
+    values = [[x if math.isfinite(x) else None for x in np.asarray(a[offset:end], float).tolist()]
+              if end > offset else [] for _, a in cols]
+    budget = max_payload - len(json.dumps(body, separators=(",", ":")))
+    n = used = 0
+    for i in range(end - offset):
+        cost = sum(len(json.dumps(v[i])) + 1 for v in values)  # the value and its comma
+        if used + cost > budget:
+            break
+        used += cost
+        n += 1
+    if n == 0 and end > offset:
+        raise CommandError(ErrorCode.INTERNAL, f"max_payload {max_payload} B is too small for one sample")
+    for (name, _), v in zip(cols, values):
+        body[name] = v[:n]
+    return body
+
+
+def config_reply(values: dict[str, Any], max_payload: int) -> dict[str, Any]:
+    """The CONFIG_GET/CONFIG_SET reply: every value, or only the runtime keys if the whole set is too big.
+
+    Long paths could push the whole set past one frame; the runtime keys always fit.
+    """
+    if len(json.dumps(values)) + REPLY_MARGIN > max_payload:
+        return {"config": {k: v for k, v in values.items() if k in RUNTIME_KEYS}, "truncated": True}
+    return {"config": values}

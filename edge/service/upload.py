@@ -1,0 +1,153 @@
+"""A model upload over the serial line: MODEL_BEGIN, MODEL_CHUNKs, then MODEL_COMMIT or MODEL_ABORT.
+
+:class:`ModelUpload` is the session's state machine::
+
+    no upload --begin--> receiving --chunk...--> receiving --commit--> no upload (installed or refused)
+                                   \\--abort / begin again--> no upload / new upload
+
+The blob is held in memory until commit (bundles are small; the size is
+bounded before the first byte arrives), then handed to
+:meth:`edge.model.store.ModelStore.install`, which verifies it and installs it
+atomically. Each step answers with the reply body of its command or raises
+:class:`~edge.protocol.messages.CommandError` for the ERROR reply, so the
+daemon's handlers only forward their arguments.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from edge.model.store import InstallError, ModelStore
+from edge.protocol.errors import CommandError, ErrorCode
+
+__all__ = ["MAX_UPLOAD_BYTES", "ModelUpload"]
+
+log = logging.getLogger("thermotouch.edge")
+
+#: Largest model upload held in memory (bytes); keeps the daemon within its RAM budget.
+MAX_UPLOAD_BYTES = 8 * 1024 * 1024
+
+
+class _Pending:
+    """What MODEL_BEGIN announced and the bytes received so far."""
+
+    def __init__(self, size: int, sha256: str, version: str | None) -> None:
+        self.size = size
+        self.sha256 = sha256
+        self.version = version
+        self.data = bytearray()
+
+
+class ModelUpload:
+    """One model-upload session into ``store`` (at most one upload at a time).
+
+    Parameters
+    ----------
+    store : ModelStore
+        Where a committed upload is installed; its ``limits.max_blob_bytes``
+        also bounds the announced size.
+    max_upload_bytes : int
+        Largest upload held in memory.
+    """
+
+    def __init__(self, store: ModelStore, max_upload_bytes: int = MAX_UPLOAD_BYTES) -> None:
+        self.store = store
+        self.max_upload_bytes = int(max_upload_bytes)
+        self._pending: _Pending | None = None
+
+    @property
+    def in_progress(self) -> bool:
+        """Whether an upload was begun and neither committed nor aborted."""
+        return self._pending is not None
+
+    def progress(self) -> dict[str, int] | None:
+        """``{"received": bytes held, "size": announced size}`` of the upload in progress, or None."""
+        up = self._pending
+        return None if up is None else {"received": len(up.data), "size": up.size}
+
+    def begin(self, size: int, sha256: str, version: str | None = None) -> dict[str, Any]:
+        """Start an upload of ``size`` bytes with digest ``sha256`` (drops one in progress).
+
+        Returns
+        -------
+        dict
+            ``{"size": size}``.
+
+        Raises
+        ------
+        CommandError
+            MODEL_REJECTED if ``size`` exceeds the store's or the memory limit.
+        """
+        limit = min(self.store.limits.max_blob_bytes, self.max_upload_bytes)
+        if size > limit:
+            raise CommandError(ErrorCode.MODEL_REJECTED, f"size {size} B exceeds the upload limit of {limit} B",
+                               "size")
+        self._pending = _Pending(size, sha256, version)
+        log.info("model upload started: %d B, sha256 %s", size, sha256[:12])
+        return {"size": size}
+
+    def chunk(self, offset: int, data: bytes) -> dict[str, Any]:
+        """Add ``data`` at ``offset``; a resent chunk already held is accepted again.
+
+        Returns
+        -------
+        dict
+            ``{"received": bytes held}``.
+
+        Raises
+        ------
+        CommandError
+            BAD_STATE without an upload; BAD_ARGUMENT for a chunk past the
+            announced size or at an offset other than the next byte (and not
+            a resend).
+        """
+        up = self._pending
+        if up is None:
+            raise CommandError(ErrorCode.BAD_STATE, "no upload in progress (send MODEL_BEGIN first)")
+        held = len(up.data)
+        if offset + len(data) > up.size:
+            raise CommandError(ErrorCode.BAD_ARGUMENT, f"chunk [{offset}, {offset + len(data)}) runs past the "
+                               f"announced size {up.size}", "offset")
+        if offset == held:
+            up.data += data
+        elif offset + len(data) <= held and up.data[offset:offset + len(data)] == data:
+            pass  # a host that lost our reply sends the chunk again: same bytes, nothing to do
+        else:
+            raise CommandError(ErrorCode.BAD_ARGUMENT, f"chunk at offset {offset}, expected {held}", "offset")
+        return {"received": len(up.data)}
+
+    def commit(self) -> dict[str, Any]:
+        """Install the complete upload; the session ends whether the store accepts it or not.
+
+        Returns
+        -------
+        dict
+            ``model_sha256`` (the uploaded blob's), ``bundle_sha256`` and
+            ``model_version`` of the installed bundle.
+
+        Raises
+        ------
+        CommandError
+            BAD_STATE without an upload or before all bytes arrived (the
+            upload stays open); MODEL_REJECTED if the store refuses the blob.
+        """
+        up = self._pending
+        if up is None:
+            raise CommandError(ErrorCode.BAD_STATE, "no upload in progress")
+        if len(up.data) != up.size:
+            raise CommandError(ErrorCode.BAD_STATE, f"upload incomplete: {len(up.data)} of {up.size} B")
+        self._pending = None
+        try:
+            bundle = self.store.install(bytes(up.data), up.sha256, up.size)
+        except InstallError as e:
+            detail = str(e)  # InstallError's message already carries the cause
+            log.warning("model upload refused: %s", detail)
+            raise CommandError(ErrorCode.MODEL_REJECTED, detail[:1000]) from None
+        log.info("model %s (%s) installed", bundle.model_version, bundle.sha256[:12])
+        return {"model_sha256": up.sha256, "bundle_sha256": bundle.sha256, "model_version": bundle.model_version}
+
+    def abort(self) -> dict[str, Any]:
+        """Drop the upload in progress, if any (always succeeds)."""
+        self._pending = None
+        return {}

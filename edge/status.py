@@ -1,0 +1,82 @@
+"""The words a measurement record is described with: its status, why it ended, its quality flags.
+
+They are :class:`enum.StrEnum` members, so each one *is* its string: the
+wire protocol, the JSON replies and the history database carry the same
+``"ok"``, ``"no_contact"`` ... as before, and a record read back from the
+database (plain strings) compares equal to the members.
+
+This module sits below everything that uses these words -- the measurement
+sequence makes statuses, reasons and flags, the estimator adds flags, the
+history validates statuses, the daemon compares reasons -- and imports
+nothing from edge, so none of those packages has to import another just to
+spell a flag.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+__all__ = ["Status", "Reason", "Flag"]
+
+
+class Status(StrEnum):
+    """How a measurement ended (``status`` of a record)."""
+
+    #: Measured and estimated.
+    OK = "ok"
+    #: Cut short by a safety limit or a stop; :class:`Reason` says which.
+    ABORTED = "aborted"
+    #: Sensor fault, heater fault, estimator crash or a bug; the raw data is kept.
+    FAILED = "failed"
+
+
+class Reason(StrEnum):
+    """Why a measurement did not end ``ok`` (``reason`` of a record)."""
+
+    #: The abort event was set (daemon stopping, SIGTERM/SIGINT).
+    STOPPED = "stopped"
+    #: The heater was found off mid-heating with no watchdog trip recorded.
+    HEATER_CUT = "heater_cut"
+    #: Heating would have run past ``heater.max_on_time_s``.
+    MAX_ON_TIME = "max_on_time"
+    #: The thermocouple read above ``heater.over_temperature_C``.
+    OVER_TEMPERATURE = "over_temperature"
+    #: A sensor did not answer or read a non-finite value.
+    SENSOR_FAULT = "sensor_fault"
+    #: The thermocouple converter reports an open junction.
+    OPEN_THERMOCOUPLE = "open_thermocouple"
+    #: The heater could not be switched off (measurements stop until restart).
+    HEATER_FAULT = "heater_fault"
+    #: An unexpected exception in the sequence.
+    INTERNAL = "internal"
+    #: The heating phase gave too few samples to resample.
+    TOO_FEW_SAMPLES = "too_few_samples"
+    #: The estimator raised (the heater was already off).
+    ESTIMATION_FAILED = "estimation_failed"
+
+
+class Flag(StrEnum):
+    """Quality flags a record can carry (``flags`` of a record and of an estimate)."""
+
+    # -- from the measurement sequence (thresholds in ``[measurement]``)
+    #: Mean heating flux below ``no_contact_flux_fraction`` of P/A: the probe was not touching.
+    NO_CONTACT = "no_contact"
+    #: An ADC clipped during the run.
+    SATURATED = "saturated"
+    #: Baseline scatter above ``noise_T_K`` or ``noise_q_W_m2``.
+    NOISY = "noisy"
+    #: Baseline drift above ``unstable_baseline_K``.
+    UNSTABLE_BASELINE = "unstable_baseline"
+    # -- from the estimator
+    #: No usable temperature rise at all.
+    NO_SIGNAL = "no_signal"
+    #: Too little temperature rise for the default method.
+    INSUFFICIENT_SIGNAL = "insufficient_signal"
+    #: The features lie outside the model's training range.
+    OUTSIDE_TRAINING_RANGE = "outside_training_range"
+    #: The heater power lies outside the model's training range.
+    POWER_OUTSIDE_TRAINING_RANGE = "power_outside_training_range"
+    #: A feature was clipped to the model's input range.
+    FEATURE_CLIPPED = "feature_clipped"
+    #: The best diffusivity sits at the end of the scanned range.
+    ALPHA_AT_SCAN_EDGE = "alpha_at_scan_edge"
