@@ -54,7 +54,7 @@ class ADS1115(I2CDevice):
             raise ValueError(f"on_saturation must be 'raise' or 'flag', got {on_saturation!r}")
         self.on_saturation = on_saturation
         self.saturated = False
-        self._config = REGISTERS.CONFIG.reset & 0x7FFF  # cached, OS cleared
+        self._config = REGISTERS.CONFIG.encode(REGISTERS.CONFIG.reset, OS=0)  # cached, OS cleared
 
     # -- registers -------------------------------------------------------------
     def read_register(self, name: str) -> int:
@@ -82,8 +82,8 @@ class ADS1115(I2CDevice):
     def enable_conversion_ready_pin(self) -> None:
         """Use ALERT/RDY as conversion-ready: Hi_thresh MSB=1, Lo_thresh MSB=0,
         COMP_QUE != disable (datasheet 9.3.8)."""
-        self.write_register("HI_THRESH", 0x8000)
-        self.write_register("LO_THRESH", 0x0000)
+        self.write_register("HI_THRESH", REGISTERS.HI_THRESH.encode(0, CODE=CODE_MIN))  # MSB set
+        self.write_register("LO_THRESH", REGISTERS.LO_THRESH.encode(0, CODE=0))  # MSB clear
         self._config = REGISTERS.CONFIG.encode(self._config, COMP_QUE=1)
         self.write_register("CONFIG", self._config)
 
@@ -112,10 +112,10 @@ class ADS1115(I2CDevice):
         t_conv = 1.0 / self.data_rate_sps
         if timeout_s is None:
             timeout_s = 3.0 * t_conv + 0.01
-        self.write_register("CONFIG", cfg | 0x8000)
+        self.write_register("CONFIG", REGISTERS.CONFIG.encode(cfg, OS=1))
         self.sleep(t_conv)
         waited = t_conv
-        while not self.read_register("CONFIG") & 0x8000:  # OS reads 0 while converting
+        while not REGISTERS.CONFIG.get(self.read_register("CONFIG"), "OS"):  # OS reads 0 while converting
             if waited >= timeout_s:
                 raise self.fault("timeout", f"conversion not done after {timeout_s:.4f} s")
             step = t_conv / 10.0

@@ -153,15 +153,15 @@ class ADS122C04(I2CDevice):
 
     @property
     def _turbo(self) -> bool:
-        return bool(self._regs[1] & 0x10)
+        return REGISTERS.CONFIG1.get(self._regs[1], "MODE") == "turbo"
 
     @property
     def _dr_code(self) -> int:
-        return min((self._regs[1] >> 5) & 0x7, 6)
+        return min(REGISTERS.CONFIG1.get(self._regs[1], "DR"), 6)  # codes 6 and 7 are both 1000 SPS
 
     @property
     def continuous(self) -> bool:
-        return bool(self._regs[1] & 0x08)
+        return REGISTERS.CONFIG1.get(self._regs[1], "CM") == "continuous"
 
     @property
     def conversion_time_s(self) -> float:
@@ -170,11 +170,11 @@ class ADS122C04(I2CDevice):
     # -- data -------------------------------------------------------------------
     def data_ready(self) -> bool:
         """DRDY bit of CONFIG2 (set on a new result, cleared by reading it)."""
-        return bool(self.read_register(2) & 0x80)
+        return bool(REGISTERS.CONFIG2.get(self.read_register(2), "DRDY"))
 
     def read_data_code(self) -> int:
         """RDATA: the latest 24-bit two's-complement result (checks CRC if enabled)."""
-        dcnt = bool(self._regs[2] & 0x40)
+        dcnt = bool(REGISTERS.CONFIG2.get(self._regs[2], "DCNT"))
         crc_mode = REGISTERS.CONFIG2.get(self._regs[2], "CRC")
         n = 3 + (1 if dcnt else 0)
         n += {"inverted": n, "crc16": 2}.get(crc_mode, 0)
@@ -224,7 +224,7 @@ class ADS122C04(I2CDevice):
         return code
 
     def _vref(self) -> float:
-        return INTERNAL_VREF_V if (self._regs[1] >> 1) & 0x3 == 0 else self.vref_V
+        return INTERNAL_VREF_V if REGISTERS.CONFIG1.get(self._regs[1], "VREF") == "internal" else self.vref_V
 
     def read_voltage_V(self, mux: str | None = None, gain: int | None = None) -> float:
         """Single conversion of ``mux`` at ``gain`` (unchanged if None), in volts."""
@@ -234,19 +234,19 @@ class ADS122C04(I2CDevice):
         if gain is not None:
             r0 = REGISTERS.CONFIG0.encode(r0, GAIN=gain)
             if gain > 4:  # PGA cannot be bypassed above gain 4
-                r0 &= ~0x01
+                r0 = REGISTERS.CONFIG0.encode(r0, PGA_BYPASS=0)
         self._write_if_changed(0, r0)
-        self._write_if_changed(1, self._regs[1] & ~0x01)  # TS off
+        self._write_if_changed(1, REGISTERS.CONFIG1.encode(self._regs[1], TS=0))
         return code_to_volts(self._check(self.convert()), self.gain, self._vref())
 
     def read_temperature_C(self) -> float:
         """Internal temperature sensor (TS=1), 0.03125 °C resolution."""
         r1 = self._regs[1]
-        self._write_if_changed(1, r1 | 0x01)
+        self._write_if_changed(1, REGISTERS.CONFIG1.encode(r1, TS=1))
         try:
             return temperature_code_to_C(self.convert() & 0xFFFFFF)
         finally:
-            self._write_if_changed(1, r1 & ~0x01)
+            self._write_if_changed(1, REGISTERS.CONFIG1.encode(r1, TS=0))
 
     def read_thermocouple_emf_V(self, mux: str = "AIN0_AIN1", gain: int = 128) -> float:
         """Thermocouple EMF (V); ±16 mV full scale at gain 128 with the internal reference."""

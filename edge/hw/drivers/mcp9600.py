@@ -118,7 +118,7 @@ class MCP9600(I2CDevice):
     def probe(self) -> tuple[int, int]:
         """Check the device ID (0x40); return ``(device_id, revision)``."""
         raw = self._read_reg(REGISTERS.DEVICE_ID)
-        dev_id, rev = raw >> 8, raw & 0xFF
+        dev_id, rev = REGISTERS.DEVICE_ID.get(raw, "ID"), REGISTERS.DEVICE_ID.get(raw, "REVISION")
         if dev_id != DEVICE_ID:
             raise self.fault("not_found", f"device ID 0x{dev_id:02x}, expected 0x{DEVICE_ID:02x}")
         return dev_id, rev
