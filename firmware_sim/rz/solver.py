@@ -1,0 +1,481 @@
+"""Transient conduction on an (r, z) :class:`~firmware_sim.rz.grid.Grid`, unconditionally stable.
+
+The semi-discrete system is ``C dT/dt = -K T + g + p(t) Q``: ``C`` the cell
+capacities, ``K`` the (symmetric) conductance matrix with the outer-surface
+conductances on its diagonal, ``g`` their ambient forcing, ``Q`` a per-cell
+source pattern (W per unit amplitude) and ``p(t)`` its amplitude, constant
+over each time step (the heater's PWM is piecewise constant and its switching
+instants fall on steps).  Schemes:
+
+* ``"be"``: backward Euler, first order, L-stable;
+* ``"cn"``: Crank-Nicolson, second order, A-stable but not L-stable: the
+  stiff modes (the thin cells at the interfaces) ring after a jump, so it
+  starts with Rannacher smoothing (two backward-Euler half steps, the same
+  matrix);
+* ``"trbdf2"`` (default): TR-BDF2 with gamma = 2 - sqrt(2) (Bank et al. 1985),
+  second order and L-stable, so the contact transient (a jump of T at the
+  interface) is damped, not echoed.
+
+Each scheme solves ``(C / tau + K) x = b`` with one ``tau`` (for TR-BDF2 the
+two stages share ``tau = (1 - 1/sqrt 2) dt``), so one factorisation per
+(grid, dt, scheme) serves every step.  The solver is block tridiagonal in the
+ordering with the shorter grid direction inside a block: block Gaussian
+elimination of a banded matrix whose bandwidth is the block size, the fill
+inside the band kept as dense Schur-complement inverses.  Per step that is
+two dense block mat-vecs per block row -- NumPy only.
+
+Outputs per step (:class:`Record`): the thermocouple (on the axis at the
+bottom face of the sensing layer), the flux sensor (axial flux averaged over
+its depth range and its equal-area disk) and the flux into the object's face
+over the same disk.  Everything is linear in the initial temperatures, the
+ambient temperatures and the source amplitude, so a heater run is the free
+(initial-condition) response plus the unit-step response superposed over the
+power changes (:meth:`Solver.superpose`), exactly as a direct run.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from firmware_sim.rz.grid import Grid
+
+__all__ = ["BlockTridiagonal", "Probes", "Record", "Solver", "steady_state", "axis_value", "SCHEMES"]
+
+SCHEMES = ("be", "cn", "trbdf2")
+_GAMMA = 2.0 - math.sqrt(2.0)
+_W = (1.0 - _GAMMA) / (2.0 - _GAMMA)  # BDF2-stage weight; equals _GAMMA / 2 for this gamma
+
+
+# ----------------------------------------------------------------------------------------------
+# Linear algebra
+
+
+class BlockTridiagonal:
+    """Factor of a symmetric block-tridiagonal matrix with diagonal off-diagonal blocks.
+
+    ``A = tridiag(diag(b_j), D_j, diag(b_{j+1}))``: ``D_j`` (m x m, here
+    tridiagonal) the couplings inside a block row, ``b_j`` (m,) the coupling
+    between block rows ``j-1`` and ``j``.  Block elimination
+    ``S_0 = D_0, S_j = D_j - diag(b_j) S_{j-1}^{-1} diag(b_j)``; the inverses
+    ``G_j = S_j^{-1}`` are kept dense, so a solve is two sweeps of one
+    mat-vec per block row.  The matrix is symmetrically scaled to a unit
+    diagonal first, which keeps the explicit inverses accurate when the
+    conductances span many decades (foam to aluminium, micrometre to
+    centimetre cells).
+
+    Parameters
+    ----------
+    diag : ndarray, (n, m)
+        Main diagonal.
+    off_in : ndarray, (n, m - 1)
+        Off-diagonal inside each block (entry ``[j, i]`` couples i, i+1).
+    off_between : ndarray, (n - 1, m)
+        Coupling between block rows j and j+1 (entry ``[j, i]``).
+    """
+
+    def __init__(self, diag: np.ndarray, off_in: np.ndarray, off_between: np.ndarray) -> None:
+        n, m = diag.shape
+        if np.any(diag <= 0):
+            raise ValueError("matrix diagonal must be positive (SPD system)")
+        s = 1.0 / np.sqrt(diag)
+        self.scale = s
+        a_in = off_in * s[:, :-1] * s[:, 1:]
+        b = off_between * s[:-1] * s[1:]
+        self.b = b
+        G = np.empty((n, m, m))
+        idx = np.arange(m)
+        prev = None
+        for j in range(n):
+            S = np.zeros((m, m))
+            S[idx, idx] = 1.0
+            S[idx[:-1], idx[1:]] = a_in[j]
+            S[idx[1:], idx[:-1]] = a_in[j]
+            if prev is not None:
+                S -= b[j - 1][:, None] * prev * b[j - 1][None, :]
+            prev = np.linalg.inv(S)
+            # Symmetrise: S_j is symmetric, its computed inverse only to round-off.
+            prev = 0.5 * (prev + prev.T)
+            G[j] = prev
+        self.G = G
+        self.n, self.m = n, m
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        """Solve ``A x = rhs`` for ``rhs`` of shape (n, m); returns a new (n, m) array."""
+        G, b = self.G, self.b
+        f = rhs * self.scale
+        z = np.empty_like(f)
+        # Forward sweep: z_j = S_j^{-1} (f_j - b_j z_{j-1}).
+        z[0] = G[0] @ f[0]
+        for j in range(1, self.n):
+            z[j] = G[j] @ (f[j] - b[j - 1] * z[j - 1])
+        # Back substitution: x_j = z_j - S_j^{-1} b_{j+1} x_{j+1}.
+        x = z
+        for j in range(self.n - 2, -1, -1):
+            x[j] = z[j] - G[j] @ (b[j] * x[j + 1])
+        return x * self.scale
+
+
+class _Operator:
+    """``K`` of the grid as stencil arrays, in a chosen block orientation."""
+
+    def __init__(self, grid: Grid) -> None:
+        self.grid = grid
+        # Blocks along the shorter direction: the band is min(nr, nz) wide.
+        self.transpose = grid.nr > grid.nz
+        self.cap = grid.cap_J_K
+        self.gr, self.gz, self.gb = grid.g_r_W_K, grid.g_z_W_K, grid.g_b_W_K
+        kd = self.gb.copy()
+        kd[:, :-1] += self.gr
+        kd[:, 1:] += self.gr
+        kd[:-1] += self.gz
+        kd[1:] += self.gz
+        self.k_diag = kd
+        # Inactive cells are decoupled; give them a unit diagonal so the system stays SPD.
+        self.inactive = ~grid.active
+
+    def apply_K(self, T: np.ndarray) -> np.ndarray:
+        """``K @ T`` for a field of the grid's shape (conduction out of each cell + surface loss)."""
+        out = self.k_diag * T
+        out[:, :-1] -= self.gr * T[:, 1:]
+        out[:, 1:] -= self.gr * T[:, :-1]
+        out[:-1] -= self.gz * T[1:]
+        out[1:] -= self.gz * T[:-1]
+        return out
+
+    def factor(self, inv_tau: float) -> BlockTridiagonal:
+        """Factor of ``C / tau + K`` (``inv_tau = 0``: the steady operator ``K``)."""
+        d = self.cap * inv_tau + self.k_diag
+        d = np.where(self.inactive, 1.0, d)
+        off_r, off_z = -self.gr, -self.gz
+        if self.transpose:
+            return BlockTridiagonal(d.T.copy(), off_z.T.copy(), off_r.T.copy())
+        return BlockTridiagonal(d, off_r, off_z)
+
+    def solve(self, fac: BlockTridiagonal, rhs: np.ndarray) -> np.ndarray:
+        if self.transpose:
+            return fac.solve(rhs.T).T
+        return fac.solve(rhs)
+
+
+# ----------------------------------------------------------------------------------------------
+# Outputs
+
+
+@dataclass(frozen=True)
+class Probes:
+    """Linear read-outs of a field: ``value = w . T[idx] + w_g . (g T_inf)[idx_g]``.
+
+    ``idx``/``w`` hold, per output, the pair (cells, weights) on T followed by
+    the pair on the ambient forcing (non-empty only where an output uses an
+    outer surface's flux, i.e. no object under the probe).
+
+    ``T_tc``: thermocouple on the axis at the bottom of the sensing layer
+    (probe side of any contact resistance), ``q_sensor``: flux sensor,
+    ``q_face``: flux into the object's face (or out of the sensing layer's
+    bottom surface when there is no object), both over the sensor disk,
+    positive downwards (probe to object).
+    """
+
+    idx: tuple[np.ndarray, ...]
+    w: tuple[np.ndarray, ...]
+    names: tuple[str, ...] = ("T_tc", "q_sensor", "q_face")
+
+    def read(self, T: np.ndarray, g_t: np.ndarray) -> np.ndarray:
+        """Values for field ``T`` (flattened or not) and ambient term vector ``g_t`` (=sum g T_inf)."""
+        flat = T.reshape(-1)
+        return np.array([flat[i] @ w for i, w in zip(self.idx[::2], self.w[::2])]) + np.array(
+            [g_t.reshape(-1)[i] @ w for i, w in zip(self.idx[1::2], self.w[1::2])])
+
+
+def _axis_weights(grid: Grid) -> tuple[float, float]:
+    """Weights of the first two columns that extrapolate a field to the axis.
+
+    The field is even in r, ``T = a + b r^2`` near the axis; fitting that
+    through the two cells' mean ``r^2`` (exact for the profile) gives the
+    axis value to O(dr^4) where the axis cell alone is off by O(dr^2).
+    """
+    r = grid.r_faces_m
+    rho = 0.5 * (r[1:3] ** 2 + r[0:2] ** 2)
+    return rho[1] / (rho[1] - rho[0]), -rho[0] / (rho[1] - rho[0])
+
+
+def axis_value(grid: Grid, values: np.ndarray) -> float | np.ndarray:
+    """Axis value of a radial profile (last axis indexed by r), from its first two cells."""
+    c0, c1 = _axis_weights(grid)
+    v = np.asarray(values, float)
+    return c0 * v[..., 0] + c1 * v[..., 1]
+
+
+def _probes(grid: Grid) -> Probes:
+    """Weights of the three outputs (see :class:`Probes`) for a probe grid."""
+    meta = grid.meta
+    nz, nr = grid.shape
+    rows = grid.rows_of("sensing")
+    j_s = rows[-1]                      # last row of the sensing layer
+    has_obj = j_s + 1 < nz and grid.layer_of_row[j_s + 1] != grid.layer_of_row[j_s]
+    dz = grid.dz_m
+    k_s = grid.k_cell_W_mK[j_s, 0]
+
+    def flat(j, i):
+        return j * nr + i
+
+    # Flux through the bottom face of cell (j_s, i), W/m^2, as weights on T (and on g T_inf).
+    def bottom_flux(i):
+        A = grid.ring_area_m2[i]
+        if has_obj:
+            g = grid.g_z_W_K[j_s, i]
+            return [flat(j_s, i), flat(j_s + 1, i)], [g / A, -g / A], [], []
+        g = grid.g_b_W_K[j_s, i]  # the bottom face is the cell's only outer face on the axis rows
+        return [flat(j_s, i)], [g / A], [flat(j_s, i)], [-1.0 / A]
+
+    # Thermocouple: probe-side face temperature T_c - q dz/(2k) in the first two columns,
+    # then the even extrapolation to the axis, T(r) = a + b r^2, through the cells' mean r^2
+    # (see _axis_weights).
+    c0, c1 = _axis_weights(grid)
+    tc_i, tc_w, tc_gi, tc_gw = [], [], [], []
+    for i, c in ((0, c0), (1, c1)):
+        fi, fw, gi, gw = bottom_flux(i)
+        tc_i += [flat(j_s, i)] + fi
+        tc_w += [c] + [-c * w * 0.5 * dz[j_s] / k_s for w in fw]
+        tc_gi += gi
+        tc_gw += [-c * w * 0.5 * dz[j_s] / k_s for w in gw]
+
+    # Flux sensor: trapezoid in z over the face fluxes of its depth range, area mean over its disk.
+    n_s = grid.r_index_below(meta["sensor_radius_m"])
+    A_s = math.pi * grid.r_faces_m[n_s] ** 2
+    z0, z1 = meta["sensor_z_m"]
+    f0, f1 = grid.z_index_of(z0), grid.z_index_of(z1)
+    qs_i, qs_w = [], []
+    qs_gi, qs_gw = [], []
+    for f in range(f0, f1 + 1):  # faces f between rows f-1 and f
+        wz = (0.5 * (dz[f - 1] if f > f0 else 0.0) + 0.5 * (dz[f] if f < f1 else 0.0)) / (z1 - z0)
+        for i in range(n_s):
+            wa = grid.ring_area_m2[i] / A_s
+            if f == nz:  # no object: the sensor's bottom is the probe's outer surface
+                fi, fw, gi, gw = bottom_flux(i)
+                qs_i += fi
+                qs_w += [wz * wa * w for w in fw]
+                qs_gi += gi
+                qs_gw += [wz * wa * w for w in gw]
+                continue
+            g = grid.g_z_W_K[f - 1, i] / grid.ring_area_m2[i]
+            qs_i += [flat(f - 1, i), flat(f, i)]
+            qs_w += [wz * wa * g, -wz * wa * g]
+
+    qf_i, qf_w, qf_gi, qf_gw = [], [], [], []
+    for i in range(n_s):
+        wa = grid.ring_area_m2[i] / A_s
+        fi, fw, gi, gw = bottom_flux(i)
+        qf_i += fi
+        qf_w += [wa * w for w in fw]
+        qf_gi += gi
+        qf_gw += [wa * w for w in gw]
+
+    def arr(x, dtype=float):
+        return np.asarray(x, dtype=dtype)
+
+    idx, w = [], []
+    for a, b, c, d in ((tc_i, tc_w, tc_gi, tc_gw), (qs_i, qs_w, qs_gi, qs_gw), (qf_i, qf_w, qf_gi, qf_gw)):
+        idx += [arr(a, int), arr(c, int)]
+        w += [arr(b), arr(d)]
+    return Probes(idx=tuple(idx), w=tuple(w))
+
+
+@dataclass
+class Record:
+    """Outputs at ``t_s`` (``t_s[0] = 0``, the initial state), plus the energy ledger.
+
+    ``E_in_J``: source energy delivered by each time; ``E_stored_J``: change of
+    the stored heat ``sum C (T - T_initial)``; ``E_lost_J``: heat that left
+    through the outer surfaces (integrated with the scheme's own quadrature,
+    so ``E_in = E_stored + E_lost`` holds to round-off for any step).
+    """
+
+    t_s: np.ndarray
+    T_tc_K: np.ndarray
+    q_sensor_W_m2: np.ndarray
+    q_face_W_m2: np.ndarray
+    E_in_J: np.ndarray
+    E_stored_J: np.ndarray
+    E_lost_J: np.ndarray
+    T_final_K: np.ndarray | None = None
+
+
+# ----------------------------------------------------------------------------------------------
+# The solver
+
+
+class Solver:
+    """Time stepper for one grid and one step ``dt_s`` (factorised once).
+
+    Parameters
+    ----------
+    grid : Grid
+        A grid from :func:`~firmware_sim.rz.grid.probe_grid` (outputs need its
+        ``meta``) or any :class:`Grid` when only fields are wanted.
+    dt_s : float
+        Time step.
+    scheme : {"trbdf2", "cn", "be"}
+        Time integrator (see the module docstring).
+    rannacher_steps : int
+        For ``"cn"``: backward-Euler half steps at the start (and after a
+        :meth:`run` begins from a new state), 0 for plain CN.
+    """
+
+    def __init__(self, grid: Grid, dt_s: float, scheme: str = "trbdf2", rannacher_steps: int = 2) -> None:
+        if scheme not in SCHEMES:
+            raise ValueError(f"scheme must be one of {SCHEMES}, got {scheme!r}")
+        if not (dt_s > 0 and math.isfinite(dt_s)):
+            raise ValueError("dt_s must be finite and > 0")
+        self.grid, self.dt, self.scheme = grid, float(dt_s), scheme
+        self.rannacher_steps = int(rannacher_steps)
+        self.op = _Operator(grid)
+        # One matrix C/tau + K per scheme: BE tau = dt; CN tau = dt/2 (also the BE half step);
+        # TR-BDF2 tau = gamma dt / 2 = w dt for both stages.
+        self.tau = {"be": dt_s, "cn": 0.5 * dt_s, "trbdf2": 0.5 * _GAMMA * dt_s}[scheme]
+        self.fac = self.op.factor(1.0 / self.tau)
+        self.g_t = grid.g_b_W_K * grid.t_b_K   # ambient forcing vector g
+        self.probes = _probes(grid) if grid.meta.get("sensor_radius_m") is not None else None
+
+    # -- fields
+    def initial_field(self, T_probe_K: float, T_object_K: float | None = None) -> np.ndarray:
+        """Uniform probe (every layer but ``object``) at ``T_probe_K``, object at ``T_object_K``."""
+        g = self.grid
+        T = np.full(g.shape, float(T_probe_K))
+        if T_object_K is not None and "object" in [l.name for l in g.layers]:
+            T[g.rows_of("object")] = float(T_object_K)
+        return T * g.active
+
+    def _loss(self, T: np.ndarray) -> float:
+        """Heat flow (W) out through the outer surfaces, ``sum g (T - T_inf)``."""
+        return float(np.sum(self.op.gb * T) - np.sum(self.g_t))
+
+    def _read(self, T: np.ndarray) -> np.ndarray:
+        return self.probes.read(T, self.g_t) if self.probes is not None else np.zeros(3)
+
+    def run(self, T0_K: np.ndarray, n_steps: int, source_W: np.ndarray | None = None,
+            amplitude: np.ndarray | float = 0.0, keep_field: bool = False) -> Record:
+        """March ``n_steps`` steps from field ``T0_K``.
+
+        Parameters
+        ----------
+        T0_K : ndarray, grid shape
+            Initial temperatures.
+        n_steps : int
+            Number of steps of ``dt_s``.
+        source_W : ndarray, grid shape, optional
+            Per-cell source pattern (W per unit amplitude), e.g.
+            :meth:`Grid.volume_source_W` for the heater.
+        amplitude : float or ndarray (n_steps,)
+            Source amplitude on each step (constant within the step).
+        keep_field : bool
+            Return the final field in ``Record.T_final_K``.
+        """
+        op, fac, tau, dt = self.op, self.fac, self.tau, self.dt
+        C = op.cap
+        Q = np.zeros(self.grid.shape) if source_W is None else np.asarray(source_W, float)
+        p = np.broadcast_to(np.asarray(amplitude, float), (n_steps,))
+        g = self.g_t
+        T = np.array(T0_K, dtype=float) * self.grid.active
+        E0 = float(np.sum(C * T))
+        Q_tot = float(np.sum(Q))
+        out = np.empty((n_steps + 1, 3))
+        E_in = np.zeros(n_steps + 1)
+        E_st = np.zeros(n_steps + 1)
+        E_lo = np.zeros(n_steps + 1)
+        out[0] = self._read(T)
+        Ct = C / tau
+        loss = self._loss(T)
+        for n in range(n_steps):
+            f = p[n] * Q + g
+            if self.scheme == "be":
+                T = op.solve(fac, Ct * T + f)
+                loss_new = self._loss(T)
+                lost = dt * loss_new
+            elif self.scheme == "cn" and n < self.rannacher_steps:
+                # Two backward-Euler half steps: (2C/dt + K) is the CN matrix.
+                T_h = op.solve(fac, Ct * T + f)
+                l_h = self._loss(T_h)
+                T = op.solve(fac, Ct * T_h + f)
+                loss_new = self._loss(T)
+                lost = 0.5 * dt * (l_h + loss_new)
+            elif self.scheme == "cn":
+                T = op.solve(fac, Ct * T - op.apply_K(T) + 2.0 * f)
+                loss_new = self._loss(T)
+                lost = 0.5 * dt * (loss + loss_new)
+            else:  # TR-BDF2
+                # TR stage to t + gamma dt: (C/tau + K) T_g = (C/tau - K) T + 2 f.
+                T_g = op.solve(fac, Ct * T - op.apply_K(T) + 2.0 * f)
+                l_g = self._loss(T_g)
+                # BDF2 stage: (C/tau + K) T1 = C/tau [T_g / (g (2-g)) - (1-g)^2 / (g (2-g)) T] + f.
+                a = 1.0 / (_GAMMA * (2.0 - _GAMMA))
+                c = (1.0 - _GAMMA) ** 2 / (_GAMMA * (2.0 - _GAMMA))
+                T = op.solve(fac, Ct * (a * T_g - c * T) + f)
+                loss_new = self._loss(T)
+                lost = dt * ((loss + l_g) / (2.0 * (2.0 - _GAMMA)) + _W * loss_new)
+            loss = loss_new
+            out[n + 1] = self._read(T)
+            E_in[n + 1] = E_in[n] + dt * p[n] * Q_tot
+            E_lo[n + 1] = E_lo[n] + lost
+            E_st[n + 1] = float(np.sum(C * T)) - E0
+        t = dt * np.arange(n_steps + 1)
+        return Record(t_s=t, T_tc_K=out[:, 0], q_sensor_W_m2=out[:, 1], q_face_W_m2=out[:, 2],
+                      E_in_J=E_in, E_stored_J=E_st, E_lost_J=E_lo, T_final_K=T if keep_field else None)
+
+    # -- linear building blocks
+    def heater_source_W(self, power_W: float = 1.0) -> np.ndarray:
+        """Per-cell power of ``power_W`` released uniformly in the heater disk (grid's heater radius)."""
+        meta = self.grid.meta
+        q_v = power_W / meta["heater_volume_m3"]
+        return self.grid.volume_source_W("heater", meta["heater_radius_m"], q_v)
+
+    def step_response(self, n_steps: int, *, per: str = "W") -> Record:
+        """Response to a unit heater step from t = 0 with zero initial and ambient temperatures.
+
+        ``per="W"``: per watt of heater power; ``per="q_v"``: per W/m^3 in the heater disk.
+        """
+        saved = self.g_t
+        self.g_t = np.zeros_like(saved)  # the step response carries no ambient forcing
+        try:
+            src = self.heater_source_W(1.0)
+            if per == "q_v":
+                src = src * self.grid.meta["heater_volume_m3"]
+            elif per != "W":
+                raise ValueError("per must be 'W' or 'q_v'")
+            return self.run(np.zeros(self.grid.shape), n_steps, src, 1.0)
+        finally:
+            self.g_t = saved
+
+    def free_response(self, n_steps: int, T_probe_K: float, T_object_K: float | None = None) -> Record:
+        """Unheated response from a uniform probe and object (the contact transient), ambient as built."""
+        return self.run(self.initial_field(T_probe_K, T_object_K), n_steps)
+
+    @staticmethod
+    def superpose(free: Record, step: Record, power_W: np.ndarray) -> dict[str, np.ndarray]:
+        """Outputs for heater power ``power_W[n]`` on step n: free + sum of delayed unit steps.
+
+        Exact for the discrete scheme (linear, time-invariant, power constant
+        within a step), so it equals a direct :meth:`run` to round-off.
+        """
+        p = np.asarray(power_W, float)
+        n = p.size
+        dp = np.diff(np.r_[0.0, p])
+        out = {}
+        for name in ("T_tc_K", "q_sensor_W_m2", "q_face_W_m2"):
+            s = getattr(step, name)[: n + 1]
+            # y[m] = free[m] + sum_k dp[k] s[m - k]: a causal convolution (s[0] = 0, a step
+            # switched on at t_k has not yet moved anything at t_k).
+            out[name] = getattr(free, name)[: n + 1] + np.convolve(dp, s)[: n + 1]
+        return out
+
+
+def steady_state(grid: Grid, source_W: np.ndarray) -> np.ndarray:
+    """Steady field ``K T = Q + g`` (needs at least one surface with h > 0)."""
+    op = _Operator(grid)
+    if not np.any(grid.g_b_W_K > 0):
+        raise ValueError("no steady state: every surface is adiabatic")
+    fac = op.factor(0.0)
+    return op.solve(fac, np.asarray(source_W, float) + grid.g_b_W_K * grid.t_b_K) * grid.active
