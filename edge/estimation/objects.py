@@ -1,0 +1,645 @@
+"""The user's own objects, and recognising which one a touch was (open set, calibrated).
+
+A robot touches a handful of known things; :class:`ObjectSet` holds them
+(name, class, and either k, ρ, c or the effusivity e alone, plus the
+specimen-to-specimen spread of the object's properties) and answers "which
+of them, or none?" for a measured e with its uncertainty -- and, when a
+small-heater probe also measures k and α, with all three.
+
+Model
+-----
+Each object i is a Gaussian in ln e (and ln k, ln α when known) with variance
+
+    T * (u_ln_e^2 + spread_i^2 + calibration_ln^2)          (e term)
+    T * (u_ln_k^2 + 1.25 spread_i^2),  T * (u_ln_α^2 + spread_i^2)   (k, α terms)
+
+where ``T`` is the set's *temperature*: one scale on every variance, fitted
+on the host on held-out simulated touches (host/recognition.py) so that a
+posterior of 0.9 is right about 90 % of the time. The specimen spread is read
+as independent lognormal spreads of e and α (so k = e sqrt(α) spreads by
+sqrt(1.25) times as much). The k and α terms are taken as independent of the
+e term (their covariance is not modelled; the fitted temperature absorbs the
+resulting over-confidence). An object given by e alone gets, for a measured
+k or α, a broad term (standard deviation :data:`BROAD_LN`, centred on the
+measurement): the measurement neither confirms nor refutes it.
+
+Open set
+--------
+The answer is ``"unknown"`` when no object passes a test on its
+standardised distance: the chi-square p-value of the object's distance
+(1 degree of freedom per measured property the object has; with e alone,
+``p < p_crit`` is ``|z| > z_crit``) is below ``p_crit = 2 (1 - Φ(z_crit))`` for
+every object -- not a threshold on the argmax posterior, which is near 1 for
+the nearest object however far it is. ``z_crit`` is chosen on the host so that
+at least 95 % of touches of in-set objects are accepted.
+
+"unknown" also gets posterior mass, as a background hypothesis: prior
+probability ``prior_unknown`` (each object gets ``(1 - prior_unknown) / n``)
+and a flat density over ln e across the probe's range (:data:`UNKNOWN_LN_E_SPAN`;
+broad terms for a measured k or α). It is near ``prior_unknown``-small beside a
+good match and takes over far from every object; the *answer* is still set
+by the test above, so reported masses stay honest where the two disagree
+(near the critical distance).
+
+Class posteriors are sums of the object posteriors over each class.
+
+CSV format
+----------
+Lines whose first non-blank character is ``#`` and blank lines are comments,
+except *directives* ``#@ key = value`` (``temperature``, ``z_crit``,
+``calibration_ln``, ``prior_unknown``: the calibration stored with the set). The first
+other line is the header: ``name``, ``class``, and either ``k_W_mK``,
+``rho_kg_m3``, ``c_J_kgK`` or ``e_W_s05_m2K`` (both groups may be present;
+each row fills exactly one of them), and optionally ``spread_rel``,
+``source``, ``note``. Values are validated by :mod:`edge.schema`; every
+problem is reported with its 1-based line and its column
+(:class:`ObjectSetError`).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass, field
+from typing import Iterable
+
+import numpy as np
+
+from edge.physics.materials import (C_RANGE_J_KGK, CLASSES, K_RANGE_W_MK, RHO_C_RANGE_J_M3K, RHO_RANGE_kg_m3,
+                                    load_materials)
+from edge.schema import Field, SchemaError, check_keys, check_value
+
+__all__ = [
+    "UNKNOWN",
+    "DEFAULT_SPREAD_REL",
+    "DEFAULT_Z_CRIT",
+    "DEFAULT_PRIOR_UNKNOWN",
+    "UNKNOWN_LN_E_SPAN",
+    "BROAD_LN",
+    "COLUMNS",
+    "DIRECTIVES",
+    "ObjectSetError",
+    "Issue",
+    "KnownObject",
+    "Recognition",
+    "ConfusionPair",
+    "Confusion",
+    "ObjectSet",
+    "chi2_sf",
+    "p_crit_of",
+]
+
+#: The answer when the touched object is none of the set's.
+UNKNOWN = "unknown"
+#: Specimen-to-specimen spread of an object's e (and α), relative (lognormal sd).
+DEFAULT_SPREAD_REL = 0.05
+#: Critical standardised distance of the open-set test before a calibration is fitted
+#: (nominal in-set acceptance 98.8 % for one property).
+DEFAULT_Z_CRIT = 2.5
+#: Standard deviation (ln units) of the term an object without k or α gets for a measured k or α.
+BROAD_LN = 1.0
+#: Extra relative spread of k under the model "ln e and ln α independent, sd spread".
+K_SPREAD_FACTOR = math.sqrt(1.25)
+
+_E_RANGE = (math.sqrt(K_RANGE_W_MK[0] * RHO_C_RANGE_J_M3K[0]), math.sqrt(K_RANGE_W_MK[1] * RHO_C_RANGE_J_M3K[1]))
+#: Width in ln e of the flat density of the "unknown" hypothesis (the plausible range of e).
+UNKNOWN_LN_E_SPAN = math.log(_E_RANGE[1] / _E_RANGE[0])
+#: Prior probability that a touched object is outside the set, before the user says otherwise.
+DEFAULT_PRIOR_UNKNOWN = 0.05
+_LN_SQRT_2PI = 0.5 * math.log(2 * math.pi)
+_PROPS = ("k_W_mK", "rho_kg_m3", "c_J_kgK")
+
+#: The CSV columns and their schema (values arrive as text and are converted first).
+COLUMNS: dict[str, Field] = {
+    "name": Field("str", doc="unique name of the object (not 'unknown')", lo=1, hi=64),
+    "class": Field("str", doc="material class", choices=CLASSES),
+    "k_W_mK": Field("float", None, "thermal conductivity, W/(m K)", lo=K_RANGE_W_MK[0], hi=K_RANGE_W_MK[1]),
+    "rho_kg_m3": Field("float", None, "density, kg/m^3", lo=RHO_RANGE_kg_m3[0], hi=RHO_RANGE_kg_m3[1]),
+    "c_J_kgK": Field("float", None, "specific heat, J/(kg K)", lo=C_RANGE_J_KGK[0], hi=C_RANGE_J_KGK[1]),
+    "e_W_s05_m2K": Field("float", None, "effusivity, W s^0.5/(m^2 K)", lo=_E_RANGE[0], hi=_E_RANGE[1]),
+    "spread_rel": Field("float", DEFAULT_SPREAD_REL, "specimen spread of e (relative sd)", lo=0.0, hi=1.0),
+    "source": Field("str", "", "where the values come from", hi=256),
+    "note": Field("str", "", "free text", hi=256),
+}
+_NUMERIC_COLUMNS = ("k_W_mK", "rho_kg_m3", "c_J_kgK", "e_W_s05_m2K", "spread_rel")
+
+#: ``#@ key = value`` directives: the calibration stored with the set.
+DIRECTIVES: dict[str, Field] = {
+    "temperature": Field("float", 1.0, "scale on every variance (fitted on held-out touches)", lo=0.0, lo_open=True,
+                         hi=1e4),
+    "z_crit": Field("float", DEFAULT_Z_CRIT, "critical standardised distance of the open-set test", lo=0.5, hi=20.0),
+    "calibration_ln": Field("float", 0.0, "extra systematic sd of ln e (probe calibration)", lo=0.0, hi=1.0),
+    "prior_unknown": Field("float", DEFAULT_PRIOR_UNKNOWN, "prior probability of touching an object outside the set",
+                           lo=0.0, hi=1.0, lo_open=True, hi_open=True),
+}
+
+
+# -- small statistics (NumPy has no erf) ------------------------------------------------
+def chi2_sf(x: float, dof: int) -> float:
+    """P(χ²_dof > x) for dof 1, 2 or 3."""
+    x = max(float(x), 0.0)
+    if dof == 1:
+        return math.erfc(math.sqrt(x / 2.0))
+    if dof == 2:
+        return math.exp(-x / 2.0)
+    if dof == 3:
+        return math.erfc(math.sqrt(x / 2.0)) + math.sqrt(2.0 * x / math.pi) * math.exp(-x / 2.0)
+    raise ValueError(f"dof must be 1, 2 or 3, got {dof}")
+
+
+def p_crit_of(z_crit: float) -> float:
+    """Two-sided tail probability of a standard normal beyond ``z_crit``."""
+    return math.erfc(z_crit / math.sqrt(2.0))
+
+
+# -- errors ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Issue:
+    """One problem in an object-set CSV: 1-based ``line`` (0: the file), ``column`` and ``message``."""
+
+    line: int
+    column: str
+    message: str
+
+    def __str__(self) -> str:
+        where = f"line {self.line}" if self.line else "file"
+        if self.column:
+            where += f", column '{self.column}'"
+        return f"{where}: {self.message}"
+
+
+class ObjectSetError(ValueError):
+    """An object-set CSV is malformed; ``issues`` lists every problem with its line and column."""
+
+    def __init__(self, issues: Iterable[Issue], label: str = "") -> None:
+        self.issues = tuple(issues)
+        self.label = label
+        n = len(self.issues)
+        head = f"invalid object set{' ' + label if label else ''} ({n} problem{'s' if n != 1 else ''}):"
+        super().__init__("\n".join([head] + ["  " + str(i) for i in self.issues]))
+
+
+# -- the objects -----------------------------------------------------------------------
+@dataclass(frozen=True)
+class KnownObject:
+    """One object of a set: either (k, ρ, c) or e alone, and its specimen spread."""
+
+    name: str
+    cls: str
+    e_W_s05_m2K: float
+    k_W_mK: float | None = None
+    rho_kg_m3: float | None = None
+    c_J_kgK: float | None = None
+    spread_rel: float = DEFAULT_SPREAD_REL
+    source: str = ""
+    note: str = ""
+
+    @classmethod
+    def from_properties(cls, name: str, cls_: str, k_W_mK: float, rho_kg_m3: float, c_J_kgK: float,
+                        spread_rel: float = DEFAULT_SPREAD_REL, **kw) -> "KnownObject":
+        """An object given by k, ρ, c (e derived)."""
+        e = math.sqrt(k_W_mK * rho_kg_m3 * c_J_kgK)
+        return cls(name, cls_, e, k_W_mK, rho_kg_m3, c_J_kgK, spread_rel, **kw)
+
+    @property
+    def has_properties(self) -> bool:
+        """True when k, ρ and c are known (so k and α can be compared too)."""
+        return self.k_W_mK is not None
+
+    @property
+    def alpha_m2_s(self) -> float | None:
+        """Thermal diffusivity, or None for an object given by e alone."""
+        return None if self.k_W_mK is None else self.k_W_mK / (self.rho_kg_m3 * self.c_J_kgK)
+
+
+@dataclass
+class Recognition:
+    """What a touch was: the object (or ``"unknown"``), its class, and the posteriors."""
+
+    object: str
+    object_posterior: float
+    cls: str
+    class_posterior: float
+    candidates: list[tuple[str, float]]
+    unknown_posterior: float
+    class_posteriors: dict[str, float] = field(default_factory=dict)
+    #: Standardised distance (1-degree-of-freedom equivalent) to the best-fitting object.
+    z_min: float = 0.0
+    #: The best-fitting object by the open-set test (even when the answer is "unknown").
+    nearest: str = ""
+
+    @property
+    def accepted(self) -> bool:
+        """True when the touch was recognised as one of the set's objects."""
+        return self.object != UNKNOWN
+
+    def to_dict(self) -> dict:
+        """JSON-able dict (``class`` rather than ``cls``)."""
+        return {
+            "object": self.object,
+            "object_posterior": float(self.object_posterior),
+            "class": self.cls,
+            "class_posterior": float(self.class_posterior),
+            "candidates": [[n, float(p)] for n, p in self.candidates],
+            "unknown_posterior": float(self.unknown_posterior),
+            "class_posteriors": {c: float(p) for c, p in self.class_posteriors.items()},
+            "z_min": float(self.z_min),
+            "nearest": self.nearest,
+        }
+
+
+@dataclass(frozen=True)
+class ConfusionPair:
+    """Two objects whose effusivities differ by less than ``threshold_ln`` (ln units)."""
+
+    a: str
+    b: str
+    delta_ln_e: float
+    threshold_ln: float
+
+
+@dataclass(frozen=True)
+class Confusion:
+    """Pairs e alone cannot separate, and the best accuracy any rule could reach on e alone."""
+
+    u_ln_e: float
+    pairs: tuple[ConfusionPair, ...]
+    #: Bayes-optimal top-1 object accuracy (equal priors, e alone, stated variances).
+    bayes_accuracy: float
+    #: Bayes-optimal class accuracy.
+    bayes_class_accuracy: float
+
+    def to_dict(self) -> dict:
+        return {
+            "u_ln_e": self.u_ln_e,
+            "pairs": [[p.a, p.b, p.delta_ln_e, p.threshold_ln] for p in self.pairs],
+            "bayes_accuracy": self.bayes_accuracy,
+            "bayes_class_accuracy": self.bayes_class_accuracy,
+        }
+
+
+class ObjectSet:
+    """An ordered set of :class:`KnownObject` with unique names, and its fitted calibration.
+
+    Parameters
+    ----------
+    objects : iterable of KnownObject
+    temperature : float
+        Scale on every variance (1: the stated uncertainties as they are).
+    z_crit : float
+        Critical standardised distance of the open-set test.
+    calibration_ln : float
+        Extra systematic standard deviation of ln e (a probe calibration term).
+    prior_unknown : float
+        Prior probability that a touched object is none of these.
+    label : str
+        Where the set came from (messages only).
+    """
+
+    def __init__(self, objects: Iterable[KnownObject], *, temperature: float = 1.0, z_crit: float = DEFAULT_Z_CRIT,
+                 calibration_ln: float = 0.0, prior_unknown: float = DEFAULT_PRIOR_UNKNOWN,
+                 label: str = "<memory>") -> None:
+        objs = tuple(objects)
+        if not objs:
+            raise ValueError("an object set needs at least one object")
+        names = [o.name for o in objs]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ValueError(f"duplicate object names: {', '.join(dup)}")
+        if UNKNOWN in names:
+            raise ValueError(f"{UNKNOWN!r} is reserved for objects outside the set")
+        self.temperature = check_value(DIRECTIVES["temperature"], temperature, "temperature")
+        self.z_crit = check_value(DIRECTIVES["z_crit"], z_crit, "z_crit")
+        self.calibration_ln = check_value(DIRECTIVES["calibration_ln"], calibration_ln, "calibration_ln")
+        self.prior_unknown = check_value(DIRECTIVES["prior_unknown"], prior_unknown, "prior_unknown")
+        self.label = label
+        self.objects = objs
+        self.names = tuple(names)
+        self.classes = tuple(o.cls for o in objs)
+        self.class_names = tuple(dict.fromkeys(self.classes))
+        self._class_index = np.array([self.class_names.index(c) for c in self.classes])
+        self.ln_e = np.log([o.e_W_s05_m2K for o in objs])
+        self.spread = np.array([o.spread_rel for o in objs], float)
+        self.has_props = np.array([o.has_properties for o in objs])
+        self.ln_k = np.log([o.k_W_mK if o.has_properties else 1.0 for o in objs])
+        self.ln_alpha = np.log([o.alpha_m2_s if o.has_properties else 1.0 for o in objs])
+
+    # -- construction --------------------------------------------------------------
+    @classmethod
+    def from_library(cls, library=None, *, spread_rel: float = DEFAULT_SPREAD_REL, **kw) -> "ObjectSet":
+        """The default set: every material of the library (a MaterialLibrary; default the packaged one)."""
+        lib = load_materials() if library is None else library
+        objs = [KnownObject.from_properties(m.name, m.cls, m.k_W_mK, m.rho_kg_m3, m.c_J_kgK, spread_rel,
+                                            source=m.source) for m in lib]
+        kw.setdefault("label", getattr(lib, "path", "library"))
+        return cls(objs, **kw)
+
+    @classmethod
+    def from_csv_text(cls, text: str, label: str = "<text>") -> "ObjectSet":
+        """Parse and validate a CSV (module docstring); :class:`ObjectSetError` names line and column."""
+        objs, directives = _parse_csv(text, label)
+        return cls(objs, label=label, **directives)
+
+    @property
+    def calibration(self) -> dict[str, float]:
+        """The calibration scalars (the ``#@`` directives)."""
+        return {k: getattr(self, k) for k in DIRECTIVES}
+
+    def with_calibration(self, **changes: float) -> "ObjectSet":
+        """The same objects with some calibration scalars replaced (keys of :data:`DIRECTIVES`)."""
+        check_keys(changes, DIRECTIVES)
+        return ObjectSet(self.objects, label=self.label, **{**self.calibration, **changes})
+
+    def with_object(self, obj: KnownObject) -> "ObjectSet":
+        """The set with ``obj`` added (or replacing the object of the same name); calibration kept."""
+        objs = [o for o in self.objects if o.name != obj.name] + [obj]
+        return ObjectSet(objs, label=self.label, **self.calibration)
+
+    def without(self, names: Iterable[str]) -> "ObjectSet":
+        """The set without the named objects (calibration kept)."""
+        drop = set(names)
+        return ObjectSet([o for o in self.objects if o.name not in drop], label=self.label, **self.calibration)
+
+    def to_csv_text(self) -> str:
+        """The set as CSV, with its calibration as ``#@`` directives (round-trips through :meth:`from_csv_text`)."""
+        lines = ["# ThermoTouch object set"] + [f"#@ {k} = {v!r}" for k, v in self.calibration.items()]
+        header = ["name", "class", "k_W_mK", "rho_kg_m3", "c_J_kgK", "e_W_s05_m2K", "spread_rel", "source", "note"]
+        rows = []
+        for o in self.objects:
+            props = ([repr(o.k_W_mK), repr(o.rho_kg_m3), repr(o.c_J_kgK), ""] if o.has_properties
+                     else ["", "", "", repr(o.e_W_s05_m2K)])
+            rows.append([o.name, o.cls, *props, repr(o.spread_rel), o.source, o.note])
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(header)
+        w.writerows(rows)
+        return "\n".join(lines) + "\n" + buf.getvalue()
+
+    def __len__(self) -> int:
+        return len(self.objects)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self.names
+
+    def __repr__(self) -> str:
+        return f"ObjectSet({len(self)} objects from {self.label}, T={self.temperature:.3g}, z_crit={self.z_crit:.3g})"
+
+    # -- likelihood ----------------------------------------------------------------
+    def log_terms(self, ln_e, u_ln_e, *, ln_k=None, u_ln_k=None, ln_alpha=None, u_ln_alpha=None):
+        """Untempered terms of every object's log-likelihood, for one or many touches.
+
+        Returns ``(q, half_logdet, dof)``: ``q`` (..., n) the squared standardised
+        distance over the properties each object has, ``half_logdet`` (..., n)
+        half the log of the variances' product (broad terms included), ``dof``
+        (n,) the number of properties in ``q``. The log-likelihood at
+        temperature T is ``-0.5 q / T - half_logdet`` up to a constant.
+        """
+        x = np.asarray(ln_e, float)[..., None]
+        u = np.asarray(u_ln_e, float)[..., None]
+        var = u ** 2 + self.spread ** 2 + self.calibration_ln ** 2
+        q = (x - self.ln_e) ** 2 / var
+        hld = 0.5 * np.log(var)
+        dof = np.ones(len(self), int)
+        extra = ((ln_k, u_ln_k, self.ln_k, K_SPREAD_FACTOR), (ln_alpha, u_ln_alpha, self.ln_alpha, 1.0))
+        for meas, um, ref, sfac in extra:
+            if meas is None:
+                continue
+            if um is None:
+                raise ValueError("a measured k or alpha needs its uncertainty")
+            m = np.asarray(meas, float)[..., None]
+            uv = np.asarray(um, float)[..., None] ** 2
+            v = np.where(self.has_props, uv + (sfac * self.spread) ** 2, uv + BROAD_LN ** 2)
+            q = q + np.where(self.has_props, (m - ref) ** 2 / v, 0.0)
+            hld = hld + 0.5 * np.log(v)
+            dof = dof + self.has_props
+        return q, hld, dof
+
+    def posteriors(self, q, half_logdet, *, temperature: float | None = None) -> np.ndarray:
+        """Closed-set posteriors over the objects (equal priors) from :meth:`log_terms` at a temperature."""
+        t = self.temperature if temperature is None else temperature
+        lw = -0.5 * np.asarray(q) / t - np.asarray(half_logdet)
+        lw = lw - lw.max(axis=-1, keepdims=True)
+        w = np.exp(lw)
+        return w / w.sum(axis=-1, keepdims=True)
+
+    # -- recognition ---------------------------------------------------------------
+    def classify(self, e: float, u_ln_e: float, *, k: float | None = None, u_ln_k: float | None = None,
+                 alpha: float | None = None, u_ln_alpha: float | None = None, top: int = 3) -> Recognition:
+        """Which object a touch with effusivity ``e`` (relative standard uncertainty ``u_ln_e``) was.
+
+        ``k`` and ``alpha`` (with ``u_ln_k``, ``u_ln_alpha``) sharpen the answer
+        when a probe measures them; do not pass the default method's prior-based
+        k and α (they are functions of e and add nothing).
+        """
+        if not (e > 0 and math.isfinite(e)):
+            raise ValueError(f"e must be a positive finite number, got {e!r}")
+        if not (u_ln_e >= 0 and math.isfinite(u_ln_e)):
+            raise ValueError(f"u_ln_e must be a non-negative finite number, got {u_ln_e!r}")
+        for name, v, uv in (("k", k, u_ln_k), ("alpha", alpha, u_ln_alpha)):
+            if v is not None and not (v > 0 and math.isfinite(v) and uv is not None and uv >= 0):
+                raise ValueError(f"{name} must be positive with a non-negative uncertainty, got {v!r} +- {uv!r}")
+        q, hld, dof = self.log_terms(
+            math.log(e), u_ln_e, ln_k=None if k is None else math.log(k), u_ln_k=u_ln_k,
+            ln_alpha=None if alpha is None else math.log(alpha), u_ln_alpha=u_ln_alpha)
+        t = self.temperature
+        d2 = q / t
+        # Open-set test: the p-value of each object's distance (1 property: |z| > z_crit).
+        pvals = np.array([chi2_sf(d, int(m)) for d, m in zip(d2, dof)])
+        p_crit = p_crit_of(self.z_crit)
+        near = int(np.argmax(pvals))
+        accepted = bool(pvals[near] >= p_crit)
+        # Mixture: objects (Gaussians, prior (1 - prior_unknown) / n each) and the flat background.
+        n_terms = 1 + (k is not None) + (alpha is not None)
+        lw_obj = (math.log((1.0 - self.prior_unknown) / len(self)) - 0.5 * d2 - hld
+                  - n_terms * (_LN_SQRT_2PI + 0.5 * math.log(t)))
+        lw_unk = math.log(self.prior_unknown) - math.log(UNKNOWN_LN_E_SPAN)
+        for uv in ((u_ln_k,) if k is not None else ()) + ((u_ln_alpha,) if alpha is not None else ()):
+            lw_unk -= _LN_SQRT_2PI + 0.5 * math.log(uv ** 2 + BROAD_LN ** 2)
+        lw = np.append(lw_obj, lw_unk)
+        w = np.exp(lw - lw.max())
+        post = w / w.sum()
+        p_obj, p_unknown = post[:-1], float(post[-1])
+        class_post = np.bincount(self._class_index, weights=p_obj, minlength=len(self.class_names))
+        order = np.argsort(-p_obj, kind="stable")[:top]
+        candidates = [(self.names[i], float(p_obj[i])) for i in order]
+        if accepted:
+            best = int(order[0])
+            obj, obj_p = self.names[best], float(p_obj[best])
+            ci = int(np.argmax(class_post))
+            cls, cls_p = self.class_names[ci], float(class_post[ci])
+        else:
+            obj, obj_p, cls, cls_p = UNKNOWN, p_unknown, UNKNOWN, p_unknown
+        pn = float(pvals[near])
+        z_min = math.sqrt(d2[near]) if dof[near] == 1 else (_norm_isf2(pn) if pn > 0 else math.inf)
+        return Recognition(obj, obj_p, cls, cls_p, candidates, p_unknown,
+                           {c: float(p) for c, p in zip(self.class_names, class_post)}, z_min, self.names[near])
+
+    # -- separability -------------------------------------------------------------
+    def confusion_pairs(self, u_ln_e: float, *, factor: float = 2.0, involving: str | None = None,
+                        grid_step: float | None = None) -> Confusion:
+        """Pairs of objects e alone cannot separate at ``u_ln_e``, and the Bayes accuracy ceiling.
+
+        A pair is listed when ``|Δ ln e| < factor * sqrt(v_a + v_b)`` with
+        ``v = u_ln_e² + spread² + calibration_ln²`` (so ``2 sqrt(2u² + spreads²)``
+        by default). ``involving`` keeps the pairs with that object (the
+        ``objects add`` warning). The ceiling is the accuracy of the
+        Bayes-optimal rule on e alone with equal priors, ``∫ max_i p_i(x) dx``,
+        integrated on a grid in ln e (class ceiling: ``∫ max_c Σ_{i∈c} p_i``).
+        """
+        var = u_ln_e ** 2 + self.spread ** 2 + self.calibration_ln ** 2
+        if np.any(var <= 0):
+            raise ValueError("an object with zero spread needs u_ln_e > 0")
+        pairs = []
+        n = len(self)
+        for i in range(n):
+            for j in range(i + 1, n):
+                if involving is not None and involving not in (self.names[i], self.names[j]):
+                    continue
+                d = abs(float(self.ln_e[i] - self.ln_e[j]))
+                thr = factor * math.sqrt(var[i] + var[j])
+                if d < thr:
+                    a, b = (i, j) if self.ln_e[i] <= self.ln_e[j] else (j, i)
+                    pairs.append(ConfusionPair(self.names[a], self.names[b], d, thr))
+        pairs.sort(key=lambda p: p.delta_ln_e / p.threshold_ln)
+        sd = np.sqrt(var)
+        step = grid_step or float(sd.min()) / 20.0
+        x = np.arange(float((self.ln_e - 8 * sd).min()), float((self.ln_e + 8 * sd).max()) + step, step)
+        acc = cls_acc = 0.0
+        for lo in range(0, x.size, 4096):  # chunks keep memory flat for big sets
+            xs = x[lo:lo + 4096]
+            dens = np.exp(-0.5 * ((xs[:, None] - self.ln_e) / sd) ** 2) / (sd * math.sqrt(2 * math.pi)) / n
+            acc += float(dens.max(axis=1).sum())
+            by_class = np.zeros((xs.size, len(self.class_names)))
+            np.add.at(by_class.T, self._class_index, dens.T)
+            cls_acc += float(by_class.max(axis=1).sum())
+        return Confusion(float(u_ln_e), tuple(pairs), min(1.0, acc * step), min(1.0, cls_acc * step))
+
+
+def _norm_isf2(p: float) -> float:
+    """The z with two-sided tail probability p (bisection on erfc)."""
+    lo, hi = 0.0, 40.0
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        if math.erfc(mid / math.sqrt(2.0)) > p:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+# -- CSV parsing -------------------------------------------------------------------------
+def _parse_csv(text: str, label: str) -> tuple[list[KnownObject], dict]:
+    issues: list[Issue] = []
+    header: list[str] | None = None
+    header_line = 0
+    objs: list[KnownObject] = []
+    first_line: dict[str, int] = {}
+    directives: dict[str, float] = {}
+
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        stripped = raw.strip()
+        if stripped.startswith("#@"):
+            key, sep, value = stripped[2:].partition("=")
+            key = key.strip()
+            try:
+                if not sep:
+                    raise SchemaError("", "directive must read '#@ key = value'")
+                check_keys({key: None}, DIRECTIVES)
+                directives[key] = check_value(DIRECTIVES[key], _number(value.strip(), key), key)
+            except SchemaError as exc:
+                issues.append(Issue(lineno, exc.path or "#@", exc.message))
+            continue
+        if not stripped or stripped.startswith("#"):
+            continue
+        fields = [f.strip() for f in next(csv.reader([raw]))]
+        if header is None:
+            header, header_line = fields, lineno
+            try:
+                check_keys(dict.fromkeys(fields), COLUMNS)
+            except SchemaError as exc:
+                issues.append(Issue(lineno, exc.path or "<empty>", exc.message))
+            for col in sorted({c for c in fields if fields.count(c) > 1}):
+                issues.append(Issue(lineno, col, "column appears more than once in the header"))
+            for col in ("name", "class"):
+                if col not in fields:
+                    issues.append(Issue(lineno, col, "required column is missing from the header"))
+            has_props = all(c in fields for c in _PROPS)
+            if not has_props and "e_W_s05_m2K" not in fields:
+                missing = [c for c in _PROPS if c not in fields]
+                issues.append(Issue(lineno, missing[0], "the header needs k_W_mK, rho_kg_m3 and c_J_kgK, "
+                                                        "or e_W_s05_m2K"))
+            if issues:
+                break  # rows cannot be read against a broken header
+            continue
+        if len(fields) != len(header):
+            col = header[len(fields)] if len(fields) < len(header) else f"<extra field {len(header) + 1}>"
+            issues.append(Issue(lineno, col, f"row has {len(fields)} fields but the header (line {header_line}) "
+                                             f"has {len(header)}"))
+            continue
+        obj = _parse_row(dict(zip(header, fields)), lineno, issues)
+        if obj is None:
+            continue
+        if obj.name in first_line:
+            issues.append(Issue(lineno, "name", f"duplicate name {obj.name!r}: lines {first_line[obj.name]} "
+                                                f"and {lineno}"))
+            continue
+        first_line[obj.name] = lineno
+        objs.append(obj)
+
+    if header is None and not issues:
+        issues.append(Issue(0, "", "no header line (empty or only comments)"))
+    elif not issues and not objs:
+        issues.append(Issue(0, "", "header present but no object rows"))
+    if issues:
+        raise ObjectSetError(issues, label)
+    return objs, directives
+
+
+def _number(text: str, path: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise SchemaError(path, f"must be a number, got {text!r}") from None
+
+
+def _parse_row(row: dict[str, str], lineno: int, issues: list[Issue]) -> KnownObject | None:
+    vals: dict = {}
+    ok = True
+    for col, text in row.items():
+        f = COLUMNS[col]
+        if text == "":
+            if f.required:
+                issues.append(Issue(lineno, col, "required field is empty"))
+                ok = False
+            continue
+        try:
+            vals[col] = check_value(f, _number(text, col) if col in _NUMERIC_COLUMNS else text, col)
+        except SchemaError as exc:
+            issues.append(Issue(lineno, col, exc.message))
+            ok = False
+    if not ok:
+        return None
+    if vals["name"] == UNKNOWN:
+        issues.append(Issue(lineno, "name", f"{UNKNOWN!r} is reserved for objects outside the set"))
+        return None
+    given = [c for c in _PROPS if c in vals]
+    if "e_W_s05_m2K" in vals and given:
+        issues.append(Issue(lineno, "e_W_s05_m2K", "give either e_W_s05_m2K or k_W_mK, rho_kg_m3, c_J_kgK, not both"))
+        return None
+    if "e_W_s05_m2K" not in vals and len(given) < 3:
+        missing = [c for c in _PROPS if c not in vals]
+        issues.append(Issue(lineno, missing[0], "required field is empty (give k_W_mK, rho_kg_m3 and c_J_kgK, "
+                                                "or e_W_s05_m2K)"))
+        return None
+    extra = dict(spread_rel=vals.get("spread_rel", DEFAULT_SPREAD_REL), source=vals.get("source", ""),
+                 note=vals.get("note", ""))
+    if given:
+        rc = vals["rho_kg_m3"] * vals["c_J_kgK"]
+        if not RHO_C_RANGE_J_M3K[0] <= rc <= RHO_C_RANGE_J_M3K[1]:
+            issues.append(Issue(lineno, "rho_kg_m3*c_J_kgK", f"volumetric heat capacity {rc:.4g} J/(m^3 K) is outside "
+                                                             f"[{RHO_C_RANGE_J_M3K[0]:g}, {RHO_C_RANGE_J_M3K[1]:g}]"))
+            return None
+        return KnownObject.from_properties(vals["name"], vals["class"], vals["k_W_mK"], vals["rho_kg_m3"],
+                                           vals["c_J_kgK"], **extra)
+    return KnownObject(vals["name"], vals["class"], vals["e_W_s05_m2K"], **extra)

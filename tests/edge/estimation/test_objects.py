@@ -1,0 +1,169 @@
+"""The user's object set: CSV parsing, open-set recognition, confusion pairs (edge.estimation.objects)."""
+
+import math
+
+import pytest
+
+from edge.estimation.objects import (DEFAULT_SPREAD_REL, UNKNOWN, KnownObject, ObjectSet, ObjectSetError, chi2_sf,
+                                     p_crit_of)
+
+GOOD = """\
+# my kitchen
+#@ temperature = 1.5
+#@ z_crit = 2.2
+name,class,k_W_mK,rho_kg_m3,c_J_kgK,e_W_s05_m2K,spread_rel,source
+mug,ceramic,1.3,2300,840,,,ISO 10456
+"pan, steel",alloy,17,7900,500,,0.03,
+cutting_board,wood,,,,450,,
+"""
+
+HEADER = "name,class,k_W_mK,rho_kg_m3,c_J_kgK,e_W_s05_m2K,spread_rel\n"
+
+
+def _set(*objs, **kw):
+    return ObjectSet([KnownObject(n, c, e, spread_rel=s) for n, c, e, s in objs], **kw)
+
+
+def test_csv_good_rows_directives_and_round_trip():
+    s = ObjectSet.from_csv_text(GOOD, "kitchen.csv")
+    assert s.names == ("mug", "pan, steel", "cutting_board")
+    mug, pan, board = s.objects
+    assert mug.e_W_s05_m2K == pytest.approx(math.sqrt(1.3 * 2300 * 840))
+    assert mug.spread_rel == DEFAULT_SPREAD_REL and mug.source == "ISO 10456" and mug.has_properties
+    assert pan.spread_rel == 0.03
+    assert board.e_W_s05_m2K == 450 and not board.has_properties and board.alpha_m2_s is None
+    assert (s.temperature, s.z_crit) == (1.5, 2.2)
+    again = ObjectSet.from_csv_text(s.to_csv_text())
+    assert again.objects == s.objects and again.calibration == s.calibration
+
+
+@pytest.mark.parametrize("rows, line, column, words", [
+    ("mug,ceramic,1.3,2300,840,,\npan,metl,17,7900,500,,\n", 3, "class", "must be one of"),
+    ("mug,ceramic,abc,2300,840,,\n", 2, "k_W_mK", "must be a number"),
+    ("mug,ceramic,0.001,2300,840,,\n", 2, "k_W_mK", "must be >= 0.005"),
+    ("mug,ceramic,1.3,2300,840,,1.5\n", 2, "spread_rel", "must be <= 1"),
+    (",ceramic,1.3,2300,840,,\n", 2, "name", "required field is empty"),
+    ("mug,ceramic,1.3,,840,,\n", 2, "rho_kg_m3", "required field is empty"),
+    ("mug,ceramic,1.3,2300,840,1500,\n", 2, "e_W_s05_m2K", "not both"),
+    ("mug,ceramic,,,,,\n", 2, "k_W_mK", "required field is empty"),
+    ("mug,ceramic,1.3,2300,840,,\nmug,glass,,,,1400,\n", 3, "name", "duplicate name 'mug': lines 2 and 3"),
+    ("unknown,glass,,,,1400,\n", 2, "name", "reserved"),
+    ("mug,ceramic,1.3,2300\n", 2, "c_J_kgK", "row has 4 fields"),
+    ("mug,ceramic,0.1,5,90,,\n", 2, "rho_kg_m3*c_J_kgK", "volumetric heat capacity"),
+])
+def test_csv_bad_rows_name_line_and_column(rows, line, column, words):
+    with pytest.raises(ObjectSetError) as exc:
+        ObjectSet.from_csv_text(HEADER + rows, "objs.csv")
+    issue = exc.value.issues[0]
+    assert (issue.line, issue.column) == (line, column), exc.value
+    assert words in issue.message
+    assert f"line {line}, column '{column}'" in str(exc.value) and "objs.csv" in str(exc.value)
+
+
+@pytest.mark.parametrize("text, line, column, words", [
+    ("# c\nname,class,colour,e_W_s05_m2K\n", 2, "colour", "unknown key"),
+    ("name,class,k_W_mK\n", 1, "rho_kg_m3", "or e_W_s05_m2K"),
+    ("class,e_W_s05_m2K\n", 1, "name", "required column"),
+    ("#@ temprature = 2\nname,class,e_W_s05_m2K\nx,wood,300\n", 1, "temprature", "unknown key"),
+    ("#@ temperature = -1\nname,class,e_W_s05_m2K\nx,wood,300\n", 1, "temperature", "must be > 0"),
+    ("#@ z_crit 3\nname,class,e_W_s05_m2K\nx,wood,300\n", 1, "#@", "#@ key = value"),
+    ("# only comments\n", 0, "", "no header"),
+])
+def test_csv_bad_headers_and_directives(text, line, column, words):
+    with pytest.raises(ObjectSetError) as exc:
+        ObjectSet.from_csv_text(text)
+    issue = exc.value.issues[0]
+    assert (issue.line, issue.column) == (line, column), exc.value
+    assert words in issue.message
+
+
+def test_csv_reports_every_bad_line():
+    with pytest.raises(ObjectSetError) as exc:
+        ObjectSet.from_csv_text(HEADER + "a,wood,x,600,1600,,\nb,wood,,,,-3,\nc,wood,,,,300,\n")
+    assert [(i.line, i.column) for i in exc.value.issues] == [(2, "k_W_mK"), (3, "e_W_s05_m2K")]
+
+
+def test_classify_picks_the_nearest_and_normalises():
+    s = _set(("pmma", "polymer", 560, 0.05), ("glass", "glass", 1400, 0.05), ("steel", "alloy", 8000, 0.05))
+    r = s.classify(1450.0, 0.02)
+    assert r.object == "glass" and r.cls == "glass" and r.accepted
+    assert r.candidates[0][0] == "glass" and r.object_posterior > 0.9
+    assert sum(p for _, p in r.candidates) + r.unknown_posterior == pytest.approx(1.0)
+    assert sum(r.class_posteriors.values()) + r.unknown_posterior == pytest.approx(1.0)
+    d = r.to_dict()
+    assert d["class"] == "glass" and d["object"] == "glass" and len(d["candidates"]) == 3
+
+
+def test_unknown_for_a_far_effusivity_though_the_closed_set_argmax_is_sure():
+    s = _set(("pmma", "polymer", 560, 0.05), ("glass", "glass", 1400, 0.05))
+    r = s.classify(2100.0, 0.02)  # 40 % above glass: z ~ 7.5
+    closed = s.posteriors(*s.log_terms(math.log(2100.0), 0.02)[:2])
+    assert closed.max() > 0.999  # what the old naming would have said
+    assert r.object == UNKNOWN and r.cls == UNKNOWN and not r.accepted
+    assert r.object_posterior == r.unknown_posterior > 0.9
+    assert r.nearest == "glass" and r.z_min > s.z_crit
+
+
+def test_the_open_set_test_is_the_z_threshold():
+    s = _set(("glass", "glass", 1400, 0.05), z_crit=2.0)
+    sd = math.hypot(0.02, 0.05)
+    assert s.classify(1400 * math.exp(1.9 * sd), 0.02).object == "glass"
+    assert s.classify(1400 * math.exp(2.1 * sd), 0.02).object == UNKNOWN
+    assert p_crit_of(1.96) == pytest.approx(0.05, abs=1e-3)
+    assert chi2_sf(1.96 ** 2, 1) == pytest.approx(0.05, abs=1e-3)
+    assert chi2_sf(7.815, 3) == pytest.approx(0.05, abs=1e-3)
+
+
+def test_class_posterior_is_the_sum_over_the_class():
+    s = _set(("oak", "wood", 450, 0.05), ("pine", "wood", 470, 0.05), ("abs", "polymer", 520, 0.05))
+    r = s.classify(465.0, 0.02)
+    post = dict(r.candidates)
+    assert r.class_posteriors["wood"] == pytest.approx(post["oak"] + post["pine"])
+    assert r.cls == "wood" and r.class_posterior == pytest.approx(r.class_posteriors["wood"])
+    assert r.class_posterior > r.object_posterior
+
+
+def test_k_and_alpha_sharpen_the_answer():
+    # Same effusivity, different conductivity: e alone cannot tell them apart.
+    a = KnownObject.from_properties("cork_tile", "wood", 0.10, 1000, 1600)
+    b = KnownObject.from_properties("rubber_tile", "rubber", 0.20, 500, 1600)
+    s = ObjectSet([a, b])
+    e_only = s.classify(a.e_W_s05_m2K, 0.02)
+    assert e_only.object_posterior < 0.6
+    both = s.classify(a.e_W_s05_m2K, 0.02, k=0.10, u_ln_k=0.05, alpha=a.alpha_m2_s, u_ln_alpha=0.05)
+    assert both.object == "cork_tile" and both.object_posterior > 0.95
+    with pytest.raises(ValueError):
+        s.classify(400.0, 0.02, k=0.1)  # a measured k needs its uncertainty
+
+
+def test_k_and_alpha_against_objects_given_by_e_alone():
+    a = KnownObject.from_properties("cork_tile", "wood", 0.10, 1000, 1600)
+    s = ObjectSet([a, KnownObject("mystery", "other", a.e_W_s05_m2K)])
+    r = s.classify(a.e_W_s05_m2K, 0.02, k=0.10, u_ln_k=0.05, alpha=a.alpha_m2_s, u_ln_alpha=0.05)
+    assert r.object == "cork_tile"
+    far = s.classify(a.e_W_s05_m2K, 0.02, k=0.3, u_ln_k=0.05, alpha=a.alpha_m2_s * 9, u_ln_alpha=0.05)
+    assert far.object == "mystery"  # k and alpha refute the cork tile, not the e-only object
+
+
+def test_confusion_pairs_and_bayes_ceiling():
+    s = _set(("a", "wood", 1000, 0.05), ("b", "wood", 1030, 0.05), ("c", "metal", 5000, 0.05))
+    c = s.confusion_pairs(0.02)
+    assert [(p.a, p.b) for p in c.pairs] == [("a", "b")]
+    assert c.pairs[0].threshold_ln == pytest.approx(2 * math.sqrt(2 * 0.02 ** 2 + 2 * 0.05 ** 2))
+    sd = math.hypot(0.02, 0.05)
+    phi = 0.5 * math.erfc(-math.log(1.03) / (2 * sd) / math.sqrt(2))  # P(correct) within the pair
+    assert c.bayes_accuracy == pytest.approx((1 + 2 * phi) / 3, abs=2e-3)
+    assert c.bayes_class_accuracy == pytest.approx(1.0, abs=1e-3)
+    assert s.confusion_pairs(0.02, involving="c").pairs == ()
+    assert s.confusion_pairs(0.001).bayes_accuracy > c.bayes_accuracy
+
+
+def test_default_set_is_the_library_and_calibration_is_kept():
+    s = ObjectSet.from_library()
+    assert len(s) == 128 and "balsa" in s
+    cal = s.with_calibration(temperature=2.0)
+    assert cal.temperature == 2.0 and cal.z_crit == s.z_crit
+    assert cal.with_object(KnownObject("my_mug", "ceramic", 1500.0)).temperature == 2.0
+    assert "balsa" not in cal.without(["balsa"])
+    with pytest.raises(ValueError):
+        ObjectSet([KnownObject("x", "wood", 300.0), KnownObject("x", "wood", 310.0)])

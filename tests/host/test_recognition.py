@@ -1,0 +1,81 @@
+"""Calibrating an object set on held-out touches (host.recognition)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from edge.estimation.objects import KnownObject, ObjectSet
+from host.recognition import calibrate, fit_temperature, fit_z_crit, recognise, reliability, simulate_touches
+
+
+def _ladder(n=6, step=1.08, spread=0.01):
+    return ObjectSet([KnownObject(f"o{i}", "wood", 300.0 * step ** i, spread_rel=spread) for i in range(n)])
+
+
+def _synthetic(s, true_sd, stated_u, n=3000, seed=0):
+    rng = np.random.default_rng(seed)
+    ti = rng.integers(0, len(s), n)
+    ln_e = s.ln_e[ti] + rng.normal(0.0, true_sd, n)
+    return ln_e, np.full(n, stated_u), ti
+
+
+def test_temperature_fit_removes_an_overconfidence():
+    s = _ladder()
+    # Touches scatter 0.05 in ln e while the set believes sqrt(0.02^2 + 0.01^2): 5x the variance.
+    ln_e, u, ti = _synthetic(s, 0.05, 0.02)
+    t = fit_temperature(s, ln_e, u, ti)
+    assert t == pytest.approx((0.05 ** 2 + 0.0) / (0.02 ** 2 + 0.01 ** 2), rel=0.2)
+    q, hld, _ = s.log_terms(ln_e, u)
+    ece = {}
+    for label, temp in (("before", 1.0), ("after", t)):
+        p = s.posteriors(q, hld, temperature=temp)
+        ece[label] = reliability(p.max(axis=1), p.argmax(axis=1) == ti)["ece"]
+    assert ece["before"] > 0.1 and ece["after"] < 0.03
+    # Held-out draws: the fitted scale carries over.
+    ln_e2, u2, ti2 = _synthetic(s, 0.05, 0.02, seed=1)
+    p2 = s.posteriors(*s.log_terms(ln_e2, u2)[:2], temperature=t)
+    assert reliability(p2.max(axis=1), p2.argmax(axis=1) == ti2)["ece"] < 0.03
+
+
+def test_temperature_fit_leaves_a_calibrated_set_near_one():
+    s = _ladder()
+    ln_e, u, ti = _synthetic(s, math.hypot(0.02, 0.01), 0.02)
+    assert fit_temperature(s, ln_e, u, ti) == pytest.approx(1.0, rel=0.15)
+
+
+def test_z_crit_accepts_the_target_share_of_in_set_touches():
+    s = _ladder(step=1.5)
+    ln_e, u, _ = _synthetic(s, 0.05, 0.02)
+    z = fit_z_crit(s, ln_e, u, acceptance=0.975, temperature=1.0)
+    cal = s.with_calibration(z_crit=z)
+    accepted = np.mean([cal.classify(math.exp(x), 0.02).accepted for x in ln_e[:400]])
+    assert z > 3.0 and accepted >= 0.95
+
+
+def test_reliability_table():
+    r = reliability([0.95, 0.95, 0.55, 0.55], [True, False, True, True])
+    rows = {(row["lo"], row["hi"]): row for row in r["rows"]}
+    assert rows[(0.95, 1.0)]["n"] == 2 and rows[(0.95, 1.0)]["accuracy"] == 0.5
+    assert rows[(0.5, 0.6)]["accuracy"] == 1.0
+    assert r["ece"] == pytest.approx(0.5 * 0.45 + 0.5 * 0.45)
+
+
+def test_calibrate_on_simulated_touches_stores_the_fit_with_the_set():
+    s = ObjectSet([KnownObject.from_properties("pine", "wood", 0.13, 500, 1600),
+                   KnownObject.from_properties("glass", "glass", 1.0, 2500, 750),
+                   KnownObject("steel", "alloy", 8200.0)])
+    sim = simulate_touches(s.objects, instruments=("ads122c04",), contact_times_s=(1.0,), touches=4, seed=3)
+    assert sim.ok.all() and len(sim.e) == 12
+    assert np.all(np.abs(np.log(sim.e / sim.e_true)) < 0.1)
+    cal, report = calibrate(s, "ads122c04", sim=sim)
+    assert cal.temperature == pytest.approx(report["temperature"]) and cal.z_crit >= 1.96
+    assert report["reliability_after"]["n"] == 12
+    assert f"#@ temperature = {cal.temperature!r}" in cal.to_csv_text()
+    assert ObjectSet.from_csv_text(cal.to_csv_text()).temperature == cal.temperature
+
+
+def test_recognise_an_estimate_dict():
+    s = ObjectSet([KnownObject("glass", "glass", 1400.0)])
+    assert recognise(s, {"effusivity_W_s05_m2K": 1410.0, "effusivity_W_s05_m2K_u": 28.0}).object == "glass"
+    assert recognise(s, {"effusivity_W_s05_m2K": None, "effusivity_W_s05_m2K_u": None}) is None
