@@ -53,6 +53,8 @@ class Reason(StrEnum):
     TOO_FEW_SAMPLES = "too_few_samples"
     #: The estimator raised (the heater was already off).
     ESTIMATION_FAILED = "estimation_failed"
+    #: The host sent ABORT (e.g. Ctrl-C or its own timeout): heater cut at once, record kept.
+    HOST_ABORT = "host_abort"
 
 
 class Flag(StrEnum):

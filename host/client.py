@@ -30,7 +30,8 @@ import numpy as np
 import serial
 
 from edge.protocol.endpoint import read_available
-from edge.protocol.messages import CHUNK_HEADER_SIZE, ErrorReply, decode_reply, encode_request
+from edge.protocol.messages import (CHUNK_HEADER_SIZE, SESSION_CHUNK_HEADER_SIZE, ErrorReply, decode_reply,
+                                    encode_request)
 from edge.protocol.commands import COMMANDS, Command, SERIES_KINDS
 from edge.protocol.frame import DEFAULT_MAX_PAYLOAD, FrameDecoder
 from edge.protocol.errors import ErrorCode, ProtocolError
@@ -81,6 +82,12 @@ class DeviceError(ClientError):
 
 class BadReply(ClientError):
     """A reply with the right id that breaks the protocol (schema, JSON, type)."""
+
+
+#: Requests that name the upload session from MODEL_BEGIN.
+_SESSION_COMMANDS = frozenset({Command.MODEL_CHUNK, Command.MODEL_COMMIT, Command.MODEL_ABORT})
+#: Longest wait for the device to confirm an ABORT, s (it replies once the record is stored).
+ABORT_TIMEOUT_s = 15.0
 
 
 def _port_name(ser: Any) -> str:
@@ -137,6 +144,8 @@ class DeviceClient:
         self._next_id = 1
         self._lock = threading.Lock()
         self.stale_replies = 0
+        #: Session id of this client's last MODEL_BEGIN (None before one, or from a device without sessions).
+        self.upload_session: int | None = None
         # Bytes the device sent before we were listening belong to nobody.
         reset = getattr(self.ser, "reset_input_buffer", None)
         if reset is not None:
@@ -205,6 +214,9 @@ class DeviceClient:
         DeviceError, DeviceNotAnswering, PortUnavailable, BadReply
         """
         command = Command[command.upper()] if isinstance(command, str) else Command(command)
+        if command in _SESSION_COMMANDS and self.upload_session is not None and "session" not in (args or {}):
+            # The upload session this client opened: the device refuses MODEL_* without it.
+            args = {**(args or {}), "session": self.upload_session}
         timeout = self.timeout_s if timeout_s is None else float(timeout_s)
         if retries is None:
             retries = self.retries if COMMANDS[command].idempotent else 0
@@ -217,6 +229,8 @@ class DeviceClient:
                 self._write(frame)
                 reply = self._await(rid, command, timeout)
                 if reply is not None:
+                    if command == Command.MODEL_BEGIN:
+                        self.upload_session = reply.get("session")
                     return reply
             raise DeviceNotAnswering(command, timeout, attempts)
 
@@ -275,12 +289,47 @@ class DeviceClient:
 
         The default timeout is the client's plus the contact time (or 5 s)
         plus 10 s of margin for heating, settling and inference.
+
+        Interrupted (``KeyboardInterrupt``, e.g. Ctrl-C) or timed out
+        (:class:`DeviceNotAnswering`), the client does not leave the probe
+        heating: it sends ABORT, waits for the device's confirmation (the
+        heater is off and the aborted record stored; :attr:`last_abort`
+        holds the ABORT reply, or None if the device did not confirm within
+        :data:`ABORT_TIMEOUT_s`), then re-raises the original exception. A
+        command-line caller maps the re-raised ``KeyboardInterrupt`` to exit
+        status 130.
+
+        Raises
+        ------
+        KeyboardInterrupt, DeviceNotAnswering
+            After the ABORT (its own failure is not raised).
+        DeviceError, PortUnavailable, BadReply
         """
         args = {k: v for k, v in (("power_W", power_W), ("voltage_V", voltage_V),
                                   ("contact_time_s", contact_time_s)) if v is not None}
         if timeout_s is None:
             timeout_s = self.timeout_s + (contact_time_s if contact_time_s is not None else 5.0) + 10.0
-        return self.request(Command.MEASURE, args, timeout_s=timeout_s)
+        self.last_abort: dict[str, Any] | None = None
+        try:
+            return self.request(Command.MEASURE, args, timeout_s=timeout_s)
+        except (KeyboardInterrupt, DeviceNotAnswering):
+            try:
+                self.last_abort = self.abort()
+            except ClientError:
+                pass  # the device is gone or confused: the original exception says more
+            raise
+
+    def abort(self, *, timeout_s: float = ABORT_TIMEOUT_s) -> dict[str, Any]:
+        """Cut a running measurement: the device switches the heater off at once and stores the record.
+
+        Returns
+        -------
+        dict
+            ``{"aborted": bool, "measurement_id": int | None}``: whether a
+            measurement was running, and the id of its stored record
+            (``status = "aborted"``, ``reason = "host_abort"``).
+        """
+        return self.request(Command.ABORT, timeout_s=timeout_s)
 
     def result(self, measurement_id: int | None = None) -> dict[str, Any]:
         """Result record by id, or the latest when ``measurement_id`` is None."""
@@ -389,7 +438,10 @@ class DeviceClient:
             The MODEL_COMMIT reply (``model_sha256`` and whatever the device adds).
 
         On any failure after MODEL_BEGIN the client sends MODEL_ABORT (best
-        effort) and re-raises.
+        effort) and re-raises. MODEL_BEGIN's session id is carried by every
+        later request of the upload (see :attr:`upload_session`); if another
+        host began an upload meanwhile, the device refuses this one's chunks
+        with BAD_STATE rather than mixing the two.
         """
         data = bytes(data)
         if not data:
@@ -405,7 +457,10 @@ class DeviceClient:
         begin = {"size": len(data), "sha256": digest}
         if version is not None:
             begin["version"] = version
-        self.request(Command.MODEL_BEGIN, begin)
+        self.upload_session = None
+        self.request(Command.MODEL_BEGIN, begin)  # sets upload_session; later MODEL_* requests carry it
+        if self.upload_session is not None:
+            chunk_size = min(chunk_size, self.max_payload - SESSION_CHUNK_HEADER_SIZE)
         try:
             for offset in range(0, len(data), chunk_size):
                 chunk = data[offset:offset + chunk_size]

@@ -177,13 +177,18 @@ class MeasurementSequence:
         Identity of the model the estimator uses, stored with the record.
     on_state : callable (Phase) -> None, optional
         Told each state change (for STATUS).
+    cancel_event : threading.Event, optional
+        Set to cut a running measurement on the host's request (ABORT): like
+        ``abort_event``, but the record's reason is ``host_abort``. Whoever
+        sets it also switches the heater off at once.
     """
 
     def __init__(self, heater: Heater, sensors: Any, clock: Any, limits: Limits, estimator: EstimatorFn,
                  thresholds: Any, *, watchdog: HeaterWatchdog | None = None,
                  abort_event: threading.Event | None = None,
                  model_sha256: Callable[[], str | None] | None = None,
-                 on_state: Callable[[Phase], None] | None = None) -> None:
+                 on_state: Callable[[Phase], None] | None = None,
+                 cancel_event: threading.Event | None = None) -> None:
         self.heater = heater
         self.sensors = sensors
         self.clock = clock
@@ -191,6 +196,7 @@ class MeasurementSequence:
         self.estimator = estimator
         self.thresholds = thresholds
         self.abort_event = abort_event if abort_event is not None else threading.Event()
+        self.cancel_event = cancel_event if cancel_event is not None else threading.Event()
         self._own_watchdog = watchdog is None
         self.watchdog = watchdog if watchdog is not None else HeaterWatchdog(
             heater, clock, limits.max_on_time_s, abort_event=self.abort_event)
@@ -239,6 +245,8 @@ class MeasurementSequence:
         while True:
             if self.abort_event.is_set():
                 raise _Stop(Reason.STOPPED, "measurement stopped (daemon shutting down)")
+            if self.cancel_event.is_set():
+                raise _Stop(Reason.HOST_ABORT, "measurement aborted by the host (ABORT)")
             dt = until - self.clock.monotonic()
             if dt <= 0:
                 return
@@ -290,6 +298,8 @@ class MeasurementSequence:
                 for k in range(int(math.floor(heat_s * params.sample_rate_Hz + 1e-9)) + 1):
                     self._wait(t_on + k * period)
                     if not self.heater.is_on:
+                        if self.cancel_event.is_set():
+                            raise _Stop(Reason.HOST_ABORT, "measurement aborted by the host (ABORT)")
                         why = _TRIP_REASONS.get(self.watchdog.tripped)
                         raise _Stop(why or Reason.HEATER_CUT, f"heater was cut by the watchdog ({why})")
                     on_s = self.clock.monotonic() - t_on
@@ -346,7 +356,14 @@ class MeasurementSequence:
             t_arr -= t_arr[-1] + 1.0
         out.raw_t_s, out.raw_T_C, out.raw_q_W_m2 = t_arr, T_arr, q_arr
         if out.status != Status.FAILED or out.reason != Reason.HEATER_FAULT:
-            self._finish(out, params, t_arr, T_arr, q_arr, any(sat), t_on, t_off)
+            try:
+                self._finish(out, params, t_arr, T_arr, q_arr, any(sat), t_on, t_off)
+            except Exception as e:
+                # Whatever breaks after the heating (a bug in resampling or flagging), the touch
+                # heated and its raw data is returned for the record.
+                out.status, out.reason = Status.FAILED, Reason.INTERNAL
+                out.error, out.exception = f"{type(e).__name__}: {e}", e
+                log.exception("post-processing failed (heater was already off)")
         self._set_state(Phase.IDLE)
         return out
 

@@ -36,6 +36,7 @@ import secrets
 import stat
 import struct
 import zipfile
+import zlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -77,6 +78,43 @@ class Limits:
 
 
 DEFAULT_LIMITS = Limits()
+
+#: Longest npy header read before a member's data (NumPy itself writes at most a few hundred bytes).
+_NPY_HEADER_MAX = 16 * 1024
+
+
+def limits_for_ram(ram_bytes: int) -> Limits:
+    """Bundle bounds for a device with ``ram_bytes`` of RAM (never looser than :data:`DEFAULT_LIMITS`).
+
+    Loading holds the npz file, each member's decompressed bytes and the
+    array built from them, while the active model stays loaded: about four
+    times the arrays' size. Arrays are held to 1/32 of RAM in total and
+    1/64 each, so an install peaks well below 1/4 of RAM beside the
+    daemon and the OS.
+
+    Parameters
+    ----------
+    ram_bytes : int
+        The device's RAM (``[limits] ram_bytes``).
+
+    Returns
+    -------
+    Limits
+    """
+    ram_bytes = int(ram_bytes)
+    if ram_bytes <= 0:
+        raise ValueError(f"ram_bytes must be > 0, got {ram_bytes!r}")
+    d = DEFAULT_LIMITS
+    total = min(d.max_total_array_bytes, ram_bytes // 32)
+    per_array = min(d.max_array_bytes, ram_bytes // 64)
+    return Limits(
+        max_manifest_bytes=d.max_manifest_bytes,
+        max_npz_bytes=min(d.max_npz_bytes, total + 1024 * 1024),  # arrays + zip and npy overhead
+        max_members=d.max_members,
+        max_array_elements=min(d.max_array_elements, max(1, per_array // 8)),
+        max_array_bytes=per_array,
+        max_total_array_bytes=total,
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -270,8 +308,34 @@ def _npy_header(raw: bytes, label: str, name: str) -> tuple[tuple[int, ...], np.
     return tuple(int(d) for d in shape), dtype, bio.tell()
 
 
+def _read_npy_header(zf: zipfile.ZipFile, info: zipfile.ZipInfo, label: str, name: str) -> tuple[tuple[int, ...], np.dtype, int]:
+    """Shape, dtype and header length of one member, decompressing only its header."""
+    try:
+        with zf.open(info) as f:
+            head = f.read(12)  # magic (6), version (2), header length (2 or 4)
+            if len(head) < 10 or head[:6] != b"\x93NUMPY":
+                raise CorruptFileError(f"{label}: array {name!r} is not an npy file", name)
+            hlen = int.from_bytes(head[8:10], "little") + 10 if head[6] == 1 else \
+                int.from_bytes(head[8:12], "little") + 12
+            if hlen > _NPY_HEADER_MAX:
+                raise CorruptFileError(f"{label}: array {name!r} has an npy header of {hlen} bytes", name)
+            head += f.read(hlen - len(head))
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError, NotImplementedError, zlib.error) as e:
+        raise CorruptFileError(f"{label}: array {name!r} is unreadable ({e})", name) from None
+    shape, dtype, used = _npy_header(head, label, name)
+    return shape, dtype, used
+
+
 def _parse_npz(data: bytes, label: str, limits: Limits) -> dict[str, np.ndarray]:
-    """Parse npz bytes defensively into read-only arrays."""
+    """Parse npz bytes defensively into read-only arrays.
+
+    Nothing is decompressed before it is known to fit: first the declared
+    (central-directory) sizes of all members, then every member's npy header
+    (shape and dtype, the only bytes inflated) are checked against
+    ``limits``; only then are the members read, each bounded by its
+    declared size. A zip bomb or a bundle whose arrays would not fit the
+    device's memory is refused having cost a few kilobytes.
+    """
     try:
         zf = zipfile.ZipFile(io.BytesIO(data))
         infos = zf.infolist()
@@ -279,30 +343,36 @@ def _parse_npz(data: bytes, label: str, limits: Limits) -> dict[str, np.ndarray]
         raise CorruptFileError(f"{label} is truncated or not a readable npz ({e})", label) from None
     if len(infos) > limits.max_members:
         raise SizeLimitError(f"{label} holds {len(infos)} members, above the limit of {limits.max_members}", label)
-    out: dict[str, np.ndarray] = {}
-    total = 0
+    budget = limits.max_array_bytes + _NPY_HEADER_MAX  # data + npy header
+    names: dict[str, zipfile.ZipInfo] = {}
+    declared = 0
+    # 1. Declared sizes: the central directory only.
     for info in infos:
         member = info.filename
         name = member[:-4] if member.endswith(".npy") else member
         if not member.endswith(".npy") or not NAME_RE.match(name):
             raise CorruptFileError(f"{label}: unexpected member {member!r} (want <identifier>.npy)", label)
-        if name in out:
+        if name in names:
             raise CorruptFileError(f"{label}: array {name!r} appears twice", name)
-        budget = limits.max_array_bytes + 4096  # data + npy header
+        if info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED):
+            raise CorruptFileError(f"{label}: array {name!r} uses zip method {info.compress_type} "
+                                   "(only stored or deflated)", name)
         if info.file_size > budget:
             raise SizeLimitError(
                 f"{label}: array {name!r} is {info.file_size} bytes, above the limit of "
                 f"{limits.max_array_bytes}",
                 name,
             )
-        try:
-            with zf.open(info) as f:
-                raw = f.read(budget + 1)
-        except (zipfile.BadZipFile, OSError, ValueError, EOFError, NotImplementedError) as e:
-            raise CorruptFileError(f"{label}: array {name!r} is unreadable ({e})", name) from None
-        if len(raw) > budget:
-            raise SizeLimitError(f"{label}: array {name!r} exceeds {limits.max_array_bytes} bytes", name)
-        shape, dtype, hlen = _npy_header(raw, label, name)
+        declared += info.file_size
+        if declared > limits.max_total_array_bytes + len(infos) * _NPY_HEADER_MAX:
+            raise SizeLimitError(
+                f"{label}: members declare more than {limits.max_total_array_bytes} bytes (at {name!r})", name
+            )
+        names[name] = info
+    # 2. npy headers: shapes and dtypes, the data still compressed.
+    total = 0
+    for name, info in names.items():
+        shape, dtype, hlen = _read_npy_header(zf, info, label, name)
         if dtype.hasobject:
             raise ObjectArrayError(f"{label}: array {name!r} has dtype object (refused: needs pickle)", name)
         if dtype.fields is not None or dtype.subdtype is not None:
@@ -315,15 +385,26 @@ def _parse_npz(data: bytes, label: str, limits: Limits) -> dict[str, np.ndarray]
                 f"{limits.max_array_elements} elements / {limits.max_array_bytes} bytes",
                 name,
             )
-        if len(raw) - hlen != n_bytes:
+        if info.file_size - hlen != n_bytes:
             raise CorruptFileError(
-                f"{label}: array {name!r} holds {len(raw) - hlen} data bytes, header says {n_bytes}", name
+                f"{label}: array {name!r} holds {info.file_size - hlen} data bytes, header says {n_bytes}", name
             )
         total += n_bytes
         if total > limits.max_total_array_bytes:
             raise SizeLimitError(
                 f"{label}: arrays total more than {limits.max_total_array_bytes} bytes (at {name!r})", name
             )
+    # 3. The data, each member bounded by the size just checked.
+    out: dict[str, np.ndarray] = {}
+    for name, info in names.items():
+        try:
+            with zf.open(info) as f:
+                raw = f.read(info.file_size + 1)
+        except (zipfile.BadZipFile, OSError, ValueError, EOFError, NotImplementedError, zlib.error) as e:
+            raise CorruptFileError(f"{label}: array {name!r} is unreadable ({e})", name) from None
+        if len(raw) != info.file_size:
+            raise CorruptFileError(f"{label}: array {name!r} holds {len(raw)} bytes, its entry says "
+                                   f"{info.file_size}", name)
         try:
             arr = np.load(io.BytesIO(raw), allow_pickle=False)
         except (ValueError, OSError, EOFError) as e:

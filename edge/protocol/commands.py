@@ -12,6 +12,8 @@ from edge.protocol.frame import REPLY_FLAG, MAX_REQUEST_ID
 
 #: Largest model bundle MODEL_BEGIN accepts, bytes.
 MAX_MODEL_SIZE = 64 * 1024 * 1024
+#: Upload session ids are non-zero u32 (MODEL_CHUNK carries one in its binary header).
+MAX_SESSION_ID = 0xFFFF_FFFF
 
 
 # --------------------------------------------------------------------------
@@ -30,6 +32,7 @@ class Command(enum.IntEnum):
     CONFIG_GET = 0x07
     CONFIG_SET = 0x08
     SERIES = 0x09
+    ABORT = 0x0A
     MODEL_BEGIN = 0x10
     MODEL_CHUNK = 0x11
     MODEL_COMMIT = 0x12
@@ -156,27 +159,41 @@ COMMANDS: dict[Command, CommandSpec] = {spec.command: spec for spec in (
         doc="One page of a stored measurement's series, samples [offset, offset + len(t_s)) of total; "
             "as many as fit in one reply (the host continues at offset + len(t_s)). Non-finite samples are null."),
     CommandSpec(
+        Command.ABORT,
+        reply=(arg("aborted", "bool", required=True, doc="a measurement was running and was cut"),
+               arg("measurement_id", "int", required=True, nullable=True, lo=0,
+                   doc="id of the stored aborted record; null if none was running or it is not stored yet")),
+        doc="Cut a running measurement: heater off at once, the record stored with status aborted "
+            "(reason host_abort); replies once it is stored. Answered during a measurement; a no-op "
+            "when idle."),
+    CommandSpec(
         Command.MODEL_BEGIN,
         args=(arg("size", "int", required=True, lo=1, hi=MAX_MODEL_SIZE, doc="bundle size, bytes"),
               arg("sha256", "sha256", required=True, doc="hex digest of the whole bundle"),
               arg("version", "str", hi=_STR_MAX)),
-        reply=(arg("size", "int", required=True),),
-        doc="Start a model upload (discards any unfinished one)."),
+        reply=(arg("size", "int", required=True),
+               arg("session", "int", lo=1, hi=MAX_SESSION_ID,
+                   doc="upload session id; MODEL_CHUNK/COMMIT/ABORT must carry it")),
+        doc="Start a model upload session (discards any unfinished one, whose session goes stale)."),
     CommandSpec(
         Command.MODEL_CHUNK,
         args=(arg("offset", "int", required=True, lo=0, hi=MAX_MODEL_SIZE),
-              arg("data", "bytes", required=True, lo=1)),
+              arg("data", "bytes", required=True, lo=1),
+              arg("session", "int", lo=1, hi=MAX_SESSION_ID, doc="from MODEL_BEGIN")),
         reply=(arg("received", "int", required=True, lo=0, doc="contiguous bytes held"),),
         binary=True,
-        doc="Binary payload: u32 LE offset, then the chunk bytes."),
+        doc="Binary payload: u32 LE offset, then the chunk bytes; with a session, the offset's top bit "
+            "is set and a u32 LE session id follows it before the chunk bytes."),
     CommandSpec(
         Command.MODEL_COMMIT,
+        args=(arg("session", "int", lo=1, hi=MAX_SESSION_ID, doc="from MODEL_BEGIN"),),
         reply=(arg("model_sha256", "str", required=True),),
         idempotent=False,
         doc="Verify size and sha256, install atomically."),
     CommandSpec(
         Command.MODEL_ABORT,
-        doc="Discard an unfinished upload (no-op if none)."),
+        args=(arg("session", "int", lo=1, hi=MAX_SESSION_ID, doc="from MODEL_BEGIN"),),
+        doc="Discard an unfinished upload of this session (no-op if none)."),
 )}
 
 

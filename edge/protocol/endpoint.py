@@ -12,10 +12,18 @@ daemon supplies the dispatching as ``handler(request) -> dict``::
 Handler failures never end the loop: :class:`~edge.protocol.messages.CommandError`
 (and its subclass ``ProtocolError``) becomes an ERROR reply with its code,
 any other exception an ``INTERNAL`` ERROR reply.
+
+A host that stops reading must not wedge the device: replies are queued
+(at most ``max_pending_bytes``) and written by a writer thread, each within
+``write_timeout_s``. A reply that does not fit the queue, or cannot be
+written in time, is dropped with one log line; the serve loop itself never
+blocks on the port's output, so it keeps reading requests, answering STATUS
+and noticing its stop event.
 """
 
 from __future__ import annotations
 
+import collections
 import logging
 import threading
 import time
@@ -25,7 +33,12 @@ from edge.protocol.frame import DEFAULT_MAX_PAYLOAD, FrameDecoder, DecoderStats
 from edge.protocol.errors import CommandError, ErrorCode, ProtocolError
 from edge.protocol.messages import Request, decode_request, encode_error, encode_reply
 
-__all__ = ["SerialEndpoint", "Handler"]
+__all__ = ["SerialEndpoint", "Handler", "WRITE_TIMEOUT_s", "MAX_PENDING_BYTES"]
+
+#: Longest one reply may take to be written before it is dropped, s.
+WRITE_TIMEOUT_s = 0.5
+#: Most reply bytes queued for the port; replies beyond it are dropped.
+MAX_PENDING_BYTES = 64 * 1024
 
 log = logging.getLogger(__name__)
 
@@ -64,16 +77,28 @@ class SerialEndpoint:
     clock : callable
         Monotonic time source in seconds (wall time: serial I/O is real even
         under the simulator's virtual clock).
+    write_timeout_s : float
+        Longest one reply may take to be written (the port's ``write_timeout``
+        is set to it); a reply not written by then is dropped.
+    max_pending_bytes : int
+        Bound on reply bytes waiting for the port; a reply that would exceed
+        it is dropped at once.
     """
 
     def __init__(self, ser: Any, *, max_payload: int = DEFAULT_MAX_PAYLOAD,
                  partial_timeout_s: float = 0.5, poll_s: float = 0.05,
                  validate_replies: bool = True,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic,
+                 write_timeout_s: float = WRITE_TIMEOUT_s,
+                 max_pending_bytes: int = MAX_PENDING_BYTES) -> None:
         if not partial_timeout_s > 0:
             raise ValueError(f"partial_timeout_s must be > 0, got {partial_timeout_s!r}")
         if not poll_s > 0:
             raise ValueError(f"poll_s must be > 0, got {poll_s!r}")
+        if not write_timeout_s > 0:
+            raise ValueError(f"write_timeout_s must be > 0, got {write_timeout_s!r}")
+        if not max_pending_bytes > 0:
+            raise ValueError(f"max_pending_bytes must be > 0, got {max_pending_bytes!r}")
         self.ser = ser
         self.max_payload = max_payload
         self.decoder = FrameDecoder(max_payload)
@@ -85,10 +110,26 @@ class SerialEndpoint:
         self._write_lock = threading.Lock()
         self.requests_handled = 0
         self.errors_sent = 0
+        self.write_timeout_s = float(write_timeout_s)
+        self.max_pending_bytes = int(max_pending_bytes)
+        #: Replies dropped because the queue was full or the port did not take them in time.
+        self.replies_dropped = 0
+        self._queue: collections.deque[bytes] = collections.deque()
+        self._queued_bytes = 0
+        self._cond = threading.Condition()
+        self._writing = False
+        self._closed = False
+        self._writer: threading.Thread | None = None
+        #: A port error met by the writer thread (re-raised by the next poll()).
+        self.write_error: BaseException | None = None
         try:
             ser.timeout = self.poll_s
         except (AttributeError, ValueError):
             log.debug("port %r has no settable timeout; polling with its own", ser)
+        try:
+            ser.write_timeout = self.write_timeout_s
+        except (AttributeError, ValueError):
+            log.debug("port %r has no settable write_timeout", ser)
 
     @property
     def stats(self) -> DecoderStats:
@@ -104,8 +145,12 @@ class SerialEndpoint:
         """Read once (waiting at most ``poll_s``); return the valid requests received.
 
         Frames that decode but fail validation are answered here with an
-        ERROR reply and not returned.
+        ERROR reply and not returned. A port error met by the writer thread
+        is raised here.
         """
+        err, self.write_error = self.write_error, None
+        if err is not None:
+            raise err
         data = self._read_available()
         now = self._clock()
         if data:
@@ -139,11 +184,96 @@ class SerialEndpoint:
     # -- sending ---------------------------------------------------------------
 
     def _write(self, data: bytes) -> None:
+        """Queue ``data`` for the writer thread; drop it if the queue is full."""
+        with self._cond:
+            if self._closed:
+                self._drop(len(data), "the endpoint is closed")
+                return
+            if self._queued_bytes + len(data) > self.max_pending_bytes:
+                self._drop(len(data), f"{self._queued_bytes} B already wait for a host that is not reading")
+                return
+            self._queue.append(data)
+            self._queued_bytes += len(data)
+            if self._writer is None:
+                self._writer = threading.Thread(target=self._write_loop, name="thermotouch-serial-writer",
+                                                daemon=True)
+                self._writer.start()
+            self._cond.notify_all()
+
+    def _drop(self, n: int, why: str) -> None:
+        self.replies_dropped += 1
+        # One line per dropped reply; DEBUG after the first few so a flood cannot fill the log.
+        level = logging.WARNING if self.replies_dropped <= 3 or self.replies_dropped % 1000 == 0 else logging.DEBUG
+        log.log(level, "reply of %d B dropped (%s); %d dropped so far", n, why, self.replies_dropped)
+
+    def _write_loop(self) -> None:
+        while True:
+            with self._cond:
+                while not self._queue and not self._closed:
+                    self._cond.wait()
+                if not self._queue:
+                    return
+                data = self._queue.popleft()
+                self._queued_bytes -= len(data)
+                self._writing = True
+            try:
+                self._write_now(data)
+            except BaseException as e:  # a port error: the serve loop re-raises it
+                self.write_error = e
+                with self._cond:
+                    self._queue.clear()
+                    self._queued_bytes = 0
+            finally:
+                with self._cond:
+                    self._writing = False
+                    self._cond.notify_all()
+
+    def _write_now(self, data: bytes) -> None:
+        # No flush(): pyserial writes straight to the fd, and tcdrain() on a line whose host
+        # does not read would block without any timeout -- the very wedge this avoids.
         with self._write_lock:
-            self.ser.write(data)
-            flush = getattr(self.ser, "flush", None)
-            if flush is not None:
-                flush()
+            try:
+                n = self.ser.write(data)
+            except Exception as e:
+                # pyserial's SerialTimeoutException: the host is not reading; anything else propagates.
+                if type(e).__name__ != "SerialTimeoutException" and not isinstance(e, TimeoutError):
+                    raise
+                self._drop(len(data), f"not written within {self.write_timeout_s:g} s")
+                return
+            if isinstance(n, int) and n < len(data):
+                self._drop(len(data), f"only {n} B written")
+
+    def flush(self, timeout_s: float | None = None) -> bool:
+        """Wait until every queued reply is written or dropped; True if the queue is empty.
+
+        Waits at most ``timeout_s`` (default: ``write_timeout_s`` per queued reply, at most 2 s).
+        """
+        deadline = time.monotonic() + (min(2.0, self.write_timeout_s * (len(self._queue) + 1))
+                                       if timeout_s is None else timeout_s)
+        with self._cond:
+            while self._queue or self._writing:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return False
+                self._cond.wait(left)
+        return True
+
+    def close(self, timeout_s: float | None = None) -> None:
+        """Write what is queued (within ``timeout_s``, see :meth:`flush`), then stop the writer thread.
+
+        Replies still queued after that are dropped; the port itself is not closed.
+        """
+        self.flush(timeout_s)
+        with self._cond:
+            self._closed = True
+            for data in self._queue:
+                self._drop(len(data), "the endpoint is closing")
+            self._queue.clear()
+            self._queued_bytes = 0
+            self._cond.notify_all()
+            writer = self._writer
+        if writer is not None:
+            writer.join(self.write_timeout_s + 0.5)
 
     def send_reply(self, request: Request, body: Mapping[str, Any] | None = None) -> None:
         """Send a successful reply to ``request``.
@@ -202,7 +332,10 @@ class SerialEndpoint:
         handler's duration).  Port errors (e.g. ``serial.SerialException``)
         propagate to the caller.
         """
-        for request in self.requests(stop_event):
-            self.handle(request, handler)
-            if stop_event.is_set():
-                break
+        try:
+            for request in self.requests(stop_event):
+                self.handle(request, handler)
+                if stop_event.is_set():
+                    break
+        finally:
+            self.close()

@@ -2,7 +2,8 @@
 
 Payloads are compact UTF-8 JSON objects (an empty payload means ``{}``),
 except ``MODEL_CHUNK`` requests, whose payload is binary: ``u32 offset`` then
-the raw chunk bytes.  ``ERROR`` payloads are JSON
+the raw chunk bytes (with an upload session, the offset word has its top bit
+set and ``u32 session`` follows it).  ``ERROR`` payloads are JSON
 ``{"code": "<ErrorCode name>", "message": str, "field": str | null}``.
 
 The command set, with argument and reply schemas, is data: see
@@ -31,6 +32,10 @@ from edge.protocol.frame import DEFAULT_MAX_PAYLOAD, Frame, PROTOCOL_VERSION, RE
 _CHUNK_HEADER = struct.Struct("<I")
 #: Bytes of a MODEL_CHUNK payload taken by the offset field.
 CHUNK_HEADER_SIZE = _CHUNK_HEADER.size
+#: Set in a MODEL_CHUNK offset word when a u32 session id follows it (offsets stay below 2**26).
+CHUNK_SESSION_FLAG = 0x8000_0000
+#: Bytes of a MODEL_CHUNK payload taken by the offset and session fields.
+SESSION_CHUNK_HEADER_SIZE = 2 * CHUNK_HEADER_SIZE
 
 
 # --------------------------------------------------------------------------
@@ -99,10 +104,14 @@ def encode_request(command: Command, request_id: int, args: Mapping[str, Any] | 
     spec = COMMANDS[command]
     norm = validate_args(command, args)
     if spec.binary:
-        payload = _CHUNK_HEADER.pack(norm["offset"]) + norm["data"]
+        if "session" in norm:
+            header = _CHUNK_HEADER.pack(norm["offset"] | CHUNK_SESSION_FLAG) + _CHUNK_HEADER.pack(norm["session"])
+        else:
+            header = _CHUNK_HEADER.pack(norm["offset"])
+        payload = header + norm["data"]
         if len(payload) > max_payload:
             raise ProtocolError(f"chunk of {len(norm['data'])} B exceeds max_payload {max_payload} B "
-                                f"minus {CHUNK_HEADER_SIZE} B offset", "data")
+                                f"minus {len(header)} B header", "data")
     else:
         payload = _json_dumps(norm) if norm else b""
         if len(payload) > max_payload:
@@ -135,6 +144,13 @@ def decode_request(frame: Frame) -> Request:
                                 "offset", ErrorCode.BAD_FRAME, rid)
         (offset,) = _CHUNK_HEADER.unpack_from(frame.payload)
         raw_args: dict[str, Any] = {"offset": offset, "data": frame.payload[CHUNK_HEADER_SIZE:]}
+        if offset & CHUNK_SESSION_FLAG:
+            if len(frame.payload) < SESSION_CHUNK_HEADER_SIZE:
+                raise ProtocolError(f"{command.name} payload shorter than its {SESSION_CHUNK_HEADER_SIZE}-byte "
+                                    "offset and session", "session", ErrorCode.BAD_FRAME, rid)
+            (session,) = _CHUNK_HEADER.unpack_from(frame.payload, CHUNK_HEADER_SIZE)
+            raw_args = {"offset": offset & ~CHUNK_SESSION_FLAG, "session": session,
+                        "data": frame.payload[SESSION_CHUNK_HEADER_SIZE:]}
     else:
         raw_args = _json_loads(frame.payload, rid)
     try:

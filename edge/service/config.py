@@ -32,6 +32,9 @@ estimation
     Estimation method passed to the estimator.
 logging
     Log level.
+limits
+    What the device can hold: its RAM (``ram_bytes``), from which the model
+    bundle bounds are derived (:func:`edge.model.bundle.limits_for_ram`).
 
 Runtime settings
 ----------------
@@ -47,6 +50,7 @@ from __future__ import annotations
 
 import copy
 import json
+import logging
 import os
 import tomllib
 from dataclasses import dataclass, field, fields
@@ -72,6 +76,8 @@ __all__ = [
     "RuntimeOverrides",
 ]
 
+log = logging.getLogger("thermotouch.edge")
+
 #: No configuration may let the heater stay on longer than this (s).
 HARD_MAX_ON_TIME_s = 30.0
 #: No configuration may set the over-temperature cut above this (°C).
@@ -90,10 +96,14 @@ def setting(kind: str, default: Any, doc: str, *, runtime: bool = False, **bound
     """A configuration key: a dataclass field whose metadata holds its schema.
 
     ``runtime`` keys may be changed over the link (CONFIG_SET); the others only
-    in the file on the device.
+    in the file on the device. A runtime string must list its ``choices``: a
+    value set from afar is checked against what the device can do, never
+    taken as free text.
     """
     if kind == "str":
         bounds.setdefault("hi", 4096)  # a path or a name; anything longer is a mistake
+        if runtime and not bounds.get("choices"):  # a schema bug, caught at import
+            raise ValueError("a runtime-settable string needs its choices")
     return field(
         default=default, metadata={"schema": Field(kind, default, doc, **bounds), "runtime": runtime}
     )
@@ -288,6 +298,16 @@ class LoggingConfig:
     )
 
 
+@dataclass(frozen=True)
+class LimitsConfig:
+    """The ``[limits]`` section."""
+
+    ram_bytes: int = setting(
+        "int", 512 * 1024 * 1024, "device RAM, bytes; model bundle bounds are derived from it",
+        lo=64 * 1024 * 1024, hi=64 * 1024 ** 3,
+    )
+
+
 #: Section name -> its typed, frozen dataclass; the schema is read off their fields.
 SECTIONS: Mapping[str, type] = MappingProxyType(
     {
@@ -299,6 +319,7 @@ SECTIONS: Mapping[str, type] = MappingProxyType(
         "paths": PathsConfig,
         "estimation": EstimationConfig,
         "logging": LoggingConfig,
+        "limits": LimitsConfig,
     }
 )
 
@@ -512,6 +533,12 @@ class RuntimeOverrides:
             except ConfigError as e:
                 self.errors.append(str(e))
         return cfg
+
+    def clean_temporaries(self) -> None:
+        """Remove temp files a crash left beside the overrides file (``.runtime.json.tmp<pid>``)."""
+        if self.path is not None:
+            for p in durable.remove_stray_temporaries(self.path):
+                log.warning("removed stray temporary %s", p)
 
     def save(self, cfg: Config, base: Config) -> None:
         """Persist the runtime keys where ``cfg`` differs from ``base``."""

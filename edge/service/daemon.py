@@ -28,6 +28,22 @@ MODEL_BEGIN/CHUNK/COMMIT/ABORT (verified atomic install through
 :class:`edge.model.store.ModelStore`, :mod:`edge.service.upload`).
 Argument policy and reply sizing are in :mod:`edge.service.requests`.
 
+ABORT (answered while measuring too) cuts a running measurement: the heater
+goes off at once, the sequence ends with ``status = "aborted"``, ``reason =
+"host_abort"``, the record is stored and ABORT replies with its id.
+
+Degraded start
+--------------
+A state directory that is read-only or full, a corrupt history database, a
+model store that cannot be used: the daemon still starts, keeps the heater
+off, answers STATUS and INFO with a ``faults`` list saying what is wrong, and
+refuses MEASURE with BAD_STATE naming the faults. Faults are re-checked
+(at most every :data:`FAULT_RECHECK_s` on requests, and at once before each
+MEASURE), so the daemon measures again as soon as the cause is gone. A
+record the history cannot take is kept in memory (up to
+:data:`MAX_UNSAVED_RECORDS`) and stored on a later re-check; STATUS reports
+``unsaved_records``.
+
 MEASURE replies with the stored record (``measurement_id``, ``status``,
 ``flags``, ``result`` ...). Every measurement is committed to the history
 before the reply. A sensor fault or open thermocouple answers ERROR
@@ -39,6 +55,8 @@ with ``status = "aborted"`` and ``reason``.
 from __future__ import annotations
 
 import logging
+import os
+import sqlite3
 import threading
 import time
 from enum import StrEnum
@@ -54,7 +72,8 @@ from edge.hw.faults import SensorFault
 from edge.measure.sensors import make_sensors, thermocouple_resolution_K
 from edge.measure.sequence import EstimatorFn, MeasurementSequence, Phase
 from edge.measure.watchdog import HeaterWatchdog, Limits
-from edge.model.store import ModelStore, ModelStoreError
+from edge.model.bundle import limits_for_ram
+from edge.model.store import InstallError, ModelStore, ModelStoreError
 from edge.protocol.endpoint import SerialEndpoint
 from edge.protocol.frame import DEFAULT_MAX_PAYLOAD, PROTOCOL_VERSION
 from edge.protocol.commands import Command
@@ -66,15 +85,26 @@ from edge.service.requests import config_reply, fit_record, history_page, measur
 from edge.service.upload import MAX_UPLOAD_BYTES, ModelUpload
 from edge.service.worker import MeasurementWorker, measurement_budget_s
 from edge.status import Reason, Status
-from edge.storage.history import History
+from edge.storage import durable
+from edge.storage.history import History, HistoryError
 
-__all__ = ["FIRMWARE_VERSION", "ANSWERED_WHILE_MEASURING", "State", "Daemon"]
+__all__ = ["FIRMWARE_VERSION", "ANSWERED_WHILE_MEASURING", "FAULT_RECHECK_s", "MAX_UNSAVED_RECORDS",
+           "MIN_FREE_BYTES", "ABORT_WAIT_s", "State", "Daemon"]
 
 log = logging.getLogger("thermotouch.edge")
 
 FIRMWARE_VERSION = edge.__version__
 #: Requests answered while a measurement runs (everything else gets BUSY).
-ANSWERED_WHILE_MEASURING = frozenset({Command.STATUS, Command.PING})
+ANSWERED_WHILE_MEASURING = frozenset({Command.STATUS, Command.PING, Command.ABORT})
+#: Least time between two re-checks of active faults on ordinary requests, s.
+FAULT_RECHECK_s = 1.0
+#: Most records kept in memory while the history cannot store them (the oldest go first).
+MAX_UNSAVED_RECORDS = 16
+#: Free bytes the history's file system must have before a measurement (a record with its series
+#: is a few hundred kB at most; SQLite needs room for its journal too).
+MIN_FREE_BYTES = 4 * 1024 * 1024
+#: Longest ABORT waits for the aborted measurement to be stored, s.
+ABORT_WAIT_s = 10.0
 
 
 class State(StrEnum):
@@ -98,6 +128,42 @@ def _factory_bundle(cfg: Config) -> Path | None:
     except ImportError:
         return None
     return DEFAULT_BUNDLE if (DEFAULT_BUNDLE / "manifest.json").exists() else None
+
+
+class _UnavailableHistory:
+    """Stands in for a history database that cannot be opened; every use raises HistoryError."""
+
+    def __init__(self, path: str, error: str) -> None:
+        self.path, self.error = path, error
+
+    def __getattr__(self, name: str) -> Any:
+        def unavailable(*args: Any, **kw: Any) -> Any:
+            raise HistoryError(f"history database {self.path} unavailable: {self.error}")
+        return unavailable
+
+    def close(self) -> None:
+        pass
+
+    @property
+    def closed(self) -> bool:
+        return True
+
+
+class _UnavailableStore:
+    """Stands in for a model store that cannot be opened: no model, every install refused."""
+
+    def __init__(self, root: str, error: str, limits: Any) -> None:
+        self.root, self.error, self.limits, self.source = root, error, limits, None
+
+    def current(self) -> Any:
+        raise ModelStoreError(f"model store {self.root} unavailable: {self.error}")
+
+    def status(self) -> dict:
+        return {"source": None, "sha256": None, "model_version": None,
+                "error": f"model store {self.root} unavailable: {self.error}"}
+
+    def install(self, *args: Any, **kw: Any) -> Any:
+        raise InstallError(f"model store {self.root} unavailable: {self.error}")
 
 
 class Daemon:
@@ -137,17 +203,28 @@ class Daemon:
         self.heater.off()
         self.state = State.STARTING
         self.faults: list[str] = []
+        #: Active faults by component ("history", "storage", "model", ...): what is wrong now.
+        self.component_faults: dict[str, str] = {}
+        #: Records the history could not take yet (stored by the next successful re-check).
+        self.unsaved: list[dict] = []
+        self._last_check = float("-inf")
         self.t_start = time.monotonic()
         try:
             self.base_config = config
             self.overrides = RuntimeOverrides(config.paths.runtime_overrides or None)
+            try:
+                self.overrides.clean_temporaries()
+            except OSError as e:
+                log.warning("cannot remove stray temporaries of %s: %s", self.overrides.path, e)
             self.config = self.overrides.load(config)
             for err in self.overrides.errors:
                 log.warning("runtime override ignored: %s", err)
             self._apply_logging()
-            self.history = history if history is not None else History(self.config.paths.history_db)
-            self.store = model_store if model_store is not None else ModelStore(
-                self.config.paths.model_store, _factory_bundle(self.config), golden_check=pipeline_golden_check)
+            self.model_limits = limits_for_ram(self.config.limits.ram_bytes)
+            self._own_history = history is None
+            self.history = history if history is not None else self._open_history()
+            self._own_store = model_store is None
+            self.store = model_store if model_store is not None else self._open_store()
             try:
                 b = self.store.current()
                 log.info("model %s (%s) from %s", b.model_version, b.sha256[:12], self.store.source)
@@ -155,6 +232,9 @@ class Daemon:
                 log.error("no usable model yet: %s", e)
             self._model_est = ModelEstimator(self.store, thermocouple_resolution_K(self.config.sensors))
             self.estimator = estimator if estimator is not None else self._model_est
+            #: Set by ABORT: the running measurement stops with reason host_abort.
+            self._cancel = threading.Event()
+            self._last_run_id: int | None = None
             self.watchdog = HeaterWatchdog(self.heater, board.clock, h.max_on_time_s,
                                            abort_event=self.stop_event)
             self.sensors: Any = None
@@ -166,7 +246,11 @@ class Daemon:
             self.sequence: MeasurementSequence | None = None
             self.upload = ModelUpload(self.store, max_upload_bytes)
             self._series_cache: tuple[int, dict] | None = None
-            self.last_id: int | None = self.history.latest_id()
+            try:
+                self.last_id: int | None = self.history.latest_id()
+            except HistoryError as e:
+                self.last_id = None
+                self._set_fault("history", str(e))
             self.measurements = 0
             self.last_timing: dict[str, float | None] = {}
             # Presses while a measurement ran (e.g. the touch that started it) are not new requests.
@@ -176,6 +260,7 @@ class Daemon:
             self._worker = MeasurementWorker(self.stop_event)
             self.phase: Phase | None = None
             self._measure_t0: float | None = None
+            self._check_faults(force=True)
             self.state = State.IDLE
         except BaseException:
             if history is None and getattr(self, "history", None) is not None:
@@ -184,6 +269,124 @@ class Daemon:
             raise
 
     # -- set-up helpers --------------------------------------------------------------
+    def _open_history(self) -> Any:
+        path = self.config.paths.history_db
+        try:
+            h = History(path)
+        except (HistoryError, OSError, sqlite3.Error) as e:
+            self._set_fault("history", f"cannot open {path}: {e}")
+            return _UnavailableHistory(path, str(e))
+        self._clear_fault("history")
+        return h
+
+    def _open_store(self) -> Any:
+        root = self.config.paths.model_store
+        try:
+            store = ModelStore(root, _factory_bundle(self.config), golden_check=pipeline_golden_check,
+                               limits=self.model_limits)
+        except (ModelStoreError, OSError) as e:
+            self._set_fault("model_store", f"cannot open {root}: {e}")
+            return _UnavailableStore(root, str(e), self.model_limits)
+        self._clear_fault("model_store")
+        return store
+
+    # -- faults ------------------------------------------------------------------------
+    def _set_fault(self, component: str, message: str) -> None:
+        if self.component_faults.get(component) != message:
+            log.error("fault %s: %s", component, message)
+        self.component_faults[component] = message
+
+    def _clear_fault(self, component: str) -> None:
+        if self.component_faults.pop(component, None) is not None:
+            log.warning("fault %s cleared", component)
+
+    def fault_list(self) -> list[str]:
+        """What is wrong now: component faults, then the last heater faults (``faults`` in STATUS/INFO)."""
+        out = [f"{k}: {v}" for k, v in sorted(self.component_faults.items())]
+        return out + [f"heater: {f}" for f in self.faults[-5:]]
+
+    def _check_faults(self, *, force: bool = False) -> None:
+        """Re-check every fault that can heal by itself (at most every FAULT_RECHECK_s unless ``force``)."""
+        now = time.monotonic()
+        if not force and now - self._last_check < FAULT_RECHECK_s:
+            return
+        self._last_check = now
+        if isinstance(self.history, _UnavailableHistory) and self._own_history:
+            self.history = self._open_history()
+            if not isinstance(self.history, _UnavailableHistory):
+                try:
+                    self.last_id = self.history.latest_id()
+                except HistoryError as e:
+                    self._set_fault("history", str(e))
+        if isinstance(self.store, _UnavailableStore) and self._own_store:
+            self.store = self._open_store()
+            self._model_est.store = self.upload.store = self.store
+        self._check_storage()
+        self._store_unsaved()
+        if self.estimator is self._model_est:
+            try:
+                self.store.current()
+                self._clear_fault("model")
+            except ModelStoreError as e:
+                self._set_fault("model", f"{e} (a measurement would end estimation_failed)")
+
+    def _check_storage(self) -> None:
+        path = getattr(self.history, "path", ":memory:")
+        if path == ":memory:":
+            return
+        directory = os.path.dirname(os.path.abspath(path))
+        try:
+            free = durable.free_bytes(directory)
+        except OSError:
+            return  # cannot tell; the history's own errors will say
+        if free < MIN_FREE_BYTES:
+            self._set_fault("storage", f"{directory} is full: {free} B free, {MIN_FREE_BYTES} B needed")
+        elif not os.access(directory, os.W_OK):
+            self._set_fault("storage", f"{directory} is not writable")
+        else:
+            self._clear_fault("storage")
+
+    def _store_unsaved(self) -> None:
+        while self.unsaved:
+            try:
+                mid = self.history.add(self.unsaved[0])
+            except HistoryError as e:
+                self._set_fault("unsaved", f"{len(self.unsaved)} record(s) kept in memory: {e}")
+                return
+            rec = self.unsaved.pop(0)
+            self.last_id = mid
+            log.warning("measurement %d (%s) stored late", mid, rec.get("status"))
+        self._clear_fault("unsaved")
+
+    def _measure_blockers(self) -> list[str]:
+        model = ("model", "model_store") if self.estimator is self._model_est else ()
+        return [f"{k}: {v}" for k, v in sorted(self.component_faults.items())
+                if k in ("history", "storage", "unsaved") + model]
+
+    def _add_record(self, rec: dict) -> int | None:
+        """Store ``rec``; on failure keep it in memory (None) -- a touch that heated is never lost."""
+        try:
+            return self.history.add(rec)
+        except HistoryError as e:
+            err: Exception = e
+        except (ValueError, TypeError) as e:
+            # Something in it the database refuses (e.g. a NaN in the estimator's result):
+            # keep the measurement, drop the part that cannot be stored, say so.
+            log.error("record not storable as is (%s); storing it without its result", e)
+            rec = dict(rec, result=None, flags=[str(f) for f in rec.get("flags") or []],
+                       error=f"{rec.get('error') or ''}; result not storable: {e}".lstrip("; "))
+            try:
+                return self.history.add(rec)
+            except (HistoryError, ValueError, TypeError) as e2:
+                err = e2
+        if len(self.unsaved) >= MAX_UNSAVED_RECORDS:
+            lost = self.unsaved.pop(0)
+            log.critical("unsaved record of %s dropped: %d are kept at most", lost.get("started_utc"),
+                         MAX_UNSAVED_RECORDS)
+        self.unsaved.append(rec)
+        self._set_fault("unsaved", f"{len(self.unsaved)} record(s) kept in memory: {err}")
+        return None
+
     def _apply_logging(self) -> None:
         for name in ("thermotouch", "edge"):  # the daemon's and the drivers'/sequence's loggers
             logging.getLogger(name).setLevel(self.config.logging.level)
@@ -215,7 +418,7 @@ class Daemon:
             self.sequence = MeasurementSequence(
                 self.heater, self.sensors, self.board.clock, Limits(h.max_on_time_s, h.over_temperature_C),
                 self._estimate, self.config.measurement, watchdog=self.watchdog, abort_event=self.stop_event,
-                model_sha256=self._model_sha256, on_state=self._on_state)
+                model_sha256=self._model_sha256, on_state=self._on_state, cancel_event=self._cancel)
         self.sequence.thresholds = self.config.measurement
         return self.sequence
 
@@ -234,7 +437,12 @@ class Daemon:
         fn = getattr(self, f"_cmd_{req.command.name.lower()}", None)
         if fn is None:  # pragma: no cover - every command has a handler
             raise CommandError(ErrorCode.UNKNOWN_COMMAND, f"{req.command.name} is not implemented")
-        return fn(req.args)
+        if req.command not in (Command.MEASURE, Command.ABORT):  # MEASURE re-checks itself, ABORT is urgent
+            self._check_faults()
+        try:
+            return fn(req.args)
+        except HistoryError as e:
+            raise CommandError(ErrorCode.BAD_STATE, f"history unavailable: {e}") from None
 
     def _cmd_ping(self, args: dict) -> dict:
         return {"echo": args.get("echo")}
@@ -243,13 +451,19 @@ class Daemon:
         st = self.store.status()
         return {"protocol_version": PROTOCOL_VERSION, "firmware_version": FIRMWARE_VERSION,
                 "model_version": st.get("model_version"), "model_sha256": st.get("sha256"),
-                "model_source": st.get("source"), "board": self.board.name}
+                "model_source": st.get("source"), "board": self.board.name, "faults": self.fault_list()}
 
     def _cmd_status(self, args: dict) -> dict:
+        try:
+            total: int | None = self.history.count()
+        except HistoryError:
+            total = None  # named in faults
         out = {"state": self.state, "heater_on": self.heater.is_on,
                "heater_on_time_s": round(self.heater.on_time_s, 6), "measurements": self.measurements,
-               "last_measurement_id": self.last_id, "history_total": self.history.count(),
-               "sensor_error": self.sensor_error, "faults": list(self.faults[-5:]),
+               "last_measurement_id": self.last_id, "history_total": total,
+               "sensor_error": self.sensor_error, "faults": self.fault_list(),
+               "unsaved_records": len(self.unsaved), "can_measure": not self._measure_blockers(),
+               "replies_dropped": getattr(getattr(self, "endpoint", None), "replies_dropped", 0),
                "uptime_s": round(time.monotonic() - self.t_start, 3)}
         upload = self.upload.progress()
         if upload is not None:
@@ -288,6 +502,11 @@ class Daemon:
                                + "; ".join(self.faults[-1:]))
         if self.stop_event.is_set():
             raise CommandError(ErrorCode.BAD_STATE, "daemon is stopping")
+        self._last_run_id = None
+        self._check_faults(force=True)
+        blockers = self._measure_blockers()
+        if blockers:
+            raise CommandError(ErrorCode.BAD_STATE, "cannot measure, heater kept off: " + "; ".join(blockers))
         cfg = self.config
         params = measure_params(cfg, self.heater.max_power_W, power_W=power_W, voltage_V=voltage_V,
                                 contact_time_s=contact_time_s)
@@ -306,8 +525,15 @@ class Daemon:
         self.measurements += 1
         self._idle_since = self.board.clock.monotonic()
         t_commit = time.perf_counter()
-        mid = self.history.add(outcome.record(cfg.to_dict()))
+        mid = self._add_record(outcome.record(cfg.to_dict()))
         commit_s = time.perf_counter() - t_commit
+        if mid is None:
+            log.error("measurement (%s) not stored yet: %s", outcome.status, self.component_faults.get("unsaved"))
+            raise CommandError(ErrorCode.INTERNAL, f"measurement ended {outcome.status}"
+                               f"{' (' + outcome.reason + ')' if outcome.reason else ''} but the history could "
+                               f"not store it: {self.component_faults.get('unsaved')}; it is kept in memory and "
+                               "stored once the history works again")
+        self._last_run_id = mid
         #: Wall-clock costs of the last measurement after its last sample (for bench/).
         self.last_timing = {"compute_s": outcome.compute_s, "commit_s": commit_s,
                             "compute_and_commit_s": None if outcome.compute_s is None
@@ -387,17 +613,37 @@ class Daemon:
         log.info("configuration changed: %s", {k: new.get(k) for k in values})
         return config_reply(new.flat(), self.max_payload)
 
+    def _cmd_abort(self, args: dict) -> dict:
+        if not self.measuring and not self._measure_lock.locked():
+            return {"aborted": False, "measurement_id": None}
+        self._cancel.set()  # first, so the sequence reads the heater cut below as the host's abort
+        try:
+            self.heater.off()  # at once, not at the sequence's next sample
+        except HeaterError as e:
+            log.critical("ABORT: heater did not switch off: %s", e)
+        log.warning("ABORT: measurement cut by the host")
+        deadline = time.monotonic() + ABORT_WAIT_s
+        # The worker stores the record, then releases; wait for that (never past a stop).
+        while (self.measuring or self._measure_lock.locked()) and time.monotonic() < deadline \
+                and not self.stop_event.is_set():
+            time.sleep(0.005)
+        done = not (self.measuring or self._measure_lock.locked())
+        if done:
+            self._cancel.clear()
+        return {"aborted": True, "measurement_id": self._last_run_id if done else None}
+
     def _cmd_model_begin(self, args: dict) -> dict:
-        return self.upload.begin(args["size"], args["sha256"], args.get("version"))
+        out = self.upload.begin(args["size"], args["sha256"], args.get("version"))
+        return {**out, "session": self.upload.session}
 
     def _cmd_model_chunk(self, args: dict) -> dict:
-        return self.upload.chunk(args["offset"], args["data"])
+        return self.upload.chunk(args["offset"], args["data"], args.get("session"), require_session=True)
 
     def _cmd_model_commit(self, args: dict) -> dict:
-        return self.upload.commit()
+        return self.upload.commit(args.get("session"), require_session=True)
 
     def _cmd_model_abort(self, args: dict) -> dict:
-        return self.upload.abort()
+        return self.upload.abort(args.get("session"), require_session=True)
 
     # -- serving ---------------------------------------------------------------------
     @property
@@ -425,6 +671,7 @@ class Daemon:
             return
         if req.command == Command.MEASURE:
             # The reply, addressed to this request id, is sent by the worker when the measurement ends.
+            self._cancel.clear()
             self._worker.start(lambda: endpoint.handle(req, self._handle_measure), "measure")
             return
         endpoint.handle(req, self.handle)
@@ -446,6 +693,7 @@ class Daemon:
             return
         if ev is not None and ev.pressed and ev.t_s >= self._idle_since:
             log.info("trigger button pressed: measuring")
+            self._cancel.clear()
             self._worker.start(self._button_measure, "button-measure")
 
     def serve(self, ser: Any, stop_event: threading.Event | None = None, *, poll_s: float = 0.05) -> None:
@@ -461,13 +709,17 @@ class Daemon:
         """
         stop = stop_event if stop_event is not None else self.stop_event
         endpoint = SerialEndpoint(ser, max_payload=self.max_payload, poll_s=poll_s)
+        #: The link being served (its ``replies_dropped`` counts replies a host did not read in time).
+        self.endpoint = endpoint
         abort = True
         try:
             while not stop.is_set() and not self.stop_event.is_set():
                 for req in endpoint.poll():
                     self._dispatch(endpoint, req)
-                    if stop.is_set():
+                    if stop.is_set() or self.stop_event.is_set():
                         break
+                if not self.measuring:
+                    self._check_faults()  # periodic: a fault heals without a request
                 self._poll_button()
             abort = self.stop_event.is_set()
         except Exception:
@@ -477,7 +729,12 @@ class Daemon:
             try:
                 self._join_worker(abort=abort)
             finally:
-                self.heater.off()
+                try:
+                    self.heater.off()
+                finally:
+                    # Replies already queued go out, within one write timeout: a host that
+                    # stopped reading cannot hold up a stop.
+                    endpoint.close(timeout_s=endpoint.write_timeout_s)
 
     def close(self) -> None:
         """Heater off and closed, watchdog stopped, history closed (idempotent)."""

@@ -5,6 +5,13 @@
     no upload --begin--> receiving --chunk...--> receiving --commit--> no upload (installed or refused)
                                    \\--abort / begin again--> no upload / new upload
 
+Each MODEL_BEGIN opens a new *session* with a random non-zero u32 id
+(:attr:`ModelUpload.session`, sent back in the MODEL_BEGIN reply); MODEL_CHUNK,
+MODEL_COMMIT and MODEL_ABORT name it. A request for another session -- a
+second host, or a host whose upload was superseded by a newer MODEL_BEGIN --
+is refused with BAD_STATE and leaves the owner's upload untouched, so two
+hosts cannot interleave their bytes into one bundle.
+
 The blob is held in memory until commit (bundles are small; the size is
 bounded before the first byte arrives), then handed to
 :meth:`edge.model.store.ModelStore.install`, which verifies it and installs it
@@ -16,6 +23,7 @@ daemon's handlers only forward their arguments.
 from __future__ import annotations
 
 import logging
+import secrets
 from typing import Any
 
 from edge.model.store import InstallError, ModelStore
@@ -32,7 +40,8 @@ MAX_UPLOAD_BYTES = 8 * 1024 * 1024
 class _Pending:
     """What MODEL_BEGIN announced and the bytes received so far."""
 
-    def __init__(self, size: int, sha256: str, version: str | None) -> None:
+    def __init__(self, size: int, sha256: str, version: str | None, session: int) -> None:
+        self.session = session
         self.size = size
         self.sha256 = sha256
         self.version = version
@@ -55,6 +64,33 @@ class ModelUpload:
         self.store = store
         self.max_upload_bytes = int(max_upload_bytes)
         self._pending: _Pending | None = None
+        self._last_session = 0
+
+    @property
+    def session(self) -> int | None:
+        """Id of the upload session in progress (None without one)."""
+        return None if self._pending is None else self._pending.session
+
+    def _new_session(self) -> int:
+        while True:  # random, so a host's id from before a restart is (almost surely) stale
+            sid = secrets.randbits(32)
+            if sid and sid != self._last_session:
+                self._last_session = sid
+                return sid
+
+    def _owned(self, session: int | None, command: str, *, required: bool) -> _Pending:
+        """The upload in progress if ``session`` owns it (None is not checked unless ``required``)."""
+        up = self._pending
+        if up is None:
+            raise CommandError(ErrorCode.BAD_STATE, "no upload in progress (send MODEL_BEGIN first)")
+        if session is None and required:
+            raise CommandError(ErrorCode.BAD_STATE, f"{command} must carry the session id from MODEL_BEGIN",
+                               "session")
+        if session is not None and session != up.session:
+            log.warning("%s for session %d refused: upload session %d is in progress", command, session, up.session)
+            raise CommandError(ErrorCode.BAD_STATE, f"session {session} is not the upload in progress "
+                               "(stale or another host's); it is left untouched", "session")
+        return up
 
     @property
     def in_progress(self) -> bool:
@@ -83,12 +119,18 @@ class ModelUpload:
         if size > limit:
             raise CommandError(ErrorCode.MODEL_REJECTED, f"size {size} B exceeds the upload limit of {limit} B",
                                "size")
-        self._pending = _Pending(size, sha256, version)
-        log.info("model upload started: %d B, sha256 %s", size, sha256[:12])
+        if self._pending is not None:
+            log.info("model upload session %d superseded by a new MODEL_BEGIN", self._pending.session)
+        self._pending = _Pending(size, sha256, version, self._new_session())
+        log.info("model upload session %d started: %d B, sha256 %s", self._pending.session, size, sha256[:12])
         return {"size": size}
 
-    def chunk(self, offset: int, data: bytes) -> dict[str, Any]:
+    def chunk(self, offset: int, data: bytes, session: int | None = None, *,
+              require_session: bool = False) -> dict[str, Any]:
         """Add ``data`` at ``offset``; a resent chunk already held is accepted again.
+
+        ``session`` must name the upload in progress (None: not checked,
+        unless ``require_session``).
 
         Returns
         -------
@@ -98,13 +140,11 @@ class ModelUpload:
         Raises
         ------
         CommandError
-            BAD_STATE without an upload; BAD_ARGUMENT for a chunk past the
-            announced size or at an offset other than the next byte (and not
-            a resend).
+            BAD_STATE without an upload or for another session; BAD_ARGUMENT
+            for a chunk past the announced size or at an offset other than the
+            next byte (and not a resend).
         """
-        up = self._pending
-        if up is None:
-            raise CommandError(ErrorCode.BAD_STATE, "no upload in progress (send MODEL_BEGIN first)")
+        up = self._owned(session, "MODEL_CHUNK", required=require_session)
         held = len(up.data)
         if offset + len(data) > up.size:
             raise CommandError(ErrorCode.BAD_ARGUMENT, f"chunk [{offset}, {offset + len(data)}) runs past the "
@@ -117,8 +157,10 @@ class ModelUpload:
             raise CommandError(ErrorCode.BAD_ARGUMENT, f"chunk at offset {offset}, expected {held}", "offset")
         return {"received": len(up.data)}
 
-    def commit(self) -> dict[str, Any]:
+    def commit(self, session: int | None = None, *, require_session: bool = False) -> dict[str, Any]:
         """Install the complete upload; the session ends whether the store accepts it or not.
+
+        ``session`` as for :meth:`chunk`.
 
         Returns
         -------
@@ -129,12 +171,11 @@ class ModelUpload:
         Raises
         ------
         CommandError
-            BAD_STATE without an upload or before all bytes arrived (the
-            upload stays open); MODEL_REJECTED if the store refuses the blob.
+            BAD_STATE without an upload, for another session or before all
+            bytes arrived (the upload stays open); MODEL_REJECTED if the store
+            refuses the blob.
         """
-        up = self._pending
-        if up is None:
-            raise CommandError(ErrorCode.BAD_STATE, "no upload in progress")
+        up = self._owned(session, "MODEL_COMMIT", required=require_session)
         if len(up.data) != up.size:
             raise CommandError(ErrorCode.BAD_STATE, f"upload incomplete: {len(up.data)} of {up.size} B")
         self._pending = None
@@ -147,7 +188,16 @@ class ModelUpload:
         log.info("model %s (%s) installed", bundle.model_version, bundle.sha256[:12])
         return {"model_sha256": up.sha256, "bundle_sha256": bundle.sha256, "model_version": bundle.model_version}
 
-    def abort(self) -> dict[str, Any]:
-        """Drop the upload in progress, if any (always succeeds)."""
+    def abort(self, session: int | None = None, *, require_session: bool = False) -> dict[str, Any]:
+        """Drop the upload in progress, if any and if ``session`` owns it (as for :meth:`chunk`).
+
+        Raises
+        ------
+        CommandError
+            BAD_STATE if another session's upload is in progress (it goes on).
+        """
+        if self._pending is not None:
+            self._owned(session, "MODEL_ABORT", required=require_session)
+            log.info("model upload session %d aborted", self._pending.session)
         self._pending = None
         return {}

@@ -79,3 +79,25 @@ def atomic_write_file(path: Path, data: bytes) -> None:
     write_new_file(tmp, data)
     replace(tmp, path)
     fsync_dir(path.parent)
+
+
+def free_bytes(path: Path) -> int:
+    """Bytes available to this process on the file system holding ``path`` (a seam for tests)."""
+    return shutil.disk_usage(path).free
+
+
+def remove_stray_temporaries(path: Path) -> list[Path]:
+    """Delete the temp siblings :func:`atomic_write_file` leaves when a crash hits it mid-write.
+
+    Returns the paths removed. The temporaries are named ``.<name>.tmp<pid>``.
+    """
+    path = Path(path)
+    removed = []
+    if not path.parent.is_dir():
+        return removed
+    prefix = f".{path.name}.tmp"
+    for entry in os.listdir(path.parent):
+        if entry.startswith(prefix):
+            remove_tree(path.parent / entry)
+            removed.append(path.parent / entry)
+    return removed

@@ -182,9 +182,12 @@ VALID = {
     Command.CONFIG_SET: [{"values": {"heater.power_W": 0.4, "name": "probe", "on": True, "cal": [1, 2.5]}}],
     Command.SERIES: [{"measurement_id": 3}, {"measurement_id": 0, "which": "grid", "offset": 120, "limit": 2048}],
     Command.MODEL_BEGIN: [{"size": 1000, "sha256": SHA}, {"size": 1, "sha256": SHA.upper(), "version": "v2"}],
-    Command.MODEL_CHUNK: [{"offset": 0, "data": b"\x00\x01\xff"}, {"offset": 4096, "data": bytes(4092)}],
-    Command.MODEL_COMMIT: [{}],
-    Command.MODEL_ABORT: [{}],
+    Command.MODEL_CHUNK: [{"offset": 0, "data": b"\x00\x01\xff"}, {"offset": 4096, "data": bytes(4092)},
+                          {"offset": 7, "data": b"\x00", "session": 0xFFFFFFFF},
+                          {"offset": 0, "data": bytes(4088), "session": 1}],
+    Command.MODEL_COMMIT: [{}, {"session": 12345}],
+    Command.MODEL_ABORT: [{}, {"session": 1}],
+    Command.ABORT: [{}],
 }
 
 INVALID = [
@@ -237,6 +240,10 @@ INVALID = [
     (Command.MODEL_CHUNK, {"data": b"x"}, "offset"),
     (Command.MODEL_COMMIT, {"sha256": SHA}, "sha256"),
     (Command.MODEL_ABORT, {"now": 1}, "now"),
+    (Command.MODEL_ABORT, {"session": 0}, "session"),
+    (Command.MODEL_COMMIT, {"session": "abc"}, "session"),
+    (Command.MODEL_CHUNK, {"offset": 0, "data": b"x", "session": 2**32}, "session"),
+    (Command.ABORT, {"measurement_id": 1}, "measurement_id"),
 ]
 
 
@@ -323,6 +330,30 @@ def test_model_chunk_binary_layout_and_short_payload():
     with pytest.raises(ProtocolError) as ei:
         encode_request(Command.MODEL_CHUNK, 1, {"offset": 0, "data": bytes(4096 - CHUNK_HEADER_SIZE + 1)})
     assert ei.value.field == "data"
+
+
+def test_model_chunk_with_a_session_sets_the_flag_and_carries_the_id():
+    wire = encode_request(Command.MODEL_CHUNK, 1, {"offset": 0x0302010F, "session": 0x0A0B0C0D, "data": b"\x07"})
+    (frame,) = FrameDecoder().feed(wire)
+    assert frame.payload == b"\x0f\x01\x02\x83\x0d\x0c\x0b\x0a\x07"
+    assert decode_request(frame).args == {"offset": 0x0302010F, "session": 0x0A0B0C0D, "data": b"\x07"}
+    # The flag promises a session: a payload too short for it is a bad frame.
+    with pytest.raises(ProtocolError) as ei:
+        decode_request(Frame(Command.MODEL_CHUNK, 1, b"\x00\x00\x00\x80\x01\x00"))
+    assert ei.value.field == "session" and ei.value.code == ErrorCode.BAD_FRAME
+    with pytest.raises(ProtocolError) as ei:
+        encode_request(Command.MODEL_CHUNK, 1, {"offset": 0, "session": 1, "data": bytes(4096 - 8 + 1)})
+    assert ei.value.field == "data"
+
+
+def test_abort_reply_schema():
+    ok = decode_reply(Frame(reply_type(Command.ABORT), 3, b'{"aborted":true,"measurement_id":4}'))
+    assert ok.body == {"aborted": True, "measurement_id": 4}
+    assert decode_reply(Frame(reply_type(Command.ABORT), 3, b'{"aborted":false,"measurement_id":null}')).body[
+        "measurement_id"] is None
+    with pytest.raises(ProtocolError) as ei:
+        decode_reply(Frame(reply_type(Command.ABORT), 3, b'{"aborted":true}'))
+    assert ei.value.field == "measurement_id"
 
 
 # ---------------------------------------------------------------- replies

@@ -81,3 +81,30 @@ def test_incomplete_commit_keeps_the_upload_and_a_refused_one_ends_it():
     with pytest.raises(CommandError) as e:
         up.commit()
     assert e.value.code == ErrorCode.MODEL_REJECTED and not up.in_progress and store.installed == []
+
+
+def test_sessions_refuse_foreign_and_stale_requests_without_disturbing_the_owner():
+    store = FakeStore()
+    up = ModelUpload(store)
+    data, sha = _blob()
+    up.begin(len(data), sha)
+    s1 = up.session
+    assert isinstance(s1, int) and 1 <= s1 <= 0xFFFFFFFF
+    assert up.chunk(0, data[:40], s1, require_session=True) == {"received": 40}
+    for call in (lambda: up.chunk(40, b"\xee" * 10, s1 ^ 1, require_session=True),
+                 lambda: up.chunk(40, b"\xee" * 10, None, require_session=True),
+                 lambda: up.commit(s1 ^ 1, require_session=True),
+                 lambda: up.abort(s1 ^ 1, require_session=True)):
+        with pytest.raises(CommandError) as e:
+            call()
+        assert e.value.code == ErrorCode.BAD_STATE
+    assert up.progress() == {"received": 40, "size": len(data)} and up.session == s1
+    up.begin(len(data), sha)  # a newer upload: s1 is stale now
+    s2 = up.session
+    assert s2 != s1
+    with pytest.raises(CommandError) as e:
+        up.chunk(0, data, s1, require_session=True)
+    assert e.value.code == ErrorCode.BAD_STATE
+    assert up.chunk(0, data, s2, require_session=True) == {"received": len(data)}
+    assert up.commit(s2, require_session=True)["model_sha256"] == sha
+    assert up.session is None and up.abort(s2, require_session=True) == {}  # nothing left: a no-op
