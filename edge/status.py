@@ -45,7 +45,8 @@ class Reason(StrEnum):
     SENSOR_FAULT = "sensor_fault"
     #: The thermocouple converter reports an open junction.
     OPEN_THERMOCOUPLE = "open_thermocouple"
-    #: The heater could not be switched off (measurements stop until restart).
+    #: The heater could not be switched off, or it heats when commanded off or not when on
+    #: (measurements stop until restart).
     HEATER_FAULT = "heater_fault"
     #: An unexpected exception in the sequence.
     INTERNAL = "internal"
@@ -69,6 +70,8 @@ class Flag(StrEnum):
     NOISY = "noisy"
     #: Baseline drift above ``unstable_baseline_K``.
     UNSTABLE_BASELINE = "unstable_baseline"
+    #: The heater does not follow its command (see ``heater.fault_flux_W_m2``): the run is failed.
+    HEATER_FAULT = "heater_fault"
     # -- from the estimator
     #: No usable temperature rise at all.
     NO_SIGNAL = "no_signal"

@@ -27,6 +27,8 @@ from firmware_sim.bus import SimBus
 from firmware_sim.chips.ads1115 import ADS1115 as SimADS1115
 from firmware_sim.chips.mcp9600 import MCP9600 as SimMCP9600
 from firmware_sim.clock import VirtualClock
+from firmware_sim.gpio import GpioSim
+from firmware_sim.pwm import SimPwmTree
 from firmware_sim.sim_board import make_sim_board
 
 __all__ = ["World", "Rig", "make_rig", "heater_on_intervals", "heater_invariant"]
@@ -124,11 +126,19 @@ class Rig:
 def make_rig(*, effusivity: float = 1400.0, contact: bool = True, T0_C: float = 25.0,
              supply_voltage_V: float = 15.0, resistance_ohm: float = 44.0,
              sensitivity_V_per_W_m2: float = 0.56e-6, seed: int = 0,
-             T_noise_V: float = 0.0, flux_noise_V: float = 0.0) -> Rig:
-    """Sim board with an MCP9600 at 0x60 and an ADS1115 at 0x48 on a SimBus."""
+             T_noise_V: float = 0.0, flux_noise_V: float = 0.0, gpio_state_dir: Any = None,
+             pwm_root: Any = None) -> Rig:
+    """Sim board with an MCP9600 at 0x60 and an ADS1115 at 0x48 on a SimBus.
+
+    ``gpio_state_dir`` and ``pwm_root`` put the GPIO line states
+    (:mod:`firmware_sim.gpio_state`) and the sysfs PWM tree in directories
+    that outlive this process (a test that kills it reads them afterwards).
+    """
     clock = VirtualClock()
     bus = SimBus(clock=clock, rng=seed)
-    board = make_sim_board(clock=clock, i2c=bus)
+    gpio = GpioSim(clock, state_dir=gpio_state_dir)
+    pwm_tree = None if pwm_root is None else SimPwmTree(clock, pwm_root)
+    board = make_sim_board(clock=clock, i2c=bus, gpio=gpio, pwm_tree=pwm_tree)
     parts = board.extras["sim"]
     world = World(clock, parts, supply_voltage_V=supply_voltage_V, resistance_ohm=resistance_ohm,
                   effusivity=effusivity, T0_C=T0_C, contact=contact)

@@ -35,9 +35,16 @@ Debounce follows the kernel's software debouncer (gpiolib-cdev): a level
 change is reported only once the line has been stable for the debounce
 period, and the event is time-stamped at the end of that period.
 
-Released lines keep driving their last output value, as most GPIO
-controllers do; device code must drive a line to its safe level before
-releasing it.
+A released line (its request released, or its process dead: the kernel
+releases a dead process's requests) stops being driven: with a pull-up or
+pull-down bias it returns to an input at that level; with no bias it keeps
+its last output value, as most GPIO controllers do. Device code that needs a
+safe level after its own death requests the line with the bias that pulls it
+there (:meth:`edge.hw.board.GpioLine.request_fail_safe_output`).
+
+``GpioSim(clock, state_dir=DIR)`` mirrors every line's state to files with
+the holder's pid (:mod:`firmware_sim.gpio_state`), so another process can
+read a line after the simulated device process died.
 """
 
 from __future__ import annotations
@@ -54,6 +61,8 @@ from dataclasses import dataclass
 from datetime import timedelta
 from enum import Enum
 from typing import Any, Iterable
+
+from firmware_sim.gpio_state import LineStateDir
 
 __all__ = [
     "Value",
@@ -497,6 +506,7 @@ class SimChip:
             return
         ln.level = new
         ln.history.append((t, new))
+        self._gsim._mirror(self, ln, t)
         s = ln.settings
         if quiet or ln.request is None or ln.is_output() or s.edge_detection is Edge.NONE:
             ln.reported = new
@@ -562,6 +572,7 @@ class SimChip:
                 self._update_level(ln, now, quiet=True)
                 ln.reported = ln.level
                 ln.debounce_due = None
+                self._gsim._mirror(self, ln)
 
     def _release(self, offsets: Iterable[int]) -> None:
         with self._gsim.lock:
@@ -569,8 +580,14 @@ class SimChip:
                 ln = self._lines[off]
                 ln.request = None
                 ln.debounce_due = None
-                # Direction, bias and the driven level stay as configured.
-                ln.settings = LineSettings(direction=ln.settings.direction, bias=ln.settings.bias)
+                # A biased output stops being driven and is pulled to its bias level;
+                # otherwise direction, bias and the driven level stay as configured.
+                direction = ln.settings.direction
+                if direction is Direction.OUTPUT and ln.settings.bias in (Bias.PULL_UP, Bias.PULL_DOWN):
+                    direction = Direction.INPUT
+                ln.settings = LineSettings(direction=direction, bias=ln.settings.bias)
+                self._update_level(ln, self._gsim.clock.now(), quiet=True)
+                self._gsim._mirror(self, ln)
 
     def _get(self, off: int) -> Value:
         with self._gsim.lock:
@@ -895,10 +912,12 @@ class GpioSim:
         input changes are applied as it advances.
     """
 
-    def __init__(self, clock: Any) -> None:
+    def __init__(self, clock: Any, *, state_dir: str | os.PathLike | None = None) -> None:
         self.clock = clock
         self.lock = threading.RLock()
         self._chips: dict[str, SimChip] = {}
+        #: Where line states are mirrored for other processes (None: not mirrored).
+        self.state_dir = None if state_dir is None else LineStateDir(state_dir)
         clock.on_advance(self._on_advance)
         self.gpiod = self._make_module()
 
@@ -932,6 +951,17 @@ class GpioSim:
     def _on_advance(self, t_old: float, t_new: float) -> None:
         for chip in list(self._chips.values()):
             chip._process_until(t_new)
+
+    def _mirror(self, chip: SimChip, ln: _Line, t: float | None = None) -> None:
+        """Write one line's state to ``state_dir`` (if set), with the holder's pid."""
+        if self.state_dir is None:
+            return
+        self.state_dir.write(chip.name, ln.offset, {
+            "t_s": self.clock.now() if t is None else t, "level": ln.level,
+            "direction": ln.settings.direction.name, "bias": ln.settings.bias.name,
+            "active_low": ln.settings.active_low,
+            "consumer": None if ln.request is None else ln.request._consumer,
+            "pid": None if ln.request is None else os.getpid()})
 
     def _make_module(self) -> types.SimpleNamespace:
         bound_chip = type("Chip", (Chip,), {"_gsim": self, "__module__": __name__})

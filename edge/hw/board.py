@@ -108,19 +108,44 @@ class GpioLine:
         if not isinstance(self.chip_path, str) or not self.chip_path:
             raise ValueError(f"chip_path must be a non-empty str, got {self.chip_path!r}")
 
-    def _bias(self) -> Any:
-        return self.gpiod.line.Bias[self.bias.upper().replace("-", "_")]
+    def _bias(self, bias: str | None = None) -> Any:
+        bias = self.bias if bias is None else bias
+        if bias not in _BIASES:
+            raise ValueError(f"bias must be one of {_BIASES}, got {bias!r}")
+        return self.gpiod.line.Bias[bias.upper().replace("-", "_")]
 
-    def request_output(self, consumer: str, value: bool = False) -> Any:
-        """Request the line as an output driven to logical ``value``; return the request."""
+    @property
+    def inactive_bias(self) -> str:
+        """The bias that pulls the line to its *inactive* level: pull-down, or pull-up if active low."""
+        return "pull-up" if self.active_low else "pull-down"
+
+    def request_output(self, consumer: str, value: bool = False, *, bias: str | None = None) -> Any:
+        """Request the line as an output driven to logical ``value``; return the request.
+
+        ``bias`` overrides the line's configured bias for this request.
+        """
         g = self.gpiod
         settings = g.LineSettings(
             direction=g.line.Direction.OUTPUT,
             output_value=g.line.Value.ACTIVE if value else g.line.Value.INACTIVE,
             active_low=self.active_low,
-            bias=self._bias(),
+            bias=self._bias(bias),
         )
         return g.request_lines(self.chip_path, config={self.offset: settings}, consumer=consumer)
+
+    def request_fail_safe_output(self, consumer: str) -> Any:
+        """Request the line as an output driven inactive, biased towards inactive.
+
+        For a line whose active level is dangerous (the heater enable): the
+        kernel releases a process's line requests when it dies, however it
+        dies (SIGKILL, OOM kill, a crash in C, a watchdog kill of a frozen
+        process), and a released line is no longer driven. With the bias
+        pulling towards the inactive level, the line then falls inactive
+        where the controller returns freed lines to inputs (BCM283x/RP1 do,
+        unless the kernel is told to keep freed outputs; the board's external
+        pull resistor on the switch's gate covers the rest).
+        """
+        return self.request_output(consumer, value=False, bias=self.inactive_bias)
 
     def request_input(self, consumer: str, *, edge: str = "none", debounce_s: float = 0.0) -> Any:
         """Request the line as an input with edge detection and debouncing; return the request.
@@ -402,7 +427,8 @@ def force_rpi_heater_off(
     ``ExecStopPost``: it needs neither I2C nor a complete board, so a missing
     sensor bus or a crashed daemon cannot leave the heater on.  Both channels
     are tried whatever happens to the other: the enable line is driven
-    inactive (it keeps that level after release) and the PWM channel, if it
+    inactive and released biased towards inactive (see
+    :meth:`GpioLine.request_fail_safe_output`) and the PWM channel, if it
     is exported, gets duty 0 and is disabled.  ``gpiod_module`` and
     ``pwm_io`` replace the real gpiod module and sysfs file access (tests).
     """
@@ -412,7 +438,7 @@ def force_rpi_heater_off(
         if g is None:
             import gpiod as g  # noqa: PLC0415 - real hardware only
         line = GpioLine(g, gpio_chip, heater_enable_offset, active_low=heater_active_low)
-        line.request_output("thermotouch-heater-off", value=False).release()
+        line.request_fail_safe_output("thermotouch-heater-off").release()
     except Exception as e:  # noqa: BLE001 - report and go on to the PWM
         failures.append(f"enable line {gpio_chip}:{heater_enable_offset}: {e}")
     try:

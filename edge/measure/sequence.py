@@ -29,6 +29,16 @@ Safety (the heater can burn)
   and cuts the heater even while the loop is stuck in a driver call.
 * A thermocouple reading above ``over_temperature_C`` or an open
   thermocouple (SensorFault ``open_thermocouple``) cuts the heater at once.
+* The heater must follow its command: heat arriving while it is off (in the
+  cool-down, which is sampled, or the baseline:
+  :func:`edge.measure.signal.heat_while_off`) or no heat while it is on
+  (:func:`edge.measure.signal.no_heat_while_on`) is a heater fault: the run
+  fails with reason and flag ``heater_fault`` and the heater is disabled
+  (:meth:`~edge.hw.drivers.heater.Heater.disable`), which stops the daemon
+  measuring until it restarts.
+* Each turn of the sampling and waiting loops beats ``beats`` (the systemd
+  watchdog, :class:`edge.service.notify.Notifier`), so a loop stuck in a
+  driver call stops the watchdog pets.
 
 Nothing here imports the simulator; sensors are reached through the board.
 """
@@ -49,9 +59,9 @@ from edge.hw.drivers.heater import Heater, HeaterOffError
 from edge.physics.probe import volumetric_heat_W_m3
 from edge.hw.faults import SensorFault
 from edge.measure.sensors import Reading
-from edge.measure.signal import quality_flags, resample_uniform
+from edge.measure.signal import heat_while_off, no_heat_while_on, quality_flags, resample_uniform
 from edge.measure.watchdog import HeaterWatchdog, Limits, Trip
-from edge.status import Reason, Status
+from edge.status import Flag, Reason, Status
 from edge.storage.history import utc_now
 
 __all__ = [
@@ -181,6 +191,9 @@ class MeasurementSequence:
         Set to cut a running measurement on the host's request (ABORT): like
         ``abort_event``, but the record's reason is ``host_abort``. Whoever
         sets it also switches the heater off at once.
+    beats : object with ``beat(name)`` and ``done(name)``, optional
+        Liveness reports of the sampling loop, as ``"measure"`` (the
+        daemon's :class:`edge.service.notify.Notifier`).
     """
 
     def __init__(self, heater: Heater, sensors: Any, clock: Any, limits: Limits, estimator: EstimatorFn,
@@ -188,7 +201,7 @@ class MeasurementSequence:
                  abort_event: threading.Event | None = None,
                  model_sha256: Callable[[], str | None] | None = None,
                  on_state: Callable[[Phase], None] | None = None,
-                 cancel_event: threading.Event | None = None) -> None:
+                 cancel_event: threading.Event | None = None, beats: Any = None) -> None:
         self.heater = heater
         self.sensors = sensors
         self.clock = clock
@@ -202,6 +215,7 @@ class MeasurementSequence:
             heater, clock, limits.max_on_time_s, abort_event=self.abort_event)
         self.model_sha256 = model_sha256 or (lambda: None)
         self.on_state = on_state or (lambda s: None)
+        self.beats = beats
         self.state = Phase.IDLE
         self._last_off: float | None = None
         self._max_read_s = 0.0
@@ -223,6 +237,7 @@ class MeasurementSequence:
 
     # -- sampling ----------------------------------------------------------------------
     def _sample(self, ts: list, Ts: list, qs: list, sat: list) -> Reading:
+        self._beat()
         t0 = self.clock.monotonic()
         r = self.sensors.read()
         t1 = self.clock.monotonic()
@@ -240,9 +255,14 @@ class MeasurementSequence:
             raise _Stop(Reason.OVER_TEMPERATURE,
                         f"thermocouple {r.T_C:.2f} °C above the {self.limits.over_temperature_C} °C limit")
 
+    def _beat(self) -> None:
+        if self.beats is not None:
+            self.beats.beat("measure")
+
     def _wait(self, until: float) -> None:
         """Sleep on the board clock until ``until``, in steps, watching the abort event."""
         while True:
+            self._beat()
             if self.abort_event.is_set():
                 raise _Stop(Reason.STOPPED, "measurement stopped (daemon shutting down)")
             if self.cancel_event.is_set():
@@ -251,6 +271,29 @@ class MeasurementSequence:
             if dt <= 0:
                 return
             self.clock.sleep(min(dt, 0.05))
+
+    def _check_heat_off(self, t: list, T: list, q: list, where: str) -> None:
+        why = heat_while_off(np.array(t), np.array(T), np.array(q), self.limits)
+        if why is not None:
+            raise _Stop(Reason.HEATER_FAULT, f"{where}: {why}")
+
+    def _cool_down(self, until: float, period: float) -> None:
+        """Wait until ``until`` sampling the sensors (kept apart from the run's series), then judge them.
+
+        After a heating the probe and the object relax: the temperature
+        falls. A heater that keeps heating shows up here first.
+        """
+        ts: list[float] = []
+        Ts: list[float] = []
+        qs: list[float] = []
+        t0 = self.clock.monotonic()
+        k = 0
+        while t0 + k * period < until:
+            self._wait(t0 + k * period)
+            self._check_temperature(self._sample(ts, Ts, qs, []))
+            k += 1
+        self._wait(until)
+        self._check_heat_off(ts, Ts, qs, "cool-down")
 
     # -- the run ---------------------------------------------------------------------
     def run(self, params: MeasurementParams) -> Outcome:
@@ -278,9 +321,11 @@ class MeasurementSequence:
             try:
                 if self.abort_event.is_set():
                     raise _Stop(Reason.STOPPED, "measurement stopped before it started")
+                if self.heater.disabled is not None:
+                    raise _Stop(Reason.HEATER_FAULT, f"heater disabled: {self.heater.disabled}")
                 if self._last_off is not None and params.cooldown_s > 0:
                     self._set_state(Phase.COOLDOWN)
-                    self._wait(self._last_off + params.cooldown_s)
+                    self._cool_down(self._last_off + params.cooldown_s, period)
                 # ---- baseline
                 self._set_state(Phase.BASELINE)
                 t_base = self.clock.monotonic()
@@ -289,6 +334,7 @@ class MeasurementSequence:
                     self._wait(t_base + k * period)
                     self._check_temperature(self._sample(ts, Ts, qs, sat))
                 self._wait(t_base + n_base * period)
+                self._check_heat_off(ts, Ts, qs, "baseline")
                 # ---- heating
                 self._set_state(Phase.HEATING)
                 self.watchdog.arm()
@@ -318,7 +364,8 @@ class MeasurementSequence:
                 t_off = self.clock.monotonic()
                 self.watchdog.disarm()
             except _Stop as e:
-                out.status = Status.FAILED if e.reason == Reason.SENSOR_FAULT else Status.ABORTED
+                out.status = Status.FAILED if e.reason in (Reason.SENSOR_FAULT, Reason.HEATER_FAULT) \
+                    else Status.ABORTED
                 out.reason, out.error = e.reason, str(e)
                 log.warning("measurement %s: %s", out.status, e)
             except SensorFault as e:
@@ -364,8 +411,22 @@ class MeasurementSequence:
                 out.status, out.reason = Status.FAILED, Reason.INTERNAL
                 out.error, out.exception = f"{type(e).__name__}: {e}", e
                 log.exception("post-processing failed (heater was already off)")
+        if out.reason == Reason.HEATER_FAULT:
+            self._heater_fault(out)
+        if self.beats is not None:
+            self.beats.done("measure")
         self._set_state(Phase.IDLE)
         return out
+
+    def _heater_fault(self, out: Outcome) -> None:
+        """Flag the record and latch the heater off: no measurement until restart."""
+        if Flag.HEATER_FAULT not in out.flags:
+            out.flags.append(Flag.HEATER_FAULT)
+        log.critical("heater fault: %s", out.error)
+        try:
+            self.heater.disable(out.error or "heater fault")
+        except HeaterOffError:
+            pass  # already reported: the run's own off() failed the same way
 
     def _finish(self, out: Outcome, params: MeasurementParams, t: np.ndarray, T: np.ndarray, q: np.ndarray,
                 saturated: bool, t_on: float | None, t_off: float | None) -> None:
@@ -379,6 +440,13 @@ class MeasurementSequence:
         out.flags = quality_flags(t[base], T[base], q[base], heat_q, params.power_W, saturated, self.thresholds)
         if out.status != Status.OK and out.reason is not None:
             # Don't estimate from a cut-short or faulty run; the raw data is kept.
+            return
+        # "No heat" is measured from the baseline's offset and T0: a baseline that is not steady (a
+        # warm probe put back on the object drives a transient flux) is no reference to judge by.
+        steady = out.T0_C is not None and Flag.NOISY not in out.flags and Flag.UNSTABLE_BASELINE not in out.flags
+        why = no_heat_while_on(T[~base], heat_q, out.T0_C, params.power_W, self.limits) if steady else None
+        if why is not None:
+            out.status, out.reason, out.error = Status.FAILED, Reason.HEATER_FAULT, why
             return
         out.status = Status.OK
         self._set_state(Phase.RESAMPLING)

@@ -4,6 +4,8 @@
   the estimator expects (cubic spline, :mod:`edge.estimation.spline`).
 * :func:`quality_flags` judges the baseline and the heating flux against the
   ``[measurement]`` thresholds.
+* :func:`heat_while_off` and :func:`no_heat_while_on` tell whether the heater
+  follows its command (``heater.fault_flux_W_m2``, ``heater.fault_rise_K``).
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from edge.estimation.spline import resample
 from edge.physics.probe import HEATER_AREA_m2
 from edge.status import Flag
 
-__all__ = ["resample_uniform", "quality_flags"]
+__all__ = ["resample_uniform", "quality_flags", "temperature_rise_K", "heat_while_off", "no_heat_while_on"]
 
 
 def resample_uniform(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, T0_C: float, q_offset_W_m2: float,
@@ -111,3 +113,85 @@ def quality_flags(base_t: np.ndarray, base_T: np.ndarray, base_q: np.ndarray, he
         if abs(slope) * span > thresholds.unstable_baseline_K:
             flags.append(Flag.UNSTABLE_BASELINE)
     return flags
+
+
+def temperature_rise_K(t_s: np.ndarray, T_C: np.ndarray) -> float:
+    """Temperature change over a window from its straight-line fit (K); 0 for fewer than 3 samples.
+
+    The fit, not the end points, so that one quantisation step or one noisy
+    reading at either end does not count as a rise.
+    """
+    t, T = np.asarray(t_s, float), np.asarray(T_C, float)
+    if t.size < 3 or not t[-1] > t[0]:
+        return 0.0
+    x = t - t[0]
+    return float(np.polyfit(x, T, 1)[0] * x[-1])
+
+
+def heat_while_off(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, limits: Any) -> str | None:
+    """Why a window with the heater commanded off shows heat from the heater, or None.
+
+    The junction warming by more than ``limits.fault_rise_K`` while no heat
+    flows in from the object (mean flux not below ``-limits.fault_flux_W_m2``;
+    positive flux is heat leaving the probe) means a heat source inside the
+    probe: the heater. In contact a stuck heater pushes its flux into the
+    object as the temperature climbs; in air (between touches) the flux is
+    near zero and the probe heats itself. What this is not fooled by: a
+    probe warmer than the object (the junction cools), an object warmer than
+    the probe (it warms the junction, but the flux is reversed), and a
+    healthy cool-down (the temperature falls).
+
+    Parameters
+    ----------
+    t_s, T_C, q_W_m2 : ndarray
+        The window's times (s), thermocouple (°C) and flux (W/m^2, no offset removed).
+    limits : namespace
+        With ``fault_flux_W_m2`` and ``fault_rise_K`` (the ``[heater]`` section).
+    """
+    q = np.asarray(q_W_m2, float)
+    if q.size < 3:
+        return None
+    q_mean, rise = float(np.mean(q)), temperature_rise_K(t_s, T_C)
+    if rise > limits.fault_rise_K and q_mean > -limits.fault_flux_W_m2:
+        span = float(t_s[-1] - t_s[0])
+        return (f"heat with the heater off: the temperature rose {rise:.2f} K (> {limits.fault_rise_K:g}) "
+                f"in {span:.2f} s with {q_mean:.0f} W/m^2 leaving the probe (> -{limits.fault_flux_W_m2:g})")
+    return None
+
+
+def no_heat_while_on(heat_T_C: np.ndarray, heat_q_W_m2: np.ndarray, T0_C: float, power_W: float,
+                     limits: Any) -> str | None:
+    """Why a heating phase shows no heat from the heater, or None.
+
+    A working heater either pushes its flux through the sensor into the
+    object (in contact) or, in air, heats the probe itself. Into a poor
+    conductor only part of ``P/A`` crosses the sensor (the rest warms the
+    probe; PMMA at 1.3 W: ~110 of 390 W/m^2, a 0.4 K rise), so "no heat"
+    means both within noise of zero: a mean flux step (offset removed)
+    below half ``limits.fault_flux_W_m2`` and a rise below half
+    ``limits.fault_rise_K`` (75 W/m^2 is > 3 sigma of the noisiest
+    accepted baseline's mean; 0.25 K is just over one 0.197 K step, which
+    quantisation alone can give). Judged only when the commanded flux
+    ``P/A`` is at least twice ``fault_flux_W_m2`` (a lower power could not
+    be told from no power).
+
+    Parameters
+    ----------
+    heat_T_C, heat_q_W_m2 : ndarray
+        Heating-phase thermocouple (°C) and flux with the baseline offset removed (W/m^2).
+    T0_C : float
+        Baseline temperature (°C).
+    power_W : float
+        Commanded power (W).
+    limits : namespace
+        With ``fault_flux_W_m2`` and ``fault_rise_K``.
+    """
+    T, q = np.asarray(heat_T_C, float), np.asarray(heat_q_W_m2, float)
+    if q.size < 3 or power_W / HEATER_AREA_m2 < 2 * limits.fault_flux_W_m2:
+        return None
+    q_mean, rise = float(np.mean(q)), float(np.max(T) - T0_C)
+    q_lim, rise_lim = limits.fault_flux_W_m2 / 2, limits.fault_rise_K / 2
+    if q_mean < q_lim and rise < rise_lim:
+        return (f"no heat with the heater on at {power_W:g} W: {q_mean:.0f} W/m^2 (< {q_lim:g}) "
+                f"and a {rise:.2f} K rise (< {rise_lim:g})")
+    return None

@@ -24,10 +24,13 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class Limits:
-    """Safety limits: ``max_on_time_s`` (s) and ``over_temperature_C`` (°C)."""
+    """Safety limits: ``max_on_time_s`` (s), ``over_temperature_C`` (°C), and the heater-fault
+    thresholds ``fault_flux_W_m2`` (W/m^2) and ``fault_rise_K`` (K) (see ``[heater]`` in the config)."""
 
     max_on_time_s: float
     over_temperature_C: float
+    fault_flux_W_m2: float = 150.0
+    fault_rise_K: float = 0.5
 
 
 class Trip(StrEnum):

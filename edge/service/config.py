@@ -30,6 +30,9 @@ paths
     Model store root, factory bundle, history database, runtime-override file.
 estimation
     Estimation method passed to the estimator.
+watchdog
+    An optional hardware watchdog device (``/dev/watchdog``), pet together
+    with systemd's software watchdog.
 logging
     Log level.
 limits
@@ -183,6 +186,22 @@ class HeaterConfig:
         lo_open=True,
     )
     pwm_period_ns: int = setting("int", 1_000_000, "PWM period, ns", lo=1000, hi=1_000_000_000)
+    # Heater-fault detection (edge.measure.signal.heat_while_off / no_heat_while_on). Defaults
+    # from the default sensors' noise: the ADS1115 at +-0.256 V reads 7.8 uV = 14 W/m^2 steps
+    # on a 0.56 uV/(W/m^2) sensor, and a baseline passes the noise check with a flux scatter up
+    # to measurement.noise_q_W_m2 = 50 W/m^2, so the mean of its >= 5 samples is within
+    # ~22 W/m^2: 150 W/m^2 (about 10 steps, > 6 sigma) is heat, not noise -- and is a tenth of
+    # the flux of full power (15 V on 44 ohm over 55 x 60 mm: 1550 W/m^2). The MCP9600 at 16
+    # bits reads in 0.197 K steps and a baseline passes with a temperature scatter up to
+    # measurement.noise_T_K = 0.1 K: a rise of 0.5 K (2.5 steps, 5 sigma) is real.
+    fault_flux_W_m2: float = setting(
+        "float", 150.0, "SAFETY: heater fault when this flux (W/m^2) flows with the heater off "
+        "(and the temperature rises fault_rise_K), or is missing with it on", lo=0.0, hi=1e5, lo_open=True
+    )
+    fault_rise_K: float = setting(
+        "float", 0.5, "SAFETY: temperature rise (K) that, with fault_flux_W_m2, marks heat (see there)",
+        lo=0.0, hi=50.0, lo_open=True
+    )
 
 
 @dataclass(frozen=True)
@@ -290,6 +309,15 @@ class EstimationConfig:
 
 
 @dataclass(frozen=True)
+class WatchdogConfig:
+    """The ``[watchdog]`` section."""
+
+    device: str = setting(
+        "str", "", "hardware watchdog device pet with systemd's watchdog, e.g. '/dev/watchdog' ('' = off)"
+    )
+
+
+@dataclass(frozen=True)
 class LoggingConfig:
     """The ``[logging]`` section."""
 
@@ -318,6 +346,7 @@ SECTIONS: Mapping[str, type] = MappingProxyType(
         "serial": SerialConfig,
         "paths": PathsConfig,
         "estimation": EstimationConfig,
+        "watchdog": WatchdogConfig,
         "logging": LoggingConfig,
         "limits": LimitsConfig,
     }

@@ -81,6 +81,7 @@ from edge.protocol.errors import CommandError, ErrorCode
 from edge.protocol.messages import Request
 from edge.service.config import Config, ConfigError, RuntimeOverrides
 from edge.service.estimator import ModelEstimator
+from edge.service.notify import Notifier
 from edge.service.requests import config_reply, fit_record, history_page, measure_params, series_page
 from edge.service.upload import MAX_UPLOAD_BYTES, ModelUpload
 from edge.service.worker import MeasurementWorker, measurement_budget_s
@@ -187,13 +188,16 @@ class Daemon:
         Frame payload bound, bytes (replies are cut to fit).
     max_upload_bytes : int
         Largest model upload accepted (held in memory until commit).
+    notifier : Notifier, optional
+        systemd notifications and watchdog pets (default: from ``$NOTIFY_SOCKET``; a no-op without).
     """
 
     def __init__(self, config: Config, board: Board, *, estimator: EstimatorFn | None = None,
                  stop_event: threading.Event | None = None, model_store: ModelStore | None = None,
                  history: History | None = None, max_payload: int = DEFAULT_MAX_PAYLOAD,
-                 max_upload_bytes: int = MAX_UPLOAD_BYTES) -> None:
+                 max_upload_bytes: int = MAX_UPLOAD_BYTES, notifier: Notifier | None = None) -> None:
         self.board = board
+        self.notifier = notifier if notifier is not None else Notifier()
         self.stop_event = stop_event if stop_event is not None else threading.Event()
         self.max_payload = max_payload
         h = config.heater
@@ -416,9 +420,11 @@ class Daemon:
             self.sequence.sensors = self.sensors  # re-initialised sensors keep the cool-down record
         else:
             self.sequence = MeasurementSequence(
-                self.heater, self.sensors, self.board.clock, Limits(h.max_on_time_s, h.over_temperature_C),
+                self.heater, self.sensors, self.board.clock,
+                Limits(h.max_on_time_s, h.over_temperature_C, h.fault_flux_W_m2, h.fault_rise_K),
                 self._estimate, self.config.measurement, watchdog=self.watchdog, abort_event=self.stop_event,
-                model_sha256=self._model_sha256, on_state=self._on_state, cancel_event=self._cancel)
+                model_sha256=self._model_sha256, on_state=self._on_state, cancel_event=self._cancel,
+                beats=self.notifier)
         self.sequence.thresholds = self.config.measurement
         return self.sequence
 
@@ -459,6 +465,7 @@ class Daemon:
         except HistoryError:
             total = None  # named in faults
         out = {"state": self.state, "heater_on": self.heater.is_on,
+               "heater_fault": self.heater.disabled is not None or self.heater.fault is not None,
                "heater_on_time_s": round(self.heater.on_time_s, 6), "measurements": self.measurements,
                "last_measurement_id": self.last_id, "history_total": total,
                "sensor_error": self.sensor_error, "faults": self.fault_list(),
@@ -714,6 +721,7 @@ class Daemon:
         abort = True
         try:
             while not stop.is_set() and not self.stop_event.is_set():
+                self.notifier.beat("serve")
                 for req in endpoint.poll():
                     self._dispatch(endpoint, req)
                     if stop.is_set() or self.stop_event.is_set():

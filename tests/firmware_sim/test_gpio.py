@@ -278,3 +278,46 @@ def test_schedule_input_validation(sim):
         chip.schedule_input(99, 1, at_s=1.0)
     with pytest.raises(ValueError, match="hold_s"):
         chip.press(2, at_s=1.0, hold_s=0.001, bounces=5)
+
+
+# ---- released lines and the state mirrored for other processes
+
+
+@pytest.mark.parametrize("bias, level", [("PULL_DOWN", 0), ("PULL_UP", 1)])
+def test_released_biased_output_returns_to_its_bias_level(sim, bias, level):
+    clock, _, chip, gpiod = sim
+    V = gpiod.line.Value
+    req = gpiod.request_lines(CHIP, config={3: out_settings(gpiod, bias=gpiod.line.Bias[bias])})
+    req.set_value(3, V.INACTIVE if level else V.ACTIVE)
+    clock.advance(1.0)
+    req.release()
+    assert chip.level(3) == level and not chip.is_requested(3)
+    assert chip.line_history(3)[-1] == (1.0, level)
+
+
+def test_line_state_outlives_its_process_and_a_dead_holder_is_released(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    from firmware_sim.gpio_state import read_line
+
+    g = GpioSim(VirtualClock(), state_dir=tmp_path)
+    g.add_chip(CHIP, num_lines=8)
+    gpiod = g.gpiod
+    req = gpiod.request_lines(CHIP, config={2: out_settings(gpiod, bias=gpiod.line.Bias.PULL_DOWN),
+                                            5: out_settings(gpiod)}, consumer="me")
+    req.set_values({2: gpiod.line.Value.ACTIVE, 5: gpiod.line.Value.ACTIVE})
+    st = read_line(tmp_path, CHIP, 2)
+    assert st["level"] == 1 and st["requested"] and st["pid"] == os.getpid() and st["consumer"] == "me"
+    assert read_line(tmp_path, CHIP, 7) is None
+    # Pretend a process that has died holds the lines: the kernel released them.
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    for off in (2, 5):
+        p = tmp_path / "gpiochip0" / f"{off}.json"
+        p.write_text(p.read_text().replace(f'"pid": {os.getpid()}', f'"pid": {int(dead.stdout)}'))
+    st2, st5 = read_line(tmp_path, CHIP, 2), read_line(tmp_path, CHIP, 5)
+    assert st2["released_by_death"] and st2["level"] == 0 and not st2["requested"]  # pulled down
+    assert st5["released_by_death"] and st5["level"] == 1  # no bias: keeps its last level
+    req.release()
+    assert read_line(tmp_path, CHIP, 2)["level"] == 0 and not read_line(tmp_path, CHIP, 2)["requested"]

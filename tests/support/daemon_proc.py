@@ -6,7 +6,14 @@ Prints the host-side port on the first line, ``HEATING`` when the fifth heating
 read starts (that read waits in wall time until the heater is cut, so a
 signal sent on ``HEATING`` always arrives mid-heating), and at exit one JSON
 line with the heater invariant (from the simulated hardware) and the stored
-records.
+records; the exit status is the one ``thermotouch-edge`` would return.
+
+Like ``thermotouch-edge`` it handles every catchable signal, drives the
+heater off at exit, and speaks systemd's notify protocol when
+``NOTIFY_SOCKET`` is set. The simulated GPIO line states and PWM tree live
+in ``TMPDIR/gpio`` and ``TMPDIR/pwm``
+(:func:`firmware_sim.gpio_state.read_line`), readable after this process
+is killed.
 """
 
 import json
@@ -29,13 +36,15 @@ from firmware_sim.ptylink import NullModem  # noqa: E402
 
 def main() -> int:
     tmp = Path(sys.argv[1])
-    rig = make_rig()
+    rig = make_rig(gpio_state_dir=tmp / "gpio", pwm_root=tmp / "pwm")
     cfg = sim_config(tmp)
     stop = threading.Event()
-    install_signal_handlers(stop)
+    built = {}
+    handlers = install_signal_handlers(stop, heater_off=lambda: built["daemon"].heater.off())
     nm = NullModem()
     port = serial.Serial(nm.device_port, timeout=0.05)
-    daemon = Daemon(cfg, rig.board, estimator=FakeEstimator(), stop_event=stop)
+    built["daemon"] = daemon = Daemon(cfg, rig.board, estimator=FakeEstimator(), stop_event=stop)
+    daemon.notifier.ready()
 
     heating_reads = []
 
@@ -62,7 +71,7 @@ def main() -> int:
     print(json.dumps({"invariant": inv, "records": items, "history_closed": daemon.history.closed}), flush=True)
     port.close()
     nm.close()
-    return 0
+    return handlers.exit_status()
 
 
 if __name__ == "__main__":

@@ -101,9 +101,13 @@ class Heater:
         self._closed = False
         #: The last HeaterOffError, or None once an off() fully succeeded.
         self.fault: HeaterOffError | None = None
+        #: Why :meth:`disable` latched the heater off, or None.
+        self.disabled: str | None = None
 
-        # Enable line first: from here on the heater is held off.
-        self._req = self._line.request_output(consumer, value=False)
+        # Enable line first: from here on the heater is held off. Biased towards
+        # inactive, so the kernel's release of the line when this process dies
+        # (SIGKILL, OOM, a crash in C, a watchdog kill) lets it fall inactive.
+        self._req = self._line.request_fail_safe_output(consumer)
         try:
             self._pwm.open()
             self._pwm.configure(pwm_period_ns, 0)
@@ -179,6 +183,8 @@ class Heater:
         with self._lock:
             if self._closed:
                 raise HeaterError("heater is closed")
+            if self.disabled is not None:
+                raise HeaterError(f"heater is disabled: {self.disabled}")
             try:
                 self._pwm.set_duty_ns(min(self.pwm_period_ns, int(round(d * self.pwm_period_ns))))
                 self._duty = d
@@ -235,6 +241,19 @@ class Heater:
                 if not isinstance(e, Exception):  # KeyboardInterrupt/SystemExit: let it through
                     raise e
             raise err
+
+    def disable(self, reason: str) -> None:
+        """Switch off (both channels) and refuse :meth:`on` from now on (a heater fault).
+
+        The enable line stays requested and driven inactive: a driven level
+        holds against any leakage, and the process's death still releases it
+        to its inactive bias.
+        """
+        with self._lock:
+            if self.disabled is None:
+                self.disabled = str(reason)
+                log.critical("heater disabled: %s", reason)
+            self.off()
 
     def pulse(self, duty: float, duration_s: float) -> float:
         """Heat at ``duty`` for ``duration_s`` seconds of board-clock time.

@@ -159,3 +159,38 @@ def test_system_clock_is_monotonic():
     t0 = c.monotonic()
     c.sleep(-1.0)  # negative sleeps are clamped, not an error
     assert c.monotonic() >= t0
+
+
+@pytest.mark.parametrize("active_low, bias, released_level", [(False, "PULL_DOWN", 0), (True, "PULL_UP", 1)])
+def test_heater_enable_is_requested_to_fall_inactive_when_released(active_low, bias, released_level):
+    from edge.hw.board import GpioLine
+
+    board = make_sim_board()
+    parts = board.extras["sim"]
+    line = GpioLine(parts.gpio.gpiod, "/dev/gpiochip0", 17, active_low=active_low)
+    assert line.inactive_bias == bias.lower().replace("_", "-")
+    req = line.request_fail_safe_output("heater")
+    assert parts.chip.level(17) == released_level  # requested inactive
+    req.set_value(17, parts.gpio.gpiod.line.Value.ACTIVE)
+    assert parts.chip.level(17) != released_level
+    req.release()  # as the kernel does when the process dies
+    assert parts.chip.level(17) == released_level
+    # The heater driver requests it so.
+    h = Heater(board, supply_voltage_V=15.0, resistance_ohm=44.0)
+    h.on(1.0)
+    assert parts.chip.level(17) == 1
+    h._req.release()
+    assert parts.chip.level(17) == 0
+    board.close()
+
+
+def test_a_disabled_heater_refuses_to_switch_on():
+    board = make_sim_board()
+    h = Heater(board, supply_voltage_V=15.0, resistance_ohm=44.0)
+    h.on(0.5)
+    h.disable("stuck on")
+    assert not h.is_on and h.disabled == "stuck on"
+    with pytest.raises(Exception, match="disabled: stuck on"):
+        h.on(0.5)
+    h.close()
+    board.close()
