@@ -21,7 +21,7 @@ import serial  # noqa: E402
 
 from daemon_testutil import FakeEstimator, HookedSensors, sim_config  # noqa: E402
 from edge.service.daemon import Daemon, install_signal_handlers  # noqa: E402
-from firmware_sim.daemon_rig import heater_invariant, make_rig  # noqa: E402
+from firmware_sim.rigs.daemon_rig import heater_invariant, make_rig  # noqa: E402
 from firmware_sim.ptylink import NullModem  # noqa: E402
 
 

@@ -10,7 +10,7 @@ import numpy as np
 from edge.service.config import Config
 from edge.hw.drivers.heater import Heater
 from edge.measure.sequence import Limits, MeasurementParams, MeasurementSequence, make_sensors
-from firmware_sim.daemon_rig import heater_invariant, make_rig
+from firmware_sim.rigs.daemon_rig import heater_invariant, make_rig
 
 
 def sim_config(tmp: Path, **sections) -> Config:

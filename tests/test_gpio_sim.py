@@ -7,7 +7,8 @@ from datetime import timedelta
 import pytest
 
 from firmware_sim.clock import VirtualClock
-from firmware_sim.gpio import EdgeEvent, GpioSim
+from firmware_sim.gpiod.edge_event import EdgeEvent
+from firmware_sim.gpiod.kernel import GpioSim
 
 CHIP = "/dev/gpiochip0"
 
@@ -264,7 +265,7 @@ def test_event_buffer_overflow_drops_oldest(sim):
 
 
 def test_unbound_chip_class_explains_itself():
-    from firmware_sim.gpio import Chip
+    from firmware_sim.gpiod.chip import Chip
 
     with pytest.raises(RuntimeError, match="GpioSim"):
         Chip(CHIP)

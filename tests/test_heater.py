@@ -13,7 +13,7 @@ from edge.physics.probe import (
 )
 from edge.hw.drivers.heater import Heater, HeaterError, HeaterOffError
 from edge.hw.sysfs_pwm import PwmError
-from firmware_sim.sim_board import make_sim_board
+from firmware_sim.board import make_sim_board
 
 V_SUPPLY, R_HEATER = 12.0, 24.0  # 6 W at full duty
 EN = 17

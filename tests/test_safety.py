@@ -30,7 +30,7 @@ from edge.protocol.commands import Command
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.protocol.messages import encode_request
 from edge.measure.sequence import make_sensors
-from firmware_sim.daemon_rig import make_rig
+from firmware_sim.rigs.daemon_rig import make_rig
 from firmware_sim.ptylink import NullModem
 from host.client import DeviceClient, DeviceError
 

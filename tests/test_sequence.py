@@ -7,7 +7,7 @@ from daemon_testutil import FakeEstimator, assert_heater_safe, make_sequence
 from edge.service.config import Config
 from edge.physics.probe import HEATER_AREA_m2, volumetric_heat_W_m3
 from edge.measure.sequence import MeasurementParams, quality_flags, resample_uniform
-from firmware_sim.daemon_rig import heater_on_intervals
+from firmware_sim.rigs.daemon_rig import heater_on_intervals
 
 pytestmark = pytest.mark.hil
 
