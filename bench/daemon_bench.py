@@ -1,6 +1,6 @@
 """Daemon benchmark: resident memory, compute time after the last sample, and a soak.
 
-The daemon runs in a child process on the simulator (firmware_sim.daemon_rig:
+The daemon runs in a child process on the simulator (firmware_sim.rigs.daemon_rig:
 sim board, MCP9600 + ADS1115 models, an analytic glass-like sample) with its
 real estimator and the shipped model bundle (a stand-in estimator if none is
 installed), behind a virtual null-modem cable. This process is the host: it
@@ -64,7 +64,7 @@ def child(workdir: str) -> int:
 
     from edge.service.config import Config
     from firmware_sim.daemon_thread import DaemonThread
-    from firmware_sim.daemon_rig import heater_invariant, make_rig
+    from firmware_sim.rigs.daemon_rig import heater_invariant, make_rig
     from firmware_sim.ptylink import NullModem
 
     w = Path(workdir)

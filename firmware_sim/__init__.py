@@ -11,10 +11,28 @@ face::
 Importing this package registers the board kind ``"sim"`` with
 :func:`edge.hw.board.register_board_factory`, so
 ``edge.hw.board.make_board("sim", scene="glass_15V")`` works. Scene schema and
-examples: ``firmware_sim/scenes/README.md``.
+examples: ``firmware_sim/scene/shipped/README.md``.
+
+Layout (each name is imported from its module; this face re-exports only the
+names above)::
+
+    clock.py       VirtualClock, WallClock, BusClock
+    bus.py         SimBus: smbus2-compatible I2C adapter with fault injection
+    chips/         register-level chip emulators (MCP9600Emulator, ADS1115Emulator, ADS122C04Emulator)
+    gpiod/         python-gpiod 2.x fake: device-side API modules + simulated lines, chips, kernel
+    pwm.py         SimPwmTree: sysfs PWM tree fake
+    board.py       make_sim_board: an edge Board on the GPIO/PWM fakes
+    scene/         scene model, schema (edge.schema Fields), parser, files; shipped/ scenes
+    world.py       ThermalWorld: exact thermal model behind the chips
+    simulator.py   Simulator, load_scene: one object per scene
+    ptylink.py     NullModem: virtual serial cable
+    run.py         ``thermotouch sim``: the daemon on a scene behind a NullModem
+    rigs/          test rigs (daemon_rig)
 """
 
-from firmware_sim.scene import Fault, Scene, SceneError, parse_scene, read_scene, scene_names
+from firmware_sim.scene.files import read_scene, scene_names
+from firmware_sim.scene.model import Fault, Scene, SceneError
+from firmware_sim.scene.parser import parse_scene
 from firmware_sim.simulator import Simulator, load_scene, make_scene_board, register_scene_board
 from firmware_sim.world import ThermalWorld, Truth
 

@@ -23,9 +23,13 @@ import threading
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+import serial
+
+from edge.measure.sequence import EstimatorFn
 from edge.service.config import Config
 from edge.service.main import install_signal_handlers, run_daemon
-from edge.measure.sequence import EstimatorFn
+from firmware_sim.ptylink import NullModem
+from firmware_sim.simulator import load_scene
 
 __all__ = ["config_for_scene", "run_sim", "main"]
 
@@ -97,11 +101,6 @@ def run_sim(scene_path: str | Path, stop_event: threading.Event | None = None,
     int
         Exit status (0 on a clean stop).
     """
-    import serial  # noqa: PLC0415
-
-    from firmware_sim import load_scene  # noqa: PLC0415
-    from firmware_sim.ptylink import NullModem  # noqa: PLC0415
-
     stop = stop_event if stop_event is not None else threading.Event()
     if stop_event is None and threading.current_thread() is threading.main_thread():
         install_signal_handlers(stop)

@@ -27,15 +27,17 @@ import numpy as np
 
 from edge.hw.board import Board, register_board_factory
 
+from firmware_sim.board import SimBoardParts, make_sim_board
 from firmware_sim.bus import SimBus
-from firmware_sim.chips.ads1115 import ADS1115 as ADS1115Model
-from firmware_sim.chips.ads122c04 import ADS122C04 as ADS122C04Model
-from firmware_sim.chips.mcp9600 import MCP9600 as MCP9600Model
+from firmware_sim.chips.ads1115 import ADS1115Emulator
+from firmware_sim.chips.ads122c04 import ADS122C04Emulator
+from firmware_sim.chips.mcp9600 import MCP9600Emulator
 from firmware_sim.clock import SimClock, check_clock_mode, make_clock
-from firmware_sim.gpio import GpioSim
+from firmware_sim.gpiod.kernel import GpioSim
 from firmware_sim.pwm import SimPwmTree
-from firmware_sim.scene import Fault, MaterialLookup, Scene, read_scene, validate_fault
-from firmware_sim.sim_board import SimBoardParts, make_sim_board
+from firmware_sim.scene.files import read_scene
+from firmware_sim.scene.model import Fault, Scene
+from firmware_sim.scene.parser import MaterialLookup, validate_fault
 from firmware_sim.world import BoardDrive, ThermalWorld, Truth, wire_chips
 
 __all__ = ["Simulator", "load_scene", "make_scene_board", "register_scene_board", "SCENE_ENV"]
@@ -49,7 +51,7 @@ class Simulator:
     Parameters
     ----------
     scene : Scene
-        A parsed scene (:func:`firmware_sim.scene.read_scene`).
+        A parsed scene (:func:`firmware_sim.scene.files.read_scene`).
     bit_rate_Hz : float, optional
         If given, I2C transfers take their wire time on the clock. With
         ``clock="bus"`` it is the bus clock's bit rate (default 100 kHz).
@@ -104,15 +106,15 @@ class Simulator:
         weakref.finalize(self, self.pwm.close)
         b, s, w = scene.board, scene.sensors, self.world
         if b.mcp9600 is not None:
-            self.chips["mcp9600"] = MCP9600Model(
+            self.chips["mcp9600"] = MCP9600Emulator(
                 self.clock, w.thermocouple_C, w.cold_junction_C, rng=np.random.default_rng(seeds[1]),
                 emf_noise_rms_V=s.mcp9600_emf_noise_rms_V, open_circuit=w.thermocouple_open)
         if b.ads1115 is not None:
-            self.chips["ads1115"] = ADS1115Model(
+            self.chips["ads1115"] = ADS1115Emulator(
                 self.clock, w.ads1115_input_V, noise_rms_V=s.ads1115_noise_rms_V,
                 rng=np.random.default_rng(seeds[2]))
         if b.ads122c04 is not None:
-            self.chips["ads122c04"] = ADS122C04Model(
+            self.chips["ads122c04"] = ADS122C04Emulator(
                 self.clock, w.ads122c04_input_V, temperature_C=w.cold_junction_C,
                 noise_rms_V=s.ads122c04_noise_rms_V, rng=np.random.default_rng(seeds[3]))
         wire_chips(w, **self.chips)
@@ -309,7 +311,7 @@ def make_scene_board(scene: str | Path | Scene | None = None, **options: Any) ->
     named by the environment variable ``THERMOTOUCH_SIM_SCENE`` is used if set
     and no ``options`` are given (so a daemon configured with ``kind = "sim"``
     runs on a scene); otherwise this is
-    :func:`firmware_sim.sim_board.make_sim_board` with ``options``.
+    :func:`firmware_sim.board.make_sim_board` with ``options``.
     """
     if scene is None and not options and os.environ.get(SCENE_ENV):
         scene = os.environ[SCENE_ENV]

@@ -55,7 +55,7 @@ from edge.physics.probe import heater_power_W
 from edge.physics.schedule import PowerSchedule
 from edge.physics.solids import Solid
 
-from firmware_sim.scene import FLUX_SATURATION_V, Fault, Scene
+from firmware_sim.scene.model import FLUX_SATURATION_V, Fault, Scene
 
 __all__ = ["AIR", "HeaterDrive", "BoardDrive", "ScheduleDrive", "WorldState", "Truth", "ThermalWorld",
            "wire_chips", "OPEN_TC_INPUT_V"]

@@ -30,8 +30,13 @@ import numpy as np
 import serial
 
 from edge.protocol.endpoint import read_available
-from edge.protocol.messages import (CHUNK_HEADER_SIZE, SESSION_CHUNK_HEADER_SIZE, ErrorReply, decode_reply,
-                                    encode_request)
+from edge.protocol.messages import (
+    CHUNK_HEADER_SIZE,
+    SESSION_CHUNK_HEADER_SIZE,
+    ErrorReply,
+    decode_reply,
+    encode_request,
+)
 from edge.protocol.commands import COMMANDS, Command, SERIES_KINDS
 from edge.protocol.frame import DEFAULT_MAX_PAYLOAD, FrameDecoder
 from edge.protocol.errors import ErrorCode, ProtocolError

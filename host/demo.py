@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from firmware_sim.scene import PRECISION_BOARD, scene_variant
+from firmware_sim.scene.files import PRECISION_BOARD, scene_variant
 from host.device import DeviceUnavailable, open_device
 
 __all__ = ["PAPER_SCENES", "TABLE2", "run_demo", "measure_scenes", "format_table"]

@@ -83,7 +83,7 @@ class GpioLine:
     ----------
     gpiod : module-like
         The real ``gpiod`` (2.x) module or a simulated one with the same API
-        (``firmware_sim.gpio.GpioSim(...).gpiod``).
+        (``firmware_sim.gpiod.kernel.GpioSim(...).gpiod``).
     chip_path : str
         GPIO character device, e.g. ``"/dev/gpiochip0"``.
     offset : int

@@ -147,6 +147,9 @@ class Register:
         Wire byte order; the chips here all send the most significant byte first.
     read_only : bool
         Writes are ignored by the emulation / refused by :meth:`encode` users.
+    volatile : bool
+        The chip changes the value by itself (conversion results, status
+        flags), so ``reset`` is only its power-on state.
     """
 
     name: str
@@ -156,6 +159,7 @@ class Register:
     reset: int = 0
     byteorder: str = "big"
     read_only: bool = False
+    volatile: bool = False
 
     def __post_init__(self) -> None:
         if self.width_bytes < 1:

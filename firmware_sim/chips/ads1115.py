@@ -29,8 +29,7 @@ from typing import Callable
 
 import numpy as np
 
-from edge.hw.regmaps.ads1115 import CODE_MAX, CODE_MIN
-from edge.hw.regmaps.ads1115 import PGA_FSR_V, REGISTERS
+from edge.hw.regmaps.ads1115 import CODE_MAX, CODE_MIN, PGA_FSR_V, REGISTERS
 
 _EPS = 1e-9
 _MAX_BACKLOG = 64
@@ -39,8 +38,8 @@ _MUX_LABELS = {v: k for k, v in _CFG.field("MUX").enum.items()}
 _DR_SPS = {v: k for k, v in _CFG.field("DR").enum.items()}
 
 
-class ADS1115:
-    """Emulated ADS1115.
+class ADS1115Emulator:
+    """Emulated ADS1115 (the driver is :class:`edge.hw.drivers.ads1115.ADS1115`).
 
     Parameters
     ----------
@@ -49,7 +48,7 @@ class ADS1115:
         on each access and catches up, so it never relies on sleeps.
     inputs : callable (mux_label, t_s) -> volts
         Input voltage for a multiplexer setting, e.g. ``"AIN0_AIN1"`` (see
-        ``edge.hw.drivers.ads1115.MUX``).
+        ``edge.hw.regmaps.ads1115.MUX``).
     noise_rms_V : float
         Input-referred noise added to each conversion.
     rng : numpy Generator or seed, optional

@@ -27,8 +27,9 @@ from typing import Callable
 
 import numpy as np
 
-from edge.hw.regmaps.ads122c04 import CODE_MAX, CODE_MIN
 from edge.hw.regmaps.ads122c04 import (
+    CODE_MAX,
+    CODE_MIN,
     INTERNAL_VREF_V,
     MUX,
     REGISTERS,
@@ -42,8 +43,8 @@ _MAX_BACKLOG = 64
 _MUX_LABELS = {v: k for k, v in MUX.items()}
 
 
-class ADS122C04:
-    """Emulated ADS122C04.
+class ADS122C04Emulator:
+    """Emulated ADS122C04 (the driver is :class:`edge.hw.drivers.ads122c04.ADS122C04`).
 
     Parameters
     ----------
@@ -52,7 +53,7 @@ class ADS122C04:
         on each access and catches up, so it never relies on sleeps.
     inputs : callable (mux_label, t_s) -> volts
         Differential input for AIN multiplexer settings such as "AIN0_AIN1"
-        or "AIN2_AVSS" (see ``edge.hw.drivers.ads122c04.MUX``).
+        or "AIN2_AVSS" (see ``edge.hw.regmaps.ads122c04.MUX``).
     temperature_C : callable t_s -> °C
         Die temperature seen by the internal sensor.
     noise_rms_V : float
@@ -79,7 +80,7 @@ class ADS122C04:
         self._reset()
 
     def _reset(self) -> None:
-        self.regs = [0, 0, 0, 0]
+        self.regs = [reg.reset for reg in REGISTERS]    # CONFIG0..3, all 0x00 after reset
         self.data = 0
         self.counter = 0
         self._running = False          # converting (single-shot pending or continuous)

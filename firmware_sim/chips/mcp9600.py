@@ -63,8 +63,8 @@ def _temp_code(t_C: float, lsb_C: float = 0.0625) -> int:
     return code & 0xFFFF
 
 
-class MCP9600:
-    """Emulated MCP9600.
+class MCP9600Emulator:
+    """Emulated MCP9600 (the driver is :class:`edge.hw.drivers.mcp9600.MCP9600`).
 
     Parameters
     ----------

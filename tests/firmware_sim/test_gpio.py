@@ -7,7 +7,8 @@ from datetime import timedelta
 import pytest
 
 from firmware_sim.clock import VirtualClock
-from firmware_sim.gpio import EdgeEvent, GpioSim
+from firmware_sim.gpiod.edge_event import EdgeEvent
+from firmware_sim.gpiod.kernel import GpioSim
 
 CHIP = "/dev/gpiochip0"
 
@@ -264,7 +265,7 @@ def test_event_buffer_overflow_drops_oldest(sim):
 
 
 def test_unbound_chip_class_explains_itself():
-    from firmware_sim.gpio import Chip
+    from firmware_sim.gpiod.chip import Chip
 
     with pytest.raises(RuntimeError, match="GpioSim"):
         Chip(CHIP)
@@ -300,7 +301,7 @@ def test_line_state_outlives_its_process_and_a_dead_holder_is_released(tmp_path)
     import subprocess
     import sys
 
-    from firmware_sim.gpio_state import read_line
+    from firmware_sim.gpiod.state import read_line
 
     g = GpioSim(VirtualClock(), state_dir=tmp_path)
     g.add_chip(CHIP, num_lines=8)

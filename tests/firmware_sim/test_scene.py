@@ -8,8 +8,9 @@ import textwrap
 
 import pytest
 
-from firmware_sim.scene import (FAULT_KINDS, Fault, SceneError, library_material, parse_scene,
-                                read_scene, scene_names, scene_path, validate_fault)
+from firmware_sim.scene.files import read_scene, scene_names, scene_path
+from firmware_sim.scene.model import FAULT_KINDS, Fault, SceneError
+from firmware_sim.scene.parser import library_material, parse_scene, validate_fault
 
 PAPER = {
     "glass": ((1.097, 2458.4, 809.0), (12, 15, 18)),
@@ -109,7 +110,7 @@ def test_material_lookup_can_be_supplied():
 
 
 def test_material_library_is_read_without_importing_host():
-    code = ("import sys; from firmware_sim.scene import library_material; "
+    code = ("import sys; from firmware_sim.scene.parser import library_material; "
             "library_material('pmma'); print('host' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"

@@ -11,7 +11,8 @@ import pytest
 from edge.physics import forward, typek
 from edge.physics.solids import Solid
 from firmware_sim.clock import VirtualClock
-from firmware_sim.scene import Fault, read_scene
+from firmware_sim.scene.files import read_scene
+from firmware_sim.scene.model import Fault
 from firmware_sim.world import AIR, OPEN_TC_INPUT_V, ScheduleDrive, ThermalWorld
 
 

@@ -12,7 +12,7 @@ Like ``thermotouch-edge`` it handles every catchable signal, drives the
 heater off at exit, and speaks systemd's notify protocol when
 ``NOTIFY_SOCKET`` is set. The simulated GPIO line states and PWM tree live
 in ``TMPDIR/gpio`` and ``TMPDIR/pwm``
-(:func:`firmware_sim.gpio_state.read_line`), readable after this process
+(:func:`firmware_sim.gpiod.state.read_line`), readable after this process
 is killed.
 """
 
@@ -30,7 +30,7 @@ import serial  # noqa: E402
 from tests.support.daemons import FakeEstimator, HookedSensors, sim_config  # noqa: E402
 from edge.service.daemon import Daemon  # noqa: E402
 from edge.service.main import install_signal_handlers  # noqa: E402
-from firmware_sim.daemon_rig import heater_invariant, make_rig  # noqa: E402
+from firmware_sim.rigs.daemon_rig import heater_invariant, make_rig  # noqa: E402
 from firmware_sim.ptylink import NullModem  # noqa: E402
 
 

@@ -12,7 +12,7 @@ from edge.hw.drivers.heater import Heater
 from edge.measure.sensors import make_sensors
 from edge.measure.sequence import MeasurementParams, MeasurementSequence
 from edge.measure.watchdog import Limits
-from firmware_sim.daemon_rig import heater_invariant, make_rig
+from firmware_sim.rigs.daemon_rig import heater_invariant, make_rig
 
 
 def sim_config(tmp: Path, **sections) -> Config:

@@ -1,7 +1,7 @@
 """ADS1115 16-bit ADC (TI SBAS444): register map and datasheet constants as data.
 
 Shared by the driver (edge.hw.drivers.ads1115) and the emulator
-(firmware_sim.chips.ads1115): one statement of the chip, so the two cannot drift.
+(firmware_sim.chips.ads1115.ADS1115Emulator): one statement of the chip, so the two cannot drift.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ DATA_RATES_SPS = {8: 0, 16: 1, 32: 2, 64: 3, 128: 4, 250: 5, 475: 6, 860: 7}
 CODE_MAX, CODE_MIN = 0x7FFF, -0x8000
 
 REGISTERS = RegisterMap("ads1115", [
-    Register("CONVERSION", 0x00, 2, {"CODE": BitField(0xFFFF, signed=True)}, read_only=True),
+    Register("CONVERSION", 0x00, 2, {"CODE": BitField(0xFFFF, signed=True)}, read_only=True, volatile=True),
     Register("CONFIG", 0x01, 2, {
         "OS": BitField(0x8000),
         "MUX": BitField(0x7000, enum=MUX),

@@ -1,7 +1,7 @@
 """ADS122C04 24-bit ADC (TI SBAS751): register map and datasheet constants as data.
 
 Shared by the driver (edge.hw.drivers.ads122c04) and the emulator
-(firmware_sim.chips.ads122c04): one statement of the chip, so the two cannot drift.
+(firmware_sim.chips.ads122c04.ADS122C04Emulator): one statement of the chip, so the two cannot drift.
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ REGISTERS = RegisterMap("ads122c04", [
         "CRC": BitField(0x30, enum={"off": 0, "inverted": 1, "crc16": 2}),
         "BCS": BitField(0x08),
         "IDAC_uA": BitField(0x07, enum={0: 0, 10: 1, 50: 2, 100: 3, 250: 4, 500: 5, 1000: 6, 1500: 7}),
-    }),
+    }, volatile=True),   # DRDY is set by the chip
     Register("CONFIG3", 3, 1, {
         "I1MUX": BitField(0xE0, enum={"off": 0, "AIN0": 1, "AIN1": 2, "AIN2": 3, "AIN3": 4, "REFP": 5, "REFN": 6}),
         "I2MUX": BitField(0x1C, enum={"off": 0, "AIN0": 1, "AIN1": 2, "AIN2": 3, "AIN3": 4, "REFP": 5, "REFN": 6}),

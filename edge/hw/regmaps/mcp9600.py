@@ -1,7 +1,7 @@
 """MCP9600 (Microchip DS20005426): register map and datasheet constants as data.
 
 Shared by the driver (edge.hw.drivers.mcp9600) and the emulator
-(firmware_sim.chips.mcp9600): one statement of the chip, so the two cannot drift.
+(firmware_sim.chips.mcp9600.MCP9600Emulator): one statement of the chip, so the two cannot drift.
 """
 
 from __future__ import annotations
@@ -35,15 +35,15 @@ def adc_step_V(resolution_bits: int) -> float:
     return RAW_ADC_LSB_V * (1 << (18 - resolution_bits))
 
 REGISTERS = RegisterMap("mcp9600", [
-    Register("TH", 0x00, 2, {"TEMP_C": _TEMP}, read_only=True),
-    Register("TDELTA", 0x01, 2, {"TEMP_C": _TEMP}, read_only=True),
-    Register("TC", 0x02, 2, {"TEMP_C": _TEMP}, read_only=True),
-    Register("RAW_ADC", 0x03, 3, {"CODE": BitField(0xFFFFFF, signed=True)}, read_only=True),
+    Register("TH", 0x00, 2, {"TEMP_C": _TEMP}, read_only=True, volatile=True),
+    Register("TDELTA", 0x01, 2, {"TEMP_C": _TEMP}, read_only=True, volatile=True),
+    Register("TC", 0x02, 2, {"TEMP_C": _TEMP}, read_only=True, volatile=True),
+    Register("RAW_ADC", 0x03, 3, {"CODE": BitField(0xFFFFFF, signed=True)}, read_only=True, volatile=True),
     Register("STATUS", 0x04, 1, {
         "BURST_COMPLETE": BitField(0x80), "TH_UPDATE": BitField(0x40),
         "INPUT_RANGE": BitField(0x10), "ALERT4": BitField(0x08), "ALERT3": BitField(0x04),
         "ALERT2": BitField(0x02), "ALERT1": BitField(0x01),
-    }),
+    }, volatile=True),
     Register("THERMOCOUPLE_CONFIG", 0x05, 1, {
         "TYPE": BitField(0x70, enum={"K": 0, "J": 1, "T": 2, "N": 3, "S": 4, "E": 5, "B": 6, "R": 7}),
         "FILTER": BitField(0x07),

@@ -20,7 +20,7 @@ from edge.hw.drivers.button import Button
 from edge.hw.drivers.heater import Heater
 from firmware_sim.clock import VirtualClock
 from firmware_sim.pwm import SimPwmTree
-from firmware_sim.sim_board import make_sim_board, register_sim_board
+from firmware_sim.board import make_sim_board, register_sim_board
 
 
 def test_edge_imports_without_devices_or_hardware_packages():

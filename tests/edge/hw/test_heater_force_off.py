@@ -1,7 +1,7 @@
 """The heater is driven off without a board: at daemon start-up and by ExecStopPost."""
 
 from firmware_sim.clock import VirtualClock
-from firmware_sim.gpio import GpioSim
+from firmware_sim.gpiod.kernel import GpioSim
 from firmware_sim.pwm import SimPwmTree
 from edge.hw.board import GpioLine, force_rpi_heater_off
 from edge.hw.sysfs_pwm import SysfsPwm

@@ -8,7 +8,7 @@ from edge.service.config import Config
 from edge.physics.probe import HEATER_AREA_m2, volumetric_heat_W_m3
 from edge.measure.sequence import MeasurementParams
 from edge.measure.signal import quality_flags, resample_uniform
-from firmware_sim.daemon_rig import heater_on_intervals
+from firmware_sim.rigs.daemon_rig import heater_on_intervals
 
 pytestmark = pytest.mark.hil
 

@@ -27,7 +27,7 @@ from edge.protocol.commands import Command
 from edge.protocol.errors import ErrorCode
 from edge.protocol.frame import encode_frame
 from edge.protocol.messages import encode_request
-from firmware_sim.daemon_rig import make_rig
+from firmware_sim.rigs.daemon_rig import make_rig
 from firmware_sim.ptylink import NullModem
 from host.client import DeviceClient, DeviceError
 

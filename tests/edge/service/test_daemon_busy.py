@@ -21,7 +21,7 @@ from edge.protocol.commands import Command
 from edge.protocol.errors import ErrorCode
 from edge.protocol.messages import ErrorReply, Reply, decode_reply, encode_request
 from edge.protocol.frame import FrameDecoder
-from firmware_sim.daemon_rig import make_rig
+from firmware_sim.rigs.daemon_rig import make_rig
 from firmware_sim.ptylink import NullModem
 
 pytestmark = pytest.mark.hil

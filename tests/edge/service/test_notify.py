@@ -8,7 +8,7 @@ import pytest
 
 from edge.service.daemon import Daemon
 from edge.service.notify import Notifier, sd_notify, watchdog_interval_s
-from firmware_sim.daemon_rig import make_rig
+from firmware_sim.rigs.daemon_rig import make_rig
 from tests.support.daemons import FakeEstimator, HookedSensors, sim_config
 
 

@@ -3,7 +3,7 @@ SIGKILL, and a freeze that only systemd's watchdog notices.
 
 Each test runs a real daemon process on the simulator (tests/support/daemon_proc.py) and reads
 the simulated hardware from outside it once it has ended: the GPIO line states (mirrored to files
-with the holder's pid, :mod:`firmware_sim.gpio_state`, which releases a dead holder's line as the
+with the holder's pid, :mod:`firmware_sim.gpiod.state`, which releases a dead holder's line as the
 kernel does) and the sysfs PWM tree (plain files).
 """
 
@@ -22,7 +22,7 @@ import serial
 from edge.protocol.commands import Command
 from edge.protocol.messages import encode_request
 from edge.service.config import Config
-from firmware_sim.gpio_state import read_line
+from firmware_sim.gpiod.state import read_line
 
 pytestmark = pytest.mark.hil
 MAX_ON = Config().heater.max_on_time_s
@@ -107,7 +107,7 @@ sys.path.insert(0, {root!r})
 from pathlib import Path
 from edge.hw.drivers.heater import Heater
 from edge.service.main import install_signal_handlers
-from firmware_sim.daemon_rig import make_rig
+from firmware_sim.rigs.daemon_rig import make_rig
 tmp = Path({tmp!r})
 rig = make_rig(gpio_state_dir=tmp / "gpio", pwm_root=tmp / "pwm")
 heater = Heater(rig.board, supply_voltage_V=15.0, resistance_ohm=44.0)

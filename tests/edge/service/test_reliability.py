@@ -20,7 +20,7 @@ from edge.service.config import Config, RUNTIME_KEYS, SCHEMA
 from edge.service.daemon import Daemon
 from edge.storage import durable
 from edge.storage.history import History, HistoryError
-from firmware_sim.daemon_rig import make_rig
+from firmware_sim.rigs.daemon_rig import make_rig
 from firmware_sim.daemon_thread import DaemonThread
 from firmware_sim.ptylink import NullModem
 from host.client import DeviceClient, DeviceError, DeviceNotAnswering

@@ -31,7 +31,7 @@ from edge.protocol.commands import Command
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.protocol.messages import encode_request
 from edge.measure.sensors import make_sensors
-from firmware_sim.daemon_rig import make_rig
+from firmware_sim.rigs.daemon_rig import make_rig
 from firmware_sim.daemon_thread import DaemonThread
 from firmware_sim.ptylink import NullModem
 from host.client import DeviceClient, DeviceError

@@ -4,7 +4,7 @@ from edge.hw.drivers.ads1115 import ADS1115
 from edge.hw.regmaps.ads1115 import PGA_FSR_V, REGISTERS, code_to_volts, volts_to_code
 from edge.hw.faults import SensorFault
 from firmware_sim.bus import SimBus
-from firmware_sim.chips.ads1115 import ADS1115 as ADS1115Chip
+from firmware_sim.chips.ads1115 import ADS1115Emulator
 from firmware_sim.clock import VirtualClock
 
 ADDR = 0x48
@@ -13,7 +13,7 @@ ADDR = 0x48
 def make(inputs=lambda mux, t: 0.0, **kw):
     clock = VirtualClock()
     bus = SimBus(clock=clock, rng=3)
-    chip = bus.attach(ADDR, ADS1115Chip(clock, inputs, **kw))
+    chip = bus.attach(ADDR, ADS1115Emulator(clock, inputs, **kw))
     return clock, bus, chip
 
 

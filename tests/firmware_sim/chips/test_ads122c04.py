@@ -14,7 +14,7 @@ from edge.hw.regmaps.ads122c04 import (
 )
 from edge.hw.faults import SensorFault
 from firmware_sim.bus import SimBus
-from firmware_sim.chips.ads122c04 import ADS122C04 as ADS122C04Chip
+from firmware_sim.chips.ads122c04 import ADS122C04Emulator
 from firmware_sim.clock import VirtualClock
 
 ADDR = 0x40
@@ -28,7 +28,7 @@ TEMP_TABLE = [(128.0, 0x1000), (127.96875, 0x0FFF), (100.0, 0x0C80), (75.0, 0x09
 def make(inputs=lambda mux, t: 0.0, **kw):
     clock = VirtualClock()
     bus = SimBus(clock=clock, rng=9)
-    chip = bus.attach(ADDR, ADS122C04Chip(clock, inputs, **kw))
+    chip = bus.attach(ADDR, ADS122C04Emulator(clock, inputs, **kw))
     return clock, bus, chip
 
 

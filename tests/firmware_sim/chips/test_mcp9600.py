@@ -8,7 +8,7 @@ from edge.hw.drivers.mcp9600 import MCP9600
 from edge.hw.regmaps.mcp9600 import REGISTERS
 from edge.hw.faults import SensorFault
 from firmware_sim.bus import SimBus
-from firmware_sim.chips.mcp9600 import MCP9600 as MCP9600Chip
+from firmware_sim.chips.mcp9600 import MCP9600Emulator
 from firmware_sim.clock import VirtualClock
 
 ADDR = 0x60
@@ -17,7 +17,7 @@ ADDR = 0x60
 def make(hot=lambda t: 25.0, cold=lambda t: 25.0, **kw):
     clock = VirtualClock()
     bus = SimBus(clock=clock, rng=5)
-    chip = bus.attach(ADDR, MCP9600Chip(clock, hot, cold, **kw))
+    chip = bus.attach(ADDR, MCP9600Emulator(clock, hot, cold, **kw))
     return clock, bus, chip
 
 
@@ -238,7 +238,7 @@ def test_driver_timeout_reason_on_stuck_bus():
 def test_driver_wrong_id_and_bad_arguments():
     clock = VirtualClock()
     bus = SimBus(clock=clock)
-    chip = bus.attach(ADDR, MCP9600Chip(clock, lambda t: 25.0))
+    chip = bus.attach(ADDR, MCP9600Emulator(clock, lambda t: 25.0))
     chip.regs[0x20] = 0x4111
     with pytest.raises(SensorFault) as ei:
         MCP9600(bus, ADDR, sleep=clock.sleep).probe()

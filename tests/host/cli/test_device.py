@@ -242,7 +242,7 @@ def test_bundle_refused_by_the_device_is_one_line():
 
 def test_scene_invalid(capsys, tmp_path):
     scene = tmp_path / "bad.toml"
-    from firmware_sim.scene import scene_path
+    from firmware_sim.scene.files import scene_path
 
     text = scene_path("glass_15V").read_text()
     scene.write_text(text.replace("k_W_mK = 1.097", "k_W_mK = -1.0"))

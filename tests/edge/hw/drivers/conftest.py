@@ -2,7 +2,7 @@
 
 import pytest
 
-from firmware_sim.sim_board import make_sim_board
+from firmware_sim.board import make_sim_board
 
 
 @pytest.fixture

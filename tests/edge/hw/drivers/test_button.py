@@ -5,7 +5,7 @@ import errno
 import pytest
 
 from edge.hw.drivers.button import Button, ButtonEvent
-from firmware_sim.sim_board import make_sim_board
+from firmware_sim.board import make_sim_board
 
 TRIG = 27
 

@@ -2,7 +2,7 @@
 
 A real kernel keeps a line's state when the process that requested it dies,
 and releases that process's line requests (closing their file descriptors).
-The simulated kernel (:class:`firmware_sim.gpio.GpioSim`) lives inside the
+The simulated kernel (:class:`firmware_sim.gpiod.kernel.GpioSim`) lives inside the
 device code's process, so it dies with it; with ``GpioSim(clock,
 state_dir=DIR)`` every line change is mirrored to ``DIR/<chip>/<offset>.json``
 (written atomically) together with the pid of the process holding the line.

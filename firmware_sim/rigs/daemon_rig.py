@@ -24,12 +24,12 @@ from typing import Any
 
 from edge.physics.probe import HEATER_AREA_m2
 from firmware_sim.bus import SimBus
-from firmware_sim.chips.ads1115 import ADS1115 as SimADS1115
-from firmware_sim.chips.mcp9600 import MCP9600 as SimMCP9600
+from firmware_sim.chips.ads1115 import ADS1115Emulator
+from firmware_sim.chips.mcp9600 import MCP9600Emulator
 from firmware_sim.clock import VirtualClock
-from firmware_sim.gpio import GpioSim
+from firmware_sim.gpiod.kernel import GpioSim
 from firmware_sim.pwm import SimPwmTree
-from firmware_sim.sim_board import make_sim_board
+from firmware_sim.board import make_sim_board
 
 __all__ = ["World", "Rig", "make_rig", "heater_on_intervals", "heater_invariant"]
 
@@ -40,7 +40,7 @@ class World:
     Parameters
     ----------
     clock : VirtualClock
-    parts : firmware_sim.sim_board.SimBoardParts
+    parts : firmware_sim.board.SimBoardParts
     supply_voltage_V, resistance_ohm : float
         Heater electrical model.
     effusivity : float
@@ -116,8 +116,8 @@ class Rig:
     board: Any
     parts: Any
     bus: SimBus
-    mcp: SimMCP9600
-    ads: SimADS1115
+    mcp: MCP9600Emulator
+    ads: ADS1115Emulator
     world: World
     sensitivity_V_per_W_m2: float = 0.56e-6
     extra: dict = field(default_factory=dict)
@@ -131,7 +131,7 @@ def make_rig(*, effusivity: float = 1400.0, contact: bool = True, T0_C: float = 
     """Sim board with an MCP9600 at 0x60 and an ADS1115 at 0x48 on a SimBus.
 
     ``gpio_state_dir`` and ``pwm_root`` put the GPIO line states
-    (:mod:`firmware_sim.gpio_state`) and the sysfs PWM tree in directories
+    (:mod:`firmware_sim.gpiod.state`) and the sysfs PWM tree in directories
     that outlive this process (a test that kills it reads them afterwards).
     """
     clock = VirtualClock()
@@ -142,8 +142,8 @@ def make_rig(*, effusivity: float = 1400.0, contact: bool = True, T0_C: float = 
     parts = board.extras["sim"]
     world = World(clock, parts, supply_voltage_V=supply_voltage_V, resistance_ohm=resistance_ohm,
                   effusivity=effusivity, T0_C=T0_C, contact=contact)
-    mcp = SimMCP9600(clock, world.temperature_C, lambda t: T0_C, rng=seed + 1, emf_noise_rms_V=T_noise_V)
-    ads = SimADS1115(clock, lambda mux, t: world.flux_W_m2(t) * sensitivity_V_per_W_m2,
+    mcp = MCP9600Emulator(clock, world.temperature_C, lambda t: T0_C, rng=seed + 1, emf_noise_rms_V=T_noise_V)
+    ads = ADS1115Emulator(clock, lambda mux, t: world.flux_W_m2(t) * sensitivity_V_per_W_m2,
                      noise_rms_V=flux_noise_V, rng=seed + 2)
     bus.attach(0x60, mcp)
     bus.attach(0x48, ads)

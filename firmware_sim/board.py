@@ -1,6 +1,6 @@
 """A :class:`edge.hw.board.Board` built from the simulator's GPIO and PWM fakes.
 
-``make_sim_board()`` wires a :class:`~firmware_sim.gpio.GpioSim` chip, a
+``make_sim_board()`` wires a :class:`~firmware_sim.gpiod.kernel.GpioSim` chip, a
 :class:`~firmware_sim.pwm.SimPwmTree` and a
 :class:`~firmware_sim.clock.VirtualClock` into a Board with the same line
 offsets and PWM channel as the real Pi; the parts stay reachable as
@@ -17,7 +17,8 @@ from typing import Any
 from edge.hw.board import Board, GpioLine, register_board_factory
 from edge.hw.sysfs_pwm import SysfsPwm
 from firmware_sim.clock import VirtualClock
-from firmware_sim.gpio import GpioSim, SimChip
+from firmware_sim.gpiod.kernel import GpioSim
+from firmware_sim.gpiod.sim_chip import SimChip
 from firmware_sim.pwm import SimPwmTree
 
 __all__ = ["SimBoardParts", "make_sim_board", "register_sim_board"]

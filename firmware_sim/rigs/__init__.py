@@ -1,0 +1,1 @@
+"""Test rigs built from the simulator's parts (``daemon_rig``: a fast analytic rig for daemon tests)."""

@@ -1,0 +1,207 @@
+"""Scene TOML text -> :class:`~firmware_sim.scene.model.Scene`, checked by :mod:`edge.schema`.
+
+Each table is checked against its fields in :mod:`firmware_sim.scene.schema`
+with :func:`edge.schema.check_table`; the rules that tie fields together are
+checked here. Every failure is an :class:`edge.schema.SchemaError` with the
+dotted key path, turned into a :class:`~firmware_sim.scene.model.SceneError`
+(``"<file>: <dotted.key>: <message>"``) in one place.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+from edge.physics.materials import load_materials
+from edge.physics.solids import Solid
+from edge.schema import Field, SchemaError, check_table, check_value
+
+from firmware_sim.scene.model import (
+    CHIP_ADDRESSES,
+    BoardSpec,
+    Environment,
+    Fault,
+    HeaterSpec,
+    ObjectSpec,
+    Scene,
+    SceneError,
+    SensorSpec,
+    TouchSpec,
+)
+from firmware_sim.scene.schema import (
+    BOARD_FIELDS,
+    ENVIRONMENT_FIELDS,
+    FAULT_FIELDS,
+    FAULT_PARAM_FIELDS,
+    HEATER_FIELDS,
+    OBJECT_FIELDS,
+    PROPERTY_NAMES,
+    SENSOR_FIELDS,
+    TOP_FIELDS,
+    TOUCH_FIELDS,
+)
+
+__all__ = ["MaterialLookup", "library_material", "parse_scene", "validate_fault"]
+
+#: Resolves ``object.material``: name -> ``(k_W_mK, rho_kg_m3, c_J_kgK)``; KeyError if unknown.
+MaterialLookup = Callable[[str], tuple[float, float, float]]
+
+
+def library_material(name: str) -> tuple[float, float, float]:
+    """``(k_W_mK, rho_kg_m3, c_J_kgK)`` of library material ``name`` (edge.physics.materials).
+
+    Raises KeyError for an unknown name.
+    """
+    m = load_materials().get(name)
+    return (m.k_W_mK, m.rho_kg_m3, m.c_J_kgK)
+
+
+# ---------------------------------------------------------------------------
+# Tables (each raises SchemaError with the dotted path)
+
+
+def _object(data: Any, lookup: MaterialLookup | None) -> ObjectSpec:
+    o = check_table(data, OBJECT_FIELDS, "object")
+    material = o.get("material")
+    given = [p for p in PROPERTY_NAMES if p in o]
+    if material is not None:
+        if given:
+            raise SchemaError(f"object.{given[0]}",
+                              "give either object.material or k_W_mK/rho_kg_m3/c_J_kgK, not both")
+        try:
+            k, rho, cp = (lookup or library_material)(material)
+        except KeyError:
+            raise SchemaError("object.material",
+                              f"unknown material {material!r} (not in the material library)") from None
+        except LookupError as e:
+            raise SchemaError("object.material", f"cannot resolve {material!r}: {e}") from None
+    else:
+        if not given:
+            raise SchemaError("object.material", "missing required field (or give k_W_mK, rho_kg_m3 and c_J_kgK)")
+        for p in PROPERTY_NAMES:
+            if p not in o:
+                raise SchemaError(f"object.{p}", "missing required field")
+        k, rho, cp = (o[p] for p in PROPERTY_NAMES)
+    thickness = o.get("thickness_m")
+    if thickness is None and o["back"] != "infinite":
+        raise SchemaError("object.thickness_m", "missing required field")
+    label = o.get("label", material or "")
+    return ObjectSpec(Solid(k, rho, cp), o["back"], thickness, material, label)
+
+
+def _board(data: Any) -> BoardSpec:
+    b = check_table(data, BOARD_FIELDS, "board")
+    seen: dict[int, str] = {}
+    for chip, valid in CHIP_ADDRESSES.items():
+        a = b.get(chip)
+        if a is None:
+            continue
+        if a not in valid:
+            span = f"0x{min(valid):02x}..0x{max(valid):02x}"
+            raise SchemaError(f"board.{chip}", f"address must be {span}, got " + (f"0x{a:02x}" if a >= 0 else str(a)))
+        if a in seen:
+            raise SchemaError(f"board.{chip}", f"address 0x{a:02x} is already used by {seen[a]}")
+        seen[a] = chip
+    if b.get("mcp9600") is None and b.get("ads122c04") is None:
+        raise SchemaError("board.mcp9600", "missing: fit a thermocouple reader (board.mcp9600 or board.ads122c04)")
+    if b.get("ads1115") is None and b.get("ads122c04") is None:
+        raise SchemaError("board.ads1115", "missing: fit a flux-sensor reader (board.ads1115 or board.ads122c04)")
+    return BoardSpec(b.get("mcp9600"), b.get("ads1115"), b.get("ads122c04"), b["stack"])
+
+
+def _exactly_one(p: Mapping[str, Any], a: str, b: str, path: str) -> None:
+    if (a in p) == (b in p):
+        raise SchemaError(f"{path}.{a}", f"give exactly one of params.{a} or params.{b}")
+
+
+def _fault(data: Any, path: str) -> Fault:
+    f = check_table(data, FAULT_FIELDS, path)
+    kind, at, until = f["kind"], f["at_s"], f.get("until_s")
+    if until is not None:
+        check_value(Field("float", lo=at, lo_open=True), until, f"{path}.until_s")
+    pp = f"{path}.params"
+    raw = f.get("params", {})
+    params = check_table(raw, FAULT_PARAM_FIELDS[kind], pp)
+    if kind == "i2c_nack":
+        _exactly_one(raw, "address", "chip", pp)
+    elif kind == "supply_sag":
+        _exactly_one(raw, "factor", "voltage_V", pp)
+    return Fault(kind, at, until, params)
+
+
+def validate_fault(kind: str, at_s: float = 0.0, until_s: float | None = None,
+                   params: Mapping[str, Any] | None = None) -> Fault:
+    """Build a :class:`Fault` from code with the same checks as a scene's ``[[faults]]``.
+
+    Raises :class:`SceneError` located at ``<inject>: fault.<key>``.
+    """
+    f: dict[str, Any] = {"kind": kind, "at_s": at_s, "params": dict(params or {})}
+    if until_s is not None:
+        f["until_s"] = until_s
+    try:
+        return _fault(f, "fault")
+    except SchemaError as e:
+        raise SceneError("<inject>", e.path, e.message) from None
+
+
+def _scene(data: Mapping[str, Any], source: str, name: str | None, lookup: MaterialLookup | None) -> Scene:
+    top = check_table(data, TOP_FIELDS)
+    obj = _object(top["object"], lookup)
+    e = check_table(top["environment"], ENVIRONMENT_FIELDS, "environment")
+    h = check_table(top["heater"], HEATER_FIELDS, "heater")
+    board = _board(top["board"])
+    sensors = SensorSpec(**check_table(top["sensors"], SENSOR_FIELDS, "sensors")) if "sensors" in top else SensorSpec()
+    touch = TouchSpec(**check_table(top["touch"], TOUCH_FIELDS, "touch"))
+    faults = []
+    for i, raw in enumerate(top.get("faults", [])):
+        fault = _fault(raw, f"faults[{i}]")
+        chip = fault.params.get("chip")
+        if chip is not None and board.address_of(chip) is None:
+            raise SchemaError(f"faults[{i}].params.chip", f"{chip} is not fitted on this board")
+        faults.append(fault)
+    return Scene(
+        name=top["name"] if "name" in top else (name or Path(source).stem),
+        object=obj,
+        environment=Environment(**e),
+        heater=HeaterSpec(**h),
+        board=board,
+        touch=touch,
+        sensors=sensors,
+        contact_resistance_m2K_W=top["contact_resistance_m2K_W"],
+        seed=top["seed"],
+        faults=tuple(faults),
+        description=top["description"],
+        source=source,
+    )
+
+
+def parse_scene(text: str, *, source: str = "<string>", name: str | None = None,
+                material_lookup: MaterialLookup | None = None) -> Scene:
+    """Parse and validate scene TOML ``text``.
+
+    Parameters
+    ----------
+    text : str
+        TOML document (schema: :mod:`firmware_sim.scene.schema`).
+    source : str
+        File name used in error messages.
+    name : str, optional
+        Default scene name when the document has no ``name``.
+    material_lookup : callable name -> (k_W_mK, rho_kg_m3, c_J_kgK), optional
+        Resolves ``object.material`` (raise KeyError for unknown names);
+        default: the packaged material library.
+
+    Raises
+    ------
+    SceneError
+        Naming the file and the dotted key of the first problem.
+    """
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise SceneError(source, "", f"not valid TOML: {e}") from None
+    try:
+        return _scene(data, source, name, material_lookup)
+    except SchemaError as e:
+        raise SceneError(source, e.path, e.message) from None

@@ -1,0 +1,211 @@
+"""The scene file schema: every table's fields as :class:`edge.schema.Field` data.
+
+A scene is a TOML file. Each table below is declared as a mapping of
+:class:`~edge.schema.Field` and checked by the one validation engine,
+:mod:`edge.schema` (:func:`~edge.schema.check_table`); the rules that tie
+fields together (material or properties, thickness unless the back is
+infinite, chip addresses, exactly-one-of fault parameters) live in
+:mod:`firmware_sim.scene.parser`. Any failure is a
+:class:`~firmware_sim.scene.model.SceneError` whose message starts with the
+file name and the dotted key path, e.g.
+``glass.toml: object.k_W_mK: must be > 0, got -1.0``.
+
+Schema (units are in the key names; ``?`` marks optional keys, with defaults)
+------------------------------------------------------------------------------
+Top level::
+
+    name?                      str    scene name (default: file stem)
+    description?               str    free text
+    seed?                      int    >= 0, seeds all sensor noise (default 0)
+    contact_resistance_m2K_W?  float  >= 0, probe-object contact resistance (default 0)
+
+``[object]`` (required) -- the touched solid::
+
+    material?    str    a name from the material library (edge/physics/data/materials.csv), or
+    k_W_mK?      float  > 0  conductivity     } all three instead of ``material``
+    rho_kg_m3?   float  > 0  density          }
+    c_J_kgK?     float  > 0  specific heat    }
+    label?       str    display name
+    back         str    "fixed" (held at the initial temperature), "insulated" or "infinite"
+    thickness_m  float  > 0; required unless back = "infinite"
+
+``[environment]`` (required)::
+
+    initial_temperature_C   float  object temperature before the touch
+    ambient_temperature_C   float  air, probe and board (cold-junction) temperature
+
+``[heater]`` (required)::
+
+    supply_voltage_V  float  > 0
+    resistance_ohm    float  > 0 (the paper does not state R; the shipped scenes assume 50 ohm)
+
+``[board]`` (required) -- which chips are fitted (omit a key: chip absent)::
+
+    mcp9600?    int  I2C address 0x60..0x67 (thermocouple converter)
+    ads1115?    int  I2C address 0x48..0x4B (flux sensor on AIN0-AIN1)
+    ads122c04?  int  I2C address 0x40..0x4F (thermocouple on AIN0-AIN1, flux on AIN2-AIN3)
+    stack?      str  "0.42" (default) or "0.40": probe layer stack, see edge.physics.solids
+
+At least one thermocouple reader (mcp9600 or ads122c04) and one flux reader
+(ads1115 or ads122c04) must be fitted; addresses must differ.
+
+``[sensors]`` (optional)::
+
+    thermocouple_time_constant_s?   float >= 0 (default 0: ideal fine wire)
+    flux_sensitivity_V_per_W_m2?    float > 0  (default 0.56e-6, FHF05-like)
+    flux_range_W_m2?                float > 0  (default 10000: output clips at +-range)
+    mcp9600_emf_noise_rms_V?        float >= 0 (default 0)
+    ads1115_noise_rms_V?            float >= 0 (default 0)
+    ads122c04_noise_rms_V?          float >= 0 (default 0)
+
+``[touch]`` (required)::
+
+    start_s         float >= 0   probe placed on the object (virtual time)
+    length_s        float > 0    probe lifted at start_s + length_s
+    press_trigger?  bool         press the trigger button at start_s (default true)
+    trigger_hold_s? float > 0    how long it is held (default 0.1)
+
+``[[faults]]`` (optional, any number)::
+
+    kind      str    one of FAULT_KINDS (firmware_sim.scene.model)
+    at_s?     float  >= 0, start (default 0)
+    until_s?  float  > at_s, end (default: never)
+    params?   table  kind-specific:
+        i2c_nack           address (int) or chip ("mcp9600" | "ads1115" | "ads122c04")
+        bus_stuck          -
+        open_thermocouple  -
+        flux_saturation    voltage_V? (default 0.3 V: beyond both ADCs' flux ranges)
+        heater_stuck_on    duty? (0 < duty <= 1, default 1)
+        heater_dead        -
+        supply_sag         factor (0 < factor <= 1) or voltage_V (> 0)
+        no_contact         -
+
+Material names are resolved in the validated material library,
+:mod:`edge.physics.materials` (``edge/physics/data/materials.csv``); callers may pass their
+own ``material_lookup``.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+from edge.physics.probe import STACKS
+from edge.schema import Field
+from firmware_sim.scene.model import (
+    BACKS,
+    CHIP_ADDRESSES,
+    FAULT_KINDS,
+    FLUX_SATURATION_V,
+    SensorSpec,
+)
+
+__all__ = [
+    "T_MIN_C",
+    "T_MAX_C",
+    "TOP_FIELDS",
+    "OBJECT_FIELDS",
+    "PROPERTY_NAMES",
+    "ENVIRONMENT_FIELDS",
+    "HEATER_FIELDS",
+    "BOARD_FIELDS",
+    "SENSOR_FIELDS",
+    "TOUCH_FIELDS",
+    "FAULT_FIELDS",
+    "FAULT_PARAM_FIELDS",
+]
+
+T_MIN_C = -270.0   # type K table range (edge.physics.typek); the thermocouple must read it
+T_MAX_C = 1372.0
+
+_POSITIVE = {"lo": 0.0, "lo_open": True}
+_NON_NEGATIVE = {"lo": 0.0}
+_TEMPERATURE = {"lo": T_MIN_C, "hi": T_MAX_C}
+
+TOP_FIELDS: Mapping[str, Field] = {
+    "name": Field("str", None, "scene name (default: file stem)"),
+    "description": Field("str", "", "free text"),
+    "seed": Field("int", 0, "seeds all sensor noise", lo=0),
+    "contact_resistance_m2K_W": Field("float", 0.0, "probe-object contact resistance", lo=0.0, hi=1.0),
+    "object": Field("table", doc="the touched solid"),
+    "environment": Field("table", doc="temperatures"),
+    "heater": Field("table", doc="heater supply and film"),
+    "board": Field("table", doc="fitted chips"),
+    "sensors": Field("table", None, "sensor characteristics and noise"),
+    "touch": Field("table", doc="when the probe is on the object"),
+    "faults": Field("list", None, "[[faults]]: injected faults"),
+}
+
+#: The three properties that replace ``object.material``.
+PROPERTY_NAMES = ("k_W_mK", "rho_kg_m3", "c_J_kgK")
+
+OBJECT_FIELDS: Mapping[str, Field] = {
+    "material": Field("str", None, "a name from the material library"),
+    "label": Field("str", None, "display name (default: the material name)"),
+    "k_W_mK": Field("float", None, "conductivity", **_POSITIVE),
+    "rho_kg_m3": Field("float", None, "density", **_POSITIVE),
+    "c_J_kgK": Field("float", None, "specific heat", **_POSITIVE),
+    "back": Field("str", doc="back boundary", choices=BACKS),
+    "thickness_m": Field("float", None, "required unless back = infinite", **_POSITIVE),
+}
+
+ENVIRONMENT_FIELDS: Mapping[str, Field] = {
+    "initial_temperature_C": Field("float", doc="object temperature before the touch", **_TEMPERATURE),
+    "ambient_temperature_C": Field("float", doc="air, probe and board (cold-junction) temperature", **_TEMPERATURE),
+}
+
+HEATER_FIELDS: Mapping[str, Field] = {
+    "supply_voltage_V": Field("float", doc="heater supply", lo=0.0, lo_open=True, hi=1000.0),
+    "resistance_ohm": Field("float", doc="film resistance", **_POSITIVE),
+}
+
+#: Chip addresses are ints here; the parser checks them against CHIP_ADDRESSES.
+BOARD_FIELDS: Mapping[str, Field] = {
+    **{chip: Field("int", None, f"I2C address of the {chip}") for chip in CHIP_ADDRESSES},
+    "stack": Field("str", "0.42", "probe layer stack (edge.physics.probe.STACKS)", choices=tuple(STACKS)),
+}
+
+_DEFAULT_SENSORS = SensorSpec()
+SENSOR_FIELDS: Mapping[str, Field] = {
+    "thermocouple_time_constant_s": Field("float", _DEFAULT_SENSORS.thermocouple_time_constant_s,
+                                          "first-order lag of the thermocouple", lo=0.0, hi=10.0),
+    "flux_sensitivity_V_per_W_m2": Field("float", _DEFAULT_SENSORS.flux_sensitivity_V_per_W_m2,
+                                         "flux sensor output per flux", lo=0.0, lo_open=True, hi=1e-3),
+    "flux_range_W_m2": Field("float", _DEFAULT_SENSORS.flux_range_W_m2, "output clips at +-range", **_POSITIVE),
+    "mcp9600_emf_noise_rms_V": Field("float", 0.0, "MCP9600 input noise", lo=0.0, hi=1e-3),
+    "ads1115_noise_rms_V": Field("float", 0.0, "ADS1115 input noise", lo=0.0, hi=1e-2),
+    "ads122c04_noise_rms_V": Field("float", 0.0, "ADS122C04 input noise", lo=0.0, hi=1e-3),
+}
+
+TOUCH_FIELDS: Mapping[str, Field] = {
+    "start_s": Field("float", doc="probe placed on the object (virtual time)", **_NON_NEGATIVE),
+    "length_s": Field("float", doc="probe lifted at start_s + length_s", **_POSITIVE),
+    "press_trigger": Field("bool", True, "press the trigger button at start_s"),
+    "trigger_hold_s": Field("float", 0.1, "how long the trigger is held", **_POSITIVE),
+}
+
+#: ``until_s`` must also exceed ``at_s``; the parser checks that bound.
+FAULT_FIELDS: Mapping[str, Field] = {
+    "kind": Field("str", doc="fault kind", choices=FAULT_KINDS),
+    "at_s": Field("float", 0.0, "start", **_NON_NEGATIVE),
+    "until_s": Field("float", None, "end (default: never)"),
+    "params": Field("table", None, "kind-specific parameters"),
+}
+
+#: Parameters per fault kind. For i2c_nack and supply_sag exactly one of the
+#: two must be given (the parser checks that).
+FAULT_PARAM_FIELDS: Mapping[str, Mapping[str, Field]] = {
+    "i2c_nack": {
+        "address": Field("int", None, "7-bit I2C address", lo=0, hi=0x7F),
+        "chip": Field("str", None, "a fitted chip", choices=tuple(CHIP_ADDRESSES)),
+    },
+    "bus_stuck": {},
+    "open_thermocouple": {},
+    "flux_saturation": {"voltage_V": Field("float", FLUX_SATURATION_V, "voltage the flux channel shows")},
+    "heater_stuck_on": {"duty": Field("float", 1.0, "stuck duty", lo=0.0, lo_open=True, hi=1.0)},
+    "heater_dead": {},
+    "supply_sag": {
+        "factor": Field("float", None, "supply scaled by factor", lo=0.0, lo_open=True, hi=1.0),
+        "voltage_V": Field("float", None, "supply drops to voltage_V", **_POSITIVE),
+    },
+    "no_contact": {},
+}
