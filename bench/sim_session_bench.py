@@ -35,7 +35,7 @@ import numpy as np  # noqa: E402
 from firmware_sim.chips.ads1115 import ADS1115 as ADS1115Model  # noqa: E402
 from firmware_sim.chips.mcp9600 import MCP9600 as MCP9600Model  # noqa: E402
 from firmware_sim.clock import VirtualClock  # noqa: E402
-from firmware_sim.scene import read_scene  # noqa: E402
+from firmware_sim.scene.files import read_scene  # noqa: E402
 from firmware_sim.world import ManualDrive, ThermalWorld  # noqa: E402
 
 TOUCH_S, HEAT_S, AIR_S, READ_DT_S = 2.5, 2.0, 5.0, 0.01

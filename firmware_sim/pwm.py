@@ -216,6 +216,10 @@ class SimPwmTree:
         """Current state of the channel (as its latest history sample)."""
         return self.history(chip, channel)[-1]
 
+    def live_history(self, chip: int = 0, channel: int = 0) -> list[PwmSample]:
+        """The append-only list behind :meth:`history` (read it, never modify it; no copy per call)."""
+        return self._history[self._key(chip, channel)]
+
     def history(self, chip: int = 0, channel: int = 0) -> list[PwmSample]:
         """Every accepted state change of the channel, oldest first."""
         with self._lock:

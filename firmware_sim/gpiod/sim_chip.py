@@ -94,6 +94,13 @@ class SimChip:
         with self._gsim.lock:
             return self._line(offset).level
 
+    def live_line_history(self, offset: int) -> list[tuple[float, int]]:
+        """The append-only list behind :meth:`line_history` (read it, never modify it).
+
+        For readers that follow a long session incrementally: no copy per call.
+        """
+        return self._line(offset).history
+
     def line_history(self, offset: int) -> list[tuple[float, int]]:
         """Physical level changes of line ``offset`` as ``(t_s, level)`` pairs.
 

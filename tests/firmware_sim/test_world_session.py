@@ -9,16 +9,17 @@ import pytest
 
 import firmware_sim
 from firmware_sim import world as world_mod
-from firmware_sim.chips.ads1115 import ADS1115 as ADS1115Model
-from firmware_sim.chips.mcp9600 import MCP9600 as MCP9600Model
+from firmware_sim.chips.ads1115 import ADS1115Emulator
+from firmware_sim.chips.mcp9600 import MCP9600Emulator
 from firmware_sim.clock import VirtualClock
-from firmware_sim.scene import Fault, read_scene
+from firmware_sim.scene.model import Fault
+from firmware_sim.scene.files import read_scene
 from firmware_sim.world import BoardDrive, ManualDrive, ThermalWorld
 
 
 def _chips(world, clock):
-    mcp = MCP9600Model(clock, world.thermocouple_C, world.cold_junction_C, open_circuit=world.thermocouple_open)
-    ads = ADS1115Model(clock, world.ads1115_input_V)
+    mcp = MCP9600Emulator(clock, world.thermocouple_C, world.cold_junction_C, open_circuit=world.thermocouple_open)
+    ads = ADS1115Emulator(clock, world.ads1115_input_V)
     ads.i2c_write(bytes([0x01, 0x0A, 0xE3]))   # AIN0-AIN1, +-0.256 V, continuous, 860 SPS
     ads.i2c_write(bytes([0x00]))
     return mcp, ads
@@ -179,7 +180,7 @@ def test_board_drive_mirrors_the_board():
 
         board = sim.board()
         sc = sim.scene
-        heater = Heater(board, supply_voltage_v=sc.heater.supply_voltage_V, resistance_ohm=sc.heater.resistance_ohm)
+        heater = Heater(board, supply_voltage_V=sc.heater.supply_voltage_V, resistance_ohm=sc.heater.resistance_ohm)
         drive = sim.world.drive
         assert isinstance(drive, BoardDrive)
         rev, times = drive.changes_since(None)
