@@ -5,7 +5,7 @@ on each of the paper's nine scenes in turn (tempered glass at 12/15/18 V,
 PMMA at 8/15/20 V, aluminium alloy at 15/20/25 V). On the first, the model
 is deployed over the virtual serial link: the shipped bundle is flashed, or
 with ``train=True`` a quick bundle is trained and goes through
-train-and-deploy's checks (it is refused if it does worse than the device's).
+``thermotouch deploy``'s checks (it is refused if it does worse than the device's).
 Each scene gets one touch through the same serial path a real probe uses;
 the device's result (default method) is compared with the paper's Table 2
 reference values, and the paper's method is run on the same record with the
@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Callable
 
 from firmware_sim.scene.files import PRECISION_BOARD, scene_variant
+from host.atomic import write_text_atomic
 from host.device import DeviceUnavailable, open_device
 
 __all__ = ["PAPER_SCENES", "TABLE2", "run_demo", "measure_scenes", "format_table"]
@@ -39,7 +40,8 @@ def _err(v, ref):
 
 
 def measure_scenes(workdir: Path, scenes=PAPER_SCENES, *, plots: Path | None = None,
-                   expect_sha256: str | None = None, log: Callable[[str], None] = print) -> list[dict]:
+                   expect_sha256: str | None = None, log: Callable[[str], None] = print,
+                   progress: Callable[[int, int], None] | None = None) -> list[dict]:
     """One touch per scene on a simulated probe whose storage is ``workdir``; rows of results.
 
     Each row holds the scene, the reference solid, the device's result, the
@@ -50,7 +52,9 @@ def measure_scenes(workdir: Path, scenes=PAPER_SCENES, *, plots: Path | None = N
     from host.touch import touch  # noqa: PLC0415
 
     rows = []
-    for scene_ref in scenes:
+    if plots is not None:
+        Path(plots).mkdir(parents=True, exist_ok=True)
+    for i_scene, scene_ref in enumerate(scenes):
         scene = Path(scene_ref).stem  # a shipped name or a generated variant's path
         with open_device(sim=str(scene_ref), workdir=workdir) as s:
             sha = s.client.info()["model_sha256"]
@@ -85,6 +89,8 @@ def measure_scenes(workdir: Path, scenes=PAPER_SCENES, *, plots: Path | None = N
         rows.append(row)
         log(f"  {scene:10} e = {_num(r['effusivity_W_s05_m2K'])} ({_pct(row['default']['errors']['e']).strip()})"
             + (f", flags: {', '.join(row['flags'])}" if row["flags"] else ""))
+        if progress is not None:
+            progress(i_scene + 1, len(scenes))
     return rows
 
 
@@ -143,14 +149,30 @@ def format_table(rows: list[dict]) -> str:
 
 
 def run_demo(out: str | Path = "thermotouch-demo", *, train: bool = False, scenes=PAPER_SCENES,
-             progress: bool = True, log: Callable[[str], None] = print) -> int:
-    """The demo (see the module docstring); returns the exit status."""
+             progress: bool = True, overwrite: bool = False, log: Callable[[str], None] = print) -> int:
+    """The demo (see the module docstring); returns the exit status.
+
+    ``out`` must not exist unless ``overwrite`` (then its simulated probe
+    storage ``out/device`` is reset, and the demo's files are replaced).
+
+    Raises
+    ------
+    FileExistsError
+        ``out`` exists and ``overwrite`` is false.
+    NotADirectoryError
+        ``out`` exists and is not a directory.
+    """
     from host.deploy import DeployRefused, train_and_deploy  # noqa: PLC0415
     from host.flash import flash_bundle  # noqa: PLC0415
+    from host.progress import ProgressBar  # noqa: PLC0415
 
     t0 = time.perf_counter()
     out = Path(out)
     workdir = out / "device"
+    if out.exists() and not out.is_dir():
+        raise NotADirectoryError(f"{out} exists and is not a directory")
+    if out.exists() and not overwrite:
+        raise FileExistsError(f"{out} exists (use --overwrite to replace it)")
     shutil.rmtree(workdir, ignore_errors=True)  # a fresh probe every run: reproducible numbers
     out.mkdir(parents=True, exist_ok=True)
     from thermotouch_models import DEFAULT_BUNDLE  # noqa: PLC0415
@@ -162,7 +184,8 @@ def run_demo(out: str | Path = "thermotouch-demo", *, train: bool = False, scene
         if train:
             log("training a quick model and deploying it if it is no worse than the probe's ...")
             try:
-                r = train_and_deploy(s, out / "model", quick=True, progress=progress, log=lambda m: log("  " + m))
+                r = train_and_deploy(s, out / "model", quick=True, progress=progress, overwrite=overwrite,
+                                     log=lambda m: log("  " + m))
                 sha = r["model_sha256"]
             except DeployRefused as exc:
                 log(f"  refused: {exc}")
@@ -174,19 +197,21 @@ def run_demo(out: str | Path = "thermotouch-demo", *, train: bool = False, scene
             log(f"  device reports sha256 {sha}")
     # The self-check (with --train) used the first scene's touch; every scene gets a fresh power-up.
     log(f"touching the paper's samples ({len(scenes)} scenes) ...")
-    rows = measure_scenes(workdir, scenes, plots=out / "plots", expect_sha256=sha, log=log)
+    with ProgressBar("touches", "touch", enabled=progress) as bar:
+        rows = measure_scenes(workdir, scenes, plots=out / "plots", expect_sha256=sha, log=log, progress=bar)
     # The paper read its sensors with a precision DMM; the same nine touches on the
     # precision board (24-bit ADS122C04 for thermocouple and flux) show what that buys.
     log("the same nine touches on the precision board (ADS122C04) ...")
     variants = [scene_variant(sc, out / "scenes", suffix="_precision", board=PRECISION_BOARD) for sc in scenes]
-    rows_p = measure_scenes(workdir, variants, plots=out / "plots", expect_sha256=sha, log=log)
+    with ProgressBar("touches", "touch", enabled=progress) as bar:
+        rows_p = measure_scenes(workdir, variants, plots=out / "plots", expect_sha256=sha, log=log, progress=bar)
     table = ("Reference board (MCP9600 thermocouple converter, ADS1115 flux ADC):\n" + format_table(rows)
              + "\n\nPrecision board (ADS122C04 for thermocouple EMF and flux):\n" + format_table(rows_p))
     log("")
     log(table)
-    (out / "table.txt").write_text(table + "\n")
-    (out / "results.json").write_text(json.dumps({"model_sha256": sha, "rows": rows, "rows_precision": rows_p},
-                                                 indent=1))
+    write_text_atomic(out / "table.txt", table + "\n")
+    write_text_atomic(out / "results.json", json.dumps({"model_sha256": sha, "rows": rows, "rows_precision": rows_p},
+                                                       indent=1))
     rows = rows + rows_p
     heater_ok = all(r["heater"]["ok"] for r in rows)
     log("")

@@ -1,4 +1,4 @@
-"""``train-and-deploy``: train a bundle, prove it is no worse than the probe's, flash it, check a touch.
+"""``thermotouch deploy``: train a bundle, prove it is no worse than the probe's, flash it, check a touch.
 
 Steps, each printed as it runs::
 
@@ -25,9 +25,8 @@ holds it; otherwise only the thresholds apply, and the report says so.
 
 from __future__ import annotations
 
-import argparse
 import math
-import sys
+import os
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,7 +36,7 @@ import numpy as np
 
 from host.device import DeviceSession, DeviceUnavailable, open_device
 
-__all__ = ["Thresholds", "DeployRefused", "score_bundle", "judge", "self_check", "train_and_deploy", "main"]
+__all__ = ["Thresholds", "DeployRefused", "score_bundle", "judge", "self_check", "train_and_deploy"]
 
 #: Relative slack when comparing with the device's bundle: evaluation noise, not a licence to regress.
 COMPARE_TOLERANCE = 0.05
@@ -189,14 +188,15 @@ def _device_baseline(info: dict, baseline: str | Path | None, log: Callable[[str
 def train_and_deploy(session: DeviceSession, out: str | Path, *, quick: bool = False, seed: int = 0,
                      lib: Any = None, bundle: str | Path | None = None, baseline: str | Path | None = None,
                      thresholds: Thresholds = Thresholds(), reference: str | None = None,
-                     repeats: int = 2, progress: bool = True, log: Callable[[str], None] = print) -> dict:
+                     repeats: int = 2, progress: bool = True, overwrite: bool = False,
+                     log: Callable[[str], None] = print) -> dict:
     """The whole flow on an open session (see the module docstring).
 
     Parameters
     ----------
     session : DeviceSession
     out : path
-        Bundle directory to write (overwritten).
+        Bundle directory to write; if it exists it is replaced only with ``overwrite``.
     quick, seed, lib :
         Passed to :func:`host.train.train_bundle` (``lib``: a material subset).
     bundle : path, optional
@@ -217,8 +217,10 @@ def train_and_deploy(session: DeviceSession, out: str | Path, *, quick: bool = F
         Device problems, a refused upload, or a failed self-check.
     """
     from host.flash import flash_bundle, load_verified  # noqa: PLC0415
-    from host.progress import ProgressBar  # noqa: PLC0415
+    from host.progress import ProgressBar, Ticker  # noqa: PLC0415
 
+    if bundle is None and os.path.lexists(out) and not overwrite:
+        raise FileExistsError(f"{out} exists (use --overwrite to replace it)")
     c = session.client
     info = c.info()
     instrument = c.config_get("sensors.thermocouple").get("sensors.thermocouple", "mcp9600")
@@ -230,7 +232,8 @@ def train_and_deploy(session: DeviceSession, out: str | Path, *, quick: bool = F
         with warnings.catch_warnings(), ProgressBar("training set", "material", enabled=progress) as bar:
             warnings.simplefilter("ignore")  # sklearn convergence chatter; the metrics tell the truth
             new_bundle, metrics = train_bundle(out, quick=quick, seed=seed, lib=lib, progress=bar,
-                                               overwrite=True, log=lambda s: log(f"train: {s}"))
+                                               overwrite=overwrite, log=lambda s: log(f"train: {s}"),
+                                               step=lambda desc: Ticker(desc, enabled=progress))
         path = Path(out)
     else:
         path = Path(bundle)
@@ -238,12 +241,16 @@ def train_and_deploy(session: DeviceSession, out: str | Path, *, quick: bool = F
         metrics = dict(new_bundle.manifest.get("metrics", {}))
     log(f"held-back materials: k median error {metrics.get('heldout_k_median_rel_err', math.nan) * 100:.1f} %, "
         f"90th percentile {metrics.get('heldout_k_p90_rel_err', math.nan) * 100:.1f} %")
-    score = score_bundle(new_bundle, instrument, repeats=repeats)
+    with Ticker("evaluating the new bundle", enabled=progress):
+        score = score_bundle(new_bundle, instrument, repeats=repeats)
     old_bundle = _device_baseline(info, baseline, log)
     old = None
     if old_bundle is not None:
-        old = score if old_bundle.sha256 == new_bundle.sha256 else score_bundle(old_bundle, instrument,
-                                                                                 repeats=repeats)
+        if old_bundle.sha256 == new_bundle.sha256:
+            old = score
+        else:
+            with Ticker("evaluating the device's bundle", enabled=progress):
+                old = score_bundle(old_bundle, instrument, repeats=repeats)
     log("paper cases (mean |error|):  new " + _fmt_score(score)
         + ("" if old is None else "\n                             device " + _fmt_score(old)))
     why = judge(metrics, score, old, thresholds)
@@ -253,7 +260,8 @@ def train_and_deploy(session: DeviceSession, out: str | Path, *, quick: bool = F
         log("device already runs this model; flashing anyway to verify the link")
     fl = flash_bundle(session, path, progress=progress)
     log(f"flashed {fl['bytes']} B; device reports sha256 {fl['model_sha256']}")
-    check = self_check(session, score, reference=reference, log=log)
+    with Ticker("self-check touch", enabled=progress):
+        check = self_check(session, score, reference=reference, log=log)
     result = {"model_sha256": fl["model_sha256"], "metrics": metrics,
               "score": {k: v for k, v in score.items() if k != "rows"},
               "device_score": None if old is None else {k: v for k, v in old.items() if k != "rows"},
@@ -269,56 +277,3 @@ def train_and_deploy(session: DeviceSession, out: str | Path, *, quick: bool = F
 def _fmt_score(s: dict) -> str:
     return (f"paper k {s['paper_k'] * 100:.1f} %, paper α {s['paper_alpha'] * 100:.1f} %, "
             f"default e {s['default_e'] * 100:.1f} %, default k {s['default_k'] * 100:.1f} %")
-
-
-def _parser() -> argparse.ArgumentParser:
-    from host.cli import _Parser, _float  # noqa: PLC0415 - same one-line error style as thermotouch
-
-    p = _Parser(prog="train-and-deploy", description=__doc__.splitlines()[0])
-    src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--port", help="serial port of the probe")
-    src.add_argument("--sim", metavar="SCENE", help="start a simulated probe on SCENE for the duration "
-                     "(self-check against the scene's object; glass_15V is a good reference)")
-    p.add_argument("--quick", action="store_true", help="6 power levels, no noisy copies, fewer iterations")
-    p.add_argument("--out", default="thermotouch-model", help="bundle directory to write (default ./thermotouch-model)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--bundle", help="deploy this existing bundle instead of training one")
-    p.add_argument("--baseline", help="the device's current bundle directory, if not the shipped default")
-    p.add_argument("--reference", choices=("tempered_glass", "pmma", "aluminium_alloy"),
-                   help="with --port: the reference sample the probe rests on for the self-check touch")
-    p.add_argument("--workdir", help="with --sim: keep the simulated probe's models and history here")
-    p.add_argument("--timeout", type=_float("--timeout"), default=3.0, help="reply timeout, s")
-    for f in Thresholds.__dataclass_fields__:
-        p.add_argument(f"--max-{f.replace('_', '-')}", dest=f"max_{f}", type=_float(f"--max-{f}"),
-                       default=getattr(Thresholds, f), help=f"threshold, fraction (default {getattr(Thresholds, f)})")
-    return p
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Console script ``train-and-deploy`` (exit 0 deployed, 1 device/self-check failure, 2 bad input, 3 refused)."""
-    from host.cli import CliError  # noqa: PLC0415
-
-    try:
-        a = _parser().parse_args(argv)
-        th = Thresholds(**{f: getattr(a, f"max_{f}") for f in Thresholds.__dataclass_fields__})
-        try:
-            with open_device(a.port, a.sim, workdir=a.workdir, timeout_s=a.timeout) as session:
-                r = train_and_deploy(session, a.out, quick=a.quick, seed=a.seed, bundle=a.bundle,
-                                     baseline=a.baseline, thresholds=th, reference=a.reference,
-                                     log=lambda s: print(s, flush=True))
-        except DeviceUnavailable as exc:
-            raise CliError(f"train-and-deploy: {exc}", exc.code) from None
-        except FileExistsError as exc:
-            raise CliError(f"train-and-deploy: {exc}", 2) from None
-    except CliError as exc:
-        print(str(exc), file=sys.stderr)
-        return exc.code
-    except KeyboardInterrupt:
-        print("train-and-deploy: interrupted", file=sys.stderr)
-        return 130
-    print(f"deployed {r['bundle']} (sha256 {r['model_sha256']})")
-    return 0
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())

@@ -69,7 +69,9 @@ def device_errors(port: str | None = None) -> Iterator[None]:
     try:
         yield
     except ClientError as exc:
-        raise DeviceUnavailable(describe_error(exc, port)) from None
+        # The device refusing an argument is bad input (exit status 2), like the host refusing it.
+        bad_arg = isinstance(exc, DeviceError) and exc.code.name == "BAD_ARGUMENT"
+        raise DeviceUnavailable(describe_error(exc, port), 2 if bad_arg else 1) from None
 
 
 @dataclass
@@ -146,7 +148,10 @@ def simulated_probe(scene: str, workdir: str | Path | None = None, *,
             errors.append(exc)
 
     # The daemon logs each measurement at INFO; the user sees results on stdout instead.
-    logging.getLogger("thermotouch").setLevel(logging.WARNING)
+    # (unless the caller configured that logger, e.g. ``thermotouch --verbose``).
+    log = logging.getLogger("thermotouch")
+    if log.level == logging.NOTSET:
+        log.setLevel(logging.WARNING)
     th = threading.Thread(target=target, name="thermotouch-sim", daemon=True)
     th.start()
     deadline = time.monotonic() + SIM_START_TIMEOUT_s

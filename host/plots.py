@@ -54,7 +54,8 @@ def plot_touch(path: str | Path, series: Mapping[str, Any], result: Mapping[str,
     Parameters
     ----------
     path : str or Path
-        Output PNG.
+        Output file in an existing directory; its suffix picks the format
+        (``.png``, ``.pdf``, ``.svg``; none: PNG). Written atomically.
     series : mapping
         The stored record with ``raw_t_s``, ``raw_T_C``, ``raw_q_W_m2``,
         ``grid_t_s``, ``grid_q_W_m2``, ``T0_C`` and ``q_offset_W_m2``.
@@ -96,7 +97,12 @@ def plot_touch(path: str | Path, series: Mapping[str, Any], result: Mapping[str,
     ax_T.legend(loc="upper left")  # the rise fills the lower right
     fig.suptitle(result_title(result, label), fontsize=10)
     out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    from host.atomic import atomic_path  # noqa: PLC0415
+
+    try:  # the directory must exist (nothing is created behind the caller's back); written atomically
+        fmt = out.suffix.lstrip(".").lower() or "png"
+        with atomic_path(out) as tmp:
+            fig.savefig(tmp, dpi=110, format=fmt)
+    finally:
+        plt.close(fig)
     return out

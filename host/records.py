@@ -8,7 +8,9 @@ Schema: a header row, then one row per sample; columns (any order)
   the first sample;
 * ``q_W_m2`` - heat flux into the object (W/m^2).
 
-Lines starting with ``#`` are comments.  Errors name the line and column.
+Lines starting with ``#`` are comments.  The file is UTF-8 text (a leading
+byte-order mark, as some spreadsheets write, is accepted).  Errors name the
+line and column.
 """
 
 from __future__ import annotations
@@ -28,9 +30,15 @@ def read_record(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t_s, dT_K, q_W_m2) from a CSV file, samples with t_s >= 0 only."""
     path = Path(path)
     try:
-        text = path.read_text()
+        data = path.read_bytes()
     except OSError as exc:
         raise RecordError(f"{path}: cannot read ({exc.strerror})") from None
+    try:
+        text = data.decode("utf-8-sig")  # a spreadsheet's byte-order mark is not part of the header
+    except UnicodeDecodeError as exc:
+        raise RecordError(f"{path}: not a text CSV file (byte {exc.start} is not UTF-8)") from None
+    if "\x00" in text:
+        raise RecordError(f"{path}: not a text CSV file (contains NUL bytes)")
     rows = [(i + 1, line) for i, line in enumerate(text.splitlines()) if line.strip() and not line.lstrip().startswith("#")]
     if not rows:
         raise RecordError(f"{path}: empty file")
@@ -69,8 +77,10 @@ def read_record(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def write_record(path: str | Path, t_s, dT_K, q_W_m2) -> None:
-    """Write a record in the schema above (dT_K column)."""
-    with open(path, "w", newline="") as f:
+    """Write a record in the schema above (dT_K column), atomically."""
+    from host.atomic import atomic_path  # noqa: PLC0415
+
+    with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as f:
         f.write("# ThermoTouch record: time since heater-on, excess temperature, flux into the object\n")
         w = csv.writer(f)
         w.writerow(["t_s", "dT_K", "q_W_m2"])

@@ -10,6 +10,7 @@ coefficients used by the default method, so the device needs nothing else.
 
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -70,11 +71,15 @@ def library_arrays(lib: MaterialLibrary) -> dict:
 
 
 def train_bundle(out: str | Path, *, quick: bool = False, seed: int = 0, lib: MaterialLibrary | None = None,
-                 progress=None, overwrite: bool = False, log=print):
+                 progress=None, overwrite: bool = False, log=print, step=None):
     """Generate the training set, fit, evaluate on held-back materials and write a bundle.
 
-    Returns the written :class:`edge.model.bundle.Bundle` and the metrics dict.
+    ``progress(i, n)`` follows the training set; ``step(desc)`` is a context
+    manager around each network fit (e.g. :class:`host.progress.Ticker`), the
+    steps without a known length. Returns the written
+    :class:`edge.model.bundle.Bundle` and the metrics dict.
     """
+    step = step or (lambda desc: contextlib.nullcontext())
     t0 = time.perf_counter()
     lib = lib or load_materials()
     spec = DatasetSpec(noisy_copies=0 if quick else 1, levels_W_m3=DatasetSpec.levels_W_m3[::4] if quick
@@ -90,11 +95,13 @@ def train_bundle(out: str | Path, *, quick: bool = False, seed: int = 0, lib: Ma
                   ds.q_v_W_m3[train_mask], ds.material_index[train_mask], ds.noisy[train_mask], ds.names, ds.sha256)
     max_iter = 300 if quick else 500
     log("fitting on held-in materials ...")
-    pm_held = fit_paper_model(sub, seed=seed, max_iter=max_iter // 2)  # metrics only: a shorter fit
+    with step("fit (held-in materials)"):
+        pm_held = fit_paper_model(sub, seed=seed, max_iter=max_iter // 2)  # metrics only: a shorter fit
     k_pred = pm_held.predict_k(ds.features[~train_mask])
     held_err = np.abs(k_pred / ds.k_W_mK[~train_mask] - 1)
     log("fitting on all materials ...")
-    pm = fit_paper_model(ds, seed=seed, max_iter=max_iter)
+    with step("fit (all materials)"):
+        pm = fit_paper_model(ds, seed=seed, max_iter=max_iter)
     k_fit = pm.predict_k(ds.features)
     train_err = np.abs(k_fit / ds.k_W_mK - 1)
     p = pm.pca.transform(pm.scaler.transform(np.log(np.maximum(ds.features, pm.floor))))

@@ -3,9 +3,9 @@
 The module trains one small quick bundle (12 library materials, a few
 seconds) and runs the user's flows on it:
 
-* train-and-deploy against a probe running the shipped model REFUSES it
+* ``thermotouch deploy`` (host.deploy.train_and_deploy) against a probe running the shipped model REFUSES it
   (it does worse on the paper cases) and flashes nothing;
-* the small bundle flashed by hand, then train-and-deploy of the shipped
+* the small bundle flashed by hand, then a deploy of the shipped
   bundle against it (``baseline``) deploys: verified flash, the device
   reports the new sha256, a self-check touch on glass_15V passes;
 * the nine paper scenes touched with the quick-trained bundle on the device
@@ -70,7 +70,7 @@ ALPHA_BAR = {"tempered glass": 0.36, "PMMA": 0.20, "Al alloy": 0.65}
 
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
-    """A quick bundle on 12 materials, via train-and-deploy against a probe running the shipped model."""
+    """A quick bundle on 12 materials, via train_and_deploy against a probe running the shipped model."""
     from edge.physics.materials import MaterialLibrary, load_materials
 
     lib = load_materials()
@@ -168,14 +168,14 @@ def test_demo_prints_table2_comparison_and_writes_plots(tmp_path):
     assert "1.097" in text and "0.185" in text and "120.4" in text
 
 
-def test_train_and_deploy_console_script_refuses_in_one_line(trained, capsys):
-    from host.deploy import main
+def test_deploy_command_refuses_in_one_line(trained, capsys):
+    from host.cli.main import main
 
-    code = main(["--sim", "glass_15V", "--bundle", str(trained["bundle"])])
+    code = main(["deploy", "--sim", "glass_15V", "--bundle", str(trained["bundle"])])
     out, err = capsys.readouterr()
     assert code == 3
     lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].startswith("train-and-deploy: not deploying") and "Traceback" not in err
+    assert len(lines) == 1 and lines[0].startswith("thermotouch deploy: not deploying") and "Traceback" not in err
     assert "paper cases" in out  # it evaluated before refusing
 
 

@@ -23,7 +23,7 @@ def test_cli_entry_limits_blas_threads():
     code = (
         "import numpy, sys\n"
         "from threadpoolctl import threadpool_info\n"
-        "from host.cli import main\n"
+        "from host.cli.main import main\n"
         "rc = main(['model', '--material', 'pmma', '--duration', '0.2', '--json'])\n"
         "pools = [p['num_threads'] for p in threadpool_info() if p.get('user_api') == 'blas']\n"
         "print(rc, pools, file=sys.stderr)\n"

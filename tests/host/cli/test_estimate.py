@@ -7,7 +7,7 @@ import pytest
 
 from edge.physics.forward import simulate
 from edge.physics.solids import Solid
-from host.cli import main
+from host.cli.main import main
 from host.records import write_record
 
 GLASS = Solid(1.097, 2458.4, 809.0)
@@ -93,21 +93,36 @@ def test_train_quick_writes_a_loadable_bundle_and_refuses_overwrite(capsys, tmp_
     from edge.model.bundle import load_bundle
     from edge.estimation.estimate import pipeline_golden_check
 
+    import contextlib
+
+    import host.progress
+
+    steps = []
+
+    @contextlib.contextmanager
+    def ticker(desc, **kw):  # the fits (no known length) run under an elapsed-time indicator
+        steps.append(desc)
+        yield
+
+    monkeypatch.setattr(host.progress, "Ticker", ticker)
     monkeypatch.setenv("THERMOTOUCH_CACHE", str(tmp_path / "cache"))
     out = tmp_path / "b"
     code, _, err = run(capsys, "train", "--out", out, "--quick")
     assert code == 0, err
     assert "explained variance" in err
+    assert steps == ["fit (held-in materials)", "fit (all materials)"]
     b = load_bundle(out, golden_check=pipeline_golden_check)
     assert b.manifest["metrics"]["quick"] is True
     assert any((tmp_path / "cache").glob("dataset-*.npz")), "the training set is cached"
     code, _, err = run(capsys, "train", "--out", out, "--quick")
-    assert code == 2 and "exists" in err and len(err.strip().splitlines()) == 1
+    assert code == 2 and "exists" in err and "--overwrite" in err and len(err.strip().splitlines()) == 1
 
 
 def test_measure_profile_sets_the_contact_time(capsys):
     code, out, err = run(capsys, "measure", "--sim", "glass_15V", "--profile", "quick", "--json")
-    assert code == 0, err
+    # 0.5 s on glass may be too short for an estimate (flag no_signal): the record is still printed, and
+    # a touch without an estimate is not a success (exit 1, one line).
+    assert code == 0 or (code == 1 and "gave no estimate" in err and len(err.strip().splitlines()) == 1), err
     assert json.loads(out)["contact_time_s"] == pytest.approx(0.5)
     code, out, err = run(capsys, "measure", "--sim", "glass_15V", "--profile", "quick", "--time", "1")
     assert code == 2 and "--profile" in err and len(err.strip().splitlines()) == 1

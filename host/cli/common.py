@@ -1,0 +1,59 @@
+"""What several verbs share: the probe session, the estimator of a bundle, messages beside progress bars."""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+from typing import Any, Iterator
+
+from host.cli.args import resolve_port
+from host.cli.errors import EXIT_BAD_INPUT, CliError
+
+__all__ = ["device_session", "load_estimator", "say", "note"]
+
+
+@contextlib.contextmanager
+def device_session(args) -> Iterator[Any]:
+    """:func:`host.device.open_device` on ``--port`` (or $THERMOTOUCH_PORT) or ``--sim``.
+
+    Device problems raise :class:`host.device.DeviceUnavailable`, which
+    :func:`host.cli.main.main` reports in one line with its exit status.
+    """
+    from host.device import open_device  # noqa: PLC0415
+
+    resolve_port(args)
+    with open_device(args.port, args.sim, workdir=args.workdir, timeout_s=args.timeout) as session:
+        yield session
+
+
+def load_estimator(path, method: str = "default"):
+    """``(Estimator, Bundle)`` of a bundle directory (default: the shipped one), verified."""
+    from edge.model.bundle import BundleError, load_bundle  # noqa: PLC0415
+    from edge.estimation.estimate import Estimator, pipeline_golden_check  # noqa: PLC0415
+
+    if path is None:
+        from thermotouch_models import DEFAULT_BUNDLE  # noqa: PLC0415
+
+        path = DEFAULT_BUNDLE
+    try:
+        bundle = load_bundle(path, golden_check=pipeline_golden_check)
+    except BundleError as exc:
+        raise CliError(f"bundle {path} refused: {exc}", EXIT_BAD_INPUT) from None
+    est = Estimator.from_bundle(bundle)
+    if method == "paper" and not est.has_paper:
+        raise CliError(f"bundle {path} has no paper network", EXIT_BAD_INPUT)
+    return est, bundle
+
+
+def say(message: str) -> None:
+    """A line of output on stdout, never on the line of a running progress bar."""
+    from host.progress import echo  # noqa: PLC0415
+
+    echo(message, file=sys.stdout)
+
+
+def note(message: str) -> None:
+    """A line of commentary on stderr, never on the line of a running progress bar."""
+    from host.progress import echo  # noqa: PLC0415
+
+    echo(message, file=sys.stderr)

@@ -1,0 +1,90 @@
+"""``thermotouch measure``: one touch -- e, k and alpha with uncertainties, the material, flags; optionally a plot."""
+
+from __future__ import annotations
+
+from host.cli.args import add_device_args, add_output, bounded_float
+from host.cli.common import device_session
+from host.cli.errors import EXIT_RUNTIME, CliError
+from host.cli.report import dumps, measure_json, print_result
+
+#: Plot formats (the suffix picks one).
+PLOT_SUFFIXES = (".png", ".pdf", ".svg")
+
+
+def _protocol_bound(name: str):
+    """A converter with the protocol's bounds of MEASURE's ``name`` argument (one definition, edge.protocol)."""
+    from edge.protocol.commands import COMMANDS, Command  # noqa: PLC0415
+
+    f = next(a for a in COMMANDS[Command.MEASURE].args if a.name == name)
+    return bounded_float(f.lo, f.hi, lo_open=f.lo_open), f"{'>' if f.lo_open else '>='} {f.lo:g}, <= {f.hi:g}"
+
+
+def add_parser(sub, parents):
+    p = sub.add_parser("measure", help="one touch: e, k and alpha with uncertainties, material, flags",
+                       parents=parents)
+    add_device_args(p)
+    power = p.add_mutually_exclusive_group()
+    conv, rng = _protocol_bound("voltage_V")
+    power.add_argument("--voltage", type=conv, help=f"heater voltage, V ({rng})")
+    conv, rng = _protocol_bound("power_W")
+    power.add_argument("--power", type=conv, help=f"heater power, W ({rng})")
+    timing = p.add_mutually_exclusive_group()
+    conv, rng = _protocol_bound("contact_time_s")
+    timing.add_argument("--time", type=conv, help=f"contact (heating) time, s ({rng})")
+    timing.add_argument("--profile", choices=("quick", "standard", "precise"),
+                        help="contact time of a measurement profile: quick 0.5 s, standard 2 s, precise 4 s "
+                             "(accuracy per profile: README, estimation tables)")
+    p.add_argument("--method", choices=("paper", "default"), default=None,
+                   help="estimation method for this touch (default: the device's setting)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    add_output(p, "--plot", suffixes=PLOT_SUFFIXES, metavar="FILE.png",
+               help="save measured and fitted flux and temperature (.png, .pdf or .svg; in an existing directory)")
+    p.add_argument("--bundle", metavar="DIR", default=None,
+                   help="with --plot: the device's model bundle, for the fitted curves (default: the shipped "
+                        "bundle when the device runs it)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from host.progress import Ticker  # noqa: PLC0415
+    from host.touch import touch  # noqa: PLC0415
+
+    if args.profile is not None:
+        from edge.measure.profiles import PROFILES  # noqa: PLC0415
+
+        args.time = PROFILES[args.profile].contact_time_s
+    if args.bundle is not None:
+        from host.touch import bundle_identity  # noqa: PLC0415
+
+        if not args.plot:
+            raise CliError("--bundle is for the fitted curves of --plot")
+        bundle_identity(args.bundle)  # a wrong directory is refused before the touch
+    with device_session(args) as session:
+        with Ticker("measuring", enabled=not args.json):
+            t = touch(session, power_W=args.power, voltage_V=args.voltage, contact_time_s=args.time,
+                      method=args.method, with_series=bool(args.plot), bundle_dir=args.bundle)
+        label = session.simulator.scene.name if session.simulated else session.port
+    d = measure_json(t.record)
+    fit = t.fits.get(d["method"])
+    only_measured = "" if fit is not None else f" (measured series only: {t.fit_note or 'no model fit'})"
+    # The result is printed first: a plot that cannot be written must not lose it.
+    if args.json:
+        print(dumps(d), flush=True)
+    else:
+        print(f"measurement {d['measurement_id']}: {d['power_W']:.3g} W for {d['contact_time_s']:.3g} s")
+        print_result(d)
+    if args.plot:
+        from host.plots import plot_touch  # noqa: PLC0415
+
+        try:
+            plot_touch(args.plot, t.series, d, fit, label + only_measured)
+        except (OSError, ValueError) as exc:
+            why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+            raise CliError(f"measurement {d['measurement_id']} done, but cannot write the plot {args.plot}: {why}",
+                           EXIT_RUNTIME) from None
+        if not args.json:
+            print(f"plot: {args.plot}{only_measured}")
+    if d.get("effusivity_W_s05_m2K") is None:  # the device touched but gave no estimate: not a success
+        raise CliError(f"measurement {d['measurement_id']} gave no estimate"
+                       + (f" (flags: {', '.join(d['flags'])})" if d["flags"] else ""), EXIT_RUNTIME)
+    return 0
