@@ -5,16 +5,13 @@ from __future__ import annotations
 import errno as _errno
 import os
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from firmware_sim.gpiod.exception import ChipClosedError
 from firmware_sim.gpiod.line import Value, coerce_enum
 from firmware_sim.gpiod.line_request import LineRequest
 from firmware_sim.gpiod.line_settings import LineSettings, normalise_settings, replace_settings
 
-if TYPE_CHECKING:  # annotations only: the kernel binds Chip subclasses to itself
-    from firmware_sim.gpiod.kernel import GpioSim
-    from firmware_sim.gpiod.sim_chip import SimChip
 
 __all__ = ["Chip", "ChipInfo"]
 
@@ -36,7 +33,7 @@ class Chip:
     unbound module-level class has no kernel to look the path up in.
     """
 
-    _gsim: GpioSim | None = None
+    _gsim: Any = None  # the GpioSim this class is bound to (kernel.py binds it)
 
     def __init__(self, path: str):
         gsim = type(self)._gsim
@@ -45,7 +42,7 @@ class Chip:
                 "firmware_sim.gpiod.chip.Chip is not bound to a simulated kernel; "
                 "use GpioSim(clock).gpiod.Chip(path)"
             )
-        self._sim: SimChip | None = gsim._lookup(path)
+        self._sim: Any = gsim._lookup(path)  # its SimChip
         self._path = path
 
     def __bool__(self) -> bool:
@@ -58,7 +55,7 @@ class Chip:
     def __exit__(self, exc_type, exc_value, traceback) -> None:
         self.close()
 
-    def _check_closed(self) -> SimChip:
+    def _check_closed(self) -> Any:
         if self._sim is None:
             raise ChipClosedError()
         return self._sim

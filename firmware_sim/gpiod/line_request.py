@@ -4,15 +4,13 @@ from __future__ import annotations
 
 from collections import deque
 from datetime import timedelta
-from typing import TYPE_CHECKING, Iterable
+from typing import Any, Iterable
 
 from firmware_sim.gpiod.edge_event import EdgeEvent
 from firmware_sim.gpiod.exception import RequestReleasedError
 from firmware_sim.gpiod.line import Value
 from firmware_sim.gpiod.line_settings import LineSettings
 
-if TYPE_CHECKING:  # annotation only: the chip creates requests and pushes their events
-    from firmware_sim.gpiod.sim_chip import SimChip
 
 __all__ = ["LineRequest"]
 
@@ -34,14 +32,14 @@ class LineRequest:
 
     def __init__(
         self,
-        chip: SimChip,
+        chip: Any,
         cfg: dict[int, LineSettings],
         lines: list[int | str],
         name_map: dict[str, int],
         consumer: str | None,
         event_buffer_size: int | None,
     ) -> None:
-        self._chip: SimChip | None = chip
+        self._chip: Any = chip  # the SimChip that owns the lines
         self._cfg = cfg
         self._offsets = list(cfg)
         self._lines = lines
@@ -67,7 +65,7 @@ class LineRequest:
     def __exit__(self, exc_type, exc_value, traceback) -> None:
         self.release()
 
-    def _check_released(self) -> SimChip:
+    def _check_released(self) -> Any:
         if self._chip is None:
             raise RequestReleasedError()
         return self._chip

@@ -16,16 +16,13 @@ import errno as _errno
 import heapq
 import itertools
 import os
-from typing import TYPE_CHECKING, Iterable
+from typing import Any, Iterable
 
 from firmware_sim.gpiod.edge_event import EdgeEvent
 from firmware_sim.gpiod.line import Bias, Direction, Edge, Value, coerce_enum
 from firmware_sim.gpiod.line_settings import LineSettings, replace_settings
 from firmware_sim.gpiod.sim_line import SimLine
 
-if TYPE_CHECKING:  # annotations only: the kernel owns chips, requests hold them
-    from firmware_sim.gpiod.kernel import GpioSim
-    from firmware_sim.gpiod.line_request import LineRequest
 
 __all__ = ["SimChip"]
 
@@ -53,7 +50,7 @@ class SimChip:
 
     def __init__(
         self,
-        gsim: GpioSim,
+        gsim: Any,
         path: str,
         num_lines: int,
         label: str = "sim-gpio",
@@ -259,7 +256,7 @@ class SimChip:
 
     # ---- called by LineRequest
 
-    def _claim(self, req: LineRequest, cfg: dict[int, LineSettings]) -> None:
+    def _claim(self, req: Any, cfg: dict[int, LineSettings]) -> None:
         with self._gsim.lock:
             self._process_until(self._gsim.clock.now())
             for off, s in cfg.items():

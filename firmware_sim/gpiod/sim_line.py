@@ -18,13 +18,11 @@ there (:meth:`edge.hw.board.GpioLine.request_fail_safe_output`).
 from __future__ import annotations
 
 from datetime import timedelta
-from typing import TYPE_CHECKING
+from typing import Any
 
 from firmware_sim.gpiod.line import Bias, Direction, Value
 from firmware_sim.gpiod.line_settings import LineSettings
 
-if TYPE_CHECKING:  # annotation only: a line points back at the request holding it
-    from firmware_sim.gpiod.line_request import LineRequest
 
 __all__ = ["SimLine"]
 
@@ -50,7 +48,7 @@ class SimLine:
         self.name = name
         self.external: int | None = None  # level driven from outside; None = floating
         self.settings = LineSettings(direction=Direction.INPUT)
-        self.request: LineRequest | None = None
+        self.request: Any = None  # the LineRequest holding the line, if any
         self.out_value = 0  # physical level driven while an output
         self.level = 0
         self.reported = 0  # debounced level as seen by edge detection
