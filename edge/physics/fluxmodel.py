@@ -37,6 +37,19 @@ from edge.physics.solids import Solid
 FLUX_SCHEMES = ("duhamel", "default", "paper")
 
 
+
+def _flux_record(t_s, q_W_m2, thickness_m, back: str) -> tuple[np.ndarray, np.ndarray]:
+    """Checked (t, q) of a flux record and its object: one statement of what every flux model demands."""
+    one_of("back", back, fvm.BACKS)
+    t = finite_array("t_s", t_s, min_len=2)
+    strictly_increasing("t_s", t)
+    q = finite_array("q_W_m2", q_W_m2)
+    if q.shape != t.shape:
+        raise ValueError(f"q_W_m2 has {q.size} samples but t_s has {t.size}")
+    if back != "infinite":
+        finite_positive("thickness_m", thickness_m)
+    return t, q
+
 def duhamel_matrix(t_s: np.ndarray) -> np.ndarray:
     """Matrix D with T(t_i) = (D @ q)_i / e for q linear between the samples.
 
@@ -168,14 +181,7 @@ def surface_temperature_scan(t_s, q_W_m2, solids, *, thickness_m: float | None =
     :meth:`ModalSolver.march_linear`) and all of them are convolved with
     the flux's slope changes in one FFT product.
     """
-    one_of("back", back, fvm.BACKS)
-    t = finite_array("t_s", t_s, min_len=2)
-    strictly_increasing("t_s", t)
-    q = finite_array("q_W_m2", q_W_m2)
-    if q.shape != t.shape:
-        raise ValueError(f"q_W_m2 has {q.size} samples but t_s has {t.size}")
-    if back != "infinite":
-        finite_positive("thickness_m", thickness_m)
+    t, q = _flux_record(t_s, q_W_m2, thickness_m, back)
     tt = t - t[0]
     dt = _uniform_from_zero(tt)
     if dt is None:
@@ -223,14 +229,7 @@ def surface_temperature(
     scheme : ``"duhamel"``, ``"default"`` or ``"paper"``.
     """
     one_of("scheme", scheme, FLUX_SCHEMES)
-    one_of("back", back, fvm.BACKS)
-    t = finite_array("t_s", t_s, min_len=2)
-    strictly_increasing("t_s", t)
-    q = finite_array("q_W_m2", q_W_m2)
-    if q.shape != t.shape:
-        raise ValueError(f"q_W_m2 has {q.size} samples but t_s has {t.size}")
-    if back != "infinite":
-        finite_positive("thickness_m", thickness_m)
+    t, q = _flux_record(t_s, q_W_m2, thickness_m, back)
     tt = t - t[0]
     if scheme == "duhamel":
         if back != "infinite":
