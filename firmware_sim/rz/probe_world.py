@@ -1,0 +1,833 @@
+"""A faithful thermal world: the chips' view of the probe, computed on the (r, z) model.
+
+:class:`FaithfulWorld` is a drop-in for :class:`firmware_sim.world.ThermalWorld`
+as the chips and the simulator see it (``state``, ``truth``,
+``thermocouple_C``, ``cold_junction_C``, ``thermocouple_open``,
+``thermocouple_emf_V``, ``flux_voltage_V``, ``ads1115_input_V``,
+``ads122c04_input_V``, ``add_touch``, ``contact_at``, ``add_fault``,
+``heater_power_W``, ``power_schedule``, the :class:`HeaterDrive` protocol),
+but where ThermalWorld is the estimator's own idealisation (exact 1-D
+Laplace solution of a uniform stack), this one time-steps the axisymmetric
+finite-volume model of :mod:`firmware_sim.rz`:
+
+* the probe (PU-foam substrate, heater film of finite area, sensing layer)
+  held in air -- natural convection ``h`` on every exposed face, drifting
+  back to ambient -- before, between and after touches;
+* touches that start when the world is told (possibly seconds before the
+  heater is switched on), each with its own contact resistance, object
+  temperature and duration, on an object of finite radius and thickness
+  (the scene's back boundary; ``"infinite"`` is a thick object);
+* the flux sensor as a thermopile inside the sensing layer: the axial flux
+  averaged over its depth and its 10 x 10 mm (equal-area disk) area, times
+  its *true* sensitivity;
+* the thermocouple on the axis at the bottom of the sensing layer (probe
+  side of any contact resistance) through a first-order bead lag with its
+  *true* time constant;
+* the heater film's resistance with a temperature coefficient at constant
+  voltage, ``P = d V^2 / (R_0 (1 + alpha_R (T_heater - T_ref)))``;
+* as-built deviations (:class:`AsBuilt`: sensing-layer thickness and
+  conductivity, flux sensitivity, thermocouple lag, heater R and TCR) that
+  the device is never told.
+
+Time stepping
+-------------
+The world marches with virtual time in fixed steps ``dt`` (TR-BDF2, one
+banded factorisation per grid configuration and step; configurations --
+air, or contact with one touch's resistance and object -- are cached).  The
+field is carried from step to step, so nothing is re-superposed.  Within a
+step the heater power is constant: the step's electrical energy (the duty
+and supply integrated exactly over the step's switching instants) divided
+by the step, with ``R(T_heater)`` at the step's start (the one-step lag of
+the TCR feedback; ``T_heater`` moves by millikelvin per step).  A contact
+switch (touch start or end, ``no_contact`` faults) re-anchors the step grid
+at the switch instant: the step before it is shortened to end exactly there
+(one extra factorisation per distinct short step).  At a switch the probe's
+cells are carried over unchanged (every configuration has the same probe
+cells); the object enters at the touch's temperature, or -- after a
+``no_contact`` gap within one touch -- as it was left (it is not stepped
+while out of contact).  The first step after a switch is marched in
+backward-Euler sub-steps of dt/16, dt/16, dt/8, dt/4, dt/2 (monotone and
+L-stable: the field's jump at a new interface would make TR-BDF2's first
+step swing the face flux negative; the sub-steps also resolve the fast
+start of the contact transient).  Four more factorisations per
+configuration, cached.
+
+Outputs between records (step and sub-step ends) are linear
+interpolations; the thermocouple lag is integrated exactly on that
+piecewise-linear temperature.  A query at a switch instant gets the value
+at the end of the step before it (the contact flag is the phase's).
+
+Steps that end after the clock's "now" are provisional: the heater drive
+may still change there (the world only knows the duty commanded so far).
+Each step keeps its inputs (configuration, electrical energy); on every
+query provisional steps are re-checked and, if an input changed, the world
+rolls back to a snapshot (kept for the last :data:`SNAPSHOTS` steps) and
+re-steps.  New touches and faults roll back likewise; if the snapshot is
+gone the world restarts from t = 0 (always correct, only slower).
+
+Verification: ``tests/firmware_sim/rz/test_probe_world.py``; speed:
+``bench/faithful_world_bench.py``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field, replace
+from typing import Sequence
+
+import numpy as np
+
+from edge.physics import typek
+from edge.physics.probe import heater_power_W
+from edge.physics.schedule import PowerSchedule
+from edge.physics.solids import Solid
+from firmware_sim.rz.grid import ADIABATIC, PU_FOAM, SENSOR_AREA_m2, Boundary, Grid, Layer, Mesh
+from firmware_sim.rz.solver import Solver, axis_value
+from firmware_sim.scene import FLUX_SATURATION_V, Fault, Scene
+from firmware_sim.world import OPEN_TC_INPUT_V, HeaterDrive, Truth, WorldState
+
+__all__ = ["AsBuilt", "Geometry", "FaithfulWorld", "Touch", "SNAPSHOTS"]
+
+#: Steps kept as roll-back snapshots (each one field copy).
+SNAPSHOTS = 48
+#: Backward-Euler sub-steps (fractions of dt) that start every phase after a switch.
+_STARTUP = (1 / 16, 1 / 16, 1 / 8, 1 / 4, 1 / 2)
+_HEATER_FAULTS = ("heater_stuck_on", "heater_dead", "supply_sag")
+_WORLD_KINDS = ("open_thermocouple", "flux_saturation", "no_contact") + _HEATER_FAULTS
+_EPS_T = 1e-12
+
+
+@dataclass(frozen=True)
+class AsBuilt:
+    """How this probe was really built; the device is never told.
+
+    ``None`` means "as the scene/stack says" (nominal).  Defaults are the
+    ideal probe.
+
+    Attributes
+    ----------
+    sensing_thickness_m, sensing_k_W_mK : float or None
+        Sensing layer thickness and conductivity (rho c as the stack's).
+    flux_sensitivity_V_per_W_m2 : float or None
+        True thermopile sensitivity (default the scene's nominal value).
+    thermocouple_time_constant_s : float or None
+        True bead lag (default the scene's).
+    heater_resistance_ohm : float or None
+        Film resistance at ``heater_reference_C`` (default the scene's).
+    heater_tcr_per_K : float
+        Temperature coefficient of the film's resistance (1/K).
+    heater_reference_C : float
+        Temperature at which the film has ``heater_resistance_ohm``.
+    """
+
+    sensing_thickness_m: float | None = None
+    sensing_k_W_mK: float | None = None
+    flux_sensitivity_V_per_W_m2: float | None = None
+    thermocouple_time_constant_s: float | None = None
+    heater_resistance_ohm: float | None = None
+    heater_tcr_per_K: float = 0.0
+    heater_reference_C: float = 25.0
+
+    def __post_init__(self) -> None:
+        for name in ("sensing_thickness_m", "sensing_k_W_mK", "flux_sensitivity_V_per_W_m2",
+                     "heater_resistance_ohm"):
+            v = getattr(self, name)
+            if v is not None and not (v > 0 and math.isfinite(v)):
+                raise ValueError(f"{name} must be finite and > 0, got {v!r}")
+        tau = self.thermocouple_time_constant_s
+        if tau is not None and not (tau >= 0 and math.isfinite(tau)):
+            raise ValueError(f"thermocouple_time_constant_s must be finite and >= 0, got {tau!r}")
+        if not math.isfinite(self.heater_tcr_per_K):
+            raise ValueError("heater_tcr_per_K must be finite")
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """The probe's and object's real geometry and surroundings (not as-built deviations).
+
+    ``substrate=None`` with ``h_air_W_m2K=0`` and a large ``heater_radius_m``
+    is the 1-D limit (the estimator's insulated-top stack).
+    """
+
+    substrate: Solid | None = PU_FOAM
+    substrate_thickness_m: float = 0.030
+    heater_radius_m: float | None = None     # default: equal-area disk of the heater
+    probe_radius_m: float | None = None      # default: the heater radius
+    object_radius_m: float = 0.05
+    infinite_thickness_m: float = 0.10       # object thickness for back = "infinite"
+    h_air_W_m2K: float = 5.0                 # natural convection on every exposed face
+    mesh: Mesh = field(default_factory=Mesh)
+
+    def __post_init__(self) -> None:
+        if not self.h_air_W_m2K >= 0 or math.isinf(self.h_air_W_m2K):
+            raise ValueError("h_air_W_m2K must be finite and >= 0")
+
+
+@dataclass(frozen=True)
+class Touch:
+    """One contact window with its own contact resistance and object temperature."""
+
+    start_s: float
+    end_s: float
+    contact_resistance_m2K_W: float
+    object_temperature_C: float
+
+
+@dataclass(frozen=True)
+class _Phase:
+    start_s: float
+    end_s: float
+    touch: Touch | None   # None: in air
+
+
+@dataclass
+class _State:
+    """Everything the march carries from step to step (snapshotted for roll-back)."""
+
+    t: float
+    anchor: float          # start of the current phase (steps are anchor + k dt)
+    k: int                 # steps taken since the anchor
+    key: tuple             # configuration key
+    touch: Touch | None    # the touch in progress (None: in air)
+    T: np.ndarray          # the field on the configuration's grid
+    n_hist: int            # records in the history
+    n_steps: int           # steps taken
+    objects: dict          # Touch -> object rows left at the last lift (copy-on-write)
+    e_in: float            # heater energy so far (J)
+    e_lost: float          # heat lost through outer surfaces so far (J)
+    e_obj: float           # heat given to objects in closed contact phases (J)
+    e_obj0: float          # stored heat of the current object at its entry (J, rel. its touch temperature)
+
+    def copy(self) -> "_State":
+        return replace(self, T=self.T.copy())
+
+
+class _Config:
+    """One grid configuration: its grid, step solvers and read-out weights."""
+
+    def __init__(self, grid: Grid, n_probe_rows: int, tcr_weights: np.ndarray) -> None:
+        self.grid = grid
+        self.n_probe_rows = n_probe_rows
+        self.solvers: dict[float, Solver] = {}
+        self.main_dt = None
+        self.src = None
+        self.heater_w = tcr_weights
+        self.has_object = grid.nz > n_probe_rows
+        if self.has_object:
+            self.obj_rows = slice(n_probe_rows, grid.nz)
+            self.k_obj = float(grid.k_cell_W_mK[n_probe_rows, 0])
+
+    def solver(self, dt: float, scheme: str = "trbdf2") -> Solver:
+        key = (round(dt, 12), scheme)
+        s = self.solvers.get(key)
+        if s is None:
+            if len(self.solvers) >= 8:  # the main step, the start-up sub-steps and a few partial ones
+                self.solvers.pop(next(k for k in self.solvers if k != (self.main_dt, "trbdf2")))
+            s = Solver(self.grid, dt, scheme)
+            self.solvers[key] = s
+            if self.src is None:
+                # Per watt of electrical power: the film's power density q_v = P / (A L) over the heated
+                # disk (the equal-area disk by default: exactly 1 W; a larger disk, e.g. for the 1-D
+                # limit, is a larger film at the same power density).
+                self.src = self.grid.volume_source_W("heater", self.grid.meta["heater_radius_m"], self.q_v_per_W)
+        return s
+
+
+class FaithfulWorld:
+    """The probe on the scene's object(s), time-stepped on the (r, z) model.
+
+    Parameters
+    ----------
+    scene : Scene
+    clock : VirtualClock (or any clock with ``now()``)
+    drive : HeaterDrive, optional
+        Commanded duty (default: none; the heater is off unless a fault turns it on).
+    as_built : AsBuilt
+        The probe's true deviations from nominal.
+    geometry : Geometry
+        Substrate, heater/probe/object radii, convection, mesh.
+    dt_s : float
+        Time step of the march.
+    """
+
+    def __init__(self, scene: Scene, clock, drive: HeaterDrive | None = None, *,
+                 as_built: AsBuilt = AsBuilt(), geometry: Geometry = Geometry(), dt_s: float = 0.01) -> None:
+        if not (dt_s > 0 and math.isfinite(dt_s)):
+            raise ValueError("dt_s must be finite and > 0")
+        self.scene = scene
+        self.clock = clock
+        self.drive = drive
+        self.as_built = as_built
+        self.geometry = geometry
+        self.dt = float(dt_s)
+        nominal = scene.stack
+        L_s = nominal.sensing_thickness_m if as_built.sensing_thickness_m is None else as_built.sensing_thickness_m
+        m = nominal.material
+        k_s = m.k_W_mK if as_built.sensing_k_W_mK is None else as_built.sensing_k_W_mK
+        self.sensing_material = Solid(k_W_mK=k_s, rho_kg_m3=m.rho_kg_m3, c_J_kgK=m.c_J_kgK)
+        self.stack = replace(nominal, sensing_thickness_m=L_s)   # as built (heater film nominal)
+        sens = scene.sensors
+        self.flux_sensitivity = (sens.flux_sensitivity_V_per_W_m2 if as_built.flux_sensitivity_V_per_W_m2 is None
+                                 else as_built.flux_sensitivity_V_per_W_m2)
+        self.tau = (sens.thermocouple_time_constant_s if as_built.thermocouple_time_constant_s is None
+                    else as_built.thermocouple_time_constant_s)
+        self.R0 = scene.heater.resistance_ohm if as_built.heater_resistance_ohm is None \
+            else as_built.heater_resistance_ohm
+        self.T_amb = scene.environment.ambient_temperature_C
+        self._faults: list[Fault] = [f for f in scene.faults if f.kind in _WORLD_KINDS]
+        self._touches: list[Touch] = [Touch(scene.touch.start_s, scene.touch.end_s, scene.contact_resistance_m2K_W,
+                                            scene.environment.initial_temperature_C)]
+        self._configs: dict[tuple, _Config] = {}
+        self._phases: list[_Phase] | None = None
+        # History: one record per step end, plus one more at each switch (its right-hand side).
+        self._cap = 0
+        self._h: dict[str, np.ndarray] = {}
+        self._steps: list[tuple] = []       # (t_a, t_b, phase, E_nominal (J ohm), R used (ohm))
+        self._p0 = 0                        # first step that may still change (ends after "now")
+        self._snaps: deque[tuple[int, _State]] = deque(maxlen=SNAPSHOTS)
+        self._restart()
+
+    # ------------------------------------------------------------------ configuration
+
+    def _grid(self, key: tuple) -> _Config:
+        cfg = self._configs.get(key)
+        if cfg is not None:
+            return cfg
+        geo, stack = self.geometry, self.stack
+        a_h = math.sqrt(stack.heater_area_m2 / math.pi) if geo.heater_radius_m is None else geo.heater_radius_m
+        r_p = a_h if geo.probe_radius_m is None else geo.probe_radius_m
+        if r_p < a_h:
+            raise ValueError("the probe must be at least as wide as its heater")
+        air = Boundary(geo.h_air_W_m2K, self.T_amb)
+        layers = []
+        if geo.substrate is not None:
+            layers.append(Layer("substrate", geo.substrate_thickness_m, geo.substrate, r_p, fine_m=5e-6,
+                                fine_top_m=geo.mesh.max_dz_m))
+        layers.append(Layer("heater", stack.heater_thickness_m, stack.material, r_p, fine_m=5e-6))
+        n_probe_layers = len(layers) + 1
+        if key[0] == "air":
+            layers.append(Layer("sensing", stack.sensing_thickness_m, self.sensing_material, r_p, fine_m=10e-6))
+            bottom = air
+        else:
+            _, rc, T_obj = key
+            o = self.scene.object
+            thick = geo.infinite_thickness_m if o.back == "infinite" else o.thickness_m
+            layers.append(Layer("sensing", stack.sensing_thickness_m, self.sensing_material, r_p, fine_m=10e-6,
+                                contact_below_m2K_W=rc))
+            layers.append(Layer("object", thick, o.solid, geo.object_radius_m, fine_m=10e-6, fine_bottom_m=1e-3))
+            bottom = Boundary(math.inf, T_obj) if o.back == "fixed" else ADIABATIC
+        mesh = geo.mesh
+        R = max(r_p, geo.object_radius_m)   # the same radial faces in every configuration
+        r_s = math.sqrt(SENSOR_AREA_m2 / math.pi)
+        feats = {0.0: mesh.axis_dr_m, r_s: mesh.feature_dr_m, a_h: mesh.edge_dr_m, r_p: mesh.edge_dr_m,
+                 geo.object_radius_m: mesh.feature_dr_m, R: mesh.feature_dr_m}
+        if a_h <= r_s:
+            raise ValueError("the heater must be wider than the flux sensor")
+        r_breaks = sorted(feats)
+        z_sens = sum(l.thickness_m for l in layers[:n_probe_layers - 1])
+        g = Grid.build(layers, r_breaks_m=r_breaks, r_fine_m=[feats[r] for r in r_breaks], mesh=mesh,
+                       top=air, side=air, bottom=bottom)
+        g.meta.update(heater_radius_m=a_h, probe_radius_m=r_p, sensor_radius_m=r_s,
+                      sensor_z_m=(z_sens, z_sens + stack.sensing_thickness_m),
+                      interface_z_m=z_sens + stack.sensing_thickness_m,
+                      heater_volume_m3=float(np.pi * a_h ** 2 * stack.heater_thickness_m))
+        n_probe_rows = int(np.sum(g.layer_of_row < n_probe_layers))
+        # Heater film mean temperature (for the TCR): volume weights over the heated disk.
+        w = g.volume_source_W("heater", a_h, 1.0)
+        w = w / w.sum()
+        cfg = _Config(g, n_probe_rows, w)
+        cfg.main_dt = round(self.dt, 12)
+        cfg.q_v_per_W = self.stack.q_v_from_power(1.0)
+        ref = next(iter(self._configs.values()), None)
+        if ref is not None and not (np.array_equal(ref.grid.r_faces_m, g.r_faces_m) and np.array_equal(
+                ref.grid.z_faces_m[: n_probe_rows + 1], g.z_faces_m[: n_probe_rows + 1])):
+            raise AssertionError("configurations must share the probe's cells")
+        self._configs[key] = cfg
+        return cfg
+
+    def _key(self, phase: _Phase) -> tuple:
+        if phase.touch is None:
+            return ("air",)
+        t = phase.touch
+        return ("contact", t.contact_resistance_m2K_W, t.object_temperature_C)
+
+    # ------------------------------------------------------------------ faults
+
+    @property
+    def faults(self) -> tuple[Fault, ...]:
+        """Faults the world models (bus faults live on the SimBus)."""
+        return tuple(self._faults)
+
+    def add_fault(self, fault: Fault, *, now_s: float | None = None) -> None:
+        """Add a fault; it may not start before the current virtual time (see ThermalWorld.add_fault)."""
+        if fault.kind not in _WORLD_KINDS:
+            raise ValueError(f"fault kind {fault.kind!r} is not modelled by the thermal world")
+        now = self.clock.now() if now_s is None else min(float(now_s), self.clock.now())
+        if fault.at_s < now - 1e-12:
+            raise ValueError(f"fault at_s={fault.at_s} s is in the past (now {now} s)")
+        self._faults.append(fault)
+        self._phases = None
+        self._invalidate_from(fault.at_s)
+
+    def _active(self, kind: str, t_s: float) -> list[Fault]:
+        return [f for f in self._faults if f.kind == kind and f.active(t_s)]
+
+    # ------------------------------------------------------------------ heater
+
+    def duty_at(self, t_s: float) -> float:
+        """Effective duty at ``t_s``: commanded, unless a heater fault overrides it."""
+        if self._active("heater_dead", t_s):
+            return 0.0
+        stuck = self._active("heater_stuck_on", t_s)
+        if stuck:
+            return float(stuck[-1].params.get("duty", 1.0))
+        return self.drive.duty_at(t_s) if self.drive is not None else 0.0
+
+    def supply_voltage_at(self, t_s: float) -> float:
+        """Heater supply voltage (V) at ``t_s``, with any sag."""
+        v = self.scene.heater.supply_voltage_V
+        for f in self._active("supply_sag", t_s):
+            v = f.params["voltage_V"] if "voltage_V" in f.params else v * f.params["factor"]
+        return v
+
+    def _switch_times(self) -> np.ndarray:
+        times = set(self.drive.change_times()) if self.drive is not None else set()
+        for f in self._faults:
+            if f.kind in _HEATER_FAULTS:
+                times.add(f.at_s)
+                if f.until_s is not None:
+                    times.add(f.until_s)
+        return np.array(sorted(times), dtype=float)
+
+    def _dv2(self, t: float) -> float:
+        """duty * V^2 at ``t`` (W ohm)."""
+        return heater_power_W(self.duty_at(t), self.supply_voltage_at(t), 1.0)
+
+    def _nominal_energy(self, t_a: float, t_b: float, switches: np.ndarray) -> float:
+        """Integral of duty * V^2 over [t_a, t_b) (J ohm), exact over the switching instants."""
+        i0, i1 = np.searchsorted(switches, [t_a, t_b], side="right")
+        edges = [t_a] + [float(x) for x in switches[i0:i1] if t_a < x < t_b] + [t_b]
+        return sum(self._dv2(a) * (b - a) for a, b in zip(edges[:-1], edges[1:]))
+
+    def resistance_ohm(self, T_heater_C: float) -> float:
+        """Film resistance (ohm) at ``T_heater_C``."""
+        r = self.R0 * (1.0 + self.as_built.heater_tcr_per_K * (T_heater_C - self.as_built.heater_reference_C))
+        if not r > 0:
+            raise ValueError(f"heater resistance {r} ohm at {T_heater_C} degC: TCR out of range")
+        return r
+
+    def heater_power_W(self, t_s: float) -> float:
+        """Electrical power in the film at ``t_s`` (W), ``d V^2 / R(T_heater)``."""
+        dv2 = self._dv2(float(t_s))
+        if dv2 == 0.0:
+            return 0.0
+        if self.as_built.heater_tcr_per_K == 0.0:
+            return dv2 / self.R0
+        return dv2 / self._resistance_in_step(float(t_s))
+
+    def q_v_at(self, t_s: float) -> float:
+        """Heater power density at ``t_s`` (W/m^3) over the nominal film."""
+        return self.stack.q_v_from_power(self.heater_power_W(t_s))
+
+    def power_schedule(self, t_end_s: float | None = None) -> PowerSchedule:
+        """q_v(t) from 0 to ``t_end_s`` (default now): switching instants, and with a TCR every step start."""
+        t_end = self.clock.now() if t_end_s is None else float(t_end_s)
+        sw = self._switch_times()
+        times = {0.0} | {float(x) for x in sw if 0.0 < x <= t_end + 1e-12}
+        if self.as_built.heater_tcr_per_K != 0.0 and t_end > 0:
+            self._advance_to(t_end)
+            times |= {s[0] for s in self._steps if 0.0 < s[0] <= t_end}
+        ts = sorted(times)
+        q = [self.q_v_at(t) for t in ts]
+        keep = [0] + [i for i in range(1, len(q)) if q[i] != q[i - 1]]
+        return PowerSchedule(np.array([ts[i] for i in keep]), np.array([q[i] for i in keep]))
+
+    # ------------------------------------------------------------------ touches and phases
+
+    @property
+    def touches(self) -> tuple[tuple[float, float], ...]:
+        """Contact windows ``(start_s, end_s)``."""
+        return tuple((t.start_s, t.end_s) for t in self._touches)
+
+    @property
+    def touch_specs(self) -> tuple[Touch, ...]:
+        return tuple(self._touches)
+
+    def add_touch(self, start_s: float, length_s: float, *, contact_resistance_m2K_W: float | None = None,
+                  object_temperature_C: float | None = None) -> None:
+        """Put the probe on an object for ``[start_s, start_s + length_s)``.
+
+        Each touch has its own contact resistance and object temperature
+        (defaults: the scene's); the object is a fresh one at that temperature.
+        """
+        start, length = float(start_s), float(length_s)
+        if not start >= self.clock.now() - 1e-12:
+            raise ValueError(f"start_s={start_s} s is in the past (now {self.clock.now()} s)")
+        if not (length > 0 and math.isfinite(length)):
+            raise ValueError(f"length_s must be a finite number > 0, got {length_s!r}")
+        rc = self.scene.contact_resistance_m2K_W if contact_resistance_m2K_W is None else float(
+            contact_resistance_m2K_W)
+        if not (rc >= 0 and math.isfinite(rc)):
+            raise ValueError("contact_resistance_m2K_W must be finite and >= 0")
+        T_o = self.scene.environment.initial_temperature_C if object_temperature_C is None else float(
+            object_temperature_C)
+        end = start + length
+        for t in self._touches:
+            if start < t.end_s and t.start_s < end:
+                raise ValueError(f"touch [{start}, {end}) s overlaps the touch [{t.start_s}, {t.end_s}) s")
+        self._touches.append(Touch(start, end, rc, T_o))
+        self._touches.sort(key=lambda t: t.start_s)
+        self._phases = None
+        self._invalidate_from(start)
+
+    def contact_at(self, t_s: float) -> bool:
+        """Whether the probe touches an object at ``t_s``."""
+        return self._touch_at(t_s) is not None
+
+    def _touch_at(self, t_s: float) -> Touch | None:
+        if self._active("no_contact", t_s):
+            return None
+        for t in self._touches:
+            if t.start_s <= t_s < t.end_s:
+                return t
+        return None
+
+    def phases(self) -> list[_Phase]:
+        """Air / contact phases covering [0, inf)."""
+        if self._phases is not None:
+            return self._phases
+        edges = {0.0}
+        for t in self._touches:
+            edges.update((t.start_s, t.end_s))
+        for f in self._faults:
+            if f.kind == "no_contact":
+                edges.add(f.at_s)
+                if f.until_s is not None:
+                    edges.add(f.until_s)
+        el = sorted(edges) + [math.inf]
+        out: list[_Phase] = []
+        for a, b in zip(el[:-1], el[1:]):
+            c = self._touch_at(a)
+            if out and out[-1].touch == c:
+                out[-1] = _Phase(out[-1].start_s, b, c)
+            else:
+                out.append(_Phase(a, b, c))
+        self._phases = out
+        return out
+
+    def _phase_at(self, t: float) -> _Phase:
+        for ph in self.phases():
+            if ph.start_s <= t < ph.end_s:
+                return ph
+        return self.phases()[-1]
+
+    # ------------------------------------------------------------------ the march
+
+    _FIELDS = ("t", "T_tc", "q_sensor", "q_face", "T_heater", "T_obj_face", "y", "contact", "power",
+               "e_in", "e_lost", "e_stored")
+
+    def _restart(self) -> None:
+        """Back to t = 0: the probe at ambient, in whatever phase t = 0 is."""
+        ph = self._phase_at(0.0)
+        key = self._key(ph)
+        cfg = self._grid(key)
+        T = np.full(cfg.grid.shape, self.T_amb)
+        objects: dict = {}
+        self._h = {}
+        self._cap = 0
+        self._steps = []
+        self._p0 = 0
+        self._snaps.clear()
+        self._state = _State(t=0.0, anchor=0.0, k=0, key=key, touch=ph.touch, T=T * cfg.grid.active, n_hist=0,
+                             n_steps=0, objects=objects, e_in=0.0, e_lost=0.0, e_obj=0.0, e_obj0=0.0)
+        if cfg.has_object:
+            self._enter_object(cfg, ph.touch)
+        self._record(cfg, power=0.0)
+
+    def _enter_object(self, cfg: _Config, touch: Touch) -> None:
+        st = self._state
+        stored = st.objects.get(touch)
+        T_o = touch.object_temperature_C
+        if stored is None:
+            st.T[cfg.obj_rows] = T_o
+        else:
+            st.T[cfg.obj_rows] = stored
+        st.T *= cfg.grid.active
+        st.e_obj0 = self._object_heat(cfg, st.T, T_o)
+
+    def _object_heat(self, cfg: _Config, T: np.ndarray, T_o: float) -> float:
+        C = cfg.grid.cap_J_K[cfg.obj_rows]
+        return float(np.sum(C * (T[cfg.obj_rows] - T_o)))
+
+    def _probe_heat(self, cfg: _Config, T: np.ndarray) -> float:
+        C = cfg.grid.cap_J_K[: cfg.n_probe_rows]
+        return float(np.sum(C * (T[: cfg.n_probe_rows] - self.T_amb)))
+
+    def _grow(self) -> None:
+        cap = max(1024, 2 * self._cap)
+        for name in self._FIELDS:
+            old = self._h.get(name)
+            new = np.zeros(cap)
+            if old is not None:
+                new[: self._cap] = old[: self._cap]
+            self._h[name] = new
+        self._cap = cap
+
+    def _record(self, cfg: _Config, power: float, y: float | None = None) -> None:
+        st = self._state
+        if st.n_hist >= self._cap:
+            self._grow()
+        s = cfg.solver(self.dt)
+        T_tc, q_s, q_f = s.probes.read(st.T, s.g_t)
+        i = st.n_hist
+        h = self._h
+        h["t"][i] = st.t
+        h["T_tc"][i] = T_tc
+        h["q_sensor"][i] = q_s
+        h["q_face"][i] = q_f
+        h["T_heater"][i] = float(np.sum(cfg.heater_w * st.T))
+        if cfg.has_object:
+            # Object-side face temperature on the axis: top object cells + half-cell drop, r^2 fit.
+            j = cfg.n_probe_rows
+            A = cfg.grid.ring_area_m2[:2]
+            q_ax = cfg.grid.g_z_W_K[j - 1, :2] * (st.T[j - 1, :2] - st.T[j, :2]) / A
+            h["T_obj_face"][i] = float(axis_value(cfg.grid, st.T[j, :2] + q_ax * cfg.grid.dz_m[j] / (2 * cfg.k_obj)))
+        else:
+            h["T_obj_face"][i] = np.nan
+        h["y"][i] = T_tc if y is None else y
+        h["contact"][i] = 1.0 if cfg.has_object else 0.0
+        h["power"][i] = power
+        h["e_in"][i] = st.e_in
+        h["e_lost"][i] = st.e_lost
+        h["e_stored"][i] = self._probe_heat(cfg, st.T) + st.e_obj + (
+            self._object_heat(cfg, st.T, st.touch.object_temperature_C) - st.e_obj0 if cfg.has_object else 0.0)
+        st.n_hist = i + 1
+
+    def _lag(self, y0: float, T0: float, T1: float, dt: float) -> float:
+        """First-order lag ``tau y' + y = T`` over a step with T linear from T0 to T1."""
+        if self.tau <= 0:
+            return T1
+        if dt <= 0:
+            return y0
+        m = (T1 - T0) / dt
+        a = math.exp(-dt / self.tau)
+        return T1 - m * self.tau + (y0 - T0 + m * self.tau) * a
+
+    def _step(self, switches: np.ndarray, now: float) -> None:
+        st = self._state
+        ph = self._phase_at(st.t)
+        cfg = self._grid(st.key)
+        t_a = st.t
+        t_b = st.anchor + (st.k + 1) * self.dt
+        switch = t_b >= ph.end_s - 1e-9 * self.dt
+        if switch:
+            t_b = ph.end_s
+        dt = t_b - t_a
+        e_nom = self._nominal_energy(t_a, t_b, switches)
+        self._snaps.append((st.n_steps, st.copy()))
+        T_h = float(np.sum(cfg.heater_w * st.T))
+        R = self.resistance_ohm(T_h)
+        self._steps.append((t_a, t_b, ph, e_nom, R))
+        power = e_nom / dt / R if e_nom else 0.0
+        if st.k == 0 and (st.t > 0 or cfg.has_object) and abs(dt - self.dt) <= 1e-12 * self.dt:
+            # First step of a phase: the field jumps at the new interface (contact) or at the
+            # newly exposed face (lift); march it with L-stable, monotone backward-Euler
+            # sub-steps growing from dt/16 (no negative flux, no ringing of the thin cells),
+            # which also resolves the fast start of the contact transient.
+            subs, scheme = [dt * f for f in _STARTUP], "be"
+        else:
+            subs, scheme = [dt], "trbdf2"
+        h = self._h
+        t = t_a
+        for n, d in enumerate(subs):
+            s = cfg.solver(d, scheme)
+            rec = s.run(st.T, 1, cfg.src, power, keep_field=True)
+            n_prev = st.n_hist - 1
+            st.T = rec.T_final_K
+            st.t = t = t_b if n == len(subs) - 1 else t + d
+            st.e_in += float(rec.E_in_J[-1])
+            st.e_lost += float(rec.E_lost_J[-1])
+            T_tc_new = float(s.probes.read(st.T, s.g_t)[0])
+            y = self._lag(h["y"][n_prev], h["T_tc"][n_prev], T_tc_new, d)
+            self._record(cfg, power, y)
+        st.k += 1
+        st.n_steps += 1
+        if switch:
+            self._switch(cfg)
+        if self._p0 == st.n_steps - 1 and t_b <= now:
+            self._p0 = st.n_steps
+
+    def _switch(self, old: _Config) -> None:
+        """Change configuration at the current time (a phase boundary)."""
+        st = self._state
+        ph = self._phase_at(st.t)
+        key = self._key(ph)
+        new = self._grid(key)
+        if old.has_object:
+            st.e_obj += self._object_heat(old, st.T, st.touch.object_temperature_C) - st.e_obj0
+            st.objects = dict(st.objects)
+            st.objects[st.touch] = st.T[old.obj_rows].copy()
+        T = np.full(new.grid.shape, self.T_amb)
+        T[: new.n_probe_rows] = st.T[: old.n_probe_rows]
+        st.T = T * new.grid.active
+        st.key, st.touch, st.anchor, st.k = key, ph.touch, st.t, 0
+        if new.has_object:
+            self._enter_object(new, ph.touch)
+        # No record here: the step's end (the left side) is the record at the switch, and the
+        # start-up sub-steps resolve the jump; the ledger's stored heat is continuous across
+        # (the probe's cells are carried over, the object's heat is booked from its entry).
+
+    def _invalidate_from(self, t_s: float) -> None:
+        """Drop everything computed on or after ``t_s`` (a step that ends after it is redone)."""
+        for i, (t_a, t_b, *_) in enumerate(self._steps):
+            if t_b > t_s + _EPS_T:
+                self._rollback(i)
+                return
+
+    def _rollback(self, i: int) -> None:
+        for n, snap in reversed(self._snaps):
+            if n == i:
+                self._state = snap.copy()
+                # Snapshots taken before a touch was added hold the old configuration keys; re-derive it.
+                del self._steps[i:]
+                self._snaps = deque((s for s in self._snaps if s[0] < i), maxlen=SNAPSHOTS)
+                self._p0 = min(self._p0, i)
+                if self._phase_at(self._state.t).touch != self._state.touch:
+                    self._restart()    # the phase at the snapshot changed under it: start over
+                return
+        self._restart()
+
+    def _revalidate(self, switches: np.ndarray, now: float) -> None:
+        """Re-check provisional steps' inputs; roll back to the first that changed."""
+        i = self._p0
+        while i < len(self._steps):
+            t_a, t_b, ph, e_nom, _ = self._steps[i]
+            if self._phase_at(t_a) != ph or self._nominal_energy(t_a, t_b, switches) != e_nom:
+                self._rollback(i)
+                break
+            if t_b <= now and i == self._p0:
+                self._p0 = i + 1
+            i += 1
+
+    def _advance_to(self, t: float) -> None:
+        now = self.clock.now()
+        switches = self._switch_times()
+        self._revalidate(switches, now)
+        while self._state.t < t - 1e-12:
+            self._step(switches, now)
+
+    # ------------------------------------------------------------------ read-outs
+
+    def _interp(self, ts: np.ndarray, names: Sequence[str]) -> dict[str, np.ndarray]:
+        if ts.size == 0:
+            return {n: np.zeros(0) for n in names} | {"y": np.zeros(0)}
+        if np.any(~(ts >= 0.0)):
+            raise ValueError(f"t_s must be >= 0, got {ts[~(ts >= 0.0)][0]!r}")
+        self._advance_to(float(ts.max()))
+        n = self._state.n_hist
+        h = self._h
+        t = h["t"][:n]
+        i = np.clip(np.searchsorted(t, ts, side="right") - 1, 0, n - 1)
+        j = np.minimum(i + 1, n - 1)
+        span = t[j] - t[i]
+        w = np.where(span > 0, (ts - t[i]) / np.where(span > 0, span, 1.0), 0.0)
+        out = {name: h[name][:n][i] + w * (h[name][:n][j] - h[name][:n][i]) for name in names}
+        # The lag, exactly on the piecewise-linear temperature.
+        T0, T1 = h["T_tc"][:n][i], h["T_tc"][:n][j]
+        y0 = h["y"][:n][i]
+        if self.tau > 0:
+            dt = ts - t[i]
+            m = np.where(span > 0, (T1 - T0) / np.where(span > 0, span, 1.0), 0.0)
+            Tt = T0 + m * dt
+            out["y"] = Tt - m * self.tau + (y0 - T0 + m * self.tau) * np.exp(-dt / self.tau)
+        else:
+            out["y"] = T0 + w * (T1 - T0)
+        return out
+
+    def state(self, t_s: float) -> WorldState:
+        """The world at virtual time ``t_s`` (>= 0)."""
+        t = float(t_s)
+        if not t >= 0.0:
+            raise ValueError(f"t_s must be >= 0, got {t_s!r}")
+        v = self._interp(np.array([t]), ("T_tc", "q_face"))
+        return WorldState(t, float(v["T_tc"][0]), float(v["y"][0]), float(v["q_face"][0]), self.contact_at(t))
+
+    def truth(self, t_s: Sequence[float]) -> Truth:
+        """Series at times ``t_s`` (s): surface (probe-side face on the axis), thermocouple, face flux."""
+        t = np.asarray(t_s, dtype=float).ravel()
+        v = self._interp(t, ("T_tc", "q_face"))
+        return Truth(t, v["T_tc"], v["y"], v["q_face"], np.array([self.contact_at(x) for x in t], dtype=bool),
+                     np.array([self.q_v_at(x) for x in t]))
+
+    def series(self, t_s: Sequence[float]) -> dict[str, np.ndarray]:
+        """Every recorded quantity at ``t_s``: T_tc (no lag), thermocouple ("y"), q_sensor, q_face, T_heater,
+        T_obj_face (object side of the interface on the axis, NaN in air), power, energies."""
+        t = np.asarray(t_s, dtype=float).ravel()
+        return self._interp(t, self._FIELDS[1:6] + ("power", "e_in", "e_lost", "e_stored"))
+
+    def _resistance_in_step(self, t: float) -> float:
+        """Film resistance the march used in the step containing ``t`` (R at the step's start)."""
+        self._advance_to(t + 1e-9)
+        starts = [s[0] for s in self._steps]
+        i = max(int(np.searchsorted(starts, t, side="right")) - 1, 0)
+        return self._steps[i][4]
+
+    def thermopile_W_m2(self, t_s: float) -> float:
+        """What the thermopile integrates: axial flux averaged over its depth and area (W/m^2)."""
+        return float(self._interp(np.array([float(t_s)]), ("q_sensor",))["q_sensor"][0])
+
+    def energy_ledger(self, t_s: float | None = None) -> dict[str, float]:
+        """Heater energy in, heat lost through surfaces, heat stored (probe + objects), J, at a step end."""
+        t = self.clock.now() if t_s is None else float(t_s)
+        self._advance_to(t)
+        n = self._state.n_hist
+        i = int(np.searchsorted(self._h["t"][:n], t, side="right")) - 1
+        e = {k: float(self._h[k][i]) for k in ("e_in", "e_lost", "e_stored")}
+        e["t_s"] = float(self._h["t"][i])
+        e["residual"] = e["e_in"] - e["e_lost"] - e["e_stored"]
+        return e
+
+    # ------------------------------------------------------------------ what the chips see
+
+    def thermocouple_C(self, t_s: float) -> float:
+        """Hot-junction temperature (°C) the thermocouple reports at ``t_s`` (true bead lag)."""
+        return float(self._interp(np.array([float(t_s)]), ())["y"][0])
+
+    def cold_junction_C(self, t_s: float) -> float:
+        """Board (cold-junction, ADC die) temperature (°C)."""
+        return self.T_amb
+
+    def thermocouple_open(self, t_s: float) -> bool:
+        return bool(self._active("open_thermocouple", t_s))
+
+    def thermocouple_emf_V(self, t_s: float) -> float:
+        """Differential thermocouple EMF at the ADC pins (V); the rail when open."""
+        if self.thermocouple_open(t_s):
+            return OPEN_TC_INPUT_V
+        return (typek.emf_mV(self.thermocouple_C(t_s)) - typek.emf_mV(self.cold_junction_C(t_s))) * 1e-3
+
+    def flux_voltage_V(self, t_s: float) -> float:
+        """Thermopile output (V): true sensitivity times its depth- and area-averaged flux, clipped to range."""
+        sat = self._active("flux_saturation", t_s)
+        if sat:
+            return float(sat[-1].params.get("voltage_V", FLUX_SATURATION_V))
+        rng = self.scene.sensors.flux_range_W_m2
+        q = min(max(self.thermopile_W_m2(t_s), -rng), rng)
+        return self.flux_sensitivity * q
+
+    def ads1115_input_V(self, mux: str, t_s: float) -> float:
+        """ADS1115 pins: flux sensor across AIN0-AIN1; AIN2, AIN3 tied to GND."""
+        if mux == "AIN0_AIN1":
+            return self.flux_voltage_V(t_s)
+        return 0.0
+
+    def ads122c04_input_V(self, mux: str, t_s: float) -> float:
+        """ADS122C04 pins: thermocouple across AIN0-AIN1, flux sensor across AIN2-AIN3."""
+        if mux in ("AIN0_AIN1", "AIN1_AIN0"):
+            v = self.thermocouple_emf_V(t_s)
+            return v if mux == "AIN0_AIN1" else -v
+        if mux in ("AIN2_AIN3", "AIN3_AIN2"):
+            v = self.flux_voltage_V(t_s)
+            return v if mux == "AIN2_AIN3" else -v
+        return 0.0
