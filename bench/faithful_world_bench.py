@@ -34,7 +34,7 @@ import numpy as np  # noqa: E402
 
 from firmware_sim.clock import VirtualClock  # noqa: E402
 from firmware_sim.rz.probe_world import FaithfulWorld  # noqa: E402
-from firmware_sim.scene import read_scene  # noqa: E402
+from firmware_sim.scene.files import read_scene  # noqa: E402
 
 PRE_S, TOUCH_S, TICK_S = 1.0, 2.0, 0.005
 SCENES = {"glass": "glass_15V", "PMMA": "pmma_15V", "aluminium": "alu_15V"}

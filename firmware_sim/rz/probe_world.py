@@ -84,7 +84,7 @@ from edge.physics.schedule import PowerSchedule
 from edge.physics.solids import Solid
 from firmware_sim.rz.grid import ADIABATIC, PU_FOAM, SENSOR_AREA_m2, Boundary, Grid, Layer, Mesh
 from firmware_sim.rz.solver import Solver, axis_value
-from firmware_sim.scene import FLUX_SATURATION_V, Fault, Scene
+from firmware_sim.scene.model import FLUX_SATURATION_V, Fault, Scene
 from firmware_sim.world import OPEN_TC_INPUT_V, HeaterDrive, Truth, WorldState
 
 __all__ = ["AsBuilt", "Geometry", "FaithfulWorld", "Touch", "SNAPSHOTS"]

@@ -19,7 +19,8 @@ from edge.physics.probe import PROBE_MATERIAL
 from firmware_sim.clock import VirtualClock
 from firmware_sim.rz.grid import PU_FOAM, Mesh
 from firmware_sim.rz.probe_world import AsBuilt, FaithfulWorld, Geometry
-from firmware_sim.scene import Fault, read_scene
+from firmware_sim.scene.model import Fault
+from firmware_sim.scene.files import read_scene
 from firmware_sim.world import ScheduleDrive, ThermalWorld
 
 #: The 1-D limit: no foam, no convection, heater and object far wider than the 2-s diffusion length.
