@@ -2,7 +2,6 @@
 
 import json
 import math
-import warnings
 
 import numpy as np
 import pytest
@@ -20,22 +19,6 @@ from host.records import RecordError, read_record, write_record
 GLASS = Solid(1.097, 2458.4, 809.0)
 PMMA = Solid(0.185, 1178.35, 1429.0)
 ALU = Solid(120.4, 2651.5, 873.0)
-
-
-@pytest.fixture(scope="module")
-def quick_bundle(tmp_path_factory):
-    from host.train import train_bundle
-
-    out = tmp_path_factory.mktemp("b") / "bundle"
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        bundle, metrics = train_bundle(out, quick=True, log=lambda s: None)
-    return out, bundle, metrics
-
-
-@pytest.fixture(scope="module")
-def est(quick_bundle):
-    return Estimator.from_bundle(quick_bundle[1])
 
 
 def test_features_of_a_ramp():

@@ -34,11 +34,6 @@ def write_csv(tmp_path, header=HEADER, rows=GOOD_ROWS, name="lib.csv"):
     return p
 
 
-@pytest.fixture(scope="module")
-def lib():
-    return load_materials()
-
-
 # -- the shipped library ------------------------------------------------------------------
 
 def test_shipped_library_loads_with_enough_materials(lib):

@@ -245,18 +245,6 @@ def test_device_side_bad_argument_is_exit_2():
 
 # --- estimate: CSV encodings ------------------------------------------------------------------
 
-@pytest.fixture
-def glass_record(tmp_path):
-    from edge.physics.forward import simulate
-    from edge.physics.solids import Solid
-    from host.records import write_record
-
-    r = simulate(Solid(1.097, 2458.4, 809.0), 7.7e7, 2.0, back="infinite", scheme="exact", dt_s=0.01)
-    p = tmp_path / "glass.csv"
-    write_record(p, r.t_s, r.T_f_K, r.q_f_W_m2)
-    return p
-
-
 def test_csv_with_a_utf8_byte_order_mark_is_accepted(capsys, glass_record, tmp_path):
     bom = tmp_path / "bom.csv"
     text = glass_record.read_text()

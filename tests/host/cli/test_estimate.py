@@ -8,7 +8,6 @@ import pytest
 from edge.physics.forward import simulate
 from edge.physics.solids import Solid
 from host.cli.main import main
-from host.records import write_record
 
 GLASS = Solid(1.097, 2458.4, 809.0)
 
@@ -19,17 +18,9 @@ def run(capsys, *argv):
     return code, out, err
 
 
-@pytest.fixture
-def glass_csv(tmp_path):
-    r = simulate(GLASS, 7.7e7, 2.0, back="infinite", scheme="exact", dt_s=0.01)
-    p = tmp_path / "glass.csv"
-    write_record(p, r.t_s, r.T_f_K, r.q_f_W_m2)
-    return p
-
-
 @pytest.mark.parametrize("method", ["default", "paper"])
-def test_estimate_json_with_shipped_bundle(capsys, glass_csv, method):
-    code, out, err = run(capsys, "estimate", "--csv", glass_csv, "--method", method, "--json")
+def test_estimate_json_with_shipped_bundle(capsys, glass_record, method):
+    code, out, err = run(capsys, "estimate", "--csv", glass_record, "--method", method, "--json")
     assert code == 0, err
     d = json.loads(out)
     for key in ("effusivity_W_s05_m2K", "k_W_mK", "alpha_m2_s"):
@@ -67,7 +58,7 @@ def test_malformed_csv_one_line(capsys, tmp_path, content, needle):
     assert len(err.strip().splitlines()) == 1 and needle in err
 
 
-def test_corrupt_bundle_refused_one_line(capsys, glass_csv, tmp_path):
+def test_corrupt_bundle_refused_one_line(capsys, glass_record, tmp_path):
     import shutil
 
     from thermotouch_models import DEFAULT_BUNDLE
@@ -77,7 +68,7 @@ def test_corrupt_bundle_refused_one_line(capsys, glass_csv, tmp_path):
     data = bytearray((b / "arrays.npz").read_bytes())
     data[len(data) // 2] ^= 0xFF
     (b / "arrays.npz").write_bytes(bytes(data))
-    code, _, err = run(capsys, "estimate", "--bundle", b, "--csv", glass_csv)
+    code, _, err = run(capsys, "estimate", "--bundle", b, "--csv", glass_record)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "refused" in err and "arrays.npz" in err
 
 
