@@ -96,8 +96,11 @@ def attainable(solid: Solid, contact_time_s: float, *, probe: ProbeGeometry | st
         cols[2] = cols[2] * 1e-4  # R_c in units of 1e-4 m^2 K/W keeps F well scaled
     J = np.stack(cols, axis=1)
     F = J.T @ J
-    # Scale to unit diagonal before inverting: the k-alpha block of a large heater is
-    # nearly singular, and an honest "huge" is the answer there, not a LinAlgError.
+    # A vanishing prior (sd 100 in ln k and ln alpha, i.e. no information) keeps F invertible
+    # when a large heater leaves the k-alpha direction undetermined: u(k), u(alpha) then come
+    # out as ~100 (reported as such), and u(e), which is determined, stays exact.
+    F[0, 0] += 1e-4
+    F[1, 1] += 1e-4
     d = np.sqrt(np.diag(F))
     try:
         cov = np.linalg.inv(F / np.outer(d, d)) / np.outer(d, d)
