@@ -1,0 +1,385 @@
+"""Axisymmetric forward model of a probe with a heater disk: Laplace-Hankel thermal quadrupoles.
+
+What it computes
+----------------
+For a :class:`~edge.physics.geometry.ProbeGeometry` on an object (k, alpha;
+semi-infinite or of known thickness; contact resistance R_c between the
+sensing layer and the object), the unit-step responses per watt of heater
+power of
+
+* the thermocouple: temperature at ``r = thermocouple_r_m`` on the
+  sensing-layer/object interface (probe side of R_c), K/W;
+* the flux sensor: the axial (downward) flux averaged over its depth range
+  in the sensing layer and over its disk, (W/m^2)/W.
+
+The layers are laterally infinite slabs (the probe's rim is far from a
+5 mm heater: the lateral diffusion length in the sensing layer and the
+foam over 5 s is ~1 mm); only the heater's source is finite.
+
+How
+---
+Hankel transform of order 0 in r (``F(zeta) = int f J0(zeta r) r dr``) and
+Laplace in t turn the conduction equation of each layer into
+``theta'' = gamma^2 theta`` with ``gamma^2 = p / alpha + zeta^2``: a layer
+is a 2x2 quadrupole ``[[cosh, sinh / (k gamma)], [k gamma sinh, cosh]]``
+per (p, zeta), a contact resistance a series element, a substrate with an
+insulated top an admittance ``k gamma tanh(gamma L)``.  The heater film
+carries the disk source ``q_v a J1(zeta a) / zeta / p`` (particular
+solution ``S / (k gamma^2)``) and is solved exactly between the admittance
+above it and the one below it (sensing layer + R_c + object).  Only
+``tanh``, ``sech`` and ratios ``cosh(gamma u) / cosh(gamma L)`` with
+``u <= L`` are formed, so nothing overflows at large |gamma L|.
+
+Hankel inversion: fixed Gauss-Legendre panels on ``[0, Z]``, chosen from
+the geometry once per probe: panels of half an oscillation of the fastest
+Bessel product in the integrands (width ``pi / (a + max(b, r_tc))``), a
+geometric refinement towards zeta = 0 (where a long-time, high-diffusivity
+object varies on scales ``sqrt(p / alpha)`` far below ``1/a``) and the end
+``Z = c / L_s``, where the depth decay ``exp(-zeta L_s)`` of everything
+the sensors see has removed the integrand; a raised-cosine taper over the
+last part of the range makes the truncation of the oscillating tail smooth
+(a sharp cut leaves an error of the size of the tail's last half-period).
+
+Time inversion: ONE fixed hyperbolic contour for the whole record
+(Weideman & Trefethen 2007, Math. Comp. 76, 1341, section on an interval
+``[t0, Lambda t0]``; midpoint rule, conjugate symmetry).  Why not
+fixed Talbot (as :mod:`edge.physics.laplace`): its contour scales with
+each t, so every sample needs its own M transform evaluations; Stehfest
+needs only real p but extended precision beyond ~14 terms and its own
+nodes per t too.  The hyperbola serves every t in ``[t_min, t_max]`` of a
+record from ~32 values of p, so the probe's part of the kernel can be
+precomputed once on the (p, zeta) grid and an object costs one complex
+square root and a few operations per node, then two matrix products.
+
+Precomputation (:class:`AxisymModel`): everything that depends only on the
+probe and the time window -- the nodes, the heater's source, the substrate
+and heater admittances, the sensing layer's hyperbolic ratios at the
+sensor depths, the Bessel weights, the inversion matrix.  Per object
+(:meth:`AxisymModel.responses`): about 15 complex array operations on
+the (p, zeta) grid.  Edge code: NumPy only (the Bessel functions here are
+computed from their integral representation).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from edge.checks import finite_array, finite_nonnegative, finite_positive, one_of
+from edge.physics.geometry import ProbeGeometry
+from edge.physics.solids import Solid
+
+__all__ = ["bessel_j", "HyperbolicInversion", "hankel_nodes", "AxisymModel", "Responses"]
+
+BACKS = ("infinite", "insulated", "fixed")
+#: Contour angle of the hyperbola (W&T 2007 use values near 1.1; this one with N = 32 gives
+#: < 1e-6 relative on the layered transforms over Lambda = 250).
+_PHI = 1.09
+
+
+# ----------------------------------------------------------------------------------------------
+# Special functions (NumPy only on the device)
+
+
+def bessel_j(n: int, x: np.ndarray) -> np.ndarray:
+    """Bessel function J_n(x), n = 0 or 1, for real x (NumPy only).
+
+    From ``J_n(x) = (1/2pi) int_0^2pi cos(n tau - x sin tau) d tau`` with the
+    trapezoid rule, which converges geometrically for a periodic integrand once
+    the number of points exceeds |x| + n by a margin (here |x| + 10 |x|^(1/3) + 48,
+    past the Airy transition of the aliased J_m(x)): errors ~1e-15.  Used only when a model is set up, so speed is immaterial.
+    """
+    x = np.asarray(x, dtype=float)
+    xm = float(np.max(np.abs(x), initial=0.0))
+    m = int(xm + 10.0 * xm ** (1.0 / 3.0)) + 48  # past the Airy transition of J_m(x)
+    tau = 2.0 * np.pi * np.arange(m) / m
+    out = np.empty(x.shape)
+    flat, res = x.reshape(-1), out.reshape(-1)
+    for i in range(0, flat.size, 2048):  # blocks keep the (x, tau) table small
+        xb = flat[i:i + 2048, None]
+        res[i:i + 2048] = np.mean(np.cos(n * tau[None, :] - xb * np.sin(tau)[None, :]), axis=1)
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# Time inversion
+
+
+@dataclass(frozen=True)
+class HyperbolicInversion:
+    """Fixed hyperbolic Bromwich contour for times in ``[t_min, t_max]`` (W&T 2007).
+
+    ``s_k = mu (1 - sin(phi) cosh(u_k)) + i mu cos(phi) sinh(u_k)``, ``u_k = (k + 1/2) h``,
+    ``k = 0..n-1``; ``f(t) = (h / pi) Im sum_k F(s_k) s'_k exp(s_k t)`` for real f.
+
+    Attributes
+    ----------
+    s : ndarray, complex (n,)
+        Contour nodes (the upper half; conjugate symmetry supplies the rest).
+    matrix : ndarray, complex (n_t, n)
+        ``(h / pi) s'_k exp(s_k t_j)``: ``f = Im(matrix @ F(s))``; rows for t <= 0 are 0.
+    """
+
+    t_s: np.ndarray
+    s: np.ndarray
+    matrix: np.ndarray
+
+    @classmethod
+    def build(cls, t_s: np.ndarray, n: int = 32, *, t_min_s: float | None = None,
+              t_max_s: float | None = None) -> "HyperbolicInversion":
+        """Contour for the positive times of ``t_s`` (or for ``[t_min_s, t_max_s]``)."""
+        t = finite_array("t_s", t_s)
+        pos = t[t > 0]
+        if pos.size == 0:
+            raise ValueError("t_s needs at least one positive time")
+        t0 = float(pos.min()) if t_min_s is None else float(t_min_s)
+        t1 = float(pos.max()) if t_max_s is None else float(t_max_s)
+        lam = max(t1 / t0, 1.0 + 1e-9)
+        phi = _PHI
+        # W&T 2007 (eqs. for the hyperbola on [t0, Lambda t0]): the strip half-width A and the
+        # scale mu balance discretisation and truncation errors over the whole interval.
+        A = math.acosh(((math.pi - 2 * phi) * lam + 4 * phi - math.pi) / ((4 * phi - math.pi) * math.sin(phi)))
+        mu = (4 * math.pi * phi - math.pi ** 2) * n / t1 / A
+        h = A / n
+        u = (np.arange(n) + 0.5) * h
+        s = mu + 1j * mu * np.sinh(u + 1j * phi)
+        ds = 1j * mu * np.cosh(u + 1j * phi)
+        tt = np.where(t > 0, t, 0.0)
+        mat = (h / math.pi) * ds[None, :] * np.exp(s[None, :] * tt[:, None])
+        mat[t <= 0] = 0.0
+        return cls(t_s=t, s=s, matrix=mat)
+
+    def invert(self, F: np.ndarray) -> np.ndarray:
+        """f(t) from transform values ``F`` at :attr:`s` (last axis)."""
+        return np.imag(np.asarray(F) @ self.matrix.T)
+
+
+# ----------------------------------------------------------------------------------------------
+# Hankel quadrature
+
+
+def hankel_nodes(geometry: ProbeGeometry, *, per_panel: int = 4, depth_decades: float = 10.0,
+                 taper: float = 0.25, low_levels: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes and weights (zeta in 1/m) for ``int_0^inf f(zeta) d zeta`` on this probe.
+
+    Parameters
+    ----------
+    per_panel : int
+        Gauss-Legendre points per panel (a panel is half a period of the fastest
+        oscillation, ``pi / (a + max(b, r_tc))``).
+    depth_decades : float
+        End of the range in units of ``1 / L_s`` (the thinnest depth between the
+        heater and a sensor): the integrands have decayed by ~exp(-depth_decades).
+    taper : float
+        Fraction of the range over which the weights are tapered to 0 (raised cosine).
+    low_levels : int
+        Panels halving towards zeta = 0 inside the first oscillation panel.
+    """
+    a = geometry.heater_radius_m
+    reach = max(geometry.sensor_radius_m, geometry.thermocouple_r_m)
+    w = math.pi / (a + reach)
+    Z = depth_decades / geometry.sensing_thickness_m
+    n_osc = max(1, int(math.ceil(Z / w)))
+    breaks = np.concatenate([[0.0], w * 0.5 ** np.arange(low_levels, 0, -1), w * np.arange(1, n_osc + 1)])
+    x, wt = np.polynomial.legendre.leggauss(per_panel)
+    lo, hi = breaks[:-1, None], breaks[1:, None]
+    z = (0.5 * (hi - lo) * x[None, :] + 0.5 * (hi + lo)).ravel()
+    wz = (0.5 * (hi - lo) * wt[None, :]).ravel()
+    Zend = breaks[-1]
+    z0 = (1.0 - taper) * Zend
+    ramp = np.clip((z - z0) / (Zend - z0), 0.0, 1.0)
+    wz = wz * 0.5 * (1.0 + np.cos(np.pi * ramp))
+    return z, wz
+
+
+# ----------------------------------------------------------------------------------------------
+# Stable hyperbolic helpers (Re z >= 0)
+
+
+def _tanh(z):
+    e = np.exp(-2.0 * z)
+    return (1.0 - e) / (1.0 + e)
+
+
+def _sech(z):
+    e = np.exp(-z)
+    return 2.0 * e / (1.0 + e * e)
+
+
+def _ch_ratio(g, u, L):
+    """cosh(g u) / cosh(g L) for 0 <= u <= L."""
+    return (np.exp(g * (u - L)) + np.exp(-g * (u + L))) / (1.0 + np.exp(-2.0 * g * L))
+
+
+def _sh_ratio(g, u, L):
+    """sinh(g u) / cosh(g L) for 0 <= u <= L."""
+    return (np.exp(g * (u - L)) - np.exp(-g * (u + L))) / (1.0 + np.exp(-2.0 * g * L))
+
+
+# ----------------------------------------------------------------------------------------------
+# The model
+
+
+@dataclass(frozen=True)
+class Responses:
+    """Unit-step responses per watt of heater power on the model's time grid."""
+
+    t_s: np.ndarray
+    T_tc_K_per_W: np.ndarray
+    q_sensor_W_m2_per_W: np.ndarray
+
+
+class AxisymModel:
+    """The forward model of one probe on one time grid, with its probe part precomputed.
+
+    Parameters
+    ----------
+    geometry : ProbeGeometry
+        The probe.
+    t_s : array_like
+        Output times (s); times <= 0 give 0 (the step starts at t = 0).
+    n_laplace : int
+        Nodes on the hyperbolic contour.
+    per_panel, depth_decades, taper, low_levels :
+        Hankel quadrature (see :func:`hankel_nodes`).
+    """
+
+    def __init__(self, geometry: ProbeGeometry, t_s, *, n_laplace: int = 32, per_panel: int = 4,
+                 depth_decades: float = 10.0, taper: float = 0.25, low_levels: int = 8) -> None:
+        g = geometry
+        self.geometry = g
+        self.inversion = HyperbolicInversion.build(t_s, n_laplace)
+        self.t_s = self.inversion.t_s
+        zeta, wz = hankel_nodes(g, per_panel=per_panel, depth_decades=depth_decades, taper=taper,
+                                low_levels=low_levels)
+        self.zeta = zeta
+        p = self.inversion.s[:, None]      # (n_p, 1)
+        z2 = (zeta * zeta)[None, :]        # (1, n_z)
+        self._p = p
+        self._z2 = z2
+
+        # Heater disk source per watt, transformed: q_v a J1(zeta a) / zeta, step 1/p.
+        a = g.heater_radius_m
+        disk = a * bessel_j(1, zeta * a) / zeta
+        q_v = 1.0 / g.heater_volume_m3
+        # Output weights of the inverse Hankel transform, zeta d zeta, with the read-outs:
+        # thermocouple J0(zeta r_tc), sensor's area mean 2 J1(zeta b) / (zeta b).
+        b = g.sensor_radius_m
+        self._w_T = wz * zeta * disk * bessel_j(0, zeta * g.thermocouple_r_m)
+        self._w_q = wz * zeta * disk * 2.0 * bessel_j(1, zeta * b) / (zeta * b)
+
+        # Heater film (material h): gamma, k gamma, tanh, sech.
+        hm = g.heater_material
+        gh = np.sqrt(p / hm.alpha_m2_s + z2)
+        kgh = hm.k_W_mK * gh
+        Th = _tanh(gh * g.heater_thickness_m)
+        Sh = _sech(gh * g.heater_thickness_m)
+        theta_p = q_v / (p * hm.k_W_mK * gh * gh)     # particular solution (per unit source shape)
+        # Substrate above with an insulated top.
+        if g.substrate is None:
+            Yup = np.zeros_like(gh)
+        else:
+            gf = np.sqrt(p / g.substrate.alpha_m2_s + z2)
+            Yup = g.substrate.k_W_mK * gf * _tanh(gf * g.substrate_thickness_m)
+        # theta at the heater's bottom = theta_p * num / (B + C Ydn)  (see module docstring).
+        self._num = theta_p * (kgh * Th + Yup * (1.0 - Sh))
+        self._B = Yup + kgh * Th
+        self._C = 1.0 + Yup * Th / kgh
+
+        # Sensing layer (material s), thickness L; sensor depths u = L - z.
+        sm = g.sensing
+        L = g.sensing_thickness_m
+        gs = np.sqrt(p / sm.alpha_m2_s + z2)
+        self._kgs = sm.k_W_mK * gs
+        self._Ts = _tanh(gs * L)
+        self._Ss = _sech(gs * L)
+        z0, z1 = g.sensor_depth_m
+        u0, u1 = L - z0, L - z1
+        dz = z1 - z0
+        self._qa = sm.k_W_mK * (_ch_ratio(gs, u0, L) - _ch_ratio(gs, u1, L)) / dz
+        self._qb = (_sh_ratio(gs, u0, L) - _sh_ratio(gs, u1, L)) / (gs * dz)
+        self.n_nodes = int(gh.size)
+
+    # -- object
+    def object_admittance(self, k_W_mK: float, alpha_m2_s: float, thickness_m: float | None = None,
+                          back: str = "infinite") -> np.ndarray:
+        """Surface admittance q/theta of the object on the (p, zeta) grid."""
+        go = np.sqrt(self._p / alpha_m2_s + self._z2)
+        Y = k_W_mK * go
+        if back == "infinite" or thickness_m is None:
+            return Y
+        t = _tanh(go * thickness_m)
+        return Y / t if back == "fixed" else Y * t
+
+    def transforms(self, k_W_mK: float, alpha_m2_s: float, *, thickness_m: float | None = None,
+                   back: str = "infinite", contact_resistance_m2K_W: float = 0.0, derivatives: bool = False):
+        """Laplace transforms (n_p,) of the thermocouple and flux-sensor step responses per watt.
+
+        With ``derivatives``: also their derivatives (3, n_p) with respect to ln k, ln alpha
+        and R_c.  The object enters only through its admittance Y (and R_c through
+        ``Y_o = Y / (1 + R_c Y)``), so one derivative of the kernels with respect to ``Y_o``
+        serves all three parameters: an exact Jacobian for about half a model evaluation.
+        """
+        go = np.sqrt(self._p / alpha_m2_s + self._z2)
+        Y = k_W_mK * go
+        fin = not (back == "infinite" or thickness_m is None)
+        if fin:
+            t = _tanh(go * thickness_m)
+            Y = Y / t if back == "fixed" else Y * t
+        R = contact_resistance_m2K_W
+        Yo = Y / (1.0 + R * Y) if R != 0.0 else Y
+        kgs, Ts = self._kgs, self._Ts
+        den = 1.0 + Ts * Yo / kgs                       # sensing layer seen from below
+        dd = kgs + Ts * Yo
+        Ydn = kgs * (kgs * Ts + Yo) / dd                # admittance under the heater
+        hd = self._B + self._C * Ydn
+        r = self._num / (hd * den)                      # heater-bottom temperature / den
+        kT = r * self._Ss
+        kq_base = self._qa + Yo * self._qb
+        T = kT @ self._w_T                              # interface (probe side)
+        q = (r * kq_base) @ self._w_q
+        if not derivatives:
+            return T, q
+        # d/dYo of the kernels.
+        dYdn = kgs * kgs * (1.0 - Ts * Ts) / (dd * dd)
+        dlnr = -(self._C * dYdn / hd + (Ts / kgs) / den)
+        dkT = kT * dlnr
+        dkq = r * (dlnr * kq_base + self._qb)
+        # dYo/dtheta for theta = ln k, ln alpha, R_c.
+        dYo_dY = 1.0 / (1.0 + R * Y) ** 2 if R != 0.0 else 1.0
+        dgo = -0.5 * (self._p / alpha_m2_s) / go       # d go / d ln alpha
+        if not fin:
+            dY_dgo = k_W_mK
+        elif back == "fixed":
+            dY_dgo = k_W_mK / t - k_W_mK * go * thickness_m * (1.0 - t * t) / (t * t)
+        else:
+            dY_dgo = k_W_mK * t + k_W_mK * go * thickness_m * (1.0 - t * t)
+        dtheta = (Y * dYo_dY, dY_dgo * dgo * dYo_dY, -Yo * Yo)
+        dT = np.stack([(dkT * d) @ self._w_T for d in dtheta])
+        dq = np.stack([(dkq * d) @ self._w_q for d in dtheta])
+        return T, q, dT, dq
+
+    def responses(self, k_W_mK: float, alpha_m2_s: float, *, thickness_m: float | None = None,
+                  back: str = "infinite", contact_resistance_m2K_W: float = 0.0) -> Responses:
+        """Thermocouple and flux-sensor step responses per watt at the model's times."""
+        one_of("back", back, BACKS)
+        finite_positive("k_W_mK", k_W_mK)
+        finite_positive("alpha_m2_s", alpha_m2_s)
+        if thickness_m is not None:
+            finite_positive("thickness_m", thickness_m)
+        T, q = self.transforms(k_W_mK, alpha_m2_s, thickness_m=thickness_m, back=back,
+                               contact_resistance_m2K_W=contact_resistance_m2K_W)
+        out = self.inversion.invert(np.stack([T, q]))
+        return Responses(self.t_s, out[0], out[1])
+
+    def solid_responses(self, solid: Solid, **kw) -> Responses:
+        """:meth:`responses` for a :class:`Solid`."""
+        return self.responses(solid.k_W_mK, solid.alpha_m2_s, **kw)
+
+    def signals(self, k_W_mK: float, alpha_m2_s: float, power_W: float | None = None, **kw):
+        """(T_tc in K, q_sensor in W/m^2) for a heater step of ``power_W`` (default: nominal)."""
+        P = self.geometry.nominal_power_W if power_W is None else finite_nonnegative("power_W", power_W)
+        r = self.responses(k_W_mK, alpha_m2_s, **kw)
+        return P * r.T_tc_K_per_W, P * r.q_sensor_W_m2_per_W
