@@ -62,7 +62,8 @@ class Flag(StrEnum):
     """Quality flags a record can carry (``flags`` of a record and of an estimate)."""
 
     # -- from the measurement sequence (thresholds in ``[measurement]``)
-    #: Mean heating flux below ``no_contact_flux_fraction`` of P/A: the probe was not touching.
+    #: The effusivity the heating record shows (flux vs temperature rise) is below
+    #: ``no_contact_e_W_s05_m2K``, i.e. nearer still air's than any solid's: the probe was not touching.
     NO_CONTACT = "no_contact"
     #: An ADC clipped during the run.
     SATURATED = "saturated"
@@ -70,6 +71,8 @@ class Flag(StrEnum):
     NOISY = "noisy"
     #: Baseline drift above ``unstable_baseline_K``.
     UNSTABLE_BASELINE = "unstable_baseline"
+    #: Heating stopped before the contact time because the answer was decided (MEASURE ``until_decided``).
+    DECIDED = "decided"
     #: The heater does not follow its command (see ``heater.fault_flux_W_m2``): the run is failed.
     HEATER_FAULT = "heater_fault"
     # -- from the estimator

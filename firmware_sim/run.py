@@ -105,6 +105,7 @@ def run_sim(scene_path: str | Path, stop_event: threading.Event | None = None,
     if stop_event is None and threading.current_thread() is threading.main_thread():
         install_signal_handlers(stop)
     sim = load_scene(scene_path)
+    sim.repeat_touches()  # touch after touch, unless the scene says [touch] repeat = false
     tmp = None
     if workdir is None:
         tmp = tempfile.mkdtemp(prefix="thermotouch-sim-")

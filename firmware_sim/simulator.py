@@ -199,6 +199,12 @@ class Simulator:
         if press_trigger:
             self.parts.chip.press(self.parts.trigger_offset, start_s, min(trigger_hold_s, length_s))
 
+    def repeat_touches(self) -> None:
+        """Touch after touch: the probe goes back on the object ``[touch] repeat_gap_s`` after each touch,
+        until the next heating ends (see :mod:`firmware_sim.world`). On by default in a sim session."""
+        if self.scene.touch.repeat is not False:
+            self.world.repeat_touches()
+
     # ---- heater invariants for HIL tests
 
     def heater_intervals(self, t_end_s: float | None = None) -> list[tuple[float, float]]:

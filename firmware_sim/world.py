@@ -20,7 +20,10 @@ Phases
 Virtual time is cut into phases with the probe in contact with the object
 (the scene's touch and any added with :meth:`ThermalWorld.add_touch`, minus
 ``no_contact`` fault windows) or in still air
-(before/after the touch, and while ``no_contact`` holds). Within a phase the
+(before/after the touch, and while ``no_contact`` holds). With ``[touch]
+repeat`` (the default) the probe is put down again ``repeat_gap_s`` after
+each touch and stays until ``REPEAT_RELEASE_S`` after the next heating ends:
+touch after touch, with the probe in air in between. Within a phase the
 system is linear and time-invariant, so the answer is exact superposition of
 
 * the unit-step responses of every heater switching in the phase, and
@@ -101,6 +104,10 @@ _HEATER_FAULTS = ("heater_stuck_on", "heater_dead", "supply_sag")
 _LOOKAHEAD_S = 0.1
 _LOOKAHEAD_MAX = 128
 _MATCH_TOL_S = 1e-9
+#: A repeat touch ends this long after the heater's switch-off within it (s).
+REPEAT_RELEASE_S = 0.5
+#: Length given to an open repeat touch until a heating closes it (s).
+_OPEN_TOUCH_S = 1e6
 #: Past states kept for repeated queries (the cache is cleared when full).
 _CACHE_MAX = 8192
 #: Rows (times x terms) per Talbot call: bounds the temporary arrays (rows x 24 complex).
@@ -311,6 +318,8 @@ class ThermalWorld:
         # Touch windows, sorted and disjoint: starts and ends (bisection, 16 bytes a touch).
         self._touch_a = array("d", [scene.touch.start_s])
         self._touch_b = array("d", [scene.touch.end_s])
+        #: Whether the last touch is an open repeat touch (``[touch] repeat``).
+        self._repeat_open = False
         # Phases covering [0, inf): start, contact flag and start state (probe mean and
         # thermocouple, NaN until known); phase k ends where k + 1 starts.
         self._ph_start = array("d")
@@ -332,6 +341,14 @@ class ThermalWorld:
             if f.kind in _HEATER_FAULTS:
                 self._add_switches([f.at_s] + ([f.until_s] if f.until_s is not None else []))
         self._recut(0.0)
+        if scene.touch.repeat:
+            self._open_repeat(scene.touch.end_s)
+
+    def repeat_touches(self) -> None:
+        """Touch after touch from now on (what ``[touch] repeat = true`` does; no-op if already on)."""
+        if self._repeat_open:
+            return
+        self._open_repeat(max(self._touch_b[-1], self.clock.now()))
 
     @staticmethod
     def _world_kinds() -> tuple[str, ...]:
@@ -419,6 +436,34 @@ class ThermalWorld:
             self._drive_all = all_t
         if new:
             self._add_switches(new)
+            self._touch_on_heating(new)
+
+    def _touch_on_heating(self, times: Sequence[float]) -> None:
+        """Touch after touch (``[touch] repeat``): a heating in the open repeat touch closes it.
+
+        The open touch ends ``REPEAT_RELEASE_S`` after the heater's switch-off
+        inside it, and the next one opens ``repeat_gap_s`` later (the probe
+        in air in between). The drive's change is learnt before any value
+        after it is handed out (every query syncs first), and the new edges
+        lie after the change, so nothing handed out changes.
+        """
+        if not self._repeat_open:
+            return
+        a = self._touch_a[-1]
+        for x in sorted(times):
+            if x > a and self.drive.duty_at(x) <= 0 < self.drive.duty_at(x - 1e-9):
+                self._touch_b[-1] = x + REPEAT_RELEASE_S
+                self._recut(x)
+                self._open_repeat(self._touch_b[-1])
+                return
+
+    def _open_repeat(self, after_s: float) -> None:
+        """Put the probe down again ``repeat_gap_s`` after ``after_s``, until a heating closes the touch."""
+        start = after_s + self.scene.touch.repeat_gap_s
+        self._touch_a.append(start)
+        self._touch_b.append(start + _OPEN_TOUCH_S)
+        self._repeat_open = True
+        self._recut(start)
 
     def _add_switches(self, times: Sequence[float]) -> None:
         """New (or re-stamped) q_v change times: what was computed from the earliest on is stale."""
@@ -456,6 +501,12 @@ class ThermalWorld:
         if not (length > 0 and math.isfinite(length)):
             raise ValueError(f"length_s must be a finite number > 0, got {length_s!r}")
         end = start + length
+        if self._repeat_open:
+            # Touches placed by hand take over from the scene's touch after touch.
+            self._touch_a.pop()
+            self._touch_b.pop()
+            self._repeat_open = False
+            self._recut(max(self.clock.now(), self._touch_b[-1] if len(self._touch_b) else 0.0))
         i = bisect_right(self._touch_a, start)   # the touches are sorted and disjoint: check the neighbours
         for j in (i - 1, i):
             if 0 <= j < len(self._touch_a):

@@ -156,7 +156,8 @@ def reestimate(bundle: Any, series: dict, methods=("default", "paper")) -> dict:
 
 def touch(session: DeviceSession, *, power_W: float | None = None, voltage_V: float | None = None,
           contact_time_s: float | None = None, method: str | None = None, with_series: bool = True,
-          bundle_dir: str | Path | None = None) -> Touch:
+          bundle_dir: str | Path | None = None, sample_rate_Hz: float | None = None,
+          until_decided: bool = False) -> Touch:
     """Run one measurement (optionally with ``method`` set on the device for it) and collect what is reachable.
 
     The device's estimation method is a runtime setting; when ``method``
@@ -179,7 +180,8 @@ def touch(session: DeviceSession, *, power_W: float | None = None, voltage_V: fl
         else:
             c.config_set(**{"estimation.method": method})
     try:
-        rec = c.measure(power_W=power_W, voltage_V=voltage_V, contact_time_s=contact_time_s)
+        rec = c.measure(power_W=power_W, voltage_V=voltage_V, contact_time_s=contact_time_s,
+                        sample_rate_Hz=sample_rate_Hz, until_decided=until_decided)
     finally:
         if previous is not None:
             c.config_set(**{"estimation.method": previous})

@@ -48,7 +48,8 @@ class ProbeSensors:
     """
 
     def __init__(self, read_T: Callable[[], tuple[float, bool]], read_q_V: Callable[[], tuple[float, bool]],
-                 flux_sensitivity_V_per_W_m2: float, *, description: str = "", T_age_s: float = 0.0) -> None:
+                 flux_sensitivity_V_per_W_m2: float, *, description: str = "", T_age_s: float = 0.0,
+                 T_resolution_K: float = 0.0) -> None:
         if not flux_sensitivity_V_per_W_m2 > 0:
             raise ValueError(f"flux_sensitivity_V_per_W_m2 must be > 0, got {flux_sensitivity_V_per_W_m2!r}")
         if not T_age_s >= 0:
@@ -56,6 +57,8 @@ class ProbeSensors:
         #: Mean age (s) of a temperature reading when it is read: a converter that
         #: converts continuously holds a value taken one conversion time ago on average.
         self.T_age_s = float(T_age_s)
+        #: The thermometer's step (K), 0 if unknown.
+        self.T_resolution_K = float(T_resolution_K)
         self._read_T = read_T
         self._read_q_V = read_q_V
         self.sensitivity = float(flux_sensitivity_V_per_W_m2)
@@ -131,6 +134,7 @@ def make_sensors(board: Any, sensors_cfg: Any) -> ProbeSensors:
             return v, adc2.saturated
 
     return ProbeSensors(read_T, read_q, s.flux_sensitivity_V_per_W_m2, T_age_s=T_age_s,
+                        T_resolution_K=thermocouple_resolution_K(s),
                         description=f"thermocouple={s.thermocouple} flux={s.flux_adc}")
 
 

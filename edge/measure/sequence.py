@@ -12,6 +12,12 @@ One touch runs::
 * **heating**: the heater runs at the requested power for the contact time
   while the sensors are sampled at ``sample_rate_Hz`` on the board clock
   (the simulator's virtual clock makes a 2-s touch take milliseconds).
+  With a ``decision`` hook each heating sample also updates a running
+  answer (:class:`edge.estimation.running.SequentialDecision`: a cheap
+  running e and the object set's posterior, :attr:`MeasurementSequence.answer`,
+  which STATUS reports); with ``until_decided`` the heating stops as soon as
+  that answer is decided, the record is flagged ``decided`` and its result
+  carries the ``decision``.
 * **heater off**, then the raw series are resampled onto a uniform grid
   (:func:`edge.measure.signal.resample_uniform`) and handed to the
   estimator, whose crash can no longer leave the heater on.
@@ -59,7 +65,8 @@ from edge.hw.drivers.heater import Heater, HeaterOffError
 from edge.physics.probe import volumetric_heat_W_m3
 from edge.hw.faults import SensorFault
 from edge.measure.sensors import Reading
-from edge.measure.signal import heat_while_off, no_heat_while_on, quality_flags, resample_uniform
+from edge.measure.signal import (contact_effusivity, heat_while_off, no_heat_while_on, quality_flags,
+                                 resample_uniform)
 from edge.measure.watchdog import HeaterWatchdog, Limits, Trip
 from edge.status import Flag, Reason, Status
 from edge.storage.history import utc_now
@@ -99,6 +106,8 @@ class MeasurementParams:
     sample_rate_Hz: float
     cooldown_s: float
     method: str = "default"
+    #: Stop heating once the running answer is decided (needs the sequence's ``decision`` hook).
+    until_decided: bool = False
 
     def __post_init__(self) -> None:
         for name in ("power_W", "contact_time_s", "baseline_s", "sample_rate_Hz"):
@@ -140,6 +149,8 @@ class Outcome:
     grid_q_W_m2: np.ndarray | None = None
     compute_s: float | None = None
     exception: BaseException | None = None
+    #: The last running answer (a :class:`~edge.estimation.running.RunningAnswer` dict), if any.
+    decision: dict[str, Any] | None = None
 
     def record(self, config_snapshot: Mapping[str, Any]) -> dict[str, Any]:
         """Keyword set for :meth:`edge.storage.history.History.add`."""
@@ -194,6 +205,9 @@ class MeasurementSequence:
     beats : object with ``beat(name)`` and ``done(name)``, optional
         Liveness reports of the sampling loop, as ``"measure"`` (the
         daemon's :class:`edge.service.notify.Notifier`).
+    decision : callable (MeasurementParams) -> SequentialDecision or None, optional
+        Builds the running decision for one run (the daemon's, on its object
+        set); None or a None result: no running answer.
     """
 
     def __init__(self, heater: Heater, sensors: Any, clock: Any, limits: Limits, estimator: EstimatorFn,
@@ -201,7 +215,8 @@ class MeasurementSequence:
                  abort_event: threading.Event | None = None,
                  model_sha256: Callable[[], str | None] | None = None,
                  on_state: Callable[[Phase], None] | None = None,
-                 cancel_event: threading.Event | None = None, beats: Any = None) -> None:
+                 cancel_event: threading.Event | None = None, beats: Any = None,
+                 decision: Callable[[MeasurementParams], Any] | None = None) -> None:
         self.heater = heater
         self.sensors = sensors
         self.clock = clock
@@ -216,6 +231,9 @@ class MeasurementSequence:
         self.model_sha256 = model_sha256 or (lambda: None)
         self.on_state = on_state or (lambda s: None)
         self.beats = beats
+        self.decision = decision
+        #: The running answer of the current (or last) run: a RunningAnswer, or None.
+        self.answer: Any = None
         self.state = Phase.IDLE
         self._last_off: float | None = None
         self._max_read_s = 0.0
@@ -335,6 +353,9 @@ class MeasurementSequence:
                     self._check_temperature(self._sample(ts, Ts, qs, sat))
                 self._wait(t_base + n_base * period)
                 self._check_heat_off(ts, Ts, qs, "baseline")
+                decider = self._make_decider(params)
+                T0_run, q0_run = float(np.mean(Ts)), float(np.mean(qs))
+                decided = False
                 # ---- heating
                 self._set_state(Phase.HEATING)
                 self.watchdog.arm()
@@ -359,7 +380,12 @@ class MeasurementSequence:
                     if self.clock.monotonic() - t_on > self.limits.max_on_time_s:
                         raise _Stop(Reason.MAX_ON_TIME, "a sensor read ended past max_on_time_s")
                     self._check_temperature(r)
-                self._wait(t_on + heat_s)
+                    if decider is not None and self._decide(decider, ts[-1] - t_on, r, T0_run, q0_run) \
+                            and params.until_decided:
+                        decided = True
+                        break
+                if not decided:
+                    self._wait(t_on + heat_s)
                 self.heater.off()
                 t_off = self.clock.monotonic()
                 self.watchdog.disarm()
@@ -402,6 +428,9 @@ class MeasurementSequence:
         elif t_arr.size:
             t_arr -= t_arr[-1] + 1.0
         out.raw_t_s, out.raw_T_C, out.raw_q_W_m2 = t_arr, T_arr, q_arr
+        if self.answer is not None:
+            out.decision = self.answer.to_dict()
+            out.decision["stopped_early"] = bool(params.until_decided and self.answer.decided)
         if out.status != Status.FAILED or out.reason != Reason.HEATER_FAULT:
             try:
                 self._finish(out, params, t_arr, T_arr, q_arr, any(sat), t_on, t_off)
@@ -417,6 +446,30 @@ class MeasurementSequence:
             self.beats.done("measure")
         self._set_state(Phase.IDLE)
         return out
+
+    def _make_decider(self, params: MeasurementParams) -> Any:
+        self.answer = None
+        if self.decision is None:
+            return None
+        try:
+            return self.decision(params)
+        except Exception:
+            log.exception("running decision unavailable; measuring without it")
+            return None
+
+    def _decide(self, decider: Any, t_s: float, r: Reading, T0_C: float, q0_W_m2: float) -> bool:
+        """Feed one heating sample to the running decision; True once it is decided.
+
+        A failure here is logged and ends the running answer, never the touch.
+        """
+        try:
+            ans = decider.update(t_s, r.T_C - T0_C, r.q_W_m2 - q0_W_m2)
+        except Exception:
+            log.exception("running decision failed; heating goes on")
+            return False
+        if ans is not None:
+            self.answer = ans
+        return bool(ans is not None and ans.decided)
 
     def _heater_fault(self, out: Outcome) -> None:
         """Flag the record and latch the heater off: no measurement until restart."""
@@ -437,7 +490,14 @@ class MeasurementSequence:
             out.T0_C = float(np.mean(T[base]))
             out.q_offset_W_m2 = float(np.mean(q[base]))
         heat_q = q[~base] - (out.q_offset_W_m2 or 0.0)
-        out.flags = quality_flags(t[base], T[base], q[base], heat_q, params.power_W, saturated, self.thresholds)
+        contact_e = None
+        if out.T0_C is not None and heat_q.size:
+            lsb = float(getattr(self.sensors, "T_resolution_K", 0.0))
+            contact_e = contact_effusivity(t[~base], T[~base] - out.T0_C, heat_q,
+                                           getattr(self.sensors, "T_age_s", 0.0), min_rise_K=2 * lsb)
+        out.flags = quality_flags(t[base], T[base], q[base], heat_q, contact_e, saturated, self.thresholds)
+        if out.decision is not None and out.decision.get("stopped_early"):
+            out.flags.append(Flag.DECIDED)
         if out.status != Status.OK and out.reason is not None:
             # Don't estimate from a cut-short or faulty run; the raw data is kept.
             return
@@ -471,6 +531,8 @@ class MeasurementSequence:
             return
         finally:
             out.compute_s = time.perf_counter() - c0
+        if out.decision is not None:
+            res["decision"] = out.decision
         out.result = res
         out.model_sha256 = res.get("model_sha256", out.model_sha256)
         for f in res.get("flags", []) or []:

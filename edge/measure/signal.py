@@ -19,7 +19,11 @@ from edge.estimation.spline import resample
 from edge.physics.probe import HEATER_AREA_m2
 from edge.status import Flag
 
-__all__ = ["resample_uniform", "quality_flags", "temperature_rise_K", "heat_while_off", "no_heat_while_on"]
+__all__ = ["resample_uniform", "quality_flags", "contact_effusivity", "temperature_rise_K", "heat_while_off",
+           "no_heat_while_on", "AIR_EFFUSIVITY_W_s05_m2K"]
+
+#: Still air near 300 K: sqrt(0.0263 W/(m K) * 1.16 kg/m^3 * 1007 J/(kg K)) (Incropera 7e, Table A.4).
+AIR_EFFUSIVITY_W_s05_m2K = 5.5
 
 
 def resample_uniform(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, T0_C: float, q_offset_W_m2: float,
@@ -71,8 +75,51 @@ def resample_uniform(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, T0_C:
     return grid, dT_grid, q_grid
 
 
+def contact_effusivity(t_s: np.ndarray, dT_K: np.ndarray, q_W_m2: np.ndarray, T_age_s: float = 0.0,
+                       min_rise_K: float = 0.0) -> float | None:
+    """The effusivity of whatever the probe's face touched, from the heating record alone (W s^0.5/(m^2 K)).
+
+    Whatever lies under the sensor -- a solid, or air -- obeys Duhamel's
+    relation between the flux into it and its surface temperature rise,
+    ``m(t) = e dT(t)`` with ``m`` the flux's half-integral
+    (:func:`edge.estimation.running.duhamel_m`). So ``e`` of the contact is
+    the least-squares slope of m on dT (through the origin: both are zero at
+    heater-on). In air almost all the heater's power stays in the probe: the
+    temperature climbs fastest and the flux is near zero, so this gives
+    still air's ~5.5 (or less: noise); on the lightest foam ~28, on
+    cardboard ~120, PMMA ~570, metals thousands -- whatever the power and the
+    contact time (the ratio does not depend on either), unlike a flux
+    threshold on a fraction of P/A, which a poor conductor never reaches in
+    a short touch.
+
+    Returns None when the rise (mean over the last third of the record) is
+    not above ``min_rise_K`` (pass two thermometer steps): no rise to judge
+    by -- a metal at a power below a step, where rounding makes the slope
+    anything, or no heat, which :func:`no_heat_while_on` judges. In air the
+    rise is the largest any touch gives (all of P/A into the probe's own
+    heat capacity), so a probe in air with an unresolved rise would not be
+    told from a metal by any record.
+    """
+    from edge.estimation.running import duhamel_m  # noqa: PLC0415 (edge.estimation imports this module's peers)
+
+    t = np.asarray(t_s, float)
+    dT, q = np.asarray(dT_K, float), np.asarray(q_W_m2, float)
+    keep = t > 0
+    t, dT, q = t[keep], dT[keep], q[keep]
+    tT = t - T_age_s
+    ok = tT > 0
+    if not ok.any():
+        return None
+    m = np.array([duhamel_m(x, t, q) for x in tT[ok]])
+    d = dT[ok]
+    s_dd = float(d @ d)
+    if not s_dd > 0 or float(np.mean(d[-max(1, d.size // 3):])) <= min_rise_K:
+        return None
+    return float(m @ d) / s_dd
+
+
 def quality_flags(base_t: np.ndarray, base_T: np.ndarray, base_q: np.ndarray, heat_q: np.ndarray,
-                  power_W: float, saturated: bool, thresholds: Any) -> list[Flag]:
+                  contact_e: float | None, saturated: bool, thresholds: Any) -> list[Flag]:
     """Flags from the baseline and heating series (see the ``[measurement]`` thresholds).
 
     Parameters
@@ -81,8 +128,9 @@ def quality_flags(base_t: np.ndarray, base_T: np.ndarray, base_q: np.ndarray, he
         Baseline times (s), thermocouple (°C) and flux (W/m^2).
     heat_q : ndarray
         Heating-phase flux with the baseline offset removed (W/m^2).
-    power_W : float
-        Requested heater power.
+    contact_e : float or None
+        :func:`contact_effusivity` of the heating record; ``no_contact`` when it is
+        below ``thresholds.no_contact_e_W_s05_m2K`` (None: not judged).
     saturated : bool
         Whether any reading clipped.
     thresholds : namespace
@@ -94,10 +142,8 @@ def quality_flags(base_t: np.ndarray, base_T: np.ndarray, base_q: np.ndarray, he
         In the order no_contact, saturated, noisy, unstable_baseline.
     """
     flags = []
-    if heat_q.size and power_W > 0:
-        q_in = float(np.mean(heat_q))
-        if q_in < thresholds.no_contact_flux_fraction * power_W / HEATER_AREA_m2:
-            flags.append(Flag.NO_CONTACT)
+    if heat_q.size and contact_e is not None and contact_e < thresholds.no_contact_e_W_s05_m2K:
+        flags.append(Flag.NO_CONTACT)
     if saturated:
         flags.append(Flag.SATURATED)
     if base_T.size >= 3:

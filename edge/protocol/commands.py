@@ -110,7 +110,11 @@ COMMANDS: dict[Command, CommandSpec] = {spec.command: spec for spec in (
         Command.MEASURE,
         args=(arg("power_W", "float", lo=0.0, hi=50.0, lo_open=True, doc="heater power, W"),
               arg("voltage_V", "float", lo=0.0, hi=48.0, lo_open=True, doc="heater voltage, V"),
-              arg("contact_time_s", "float", lo=0.0, hi=60.0, lo_open=True, doc="touch duration, s")),
+              arg("contact_time_s", "float", lo=0.0, hi=60.0, lo_open=True, doc="touch duration, s"),
+              arg("sample_rate_Hz", "float", lo=1.0, hi=200.0,
+                  doc="sampling rate, Hz (default the device's; capped at what its converters can deliver)"),
+              arg("until_decided", "bool", doc="stop heating once the running answer's posterior reaches "
+                  "measurement.decide_posterior (record flagged 'decided')")),
         exclusive=(("power_W", "voltage_V"),),
         reply=(arg("measurement_id", "int", required=True, lo=0),),
         idempotent=False,

@@ -237,8 +237,17 @@ class MeasurementConfig:
         hi=600.0,
         runtime=True,
     )
-    no_contact_flux_fraction: float = setting(
-        "float", 0.1, "flag no_contact when mean flux < this x P/A", lo=0.0, hi=1.0, runtime=True
+    no_contact_e_W_s05_m2K: float = setting(
+        "float", 12.0, "flag no_contact when the effusivity the heating shows (flux vs rise) is below this, "
+        "W s^0.5/(m^2 K): still air 5.5, the lightest foams 28", lo=0.0, hi=1000.0, runtime=True
+    )
+    decide_posterior: float = setting(
+        "float", 0.95, "MEASURE until_decided: stop heating once the running answer's posterior reaches this",
+        lo=0.5, hi=1.0, runtime=True
+    )
+    decide_min_s: float = setting(
+        "float", 0.3, "MEASURE until_decided: heat at least this long before deciding, s", lo=0.0, hi=60.0,
+        runtime=True
     )
     noise_T_K: float = setting(
         "float",

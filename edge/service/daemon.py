@@ -61,7 +61,7 @@ import threading
 import time
 from enum import StrEnum
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 import edge
 from edge.estimation.estimate import pipeline_golden_check
@@ -70,7 +70,9 @@ from edge.hw.drivers.button import Button
 from edge.hw.drivers.heater import Heater, HeaterError, HeaterOffError
 from edge.hw.faults import SensorFault
 from edge.measure.sensors import make_sensors, thermocouple_resolution_K
-from edge.measure.sequence import EstimatorFn, MeasurementSequence, Phase
+from edge.estimation.running import SequentialDecision
+from edge.measure.ready import Readiness
+from edge.measure.sequence import EstimatorFn, MeasurementParams, MeasurementSequence, Phase
 from edge.measure.watchdog import HeaterWatchdog, Limits
 from edge.model.bundle import limits_for_ram
 from edge.model.store import InstallError, ModelStore, ModelStoreError
@@ -190,12 +192,18 @@ class Daemon:
         Largest model upload accepted (held in memory until commit).
     notifier : Notifier, optional
         systemd notifications and watchdog pets (default: from ``$NOTIFY_SOCKET``; a no-op without).
+    object_set : callable () -> ObjectSet, optional
+        The objects the running answer chooses among (STATUS ``answer``,
+        MEASURE ``until_decided``); called at each measurement's start.
+        Default: every material of the library
+        (:meth:`edge.estimation.objects.ObjectSet.from_library`).
     """
 
     def __init__(self, config: Config, board: Board, *, estimator: EstimatorFn | None = None,
                  stop_event: threading.Event | None = None, model_store: ModelStore | None = None,
                  history: History | None = None, max_payload: int = DEFAULT_MAX_PAYLOAD,
-                 max_upload_bytes: int = MAX_UPLOAD_BYTES, notifier: Notifier | None = None) -> None:
+                 max_upload_bytes: int = MAX_UPLOAD_BYTES, notifier: Notifier | None = None,
+                 object_set: Callable[[], Any] | None = None) -> None:
         self.board = board
         self.notifier = notifier if notifier is not None else Notifier()
         self.stop_event = stop_event if stop_event is not None else threading.Event()
@@ -264,6 +272,10 @@ class Daemon:
             self._worker = MeasurementWorker(self.stop_event)
             self.phase: Phase | None = None
             self._measure_t0: float | None = None
+            self._object_set_hook = object_set
+            self._library_set: Any = None
+            #: Idle readings of the probe for STATUS ``ready`` (settled probe temperature).
+            self.readiness = Readiness()
             self._check_faults(force=True)
             self.state = State.IDLE
         except BaseException:
@@ -424,9 +436,47 @@ class Daemon:
                 Limits(h.max_on_time_s, h.over_temperature_C, h.fault_flux_W_m2, h.fault_rise_K),
                 self._estimate, self.config.measurement, watchdog=self.watchdog, abort_event=self.stop_event,
                 model_sha256=self._model_sha256, on_state=self._on_state, cancel_event=self._cancel,
-                beats=self.notifier)
+                beats=self.notifier, decision=self._make_decision)
         self.sequence.thresholds = self.config.measurement
         return self.sequence
+
+    def object_set(self) -> Any:
+        """The object set of the running answer: the injected hook's, else the library's (built once)."""
+        if self._object_set_hook is not None:
+            return self._object_set_hook()
+        if self._library_set is None:
+            from edge.estimation.objects import ObjectSet  # noqa: PLC0415 (loads the library CSV)
+
+            self._library_set = ObjectSet.from_library()
+        return self._library_set
+
+    def _make_decision(self, params: MeasurementParams) -> SequentialDecision | None:
+        m = self.config.measurement
+        objs = self.object_set()
+        if objs is None or not len(objs):
+            return None
+        return SequentialDecision(objs, m.decide_posterior, m.decide_min_s,
+                                  T_age_s=getattr(self.sensors, "T_age_s", 0.0),
+                                  T_resolution_K=getattr(self.sensors, "T_resolution_K", 0.0))
+
+    def _poll_readiness(self) -> None:
+        """One idle reading of the probe for STATUS ``ready`` (at most one per sample period, board clock).
+
+        Taken when STATUS is asked (a robot waiting for ``ready`` polls it), not by the serve
+        loop: an idle daemon leaves the bus alone.
+        """
+        if self.sensors is None or self.measuring or self._measure_lock.locked() or self.state != State.IDLE:
+            return
+        now = self.board.clock.monotonic()
+        if now - self.readiness.last_t < 1.0 / self.config.measurement.sample_rate_Hz:
+            return
+        try:
+            r = self.sensors.read()
+        except Exception as e:  # a failing sensor is reported by the next MEASURE; not ready meanwhile
+            log.debug("readiness reading failed: %s", e)
+            self.readiness.reset()
+            return
+        self.readiness.add(now, r.T_C)
 
     def _estimate(self, *args: Any) -> Mapping[str, Any]:
         return self.estimator(*args)
@@ -479,14 +529,27 @@ class Daemon:
         if self.state == State.MEASURING and t0 is not None:
             out["phase"] = self.phase
             out["measurement_elapsed_s"] = round(self.board.clock.monotonic() - t0, 3)  # board clock
+            seq = self.sequence
+            running = (Phase.HEATING, Phase.RESAMPLING, Phase.ESTIMATING)
+            ans = getattr(seq, "answer", None) if self.phase in running else None
+            if ans is not None:
+                out["answer"] = ans.to_dict()
+            out["ready"] = False
+        else:
+            self._poll_readiness()
+            m = self.config.measurement
+            out["ready"] = bool(out["can_measure"] and self.state == State.IDLE
+                                and self.readiness.settled(m.baseline_s, m.unstable_baseline_K))
         return out
 
     def _cmd_measure(self, args: dict) -> dict:
         return self.measure(power_W=args.get("power_W"), voltage_V=args.get("voltage_V"),
-                            contact_time_s=args.get("contact_time_s"))
+                            contact_time_s=args.get("contact_time_s"), sample_rate_Hz=args.get("sample_rate_Hz"),
+                            until_decided=bool(args.get("until_decided") or False))
 
     def measure(self, *, power_W: float | None = None, voltage_V: float | None = None,
-                contact_time_s: float | None = None) -> dict:
+                contact_time_s: float | None = None, sample_rate_Hz: float | None = None,
+                until_decided: bool = False) -> dict:
         """Run one measurement, store it, return its summary (CommandError on failure).
 
         While it runs, :attr:`state` is ``"measuring"`` (``phase`` names the
@@ -495,15 +558,17 @@ class Daemon:
         if not self._measure_lock.acquire(blocking=False):
             raise CommandError(ErrorCode.BUSY, "a measurement is already running")
         try:
-            return self._measure(power_W, voltage_V, contact_time_s)
+            return self._measure(power_W, voltage_V, contact_time_s, sample_rate_Hz, until_decided)
         finally:
+            self.readiness.reset()  # the probe was just heated: settle afresh
             self._measure_t0 = None
             self.phase = None
             if self.state == State.MEASURING:
                 self.state = State.IDLE
             self._measure_lock.release()
 
-    def _measure(self, power_W: float | None, voltage_V: float | None, contact_time_s: float | None) -> dict:
+    def _measure(self, power_W: float | None, voltage_V: float | None, contact_time_s: float | None,
+                 sample_rate_Hz: float | None = None, until_decided: bool = False) -> dict:
         if self.state == State.FAULT:
             raise CommandError(ErrorCode.BAD_STATE, "heater fault: measurements are disabled until restart; "
                                + "; ".join(self.faults[-1:]))
@@ -516,7 +581,8 @@ class Daemon:
             raise CommandError(ErrorCode.BAD_STATE, "cannot measure, heater kept off: " + "; ".join(blockers))
         cfg = self.config
         params = measure_params(cfg, self.heater.max_power_W, power_W=power_W, voltage_V=voltage_V,
-                                contact_time_s=contact_time_s)
+                                contact_time_s=contact_time_s, sample_rate_Hz=sample_rate_Hz,
+                                until_decided=until_decided)
         seq = self._get_sequence()
         self._measure_t0 = self.board.clock.monotonic()
         self.state = State.MEASURING

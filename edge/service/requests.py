@@ -27,7 +27,7 @@ from edge.measure.sequence import MeasurementParams
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.service.config import RUNTIME_KEYS, Config
 
-__all__ = ["REPLY_MARGIN", "SERIES_COLUMNS", "measure_params", "fit_record", "history_page", "series_page",
+__all__ = ["REPLY_MARGIN", "SERIES_COLUMNS", "max_sample_rate_Hz", "measure_params", "fit_record", "history_page", "series_page",
            "config_reply"]
 
 #: Bytes kept free in a reply for the frame's JSON envelope.
@@ -37,8 +37,30 @@ SERIES_COLUMNS = {"raw": (("t_s", "raw_t_s"), ("T_C", "raw_T_C"), ("q_W_m2", "ra
                   "grid": (("t_s", "grid_t_s"), ("dT_K", "grid_dT_K"), ("q_W_m2", "grid_q_W_m2"))}
 
 
+def max_sample_rate_Hz(sensors: Any) -> float:
+    """Fastest sampling whose every temperature reading is a new conversion, Hz (``[sensors]`` section).
+
+    From the converters' conversion times (edge/hw/regmaps): the MCP9600
+    converts continuously, 320 / 80 / 20 / 5 ms at 18 / 16 / 14 / 12 bit,
+    so faster reads only repeat a value (12.5 Hz at the default 16 bit); the
+    ADS122C04 reads the thermocouple and then the flux in single shots, two
+    conversions per sample (1000 SPS: ~1.1 ms each) plus the I2C traffic,
+    so it can sample at the protocol's 200 Hz ceiling; the ADS1115 (flux
+    only, 860 SPS: 1.2 ms) never limits.
+    """
+    from edge.hw.regmaps.ads122c04 import DATA_RATES_NORMAL_SPS, conversion_time_s  # noqa: PLC0415
+    from edge.hw.regmaps.mcp9600 import CONVERSION_TIME_s  # noqa: PLC0415
+
+    if sensors.thermocouple == "mcp9600":
+        return 1.0 / CONVERSION_TIME_s[int(sensors.mcp9600_adc_bits)]
+    dr = DATA_RATES_NORMAL_SPS.index(int(sensors.ads122c04_data_rate_sps))
+    per_sample = 2 * conversion_time_s(dr, False, True) + 2e-3  # two single shots + I2C reads
+    return min(200.0, 1.0 / per_sample)
+
+
 def measure_params(config: Config, max_power_W: float, *, power_W: float | None = None,
-                   voltage_V: float | None = None, contact_time_s: float | None = None) -> MeasurementParams:
+                   voltage_V: float | None = None, contact_time_s: float | None = None,
+                   sample_rate_Hz: float | None = None, until_decided: bool = False) -> MeasurementParams:
     """One measurement's settings: the configuration, overridden by MEASURE's arguments.
 
     Parameters
@@ -52,6 +74,12 @@ def measure_params(config: Config, max_power_W: float, *, power_W: float | None 
         ``power_W``); default ``heater.power_W``.
     contact_time_s : float, optional
         Heating time; default ``measurement.contact_time_s``.
+    sample_rate_Hz : float, optional
+        Sampling rate; default ``measurement.sample_rate_Hz``. A request above
+        :func:`max_sample_rate_Hz` of the fitted converters is capped there
+        (the record's ``sample_rate_Hz`` is the rate used).
+    until_decided : bool
+        Stop heating once the running answer is decided.
 
     Returns
     -------
@@ -77,9 +105,12 @@ def measure_params(config: Config, max_power_W: float, *, power_W: float | None 
     if contact >= h.max_on_time_s:
         raise CommandError(ErrorCode.BAD_ARGUMENT, f"contact_time_s={contact} must be below "
                            f"heater.max_on_time_s={h.max_on_time_s}", "contact_time_s")
+    rate = m.sample_rate_Hz
+    if sample_rate_Hz is not None:
+        rate = min(float(sample_rate_Hz), max_sample_rate_Hz(config.sensors))
     return MeasurementParams(power_W=power, contact_time_s=contact, baseline_s=m.baseline_s,
-                             sample_rate_Hz=m.sample_rate_Hz, cooldown_s=m.cooldown_s,
-                             method=config.estimation.method)
+                             sample_rate_Hz=rate, cooldown_s=m.cooldown_s,
+                             method=config.estimation.method, until_decided=bool(until_decided))
 
 
 def fit_record(record: dict, max_payload: int) -> dict:

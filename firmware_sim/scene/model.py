@@ -147,6 +147,9 @@ class TouchSpec:
     length_s: float
     press_trigger: bool = True
     trigger_hold_s: float = 0.1
+    #: Touch after touch: the probe is put on the object again ``repeat_gap_s`` after each touch.
+    repeat: bool | None = None
+    repeat_gap_s: float = 1.0
 
     @property
     def end_s(self) -> float:

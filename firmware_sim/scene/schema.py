@@ -64,6 +64,13 @@ At least one thermocouple reader (mcp9600 or ads122c04) and one flux reader
     length_s        float > 0    probe lifted at start_s + length_s
     press_trigger?  bool         press the trigger button at start_s (default true)
     trigger_hold_s? float > 0    how long it is held (default 0.1)
+    repeat?         bool         touch after touch (default: on in ``thermotouch sim``
+                                 and --sim sessions, off for a bare Simulator): repeat_gap_s after
+                                 each touch the probe is put on the object again and
+                                 stays until 0.5 s after the next heating ends, so a
+                                 session measures again and again with the probe in
+                                 air in between (touches added by hand turn it off)
+    repeat_gap_s?   float > 0    time in air between touches (default 1.0)
 
 ``[[faults]]`` (optional, any number)::
 
@@ -181,6 +188,9 @@ TOUCH_FIELDS: Mapping[str, Field] = {
     "length_s": Field("float", doc="probe lifted at start_s + length_s", **_POSITIVE),
     "press_trigger": Field("bool", True, "press the trigger button at start_s"),
     "trigger_hold_s": Field("float", 0.1, "how long the trigger is held", **_POSITIVE),
+    "repeat": Field("bool", None, "touch after touch: the probe is put down again repeat_gap_s after a touch "
+                    "(default: on in a thermotouch sim session, off for a bare Simulator)"),
+    "repeat_gap_s": Field("float", 1.0, "time in air between repeat touches", **_POSITIVE),
 }
 
 #: ``until_s`` must also exceed ``at_s``; the parser checks that bound.

@@ -34,6 +34,9 @@ def add_parser(sub, parents):
     timing.add_argument("--profile", choices=("quick", "standard", "precise"),
                         help="contact time of a measurement profile: quick 0.5 s, standard 2 s, precise 4 s "
                              "(accuracy per profile: README, estimation tables)")
+    p.add_argument("--until-decided", action="store_true",
+                   help="stop heating as soon as the running answer's posterior reaches the device's "
+                        "measurement.decide_posterior (at most the contact time); prints the answer and when")
     p.add_argument("--method", choices=("paper", "default"), default=None,
                    help="estimation method for this touch (default: the device's setting)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -49,10 +52,12 @@ def run(args) -> int:
     from host.progress import Ticker  # noqa: PLC0415
     from host.touch import touch  # noqa: PLC0415
 
+    rate = None
     if args.profile is not None:
         from edge.measure.profiles import PROFILES  # noqa: PLC0415
 
         args.time = PROFILES[args.profile].contact_time_s
+        rate = PROFILES[args.profile].sample_rate_Hz
     if args.bundle is not None:
         from host.touch import bundle_identity  # noqa: PLC0415
 
@@ -62,9 +67,13 @@ def run(args) -> int:
     with device_session(args) as session:
         with Ticker("measuring", enabled=not args.json):
             t = touch(session, power_W=args.power, voltage_V=args.voltage, contact_time_s=args.time,
-                      method=args.method, with_series=bool(args.plot), bundle_dir=args.bundle)
+                      method=args.method, with_series=bool(args.plot), bundle_dir=args.bundle,
+                      sample_rate_Hz=rate, until_decided=args.until_decided)
         label = session.simulator.scene.name if session.simulated else session.port
     d = measure_json(t.record)
+    decision = (t.record.get("result") or {}).get("decision")
+    if decision is not None:
+        d["decision"] = decision
     fit = t.fits.get(d["method"])
     only_measured = "" if fit is not None else f" (measured series only: {t.fit_note or 'no model fit'})"
     # The result is printed first: a plot that cannot be written must not lose it.
@@ -73,6 +82,10 @@ def run(args) -> int:
     else:
         print(f"measurement {d['measurement_id']}: {d['power_W']:.3g} W for {d['contact_time_s']:.3g} s")
         print_result(d)
+        if decision is not None:
+            how = "decided" if decision.get("stopped_early") else "not decided, full contact time"
+            print(f"running answer: {decision.get('object')} (posterior {decision.get('posterior', 0):.3f}) "
+                  f"at {decision.get('elapsed_s', 0):.2f} s: {how}")
     if args.plot:
         from host.plots import plot_touch  # noqa: PLC0415
 

@@ -98,10 +98,13 @@ def test_quality_flags_function_thresholds():
     th = Config().measurement
     t = np.linspace(-0.5, -0.1, 5)
     flat = np.full(5, 25.0)
-    assert quality_flags(t, flat, np.zeros(5), np.full(10, 1500.0), 5.0, False, th) == []
+    # contact_e: the effusivity the heating record shows (edge.measure.signal.contact_effusivity).
+    assert quality_flags(t, flat, np.zeros(5), np.full(10, 1500.0), 560.0, False, th) == []
     drift = 25.0 + np.linspace(0, 0.5, 5)
-    assert quality_flags(t, drift, np.zeros(5), np.full(10, 1500.0), 5.0, False, th) == ["unstable_baseline"]
-    assert quality_flags(t, flat, np.zeros(5), np.full(10, 10.0), 5.0, True, th) == ["no_contact", "saturated"]
+    assert quality_flags(t, drift, np.zeros(5), np.full(10, 1500.0), 560.0, False, th) == ["unstable_baseline"]
+    assert quality_flags(t, flat, np.zeros(5), np.full(10, 10.0), 5.5, True, th) == ["no_contact", "saturated"]
+    assert quality_flags(t, flat, np.zeros(5), np.full(10, 10.0), 30.0, False, th) == []  # the lightest foam
+    assert quality_flags(t, flat, np.zeros(5), np.full(10, 10.0), None, False, th) == []  # rise not resolved
 
 
 def test_params_are_validated():

@@ -1,0 +1,108 @@
+"""Sequential decision: how long must a touch heat before the answer is decided, at what accuracy?
+
+The robot's 14-object set of bench/tactile_bench.py (5 % specimen spread),
+each object touched as ``--touches`` specimens (ln e and ln α drawn with the
+spread, host/recognition's specimen model), on the precision board
+(ads122c04 instrument model: 90 Hz, 24-bit), q_v = 7.7e7 W/m^3, 20-mm
+insulated samples, a 2 % flux-calibration error per touch. Each touch is
+answered two ways on the same record:
+
+* **fixed**: heat 1.5 s, then the full default estimate and
+  ``ObjectSet.classify`` (what a plain MEASURE with a 1.5-s contact gives);
+* **until-decided**: the device's :class:`edge.estimation.running.SequentialDecision`
+  fed sample by sample (threshold ``--threshold``, default the device's
+  0.95, after ``decide_min_s`` = 0.3 s); the heating stops at the decision,
+  its answer is the decided object; a touch not decided by 1.5 s falls back
+  to the fixed answer at 1.5 s (the full estimate at the end).
+
+Reported: object accuracy of both, the median / 90th-percentile / mean
+decision time, the share decided early, and accuracy among the decided.
+
+Run:  python bench/decision_bench.py [--touches 10] [--threshold 0.95]
+Writes bench/results/decision.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from _common import write_json
+from edge.estimation.objects import ObjectSet
+from edge.estimation.running import SequentialDecision
+from edge.measure.instrument import INSTRUMENTS
+from host.evaluate import TouchSimulator
+from host.recognition import _specimen, library_estimator
+from tactile_bench import IN_SET
+
+FIXED_S = 1.5
+Q_V = 7.7e7
+INSTRUMENT = "ads122c04"
+
+
+def run(touches: int, threshold: float, min_s: float, seed: int) -> dict:
+    rng = np.random.default_rng(seed)
+    oset = ObjectSet(IN_SET, label="tactile_bench IN_SET")
+    est = library_estimator()
+    lsb = INSTRUMENTS[INSTRUMENT].T_lsb_K
+    rows = []
+    for obj in IN_SET:
+        for _ in range(touches):
+            solid = _specimen(obj, rng, est)
+            t = TouchSimulator(solid, duration_s=FIXED_S).touch(Q_V, INSTRUMENT, rng)
+            q = np.interp(t.tT, t.tq, t.q) * (1.0 + 0.02 * rng.standard_normal())
+            r = est.estimate(t.tT, t.T, q, T_resolution_K=lsb)
+            fixed = oset.classify(r.effusivity_W_s05_m2K, r.effusivity_W_s05_m2K_u / r.effusivity_W_s05_m2K).object \
+                if r.effusivity_W_s05_m2K else None
+            d = SequentialDecision(oset, threshold, min_s, T_resolution_K=lsb)
+            for a, b, c in zip(t.tT, t.T, q):
+                d.update(a, b, c)
+                if d.decided is not None:
+                    break
+            if d.decided is not None:
+                seq_answer, seq_t, early = d.decided.object, d.decided.elapsed_s, True
+            else:
+                seq_answer, seq_t, early = fixed, FIXED_S, False
+            rows.append(dict(object=obj.name, fixed=fixed, seq=seq_answer, t=seq_t, early=early))
+    truth = np.array([r["object"] for r in rows])
+    fixed_ok = np.array([r["fixed"] == r["object"] for r in rows])
+    seq_ok = np.array([r["seq"] == r["object"] for r in rows])
+    times = np.array([r["t"] for r in rows])
+    early = np.array([r["early"] for r in rows])
+    per_object = {}
+    for name in dict.fromkeys(truth):
+        m = truth == name
+        per_object[name] = dict(median_decision_s=float(np.median(times[m])), fixed_accuracy=float(fixed_ok[m].mean()),
+                                until_decided_accuracy=float(seq_ok[m].mean()), decided_early=float(early[m].mean()))
+    return dict(
+        objects=len(IN_SET), touches_per_object=touches, n=len(rows), instrument=INSTRUMENT, q_v_W_m3=Q_V,
+        spread_rel=0.05, threshold=threshold, decide_min_s=min_s, fixed_contact_s=FIXED_S,
+        fixed_accuracy=float(fixed_ok.mean()), until_decided_accuracy=float(seq_ok.mean()),
+        median_decision_s=float(np.median(times)), p90_decision_s=float(np.percentile(times, 90)),
+        mean_decision_s=float(times.mean()), decided_early=float(early.mean()),
+        accuracy_of_decided=float(seq_ok[early].mean()) if early.any() else None,
+        heating_saved=float(1.0 - times.mean() / FIXED_S), per_object=per_object,
+    )
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--touches", type=int, default=10)
+    p.add_argument("--threshold", type=float, default=0.95)
+    p.add_argument("--min-s", type=float, default=0.3)
+    p.add_argument("--seed", type=int, default=7)
+    a = p.parse_args()
+    w = time.perf_counter()
+    res = run(a.touches, a.threshold, a.min_s, a.seed)
+    res["wall_s"] = round(time.perf_counter() - w, 1)
+    print(f"{res['n']} touches, {res['objects']} objects, {INSTRUMENT}: fixed {FIXED_S} s accuracy "
+          f"{res['fixed_accuracy']:.3f}; until-decided accuracy {res['until_decided_accuracy']:.3f}, median "
+          f"decision {res['median_decision_s']:.2f} s (p90 {res['p90_decision_s']:.2f} s), decided early "
+          f"{res['decided_early']:.0%}")
+    write_json("decision", res)
+
+
+if __name__ == "__main__":
+    main()

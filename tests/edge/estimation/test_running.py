@@ -1,0 +1,66 @@
+"""The running effusivity and the sequential decision on it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from edge.estimation.objects import KnownObject, ObjectSet
+from edge.estimation.running import RunningEffusivity, SequentialDecision, duhamel_m
+from edge.measure.instrument import INSTRUMENTS
+from edge.physics.solids import Solid
+from host.evaluate import TouchSimulator
+
+PMMA = Solid(0.185, 1178.0, 1429.0)
+
+
+def test_duhamel_m_of_a_constant_flux_is_its_half_integral():
+    t = np.arange(1, 51) * 0.02
+    q = np.full(t.size, 300.0)
+    for x in (0.1, 0.5, 1.0):
+        assert duhamel_m(x, t, q) == pytest.approx(2 * 300.0 * math.sqrt(x / math.pi), rel=1e-12)
+    assert duhamel_m(0.0, t, q) == 0.0
+
+
+def _feed(est, touch):
+    qT = np.interp(touch.tT, touch.tq, touch.q)
+    for a, b, c in zip(touch.tT, touch.T, qT):
+        est.add(a, b, c)
+
+
+@pytest.mark.parametrize("inst", ["ads122c04", "mcp9600"])
+def test_running_estimate_matches_the_truth_within_its_uncertainty(inst):
+    touch = TouchSimulator(PMMA, duration_s=2.0).touch(7.7e7, inst, np.random.default_rng(3))
+    r = RunningEffusivity(0.0, INSTRUMENTS[inst].T_lsb_K)
+    _feed(r, touch)
+    e, u = r.estimate()
+    assert abs(math.log(e / PMMA.effusivity_W_s05_m2K)) < 3 * u
+    assert 0.02 <= u < 0.1
+
+
+def _set():
+    P = KnownObject.from_properties
+    return ObjectSet([P("foam", "foam", 0.035, 30, 1400), P("pmma", "polymer", 0.185, 1178, 1429),
+                      P("glass", "glass", 1.0, 2500, 750), P("steel", "alloy", 17, 7900, 500)])
+
+
+def test_sequential_decision_decides_early_and_right_not_before_min_time():
+    touch = TouchSimulator(PMMA, duration_s=2.0).touch(7.7e7, "ads122c04", np.random.default_rng(4))
+    d = SequentialDecision(_set(), 0.95, 0.3)
+    qT = np.interp(touch.tT, touch.tq, touch.q)
+    for a, b, c in zip(touch.tT, touch.T, qT):
+        ans = d.update(a, b, c)
+        if d.decided is not None:
+            break
+    assert d.decided is not None and d.decided.object == "pmma" and d.decided.posterior >= 0.95
+    assert 0.3 <= d.decided.elapsed_s < 1.0
+    assert ans is d.decided
+
+
+def test_no_decision_when_the_threshold_cannot_be_reached():
+    touch = TouchSimulator(PMMA, duration_s=1.0).touch(7.7e7, "ads122c04", np.random.default_rng(5))
+    d = SequentialDecision(_set(), 1.0, 0.3)
+    _feed(d.running, touch)
+    assert d.decided is None

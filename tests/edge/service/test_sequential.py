@@ -1,0 +1,119 @@
+"""Sequential decision, touch after touch, readiness and per-profile sampling on the simulated probe."""
+
+from __future__ import annotations
+
+import pytest
+
+from edge.estimation.objects import KnownObject, ObjectSet
+from edge.service.config import Config
+from edge.service.daemon import Daemon
+from edge.service.requests import max_sample_rate_Hz, measure_params
+from firmware_sim.run import config_for_scene
+from firmware_sim.simulator import load_scene
+
+P = KnownObject.from_properties
+SET = ObjectSet([P("foam", "foam", 0.035, 30, 1400), P("pmma", "polymer", 0.185, 1178.35, 1429),
+                 P("glass", "glass", 1.0, 2500, 750), P("steel", "alloy", 17, 7900, 500)])
+
+
+def _daemon(scene, tmp_path, **kw):
+    sim = load_scene(scene)
+    sim.repeat_touches()  # as in a thermotouch sim session
+    d = Daemon(config_for_scene(sim.scene, tmp_path), sim.board(), **kw)
+    return sim, d
+
+
+def _spy_status(d, seen):
+    make = d._make_decision
+
+    def spy(params):
+        dec = make(params)
+        real = dec.update
+
+        def update(*a):
+            seen.append(d._cmd_status({}))  # what a host polling STATUS sees while the heater is on
+            return real(*a)
+        dec.update = update
+        return dec
+    d._make_decision = spy
+    d.sequence = None  # rebuilt with the spy
+
+
+def test_status_carries_the_running_answer_while_heating(tmp_path):
+    sim, d = _daemon("pmma_15V", tmp_path, object_set=lambda: SET)
+    seen = []
+    _spy_status(d, seen)
+    try:
+        rec = d.measure()
+    finally:
+        d.close()
+        sim.close()
+    answers = [s["answer"] for s in seen if "answer" in s]
+    assert all(s["state"] == "measuring" and s["ready"] is False for s in seen)
+    assert answers and answers[-1]["object"] == "pmma" and answers[-1]["elapsed_s"] > 1.5
+    assert "decided" not in rec["flags"] and not rec["result"]["decision"]["stopped_early"]
+    assert rec["heater_on_s"] == pytest.approx(rec["contact_time_s"], abs=0.02)
+
+
+def test_until_decided_stops_heating_early(tmp_path):
+    sim, d = _daemon("pmma_15V", tmp_path, object_set=lambda: SET)
+    try:
+        rec = d.measure(until_decided=True)
+    finally:
+        d.close()
+        sim.close()
+    assert rec["status"] == "ok" and "decided" in rec["flags"] and "no_contact" not in rec["flags"]
+    dec = rec["result"]["decision"]
+    assert dec["object"] == "pmma" and dec["posterior"] >= 0.95 and dec["stopped_early"]
+    assert rec["heater_on_s"] < rec["contact_time_s"] - 0.5
+    assert abs(dec["elapsed_s"] - rec["heater_on_s"]) < 0.2
+    assert rec["result"]["effusivity_W_s05_m2K"] == pytest.approx(558.0, rel=0.15)  # the full estimate stays
+
+
+def test_touch_after_touch_in_a_sim_session_and_ready(tmp_path):
+    sim, d = _daemon("pmma_15V", tmp_path)
+    try:
+        for i in range(3):
+            rec = d.measure()
+            assert rec["status"] == "ok" and "no_contact" not in rec["flags"], (i, rec["flags"])
+            assert rec["result"]["effusivity_W_s05_m2K"] == pytest.approx(558.0, rel=0.1), i
+            assert d._cmd_status({})["ready"] is False  # just heated: no settled window yet
+            ready_at = None
+            for k in range(30):
+                sim.advance(0.1)
+                if d._cmd_status({})["ready"]:
+                    ready_at = k
+                    break
+            assert ready_at is not None and ready_at >= 4  # a baseline window (0.5 s) of settled readings
+        assert len(sim.world.touches) >= 3
+    finally:
+        d.close()
+        sim.close()
+
+
+def test_no_contact_scene_is_still_flagged(tmp_path):
+    sim, d = _daemon("pmma_15V_no_contact", tmp_path)
+    try:
+        rec = d.measure()
+    finally:
+        d.close()
+        sim.close()
+    assert "no_contact" in rec["flags"]
+
+
+def test_quick_profile_rate_per_board(tmp_path):
+    ref = Config()
+    prec = Config({"sensors": {"thermocouple": "ads122c04", "flux_adc": "ads122c04"}})
+    assert max_sample_rate_Hz(ref.sensors) == pytest.approx(12.5)
+    assert max_sample_rate_Hz(prec.sensors) >= 50.0
+    assert measure_params(prec, 10.0, sample_rate_Hz=50.0).sample_rate_Hz == 50.0
+    assert measure_params(ref, 10.0, sample_rate_Hz=50.0).sample_rate_Hz == pytest.approx(12.5)
+    sim = load_scene("alu_20V_ads122c04")  # precision board: thermocouple and flux on the ADS122C04
+    d = Daemon(config_for_scene(sim.scene, tmp_path, {"sensors": {"thermocouple": "ads122c04"}}), sim.board())
+    try:
+        rec = d.measure(contact_time_s=0.5, sample_rate_Hz=50.0)
+        full = d.history.get(rec["measurement_id"], series=True)
+    finally:
+        d.close()
+        sim.close()
+    assert rec["sample_rate_Hz"] == 50.0 and len(full["grid_t_s"]) >= 20
