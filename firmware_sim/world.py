@@ -88,6 +88,7 @@ from edge.physics.probe import heater_power_W
 from edge.physics.schedule import PowerSchedule
 from edge.physics.solids import Solid
 
+from firmware_sim.heater_faults import active, effective_duty, supply_voltage
 from firmware_sim.scene.model import FLUX_SATURATION_V, Fault, Scene
 
 __all__ = ["AIR", "HeaterDrive", "BoardDrive", "ScheduleDrive", "ManualDrive", "WorldState", "Truth",
@@ -383,25 +384,17 @@ class ThermalWorld:
             self._cache = {t: st for t, st in self._cache.items() if t < fault.at_s}
 
     def _active(self, kind: str, t_s: float) -> list[Fault]:
-        return [f for f in self._faults if f.kind == kind and f.active(t_s)]
+        return active(self._faults, kind, t_s)
 
     # ---- heater
 
     def duty_at(self, t_s: float) -> float:
         """Effective duty at ``t_s``: commanded, unless a heater fault overrides it."""
-        if self._active("heater_dead", t_s):
-            return 0.0
-        stuck = self._active("heater_stuck_on", t_s)
-        if stuck:
-            return float(stuck[-1].params.get("duty", 1.0))
-        return self.drive.duty_at(t_s) if self.drive is not None else 0.0
+        return effective_duty(self._faults, t_s, self.drive.duty_at(t_s) if self.drive is not None else 0.0)
 
     def supply_voltage_at(self, t_s: float) -> float:
         """Heater supply voltage (V) at ``t_s``, with any sag."""
-        v = self.scene.heater.supply_voltage_V
-        for f in self._active("supply_sag", t_s):
-            v = f.params["voltage_V"] if "voltage_V" in f.params else v * f.params["factor"]
-        return v
+        return supply_voltage(self._faults, t_s, self.scene.heater.supply_voltage_V)
 
     def heater_power_W(self, t_s: float) -> float:
         """Electrical power in the film at ``t_s`` (W)."""

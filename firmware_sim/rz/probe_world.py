@@ -82,6 +82,7 @@ from edge.physics import typek
 from edge.physics.probe import heater_power_W
 from edge.physics.schedule import PowerSchedule
 from edge.physics.solids import Solid
+from firmware_sim.heater_faults import active, effective_duty, supply_voltage
 from firmware_sim.rz.grid import ADIABATIC, PU_FOAM, SENSOR_AREA_m2, Boundary, Grid, Layer, Mesh
 from firmware_sim.rz.solver import Solver, axis_value
 from firmware_sim.scene.model import FLUX_SATURATION_V, Fault, Scene
@@ -371,25 +372,17 @@ class FaithfulWorld:
         self._invalidate_from(fault.at_s)
 
     def _active(self, kind: str, t_s: float) -> list[Fault]:
-        return [f for f in self._faults if f.kind == kind and f.active(t_s)]
+        return active(self._faults, kind, t_s)
 
     # ------------------------------------------------------------------ heater
 
     def duty_at(self, t_s: float) -> float:
         """Effective duty at ``t_s``: commanded, unless a heater fault overrides it."""
-        if self._active("heater_dead", t_s):
-            return 0.0
-        stuck = self._active("heater_stuck_on", t_s)
-        if stuck:
-            return float(stuck[-1].params.get("duty", 1.0))
-        return self.drive.duty_at(t_s) if self.drive is not None else 0.0
+        return effective_duty(self._faults, t_s, self.drive.duty_at(t_s) if self.drive is not None else 0.0)
 
     def supply_voltage_at(self, t_s: float) -> float:
         """Heater supply voltage (V) at ``t_s``, with any sag."""
-        v = self.scene.heater.supply_voltage_V
-        for f in self._active("supply_sag", t_s):
-            v = f.params["voltage_V"] if "voltage_V" in f.params else v * f.params["factor"]
-        return v
+        return supply_voltage(self._faults, t_s, self.scene.heater.supply_voltage_V)
 
     def _switch_times(self) -> np.ndarray:
         times = set(self.drive.change_times()) if self.drive is not None else set()
