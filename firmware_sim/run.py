@@ -47,10 +47,14 @@ def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Ma
     w = Path(workdir)
     b, s, t = scene.board, scene.sensors, scene.touch
     sensors: dict[str, Any] = {"flux_sensitivity_V_per_W_m2": s.flux_sensitivity_V_per_W_m2}
-    if b.mcp9600 is not None:
-        sensors.update(thermocouple="mcp9600", mcp9600_address=b.mcp9600)
-    else:
+    # The 24-bit ADS122C04 reads the thermocouple whenever it is fitted (a metal rises ~0.1 K in 2 s,
+    # below what the MCP9600 resolves); an MCP9600 fitted beside it is only a cold-junction alternative.
+    if b.ads122c04 is not None or b.mcp9600 is None:
         sensors.update(thermocouple="ads122c04")
+    else:
+        sensors.update(thermocouple="mcp9600")
+    if b.mcp9600 is not None:
+        sensors["mcp9600_address"] = b.mcp9600
     if b.ads1115 is not None:
         sensors.update(flux_adc="ads1115", ads1115_address=b.ads1115)
     else:

@@ -236,3 +236,21 @@ def test_scene_text_in_readme_example_parses():
     """)
     s = parse_scene(text, source="readme.toml")
     assert s.name == "readme" and s.board.ads122c04 == 0x40 and s.faults[0].params == {"address": 0x40}
+
+
+def test_a_fitted_ads122c04_reads_the_thermocouple_in_every_shipped_scene(tmp_path):
+    # The precision ADC is there for the thermocouple (a metal rises ~0.1 K in 2 s); an MCP9600 fitted
+    # beside it (alu_20V_ads122c04) must not take the thermocouple over.
+    from firmware_sim.run import config_for_scene
+    from firmware_sim.scene.files import read_scene, scene_names
+
+    checked = 0
+    for name in scene_names():
+        scene = read_scene(name)
+        cfg = config_for_scene(scene, tmp_path / name)
+        if scene.board.ads122c04 is not None:
+            assert cfg.sensors.thermocouple == "ads122c04", name
+            checked += 1
+        elif scene.board.mcp9600 is not None:
+            assert cfg.sensors.thermocouple == "mcp9600", name
+    assert checked >= 1
