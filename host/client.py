@@ -91,8 +91,12 @@ class BadReply(ClientError):
 
 #: Requests that name the upload session from MODEL_BEGIN.
 _SESSION_COMMANDS = frozenset({Command.MODEL_CHUNK, Command.MODEL_COMMIT, Command.MODEL_ABORT})
-#: Longest wait for the device to confirm an ABORT, s (it replies once the record is stored).
-ABORT_TIMEOUT_s = 15.0
+#: Longest wait for the device to confirm an ABORT, s, over all attempts. The device replies once
+#: the heater is off and the record stored (one sample period plus an fsync); a lost frame is
+#: resent, but a device that is gone must not hold a Ctrl-C for long.
+ABORT_TIMEOUT_s = 6.0
+#: Attempts the ABORT deadline is split into.
+ABORT_ATTEMPTS = 3
 
 
 def _port_name(ser: Any) -> str:
@@ -119,13 +123,19 @@ class DeviceClient:
         Payload bound, bytes; must not exceed the device's.
     poll_s : float
         Read timeout per poll, s (the port's ``timeout`` is set to this).
+    abort_timeout_s : float
+        Longest wait for an ABORT's confirmation over all its attempts, s.
     """
 
     def __init__(self, port_or_serial: Any, timeout_s: float = 2.0, *, retries: int = 1,
                  baudrate: int = 115200, max_payload: int = DEFAULT_MAX_PAYLOAD,
-                 poll_s: float = 0.02, own: bool | None = None) -> None:
+                 poll_s: float = 0.02, own: bool | None = None,
+                 abort_timeout_s: float = ABORT_TIMEOUT_s) -> None:
         if not timeout_s > 0:
             raise ValueError(f"timeout_s must be > 0, got {timeout_s!r}")
+        if not abort_timeout_s > 0:
+            raise ValueError(f"abort_timeout_s must be > 0, got {abort_timeout_s!r}")
+        self.abort_timeout_s = float(abort_timeout_s)
         if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
             raise ValueError(f"retries must be an int >= 0, got {retries!r}")
         self.timeout_s = float(timeout_s)
@@ -328,8 +338,12 @@ class DeviceClient:
                 pass  # the device is gone or confused: the original exception says more
             raise
 
-    def abort(self, *, timeout_s: float = ABORT_TIMEOUT_s) -> dict[str, Any]:
+    def abort(self, *, timeout_s: float | None = None) -> dict[str, Any]:
         """Cut a running measurement: the device switches the heater off at once and stores the record.
+
+        ``timeout_s`` (default: the client's ``abort_timeout_s``) bounds the
+        whole wait: it is split into :data:`ABORT_ATTEMPTS` attempts, so a
+        lost frame is resent and a dead device costs at most ``timeout_s``.
 
         Returns
         -------
@@ -338,7 +352,8 @@ class DeviceClient:
             measurement was running, and the id of its stored record
             (``status = "aborted"``, ``reason = "host_abort"``).
         """
-        return self.request(Command.ABORT, timeout_s=timeout_s)
+        total = self.abort_timeout_s if timeout_s is None else float(timeout_s)
+        return self.request(Command.ABORT, timeout_s=total / ABORT_ATTEMPTS, retries=ABORT_ATTEMPTS - 1)
 
     def result(self, measurement_id: int | None = None) -> dict[str, Any]:
         """Result record by id, or the latest when ``measurement_id`` is None."""

@@ -317,14 +317,18 @@ def test_stale_reply_is_skipped(link):
 
 def test_no_device_raises_not_answering():
     with NullModem() as nm:
-        with DeviceClient(nm.host_port, timeout_s=0.1, retries=2) as dev:
+        with DeviceClient(nm.host_port, timeout_s=0.1, retries=2, abort_timeout_s=0.6) as dev:
             with pytest.raises(DeviceNotAnswering) as ei:
                 dev.info()
             assert ei.value.attempts == 3 and ei.value.command == Command.INFO
-            # non-idempotent commands are not resent
+            # non-idempotent commands are not resent; the ABORT that follows a lost MEASURE
+            # is tried within its own deadline and then the original error stands
+            t0 = time.monotonic()
             with pytest.raises(DeviceNotAnswering) as ei:
                 dev.measure(timeout_s=0.1)
-            assert ei.value.attempts == 1
+            assert ei.value.attempts == 1 and ei.value.command == Command.MEASURE
+            assert dev.last_abort is None
+            assert time.monotonic() - t0 < 0.1 + 0.6 + 2.0  # a deadline, not a speed figure
 
 
 def test_port_unavailable():
