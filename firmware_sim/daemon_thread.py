@@ -70,6 +70,8 @@ class DaemonThread:
     def stop(self, timeout_s: float = 10.0) -> None:
         """Set the stop event and wait for the thread."""
         self.stop_event.set()
+        if self.daemon is not None:
+            self.daemon.wake()  # no read timeout to wait out
         self.thread.join(timeout_s)
 
     def __enter__(self) -> DaemonThread:

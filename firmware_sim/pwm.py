@@ -171,6 +171,8 @@ class SimPwmTree:
         self._lock = threading.RLock()
         self._npwm = chips
         self._mirror: dict[Path, str] = {}
+        # sync() runs on every clock step and bus transfer: its paths are built once, not per call.
+        self._channel_files: dict[tuple[int, int], tuple[Path, tuple[tuple[str, Path], ...]]] = {}
         self._channels: dict[tuple[int, int], _Channel] = {}
         self._history: dict[tuple[int, int], list[PwmSample]] = {}
         #: Raw writes that broke a kernel rule and were reverted.
@@ -358,9 +360,8 @@ class SimPwmTree:
         with self._lock:
             t = self.clock.now() if t_s is None else float(t_s)
             for chip in self._npwm:
-                cdir = self.chip_dir(chip)
-                for name in ("export", "unexport"):
-                    p = cdir / name
+                _, (export, unexport, npwm) = self._files(chip, None)
+                for name, p in (export, unexport):
                     text = _read(p)
                     if text == self._mirror.get(p) or text is None:
                         continue
@@ -370,7 +371,7 @@ class SimPwmTree:
                             (self._export if name == "export" else self._unexport)(chip, tok, p)
                         except OSError as e:
                             self.violations.append(PwmViolation(t, str(p), tok, e.strerror or str(e)))
-                p = cdir / "npwm"
+                p = npwm[1]
                 if _read(p) != self._mirror.get(p):
                     self.violations.append(PwmViolation(t, str(p), _read(p) or "", "npwm is read-only"))
                     self._put(p, self._mirror[p])
@@ -378,13 +379,26 @@ class SimPwmTree:
                 if ch.exported:
                     self._sync_channel(key, t)
 
+    def _files(self, chip: int, channel: int | None) -> tuple[Path, tuple[tuple[str, Path], ...]]:
+        """A directory and its watched files (cached: Path arithmetic dominated sync())."""
+        key = (chip, -1 if channel is None else channel)
+        got = self._channel_files.get(key)
+        if got is None:
+            if channel is None:
+                d = self.chip_dir(chip)
+                got = (d, tuple((n, d / n) for n in ("export", "unexport", "npwm")))
+            else:
+                d = self.channel_dir(chip, channel)
+                got = (d, tuple((n, d / n) for n in _ATTRS))
+            self._channel_files[key] = got
+        return got
+
     def _sync_channel(self, key: tuple[int, int], t: float) -> None:
-        d = self.channel_dir(*key)
-        if not d.is_dir():
+        d, files = self._files(*key)
+        if not os.path.isdir(d):
             d.mkdir(parents=True)
         changed = {}
-        for name in _ATTRS:
-            p = d / name
+        for name, p in files:
             text = _read(p)
             if text != self._mirror.get(p):
                 changed[name] = "" if text is None else text
@@ -425,7 +439,15 @@ class SimPwmTree:
 
 
 def _read(p: Path) -> str | None:
+    # os-level read: sysfs attribute files are tiny, and Path.read_text's
+    # text-wrapper set-up was most of the simulator's cost per step.
     try:
-        return p.read_text()
+        fd = os.open(p, os.O_RDONLY)
     except OSError:
         return None
+    try:
+        return os.read(fd, 4096).decode()
+    except (OSError, UnicodeDecodeError):
+        return None
+    finally:
+        os.close(fd)

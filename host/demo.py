@@ -15,12 +15,13 @@ and the table to ``OUT/table.txt``.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import shutil
 import time
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 from firmware_sim.scene.files import PRECISION_BOARD, scene_variant
 from host.atomic import write_text_atomic
@@ -40,58 +41,71 @@ def _err(v, ref):
 
 
 def measure_scenes(workdir: Path, scenes=PAPER_SCENES, *, plots: Path | None = None,
-                   expect_sha256: str | None = None, log: Callable[[str], None] = print,
+                   plotter: Any = None, expect_sha256: str | None = None, log: Callable[[str], None] = print,
                    progress: Callable[[int, int], None] | None = None) -> list[dict]:
     """One touch per scene on a simulated probe whose storage is ``workdir``; rows of results.
 
     Each row holds the scene, the reference solid, the device's result, the
     paper-method result on the same record, errors, flags and the heater
-    invariant of that power-up.
+    invariant of that power-up. With ``plots`` (a directory) each touch is
+    also drawn to ``plots/<scene>.png`` by ``plotter`` (a
+    :class:`host.plots.PlotProcess`, which writes them by its ``close``), or
+    by a plot process of this call's own, closed before returning.
     """
-    from host.plots import plot_touch  # noqa: PLC0415
-    from host.touch import touch  # noqa: PLC0415
+    from host.plots import PlotProcess  # noqa: PLC0415
 
     rows = []
-    if plots is not None:
-        Path(plots).mkdir(parents=True, exist_ok=True)
-    for i_scene, scene_ref in enumerate(scenes):
-        scene = Path(scene_ref).stem  # a shipped name or a generated variant's path
-        with open_device(sim=str(scene_ref), workdir=workdir) as s:
-            sha = s.client.info()["model_sha256"]
-            if expect_sha256 is not None and sha != expect_sha256:
-                raise DeviceUnavailable(f"{scene}: device runs model {sha}, expected {expect_sha256}")
-            t = touch(s, method="default", with_series=True)
-            limit = s.daemon.config.heater.max_on_time_s
-        inv = s.simulator.heater_invariant(limit)
-        solid = s.simulator.scene.object.solid
-        r = t.result
-        paper = t.fits.get("paper")
-        row = {
-            "scene": scene, "sample": _SAMPLE_OF[scene.split("_")[0]], "measurement_id": t.record["measurement_id"],
-            "power_W": t.record["power_W"], "model_sha256": r["model_sha256"],
-            "ref": {"e": solid.effusivity_W_s05_m2K, "k": solid.k_W_mK, "alpha": solid.alpha_m2_s},
-            "default": {"e": r["effusivity_W_s05_m2K"], "e_u": r["effusivity_W_s05_m2K_u"], "k": r["k_W_mK"],
-                        "k_u": r["k_W_mK_u"], "alpha": r["alpha_m2_s"], "alpha_u": r["alpha_m2_s_u"],
-                        "material": r["material"], "material_confidence": r["material_confidence"]},
-            "paper": None if paper is None else {"e": paper.effusivity_W_s05_m2K, "k": paper.k_W_mK,
-                                                 "alpha": paper.alpha_m2_s, "flags": list(paper.flags)},
-            "flags": list(t.record.get("flags") or []),
-            "heater": {"ok": inv["ok"], "longest_on_s": inv["longest_on_s"], "off_now": inv["off_now"],
-                       "limit_s": limit},
-        }
-        for m in ("default", "paper"):
-            if row[m] is not None:
-                row[m]["errors"] = {q: _err(row[m][q], row["ref"][q]) for q in ("e", "k", "alpha")}
+    with contextlib.ExitStack() as stack:
         if plots is not None:
-            d = dict(r)
-            d["flags"] = row["flags"]
-            row["plot"] = str(plot_touch(plots / f"{scene}.png", t.series, d, t.fits.get("default"), scene))
-        rows.append(row)
-        log(f"  {scene:10} e = {_num(r['effusivity_W_s05_m2K'])} ({_pct(row['default']['errors']['e']).strip()})"
-            + (f", flags: {', '.join(row['flags'])}" if row["flags"] else ""))
-        if progress is not None:
-            progress(i_scene + 1, len(scenes))
+            Path(plots).mkdir(parents=True, exist_ok=True)
+            if plotter is None:
+                plotter = stack.enter_context(PlotProcess())
+        for i_scene, scene_ref in enumerate(scenes):
+            rows.append(_measure_scene(workdir, scene_ref, plots, plotter, expect_sha256, log))
+            if progress is not None:
+                progress(i_scene + 1, len(scenes))
     return rows
+
+
+def _measure_scene(workdir: Path, scene_ref, plots: Path | None, plotter, expect_sha256: str | None,
+                   log: Callable[[str], None]) -> dict:
+    """One touch on a fresh power-up of the scene's probe; its row (and its plot when ``plots``)."""
+    from host.touch import touch  # noqa: PLC0415
+
+    scene = Path(scene_ref).stem  # a shipped name or a generated variant's path
+    with open_device(sim=str(scene_ref), workdir=workdir) as s:
+        sha = s.client.info()["model_sha256"]
+        if expect_sha256 is not None and sha != expect_sha256:
+            raise DeviceUnavailable(f"{scene}: device runs model {sha}, expected {expect_sha256}")
+        t = touch(s, method="default", with_series=True)
+        limit = s.daemon.config.heater.max_on_time_s
+    inv = s.simulator.heater_invariant(limit)
+    solid = s.simulator.scene.object.solid
+    r = t.result
+    paper = t.fits.get("paper")
+    row = {
+        "scene": scene, "sample": _SAMPLE_OF[scene.split("_")[0]], "measurement_id": t.record["measurement_id"],
+        "power_W": t.record["power_W"], "model_sha256": r["model_sha256"],
+        "ref": {"e": solid.effusivity_W_s05_m2K, "k": solid.k_W_mK, "alpha": solid.alpha_m2_s},
+        "default": {"e": r["effusivity_W_s05_m2K"], "e_u": r["effusivity_W_s05_m2K_u"], "k": r["k_W_mK"],
+                    "k_u": r["k_W_mK_u"], "alpha": r["alpha_m2_s"], "alpha_u": r["alpha_m2_s_u"],
+                    "material": r["material"], "material_confidence": r["material_confidence"]},
+        "paper": None if paper is None else {"e": paper.effusivity_W_s05_m2K, "k": paper.k_W_mK,
+                                             "alpha": paper.alpha_m2_s, "flags": list(paper.flags)},
+        "flags": list(t.record.get("flags") or []),
+        "heater": {"ok": inv["ok"], "longest_on_s": inv["longest_on_s"], "off_now": inv["off_now"],
+                   "limit_s": limit},
+    }
+    for m in ("default", "paper"):
+        if row[m] is not None:
+            row[m]["errors"] = {q: _err(row[m][q], row["ref"][q]) for q in ("e", "k", "alpha")}
+    if plots is not None:
+        d = dict(r)
+        d["flags"] = row["flags"]
+        row["plot"] = str(plotter.submit(plots / f"{scene}.png", t.series, d, t.fits.get("default"), scene))
+    log(f"  {scene:10} e = {_num(r['effusivity_W_s05_m2K'])} ({_pct(row['default']['errors']['e']).strip()})"
+        + (f", flags: {', '.join(row['flags'])}" if row["flags"] else ""))
+    return row
 
 
 def _int(x):
@@ -164,6 +178,7 @@ def run_demo(out: str | Path = "thermotouch-demo", *, train: bool = False, scene
     """
     from host.deploy import DeployRefused, train_and_deploy  # noqa: PLC0415
     from host.flash import flash_bundle  # noqa: PLC0415
+    from host.plots import PlotProcess  # noqa: PLC0415
     from host.progress import ProgressBar  # noqa: PLC0415
 
     t0 = time.perf_counter()
@@ -177,34 +192,39 @@ def run_demo(out: str | Path = "thermotouch-demo", *, train: bool = False, scene
     out.mkdir(parents=True, exist_ok=True)
     from thermotouch_models import DEFAULT_BUNDLE  # noqa: PLC0415
 
-    log(f"ThermoTouch demo: simulated probe (storage {workdir}), virtual serial link")
-    with open_device(sim=scenes[0], workdir=workdir) as s:
-        log(f"probe on {s.port}: board {s.client.info()['board']}")
-        sha = None
-        if train:
-            log("training a quick model and deploying it if it is no worse than the probe's ...")
-            try:
-                r = train_and_deploy(s, out / "model", quick=True, progress=progress, overwrite=overwrite,
-                                     log=lambda m: log("  " + m))
-                sha = r["model_sha256"]
-            except DeployRefused as exc:
-                log(f"  refused: {exc}")
-                log("  the demo continues with the model the probe runs")
-        if sha is None:
-            log(f"flashing the shipped model {DEFAULT_BUNDLE} ...")
-            fl = flash_bundle(s, DEFAULT_BUNDLE, progress=progress)
-            sha = fl["model_sha256"]
-            log(f"  device reports sha256 {sha}")
-    # The self-check (with --train) used the first scene's touch; every scene gets a fresh power-up.
-    log(f"touching the paper's samples ({len(scenes)} scenes) ...")
-    with ProgressBar("touches", "touch", enabled=progress) as bar:
-        rows = measure_scenes(workdir, scenes, plots=out / "plots", expect_sha256=sha, log=log, progress=bar)
-    # The paper read its sensors with a precision DMM; the same nine touches on the
-    # precision board (24-bit ADS122C04 for thermocouple and flux) show what that buys.
-    log("the same nine touches on the precision board (ADS122C04) ...")
-    variants = [scene_variant(sc, out / "scenes", suffix="_precision", board=PRECISION_BOARD) for sc in scenes]
-    with ProgressBar("touches", "touch", enabled=progress) as bar:
-        rows_p = measure_scenes(workdir, variants, plots=out / "plots", expect_sha256=sha, log=log, progress=bar)
+    # The plots are drawn in a child process from the start (it imports Matplotlib while the
+    # model is flashed) to the end, on the other core, while the probe is touched.
+    with PlotProcess() as plotter:
+        log(f"ThermoTouch demo: simulated probe (storage {workdir}), virtual serial link")
+        with open_device(sim=scenes[0], workdir=workdir) as s:
+            log(f"probe on {s.port}: board {s.client.info()['board']}")
+            sha = None
+            if train:
+                log("training a quick model and deploying it if it is no worse than the probe's ...")
+                try:
+                    r = train_and_deploy(s, out / "model", quick=True, progress=progress, overwrite=overwrite,
+                                         log=lambda m: log("  " + m))
+                    sha = r["model_sha256"]
+                except DeployRefused as exc:
+                    log(f"  refused: {exc}")
+                    log("  the demo continues with the model the probe runs")
+            if sha is None:
+                log(f"flashing the shipped model {DEFAULT_BUNDLE} ...")
+                fl = flash_bundle(s, DEFAULT_BUNDLE, progress=progress)
+                sha = fl["model_sha256"]
+                log(f"  device reports sha256 {sha}")
+        # The self-check (with --train) used the first scene's touch; every scene gets a fresh power-up.
+        log(f"touching the paper's samples ({len(scenes)} scenes) ...")
+        with ProgressBar("touches", "touch", enabled=progress) as bar:
+            rows = measure_scenes(workdir, scenes, plots=out / "plots", plotter=plotter, expect_sha256=sha,
+                                  log=log, progress=bar)
+        # The paper read its sensors with a precision DMM; the same nine touches on the
+        # precision board (24-bit ADS122C04 for thermocouple and flux) show what that buys.
+        log("the same nine touches on the precision board (ADS122C04) ...")
+        variants = [scene_variant(sc, out / "scenes", suffix="_precision", board=PRECISION_BOARD) for sc in scenes]
+        with ProgressBar("touches", "touch", enabled=progress) as bar:
+            # Table only: the reference board's plots show the touches (nine more would outlast the touches).
+            rows_p = measure_scenes(workdir, variants, expect_sha256=sha, log=log, progress=bar)
     table = ("Reference board (MCP9600 thermocouple converter, ADS1115 flux ADC):\n" + format_table(rows)
              + "\n\nPrecision board (ADS122C04 for thermocouple EMF and flux):\n" + format_table(rows_p))
     log("")

@@ -164,6 +164,8 @@ def simulated_probe(scene: str, workdir: str | Path | None = None, *,
         yield ports[0], box["daemon"], box["sim"]
     finally:
         stop.set()
+        if "daemon" in box:
+            box["daemon"].wake()  # no read timeout to wait out
         th.join(SIM_START_TIMEOUT_s)
 
 

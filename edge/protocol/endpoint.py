@@ -141,6 +141,22 @@ class SerialEndpoint:
     def _read_available(self) -> bytes:
         return read_available(self.ser)
 
+    def wake(self) -> None:
+        """Cut short a :meth:`poll` waiting for bytes (from another thread), if the port can.
+
+        pyserial's POSIX ports wake a blocked read through ``cancel_read``; a
+        port without it is simply polled again within ``poll_s``. Used when a
+        stop is requested from another thread, so that stopping costs no
+        read timeout.
+        """
+        cancel = getattr(self.ser, "cancel_read", None)
+        if cancel is None:
+            return
+        try:
+            cancel()
+        except (OSError, ValueError):
+            pass  # the port is closing or closed: the loop ends on its own
+
     def poll(self) -> list[Request]:
         """Read once (waiting at most ``poll_s``); return the valid requests received.
 

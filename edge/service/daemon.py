@@ -810,6 +810,12 @@ class Daemon:
                     # stopped reading cannot hold up a stop.
                     endpoint.close(timeout_s=endpoint.write_timeout_s)
 
+    def wake(self) -> None:
+        """Wake the serve loop's read so that it sees a stop event set from another thread at once."""
+        endpoint = getattr(self, "endpoint", None)
+        if endpoint is not None:
+            endpoint.wake()
+
     def close(self) -> None:
         """Heater off and closed, watchdog stopped, history closed (idempotent)."""
         self.stop_event.set()
