@@ -22,15 +22,48 @@ import numpy as np  # noqa: E402
 RESULTS = ROOT / "bench" / "results"
 
 
-def best_time(fn, repeat: int = 3) -> tuple[float, object]:
-    """Best wall time (s) of ``repeat`` calls, and the last result."""
-    best = np.inf
-    out = None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
+def interleaved(cases: dict, repeats: int = 5, *, warmup: bool = True) -> dict:
+    """Time every case ``repeats`` times, round-robin, so that they share the machine's moods.
+
+    A shared machine's speed drifts over seconds; timing case A five times and
+    then case B five times compares two different machines. Here each round
+    runs every case once, and each case reports the median and the min-max of
+    its rounds (never a best-of against a single run).
+
+    Parameters
+    ----------
+    cases : dict
+        name -> zero-argument callable.
+    repeats : int
+        Rounds.
+    warmup : bool
+        One untimed call of each case first (imports, caches, allocator).
+
+    Returns
+    -------
+    dict
+        name -> ``{"median_s", "min_s", "max_s", "n", "result"}`` (the last call's result).
+    """
+    if repeats < 1:
+        raise ValueError(f"repeats must be >= 1, got {repeats}")
+    times: dict = {name: [] for name in cases}
+    results: dict = {}
+    if warmup:
+        for name, fn in cases.items():
+            results[name] = fn()
+    for _ in range(repeats):
+        for name, fn in cases.items():
+            t0 = time.perf_counter()
+            results[name] = fn()
+            times[name].append(time.perf_counter() - t0)
+    return {name: {"median_s": float(np.median(ts)), "min_s": float(np.min(ts)), "max_s": float(np.max(ts)),
+                   "n": len(ts), "result": results[name]} for name, ts in times.items()}
+
+
+def fmt_ms(t: dict, digits: int = 2) -> str:
+    """``median [min-max]`` in ms of an :func:`interleaved` entry."""
+    return (f"{t['median_s'] * 1e3:.{digits}f} [{t['min_s'] * 1e3:.{digits}f}–"
+            f"{t['max_s'] * 1e3:.{digits}f}]")
 
 
 def rel_err(a, ref) -> float:

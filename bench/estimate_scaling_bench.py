@@ -102,7 +102,7 @@ t0 = time.perf_counter()
 est.estimate(*args, **kw)
 cold = time.perf_counter() - t0
 rss1 = peak_rss_MB()
-import edge.estimate as E, edge.fluxmodel as F, edge.spline as S
+import edge.estimation.estimate as E, edge.physics.fluxmodel as F, edge.estimation.spline as S
 for mod in (E, F, S):  # empty every cache, then trace one cold estimate's allocations
     for name in dir(mod):
         f = getattr(mod, name)

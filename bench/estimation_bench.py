@@ -8,7 +8,8 @@
 * identification from noisy touches of every library material;
 * effusivity accuracy vs contact time and heater voltage (the profiles);
 * compute per measurement (resampling, features, network, alpha): paper scan
-  (explicit FTCS as the paper) vs default, median time and error, one run.
+  (explicit FTCS as the paper) vs default, median [min-max] time over
+  interleaved rounds, and error.
 
 Run:  python bench/estimation_bench.py [--bundle DIR] [--update-readme]
 Writes bench/results/estimation.json.
@@ -21,7 +22,7 @@ import time
 
 import numpy as np
 
-from _common import update_readme, write_json
+from _common import interleaved, update_readme, write_json
 from edge.model.bundle import load_bundle
 from edge.estimation.estimate import Estimator, pipeline_golden_check
 from host.evaluate import (SAMPLES, TouchSimulator, contact_time_trade, identification, leave_one_out_default,
@@ -29,20 +30,20 @@ from host.evaluate import (SAMPLES, TouchSimulator, contact_time_trade, identifi
 
 
 def compute_timing(est_fast: Estimator, est_paper: Estimator, repeats: int = 7):
-    """Median compute time per measurement and errors, paper scan (explicit FTCS) vs default."""
+    """Compute time per measurement (median [min-max] of interleaved rounds) and errors, paper scan vs default."""
     rng = np.random.default_rng(9)
     out = {}
     for name, (solid, volts) in SAMPLES.items():
         t = TouchSimulator(solid).touch(q_v_for_voltage(volts[1]), "ads122c04", rng)
-        for label, est, method, reps in (("default", est_fast, "default", repeats),
-                                         ("paper_scan", est_paper, "paper", 1 if name == "aluminium_alloy" else 3)):
-            times, res = [], None
-            for _ in range(reps):
-                t0 = time.perf_counter()
-                res = est.estimate(t.tT, t.T, t.q, t_q_s=t.tq, method=method)
-                times.append(time.perf_counter() - t0)
+        timed = interleaved({
+            "default": lambda: est_fast.estimate(t.tT, t.T, t.q, t_q_s=t.tq, method="default"),
+            # the explicit paper scan on aluminium takes seconds per call: fewer rounds
+            "paper_scan": lambda: est_paper.estimate(t.tT, t.T, t.q, t_q_s=t.tq, method="paper"),
+        }, repeats if name != "aluminium_alloy" else 3)
+        for label, tm in timed.items():
+            res = tm.pop("result")
             out[f"{name}/{label}"] = dict(
-                median_ms=float(np.median(times) * 1e3),
+                median_ms=tm["median_s"] * 1e3, min_ms=tm["min_s"] * 1e3, max_ms=tm["max_s"] * 1e3, n=tm["n"],
                 e_err=float(res.effusivity_W_s05_m2K / solid.effusivity_W_s05_m2K - 1),
                 k_err=float(res.k_W_mK / solid.k_W_mK - 1), alpha_err=float(res.alpha_m2_s / solid.alpha_m2_s - 1))
     return out
@@ -114,12 +115,13 @@ def main():
                 cells.append(cell)
             L.append(f"| {s} | " + " | ".join(cells) + " |")
         L.append("")
-    L.append("Compute per measurement (median ms; errors in %):")
+    L.append("Compute per measurement (ms, median [min–max] of interleaved rounds; errors in %):")
     L.append("")
     L.append("| case | time (ms) | e err | k err | α err |")
     L.append("|---|---|---|---|---|")
     for k_, v in res["compute"].items():
-        L.append(f"| {k_} | {v['median_ms']:.1f} | {pct(v['e_err'])} | {pct(v['k_err'])} | {pct(v['alpha_err'])} |")
+        L.append(f"| {k_} | {v['median_ms']:.2f} [{v['min_ms']:.2f}–{v['max_ms']:.2f}] | {pct(v['e_err'])} | "
+                 f"{pct(v['k_err'])} | {pct(v['alpha_err'])} |")
     m = res["manifest_metrics"]
     if m:
         L.append("")

@@ -5,9 +5,11 @@ over a 1.95-s record (relative to the record's peak) against the exact
 Laplace-domain solution, and the wall time, for the paper's Table 1 and
 Table 2 materials at q_v = 7.7e7 W/m^3 on the paper's 40-mm block with a
 held back.  Then the time to generate the paper's training set (67 materials
-x 21 power levels = 1407 series) with each scheme, in the same run.
+x 21 power levels = 1407 series) with each scheme, in the same run.  Every
+time is a median with its min-max over rounds that run the compared cases
+interleaved (bench/_common.interleaved).
 
-Run:  python bench/forward_bench.py [--update-readme]
+Run:  python bench/forward_bench.py [--update-readme] [--repeats N]
 Writes bench/results/forward.json.
 """
 
@@ -18,7 +20,7 @@ import time
 
 import numpy as np
 
-from _common import best_time, rel_err, update_readme, write_json
+from _common import fmt_ms, interleaved, rel_err, update_readme, write_json
 from edge.physics.forward import scale_levels, simulate, step_response
 from edge.physics.probe import STACK_040, STACK_042
 from edge.physics.solids import Solid
@@ -48,49 +50,60 @@ RESOLUTIONS = [
 ]
 
 
-def accuracy_table():
+def accuracy_table(repeats: int):
     rows = []
     for name, solid in MATERIALS.items():
         ref = simulate(solid, Q_V, DURATION, scheme="exact")
-        t_exact, _ = best_time(lambda: simulate(solid, Q_V, DURATION, scheme="exact"))
-        rows.append(dict(material=name, scheme="exact", resolution="Talbot M=24", err_T=0.0, err_q=0.0,
-                         time_s=t_exact, nodes=0, steps=0))
+        cases, labels, refused = {"exact": lambda: simulate(solid, Q_V, DURATION, scheme="exact")}, {}, {}
+        labels["exact"] = ("exact", "Talbot M=24")
         for scheme, kw in RESOLUTIONS:
             res = "dx=%g um" % round(kw["dx_m"] * 1e6) if "dx_m" in kw else (
                 "n_probe=%d, growth=%g" % (kw.get("n_probe", 32), kw.get("growth", 1.06)))
-            repeat = 1 if scheme in ("paper", "explicit") else 5
-            try:
-                t, r = best_time(lambda: simulate(solid, Q_V, DURATION, scheme=scheme, **kw), repeat)
+            try:  # a refused run (step budget) is reported, not timed
+                simulate(solid, Q_V, DURATION, scheme=scheme, **kw)
             except ValueError as exc:
-                rows.append(dict(material=name, scheme=scheme, resolution=res, error=str(exc)))
+                refused[(scheme, res)] = str(exc)
                 continue
-            rows.append(dict(
-                material=name, scheme=scheme, resolution=res, err_T=rel_err(r.T_f_K, ref.T_f_K),
-                err_q=rel_err(r.q_f_W_m2, ref.q_f_W_m2), time_s=t, nodes=r.n_nodes, steps=r.n_steps,
-                domain_mm=r.domain_m * 1e3,
-            ))
+            key = f"{scheme} {res}"
+            labels[key] = (scheme, res)
+            cases[key] = (lambda scheme=scheme, kw=kw: simulate(solid, Q_V, DURATION, scheme=scheme, **kw))
+        # every scheme of this material timed round-robin: medians over the same stretch of machine time
+        timed = interleaved(cases, repeats, warmup=False)
+        for key, tm in timed.items():
+            scheme, res = labels[key]
+            r = tm.pop("result")
+            row = dict(material=name, scheme=scheme, resolution=res, time=tm, time_s=tm["median_s"],
+                       nodes=getattr(r, "n_nodes", 0), steps=getattr(r, "n_steps", 0))
+            if scheme == "exact":
+                row.update(err_T=0.0, err_q=0.0, nodes=0, steps=0)
+            else:
+                row.update(err_T=rel_err(r.T_f_K, ref.T_f_K), err_q=rel_err(r.q_f_W_m2, ref.q_f_W_m2),
+                           domain_mm=r.domain_m * 1e3)
+            rows.append(row)
+        for (scheme, res), why in refused.items():
+            rows.append(dict(material=name, scheme=scheme, resolution=res, error=why))
         a = simulate(solid, Q_V, DURATION, stack=STACK_042, scheme="exact").T_f_K[-1]
         b = simulate(solid, Q_V, DURATION, stack=STACK_040, scheme="exact").T_f_K[-1]
         rows[-1]["stack_effect"] = (a - b) / b
     return rows
 
 
-def training_set_timing(solids):
-    """Generate len(solids) x 21 series with each scheme; time and worst error."""
-    out = {}
+def training_set_timing(solids, repeats: int):
+    """Generate len(solids) x 21 series with each scheme, interleaved; median time and worst error."""
     refs = [step_response(s, DURATION, scheme="exact") for s in solids]
-    for scheme in ("default", "paper"):
-        elapsed = np.inf
-        for _ in range(3 if scheme == "default" else 1):  # best of 3: the machine is shared
-            t0 = time.perf_counter()
-            series = []
-            for s in solids:
-                unit = step_response(s, DURATION, scheme=scheme)
-                series.append(scale_levels(unit, LEVELS))
-            elapsed = min(elapsed, time.perf_counter() - t0)
+
+    def generate(scheme):
+        return [scale_levels(step_response(s, DURATION, scheme=scheme), LEVELS) for s in solids]
+
+    timed = interleaved({"default": lambda: generate("default"), "paper": lambda: generate("paper")}, repeats,
+                        warmup=False)
+    out = {}
+    for scheme, tm in timed.items():
+        series = tm.pop("result")
         err_T = max(rel_err(T[-1], LEVELS[-1] * r.T_f_K) for (T, _), r in zip(series, refs))
         err_q = max(rel_err(q[-1], LEVELS[-1] * r.q_f_W_m2) for (_, q), r in zip(series, refs))
-        out[scheme] = dict(time_s=elapsed, n_series=len(solids) * LEVELS.size, worst_err_T=err_T, worst_err_q=err_q)
+        out[scheme] = dict(time=tm, time_s=tm["median_s"], n_series=len(solids) * LEVELS.size,
+                           worst_err_T=err_T, worst_err_q=err_q)
     # The paper computed every series separately; linearity makes that 21x the work.
     out["paper_per_series_estimate_s"] = out["paper"]["time_s"] * LEVELS.size
     return out
@@ -118,7 +131,7 @@ def convergence_orders(solid):
 
 
 def markdown(rows, train):
-    lines = ["| material | scheme | resolution | max err T_f | max err q_f | time (ms) | nodes | steps |",
+    lines = ["| material | scheme | resolution | max err T_f | max err q_f | time (ms), median [min–max] | nodes | steps |",
              "|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if "error" in r:
@@ -126,13 +139,16 @@ def markdown(rows, train):
             continue
         lines.append(
             f"| {r['material']} | {r['scheme']} | {r['resolution']} | {r['err_T']:.2e} | {r['err_q']:.2e} | "
-            f"{r['time_s'] * 1e3:.2f} | {r['nodes']} | {r['steps']} |")
+            f"{fmt_ms(r['time'])} | {r['nodes']} | {r['steps']} |")
     d, p = train["default"], train["paper"]
     lines += [
         "",
-        f"Training set, {d['n_series']} series (67 library materials x 21 levels, 1.95 s, 0.01-s samples):",
-        f"default {d['time_s']:.2f} s (worst T_f error {d['worst_err_T']:.1e}); "
-        f"paper scheme {p['time_s']:.1f} s with linearity (worst T_f error {p['worst_err_T']:.1e}), "
+        f"Training set, {d['n_series']} series (67 library materials x 21 levels, 1.95 s, 0.01-s samples; "
+        f"medians [min–max] of {d['time']['n']} interleaved runs):",
+        f"default {d['time_s']:.3f} s [{d['time']['min_s']:.3f}–{d['time']['max_s']:.3f}] "
+        f"(worst T_f error {d['worst_err_T']:.1e}); "
+        f"paper scheme {p['time_s']:.1f} s [{p['time']['min_s']:.1f}–{p['time']['max_s']:.1f}] with linearity "
+        f"(worst T_f error {p['worst_err_T']:.1e}), "
         f"~{train['paper_per_series_estimate_s']:.0f} s run series by series as the paper did; "
         f"ratio {p['time_s'] / d['time_s']:.0f}x (with linearity) / "
         f"{train['paper_per_series_estimate_s'] / d['time_s']:.0f}x (series by series).",
@@ -143,11 +159,12 @@ def markdown(rows, train):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--update-readme", action="store_true")
+    ap.add_argument("--repeats", type=int, default=5, help="interleaved rounds per case (training sets: 3)")
     args = ap.parse_args()
-    rows = accuracy_table()
+    rows = accuracy_table(args.repeats)
     lib = load_materials()
-    train = training_set_timing(paper_subset(lib))
-    train_full = training_set_timing([Solid(m.k_W_mK, m.rho_kg_m3, m.c_J_kgK) for m in lib])
+    train = training_set_timing(paper_subset(lib), min(args.repeats, 3))
+    train_full = training_set_timing([Solid(m.k_W_mK, m.rho_kg_m3, m.c_J_kgK) for m in lib], min(args.repeats, 3))
     text = markdown(rows, train)
     text += (f"\nWhole library ({train_full['default']['n_series']} series): default "
              f"{train_full['default']['time_s']:.2f} s, paper scheme {train_full['paper']['time_s']:.1f} s.")
