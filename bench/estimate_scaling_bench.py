@@ -19,7 +19,7 @@ peak memory of one estimate in a fresh process (peak RSS, VmHWM, of the whole
 process, which includes Python, NumPy and the bundle, and the tracemalloc
 peak of the estimate itself), and the estimate's relative errors.
 
-Run:  python bench/estimate_scaling_bench.py [--repeats 21]
+Run:  python bench/estimate_scaling_bench.py [--repeats 21] [--update-readme]
 Writes bench/results/estimate_scaling.json.
 """
 
@@ -33,7 +33,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from _common import ROOT, write_json
+from _common import ROOT, update_readme, write_json
 
 import numpy as np  # noqa: E402  (after _common: one BLAS thread)
 
@@ -133,6 +133,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=21)
     ap.add_argument("--cases", nargs="*", default=None, help="run only these cases")
+    ap.add_argument("--update-readme", action="store_true")
     args = ap.parse_args()
     est = load_estimator()
     records = make_records()
@@ -170,6 +171,24 @@ def main():
               + (f"  alpha err {row['alpha_err'] * 100:+.2f} %" if row["alpha_err"] is not None else ""),
               flush=True)
     print(f"\nwrote {write_json('estimate_scaling', res)}")
+    if args.update_readme:
+        if args.cases:
+            raise SystemExit("--update-readme needs every case (no --cases)")
+        update_readme("estimate-scaling-bench", markdown(res))
+
+
+#: The issue's targets (ms, MB) for the README table.
+TARGETS = {"touch_2s": "≤ 0.5 ms", "record_60s_100Hz": "≤ 20 ms, ≤ 80 MB", "record_10s_1kHz": "≤ 50 ms",
+           "known_thickness_4s": "≤ 20 ms"}
+
+
+def markdown(res: dict) -> str:
+    L = [f"| case | samples | warm estimate (ms), median [min–max] of {res['repeats']} | cold (ms) | "
+         "peak RSS of the process (MB) | target |", "|---|---|---|---|---|---|"]
+    for name, r in res["cases"].items():
+        L.append(f"| {name} | {r['n_samples']} | {r['median_ms']:.3f} [{r['min_ms']:.3f}–{r['max_ms']:.3f}] | "
+                 f"{r['cold_s'] * 1e3:.1f} | {r['peak_rss_MB']:.1f} | {TARGETS.get(name, '')} |")
+    return "\n".join(L)
 
 
 if __name__ == "__main__":

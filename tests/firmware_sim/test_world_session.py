@@ -93,6 +93,8 @@ def test_batched_evaluation_equals_one_inversion_per_value(name, tau, no_contact
     assert st["talbot_calls"] < st["queries"] / 30        # ... one inversion for many values
     # The reference: a fresh world (same scene, drive, touches and faults), one inversion per value.
     ref = _replica(w, drive, clock.now())
+    # Every 7th value (over 700, through every phase): one inversion each is what costs here.
+    rec = rec[::7]
     got = np.array([(s.surface_C, s.thermocouple_C, s.q_f_W_m2) for s in rec])
     exp = np.array([[float(v[0]) for v in (ev.surface_C, ev.thermocouple_C, ev.q_f)]
                     for ev in (ref._eval(ref._phase_of(s.t_s), np.array([s.t_s])) for s in rec)])
