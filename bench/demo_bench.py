@@ -37,7 +37,7 @@ def main() -> None:
     tm = interleaved({"demo": _demo}, args.repeats, warmup=True)["demo"]
     tm.pop("result")
     text = (f"in {tm['median_s']:.1f} s (median of {tm['n']} runs, {tm['min_s']:.1f}–{tm['max_s']:.1f} s, "
-            "`python bench/demo_bench.py`)")
+            "`python bench/demo_bench.py`).")
     print(text)
     print(f"wrote {write_json('demo', {'wall': tm, 'command': 'python bench/demo_bench.py', 'target_s': 4.0})}")
     if args.update_readme:
