@@ -43,6 +43,10 @@ def result_lines(d: dict) -> list[str]:
     ]
     if d["material"]:
         lines.append(f"material     {d['material']} (confidence {d['material_confidence'] * 100:.0f} %)")
+    if d.get("object") is not None:
+        cands = ", ".join(f"{c['name']} {c['posterior']:.2f}" for c in d.get("candidates") or [])
+        lines.append(f"object       {d['object']} (posterior {d['object_posterior']:.2f}; class {d['class']} "
+                     f"{d['class_posterior']:.2f}; set {d.get('object_set')}; candidates {cands})")
     lines.append(f"method {d['method']}, model {(d.get('model_sha256') or '')[:12]}, "
                  f"flags: {', '.join(d['flags']) or 'none'}")
     return lines
@@ -53,9 +57,20 @@ def print_result(d: dict) -> None:
 
 
 def measure_json(rec: dict) -> dict:
-    """The device's MEASURE record as the user's result: estimate, flags (device's and estimator's), id, power."""
+    """The device's MEASURE record as the user's result: estimate, flags (device's and estimator's), id, power.
+
+    It carries the object fields ``estimate --json`` gives (object, class,
+    posteriors, candidates: :data:`edge.estimation.objects.RESULT_KEYS`) as
+    the device named them among its active object set; a device whose
+    records lack them (older firmware) gives None and no candidates.
+    """
+    from edge.estimation.objects import RESULT_KEYS  # noqa: PLC0415
+
     out = dict(rec["result"])
-    out.pop("candidates", None)
+    for key in RESULT_KEYS:
+        out.setdefault(key, [] if key == "candidates" else None)
+    if out["candidates"] and not isinstance(out["candidates"][0], dict):
+        out["candidates"] = []  # an older record's library ranking ([name, p] pairs), not the object's
     out["flags"] = list(dict.fromkeys(list(rec.get("flags") or []) + list(out.get("flags") or [])))
     out.update(measurement_id=rec["measurement_id"], power_W=rec.get("power_W"),
                contact_time_s=rec.get("contact_time_s"))
