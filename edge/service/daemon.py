@@ -536,7 +536,8 @@ class Daemon:
         st = self.store.status()
         return {"protocol_version": PROTOCOL_VERSION, "firmware_version": FIRMWARE_VERSION,
                 "model_version": st.get("model_version"), "model_sha256": st.get("sha256"),
-                "model_source": st.get("source"), "board": self.board.name, "faults": self.fault_list()}
+                "model_source": st.get("source"), "board": self.board.name, "faults": self.fault_list(),
+                "object_set": self._named_object_set()[0]}
 
     def _cmd_status(self, args: dict) -> dict:
         try:

@@ -124,7 +124,8 @@ def info_lines(port: str, info: dict, status: dict) -> list[str]:
         f"model      {info.get('model_version')} (sha256 {info.get('model_sha256')}, "
         f"{info.get('model_source') or 'unknown source'})",
         f"state      {status['state']}, {status.get('history_total', 0)} measurement(s) stored",
-    ]
+    ] + ([f"objects    {info['object_set']} (names each measurement's object; thermotouch objects list)"]
+         if info.get("object_set") else [])
 
 
 HISTORY_CSV_COLUMNS = (
