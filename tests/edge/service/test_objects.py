@@ -49,6 +49,9 @@ def test_upload_names_each_measurement_and_survives_a_restart(tmp_path):
         assert r["object_posterior"] > 0.5 and r["class_posterior"] >= r["object_posterior"]
         assert [x["name"] for x in r["candidates"]][0] == "cup" and len(r["candidates"]) == 3
         assert c.result()["result"]["object"] == "cup"  # stored with the record
+        # The running answer (MEASURE until_decided) chooses among the same set.
+        decided = c.measure(contact_time_s=1.0, until_decided=True)["result"]
+        assert decided["decision"]["object"] == "cup" and decided["object"] == "cup"
         upload_object_set(c, "office", OFFICE, activate=False)
         listing = list_object_sets(c)
         assert listing["active"] == "kitchen"
