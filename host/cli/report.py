@@ -131,7 +131,8 @@ def info_lines(port: str, info: dict, status: dict) -> list[str]:
 HISTORY_CSV_COLUMNS = (
     "measurement_id", "created_utc", "started_utc", "status", "reason", "power_W", "contact_time_s",
     "heater_on_s", "T0_C", "effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u",
-    "alpha_m2_s", "alpha_m2_s_u", "material", "material_confidence", "method", "model_sha256", "flags",
+    "alpha_m2_s", "alpha_m2_s_u", "material", "material_confidence", "object_set", "object", "object_posterior",
+    "class", "class_posterior", "method", "model_sha256", "flags",
 )
 
 
@@ -139,8 +140,9 @@ def history_row(item: dict) -> dict:
     r = item.get("result") or {}
     row = {k: item.get(k) for k in HISTORY_CSV_COLUMNS}
     for k in ("effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u", "alpha_m2_s",
-              "alpha_m2_s_u", "material", "material_confidence", "method"):
-        row[k] = r.get(k)
+              "alpha_m2_s_u", "material", "material_confidence", "object_set", "object", "object_posterior",
+              "class", "class_posterior", "method"):
+        row[k] = r.get(k)  # the object fields are None in records stored before object sets
     row["model_sha256"] = item.get("model_sha256") or r.get("model_sha256")
     row["flags"] = " ".join(item.get("flags") or [])
     return row
