@@ -352,20 +352,21 @@ class Daemon:
         self._check_storage()
         self._store_unsaved()
         self._check_objects()
-
-    def _check_objects(self) -> None:
-        """The ``objects`` fault: a chosen set that cannot be used (reported, not blocking: the library names)."""
-        err = self.objects.error
-        if err:
-            self._set_fault("objects", err)
-        else:
-            self._clear_fault("objects")
         if self.estimator is self._model_est:
             try:
                 self.store.current()
                 self._clear_fault("model")
             except ModelStoreError as e:
                 self._set_fault("model", f"{e} (a measurement would end estimation_failed)")
+
+    def _check_objects(self) -> None:
+        """The ``objects`` fault: a chosen set that cannot be used (reported, not blocking: the library names)."""
+        self.objects.reopen()
+        err = self.objects.error
+        if err:
+            self._set_fault("objects", err)
+        else:
+            self._clear_fault("objects")
 
     def _check_storage(self) -> None:
         path = getattr(self.history, "path", ":memory:")

@@ -69,11 +69,20 @@ class ObjectSets:
         self._pending: _Pending | None = None
         self._library: ObjectSet | None = None
         self._open_error: str | None = None
+        self.store: ObjectSetStore | None = None
+        self.reopen()
+
+    def reopen(self) -> None:
+        """Open the store if it is not open (at start, and on the daemon's fault re-checks: a card may return)."""
+        if self.store is not None:
+            return
         try:
-            self.store: ObjectSetStore | None = ObjectSetStore(self.root, parse_object_set, max_bytes=max_bytes)
+            self.store, self._open_error = ObjectSetStore(self.root, parse_object_set, max_bytes=self.max_bytes), None
         except OSError as e:
-            self.store, self._open_error = None, f"object-set store {self.root} unavailable: {e}"
-            log.error("%s", self._open_error)
+            err = f"object-set store {self.root} unavailable: {e}"
+            if err != self._open_error:
+                log.error("%s", err)
+            self._open_error = err
 
     # -- the active set --------------------------------------------------------------
     @property

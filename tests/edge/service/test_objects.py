@@ -139,3 +139,19 @@ def test_a_damaged_active_set_falls_back_to_the_library_and_says_so(tmp_path):
         upload_object_set(c, "kitchen", KITCHEN)  # a good upload heals it
         assert list_object_sets(c)["error"] is None
         assert not any(f.startswith("objects:") for f in c.status()["faults"])
+
+
+def test_an_unusable_store_directory_is_a_fault_that_heals(tmp_path):
+    blocker = tmp_path / "objects"
+    blocker.write_text("a file where the store's directory should be")
+    with running(tmp_path) as (c, d):
+        assert any(f.startswith("objects:") for f in c.status()["faults"])
+        assert c.status()["can_measure"]  # the library names objects meanwhile
+        with pytest.raises(DeviceError) as ei:
+            upload_object_set(c, "kitchen", KITCHEN)
+        assert ei.value.code == ErrorCode.BAD_STATE
+        assert c.measure(contact_time_s=0.5)["result"]["object_set"] == "library"
+        blocker.unlink()
+        d._check_faults(force=True)
+        assert upload_object_set(c, "kitchen", KITCHEN)["active"] == "kitchen"
+        assert not any(f.startswith("objects:") for f in c.status()["faults"])
