@@ -62,7 +62,7 @@ import csv
 import io
 import math
 from dataclasses import dataclass, field
-from typing import Iterable
+from typing import Iterable, Mapping
 
 import numpy as np
 
@@ -88,6 +88,9 @@ __all__ = [
     "ObjectSet",
     "chi2_sf",
     "p_crit_of",
+    "RESULT_KEYS",
+    "LIBRARY_SET",
+    "recognition_fields",
 ]
 
 #: The answer when the touched object is none of the set's.
@@ -514,6 +517,58 @@ class ObjectSet:
             np.add.at(by_class.T, self._class_index, dens.T)
             cls_acc += float(by_class.max(axis=1).sum())
         return Confusion(float(u_ln_e), tuple(pairs), min(1.0, acc * step), min(1.0, cls_acc * step))
+
+
+#: Keys :func:`recognition_fields` adds to a result (``estimate --json``, the device's records).
+RESULT_KEYS = ("object_set", "object", "object_posterior", "class", "class_posterior", "unknown_posterior",
+               "candidates")
+#: Name of the built-in object set (every library material), the default when no set is chosen.
+LIBRARY_SET = "library"
+
+
+def recognition_fields(object_set: ObjectSet, estimate: Mapping, *, set_name: str | None = None,
+                       top: int = 3) -> dict:
+    """Which object of ``object_set`` an estimate names, as the result fields every output shares.
+
+    One definition for ``thermotouch estimate --json`` and the device's
+    measurement records (so ``measure --json`` carries the same keys).
+
+    Parameters
+    ----------
+    object_set : ObjectSet
+    estimate : mapping
+        An ``Estimate.to_dict()``: ``effusivity_W_s05_m2K`` and its standard
+        uncertainty ``effusivity_W_s05_m2K_u`` are used (only e: the default
+        method's k and α are functions of e and add nothing). A missing
+        uncertainty counts as 0 -- the objects' spreads still set the widths.
+    set_name : str, optional
+        Name reported as ``object_set`` (default: the set's label).
+    top : int
+        Number of candidates.
+
+    Returns
+    -------
+    dict
+        ``object_set``, ``object`` (a name of the set or ``"unknown"``),
+        ``object_posterior``, ``class``, ``class_posterior``,
+        ``unknown_posterior`` and ``candidates`` (the ``top`` objects by
+        posterior, each ``{"name", "posterior"}``). Without an effusivity
+        (no estimate) the names and posteriors are None and ``candidates`` empty.
+    """
+    out: dict = {"object_set": object_set.label if set_name is None else set_name, "object": None,
+                 "object_posterior": None, "class": None, "class_posterior": None, "unknown_posterior": None,
+                 "candidates": []}
+    e = estimate.get("effusivity_W_s05_m2K")
+    if e is None or not (math.isfinite(float(e)) and float(e) > 0):
+        return out
+    u = estimate.get("effusivity_W_s05_m2K_u")
+    u_ln_e = float(u) / float(e) if u is not None and math.isfinite(float(u)) and float(u) >= 0 else 0.0
+    # A tiny floor: an object with zero spread and a zero uncertainty would divide by zero.
+    r = object_set.classify(float(e), max(u_ln_e, 1e-9), top=top)
+    out.update({"object": r.object, "object_posterior": float(r.object_posterior), "class": r.cls,
+                "class_posterior": float(r.class_posterior), "unknown_posterior": float(r.unknown_posterior),
+                "candidates": [{"name": n, "posterior": float(p)} for n, p in r.candidates]})
+    return out
 
 
 def _norm_isf2(p: float) -> float:

@@ -14,6 +14,8 @@ from edge.protocol.frame import REPLY_FLAG, MAX_REQUEST_ID
 MAX_MODEL_SIZE = 64 * 1024 * 1024
 #: Upload session ids are non-zero u32 (MODEL_CHUNK carries one in its binary header).
 MAX_SESSION_ID = 0xFFFF_FFFF
+#: Largest object-set CSV OBJECTS_BEGIN accepts on the wire, bytes (the device's own bound may be lower).
+MAX_OBJECTS_SIZE = 1024 * 1024
 
 
 # --------------------------------------------------------------------------
@@ -37,6 +39,13 @@ class Command(enum.IntEnum):
     MODEL_CHUNK = 0x11
     MODEL_COMMIT = 0x12
     MODEL_ABORT = 0x13
+    OBJECTS_BEGIN = 0x20
+    OBJECTS_CHUNK = 0x21
+    OBJECTS_COMMIT = 0x22
+    OBJECTS_ABORT = 0x23
+    OBJECTS_LIST = 0x24
+    OBJECTS_REMOVE = 0x25
+    OBJECTS_SELECT = 0x26
 
 
 class MsgType(enum.IntEnum):
@@ -198,6 +207,63 @@ COMMANDS: dict[Command, CommandSpec] = {spec.command: spec for spec in (
         Command.MODEL_ABORT,
         args=(arg("session", "int", lo=1, hi=MAX_SESSION_ID, doc="from MODEL_BEGIN"),),
         doc="Discard an unfinished upload of this session (no-op if none)."),
+    # -- the user's object sets (edge/service/objects.py, stored by edge/storage/objects_store.py) --
+    CommandSpec(
+        Command.OBJECTS_BEGIN,
+        args=(arg("name", "str", required=True, lo=1, hi=64,
+                  doc="set name: letters, digits, '.', '_', '-' ('library' is the built-in set)"),
+              arg("size", "int", required=True, lo=1, hi=MAX_OBJECTS_SIZE, doc="CSV size, bytes"),
+              arg("sha256", "sha256", required=True, doc="hex digest of the whole CSV"),
+              arg("activate", "bool", default=True, doc="make it the active set once stored")),
+        reply=(arg("size", "int", required=True),
+               arg("session", "int", required=True, lo=1, hi=MAX_SESSION_ID,
+                   doc="OBJECTS_CHUNK/COMMIT/ABORT must carry it")),
+        idempotent=False,
+        doc="Start an object-set upload (an object-set CSV as `thermotouch estimate --objects` reads it); "
+            "discards an unfinished one."),
+    CommandSpec(
+        Command.OBJECTS_CHUNK,
+        args=(arg("offset", "int", required=True, lo=0, hi=MAX_OBJECTS_SIZE),
+              arg("data", "bytes", required=True, lo=1),
+              arg("session", "int", required=True, lo=1, hi=MAX_SESSION_ID, doc="from OBJECTS_BEGIN")),
+        reply=(arg("received", "int", required=True, lo=0, doc="contiguous bytes held"),),
+        binary=True,
+        doc="Binary payload as MODEL_CHUNK's with a session: u32 LE offset with its top bit set, u32 LE "
+            "session id, the chunk bytes."),
+    CommandSpec(
+        Command.OBJECTS_COMMIT,
+        args=(arg("session", "int", required=True, lo=1, hi=MAX_SESSION_ID, doc="from OBJECTS_BEGIN"),),
+        reply=(arg("name", "str", required=True),
+               arg("sha256", "str", required=True, doc="of the stored CSV"),
+               arg("objects", "int", required=True, lo=1, doc="number of objects in the set"),
+               arg("active", "str", required=True, doc="name of the active set after the commit")),
+        idempotent=False,
+        doc="Verify size, sha256 and the CSV, store it atomically (replacing a set of that name) and, "
+            "if asked, make it active. A refused upload (MODEL_REJECTED, naming line and column) changes "
+            "nothing."),
+    CommandSpec(
+        Command.OBJECTS_ABORT,
+        args=(arg("session", "int", lo=1, hi=MAX_SESSION_ID, doc="from OBJECTS_BEGIN"),),
+        doc="Discard an unfinished object-set upload of this session (no-op if none)."),
+    CommandSpec(
+        Command.OBJECTS_LIST,
+        reply=(arg("active", "str", required=True, doc="name of the active set ('library': the built-in)"),
+               arg("sets", "list", required=True,
+                   doc="stored sets: {name, sha256, size, objects, active} (or {name, error})"),
+               arg("error", "str", nullable=True, doc="why the chosen set could not be used, if so")),
+        doc="The stored object sets and which one names the objects of each measurement."),
+    CommandSpec(
+        Command.OBJECTS_REMOVE,
+        args=(arg("name", "str", required=True, lo=1, hi=64),),
+        reply=(arg("removed", "str", required=True),
+               arg("active", "str", required=True, doc="the active set afterwards ('library' if it was this one)")),
+        idempotent=False,
+        doc="Delete a stored object set (NOT_FOUND if there is none of that name)."),
+    CommandSpec(
+        Command.OBJECTS_SELECT,
+        args=(arg("name", "str", required=True, lo=1, hi=64, doc="a stored set, or 'library'"),),
+        reply=(arg("active", "str", required=True),),
+        doc="Make a stored set (or the built-in library) the active one."),
 )}
 
 

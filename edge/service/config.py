@@ -301,6 +301,9 @@ class PathsConfig:
         "str", "", "factory bundle directory ('' = the bundle shipped with the package)"
     )
     history_db: str = setting("str", "/var/lib/thermotouch/history.sqlite3", "SQLite measurement history")
+    object_sets: str = setting(
+        "str", "", "object-set store directory ('' = 'objects' beside the model store)"
+    )
     runtime_overrides: str = setting(
         "str",
         "/var/lib/thermotouch/runtime.json",

@@ -25,7 +25,10 @@ RESULT (by id or latest), HISTORY (paged, newest first), SERIES (a stored
 measurement's raw or resampled series, paged to fit one reply), CONFIG_GET,
 CONFIG_SET (runtime keys only, validated, persisted atomically),
 MODEL_BEGIN/CHUNK/COMMIT/ABORT (verified atomic install through
-:class:`edge.model.store.ModelStore`, :mod:`edge.service.upload`).
+:class:`edge.model.store.ModelStore`, :mod:`edge.service.upload`),
+OBJECTS_BEGIN/CHUNK/COMMIT/ABORT/LIST/REMOVE/SELECT (the user's object sets,
+:mod:`edge.service.objects`; every measurement result names its object among
+the active set, the built-in library when none is chosen).
 Argument policy and reply sizing are in :mod:`edge.service.requests`.
 
 ABORT (answered while measuring too) cuts a running measurement: the heater
@@ -65,6 +68,7 @@ from typing import Any, Callable, Mapping
 
 import edge
 from edge.estimation.estimate import pipeline_golden_check
+from edge.estimation.objects import recognition_fields
 from edge.hw.board import Board
 from edge.hw.drivers.button import Button
 from edge.hw.drivers.heater import Heater, HeaterError, HeaterOffError
@@ -84,6 +88,7 @@ from edge.protocol.messages import Request
 from edge.service.config import Config, ConfigError, RuntimeOverrides
 from edge.service.estimator import ModelEstimator
 from edge.service.notify import Notifier
+from edge.service.objects import ObjectSets
 from edge.service.requests import config_reply, fit_record, history_page, measure_params, series_page
 from edge.service.upload import MAX_UPLOAD_BYTES, ModelUpload
 from edge.service.worker import MeasurementWorker, measurement_budget_s
@@ -194,8 +199,10 @@ class Daemon:
         systemd notifications and watchdog pets (default: from ``$NOTIFY_SOCKET``; a no-op without).
     object_set : callable () -> ObjectSet, optional
         The objects the running answer chooses among (STATUS ``answer``,
-        MEASURE ``until_decided``); called at each measurement's start.
-        Default: every material of the library
+        MEASURE ``until_decided``) and each result names; called at each
+        measurement's start. Default: the active set of the object-set
+        store (``paths.object_sets``; OBJECTS_* requests), else every
+        material of the library
         (:meth:`edge.estimation.objects.ObjectSet.from_library`).
     """
 
@@ -273,7 +280,7 @@ class Daemon:
             self.phase: Phase | None = None
             self._measure_t0: float | None = None
             self._object_set_hook = object_set
-            self._library_set: Any = None
+            self.objects = ObjectSets(self._object_sets_root())
             #: Idle readings of the probe for STATUS ``ready`` (settled probe temperature).
             self.readiness = Readiness()
             self._check_faults(force=True)
@@ -294,6 +301,11 @@ class Daemon:
             return _UnavailableHistory(path, str(e))
         self._clear_fault("history")
         return h
+
+    def _object_sets_root(self) -> Path:
+        p = self.config.paths
+        # '' = beside the model store, so a configuration that predates object sets keeps them on the device.
+        return Path(p.object_sets) if p.object_sets else Path(p.model_store).parent / "objects"
 
     def _open_store(self) -> Any:
         root = self.config.paths.model_store
@@ -339,12 +351,22 @@ class Daemon:
             self._model_est.store = self.upload.store = self.store
         self._check_storage()
         self._store_unsaved()
+        self._check_objects()
         if self.estimator is self._model_est:
             try:
                 self.store.current()
                 self._clear_fault("model")
             except ModelStoreError as e:
                 self._set_fault("model", f"{e} (a measurement would end estimation_failed)")
+
+    def _check_objects(self) -> None:
+        """The ``objects`` fault: a chosen set that cannot be used (reported, not blocking: the library names)."""
+        self.objects.reopen()
+        err = self.objects.error
+        if err:
+            self._set_fault("objects", err)
+        else:
+            self._clear_fault("objects")
 
     def _check_storage(self) -> None:
         path = getattr(self.history, "path", ":memory:")
@@ -441,14 +463,14 @@ class Daemon:
         return self.sequence
 
     def object_set(self) -> Any:
-        """The object set of the running answer: the injected hook's, else the library's (built once)."""
-        if self._object_set_hook is not None:
-            return self._object_set_hook()
-        if self._library_set is None:
-            from edge.estimation.objects import ObjectSet  # noqa: PLC0415 (loads the library CSV)
+        """The object set of the running answer and of each result: the injected hook's, else the active one."""
+        return self._named_object_set()[1]
 
-            self._library_set = ObjectSet.from_library()
-        return self._library_set
+    def _named_object_set(self) -> tuple[str, Any]:
+        if self._object_set_hook is not None:
+            objs = self._object_set_hook()
+            return getattr(objs, "label", "custom"), objs
+        return self.objects.active()
 
     def _make_decision(self, params: MeasurementParams) -> SequentialDecision | None:
         m = self.config.measurement
@@ -479,7 +501,15 @@ class Daemon:
         self.readiness.add(now, r.T_C)
 
     def _estimate(self, *args: Any) -> Mapping[str, Any]:
-        return self.estimator(*args)
+        res = dict(self.estimator(*args))
+        try:
+            name, objs = self._named_object_set()
+            if objs is not None and len(objs):
+                res.update(recognition_fields(objs, res, set_name=name))
+        except Exception as e:  # naming the object must never lose the measurement
+            log.exception("naming the object failed")
+            res["object_error"] = f"{type(e).__name__}: {e}"
+        return res
 
     def _model_sha256(self) -> str | None:
         return self._model_est.model_sha256()
@@ -507,7 +537,8 @@ class Daemon:
         st = self.store.status()
         return {"protocol_version": PROTOCOL_VERSION, "firmware_version": FIRMWARE_VERSION,
                 "model_version": st.get("model_version"), "model_sha256": st.get("sha256"),
-                "model_source": st.get("source"), "board": self.board.name, "faults": self.fault_list()}
+                "model_source": st.get("source"), "board": self.board.name, "faults": self.fault_list(),
+                "object_set": self._named_object_set()[0]}
 
     def _cmd_status(self, args: dict) -> dict:
         try:
@@ -704,6 +735,36 @@ class Daemon:
         if done:
             self._cancel.clear()
         return {"aborted": True, "measurement_id": self._last_run_id if done else None}
+
+    def _cmd_objects_begin(self, args: dict) -> dict:
+        return self.objects.begin(args["name"], args["size"], args["sha256"], args.get("activate", True))
+
+    def _cmd_objects_chunk(self, args: dict) -> dict:
+        return self.objects.chunk(args["offset"], args["data"], args["session"])
+
+    def _cmd_objects_commit(self, args: dict) -> dict:
+        try:
+            return self.objects.commit(args["session"])
+        finally:
+            self._check_objects()  # the set in use may have changed: say so now, not at the next re-check
+
+    def _cmd_objects_abort(self, args: dict) -> dict:
+        return self.objects.abort(args.get("session"))
+
+    def _cmd_objects_list(self, args: dict) -> dict:
+        return self.objects.listing()
+
+    def _cmd_objects_remove(self, args: dict) -> dict:
+        try:
+            return self.objects.remove(args["name"])
+        finally:
+            self._check_objects()  # the set in use may have changed: say so now, not at the next re-check
+
+    def _cmd_objects_select(self, args: dict) -> dict:
+        try:
+            return self.objects.select(args["name"])
+        finally:
+            self._check_objects()  # the set in use may have changed: say so now, not at the next re-check
 
     def _cmd_model_begin(self, args: dict) -> dict:
         out = self.upload.begin(args["size"], args["sha256"], args.get("version"))

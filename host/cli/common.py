@@ -9,7 +9,7 @@ from typing import Any, Iterator
 from host.cli.args import resolve_port
 from host.cli.errors import EXIT_BAD_INPUT, CliError
 
-__all__ = ["device_session", "load_estimator", "say", "note"]
+__all__ = ["device_session", "load_estimator", "load_object_set", "say", "note"]
 
 
 @contextlib.contextmanager
@@ -43,6 +43,39 @@ def load_estimator(path, method: str = "default"):
     if method == "paper" and not est.has_paper:
         raise CliError(f"bundle {path} has no paper network", EXIT_BAD_INPUT)
     return est, bundle
+
+
+def load_object_set(path) -> tuple[Any, bytes]:
+    """``(ObjectSet, raw bytes)`` of an object-set CSV, parsed by the device's own parser.
+
+    :meth:`edge.estimation.objects.ObjectSet.from_csv_text` is the one
+    definition of the format; the host checks a file with it before using or
+    uploading it.
+
+    Raises
+    ------
+    CliError
+        One line naming the file, and for a malformed row its line and column
+        (the first problem; the count of the others).
+    """
+    from edge.estimation.objects import ObjectSet, ObjectSetError  # noqa: PLC0415
+
+    try:
+        raw = open(path, "rb").read()
+    except OSError as exc:
+        raise CliError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    try:
+        text = raw.decode("utf-8-sig")  # a spreadsheet's byte-order mark is fine
+    except UnicodeDecodeError as exc:
+        raise CliError(f"{path}: not UTF-8 text (byte {exc.start})") from None
+    try:
+        return ObjectSet.from_csv_text(text, label=str(path)), raw
+    except ObjectSetError as exc:
+        first, more = exc.issues[0], len(exc.issues) - 1
+        raise CliError(f"{path}: {first}" + (f" (and {more} more problem{'s' if more > 1 else ''})" if more else "")) \
+            from None
+    except ValueError as exc:  # the set as a whole (e.g. no objects)
+        raise CliError(f"{path}: {exc}") from None
 
 
 def say(message: str) -> None:

@@ -43,6 +43,10 @@ def result_lines(d: dict) -> list[str]:
     ]
     if d["material"]:
         lines.append(f"material     {d['material']} (confidence {d['material_confidence'] * 100:.0f} %)")
+    if d.get("object") is not None:
+        cands = ", ".join(f"{c['name']} {c['posterior']:.2f}" for c in d.get("candidates") or [])
+        lines.append(f"object       {d['object']} (posterior {d['object_posterior']:.2f}; class {d['class']} "
+                     f"{d['class_posterior']:.2f}; set {d.get('object_set')}; candidates {cands})")
     lines.append(f"method {d['method']}, model {(d.get('model_sha256') or '')[:12]}, "
                  f"flags: {', '.join(d['flags']) or 'none'}")
     return lines
@@ -53,9 +57,20 @@ def print_result(d: dict) -> None:
 
 
 def measure_json(rec: dict) -> dict:
-    """The device's MEASURE record as the user's result: estimate, flags (device's and estimator's), id, power."""
+    """The device's MEASURE record as the user's result: estimate, flags (device's and estimator's), id, power.
+
+    It carries the object fields ``estimate --json`` gives (object, class,
+    posteriors, candidates: :data:`edge.estimation.objects.RESULT_KEYS`) as
+    the device named them among its active object set; a device whose
+    records lack them (older firmware) gives None and no candidates.
+    """
+    from edge.estimation.objects import RESULT_KEYS  # noqa: PLC0415
+
     out = dict(rec["result"])
-    out.pop("candidates", None)
+    for key in RESULT_KEYS:
+        out.setdefault(key, [] if key == "candidates" else None)
+    if out["candidates"] and not isinstance(out["candidates"][0], dict):
+        out["candidates"] = []  # an older record's library ranking ([name, p] pairs), not the object's
     out["flags"] = list(dict.fromkeys(list(rec.get("flags") or []) + list(out.get("flags") or [])))
     out.update(measurement_id=rec["measurement_id"], power_W=rec.get("power_W"),
                contact_time_s=rec.get("contact_time_s"))
@@ -109,13 +124,15 @@ def info_lines(port: str, info: dict, status: dict) -> list[str]:
         f"model      {info.get('model_version')} (sha256 {info.get('model_sha256')}, "
         f"{info.get('model_source') or 'unknown source'})",
         f"state      {status['state']}, {status.get('history_total', 0)} measurement(s) stored",
-    ]
+    ] + ([f"objects    {info['object_set']} (names each measurement's object; thermotouch objects list)"]
+         if info.get("object_set") else [])
 
 
 HISTORY_CSV_COLUMNS = (
     "measurement_id", "created_utc", "started_utc", "status", "reason", "power_W", "contact_time_s",
     "heater_on_s", "T0_C", "effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u",
-    "alpha_m2_s", "alpha_m2_s_u", "material", "material_confidence", "method", "model_sha256", "flags",
+    "alpha_m2_s", "alpha_m2_s_u", "material", "material_confidence", "object_set", "object", "object_posterior",
+    "class", "class_posterior", "method", "model_sha256", "flags",
 )
 
 
@@ -123,8 +140,9 @@ def history_row(item: dict) -> dict:
     r = item.get("result") or {}
     row = {k: item.get(k) for k in HISTORY_CSV_COLUMNS}
     for k in ("effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u", "alpha_m2_s",
-              "alpha_m2_s_u", "material", "material_confidence", "method"):
-        row[k] = r.get(k)
+              "alpha_m2_s_u", "material", "material_confidence", "object_set", "object", "object_posterior",
+              "class", "class_posterior", "method"):
+        row[k] = r.get(k)  # the object fields are None in records stored before object sets
     row["model_sha256"] = item.get("model_sha256") or r.get("model_sha256")
     row["flags"] = " ".join(item.get("flags") or [])
     return row

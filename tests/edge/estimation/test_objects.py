@@ -167,3 +167,22 @@ def test_default_set_is_the_library_and_calibration_is_kept():
     assert "balsa" not in cal.without(["balsa"])
     with pytest.raises(ValueError):
         ObjectSet([KnownObject("x", "wood", 300.0), KnownObject("x", "wood", 310.0)])
+
+
+def test_recognition_fields_are_the_result_keys_of_every_output():
+    from edge.estimation.objects import RESULT_KEYS, recognition_fields
+
+    s = _set(("pmma", "polymer", 560, 0.05), ("glass", "glass", 1400, 0.05), ("steel", "alloy", 8000, 0.05))
+    d = recognition_fields(s, {"effusivity_W_s05_m2K": 1450.0, "effusivity_W_s05_m2K_u": 29.0}, set_name="mine")
+    assert tuple(d) == RESULT_KEYS
+    assert d["object_set"] == "mine" and d["object"] == "glass" and d["class"] == "glass"
+    assert [c["name"] for c in d["candidates"]] == ["glass", "pmma", "steel"]
+    assert d["candidates"][0]["posterior"] == d["object_posterior"]
+    far = recognition_fields(s, {"effusivity_W_s05_m2K": 30.0, "effusivity_W_s05_m2K_u": 0.3})
+    assert far["object"] == "unknown" and far["class"] == "unknown"
+    # No estimate: the keys are there, empty; a missing uncertainty still names the nearest object.
+    none = recognition_fields(s, {"effusivity_W_s05_m2K": None})
+    assert none["object"] is None and none["candidates"] == [] and tuple(none) == RESULT_KEYS
+    assert recognition_fields(s, {"effusivity_W_s05_m2K": 560.0})["object"] == "pmma"
+    zero = _set(("a", "wood", 300, 0.0), ("b", "wood", 600, 0.0))
+    assert recognition_fields(zero, {"effusivity_W_s05_m2K": 300.0})["object"] == "a"  # no division by zero

@@ -188,6 +188,15 @@ VALID = {
     Command.MODEL_COMMIT: [{}, {"session": 12345}],
     Command.MODEL_ABORT: [{}, {"session": 1}],
     Command.ABORT: [{}],
+    Command.OBJECTS_BEGIN: [{"name": "kitchen", "size": 120, "sha256": SHA},
+                            {"name": "a", "size": 1, "sha256": SHA.upper(), "activate": False}],
+    Command.OBJECTS_CHUNK: [{"offset": 0, "data": b"name,class\n", "session": 7},
+                            {"offset": 4088, "data": bytes(4088), "session": 0xFFFFFFFF}],
+    Command.OBJECTS_COMMIT: [{"session": 3}],
+    Command.OBJECTS_ABORT: [{}, {"session": 3}],
+    Command.OBJECTS_LIST: [{}],
+    Command.OBJECTS_REMOVE: [{"name": "kitchen"}],
+    Command.OBJECTS_SELECT: [{"name": "library"}, {"name": "kitchen"}],
 }
 
 INVALID = [
@@ -244,6 +253,19 @@ INVALID = [
     (Command.MODEL_COMMIT, {"session": "abc"}, "session"),
     (Command.MODEL_CHUNK, {"offset": 0, "data": b"x", "session": 2**32}, "session"),
     (Command.ABORT, {"measurement_id": 1}, "measurement_id"),
+    (Command.OBJECTS_BEGIN, {"size": 10, "sha256": SHA}, "name"),
+    (Command.OBJECTS_BEGIN, {"name": "", "size": 10, "sha256": SHA}, "name"),
+    (Command.OBJECTS_BEGIN, {"name": "k", "size": 0, "sha256": SHA}, "size"),
+    (Command.OBJECTS_BEGIN, {"name": "k", "size": 2**21, "sha256": SHA}, "size"),
+    (Command.OBJECTS_BEGIN, {"name": "k", "size": 10, "sha256": "xyz"}, "sha256"),
+    (Command.OBJECTS_BEGIN, {"name": "k", "size": 10, "sha256": SHA, "activate": 1}, "activate"),
+    (Command.OBJECTS_CHUNK, {"offset": 0, "data": b"x"}, "session"),
+    (Command.OBJECTS_CHUNK, {"offset": 0, "data": b"", "session": 1}, "data"),
+    (Command.OBJECTS_COMMIT, {}, "session"),
+    (Command.OBJECTS_ABORT, {"session": 0}, "session"),
+    (Command.OBJECTS_LIST, {"all": True}, "all"),
+    (Command.OBJECTS_REMOVE, {}, "name"),
+    (Command.OBJECTS_SELECT, {"name": 3}, "name"),
 ]
 
 

@@ -1,0 +1,349 @@
+"""The probe's object sets: verified uploads, stored atomically, one of them active, surviving restarts.
+
+Layout under ``root``::
+
+    sets/<name>.csv   one verified object-set CSV per name (the bytes as uploaded)
+    active            pointer file: "<name>\\n" of the active set; absent = the built-in library
+
+Every write goes through :mod:`edge.storage.durable`: a set file is written
+to a temporary sibling, fsynced and renamed over its name, and the pointer
+the same way, so after a power cut at any step each name holds either its
+old or its new bytes, and the pointer names a set that was complete when it
+was written. An upload is checked completely (:func:`verify_upload`) before
+anything is written: a bad one changes nothing.
+
+What an object set *is* (the CSV format) is not known here: the parser is
+injected (``parse``; the daemon passes
+:meth:`edge.estimation.objects.ObjectSet.from_csv_text`), as the model store
+takes its golden check -- storage stays below estimation.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import os
+import re
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from edge.storage import durable
+
+__all__ = ["MAX_SET_BYTES", "MAX_SETS", "NAME_RE", "RESERVED_NAMES", "ObjectStoreError", "UploadRefused",
+           "StoredSet", "verify_upload", "check_name", "ObjectSetStore"]
+
+log = logging.getLogger("thermotouch.edge")
+
+#: Largest object-set CSV accepted, bytes (about 3000 objects; held in memory until verified).
+MAX_SET_BYTES = 256 * 1024
+#: Most object sets stored at once (bounds the storage an upload can take).
+MAX_SETS = 16
+#: A set's name: a file name on every file system, no path, no hidden file.
+NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
+#: Names that are not stored sets: the built-in library (the default set).
+RESERVED_NAMES = frozenset({"library"})
+
+#: ``parse(text, label) -> object set`` (raises ValueError for a malformed set).
+Parser = Callable[[str, str], Any]
+
+
+class ObjectStoreError(RuntimeError):
+    """A store operation failed (unknown name, full store, I/O); the stored sets are unchanged."""
+
+
+class UploadRefused(ObjectStoreError):
+    """An uploaded set failed verification; nothing was written."""
+
+
+@dataclass(frozen=True)
+class StoredSet:
+    """One verified stored set: its name, the sha256 of its bytes, its size and the parsed set."""
+
+    name: str
+    sha256: str
+    size: int
+    objects: Any
+
+
+def check_name(name: str) -> str:
+    """``name`` if it can name a stored set, else :class:`ObjectStoreError` saying why."""
+    if not isinstance(name, str) or not NAME_RE.match(name):
+        raise ObjectStoreError(f"set name {name!r} must be 1-64 letters, digits, '.', '_' or '-', "
+                               "starting with a letter or digit")
+    if name in RESERVED_NAMES:
+        raise ObjectStoreError(f"set name {name!r} is reserved for the built-in library")
+    return name
+
+
+def verify_upload(blob: bytes, expected_sha256: str, expected_size: int | None, *, name: str, parse: Parser,
+                  max_bytes: int = MAX_SET_BYTES) -> Any:
+    """Every check an uploaded object set must pass before it is stored; returns the parsed set.
+
+    The one place an upload is judged (a signature check belongs here too):
+    size bound, announced size, sha256 of the bytes, UTF-8 text, then the
+    CSV parser with its line-and-column messages.
+
+    Parameters
+    ----------
+    blob : bytes
+        The uploaded file.
+    expected_sha256 : str
+        Hex digest announced by the sender.
+    expected_size : int, optional
+        Announced length, bytes.
+    name : str
+        The set's name (in messages).
+    parse : callable
+        ``parse(text, label)`` -> object set; raises ValueError when malformed.
+    max_bytes : int
+        Largest set accepted.
+
+    Raises
+    ------
+    UploadRefused
+        Naming the first check that failed.
+    """
+    if len(blob) > max_bytes:
+        raise UploadRefused(f"object set {name!r} is {len(blob)} B, above the limit of {max_bytes} B")
+    if expected_size is not None and len(blob) != expected_size:
+        raise UploadRefused(f"object set {name!r}: announced {expected_size} B, received {len(blob)} B")
+    got = hashlib.sha256(blob).hexdigest()
+    if got != str(expected_sha256).lower():
+        raise UploadRefused(f"object set {name!r}: sha256 mismatch, announced {expected_sha256}, received {got}")
+    try:
+        text = blob.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise UploadRefused(f"object set {name!r} is not UTF-8 text (byte {e.start})") from None
+    try:
+        return parse(text, name)
+    except ValueError as e:
+        # The parser's message lists every problem with its line and column; one line travels best.
+        detail = "; ".join(line.strip() for line in str(e).splitlines() if line.strip())
+        raise UploadRefused(f"object set {name!r} refused: {detail}") from None
+
+
+class ObjectSetStore:
+    """Device-side store of object sets, with one active set (or none: the built-in library).
+
+    Parameters
+    ----------
+    root : path-like
+        Store directory (created if missing).
+    parse : callable
+        ``parse(text, label)`` -> object set (raises ValueError when malformed).
+    max_bytes : int
+        Largest set accepted.
+    max_sets : int
+        Most sets stored.
+    """
+
+    ACTIVE = "active"
+
+    def __init__(self, root: str | os.PathLike, parse: Parser, *, max_bytes: int = MAX_SET_BYTES,
+                 max_sets: int = MAX_SETS) -> None:
+        self.root = Path(root)
+        self.sets_dir = self.root / "sets"
+        self.parse = parse
+        self.max_bytes = int(max_bytes)
+        self.max_sets = int(max_sets)
+        self._lock = threading.RLock()
+        self._active: StoredSet | None = None
+        self._loaded = False
+        #: Why the active pointer could not be followed at the last load (the library is used meanwhile).
+        self.error: str | None = None
+        for d in (self.root, self.sets_dir):
+            if not d.is_dir():
+                d.mkdir(parents=True, exist_ok=True)
+                durable.fsync_dir(d.parent)
+        self._clean_temporaries()
+
+    # -- paths -----------------------------------------------------------------------
+    def _set_path(self, name: str) -> Path:
+        return self.sets_dir / f"{name}.csv"
+
+    def _clean_temporaries(self) -> None:
+        # Leftovers of a write cut by a crash are never named by anything.
+        for d in (self.root, self.sets_dir):
+            for entry in os.listdir(d):
+                if entry.startswith(".") and ".tmp" in entry:
+                    durable.remove_tree(d / entry)
+
+    def _read_pointer(self) -> str | None:
+        p = self.root / self.ACTIVE
+        if not os.path.lexists(p):
+            return None
+        if p.is_symlink() or not p.is_file():
+            raise ObjectStoreError("active pointer is not a regular file")
+        raw = p.read_bytes()[:129]
+        try:
+            name = raw.decode("ascii").strip()
+        except UnicodeDecodeError:
+            name = ""
+        return check_name(name)
+
+    def _load(self, name: str) -> StoredSet:
+        """Read and re-verify a stored set (a stored file that no longer parses is refused)."""
+        p = self._set_path(check_name(name))
+        try:
+            blob = p.read_bytes()
+        except FileNotFoundError:
+            raise ObjectStoreError(f"no object set {name!r}") from None
+        except OSError as e:
+            raise ObjectStoreError(f"object set {name!r} unreadable: {e}") from None
+        sha = hashlib.sha256(blob).hexdigest()
+        try:
+            objs = verify_upload(blob, sha, len(blob), name=name, parse=self.parse, max_bytes=self.max_bytes)
+        except UploadRefused as e:
+            raise ObjectStoreError(f"stored {e}") from None
+        return StoredSet(name, sha, len(blob), objs)
+
+    # -- reading ---------------------------------------------------------------------
+    def names(self) -> list[str]:
+        """Names of the stored sets, sorted."""
+        out = []
+        for entry in os.listdir(self.sets_dir):
+            stem, dot, ext = entry.rpartition(".")
+            if dot and ext == "csv" and NAME_RE.match(stem) and stem not in RESERVED_NAMES:
+                out.append(stem)
+        return sorted(out)
+
+    def active(self) -> StoredSet | None:
+        """The active stored set, or None for the built-in library.
+
+        Loaded once and cached. A pointer that names a missing or corrupt set
+        is reported in :attr:`error` and the library is used: a device must
+        still name objects after a damaged card.
+        """
+        with self._lock:
+            if not self._loaded:
+                self._active, self.error = None, None
+                try:
+                    name = self._read_pointer()
+                    if name is not None:
+                        self._active = self._load(name)
+                except (ObjectStoreError, OSError) as e:
+                    self.error = f"active object set unusable, using the library: {e}"
+                    log.error("%s", self.error)
+                self._loaded = True
+            return self._active
+
+    def listing(self) -> list[dict]:
+        """Every stored set: ``name``, ``sha256``, ``size``, ``objects`` (count), ``active``; or its ``error``."""
+        with self._lock:
+            act = self.active()
+            out = []
+            for name in self.names():
+                try:
+                    s = self._load(name)
+                except ObjectStoreError as e:
+                    out.append({"name": name, "error": str(e), "active": False})
+                    continue
+                out.append({"name": name, "sha256": s.sha256, "size": s.size, "objects": len(s.objects),
+                            "active": act is not None and act.name == name})
+            return out
+
+    # -- changing --------------------------------------------------------------------
+    def install(self, name: str, blob: bytes, expected_sha256: str, expected_size: int | None = None, *,
+                activate: bool = True) -> StoredSet:
+        """Verify an uploaded set, store it under ``name`` (replacing one of that name), optionally activate it.
+
+        Nothing is written unless every check passes; the set file is durable
+        before the pointer names it.
+
+        Raises
+        ------
+        UploadRefused
+            The set fails verification, or the name is unusable.
+        ObjectStoreError
+            The store is full or a write failed (the previous state stays).
+        """
+        try:
+            check_name(name)
+        except ObjectStoreError as e:
+            raise UploadRefused(str(e)) from None
+        objs = verify_upload(blob, expected_sha256, expected_size, name=name, parse=self.parse,
+                             max_bytes=self.max_bytes)
+        with self._lock:
+            existing = self.names()
+            if name not in existing and len(existing) >= self.max_sets:
+                raise ObjectStoreError(f"{len(existing)} object sets stored, the most this device keeps; "
+                                       "remove one first")
+            try:
+                durable.atomic_write_file(self._set_path(name), bytes(blob))
+                if activate:
+                    durable.atomic_write_file(self.root / self.ACTIVE, (name + "\n").encode("ascii"))
+            except OSError as e:
+                raise ObjectStoreError(f"cannot store object set {name!r}: {e}") from None
+            self._loaded = False  # the active set (or its content) may have changed
+            stored = StoredSet(name, hashlib.sha256(blob).hexdigest(), len(blob), objs)
+            if activate:
+                self._active, self.error, self._loaded = stored, None, True
+            log.info("object set %r stored (%d objects, sha256 %s)%s", name, len(objs), stored.sha256[:12],
+                     ", active" if activate else "")
+            return stored
+
+    def select(self, name: str | None) -> StoredSet | None:
+        """Make ``name`` the active set (verified first); None or ``"library"``: the built-in library.
+
+        Raises
+        ------
+        ObjectStoreError
+            No such set, or it does not verify (the active set is unchanged).
+        """
+        with self._lock:
+            if name is None or name in RESERVED_NAMES:
+                self._clear_pointer()
+                return None
+            s = self._load(name)
+            try:
+                durable.atomic_write_file(self.root / self.ACTIVE, (name + "\n").encode("ascii"))
+            except OSError as e:
+                raise ObjectStoreError(f"cannot select object set {name!r}: {e}") from None
+            self._active, self.error, self._loaded = s, None, True
+            log.info("object set %r active", name)
+            return s
+
+    def _clear_pointer(self) -> None:
+        p = self.root / self.ACTIVE
+        try:
+            if os.path.lexists(p):
+                os.unlink(p)
+                durable.fsync_dir(self.root)
+        except OSError as e:
+            raise ObjectStoreError(f"cannot switch to the library: {e}") from None
+        self._active, self.error, self._loaded = None, None, True
+        log.info("object set: the built-in library is active")
+
+    def remove(self, name: str) -> bool:
+        """Delete a stored set; returns whether it was the active one (then the library is active).
+
+        The pointer is cleared before the file goes, so a crash in between
+        leaves the library active and an unreferenced file, never a pointer
+        to nothing.
+
+        Raises
+        ------
+        ObjectStoreError
+            No such set, or the delete failed.
+        """
+        with self._lock:
+            check_name(name)
+            p = self._set_path(name)
+            if not p.is_file():
+                raise ObjectStoreError(f"no object set {name!r}")
+            try:
+                was_active = self._read_pointer() == name
+            except ObjectStoreError:
+                was_active = False
+            if was_active:
+                self._clear_pointer()
+            try:
+                os.unlink(p)
+                durable.fsync_dir(self.sets_dir)
+            except OSError as e:
+                raise ObjectStoreError(f"cannot remove object set {name!r}: {e}") from None
+            log.info("object set %r removed%s", name, " (was active; the library is active now)" if was_active
+                     else "")
+            return was_active

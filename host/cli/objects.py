@@ -1,0 +1,124 @@
+"""``thermotouch objects add|list|remove|select``: the user's object sets on the probe.
+
+The active set names the object of every measurement (``measure`` prints it;
+``measure --json`` carries ``object``, ``class``, their posteriors and the
+``candidates``); without one, the built-in library does.
+"""
+
+from __future__ import annotations
+
+from host.cli.args import add_device_args, existing_file
+from host.cli.common import device_session, load_object_set, note
+from host.cli.errors import EXIT_BAD_INPUT, EXIT_RUNTIME, CliError
+from host.cli.report import dumps
+
+#: Typical relative standard uncertainty of e on the precision board (README), for the add-time warning.
+TYPICAL_U_LN_E = 0.02
+#: Device refusals that are the user's input, not the device's state (exit status 2).
+_INPUT_CODES = ("MODEL_REJECTED", "BAD_ARGUMENT", "NOT_FOUND")
+
+
+def add_parser(sub, parents):
+    p = sub.add_parser("objects", help="your own object sets on the probe: add, list, remove, select",
+                       parents=parents)
+    verbs = p.add_subparsers(dest="objects_command", required=True, parser_class=type(p), metavar="ACTION")
+    a = verbs.add_parser("add", help="check an object-set CSV, upload it and make it the active set",
+                         parents=parents)
+    a.add_argument("file", metavar="FILE", type=existing_file,
+                   help="object-set CSV: name, class, and k_W_mK, rho_kg_m3, c_J_kgK or e_W_s05_m2K; "
+                        "optional spread_rel")
+    a.add_argument("--name", default=None, help="store it under this name (default: the file's stem)")
+    a.add_argument("--no-activate", action="store_true", help="store it without making it the active set")
+    a.add_argument("--json", action="store_true")
+    add_device_args(a)
+    a.set_defaults(func=run_add)
+    ls = verbs.add_parser("list", help="the stored object sets and the active one", parents=parents)
+    ls.add_argument("--json", action="store_true")
+    add_device_args(ls)
+    ls.set_defaults(func=run_list)
+    rm = verbs.add_parser("remove", help="delete a stored object set (the library names objects if it was "
+                                         "active)", parents=parents)
+    rm.add_argument("name", metavar="NAME")
+    add_device_args(rm)
+    rm.set_defaults(func=run_remove)
+    sel = verbs.add_parser("select", help="make a stored set, or 'library', the active one", parents=parents)
+    sel.add_argument("name", metavar="NAME")
+    add_device_args(sel)
+    sel.set_defaults(func=run_select)
+
+
+def _device_call(fn, *args, **kw):
+    """Run a device request; its refusal becomes one line (exit 2 when it is the input, else 1)."""
+    from host.client import DeviceError  # noqa: PLC0415
+
+    try:
+        return fn(*args, **kw)
+    except DeviceError as exc:
+        code = EXIT_BAD_INPUT if exc.code.name in _INPUT_CODES else EXIT_RUNTIME
+        raise CliError(f"device refused: {exc.message}", code) from None
+
+
+def run_add(args) -> int:
+    from host.objects import set_name_of, upload_object_set  # noqa: PLC0415
+    from edge.storage.objects_store import ObjectStoreError, check_name  # noqa: PLC0415
+
+    objects, raw = load_object_set(args.file)  # refused here, with line and column, before any connection
+    name = args.name or set_name_of(args.file)
+    try:
+        check_name(name)
+    except ObjectStoreError as exc:
+        raise CliError(f"{exc}{'' if args.name else ' (give --name NAME)'}") from None
+    pairs = objects.confusion_pairs(TYPICAL_U_LN_E).pairs
+    if pairs and not args.json:
+        shown = ", ".join(f"{p.a}/{p.b}" for p in pairs[:5]) + (f" and {len(pairs) - 5} more" if len(pairs) > 5
+                                                                 else "")
+        note(f"note: effusivity alone hardly separates {shown} (within 2 u at u(e)/e = {TYPICAL_U_LN_E:.0%})")
+    with device_session(args) as session:
+        res = _device_call(upload_object_set, session.client, name, raw, activate=not args.no_activate)
+    if args.json:
+        print(dumps(res))
+    else:
+        print(f"object set {res['name']}: {res['objects']} objects stored (sha256 {res['sha256'][:12]}); "
+              f"active set: {res['active']}")
+    return 0
+
+
+def run_list(args) -> int:
+    from host.objects import list_object_sets  # noqa: PLC0415
+
+    with device_session(args) as session:
+        res = _device_call(list_object_sets, session.client)
+    if args.json:
+        print(dumps(res))
+        return 0
+    print(f"active set: {res['active']}" + (" (built-in: every library material)" if res["active"] == "library"
+                                            else ""))
+    if res.get("error"):
+        print(f"warning: {res['error']}")
+    for s in res["sets"]:
+        mark = "*" if s.get("active") else " "
+        if "error" in s:
+            print(f"{mark} {s['name']:24} unusable: {s['error']}")
+        else:
+            print(f"{mark} {s['name']:24} {s['objects']:4d} objects {s['size']:8d} B  sha256 {s['sha256'][:12]}")
+    if not res["sets"]:
+        print("no object sets stored (thermotouch objects add FILE)")
+    return 0
+
+
+def run_remove(args) -> int:
+    from host.objects import remove_object_set  # noqa: PLC0415
+
+    with device_session(args) as session:
+        res = _device_call(remove_object_set, session.client, args.name)
+    print(f"object set {res['removed']} removed; active set: {res['active']}")
+    return 0
+
+
+def run_select(args) -> int:
+    from host.objects import select_object_set  # noqa: PLC0415
+
+    with device_session(args) as session:
+        res = _device_call(select_object_set, session.client, args.name)
+    print(f"active set: {res['active']}")
+    return 0
