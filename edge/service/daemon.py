@@ -283,6 +283,9 @@ class Daemon:
             self.objects = ObjectSets(self._object_sets_root())
             #: Idle readings of the probe for STATUS ``ready`` (settled probe temperature).
             self.readiness = Readiness()
+            #: The link being served (set by :meth:`serve`; its ``replies_dropped`` counts replies a
+            #: host did not read in time).
+            self.endpoint: SerialEndpoint | None = None
             self._check_faults(force=True)
             self.state = State.IDLE
         except BaseException:
@@ -551,7 +554,7 @@ class Daemon:
                "last_measurement_id": self.last_id, "history_total": total,
                "sensor_error": self.sensor_error, "faults": self.fault_list(),
                "unsaved_records": len(self.unsaved), "can_measure": not self._measure_blockers(),
-               "replies_dropped": getattr(getattr(self, "endpoint", None), "replies_dropped", 0),
+               "replies_dropped": getattr(self.endpoint, "replies_dropped", 0),
                "uptime_s": round(time.monotonic() - self.t_start, 3)}
         upload = self.upload.progress()
         if upload is not None:
@@ -830,7 +833,8 @@ class Daemon:
             self._cancel.clear()
             self._worker.start(self._button_measure, "button-measure")
 
-    def serve(self, ser: Any, stop_event: threading.Event | None = None, *, poll_s: float = 0.05) -> None:
+    def serve(self, ser: Any, stop_event: threading.Event | None = None, *, poll_s: float = 0.05,
+              ready: Callable[[Daemon], None] | None = None) -> None:
         """Answer requests on ``ser`` until ``stop_event`` (default: the daemon's) is set.
 
         A measurement (MEASURE or the trigger button) runs in a worker thread;
@@ -839,14 +843,16 @@ class Daemon:
         out the worker is waited for -- stopped first through the daemon's
         stop event when that is set or on KeyboardInterrupt/SystemExit, left
         to finish and store its record after a port error -- then the heater
-        is switched off. Port errors propagate.
+        is switched off. Port errors propagate. ``ready(self)`` is called
+        once the link is served.
         """
         stop = stop_event if stop_event is not None else self.stop_event
         endpoint = SerialEndpoint(ser, max_payload=self.max_payload, poll_s=poll_s)
-        #: The link being served (its ``replies_dropped`` counts replies a host did not read in time).
         self.endpoint = endpoint
         abort = True
         try:
+            if ready is not None:
+                ready(self)  # the link is up: requests from now on are answered
             while not stop.is_set() and not self.stop_event.is_set():
                 self.notifier.beat("serve")
                 for req in endpoint.poll():
@@ -873,7 +879,7 @@ class Daemon:
 
     def wake(self) -> None:
         """Wake the serve loop's read so that it sees a stop event set from another thread at once."""
-        endpoint = getattr(self, "endpoint", None)
+        endpoint = self.endpoint
         if endpoint is not None:
             endpoint.wake()
 

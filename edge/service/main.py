@@ -68,9 +68,7 @@ def run_daemon(config: Config, board: Board, serial_port: Any, stop_event: threa
     """
     daemon = Daemon(config, board, estimator=estimator, stop_event=stop_event, **kwargs)
     try:
-        if ready is not None:
-            ready(daemon)
-        daemon.serve(serial_port, stop_event)
+        daemon.serve(serial_port, stop_event, ready=ready)
     finally:
         daemon.close()
 
