@@ -17,6 +17,15 @@ finite-volume model of :mod:`firmware_sim.rz`:
   heater is switched on), each with its own contact resistance, object
   temperature and duration, on an object of finite radius and thickness
   (the scene's back boundary; ``"infinite"`` is a thick object);
+* touch after touch (``[touch] repeat``, :meth:`FaithfulWorld.repeat_touches`):
+  the probe goes down again on a fresh spot ``repeat_gap_s`` after each
+  touch and is lifted ``REPEAT_RELEASE_S`` after the next heating ends,
+  carrying its own residual heat through the air gap;
+* the probe's geometry from :data:`edge.physics.geometry.PROBES` (the
+  paper's 55 x 60 mm heater as its equal-area disk, or the small-heater
+  probe's 5-mm disk under an overhanging 10 x 10 mm thermopile):
+  :func:`geometry_for_probe`, :meth:`FaithfulWorld.for_scene` (``[board]
+  probe`` and ``[as_built]`` of a scene);
 * the flux sensor as a thermopile inside the sensing layer: the axial flux
   averaged over its depth and its 10 x 10 mm (equal-area disk) area, times
   its *true* sensitivity;
@@ -65,7 +74,8 @@ rolls back to a snapshot (kept for the last :data:`SNAPSHOTS` steps) and
 re-steps.  New touches and faults roll back likewise; if the snapshot is
 gone the world restarts from t = 0 (always correct, only slower).
 
-Verification: ``tests/firmware_sim/rz/test_probe_world.py``; speed:
+Verification: ``tests/firmware_sim/rz/test_probe_world.py``,
+``tests/firmware_sim/rz/test_probe_world_sessions.py``; speed:
 ``bench/faithful_world_bench.py``.
 """
 
