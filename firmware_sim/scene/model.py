@@ -177,7 +177,8 @@ class TouchSpec:
     (``object_temperature_C``, or ``object_offset_K`` from ambient), when
     given, hold for every touch of the session and override the scene-wide
     values; ``contact_lead_s`` is how long the probe rests on the object
-    before the heater goes on (the daemon's baseline covers it).
+    before the heater goes on (the daemon's baseline covers it; negative:
+    the heater goes on first and the probe lands late).
     """
 
     start_s: float

@@ -48,6 +48,9 @@ from firmware_sim.scene.schema import (
 
 __all__ = ["MaterialLookup", "library_material", "parse_scene", "validate_fault"]
 
+#: Shortest baseline a sim session gives the daemon before heater-on (firmware_sim.run.config_for_scene).
+_SHORTEST_BASELINE_S = 0.2
+
 #: Resolves ``object.material``: name -> ``(k_W_mK, rho_kg_m3, c_J_kgK)``; KeyError if unknown.
 MaterialLookup = Callable[[str], tuple[float, float, float]]
 
@@ -125,6 +128,10 @@ def _touch(data: Any, env: Mapping[str, Any]) -> TouchSpec:
         # The offset must land where the thermocouple reads, like an absolute temperature.
         check_value(Field("float", lo=T_MIN_C, hi=T_MAX_C), env["ambient_temperature_C"] + t["object_offset_K"],
                     "touch.object_offset_K")
+    if t["contact_lead_s"] < 0 and t["start_s"] + t["contact_lead_s"] < _SHORTEST_BASELINE_S:
+        raise SchemaError("touch.contact_lead_s",
+                          f"the heater would go on at {t['start_s'] + t['contact_lead_s']:g} s; a late touch needs "
+                          f"touch.start_s + touch.contact_lead_s >= {_SHORTEST_BASELINE_S} s (the daemon's baseline)")
     if t["contact_lead_s"] >= t["length_s"]:
         raise SchemaError("touch.contact_lead_s",
                           f"must be < touch.length_s ({t['length_s']} s: the heating happens during the touch), "

@@ -93,8 +93,9 @@ Factors lie in [0.5, 2].
     object_temperature_C?      float       object temperature at each touch (overrides
                                            environment.initial_temperature_C), or
     object_offset_K?           float       the same as an offset from ambient (not both)
-    contact_lead_s?            float >= 0  the probe rests on the object this long before the
-                                           heater goes on (< length_s; default 0)
+    contact_lead_s?            float       the probe rests on the object this long before the
+                                           heater goes on (< length_s; default 0); negative: the
+                                           heater goes on first (a late touch), at >= 0.2 s
 
 ``[[faults]]`` (optional, any number)::
 
@@ -241,7 +242,8 @@ TOUCH_FIELDS: Mapping[str, Field] = {
                                       lo=0.0, hi=1.0),
     "object_temperature_C": Field("float", None, "object temperature at each touch", **_TEMPERATURE),
     "object_offset_K": Field("float", None, "object temperature at each touch, from ambient", lo=-200.0, hi=200.0),
-    "contact_lead_s": Field("float", 0.0, "contact this long before heater-on (< length_s)", lo=0.0, hi=60.0),
+    "contact_lead_s": Field("float", 0.0, "contact this long before heater-on (< length_s; < 0: after)",
+                            lo=-10.0, hi=60.0),
 }
 
 #: ``until_s`` must also exceed ``at_s``; the parser checks that bound.

@@ -97,7 +97,8 @@ def test_new_keys_parse_and_resolve():
     ("object_offset_K = -1.5", "object_offset_K = -400.0", "touch.object_offset_K", ">= -200"),
     ("object_offset_K = -1.5", "object_temperature_C = -300.0", "touch.object_temperature_C", ">= -270"),
     ("contact_lead_s = 1.0", "contact_lead_s = 3.0", "touch.contact_lead_s", "must be < touch.length_s"),
-    ("contact_lead_s = 1.0", "contact_lead_s = -1.0", "touch.contact_lead_s", ">= 0"),
+    ("contact_lead_s = 1.0", "contact_lead_s = -0.4", "touch.contact_lead_s", "a late touch needs"),
+    ("contact_lead_s = 1.0", "contact_lead_s = -11.0", "touch.contact_lead_s", ">= -10"),
     ("contact_resistance_m2K_W = 1e-4", "contact_resistance_m2K_W = -1e-4", "touch.contact_resistance_m2K_W",
      ">= 0"),
 ])
@@ -107,6 +108,13 @@ def test_bad_values_give_one_line_naming_file_table_and_key(old, new, key, words
     msg = str(info.value)
     assert msg.startswith(f"bad.toml: {key}: ") and words in msg and "\n" not in msg, msg
     assert info.value.key == key and info.value.file == "bad.toml"
+
+
+def test_a_late_touch_has_the_heater_on_before_the_contact(tmp_path):
+    s = parse_scene(edit(edit(FULL, "start_s = 0.5", "start_s = 1.0"), "contact_lead_s = 1.0", "contact_lead_s = -0.5"))
+    assert s.touch.heater_on_s == 0.5 and s.touch.end_s == 4.0
+    cfg = config_for_scene(s, tmp_path)
+    assert cfg.measurement.baseline_s == 0.5 and cfg.measurement.contact_time_s == 2.0
 
 
 def test_as_built_needs_the_faithful_world():
@@ -214,9 +222,7 @@ def _measure_on(scene: str, tmp_path):
 
 @pytest.mark.parametrize("scene", ["glass_15V_faithful", "pmma_15V_small"])
 def test_the_daemon_runs_unchanged_on_a_faithful_scene_and_returns_a_record(scene, tmp_path):
-    t0 = time.perf_counter()
     rec, series, d, sim = _measure_on(scene, tmp_path)
-    wall = time.perf_counter() - t0
     assert isinstance(sim.world, FaithfulWorld)
     assert rec["status"] == "ok" and rec["measurement_id"] == 1, rec
     assert rec["result"]["effusivity_W_s05_m2K"] > 0
@@ -234,7 +240,6 @@ def test_the_daemon_runs_unchanged_on_a_faithful_scene_and_returns_a_record(scen
     if sc.touch_contact_resistance_m2K_W > 0:
         # The probe met the object before the heating: the baseline already saw heat flowing.
         assert abs(rec["q_offset_W_m2"]) > 10.0
-    assert wall < 3.0
     sim.close()
 
 
