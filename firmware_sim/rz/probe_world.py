@@ -82,7 +82,9 @@ Verification: ``tests/firmware_sim/rz/test_probe_world.py``,
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from collections import deque
+from operator import attrgetter, itemgetter
 from dataclasses import dataclass, field, replace
 from typing import Sequence
 
@@ -110,6 +112,9 @@ _WORLD_KINDS = ("open_thermocouple", "flux_saturation", "no_contact") + _HEATER_
 _EPS_T = 1e-12
 #: Length given to an open repeat touch until a heating closes it (s).
 _OPEN_TOUCH_S = 1e6
+_start = attrgetter("start_s")   # bisection keys: touches and phases by start, steps by t_a
+_first = itemgetter(0)
+_second = itemgetter(1)
 
 
 @dataclass(frozen=True)
@@ -340,6 +345,11 @@ class FaithfulWorld:
             else as_built.heater_resistance_ohm
         self.T_amb = scene.environment.ambient_temperature_C
         self._faults: list[Fault] = [f for f in scene.faults if f.kind in _WORLD_KINDS]
+        # Switch times, kept up to date from the drive's new changes (see _switch_times).
+        self._drive_rev = None
+        self._drive_times: set[float] = set()
+        self._sw: np.ndarray | None = None
+        self._sw_faults = -1
         self._touches: list[Touch] = [Touch(scene.touch.start_s, scene.touch.end_s,
                                             scene.touch_contact_resistance_m2K_W, scene.object_temperature_C)]
         #: Whether the last touch is an open repeat touch (``[touch] repeat``, :meth:`repeat_touches`).
@@ -464,13 +474,32 @@ class FaithfulWorld:
         return supply_voltage(self._faults, t_s, self.scene.heater.supply_voltage_V)
 
     def _switch_times(self) -> np.ndarray:
-        times = set(self.drive.change_times()) if self.drive is not None else set()
+        """Every time the duty or supply may change (drive and heater faults), sorted.
+
+        Every query asks; a drive that reports its changes incrementally
+        (``changes_since``: the board's, ScheduleDrive, ManualDrive) is read
+        only for what is new, so a long session costs no more per query.
+        """
+        d = self.drive
+        since = getattr(d, "changes_since", None) if d is not None else None
+        n_faults = len(self._faults)
+        if since is not None:
+            rev, new = since(self._drive_rev)
+            if rev == self._drive_rev and not new and n_faults == self._sw_faults and self._sw is not None:
+                return self._sw
+            self._drive_rev = rev
+            self._drive_times.update(float(x) for x in new)
+            times = set(self._drive_times)
+        else:
+            times = set(d.change_times()) if d is not None else set()
         for f in self._faults:
             if f.kind in _HEATER_FAULTS:
                 times.add(f.at_s)
                 if f.until_s is not None:
                     times.add(f.until_s)
-        return np.array(sorted(times), dtype=float)
+        self._sw = np.array(sorted(times), dtype=float)
+        self._sw_faults = n_faults
+        return self._sw
 
     def _dv2(self, t: float) -> float:
         """duty * V^2 at ``t`` (W ohm)."""
@@ -612,9 +641,10 @@ class FaithfulWorld:
     def _touch_at(self, t_s: float) -> Touch | None:
         if self._active("no_contact", t_s):
             return None
-        for t in self._touches:
-            if t.start_s <= t_s < t.end_s:
-                return t
+        # Touches are sorted and disjoint: a bisection, so a long session costs no more per query.
+        i = bisect_right(self._touches, t_s, key=_start) - 1
+        if i >= 0 and t_s < self._touches[i].end_s:
+            return self._touches[i]
         return None
 
     def phases(self) -> list[_Phase]:
@@ -641,10 +671,8 @@ class FaithfulWorld:
         return out
 
     def _phase_at(self, t: float) -> _Phase:
-        for ph in self.phases():
-            if ph.start_s <= t < ph.end_s:
-                return ph
-        return self.phases()[-1]
+        ph = self.phases()
+        return ph[max(bisect_right(ph, t, key=_start) - 1, 0)]
 
     # ------------------------------------------------------------------ the march
 
@@ -804,10 +832,9 @@ class FaithfulWorld:
 
     def _invalidate_from(self, t_s: float) -> None:
         """Drop everything computed on or after ``t_s`` (a step that ends after it is redone)."""
-        for i, (t_a, t_b, *_) in enumerate(self._steps):
-            if t_b > t_s + _EPS_T:
-                self._rollback(i)
-                return
+        i = bisect_right(self._steps, t_s + _EPS_T, key=_second)   # the first step ending after t_s
+        if i < len(self._steps):
+            self._rollback(i)
 
     def _rollback(self, i: int) -> None:
         for n, snap in reversed(self._snaps):
@@ -895,8 +922,7 @@ class FaithfulWorld:
     def _resistance_in_step(self, t: float) -> float:
         """Film resistance the march used in the step containing ``t`` (R at the step's start)."""
         self._advance_to(t + 1e-9)
-        starts = [s[0] for s in self._steps]
-        i = max(int(np.searchsorted(starts, t, side="right")) - 1, 0)
+        i = max(bisect_right(self._steps, t, key=_first) - 1, 0)
         return self._steps[i][4]
 
     def thermopile_W_m2(self, t_s: float) -> float:
