@@ -140,21 +140,21 @@ def test_small_heater_edge_reaches_the_axis_of_a_metal_but_not_of_glass():
     # disk: it reads the heated fraction of its area, pi (5 mm)^2 / (10 mm)^2.
     probe = PROBES["small-heater"]
     frac = probe.heater_area_m2 / probe.sensor_area_m2
-    t = np.array([0.7, 1.0, 1.5, 2.5])
+    t = np.array([0.7, 1.0, 1.5, 2.0])   # heating from 0.5 s
     ratios = {}
     for name in ("glass_15V", "alu_20V"):
         clk = VirtualClock()
         drive = ScheduleDrive([0.5, 2.5], [1.0, 0.0])
         small = FaithfulWorld.for_scene(read_scene(f"{name}_small"), clk, drive, dt_s=DT)
         paper = FaithfulWorld.for_scene(read_scene(name), clk, drive, dt_s=DT)
-        clk.advance(3.0)
+        clk.advance(2.0)
         s, p = small.series(t), paper.series(t)
         ratios[name] = (s["T_tc"] - 25.0) / (p["T_tc"] - 25.0), s["q_sensor"] / p["q_sensor"]
     T_glass, q_glass = ratios["glass_15V"]
     T_alu, q_alu = ratios["alu_20V"]
     np.testing.assert_allclose(T_glass, 1.0, atol=1e-3)
     np.testing.assert_allclose(q_glass, frac, rtol=0.01)
-    assert np.all(np.diff(T_alu) < 0) and T_alu[-1] < 0.6, T_alu
+    assert np.all(np.diff(T_alu) < 0) and T_alu[-1] < 0.7, T_alu
     np.testing.assert_allclose(q_alu, frac, rtol=0.02)
 
 
