@@ -35,6 +35,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
 import statistics
 import sys
 import time
@@ -109,6 +110,7 @@ def session(name: str, dt: float) -> dict:
 def sim_touch(name: str) -> dict:
     """One simulated 2-s touch on a shipped faithful scene through the edge drivers (see the docstring)."""
     t0 = time.perf_counter()
+    c0 = time.process_time()   # CPU time too: on a shared machine it varies far less than wall time
     sim = firmware_sim.load_scene(name)
     sc = sim.scene
     board = sim.board()
@@ -130,8 +132,9 @@ def sim_touch(name: str) -> dict:
             ads.read_latest_V()
             reads += 2
     wall = time.perf_counter() - t0
+    cpu = time.process_time() - c0
     w = sim.world
-    out = {"wall_s": wall, "virtual_s": sim.now(), "steps": len(w._steps), "driver_reads": reads, "T_end_C": T,
+    out = {"wall_s": wall, "cpu_s": cpu, "virtual_s": sim.now(), "steps": len(w._steps), "driver_reads": reads, "T_end_C": T,
            "grid_cells": {str(k[0]): int(np.prod(c.grid.shape)) for k, c in w._configs.items()}}
     sim.close()
     return out
@@ -140,6 +143,7 @@ def sim_touch(name: str) -> dict:
 def touches(repeat: int) -> dict:
     """The ``touches`` part: per scene median and min-max, and per probe over its scenes."""
     names = [n for ns in TOUCH_SCENES.values() for n in ns]
+    load0 = os.getloadavg()[0]   # the machine is shared: say how busy it was
     sim_touch(names[0])   # warm-up (imports, first-call costs), not reported
     runs: dict[str, list[dict]] = {n: [] for n in names}
     for _ in range(repeat):
@@ -147,24 +151,28 @@ def touches(repeat: int) -> dict:
             runs[n].append(sim_touch(n))
     rows = {}
     for n, rs in runs.items():
-        rows[n] = {"wall_s": summary(rs, "wall_s")} | {k: rs[-1][k] for k in ("virtual_s", "steps", "driver_reads",
+        rows[n] = {"wall_s": summary(rs, "wall_s"), "cpu_s": summary(rs, "cpu_s")} | {k: rs[-1][k] for k in ("virtual_s", "steps", "driver_reads",
                                                                                "grid_cells", "T_end_C")}
         w = rows[n]["wall_s"]
-        print(f"{n:20s} 2-s touch {w['median'] * 1e3:6.0f} ms (min {w['min'] * 1e3:.0f}, max {w['max'] * 1e3:.0f}); "
+        print(f"{n:20s} 2-s touch {w['median'] * 1e3:6.0f} ms (min {w['min'] * 1e3:.0f}, max {w['max'] * 1e3:.0f}), "
+              f"CPU {rows[n]['cpu_s']['median'] * 1e3:.0f} ms; "
               f"{rows[n]['virtual_s']:.2f} s virtual, {rows[n]['steps']} steps, cells {rows[n]['grid_cells']}")
     probes = {}
     for probe, ns in TOUCH_SCENES.items():
         walls = [r["wall_s"] for n in ns for r in runs[n]]
+        cpus = [r["cpu_s"] for n in ns for r in runs[n]]
         probes[probe] = {"median": statistics.median(walls), "min": min(walls), "max": max(walls),
+                         "cpu_median": statistics.median(cpus), "cpu_min": min(cpus), "cpu_max": max(cpus),
                          "scenes": ns, "runs": len(walls)}
         p = probes[probe]
         print(f"probe {probe:12s}: median {p['median'] * 1e3:.0f} ms (min {p['min'] * 1e3:.0f}, "
-              f"max {p['max'] * 1e3:.0f}) over {p['runs']} touches (target 2 s)")
+              f"max {p['max'] * 1e3:.0f}) wall, CPU median {p['cpu_median'] * 1e3:.0f} ms "
+              f"({p['cpu_min'] * 1e3:.0f}-{p['cpu_max'] * 1e3:.0f}) over {p['runs']} touches (target 2 s)")
     return {"what": "wall time of one simulated 2-s touch on the faithful world through the edge drivers "
                     "(scene load, grids, factorisations, the virtual time up to heater-on, 2 s heating, "
                     "MCP9600 18-bit and ADS1115 860 SPS read every 10 ms), shipped scenes interleaved",
             "world_dt_s": 0.01, "read_s": READ_S, "heat_s": HEAT_S, "scenes": rows, "probes": probes,
-            "target_s": 2.0}
+            "target_s": 2.0, "load_average_1min": {"start": load0, "end": os.getloadavg()[0]}}
 
 
 def summary(runs: list[dict], key: str) -> dict:
