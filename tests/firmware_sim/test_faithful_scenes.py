@@ -30,6 +30,8 @@ from host.client import DeviceClient
 from tests.firmware_sim.test_scene import BASE, edit
 from tests.support.daemons import FakeEstimator, assert_heater_safe
 
+pytestmark = pytest.mark.hil
+
 PAPER_NINE = ("glass_12V", "glass_15V", "glass_18V", "pmma_8V", "pmma_15V", "pmma_20V",
               "alu_15V", "alu_20V", "alu_25V")
 FAITHFUL = ("glass_15V_faithful", "pmma_15V_faithful", "alu_20V_faithful")
@@ -150,6 +152,10 @@ def test_shipped_scenes_stay_on_the_ideal_world_unless_named_faithful_or_small()
         assert (s.board.world == "faithful") == faithful, n
         if not faithful:
             assert s.board.probe == "paper" and s.as_built is None
+    # The simulator puts each on its world.
+    for n, kind in (("glass_15V", ThermalWorld), ("glass_15V_faithful", FaithfulWorld), ("alu_25V_small", FaithfulWorld)):
+        with load_scene(n) as sim:
+            assert type(sim.world) is kind
 
 
 @pytest.mark.parametrize("paper", PAPER_NINE)
