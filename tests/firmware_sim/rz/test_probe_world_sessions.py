@@ -34,7 +34,7 @@ def repeat_scene(name="glass_15V"):
                                                              repeat_gap_s=0.6))
 
 
-def live_session(sc, t_end=4.2):
+def live_session(sc, t_end=3.6):
     """Read the world at "now" every tick while a drive learns the heater commands as they happen."""
     clk, drive = VirtualClock(), ManualDrive()
     w = FaithfulWorld(sc, clk, drive, dt_s=DT)
@@ -81,7 +81,7 @@ def test_touch_after_touch_carries_the_probes_heat_through_the_air_gap():
     assert T_land > 25.3
     q1, q2 = (w.thermopile_W_m2(x) for x in (before1, before2))
     assert abs(q1) < 1.0 and q2 > 50.0
-    led = w.energy_ledger(4.2)
+    led = w.energy_ledger(3.6)
     assert abs(led["residual"]) < 1e-8 * led["e_in"]
 
 
@@ -145,8 +145,9 @@ def test_small_heater_edge_reaches_the_axis_of_a_metal_but_not_of_glass():
     for name in ("glass_15V", "alu_20V"):
         clk = VirtualClock()
         drive = ScheduleDrive([0.5, 2.5], [1.0, 0.0])
-        small = FaithfulWorld.for_scene(read_scene(f"{name}_small"), clk, drive, dt_s=DT)
-        paper = FaithfulWorld.for_scene(read_scene(name), clk, drive, dt_s=DT)
+        # 40-ms steps: both probes march alike, and the ratios below are far from their bounds.
+        small = FaithfulWorld.for_scene(read_scene(f"{name}_small"), clk, drive, dt_s=2 * DT)
+        paper = FaithfulWorld.for_scene(read_scene(name), clk, drive, dt_s=2 * DT)
         clk.advance(2.0)
         s, p = small.series(t), paper.series(t)
         ratios[name] = (s["T_tc"] - 25.0) / (p["T_tc"] - 25.0), s["q_sensor"] / p["q_sensor"]
