@@ -23,7 +23,8 @@ names above)::
     pwm.py         SimPwmTree: sysfs PWM tree fake
     board.py       make_sim_board: an edge Board on the GPIO/PWM fakes
     scene/         scene model, schema (edge.schema Fields), parser, files; shipped/ scenes
-    world.py       ThermalWorld: exact thermal model behind the chips
+    world.py       ThermalWorld: exact 1-D thermal model behind the chips ([board] world = "ideal")
+    rz/            axisymmetric finite-volume probe model; rz/probe_world.py FaithfulWorld ("faithful")
     simulator.py   Simulator, load_scene: one object per scene
     ptylink.py     NullModem: virtual serial cable
     run.py         ``thermotouch sim``: the daemon on a scene behind a NullModem

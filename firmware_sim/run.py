@@ -41,8 +41,10 @@ def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Ma
     """A daemon :class:`~edge.service.config.Config` matching ``scene`` (a firmware_sim Scene).
 
     Heating runs at full duty (the paper applies a fixed voltage); the
-    baseline lasts until the scene's touch starts and the heating ends
-    before the touch does. ``overrides`` are extra ``{section: {key: value}}``.
+    baseline lasts until the scene's heater-on time (the touch's start plus
+    ``[touch] contact_lead_s``) and the heating ends before the touch does.
+    The configuration carries the nominal probe (``[heater]``, ``[sensors]``),
+    never the scene's ``[as_built]`` deviations. ``overrides`` are extra ``{section: {key: value}}``.
     """
     w = Path(workdir)
     b, s, t = scene.board, scene.sensors, scene.touch
@@ -61,8 +63,10 @@ def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Ma
         sensors.update(flux_adc="ads122c04")
     if b.ads122c04 is not None:
         sensors["ads122c04_address"] = b.ads122c04
-    baseline = min(t.start_s, 10.0) if t.start_s >= 0.2 else 0.5  # heating begins as the touch does
-    contact = max(0.5, min(2.0, t.length_s - 0.3))
+    # Heating begins [touch] contact_lead_s after the touch does (0: as it does) and ends before the lift.
+    on = t.heater_on_s
+    baseline = min(on, 10.0) if on >= 0.2 else 0.5
+    contact = max(0.5, min(2.0, t.end_s - on - 0.3))
     values: dict[str, dict[str, Any]] = {
         "board": {"kind": "sim"},
         "sensors": sensors,

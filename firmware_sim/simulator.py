@@ -38,11 +38,20 @@ from firmware_sim.pwm import SimPwmTree
 from firmware_sim.scene.files import read_scene
 from firmware_sim.scene.model import Fault, Scene
 from firmware_sim.scene.parser import MaterialLookup, validate_fault
+from firmware_sim.rz.probe_world import FaithfulWorld
 from firmware_sim.world import BoardDrive, ThermalWorld, Truth, wire_chips
 
-__all__ = ["Simulator", "load_scene", "make_scene_board", "register_scene_board", "SCENE_ENV"]
+__all__ = ["Simulator", "load_scene", "make_scene_board", "make_world", "register_scene_board", "SCENE_ENV"]
 
 _BUS_FAULTS = ("i2c_nack", "bus_stuck")
+
+
+def make_world(scene: Scene, clock, drive) -> ThermalWorld | FaithfulWorld:
+    """The thermal world ``[board] world`` names: the exact 1-D ``ThermalWorld`` ("ideal") or the
+    axisymmetric ``FaithfulWorld`` ("faithful", with the scene's probe geometry and ``[as_built]``)."""
+    if scene.board.world == "faithful":
+        return FaithfulWorld.for_scene(scene, clock, drive)
+    return ThermalWorld(scene, clock, drive)
 
 
 class Simulator:
@@ -77,7 +86,8 @@ class Simulator:
         Simulated sysfs PWM tree.
     bus : SimBus
         smbus2-compatible bus with the fitted chips.
-    world : ThermalWorld
+    world : ThermalWorld or FaithfulWorld
+        Per ``[board] world`` (:func:`make_world`).
     chips : dict
         Chip models by name (``"mcp9600"``, ``"ads1115"``, ``"ads122c04"``), fitted ones only.
     parts : SimBoardParts
@@ -99,7 +109,7 @@ class Simulator:
         self._board = make_sim_board(clock=self.clock, i2c=self.bus, gpio=self.gpio, pwm_tree=self.pwm)
         self._board.extras["simulator"] = self
         self.parts: SimBoardParts = self._board.extras["sim"]
-        self.world = ThermalWorld(scene, self.clock, BoardDrive(self.parts))
+        self.world = make_world(scene, self.clock, BoardDrive(self.parts))
         self.chips: dict[str, Any] = {}
         self._injected: list[Fault] = []
         # The PWM tree lives in a temporary directory: remove it even if close() is never called.
@@ -249,7 +259,9 @@ class Simulator:
         """Electrical energy dissipated in the film (J) from 0 to ``t_end_s`` (default now)."""
         t_end = self.clock.now() if t_end_s is None else float(t_end_s)
         sched = self.world.power_schedule(t_end)
-        return sched.energy_density(t_end) * self.scene.stack.heater_area_m2 * self.scene.stack.heater_thickness_m
+        # The world's stack: the faithful world's film has the probe's real area (small-heater probe).
+        stack = self.world.stack
+        return sched.energy_density(t_end) * stack.heater_area_m2 * stack.heater_thickness_m
 
     # ---- truth
 

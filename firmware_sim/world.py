@@ -577,8 +577,7 @@ class ThermalWorld:
             self._ph_y[i] = math.nan
 
     def _base_C(self, contact: bool) -> float:
-        env = self.scene.environment
-        return env.initial_temperature_C if contact else env.ambient_temperature_C
+        return self.scene.object_temperature_C if contact else self.scene.environment.ambient_temperature_C
 
     # ---- transfer functions
 
@@ -587,7 +586,7 @@ class ThermalWorld:
             return laplace.object_admittance(s, AIR, None, "infinite")
         o = self.scene.object
         Y = laplace.object_admittance(s, o.solid, o.thickness_m, o.back)
-        rc = self.scene.contact_resistance_m2K_W
+        rc = self.scene.touch_contact_resistance_m2K_W
         return Y / (1.0 + rc * Y) if rc > 0 else Y
 
     def _heater_transfer(self, s: np.ndarray, contact: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -595,7 +594,7 @@ class ThermalWorld:
             return laplace.probe_transfer(s, AIR, self.stack, None, "infinite", 0.0)
         o = self.scene.object
         return laplace.probe_transfer(s, o.solid, self.stack, o.thickness_m, o.back,
-                                      self.scene.contact_resistance_m2K_W)
+                                      self.scene.touch_contact_resistance_m2K_W)
 
     def _ic_transfer(self, s: np.ndarray, contact: bool) -> tuple[np.ndarray, np.ndarray]:
         # Probe slab at uniform excess 1 K from t = 0, insulated top, onto admittance Y.

@@ -17,6 +17,15 @@ finite-volume model of :mod:`firmware_sim.rz`:
   heater is switched on), each with its own contact resistance, object
   temperature and duration, on an object of finite radius and thickness
   (the scene's back boundary; ``"infinite"`` is a thick object);
+* touch after touch (``[touch] repeat``, :meth:`FaithfulWorld.repeat_touches`):
+  the probe goes down again on a fresh spot ``repeat_gap_s`` after each
+  touch and is lifted ``REPEAT_RELEASE_S`` after the next heating ends,
+  carrying its own residual heat through the air gap;
+* the probe's geometry from :data:`edge.physics.geometry.PROBES` (the
+  paper's 55 x 60 mm heater as its equal-area disk, or the small-heater
+  probe's 5-mm disk under an overhanging 10 x 10 mm thermopile):
+  :func:`geometry_for_probe`, :meth:`FaithfulWorld.for_scene` (``[board]
+  probe`` and ``[as_built]`` of a scene);
 * the flux sensor as a thermopile inside the sensing layer: the axial flux
   averaged over its depth and its 10 x 10 mm (equal-area disk) area, times
   its *true* sensitivity;
@@ -65,20 +74,24 @@ rolls back to a snapshot (kept for the last :data:`SNAPSHOTS` steps) and
 re-steps.  New touches and faults roll back likewise; if the snapshot is
 gone the world restarts from t = 0 (always correct, only slower).
 
-Verification: ``tests/firmware_sim/rz/test_probe_world.py``; speed:
+Verification: ``tests/firmware_sim/rz/test_probe_world.py``,
+``tests/firmware_sim/rz/test_probe_world_sessions.py``; speed:
 ``bench/faithful_world_bench.py``.
 """
 
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from collections import deque
+from operator import attrgetter, itemgetter
 from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import numpy as np
 
 from edge.physics import typek
+from edge.physics.geometry import PROBES, ProbeGeometry
 from edge.physics.probe import heater_power_W
 from edge.physics.schedule import PowerSchedule
 from edge.physics.solids import Solid
@@ -86,9 +99,9 @@ from firmware_sim.heater_faults import active, effective_duty, supply_voltage
 from firmware_sim.rz.grid import ADIABATIC, PU_FOAM, SENSOR_AREA_m2, Boundary, Grid, Layer, Mesh
 from firmware_sim.rz.solver import Solver, axis_value
 from firmware_sim.scene.model import FLUX_SATURATION_V, Fault, Scene
-from firmware_sim.world import OPEN_TC_INPUT_V, HeaterDrive, Truth, WorldState
+from firmware_sim.world import OPEN_TC_INPUT_V, REPEAT_RELEASE_S, HeaterDrive, Truth, WorldState
 
-__all__ = ["AsBuilt", "Geometry", "FaithfulWorld", "Touch", "SNAPSHOTS"]
+__all__ = ["AsBuilt", "Geometry", "FaithfulWorld", "Touch", "SNAPSHOTS", "geometry_for_probe", "as_built_for_scene"]
 
 #: Steps kept as roll-back snapshots (each one field copy).
 SNAPSHOTS = 48
@@ -97,6 +110,11 @@ _STARTUP = (1 / 16, 1 / 16, 1 / 8, 1 / 4, 1 / 2)
 _HEATER_FAULTS = ("heater_stuck_on", "heater_dead", "supply_sag")
 _WORLD_KINDS = ("open_thermocouple", "flux_saturation", "no_contact") + _HEATER_FAULTS
 _EPS_T = 1e-12
+#: Length given to an open repeat touch until a heating closes it (s).
+_OPEN_TOUCH_S = 1e6
+_start = attrgetter("start_s")   # bisection keys: touches and phases by start, steps by t_a
+_first = itemgetter(0)
+_second = itemgetter(1)
 
 
 @dataclass(frozen=True)
@@ -159,18 +177,66 @@ class Geometry:
     infinite_thickness_m: float = 0.10       # object thickness for back = "infinite"
     h_air_W_m2K: float = 5.0                 # natural convection on every exposed face
     mesh: Mesh = field(default_factory=Mesh)
+    #: The film's real area, which turns electrical power into q_v (default: the stack's, 55 x 60 mm).
+    #: A heater disk wider than this (the 1-D limit) is a larger film at the same power density.
+    heater_area_m2: float | None = None
+    sensor_radius_m: float | None = None     # default: the 10 x 10 mm thermopile's equal-area disk
 
     def __post_init__(self) -> None:
         if not self.h_air_W_m2K >= 0 or math.isinf(self.h_air_W_m2K):
             raise ValueError("h_air_W_m2K must be finite and >= 0")
+        for name in ("heater_area_m2", "sensor_radius_m"):
+            v = getattr(self, name)
+            if v is not None and not (v > 0 and math.isfinite(v)):
+                raise ValueError(f"{name} must be finite and > 0, got {v!r}")
+
+
+def geometry_for_probe(probe: ProbeGeometry | str, **overrides) -> Geometry:
+    """The world's :class:`Geometry` for a probe of :data:`edge.physics.geometry.PROBES` (or its name).
+
+    Only the probe's dimensions are taken (heater disk and its area, probe
+    radius, substrate, flux-sensor disk): the layer stack (heater film and
+    sensing layer) stays the scene's, as built. ``overrides`` replace any
+    other :class:`Geometry` field (object radius, convection, mesh, ...).
+    """
+    p = PROBES[probe] if isinstance(probe, str) else probe
+    kw = dict(substrate=p.substrate, substrate_thickness_m=p.substrate_thickness_m,
+              heater_radius_m=p.heater_radius_m, probe_radius_m=p.probe_radius_m,
+              heater_area_m2=p.heater_area_m2, sensor_radius_m=p.sensor_radius_m)
+    kw.update(overrides)
+    return Geometry(**kw)
+
+
+def as_built_for_scene(scene: Scene) -> AsBuilt:
+    """The :class:`AsBuilt` a scene's ``[as_built]`` table describes (nominal when it has none).
+
+    Factors multiply the scene's nominal values: the stack's sensing layer,
+    the ``[sensors]`` flux sensitivity and the ``[heater]`` resistance.
+    """
+    a = scene.as_built
+    if a is None:
+        return AsBuilt()
+    st, sens = scene.stack, scene.sensors
+    return AsBuilt(
+        sensing_thickness_m=st.sensing_thickness_m * a.sensing_thickness_factor,
+        sensing_k_W_mK=st.material.k_W_mK * a.sensing_k_factor,
+        flux_sensitivity_V_per_W_m2=sens.flux_sensitivity_V_per_W_m2 * a.flux_sensitivity_factor,
+        thermocouple_time_constant_s=a.thermocouple_time_constant_s,
+        heater_resistance_ohm=scene.heater.resistance_ohm * a.heater_resistance_factor,
+        heater_tcr_per_K=a.heater_tcr_per_K,
+        heater_reference_C=a.heater_reference_C)
 
 
 @dataclass(frozen=True)
 class Touch:
-    """One contact window with its own contact resistance and object temperature."""
+    """One contact window with its own contact resistance and object temperature.
+
+    ``end_s`` takes no part in equality: an open repeat touch is the same
+    touch (same object, same snapshots) once a heating closes it.
+    """
 
     start_s: float
-    end_s: float
+    end_s: float = field(compare=False)
     contact_resistance_m2K_W: float
     object_temperature_C: float
 
@@ -267,7 +333,9 @@ class FaithfulWorld:
         m = nominal.material
         k_s = m.k_W_mK if as_built.sensing_k_W_mK is None else as_built.sensing_k_W_mK
         self.sensing_material = Solid(k_W_mK=k_s, rho_kg_m3=m.rho_kg_m3, c_J_kgK=m.c_J_kgK)
-        self.stack = replace(nominal, sensing_thickness_m=L_s)   # as built (heater film nominal)
+        area = nominal.heater_area_m2 if geometry.heater_area_m2 is None else geometry.heater_area_m2
+        # As built; the heater film nominal, of the probe's real area.
+        self.stack = replace(nominal, sensing_thickness_m=L_s, heater_area_m2=area)
         sens = scene.sensors
         self.flux_sensitivity = (sens.flux_sensitivity_V_per_W_m2 if as_built.flux_sensitivity_V_per_W_m2 is None
                                  else as_built.flux_sensitivity_V_per_W_m2)
@@ -277,8 +345,15 @@ class FaithfulWorld:
             else as_built.heater_resistance_ohm
         self.T_amb = scene.environment.ambient_temperature_C
         self._faults: list[Fault] = [f for f in scene.faults if f.kind in _WORLD_KINDS]
-        self._touches: list[Touch] = [Touch(scene.touch.start_s, scene.touch.end_s, scene.contact_resistance_m2K_W,
-                                            scene.environment.initial_temperature_C)]
+        # Switch times, kept up to date from the drive's new changes (see _switch_times).
+        self._drive_rev = None
+        self._drive_times: set[float] = set()
+        self._sw: np.ndarray | None = None
+        self._sw_faults = -1
+        self._touches: list[Touch] = [Touch(scene.touch.start_s, scene.touch.end_s,
+                                            scene.touch_contact_resistance_m2K_W, scene.object_temperature_C)]
+        #: Whether the last touch is an open repeat touch (``[touch] repeat``, :meth:`repeat_touches`).
+        self._repeat_open = False
         self._configs: dict[tuple, _Config] = {}
         self._phases: list[_Phase] | None = None
         # History: one record per step end, plus one more at each switch (its right-hand side).
@@ -288,6 +363,18 @@ class FaithfulWorld:
         self._p0 = 0                        # first step that may still change (ends after "now")
         self._snaps: deque[tuple[int, _State]] = deque(maxlen=SNAPSHOTS)
         self._restart()
+        if scene.touch.repeat:
+            self._open_repeat(scene.touch.end_s)
+
+    @classmethod
+    def for_scene(cls, scene: Scene, clock, drive: HeaterDrive | None = None, *, dt_s: float = 0.01,
+                  **geometry: object) -> "FaithfulWorld":
+        """The world a scene describes: its ``[board] probe`` geometry and its ``[as_built]`` deviations.
+
+        ``geometry`` overrides fields of the probe's :class:`Geometry` (see :func:`geometry_for_probe`).
+        """
+        return cls(scene, clock, drive, as_built=as_built_for_scene(scene),
+                   geometry=geometry_for_probe(scene.board.probe, **geometry), dt_s=dt_s)
 
     # ------------------------------------------------------------------ configuration
 
@@ -320,11 +407,13 @@ class FaithfulWorld:
             bottom = Boundary(math.inf, T_obj) if o.back == "fixed" else ADIABATIC
         mesh = geo.mesh
         R = max(r_p, geo.object_radius_m)   # the same radial faces in every configuration
-        r_s = math.sqrt(SENSOR_AREA_m2 / math.pi)
-        feats = {0.0: mesh.axis_dr_m, r_s: mesh.feature_dr_m, a_h: mesh.edge_dr_m, r_p: mesh.edge_dr_m,
-                 geo.object_radius_m: mesh.feature_dr_m, R: mesh.feature_dr_m}
-        if a_h <= r_s:
-            raise ValueError("the heater must be wider than the flux sensor")
+        r_s = math.sqrt(SENSOR_AREA_m2 / math.pi) if geo.sensor_radius_m is None else geo.sensor_radius_m
+        # The heater's edge wins where it coincides with another feature (it is the sharp 2-D corner).
+        feats = {0.0: mesh.axis_dr_m, r_s: mesh.feature_dr_m, r_p: mesh.edge_dr_m,
+                 geo.object_radius_m: mesh.feature_dr_m, R: mesh.feature_dr_m, a_h: mesh.edge_dr_m}
+        # A sensor wider than the heater (the small-heater probe) reads the heater's edge and beyond.
+        if r_s > r_p:
+            raise ValueError("the flux sensor must lie within the probe")
         r_breaks = sorted(feats)
         z_sens = sum(l.thickness_m for l in layers[:n_probe_layers - 1])
         g = Grid.build(layers, r_breaks_m=r_breaks, r_fine_m=[feats[r] for r in r_breaks], mesh=mesh,
@@ -385,13 +474,32 @@ class FaithfulWorld:
         return supply_voltage(self._faults, t_s, self.scene.heater.supply_voltage_V)
 
     def _switch_times(self) -> np.ndarray:
-        times = set(self.drive.change_times()) if self.drive is not None else set()
+        """Every time the duty or supply may change (drive and heater faults), sorted.
+
+        Every query asks; a drive that reports its changes incrementally
+        (``changes_since``: the board's, ScheduleDrive, ManualDrive) is read
+        only for what is new, so a long session costs no more per query.
+        """
+        d = self.drive
+        since = getattr(d, "changes_since", None) if d is not None else None
+        n_faults = len(self._faults)
+        if since is not None:
+            rev, new = since(self._drive_rev)
+            if rev == self._drive_rev and not new and n_faults == self._sw_faults and self._sw is not None:
+                return self._sw
+            self._drive_rev = rev
+            self._drive_times.update(float(x) for x in new)
+            times = set(self._drive_times)
+        else:
+            times = set(d.change_times()) if d is not None else set()
         for f in self._faults:
             if f.kind in _HEATER_FAULTS:
                 times.add(f.at_s)
                 if f.until_s is not None:
                     times.add(f.until_s)
-        return np.array(sorted(times), dtype=float)
+        self._sw = np.array(sorted(times), dtype=float)
+        self._sw_faults = n_faults
+        return self._sw
 
     def _dv2(self, t: float) -> float:
         """duty * V^2 at ``t`` (W ohm)."""
@@ -459,13 +567,18 @@ class FaithfulWorld:
             raise ValueError(f"start_s={start_s} s is in the past (now {self.clock.now()} s)")
         if not (length > 0 and math.isfinite(length)):
             raise ValueError(f"length_s must be a finite number > 0, got {length_s!r}")
-        rc = self.scene.contact_resistance_m2K_W if contact_resistance_m2K_W is None else float(
+        rc = self.scene.touch_contact_resistance_m2K_W if contact_resistance_m2K_W is None else float(
             contact_resistance_m2K_W)
         if not (rc >= 0 and math.isfinite(rc)):
             raise ValueError("contact_resistance_m2K_W must be finite and >= 0")
-        T_o = self.scene.environment.initial_temperature_C if object_temperature_C is None else float(
-            object_temperature_C)
+        T_o = self.scene.object_temperature_C if object_temperature_C is None else float(object_temperature_C)
         end = start + length
+        if self._repeat_open:
+            # Touches placed by hand take over from the scene's touch after touch (as in ThermalWorld).
+            self._touches.pop()
+            self._repeat_open = False
+            self._phases = None
+            self._invalidate_from(self.clock.now())
         for t in self._touches:
             if start < t.end_s and t.start_s < end:
                 raise ValueError(f"touch [{start}, {end}) s overlaps the touch [{t.start_s}, {t.end_s}) s")
@@ -476,14 +589,62 @@ class FaithfulWorld:
 
     def contact_at(self, t_s: float) -> bool:
         """Whether the probe touches an object at ``t_s``."""
+        self._sync_repeat(self._switch_times())
         return self._touch_at(t_s) is not None
+
+    # ---- touch after touch
+
+    def repeat_touches(self) -> None:
+        """Touch after touch from now on (what ``[touch] repeat = true`` does; no-op if already on).
+
+        ``[touch] repeat_gap_s`` after each touch the probe is put down again
+        -- on a fresh spot of the object, at the touch's temperature and
+        contact resistance -- and stays until ``REPEAT_RELEASE_S`` after the
+        next heating ends; in between it hangs in air, carrying what heat
+        the last touch left in it (as :class:`firmware_sim.world.ThermalWorld`
+        does, without its uniform-probe approximation).
+        """
+        if self._repeat_open:
+            return
+        self._open_repeat(max(self._touches[-1].end_s if self._touches else 0.0, self.clock.now()))
+
+    def _open_repeat(self, after_s: float) -> None:
+        """Put the probe down again ``repeat_gap_s`` after ``after_s``, until a heating closes the touch."""
+        start = after_s + self.scene.touch.repeat_gap_s
+        self._touches.append(Touch(start, start + _OPEN_TOUCH_S, self.scene.touch_contact_resistance_m2K_W,
+                                   self.scene.object_temperature_C))
+        self._repeat_open = True
+        self._phases = None
+        self._invalidate_from(start)
+
+    def _sync_repeat(self, switches: np.ndarray) -> None:
+        """Close the open repeat touch at the first heater switch-off inside it (and open the next).
+
+        Every read syncs first, so the switch-off (at or before "now") is
+        learnt before any value after it is handed out; the new edges lie
+        ``REPEAT_RELEASE_S`` after it, so only provisional steps are redone.
+        """
+        if not self._repeat_open or self.drive is None:
+            return
+        open_t = self._touches[-1]
+        d = self.drive
+        for x in switches[np.searchsorted(switches, open_t.start_s, side="right"):]:
+            x = float(x)
+            if d.duty_at(x) <= 0 < d.duty_at(x - 1e-9):
+                end = x + REPEAT_RELEASE_S
+                self._touches[-1] = replace(open_t, end_s=end)
+                self._phases = None
+                self._invalidate_from(end)
+                self._open_repeat(end)
+                return
 
     def _touch_at(self, t_s: float) -> Touch | None:
         if self._active("no_contact", t_s):
             return None
-        for t in self._touches:
-            if t.start_s <= t_s < t.end_s:
-                return t
+        # Touches are sorted and disjoint: a bisection, so a long session costs no more per query.
+        i = bisect_right(self._touches, t_s, key=_start) - 1
+        if i >= 0 and t_s < self._touches[i].end_s:
+            return self._touches[i]
         return None
 
     def phases(self) -> list[_Phase]:
@@ -510,10 +671,8 @@ class FaithfulWorld:
         return out
 
     def _phase_at(self, t: float) -> _Phase:
-        for ph in self.phases():
-            if ph.start_s <= t < ph.end_s:
-                return ph
-        return self.phases()[-1]
+        ph = self.phases()
+        return ph[max(bisect_right(ph, t, key=_start) - 1, 0)]
 
     # ------------------------------------------------------------------ the march
 
@@ -673,10 +832,9 @@ class FaithfulWorld:
 
     def _invalidate_from(self, t_s: float) -> None:
         """Drop everything computed on or after ``t_s`` (a step that ends after it is redone)."""
-        for i, (t_a, t_b, *_) in enumerate(self._steps):
-            if t_b > t_s + _EPS_T:
-                self._rollback(i)
-                return
+        i = bisect_right(self._steps, t_s + _EPS_T, key=_second)   # the first step ending after t_s
+        if i < len(self._steps):
+            self._rollback(i)
 
     def _rollback(self, i: int) -> None:
         for n, snap in reversed(self._snaps):
@@ -706,6 +864,7 @@ class FaithfulWorld:
     def _advance_to(self, t: float) -> None:
         now = self.clock.now()
         switches = self._switch_times()
+        self._sync_repeat(switches)
         self._revalidate(switches, now)
         while self._state.t < t - 1e-12:
             self._step(switches, now)
@@ -750,7 +909,8 @@ class FaithfulWorld:
         """Series at times ``t_s`` (s): surface (probe-side face on the axis), thermocouple, face flux."""
         t = np.asarray(t_s, dtype=float).ravel()
         v = self._interp(t, ("T_tc", "q_face"))
-        return Truth(t, v["T_tc"], v["y"], v["q_face"], np.array([self.contact_at(x) for x in t], dtype=bool),
+        # _interp synced the repeat touches: the contact flags can be read directly.
+        return Truth(t, v["T_tc"], v["y"], v["q_face"], np.array([self._touch_at(x) is not None for x in t], dtype=bool),
                      np.array([self.q_v_at(x) for x in t]))
 
     def series(self, t_s: Sequence[float]) -> dict[str, np.ndarray]:
@@ -762,8 +922,7 @@ class FaithfulWorld:
     def _resistance_in_step(self, t: float) -> float:
         """Film resistance the march used in the step containing ``t`` (R at the step's start)."""
         self._advance_to(t + 1e-9)
-        starts = [s[0] for s in self._steps]
-        i = max(int(np.searchsorted(starts, t, side="right")) - 1, 0)
+        i = max(bisect_right(self._steps, t, key=_first) - 1, 0)
         return self._steps[i][4]
 
     def thermopile_W_m2(self, t_s: float) -> float:

@@ -25,6 +25,8 @@ __all__ = [
     "HeaterSpec",
     "BoardSpec",
     "SensorSpec",
+    "AsBuiltSpec",
+    "WORLDS",
     "TouchSpec",
     "Fault",
     "Scene",
@@ -41,6 +43,10 @@ FAULT_KINDS = (
     "no_contact",
 )
 BACKS = ("fixed", "insulated", "infinite")
+#: Thermal worlds behind the chips: ``"ideal"`` (firmware_sim.world.ThermalWorld, the exact 1-D
+#: solution of the estimator's own idealisation) and ``"faithful"`` (firmware_sim.rz.probe_world.
+#: FaithfulWorld, the axisymmetric finite-volume probe with its as-built deviations).
+WORLDS = ("ideal", "faithful")
 #: Valid 7-bit addresses of each chip a board may carry (from the chips' register maps).
 CHIP_ADDRESSES: dict[str, tuple[int, ...]] = {
     "mcp9600": mcp9600.ADDRESSES,
@@ -108,12 +114,18 @@ class HeaterSpec:
 
 @dataclass(frozen=True)
 class BoardSpec:
-    """Fitted chips (7-bit addresses, None = absent) and probe stack name."""
+    """Fitted chips (7-bit addresses, None = absent), probe stack name, thermal world and probe geometry.
+
+    ``probe`` names an :data:`edge.physics.geometry.PROBES` entry; only the
+    faithful world resolves a heater smaller than the object (the ideal world is 1-D).
+    """
 
     mcp9600: int | None = None
     ads1115: int | None = None
     ads122c04: int | None = None
     stack_name: str = "0.42"
+    world: str = "ideal"
+    probe: str = "paper"
 
     @property
     def stack(self) -> ProbeStack:
@@ -140,8 +152,34 @@ class SensorSpec:
 
 
 @dataclass(frozen=True)
+class AsBuiltSpec:
+    """How the simulated probe was really built (``[as_built]``); the device is never told.
+
+    Factors multiply the nominal values (the stack's sensing layer, the
+    ``[sensors]`` flux sensitivity, the ``[heater]`` resistance); the lag and
+    the TCR are absolute. Used by the faithful world only.
+    """
+
+    sensing_thickness_factor: float = 1.0
+    sensing_k_factor: float = 1.0
+    flux_sensitivity_factor: float = 1.0
+    heater_resistance_factor: float = 1.0
+    thermocouple_time_constant_s: float | None = None   # None: the [sensors] value
+    heater_tcr_per_K: float = 0.0
+    heater_reference_C: float = 25.0
+
+
+@dataclass(frozen=True)
 class TouchSpec:
-    """When the probe is on the object (virtual seconds)."""
+    """When the probe is on the object (virtual seconds), and how it meets it.
+
+    ``contact_resistance_m2K_W`` and the object temperature
+    (``object_temperature_C``, or ``object_offset_K`` from ambient), when
+    given, hold for every touch of the session and override the scene-wide
+    values; ``contact_lead_s`` is how long the probe rests on the object
+    before the heater goes on (the daemon's baseline covers it; negative:
+    the heater goes on first and the probe lands late).
+    """
 
     start_s: float
     length_s: float
@@ -150,10 +188,19 @@ class TouchSpec:
     #: Touch after touch: the probe is put on the object again ``repeat_gap_s`` after each touch.
     repeat: bool | None = None
     repeat_gap_s: float = 1.0
+    contact_resistance_m2K_W: float | None = None
+    object_temperature_C: float | None = None
+    object_offset_K: float | None = None
+    contact_lead_s: float = 0.0
 
     @property
     def end_s(self) -> float:
         return self.start_s + self.length_s
+
+    @property
+    def heater_on_s(self) -> float:
+        """When the daemon of a sim session switches the heater on: ``contact_lead_s`` after contact."""
+        return self.start_s + self.contact_lead_s
 
 
 @dataclass(frozen=True)
@@ -186,10 +233,27 @@ class Scene:
     faults: tuple[Fault, ...] = ()
     description: str = ""
     source: str = "<string>"
+    as_built: AsBuiltSpec | None = None   # None: built as nominal
 
     @property
     def stack(self) -> ProbeStack:
         return self.board.stack
+
+    @property
+    def touch_contact_resistance_m2K_W(self) -> float:
+        """Contact resistance of the scene's touches: ``[touch]``'s if given, else the scene-wide one."""
+        rc = self.touch.contact_resistance_m2K_W
+        return self.contact_resistance_m2K_W if rc is None else rc
+
+    @property
+    def object_temperature_C(self) -> float:
+        """Object temperature when touched: ``[touch]``'s (absolute or offset from ambient), else the initial one."""
+        t = self.touch
+        if t.object_temperature_C is not None:
+            return t.object_temperature_C
+        if t.object_offset_K is not None:
+            return self.environment.ambient_temperature_C + t.object_offset_K
+        return self.environment.initial_temperature_C
 
     def q_v_W_m3(self, duty: float = 1.0, voltage_V: float | None = None) -> float:
         """Heater power density (W/m^3) at PWM ``duty`` on ``voltage_V`` (default: the supply)."""

@@ -19,6 +19,7 @@ from edge.schema import Field, SchemaError, check_table, check_value
 
 from firmware_sim.scene.model import (
     CHIP_ADDRESSES,
+    AsBuiltSpec,
     BoardSpec,
     Environment,
     Fault,
@@ -30,7 +31,10 @@ from firmware_sim.scene.model import (
     TouchSpec,
 )
 from firmware_sim.scene.schema import (
+    AS_BUILT_FIELDS,
     BOARD_FIELDS,
+    T_MAX_C,
+    T_MIN_C,
     ENVIRONMENT_FIELDS,
     FAULT_FIELDS,
     FAULT_PARAM_FIELDS,
@@ -43,6 +47,9 @@ from firmware_sim.scene.schema import (
 )
 
 __all__ = ["MaterialLookup", "library_material", "parse_scene", "validate_fault"]
+
+#: Shortest baseline a sim session gives the daemon before heater-on (firmware_sim.run.config_for_scene).
+_SHORTEST_BASELINE_S = 0.2
 
 #: Resolves ``object.material``: name -> ``(k_W_mK, rho_kg_m3, c_J_kgK)``; KeyError if unknown.
 MaterialLookup = Callable[[str], tuple[float, float, float]]
@@ -107,7 +114,37 @@ def _board(data: Any) -> BoardSpec:
         raise SchemaError("board.mcp9600", "missing: fit a thermocouple reader (board.mcp9600 or board.ads122c04)")
     if b.get("ads1115") is None and b.get("ads122c04") is None:
         raise SchemaError("board.ads1115", "missing: fit a flux-sensor reader (board.ads1115 or board.ads122c04)")
-    return BoardSpec(b.get("mcp9600"), b.get("ads1115"), b.get("ads122c04"), b["stack"])
+    if b["probe"] != "paper" and b["world"] != "faithful":
+        raise SchemaError("board.probe", f'probe {b["probe"]!r} needs world = "faithful" '
+                          "(the ideal world is 1-D: it knows no heater smaller than the object)")
+    return BoardSpec(b.get("mcp9600"), b.get("ads1115"), b.get("ads122c04"), b["stack"], b["world"], b["probe"])
+
+
+def _touch(data: Any, env: Mapping[str, Any]) -> TouchSpec:
+    t = check_table(data, TOUCH_FIELDS, "touch")
+    if "object_temperature_C" in t and "object_offset_K" in t:
+        raise SchemaError("touch.object_offset_K", "give touch.object_temperature_C or touch.object_offset_K, not both")
+    if "object_offset_K" in t:
+        # The offset must land where the thermocouple reads, like an absolute temperature.
+        check_value(Field("float", lo=T_MIN_C, hi=T_MAX_C), env["ambient_temperature_C"] + t["object_offset_K"],
+                    "touch.object_offset_K")
+    if t["contact_lead_s"] < 0 and t["start_s"] + t["contact_lead_s"] < _SHORTEST_BASELINE_S:
+        raise SchemaError("touch.contact_lead_s",
+                          f"the heater would go on at {t['start_s'] + t['contact_lead_s']:g} s; a late touch needs "
+                          f"touch.start_s + touch.contact_lead_s >= {_SHORTEST_BASELINE_S} s (the daemon's baseline)")
+    if t["contact_lead_s"] >= t["length_s"]:
+        raise SchemaError("touch.contact_lead_s",
+                          f"must be < touch.length_s ({t['length_s']} s: the heating happens during the touch), "
+                          f"got {t['contact_lead_s']}")
+    return TouchSpec(**t)
+
+
+def _as_built(data: Any, board: BoardSpec) -> AsBuiltSpec:
+    a = check_table(data, AS_BUILT_FIELDS, "as_built")
+    if board.world != "faithful":
+        # The ideal world is the nominal probe by construction: a deviation it would ignore is an error.
+        raise SchemaError("as_built", 'needs board.world = "faithful" (the ideal world is the nominal probe)')
+    return AsBuiltSpec(**a)
 
 
 def _exactly_one(p: Mapping[str, Any], a: str, b: str, path: str) -> None:
@@ -152,7 +189,8 @@ def _scene(data: Mapping[str, Any], source: str, name: str | None, lookup: Mater
     h = check_table(top["heater"], HEATER_FIELDS, "heater")
     board = _board(top["board"])
     sensors = SensorSpec(**check_table(top["sensors"], SENSOR_FIELDS, "sensors")) if "sensors" in top else SensorSpec()
-    touch = TouchSpec(**check_table(top["touch"], TOUCH_FIELDS, "touch"))
+    touch = _touch(top["touch"], e)
+    as_built = _as_built(top["as_built"], board) if "as_built" in top else None
     faults = []
     for i, raw in enumerate(top.get("faults", [])):
         fault = _fault(raw, f"faults[{i}]")
@@ -173,6 +211,7 @@ def _scene(data: Mapping[str, Any], source: str, name: str | None, lookup: Mater
         faults=tuple(faults),
         description=top["description"],
         source=source,
+        as_built=as_built,
     )
 
 

@@ -45,9 +45,27 @@ Top level::
     ads1115?    int  I2C address 0x48..0x4B (flux sensor on AIN0-AIN1)
     ads122c04?  int  I2C address 0x40..0x4F (thermocouple on AIN0-AIN1, flux on AIN2-AIN3)
     stack?      str  "0.42" (default) or "0.40": probe layer stack, see edge.physics.solids
+    world?      str  "ideal" (default: exact 1-D, the estimator's idealisation) or "faithful"
+                     (axisymmetric finite volumes: foam, finite heater, convection, as-built deviations)
+    probe?      str  a name in edge.physics.geometry.PROBES: "paper" (default) or "small-heater";
+                     anything but "paper" needs world = "faithful"
 
 At least one thermocouple reader (mcp9600 or ads122c04) and one flux reader
 (ads1115 or ads122c04) must be fitted; addresses must differ.
+
+``[as_built]`` (optional; world = "faithful" only) -- how the probe was
+really built; the device is never told (the daemon's configuration keeps the
+nominal values)::
+
+    sensing_thickness_factor?      float  sensing layer thickness / nominal (default 1)
+    sensing_k_factor?              float  sensing layer conductivity / nominal (default 1)
+    flux_sensitivity_factor?       float  true thermopile sensitivity / [sensors] value (default 1)
+    heater_resistance_factor?      float  true film resistance / [heater] value (default 1)
+    thermocouple_time_constant_s?  float  >= 0, true bead lag (default: the [sensors] value)
+    heater_tcr_per_K?              float  film temperature coefficient of resistance (default 0)
+    heater_reference_C?            float  temperature of the stated resistance (default 25)
+
+Factors lie in [0.5, 2].
 
 ``[sensors]`` (optional)::
 
@@ -71,6 +89,13 @@ At least one thermocouple reader (mcp9600 or ads122c04) and one flux reader
                                  session measures again and again with the probe in
                                  air in between (touches added by hand turn it off)
     repeat_gap_s?   float > 0    time in air between touches (default 1.0)
+    contact_resistance_m2K_W?  float >= 0  this session's touches (overrides the top-level value)
+    object_temperature_C?      float       object temperature at each touch (overrides
+                                           environment.initial_temperature_C), or
+    object_offset_K?           float       the same as an offset from ambient (not both)
+    contact_lead_s?            float       the probe rests on the object this long before the
+                                           heater goes on (< length_s; default 0); negative: the
+                                           heater goes on first (a late touch), at >= 0.2 s
 
 ``[[faults]]`` (optional, any number)::
 
@@ -96,6 +121,7 @@ from __future__ import annotations
 
 from typing import Mapping
 
+from edge.physics.geometry import PROBES
 from edge.physics.probe import STACKS
 from edge.schema import Field
 from firmware_sim.scene.model import (
@@ -103,6 +129,8 @@ from firmware_sim.scene.model import (
     CHIP_ADDRESSES,
     FAULT_KINDS,
     FLUX_SATURATION_V,
+    WORLDS,
+    AsBuiltSpec,
     SensorSpec,
 )
 
@@ -116,6 +144,7 @@ __all__ = [
     "HEATER_FIELDS",
     "BOARD_FIELDS",
     "SENSOR_FIELDS",
+    "AS_BUILT_FIELDS",
     "TOUCH_FIELDS",
     "FAULT_FIELDS",
     "FAULT_PARAM_FIELDS",
@@ -139,6 +168,7 @@ TOP_FIELDS: Mapping[str, Field] = {
     "board": Field("table", doc="fitted chips"),
     "sensors": Field("table", None, "sensor characteristics and noise"),
     "touch": Field("table", doc="when the probe is on the object"),
+    "as_built": Field("table", None, "how the probe was really built (faithful world; never told to the device)"),
     "faults": Field("list", None, "[[faults]]: injected faults"),
 }
 
@@ -169,6 +199,23 @@ HEATER_FIELDS: Mapping[str, Field] = {
 BOARD_FIELDS: Mapping[str, Field] = {
     **{chip: Field("int", None, f"I2C address of the {chip}") for chip in CHIP_ADDRESSES},
     "stack": Field("str", "0.42", "probe layer stack (edge.physics.probe.STACKS)", choices=tuple(STACKS)),
+    "world": Field("str", "ideal", "thermal world behind the chips", choices=WORLDS),
+    "probe": Field("str", "paper", "probe geometry (edge.physics.geometry.PROBES)", choices=tuple(PROBES)),
+}
+
+#: A few per cent is what a build deviates by; the bounds only catch typos (a factor of 100, a sign).
+_FACTOR = {"lo": 0.5, "hi": 2.0}
+_NOMINAL = AsBuiltSpec()
+AS_BUILT_FIELDS: Mapping[str, Field] = {
+    "sensing_thickness_factor": Field("float", 1.0, "sensing layer thickness / nominal", **_FACTOR),
+    "sensing_k_factor": Field("float", 1.0, "sensing layer conductivity / nominal", **_FACTOR),
+    "flux_sensitivity_factor": Field("float", 1.0, "true thermopile sensitivity / nominal", **_FACTOR),
+    "heater_resistance_factor": Field("float", 1.0, "true film resistance / nominal", **_FACTOR),
+    "thermocouple_time_constant_s": Field("float", None, "true bead lag (default: [sensors])", lo=0.0, hi=10.0),
+    "heater_tcr_per_K": Field("float", _NOMINAL.heater_tcr_per_K, "film temperature coefficient of resistance",
+                              lo=-0.01, hi=0.01),
+    "heater_reference_C": Field("float", _NOMINAL.heater_reference_C, "temperature of the stated resistance",
+                                **_TEMPERATURE),
 }
 
 _DEFAULT_SENSORS = SensorSpec()
@@ -191,6 +238,12 @@ TOUCH_FIELDS: Mapping[str, Field] = {
     "repeat": Field("bool", None, "touch after touch: the probe is put down again repeat_gap_s after a touch "
                     "(default: on in a thermotouch sim session, off for a bare Simulator)"),
     "repeat_gap_s": Field("float", 1.0, "time in air between repeat touches", **_POSITIVE),
+    "contact_resistance_m2K_W": Field("float", None, "contact resistance of each touch (overrides the top level)",
+                                      lo=0.0, hi=1.0),
+    "object_temperature_C": Field("float", None, "object temperature at each touch", **_TEMPERATURE),
+    "object_offset_K": Field("float", None, "object temperature at each touch, from ambient", lo=-200.0, hi=200.0),
+    "contact_lead_s": Field("float", 0.0, "contact this long before heater-on (< length_s; < 0: after)",
+                            lo=-10.0, hi=60.0),
 }
 
 #: ``until_s`` must also exceed ``at_s``; the parser checks that bound.

@@ -330,9 +330,8 @@ def test_provisional_steps_follow_the_drive_and_faults():
 
 
 def test_drop_in_surface_matches_thermal_world():
-    # Touch-after-touch sessions (ThermalWorld.repeat_touches, closed by the next heating) are not
-    # modelled on the faithful world yet: a session there adds its touches with add_touch.
-    public = {n for n in dir(ThermalWorld) if not n.startswith("_")} - {"repeat_touches"}
+    # Touch after touch (repeat_touches) included: test_probe_world_sessions.py.
+    public = {n for n in dir(ThermalWorld) if not n.startswith("_")}
     assert public <= {n for n in dir(FaithfulWorld) if not n.startswith("_")}
     sc = scene()
     sat = dataclasses.replace(sc, faults=(Fault("flux_saturation", 1.0, 1.2, {"voltage_V": 0.3}),
