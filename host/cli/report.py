@@ -43,6 +43,13 @@ def result_lines(d: dict) -> list[str]:
     ]
     if d["material"]:
         lines.append(f"material     {d['material']} (confidence {d['material_confidence'] * 100:.0f} %)")
+    if d.get("probe"):  # the axisymmetric estimate says what the touch itself determined
+        corr = d.get("corr_k_alpha")
+        lines.append(f"probe {d['probe']}: determined {', '.join(d.get('determined') or []) or 'nothing'}; "
+                     f"from the prior {', '.join(d.get('from_prior') or []) or 'nothing'}"
+                     + ("" if corr is None else f"; corr(k, alpha) {corr:+.2f}"))
+    if d.get("prior_reason"):
+        lines.append(f"prior: {d['prior_reason']}")
     lines.append(f"method {d['method']}, model {(d.get('model_sha256') or '')[:12]}, "
                  f"flags: {', '.join(d['flags']) or 'none'}")
     return lines
