@@ -69,3 +69,15 @@ def test_small_heater_probe_takes_the_axisymmetric_fit(store):
 def test_unknown_probe_refused(store):
     with pytest.raises(ValueError, match="unknown probe"):
         ModelEstimator(store, probe="tiny")
+
+
+def test_daemon_builds_its_estimator_for_the_configured_probe(tmp_path):
+    from edge.service.daemon import Daemon
+    from firmware_sim.rigs.daemon_rig import make_rig
+    from tests.support.daemons import FakeEstimator, sim_config
+
+    d = Daemon(sim_config(tmp_path, board={"probe": "small-heater"}), make_rig().board, estimator=FakeEstimator())
+    try:
+        assert d._model_est.probe == "small-heater"
+    finally:
+        d.close()
