@@ -49,6 +49,10 @@ __all__ = ["AxiEstimator", "QUANTITIES"]
 #: Names of the quantities in ``determined`` / ``from_prior``.
 QUANTITIES = ("e", "k", "alpha")
 _BACKS = ("infinite", "insulated", "fixed")
+#: Longest span t_max / t_min of the samples fitted: the model's fixed time contour is accurate to
+#: ~1e-6 over 250 (edge.physics.axisym) and degrades beyond (2e-5 at 1000, 2e-4 at 5000); the first
+#: few milliseconds of a fast-sampled record carry next to nothing on k and alpha.
+MAX_TIME_SPAN = 250.0
 
 
 def _num(x):
@@ -107,7 +111,8 @@ class AxiEstimator:
 
         Parameters
         ----------
-        t_s : (n,) sample times (s), increasing; samples at t <= 0 are ignored.
+        t_s : (n,) sample times (s), increasing; samples at t <= 0, and before
+            ``t_s[-1] / MAX_TIME_SPAN``, are ignored.
         dT_K : (n,) thermocouple rise over the baseline (K).
         q_W_m2 : (n,) flux-sensor reading (W/m^2).
         power_W : heater power the touch was made at (default: the probe's nominal);
@@ -128,7 +133,7 @@ class AxiEstimator:
         q = finite_array("q_W_m2", q_W_m2)
         if T.shape != t.shape or q.shape != t.shape:
             raise ValueError(f"t_s, dT_K and q_W_m2 must have equal lengths, got {t.size}, {T.size}, {q.size}")
-        keep = t > 0
+        keep = (t > 0) & (t >= t[-1] / MAX_TIME_SPAN)
         t, T, q = t[keep], T[keep], q[keep]
         est = self.estimator
         out = {"effusivity_W_s05_m2K": None, "effusivity_W_s05_m2K_u": None, "k_W_mK": None, "k_W_mK_u": None,

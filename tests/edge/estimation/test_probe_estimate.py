@@ -79,3 +79,13 @@ def test_models_are_cached_per_time_grid(axi, rng):
     n = len(axi._models)
     axi.estimate(t, T, q)
     assert len(axi._models) == n
+
+
+def test_fast_sampled_record_drops_the_first_milliseconds(axi, rng):
+    # 500 Hz over 2 s spans 1000x in time; the model's contour is tuned for 250x, so the samples
+    # before 8 ms are left out (they carry next to nothing on k and alpha).
+    t, T, q = record(GLASS, 2.0, 0.002, rng)
+    d = axi.estimate(t, T, q)
+    assert d["determined"] == ["e", "k", "alpha"]
+    assert abs(math.log(d["k_W_mK"] / GLASS.k_W_mK)) < 4 * d["k_W_mK_u"] / d["k_W_mK"]
+    assert any(m.t_s[0] == pytest.approx(0.008) and m.t_s.size == 997 for m in axi._models.values())
