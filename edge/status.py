@@ -88,3 +88,11 @@ class Flag(StrEnum):
     FEATURE_CLIPPED = "feature_clipped"
     #: The best diffusivity sits at the end of the scanned range.
     ALPHA_AT_SCAN_EDGE = "alpha_at_scan_edge"
+    #: The touch did not resolve k and alpha separately: they come from the library prior given e
+    #: (the result's ``prior_reason`` says why).
+    K_ALPHA_FROM_PRIOR = "k_alpha_from_prior"
+    #: The object's stated thickness does not show in the record (the heat has not reached its back):
+    #: k and alpha come from the prior, not from the thickness.
+    THICKNESS_UNRESOLVED = "thickness_unresolved"
+    #: The iterative fit stopped before it converged.
+    NOT_CONVERGED = "not_converged"

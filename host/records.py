@@ -8,15 +8,19 @@ Schema: a header row, then one row per sample; columns (any order)
   the first sample;
 * ``q_W_m2`` - heat flux into the object (W/m^2).
 
-Lines starting with ``#`` are comments.  The file is UTF-8 text (a leading
-byte-order mark, as some spreadsheets write, is accepted).  Errors name the
-line and column.
+Lines starting with ``#`` are comments.  A comment of the form
+``# key: value`` before the header row is metadata (:func:`read_record_metadata`);
+``# probe: NAME`` names the probe head that took the record (a name in
+:data:`edge.physics.geometry.PROBES`), which ``thermotouch estimate`` checks
+against ``--probe``.  The file is UTF-8 text (a leading byte-order mark, as
+some spreadsheets write, is accepted).  Errors name the line and column.
 """
 
 from __future__ import annotations
 
 import csv
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +28,31 @@ import numpy as np
 
 class RecordError(ValueError):
     """A malformed record file; the message names the line and column."""
+
+
+_META = re.compile(r"^#\s*([A-Za-z_][A-Za-z0-9_]*)\s*:\s*(.*?)\s*$")
+
+
+def read_record_metadata(path: str | Path) -> dict[str, str]:
+    """``# key: value`` comments before the header row, as a dict (keys lower case; the first wins)."""
+    path = Path(path)
+    try:
+        text = path.read_bytes().decode("utf-8-sig")
+    except OSError as exc:
+        raise RecordError(f"{path}: cannot read ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise RecordError(f"{path}: not a text CSV file (byte {exc.start} is not UTF-8)") from None
+    meta: dict[str, str] = {}
+    for line in text.splitlines():
+        s = line.strip()
+        if not s:
+            continue
+        if not s.startswith("#"):
+            break  # the header row: metadata ends there
+        m = _META.match(s)
+        if m:
+            meta.setdefault(m.group(1).lower(), m.group(2))
+    return meta
 
 
 def read_record(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -76,12 +105,14 @@ def read_record(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t[keep], T[keep], q[keep]
 
 
-def write_record(path: str | Path, t_s, dT_K, q_W_m2) -> None:
-    """Write a record in the schema above (dT_K column), atomically."""
+def write_record(path: str | Path, t_s, dT_K, q_W_m2, *, probe: str | None = None) -> None:
+    """Write a record in the schema above (dT_K column), atomically; ``probe``: its ``# probe:`` line."""
     from host.atomic import atomic_path  # noqa: PLC0415
 
     with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as f:
         f.write("# ThermoTouch record: time since heater-on, excess temperature, flux into the object\n")
+        if probe is not None:
+            f.write(f"# probe: {probe}\n")
         w = csv.writer(f)
         w.writerow(["t_s", "dT_K", "q_W_m2"])
         for row in zip(t_s, dT_K, q_W_m2):

@@ -10,7 +10,9 @@ Sections
 --------
 board
     Which board factory (``kind``: ``"rpi"`` or a registered one such as
-    ``"sim"``) and where its devices are (I2C bus, GPIO chip and offsets, PWM
+    ``"sim"``), which probe head is mounted (``probe``: a name in
+    :data:`edge.physics.geometry.PROBES`; it decides the estimator's model)
+    and where its devices are (I2C bus, GPIO chip and offsets, PWM
     root/chip/channel).
 sensors
     Which chips are fitted, their addresses and settings: the thermocouple
@@ -64,6 +66,7 @@ from typing import Any, Iterable, Mapping
 from edge.estimation.estimate import METHODS
 from edge.schema import Field, SchemaError, check_value, type_name
 from edge.storage import durable
+from edge.physics.geometry import PROBES
 from edge.physics.probe import FLUX_SENSITIVITY_V_per_W_m2, heater_power_W
 
 __all__ = [
@@ -117,6 +120,11 @@ class BoardConfig:
     """The ``[board]`` section."""
 
     kind: str = setting("str", "rpi", "board factory name: 'rpi', or 'sim' when the simulator registered it")
+    # Not runtime: the probe head is hardware; changing it over the link would let a host make the
+    # device interpret its records with the wrong geometry.
+    probe: str = setting("str", "paper", "probe head mounted on the board (its geometry decides the estimator: "
+                         "'paper' = 55 x 60 mm heater, 1-D; 'small-heater' = 5 mm-radius disk, axisymmetric fit)",
+                         choices=tuple(PROBES))
     i2c_bus: int | str = setting("int_or_str", 1, "I2C bus number or device path", lo=0)
     gpio_chip: str = setting("str", "/dev/gpiochip0", "GPIO character device")
     heater_enable_offset: int = setting("int", 17, "heater-enable line offset", lo=0, hi=1023)

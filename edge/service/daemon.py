@@ -249,7 +249,8 @@ class Daemon:
                 log.info("model %s (%s) from %s", b.model_version, b.sha256[:12], self.store.source)
             except ModelStoreError as e:
                 log.error("no usable model yet: %s", e)
-            self._model_est = ModelEstimator(self.store, thermocouple_resolution_K(self.config.sensors))
+            self._model_est = ModelEstimator(self.store, thermocouple_resolution_K(self.config.sensors),
+                                           probe=self.config.board.probe)
             self.estimator = estimator if estimator is not None else self._model_est
             #: Set by ABORT: the running measurement stops with reason host_abort.
             self._cancel = threading.Event()

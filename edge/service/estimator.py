@@ -4,6 +4,11 @@ It lives in the service layer because it joins two peers that know nothing
 of each other -- the model store (:mod:`edge.model.store`) and the estimator
 (:mod:`edge.estimation.estimate`) -- into the ``EstimatorFn`` the
 measurement sequence calls (:data:`edge.measure.sequence.EstimatorFn`).
+
+It dispatches on the probe head (``board.probe``): ``"paper"`` takes the 1-D
+path exactly as before; ``"small-heater"`` the axisymmetric fit
+(:class:`edge.estimation.probe_estimate.AxiEstimator`), whose result also says
+what the touch determined and what came from the library prior.
 """
 
 from __future__ import annotations
@@ -14,6 +19,8 @@ import numpy as np
 
 from edge.estimation.estimate import Estimator
 from edge.model.store import ModelStore, ModelStoreError
+from edge.physics.geometry import PROBES, get_probe
+from edge.physics.probe import HEATER_VOLUME_m3
 
 __all__ = ["ModelEstimator"]
 
@@ -28,10 +35,17 @@ class ModelEstimator:
     store : ModelStore
     T_resolution_K : float
         The thermometer's resolution (K), which the estimator carries into u(e).
+    probe : str
+        The probe head (a name in :data:`edge.physics.geometry.PROBES`, ``board.probe``).
     """
 
-    def __init__(self, store: ModelStore, T_resolution_K: float = 0.0) -> None:
+    def __init__(self, store: ModelStore, T_resolution_K: float = 0.0, probe: str = "paper") -> None:
+        if probe not in PROBES:
+            raise ValueError(f"unknown probe {probe!r}; shipped: {sorted(PROBES)}")
         self.store = store
+        #: The probe head whose geometry decides the estimator.
+        self.probe = probe
+        self._axi = None
         #: The thermometer's resolution (K), which the estimator carries into u(e).
         self.T_resolution_K = float(T_resolution_K)
         self._sha: str | None = None
@@ -52,6 +66,17 @@ class ModelEstimator:
         with self._lock:
             if self._sha != bundle.sha256:
                 self._est, self._sha = Estimator.from_bundle(bundle), bundle.sha256
+                self._axi = None
             est = self._est
+            if self.probe != "paper" and self._axi is None:
+                from edge.estimation.probe_estimate import AxiEstimator  # noqa: PLC0415
+
+                self._axi = AxiEstimator(est, get_probe(self.probe))
+            axi = self._axi
+        if self.probe != "paper":
+            # The sequence reports the heater's power density on the paper's heater volume (the
+            # 1-D model's convention); the power itself is what the axisymmetric fit starts from.
+            return axi.estimate(t_s, dT_K, q_W_m2, power_W=q_v_W_m3 * HEATER_VOLUME_m3 if q_v_W_m3 else None,
+                                T_resolution_K=self.T_resolution_K)
         return est.estimate(t_s, dT_K, q_W_m2, method=method, q_v_W_m3=q_v_W_m3,
                             T_resolution_K=self.T_resolution_K).to_dict()

@@ -2,18 +2,34 @@
 
 from __future__ import annotations
 
+import argparse
+
 from host.cli.args import existing_file, positive_float
 from host.cli.common import load_estimator, load_object_set
 from host.cli.errors import CliError
 from host.cli.report import dumps, print_result
 
 
+def probe_name(text: str) -> str:
+    """A shipped probe head (a name in :data:`edge.physics.geometry.PROBES`)."""
+    from edge.physics.geometry import PROBES  # noqa: PLC0415
+
+    if text not in PROBES:
+        raise argparse.ArgumentTypeError(f"unknown probe {text!r}; shipped: {', '.join(PROBES)}")
+    return text
+
+
 def add_parser(sub, parents):
     p = sub.add_parser("estimate", help="e, k, alpha and the material from a recorded series", parents=parents)
     p.add_argument("--bundle", default=None, help="bundle directory (default: the shipped one)")
     p.add_argument("--csv", required=True, type=existing_file,
-                   help="record: columns t_s, T_K or dT_K, q_W_m2 (UTF-8, a byte-order mark is fine)")
-    p.add_argument("--method", choices=("paper", "default"), default="default")
+                   help="record: columns t_s, T_K or dT_K, q_W_m2 (UTF-8, a byte-order mark is fine); "
+                        "a '# probe: NAME' comment before the header must match --probe")
+    p.add_argument("--probe", type=probe_name, default="paper",
+                   help="probe head that took the record: paper (1-D, default) or small-heater "
+                        "(axisymmetric fit of k and alpha; T is its thermocouple, q its flux sensor)")
+    p.add_argument("--method", choices=("paper", "default"), default=None,
+                   help="paper probe only: default or paper (default: default)")
     p.add_argument("--thickness", type=positive_float, default=None, help="known object thickness, m")
     p.add_argument("--back", choices=("insulated", "fixed"), default=None,
                    help="back boundary when --thickness is given (default insulated)")
@@ -26,10 +42,14 @@ def add_parser(sub, parents):
 
 def run(args) -> int:
     from edge.estimation.objects import LIBRARY_SET, ObjectSet, recognition_fields  # noqa: PLC0415
-    from host.records import RecordError, read_record  # noqa: PLC0415
+    from host.records import RecordError, read_record, read_record_metadata  # noqa: PLC0415
 
     if args.back is not None and args.thickness is None:
         raise CliError("--back needs --thickness (without it the object is semi-infinite)")
+    if args.probe != "paper" and args.method is not None:
+        # The paper's network was trained on the paper's probe; the small heater has one method.
+        raise CliError(f"--method is for the paper probe; --probe {args.probe} uses the axisymmetric fit")
+    method = args.method or "default"
     # The object file is checked before the record: a bad file is the user's to fix first.
     if args.objects is not None:
         objects, _ = load_object_set(args.objects)
@@ -37,16 +57,24 @@ def run(args) -> int:
     else:
         objects, set_name = ObjectSet.from_library(), LIBRARY_SET
     try:
+        recorded = read_record_metadata(args.csv).get("probe")
         t, dT, q = read_record(args.csv)
     except RecordError as exc:
         raise CliError(f"--csv {exc}") from None
-    est, _ = load_estimator(args.bundle, args.method)
+    if recorded is not None and recorded != args.probe:
+        # A record estimated with another probe's geometry gives confident nonsense: refuse.
+        raise CliError(f"--csv {args.csv} was taken with probe {recorded!r}, not --probe {args.probe}")
+    est, _ = load_estimator(args.bundle, method)
     back = "infinite" if args.thickness is None else (args.back or "insulated")
     try:
-        r = est.estimate(t, dT, q, method=args.method, thickness_m=args.thickness, back=back)
+        if args.probe == "paper":
+            d = est.estimate(t, dT, q, method=method, thickness_m=args.thickness, back=back).to_dict()
+        else:
+            from edge.estimation.probe_estimate import AxiEstimator  # noqa: PLC0415
+
+            d = AxiEstimator(est, args.probe).estimate(t, dT, q, thickness_m=args.thickness, back=back)
     except ValueError as exc:
         raise CliError(str(exc)) from None
-    d = r.to_dict()
     d.update(recognition_fields(objects, d, set_name=set_name))
     if args.json:
         print(dumps(d))

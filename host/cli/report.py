@@ -47,6 +47,13 @@ def result_lines(d: dict) -> list[str]:
         cands = ", ".join(f"{c['name']} {c['posterior']:.2f}" for c in d.get("candidates") or [])
         lines.append(f"object       {d['object']} (posterior {d['object_posterior']:.2f}; class {d['class']} "
                      f"{d['class_posterior']:.2f}; set {d.get('object_set')}; candidates {cands})")
+    if d.get("probe"):  # the axisymmetric estimate says what the touch itself determined
+        corr = d.get("corr_k_alpha")
+        lines.append(f"probe {d['probe']}: determined {', '.join(d.get('determined') or []) or 'nothing'}; "
+                     f"from the prior {', '.join(d.get('from_prior') or []) or 'nothing'}"
+                     + ("" if corr is None else f"; corr(k, alpha) {corr:+.2f}"))
+    if d.get("prior_reason"):
+        lines.append(f"prior: {d['prior_reason']}")
     lines.append(f"method {d['method']}, model {(d.get('model_sha256') or '')[:12]}, "
                  f"flags: {', '.join(d['flags']) or 'none'}")
     return lines

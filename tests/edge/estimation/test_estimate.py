@@ -52,6 +52,23 @@ def test_default_with_known_thickness_separates_k_and_alpha(est):
     res = est.estimate(r.t_s, r.T_f_K, r.q_f_W_m2, thickness_m=0.5e-3, back="insulated")
     assert abs(res.alpha_m2_s / PMMA.alpha_m2_s - 1) < 0.12
     assert abs(res.k_W_mK / PMMA.k_W_mK - 1) < 0.08
+    assert "thickness_unresolved" not in res.flags and "prior_reason" not in res.to_dict()
+
+
+@pytest.mark.parametrize("noise_K", [0.0, 0.01])
+def test_thickness_the_record_cannot_resolve_falls_back_to_the_prior(est, noise_K):
+    # Issue #11: a 20-mm PMMA slab touched for 2 s (heat reach sqrt(alpha t) ~ 0.5 mm) gave
+    # k 1.73 +- 0.08 W/m/K (true 0.185) with 5 % stated.  The record cannot show a back 20 mm away.
+    r = simulate(PMMA, 7.7e7, 2.0, thickness_m=0.02, back="insulated", scheme="exact", dt_s=0.01)
+    T = r.T_f_K + noise_K * np.random.default_rng(3).standard_normal(r.T_f_K.size)
+    res = est.estimate(r.t_s, T, r.q_f_W_m2, thickness_m=0.02, back="insulated")
+    assert "thickness_unresolved" in res.flags and "k_alpha_from_prior" in res.flags
+    d = res.to_dict()
+    assert "does not show" in d["prior_reason"]
+    # The prior's answer, and its stated uncertainty covers the truth (no 5 % claim).
+    assert abs(math.log(res.k_W_mK / PMMA.k_W_mK)) < 2 * res.k_W_mK_u / res.k_W_mK
+    assert abs(math.log(res.alpha_m2_s / PMMA.alpha_m2_s)) < 2 * res.alpha_m2_s_u / res.alpha_m2_s
+    assert res.k_W_mK_u / res.k_W_mK > 0.1
 
 
 def test_noisy_touch_uncertainty_covers_error(est):

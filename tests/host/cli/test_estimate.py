@@ -117,3 +117,57 @@ def test_measure_profile_sets_the_contact_time(capsys):
     assert json.loads(out)["contact_time_s"] == pytest.approx(0.5)
     code, out, err = run(capsys, "measure", "--sim", "glass_15V", "--profile", "quick", "--time", "1")
     assert code == 2 and "--profile" in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.fixture
+def small_heater_record(tmp_path):
+    """A 3-s small-heater record on glass (thermocouple, flux sensor; 20-ms samples, noise), tagged with its probe."""
+    from edge.physics.axisym import AxisymModel
+    from edge.physics.geometry import PROBES
+    from host.records import write_record
+
+    t = np.arange(151) * 0.02
+    T, q = AxisymModel(PROBES["small-heater"], t).signals(GLASS.k_W_mK, GLASS.alpha_m2_s)
+    rng = np.random.default_rng(11)
+    p = tmp_path / "small.csv"
+    write_record(p, t, T + 0.01 * rng.standard_normal(t.size), q + 0.5 * rng.standard_normal(t.size),
+                 probe="small-heater")
+    return p
+
+
+def test_estimate_small_heater_json_says_what_was_determined(capsys, small_heater_record):
+    code, out, err = run(capsys, "estimate", "--probe", "small-heater", "--csv", small_heater_record, "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["probe"] == "small-heater" and d["method"] == "axisym"
+    assert d["determined"] == ["e", "k", "alpha"] and d["from_prior"] == []
+    assert abs(d["k_W_mK"] / GLASS.k_W_mK - 1) < 4 * d["k_W_mK_u"] / d["k_W_mK"]
+    assert abs(d["alpha_m2_s"] / GLASS.alpha_m2_s - 1) < 4 * d["alpha_m2_s_u"] / d["alpha_m2_s"]
+    assert -1 < d["corr_k_alpha"] < 1
+    code, out, err = run(capsys, "estimate", "--probe", "small-heater", "--csv", small_heater_record)
+    assert code == 0 and "determined e, k, alpha" in out
+
+
+@pytest.mark.parametrize("argv,needle", [
+    (["--probe", "tiny"], "unknown probe 'tiny'"),
+    ([], "taken with probe 'small-heater', not --probe paper"),
+    (["--probe", "small-heater", "--method", "paper"], "--method is for the paper probe"),
+])
+def test_estimate_probe_errors_one_line(capsys, small_heater_record, argv, needle):
+    code, out, err = run(capsys, "estimate", "--csv", small_heater_record, *argv)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and needle in err
+
+
+def test_estimate_thickness_the_record_cannot_show_is_flagged(capsys, tmp_path):
+    # Issue #11: 20-mm PMMA, 2 s; before: k 1.73 +- 0.08 W/m/K (true 0.185).
+    from host.records import write_record
+
+    pmma = Solid(0.185, 1178.35, 1429.0)
+    r = simulate(pmma, 7.7e7, 2.0, thickness_m=0.02, back="insulated", scheme="exact", dt_s=0.01)
+    p = tmp_path / "pmma20.csv"
+    write_record(p, r.t_s, r.T_f_K, r.q_f_W_m2)
+    code, out, err = run(capsys, "estimate", "--csv", p, "--thickness", "0.02", "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    assert {"thickness_unresolved", "k_alpha_from_prior"} <= set(d["flags"]) and d["prior_reason"]
+    assert abs(d["k_W_mK"] / 0.185 - 1) < 2 * d["k_W_mK_u"] / d["k_W_mK"]

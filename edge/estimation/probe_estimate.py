@@ -1,0 +1,204 @@
+"""One touch of a small-heater probe: e, k, alpha from the axisymmetric fit, the library prior as the fallback.
+
+The paper's probe (a 55 x 60 mm heater) is one-dimensional at its sensors and
+measures the effusivity only; :class:`edge.estimation.estimate.Estimator`
+handles it.  A probe whose heater is small against the heat's reach
+(:data:`edge.physics.geometry.PROBES` ``["small-heater"]``) sees the lateral
+spreading, which depends on k and alpha separately; :class:`AxiEstimator`
+fits both with :class:`edge.estimation.axifit.AxiFitter` and reports, per
+quantity, whether the touch determined it or it came from the prior:
+
+* ``determined``: the quantities (``"e"``, ``"k"``, ``"alpha"``) whose
+  relative standard uncertainty from the fit is below
+  ``identifiable_u_rel`` (30 %, the fitter's threshold);
+* ``from_prior``: those that came from the library prior instead -- k and
+  alpha together (k = e^2 / rho c, alpha = e^2 / (rho c)^2 with ln rho c
+  from the library given e, exactly as the 1-D default method), flagged
+  ``k_alpha_from_prior`` with a ``prior_reason``: never a silent switch;
+* ``corr_k_alpha``: the fit's correlation of ln k and ln alpha (k and alpha
+  are anti-correlated on short touches: the record constrains e = k/sqrt(alpha)
+  much better than either).
+
+Nuisances: the heater power is fitted as a free scale (the device's power
+setting is only a start); the flux sensor's calibration (2 %,
+:data:`~edge.estimation.estimate.FLUX_CALIBRATION_U_REL`) is added in
+quadrature to u(e) and u(k), which a flux scale error shifts one to one, not
+to u(alpha), which is set by the record's time shape.  The ``method``
+argument of the 1-D path does not apply (the paper's network was trained
+on the paper's probe); results say ``method: "axisym"``.
+
+Edge code: NumPy only.  The model's probe part (~15 ms) is built once per
+time grid and kept (a few grids: the device samples every touch alike).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import OrderedDict
+
+import numpy as np
+
+from edge.checks import finite_array, one_of, strictly_increasing
+from edge.estimation.axifit import AxiFitter
+from edge.estimation.estimate import FLUX_CALIBRATION_U_REL, MIN_SNR, Estimator
+from edge.physics.geometry import ProbeGeometry, get_probe
+from edge.status import Flag
+
+__all__ = ["AxiEstimator", "QUANTITIES"]
+
+#: Names of the quantities in ``determined`` / ``from_prior``.
+QUANTITIES = ("e", "k", "alpha")
+_BACKS = ("infinite", "insulated", "fixed")
+#: Longest span t_max / t_min of the samples fitted: the model's fixed time contour is accurate to
+#: ~1e-6 over 250 (edge.physics.axisym) and degrades beyond (2e-5 at 1000, 2e-4 at 5000); the first
+#: few milliseconds of a fast-sampled record carry next to nothing on k and alpha.
+MAX_TIME_SPAN = 250.0
+
+
+def _num(x):
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+class AxiEstimator:
+    """e, k, alpha and the material from one touch of an axisymmetric probe.
+
+    Parameters
+    ----------
+    estimator : Estimator
+        The 1-D estimator of the active bundle: its library supplies the prior
+        and names the material, its ``sha256`` identifies the model.
+    probe : ProbeGeometry or str
+        The probe (a name in :data:`edge.physics.geometry.PROBES`).
+    sigma_T_K, sigma_q_W_m2 : float
+        Noise of the thermocouple and the flux sensor (1 sigma): they weight
+        the two records against each other; the fit's residual scatter then
+        scales the covariance (``s^2 = chi^2 / dof``).
+    identifiable_u_rel : float
+        Relative u below which the touch counts as having determined a quantity.
+    max_models : int
+        Time grids whose model is kept.
+    """
+
+    def __init__(self, estimator: Estimator, probe: ProbeGeometry | str = "small-heater", *,
+                 sigma_T_K: float = 0.01, sigma_q_W_m2: float = 0.5, identifiable_u_rel: float = 0.30,
+                 max_models: int = 4) -> None:
+        self.estimator = estimator
+        self.geometry = get_probe(probe) if isinstance(probe, str) else probe
+        self.sigma_T_K = float(sigma_T_K)
+        self.sigma_q_W_m2 = float(sigma_q_W_m2)
+        self.identifiable_u_rel = float(identifiable_u_rel)
+        self.max_models = int(max_models)
+        self._models: OrderedDict = OrderedDict()
+
+    def _model(self, t: np.ndarray):
+        """The fitter's model for these times (cached: its setup is most of a fit's cost on a cold grid)."""
+        from edge.physics.axisym import AxisymModel  # noqa: PLC0415 - the 1-D device never needs it
+
+        key = t.tobytes()
+        m = self._models.get(key)
+        if m is None:
+            m = AxisymModel(self.geometry, t)
+            self._models[key] = m
+            while len(self._models) > self.max_models:
+                self._models.popitem(last=False)
+        else:
+            self._models.move_to_end(key)
+        return m
+
+    def estimate(self, t_s, dT_K, q_W_m2, *, power_W: float | None = None, thickness_m: float | None = None,
+                 back: str = "infinite", T_resolution_K: float = 0.0) -> dict:
+        """Estimate from one record (times from heater-on; thermocouple rise, flux-sensor reading).
+
+        Parameters
+        ----------
+        t_s : (n,) sample times (s), increasing; samples at t <= 0, and before
+            ``t_s[-1] / MAX_TIME_SPAN``, are ignored.
+        dT_K : (n,) thermocouple rise over the baseline (K).
+        q_W_m2 : (n,) flux-sensor reading (W/m^2).
+        power_W : heater power the touch was made at (default: the probe's nominal);
+            fitted as a free scale, so only its order matters.
+        thickness_m, back : a known finite object (``"insulated"``/``"fixed"`` back).
+        T_resolution_K : the thermometer's step, added to its noise (rounding).
+
+        Returns
+        -------
+        dict
+            The keys of :meth:`edge.estimation.estimate.Estimate.to_dict` plus ``probe``,
+            ``determined``, ``from_prior``, ``prior_reason``, ``corr_k_alpha`` and ``fit``
+            (the fit's own k, alpha, their relative u, chi^2/dof, iterations, power scale).
+        """
+        one_of("back", back, _BACKS)
+        t = strictly_increasing("t_s", finite_array("t_s", t_s, min_len=4))
+        T = finite_array("dT_K", dT_K)
+        q = finite_array("q_W_m2", q_W_m2)
+        if T.shape != t.shape or q.shape != t.shape:
+            raise ValueError(f"t_s, dT_K and q_W_m2 must have equal lengths, got {t.size}, {T.size}, {q.size}")
+        keep = (t > 0) & (t >= t[-1] / MAX_TIME_SPAN)
+        t, T, q = t[keep], T[keep], q[keep]
+        est = self.estimator
+        out = {"effusivity_W_s05_m2K": None, "effusivity_W_s05_m2K_u": None, "k_W_mK": None, "k_W_mK_u": None,
+               "alpha_m2_s": None, "alpha_m2_s_u": None, "material": None, "material_confidence": 0.0,
+               "method": "axisym", "model_sha256": est.sha256, "flags": [], "candidates": [],
+               "probe": self.geometry.name, "determined": [], "from_prior": [], "prior_reason": None,
+               "corr_k_alpha": None, "fit": None}
+        if t.size < 4:
+            raise ValueError(f"need at least 4 samples after heater-on, got {t.size}")
+        if float(np.mean(q[q.size // 2:])) < 20.0 or float(np.max(T)) <= 0.0:
+            out["flags"].append(str(Flag.NO_SIGNAL))
+            return out
+        if back == "infinite":
+            thickness_m = None
+        sigma_T = math.hypot(self.sigma_T_K, T_resolution_K / math.sqrt(12.0))
+        fitter = AxiFitter(self.geometry, t, sigma_T_K=sigma_T, sigma_q_W_m2=self.sigma_q_W_m2,
+                           thickness_m=thickness_m, back=back if thickness_m is not None else "infinite",
+                           identifiable_u_rel=self.identifiable_u_rel, model=self._model(t))
+        f = fitter.fit(T, q, power_W=power_W)
+        u_le_fit = f.u_rel["effusivity"]
+        fit_info = {"k_W_mK": _num(f.fit_k_W_mK), "alpha_m2_s": _num(f.fit_alpha_m2_s),
+                    "u_rel_k": _num(f.u_rel["k"]), "u_rel_alpha": _num(f.u_rel["alpha"]),
+                    "u_rel_effusivity": _num(u_le_fit), "chi2_reduced": _num(f.chi2_reduced),
+                    "iterations": f.iterations, "converged": f.converged, "power_scale": _num(f.scale)}
+        out["fit"] = fit_info
+        out["corr_k_alpha"] = _num(f.corr_k_alpha)
+        flags: list[str] = []
+        if not f.converged:
+            flags.append(str(Flag.NOT_CONVERGED))
+        if not (u_le_fit < 1.0 / MIN_SNR):
+            # The records do not even fix e: a k or alpha from the prior given such an e would be a guess.
+            flags.append(str(Flag.INSUFFICIENT_SIGNAL))
+            out["flags"] = flags
+            return out
+        e = f.effusivity_W_s05_m2K
+        u_le = math.hypot(u_le_fit, FLUX_CALIBRATION_U_REL)
+        u_lk = math.hypot(f.u_rel["k"], FLUX_CALIBRATION_U_REL)
+        u_la = f.u_rel["alpha"]
+        thr = self.identifiable_u_rel
+        determined = ["e"] if u_le < thr else []
+        k, alpha = f.fit_k_W_mK, f.fit_alpha_m2_s
+        reasons = []
+        if not f.converged:
+            reasons.append("the fit did not converge")
+        if not u_lk < thr:
+            reasons.append(f"u(k) {100 * u_lk:.0f} % >= {100 * thr:.0f} %")
+        if not u_la < thr:
+            reasons.append(f"u(alpha) {100 * u_la:.0f} % >= {100 * thr:.0f} %")
+        if reasons:
+            # k and alpha together: one without the other would not satisfy e = k / sqrt(alpha).
+            ln_rc, u_ln_rc, outside = est.library.prior_rho_c(e, u_le)
+            if outside:
+                flags.append(str(Flag.OUTSIDE_TRAINING_RANGE))
+            rc = math.exp(ln_rc)
+            k, alpha = e * e / rc, e * e / (rc * rc)
+            u_lk, u_la = math.hypot(2 * u_le, u_ln_rc), math.hypot(2 * u_le, 2 * u_ln_rc)
+            flags.append(str(Flag.K_ALPHA_FROM_PRIOR))
+            out["from_prior"] = ["k", "alpha"]
+            out["prior_reason"] = "the touch did not resolve k and alpha: " + "; ".join(reasons)
+        else:
+            determined += ["k", "alpha"]
+        cands = est.library.identify(e, u_le)
+        out.update({"effusivity_W_s05_m2K": _num(e), "effusivity_W_s05_m2K_u": _num(e * u_le),
+                    "k_W_mK": _num(k), "k_W_mK_u": _num(k * u_lk), "alpha_m2_s": _num(alpha),
+                    "alpha_m2_s_u": _num(alpha * u_la), "material": cands[0][0],
+                    "material_confidence": float(cands[0][1]), "flags": flags,
+                    "candidates": [[n, float(c)] for n, c in cands], "determined": determined})
+        return out

@@ -1,0 +1,147 @@
+"""``thermotouch design``: attainable u(e), u(k), u(alpha) of one touch for a heater radius, a time and a material.
+
+The numbers are noise-only Cramer-Rao bounds from the axisymmetric model's
+Fisher information (:func:`edge.estimation.design.attainable`): k, alpha and
+the heater power unknown, no prior; white noise of ``--noise-T`` /
+``--noise-q`` on every ``--dt`` sample.  The probe is the small-heater one
+(same layers and sensors) with the heater radius replaced at the same areal
+power (the heater's temperature limit, not its total power, is what a design
+must respect); 32 mm is the paper's heater (equal-area disk of 55 x 60 mm).
+"""
+
+from __future__ import annotations
+
+import math
+
+from host.cli.args import bounded_float, positive_float
+from host.cli.errors import CliError
+from host.cli.report import dumps
+
+#: The ``--table`` grid: heater radii (mm), contact times (s), one material per class.
+TABLE_RADII_MM = (5.0, 10.0, 32.0)
+TABLE_TIMES_S = (1.0, 2.0, 5.0)
+TABLE_MATERIALS = ("pmma", "tempered_glass", "aisi_304", "aluminium")
+#: Above this relative u a quantity is not determined by the touch (the estimator's threshold).
+DETERMINED_U_REL = 0.30
+#: Smallest number of samples a design record must have.
+MIN_SAMPLES = 5
+
+
+def add_parser(sub, parents):
+    p = sub.add_parser("design", help="attainable u(e), u(k), u(alpha) of one touch (Fisher information)",
+                       parents=parents)
+    p.add_argument("--heater-radius", type=bounded_float(0.5, 100.0), default=None, metavar="MM",
+                   help="heater disk radius, mm (0.5 to 100; 32 = the paper's heater)")
+    p.add_argument("--time", type=bounded_float(0.0, 30.0, lo_open=True), default=None, metavar="S",
+                   help="contact time, s (at most 30)")
+    p.add_argument("--material", default=None, metavar="NAME", help="library material name, e.g. pmma")
+    p.add_argument("--table", action="store_true",
+                   help=f"the grid: radii {', '.join(f'{r:g}' for r in TABLE_RADII_MM)} mm x times "
+                        f"{', '.join(f'{t:g}' for t in TABLE_TIMES_S)} s x {', '.join(TABLE_MATERIALS)}")
+    p.add_argument("--noise-T", type=positive_float, default=0.01, metavar="K",
+                   help="thermocouple noise per sample, K (default 0.01)")
+    p.add_argument("--noise-q", type=positive_float, default=0.5, metavar="W_M2",
+                   help="flux-sensor noise per sample, W/m^2 (default 0.5)")
+    p.add_argument("--dt", type=bounded_float(1e-3, 1.0), default=0.02, metavar="S",
+                   help="sample interval, s (default 0.02)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=run)
+
+
+def _pct(u: float | None) -> str:
+    if u is None or not math.isfinite(u) or u >= 1.0:
+        return "> 100 %"
+    return f"{100 * u:.2g} %" if u < 0.1 else f"{100 * u:.0f} %"
+
+
+def _material(name: str):
+    from edge.physics.materials import load_materials  # noqa: PLC0415
+
+    try:
+        return load_materials().get(name)
+    except KeyError as exc:
+        raise CliError(f"--material: {exc.args[0]}") from None
+
+
+def compute(material: str, radius_mm: float, time_s: float, *, noise_T_K: float = 0.01,
+            noise_q_W_m2: float = 0.5, dt_s: float = 0.02, model=None) -> dict:
+    """One design point as a JSON-able dict (see the module docstring)."""
+    from edge.estimation.design import attainable  # noqa: PLC0415
+
+    m = _material(material)
+    d = attainable(m.solid, time_s, heater_radius_m=radius_mm * 1e-3, dt_s=dt_s, sigma_T_K=noise_T_K,
+                   sigma_q_W_m2=noise_q_W_m2, model=model).to_dict()
+    out = {"material": m.name, "heater_radius_mm": radius_mm, "time_s": time_s, **d,
+           "noise_T_K": noise_T_K, "noise_q_W_m2": noise_q_W_m2, "dt_s": dt_s}
+    out["determined"] = [q for q, key in (("e", "u_rel_effusivity"), ("k", "u_rel_k"), ("alpha", "u_rel_alpha"))
+                         if d[key] is not None and d[key] < DETERMINED_U_REL]
+    return out
+
+
+def table(*, noise_T_K: float = 0.01, noise_q_W_m2: float = 0.5, dt_s: float = 0.02) -> list[dict]:
+    """Every point of the ``--table`` grid (one model per radius and time, shared by the materials)."""
+    import numpy as np  # noqa: PLC0415
+
+    from edge.physics.axisym import AxisymModel  # noqa: PLC0415
+    from edge.physics.geometry import PROBES  # noqa: PLC0415
+
+    rows = []
+    for r in TABLE_RADII_MM:
+        g = PROBES["small-heater"].with_heater_radius(r * 1e-3)
+        for t_end in TABLE_TIMES_S:
+            t = dt_s * np.arange(1, int(math.floor(t_end / dt_s + 1e-9)) + 1)
+            model = AxisymModel(g, t)  # its probe part is the costly setup: once for the four materials
+            for name in TABLE_MATERIALS:
+                rows.append(compute(name, r, t_end, noise_T_K=noise_T_K, noise_q_W_m2=noise_q_W_m2, dt_s=dt_s,
+                                    model=model))
+    return rows
+
+
+def table_lines(rows: list[dict]) -> list[str]:
+    """Markdown: one row per material and radius, one column per time, cells u(e) / u(k) / u(alpha)."""
+    times = sorted({r["time_s"] for r in rows})
+    head = "| material | heater radius (mm) | " + " | ".join(f"{t:g} s: u(e) / u(k) / u(α)" for t in times) + " |"
+    lines = [head, "|---|---|" + "---|" * len(times)]
+    keyed = {(r["material"], r["heater_radius_mm"], r["time_s"]): r for r in rows}
+    for name in dict.fromkeys(r["material"] for r in rows):
+        for rad in dict.fromkeys(r["heater_radius_mm"] for r in rows):
+            cells = []
+            for t in times:
+                r = keyed[(name, rad, t)]
+                cells.append(" / ".join(_pct(r[k]) for k in ("u_rel_effusivity", "u_rel_k", "u_rel_alpha")))
+            lines.append(f"| {name} | {rad:g} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def run(args) -> int:
+    one = (args.heater_radius, args.time, args.material)
+    if args.table:
+        if any(v is not None for v in one):
+            raise CliError("--table computes its own grid; drop --heater-radius, --time and --material")
+    elif any(v is None for v in one):
+        raise CliError("give --heater-radius MM, --time S and --material NAME (or --table)")
+    if not args.table and args.time / args.dt < MIN_SAMPLES:
+        raise CliError(f"--time {args.time:g} s holds fewer than {MIN_SAMPLES} samples of --dt {args.dt:g} s")
+    if args.table and min(TABLE_TIMES_S) / args.dt < MIN_SAMPLES:
+        raise CliError(f"--dt {args.dt:g} s leaves fewer than {MIN_SAMPLES} samples in a {min(TABLE_TIMES_S):g}-s touch")
+    kw = {"noise_T_K": args.noise_T, "noise_q_W_m2": args.noise_q, "dt_s": args.dt}
+    if args.table:
+        rows = table(**kw)
+        if args.json:
+            print(dumps({"rows": rows}))
+        else:
+            print("\n".join(table_lines(rows)))
+        return 0
+    d = compute(args.material, args.heater_radius, args.time, **kw)
+    if args.json:
+        print(dumps(d))
+        return 0
+    print(f"{d['material']}, heater radius {d['heater_radius_mm']:g} mm ({d['power_W']:.3g} W), "
+          f"{d['contact_time_s']:g} s touch; noise {args.noise_T:g} K / {args.noise_q:g} W/m^2 every {args.dt:g} s")
+    for label, key, q in (("u(e)", "u_rel_effusivity", "e"), ("u(k)", "u_rel_k", "k"),
+                          ("u(alpha)", "u_rel_alpha", "alpha")):
+        verdict = "determined" if q in d["determined"] else "not determined (the library prior answers)"
+        print(f"{label:9s}{_pct(d[key]):>9s}  {verdict}")
+    corr = d["corr_k_alpha"]
+    print(f"corr(k, alpha) {'n/a' if corr is None else f'{corr:+.2f}'}")
+    return 0

@@ -1,0 +1,64 @@
+"""``thermotouch design``: attainable uncertainties from the Fisher information; one-line errors."""
+
+import json
+
+import pytest
+
+import host.cli.design as design_cli
+from host.cli.main import main
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_design_json_matches_the_library_function(capsys):
+    from edge.estimation.design import attainable
+    from edge.physics.materials import load_materials
+
+    code, out, err = run(capsys, "design", "--heater-radius", "5", "--time", "2", "--material", "tempered_glass",
+                         "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    ref = attainable(load_materials().get("tempered_glass").solid, 2.0, heater_radius_m=5e-3)
+    assert d["u_rel_alpha"] == pytest.approx(ref.u_rel_alpha, rel=1e-9)
+    assert d["u_rel_k"] == pytest.approx(ref.u_rel_k, rel=1e-9)
+    assert d["determined"] == ["e", "k", "alpha"] and d["heater_radius_mm"] == 5.0
+
+
+def test_design_text_says_what_a_large_heater_cannot_determine(capsys):
+    code, out, err = run(capsys, "design", "--heater-radius", "32", "--time", "1", "--material", "pmma")
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[0].startswith("pmma, heater radius 32 mm")
+    assert "determined" in lines[1] and "not determined" not in lines[1]     # e
+    assert "not determined" in lines[2] and "> 100 %" in lines[2]              # k
+
+
+def test_design_table_covers_the_grid(capsys, monkeypatch):
+    # A reduced grid keeps the test fast; the command's own grid is the README's table.
+    monkeypatch.setattr(design_cli, "TABLE_RADII_MM", (5.0, 32.0))
+    monkeypatch.setattr(design_cli, "TABLE_TIMES_S", (1.0, 2.0))
+    monkeypatch.setattr(design_cli, "TABLE_MATERIALS", ("pmma", "aluminium"))
+    code, out, err = run(capsys, "design", "--table")
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[0].startswith("| material | heater radius (mm) | 1 s:") and len(lines) == 2 + 4
+    code, out, err = run(capsys, "design", "--table", "--json")
+    assert code == 0 and len(json.loads(out)["rows"]) == 8
+
+
+@pytest.mark.parametrize("argv,needle", [
+    (["--heater-radius", "5", "--time", "2"], "give --heater-radius"),
+    (["--heater-radius", "5", "--time", "2", "--material", "alu"], "no material named 'alu'"),
+    (["--heater-radius", "0", "--time", "2", "--material", "pmma"], "--heater-radius"),
+    (["--heater-radius", "5", "--time", "-1", "--material", "pmma"], "--time"),
+    (["--heater-radius", "5", "--time", "0.05", "--material", "pmma"], "fewer than 5 samples"),
+    (["--table", "--material", "pmma"], "--table computes its own grid"),
+    (["--heater-radius", "x", "--time", "2", "--material", "pmma"], "expected a number"),
+])
+def test_design_bad_arguments_one_line(capsys, argv, needle):
+    code, out, err = run(capsys, "design", *argv)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and needle in err
