@@ -68,7 +68,8 @@ def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Ma
     baseline = min(on, 10.0) if on >= 0.2 else 0.5
     contact = max(0.5, min(2.0, t.end_s - on - 0.3))
     values: dict[str, dict[str, Any]] = {
-        "board": {"kind": "sim"},
+        # The device is told which probe head is mounted (hardware it knows), never how it deviates.
+        "board": {"kind": "sim", "probe": b.probe},
         "sensors": sensors,
         "heater": {"supply_voltage_V": scene.heater.supply_voltage_V, "resistance_ohm": scene.heater.resistance_ohm,
                    "power_W": scene.heater.max_power_W},
