@@ -85,3 +85,20 @@ def test_duplicate_names_are_refused():
     Fake.arrays = arrays
     with pytest.raises(SemanticCheckError, match="twice"):
         semantic_check(Fake())
+
+
+def test_a_subset_library_without_the_references_passes():
+    import numpy as np
+
+    b = B.load_bundle(DEFAULT_BUNDLE, pipeline_golden_check)
+    names = [str(n) for n in b.arrays["lib_names"]]
+    keep = np.array([n not in ("pmma", "tempered_glass", "aisi_304") for n in names])
+    arrays = dict(b.arrays)
+    for k in ("lib_effusivity", "lib_k", "lib_rho_c", "lib_names", "lib_class"):
+        arrays[k] = np.asarray(arrays[k])[keep]
+
+    class Fake:
+        sha256 = "0" * 64
+
+    Fake.arrays = arrays
+    semantic_check(Fake())
