@@ -27,3 +27,20 @@ def test_same_seed_same_arrays_even_with_the_training_set_regenerated(tmp_path, 
     # A different seed gives another network (the seed reaches the fit).
     c, _ = train_bundle(tmp_path / "c", quick=True, seed=4, lib=small, log=lambda s: None)
     assert not np.array_equal(c.arrays["mlp_W0"], a["mlp_W0"])
+
+
+def test_noisy_training_set_does_not_depend_on_what_the_process_resampled_before():
+    # The quick recipe has no noisy copies, so this is where resampling enters a training set.
+    from edge.estimation import spline
+    from host.dataset import DatasetSpec, generate
+
+    lib = load_materials()
+    small = MaterialLibrary([lib.get(n) for n in NAMES[:4]])
+    spec = DatasetSpec(noisy_copies=1, levels_W_m3=DatasetSpec.levels_W_m3[::10])
+    with spline._cache_lock:  # a process that has resampled nothing yet
+        spline._operators.clear()
+        spline._seen.clear()
+    first = generate(spec, small, cache=False)
+    second = generate(spec, small, cache=False)  # now every time base is in the resampling cache
+    assert first.noisy.any()
+    assert np.array_equal(first.features, second.features)
