@@ -1,6 +1,7 @@
 """The deploy gate on candidate bundles against the shipped one, on both boards.
 
     python bench/gate_bench.py [--workdir DIR]
+    python bench/gate_bench.py --seeds 1 2 3 [--workdir DIR]
 
 Trains the shipped recipe (seed 0) and the --quick recipe (seed 0) with an empty
 dataset cache, builds the two deliberately broken copies of the shipped bundle
@@ -9,6 +10,10 @@ prints host.gate's report and the verdict for each against the shipped bundle,
 through the reference board's MCP9600 and the precision board's ADS122C04.  It
 also checks the two claims about reproducibility: a second full retrain gives
 bit-identical arrays, and the shipped bundle's arrays are not among them.
+
+With ``--seeds`` it instead trains the full recipe with each seed and prints the
+paired differences against the shipped bundle: the spread of equally good fits,
+from which host.gate.MARGINS are set.
 """
 
 from __future__ import annotations
@@ -35,9 +40,12 @@ from thermotouch_models import DEFAULT_BUNDLE
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--workdir", help="where to write the bundles (default: a temporary directory)")
+    ap.add_argument("--seeds", type=int, nargs="+", help="only the seed study: full-recipe retrains with these seeds")
     args = ap.parse_args(argv)
     work = Path(args.workdir or tempfile.mkdtemp(prefix="gate-bench-"))
     work.mkdir(parents=True, exist_ok=True)
+    if args.seeds:
+        return seed_study(work, args.seeds)
     os.environ["THERMOTOUCH_CACHE"] = str(work / "cache-1")  # empty: the training set is generated
     shipped = load_bundle(DEFAULT_BUNDLE, pipeline_golden_check)
     cands = {}
@@ -70,6 +78,21 @@ def main(argv=None) -> int:
             print("  thresholded (paper samples, mean |error|): " + ", ".join(
                 f"{k} {v * 100:.1f} % (shipped {old['means'][k] * 100:.1f} %)" for k, v in new["means"].items()))
             print("  -> " + ("DEPLOY" if not why else "REFUSE: " + "; ".join(why)))
+    return 0
+
+
+def seed_study(work: Path, seeds) -> int:
+    os.environ["THERMOTOUCH_CACHE"] = str(work / "cache-seeds")
+    shipped = load_bundle(DEFAULT_BUNDLE, pipeline_golden_check)
+    olds = {inst: evaluate(shipped, inst) for inst in ("mcp9600", "ads122c04")}
+    for seed in seeds:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            b, _ = train_bundle(work / f"seed{seed}", seed=seed, overwrite=True, log=lambda s: None)
+        for inst, old in olds.items():
+            for c in compare(evaluate(b, inst), old):
+                print(f"seed {seed} {inst:9s} {c.quantity:17s} {c.diff:+.4f} [{c.lo:+.4f}, {c.hi:+.4f}] {c.verdict}",
+                      flush=True)
     return 0
 
 

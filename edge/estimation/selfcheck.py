@@ -91,6 +91,10 @@ def reference_records() -> tuple[ReferenceRecord, ...]:
     return tuple(out)
 
 
+def _g(x: float | None) -> str:
+    return "no answer" if x is None else f"{x:.4g}"
+
+
 def _check_library(arrays: Any) -> None:
     """(b): names unique; known names carry the device table's properties and class."""
     names = [str(n) for n in np.asarray(arrays["lib_names"]).ravel()]
@@ -148,16 +152,16 @@ def semantic_check(bundle: Any) -> None:
         r = est.estimate(ref.t_s, ref.dT_K, ref.q_W_m2, method="default", q_v_W_m3=REFERENCE_Q_V_W_m3)
         e = r.effusivity_W_s05_m2K
         if e is None or not abs(e / ref.effusivity_W_s05_m2K - 1) <= E_TOL_REL:
-            raise SemanticCheckError(f"reference touch {ref.name}: e = {e} against {ref.effusivity_W_s05_m2K:.5g}")
+            raise SemanticCheckError(f"reference touch {ref.name}: e = {_g(e)} against {ref.effusivity_W_s05_m2K:.5g}")
         # A bundle trained on a subset library may not know the reference; its names are then
         # held to the device's table by _check_library alone.
         if ref.name in lib_names and r.material != ref.name:
             raise SemanticCheckError(f"reference touch {ref.name}: the bundle names it {r.material!r}")
         if r.k_W_mK is None or not abs(math.log(r.k_W_mK / ref.k_W_mK)) <= DEFAULT_K_TOL_LN:
-            raise SemanticCheckError(f"reference touch {ref.name}: default k = {r.k_W_mK} against "
+            raise SemanticCheckError(f"reference touch {ref.name}: default k = {_g(r.k_W_mK)} against "
                                      f"{ref.k_W_mK:.4g}")
         if est.has_paper:
             p = est.estimate(ref.t_s, ref.dT_K, ref.q_W_m2, method="paper", q_v_W_m3=REFERENCE_Q_V_W_m3)
             if p.k_W_mK is None or not abs(math.log(p.k_W_mK / ref.k_W_mK)) <= PAPER_K_TOL_LN:
-                raise SemanticCheckError(f"reference touch {ref.name}: the network's k = {p.k_W_mK} against "
+                raise SemanticCheckError(f"reference touch {ref.name}: the network's k = {_g(p.k_W_mK)} against "
                                          f"{ref.k_W_mK:.4g}")

@@ -44,7 +44,8 @@ def test_bootstrap_is_seeded_and_skips_pairs_without_both_values():
 def test_verdicts():
     c = lambda lo, hi, diff=0.0: Comparison("paper_e", 0.1, 0.1 + diff, diff, lo, hi, 90, 0.01)  # noqa: E731
     assert c(0.02, 0.05, 0.03).verdict == "worse"
-    assert c(0.005, 0.02, 0.01).verdict == "no significant change"  # significant, but within the margin
+    assert c(0.005, 0.02, 0.01).verdict == "worse within the margin"  # significant, not beyond the margin
+    assert c(-0.005, 0.02, 0.01).verdict == "no significant change"
     assert c(-0.03, -0.01, -0.02).verdict == "better"
     assert c(0.0, 0.0).verdict == "same"
 

@@ -31,7 +31,8 @@ def test_deploy_quick_seeded_retrain_on_the_simulator(tmp_path, capsys, monkeypa
     # The report: one line per judged quantity with old, new, difference [95 % CI] and a verdict.
     for label in ("paper-method e", "network k vs library prior", "named material's e"):
         line = next(ln for ln in stdout.splitlines() if ln.startswith(label))
-        assert "[" in line and "]" in line and ("change" in line or "better" in line or "same" in line), line
+        assert "[" in line and "]" in line and any(v in line for v in ("change", "better", "same", "margin")), line
+        assert "  worse (" not in line, line
     assert "evaluation set: 90 simulated touches through the ads122c04" in stdout
     assert "self-check on glass_15V_precision" in stdout and "PASS" in stdout
     assert f"deployed {out} (sha256 {new.sha256})" in stdout
