@@ -5,13 +5,18 @@ Steps, each printed as it runs::
     1. device     INFO: the model the probe runs now, its thermocouple converter
     2. train      training set (progress bar) and fit (host.train.train_bundle),
                   with its held-back-material metrics
-    3. evaluate   both bundles on the paper's nine cases (host.evaluate.paper_cases)
-                  through a model of the probe's instrument
-    4. judge      REFUSE (exit 3, nothing flashed) if the new bundle is worse than
-                  the device's on the errors a bundle decides (the network's k, the
-                  default method's e and k; 5 % relative + 0.5 point slack for
-                  evaluation noise), or beyond a threshold (also the paper
-                  method's alpha, which follows from k through the scan)
+    3. evaluate   both bundles on the same fixed, seeded evaluation set (host.gate:
+                  90 simulated touches of 7 materials not in the training library
+                  and the paper's 3 samples, 3 voltages x 3 noise seeds) through a
+                  model of the probe's instrument
+    4. judge      per touch, paired: for each quantity the bundle decides (paper-method
+                  e, the network's k against the library prior, the named material's
+                  e) a seeded paired-bootstrap 95 % interval of the change in mean
+                  |error|; REFUSE (exit 3, nothing flashed) when an interval lies
+                  wholly above the quantity's practical margin, or when an absolute
+                  threshold is exceeded (held-back k; paper-method k and alpha and
+                  default-method e and k on the paper samples - prior-limited or
+                  bundle-independent, so thresholded, never compared)
     5. flash      verified upload over serial (progress bar); the device must report
                   the new sha256
     6. self-check one touch: on the simulator the scene's object, on a real probe the
@@ -30,7 +35,7 @@ import os
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -38,19 +43,16 @@ from host.device import DeviceSession, DeviceUnavailable, open_device
 
 __all__ = ["Thresholds", "DeployRefused", "score_bundle", "judge", "self_check", "train_and_deploy"]
 
-#: Relative slack when comparing with the device's bundle: evaluation noise, not a licence to regress.
-COMPARE_TOLERANCE = 0.05
-#: Absolute slack on a relative error (0.5 percentage points).
-COMPARE_SLACK = 0.005
-
-
 @dataclass(frozen=True)
 class Thresholds:
     """Largest errors a bundle may have to be deployed (relative, as fractions).
 
     ``heldout_k_median`` is the training's held-back-material metric; the
-    others are means of absolute errors over the paper's nine cases through
-    the probe's instrument model.
+    others are means of absolute errors (answered touches) over the paper's
+    three samples in the gate's evaluation set (:mod:`host.gate`) through the
+    probe's instrument model.  These numbers are limited by the library prior
+    (k, alpha) or do not depend on the bundle (the default method's e), so they
+    are held to these limits only, never compared with the device's bundle.
     """
 
     heldout_k_median: float = 0.35
@@ -67,39 +69,31 @@ class DeployRefused(DeviceUnavailable):
         super().__init__(message, 3)
 
 
-def score_bundle(bundle: Any, instrument: str, *, repeats: int = 2) -> dict:
-    """Mean absolute errors of a bundle on the paper's nine cases.
+def score_bundle(bundle: Any, instrument: str) -> dict:
+    """The gate's evaluation of a bundle (:func:`host.gate.evaluate`) on the fixed evaluation set."""
+    from host.gate import evaluate  # noqa: PLC0415
 
-    Returns ``{"paper_k", "paper_alpha", "default_e", "default_k", "rows"}``.
-    """
-    from edge.estimation.estimate import Estimator  # noqa: PLC0415
-    from host.evaluate import paper_cases  # noqa: PLC0415
-
-    rows = paper_cases(Estimator.from_bundle(bundle), instrument, repeats=repeats)
-
-    def mean(method: str, key: str) -> float:
-        v = [r[key] for r in rows if r["method"] == method and r[key] is not None]
-        return float(np.mean(v)) if v else math.inf
-
-    return {"paper_k": mean("paper", "k_err_abs"), "paper_alpha": mean("paper", "alpha_err_abs"),
-            "default_e": mean("default", "e_err"), "default_k": mean("default", "k_err_abs"), "rows": rows}
+    return evaluate(bundle, instrument)
 
 
-#: Errors compared with the device's model: what a bundle decides (the network's k, the prior's k and e).
-#: The paper method's alpha follows from k through the scan and is held to its threshold only.
-_COMPARED = ("paper_k", "default_e", "default_k")
+#: Held to a threshold only: prior-limited (k, alpha against the truth) or the same for every bundle (e).
 _THRESHOLDED = ("paper_k", "paper_alpha", "default_e", "default_k")
 
 
-def judge(metrics: dict, new: dict, old: dict | None, thresholds: Thresholds = Thresholds()) -> list[str]:
+def judge(metrics: dict, new: dict, comparisons: Sequence[Any] = (),
+          thresholds: Thresholds = Thresholds()) -> list[str]:
     """Reasons to refuse the new bundle (empty: deploy).
 
     Parameters
     ----------
     metrics : dict
         Training metrics (``heldout_k_median_rel_err``).
-    new, old : dict
-        :func:`score_bundle` of the new bundle and of the device's (None: unknown).
+    new : dict
+        Means of the new bundle's absolute errors on the paper samples (``paper_k``,
+        ``paper_alpha``, ``default_e``, ``default_k``: ``evaluate(...)["means"]``).
+    comparisons : sequence of host.gate.Comparison
+        The paired comparison with the device's bundle (empty: unknown); a quantity whose
+        verdict is ``"worse"`` (95 % interval wholly above its practical margin) refuses.
     """
     why = []
     held = metrics.get("heldout_k_median_rel_err")
@@ -111,9 +105,11 @@ def judge(metrics: dict, new: dict, old: dict | None, thresholds: Thresholds = T
         if not new[key] <= limit:
             why.append(f"{key.replace('_', ' ')} error {new[key] * 100:.1f} % exceeds the threshold "
                        f"{limit * 100:.0f} %")
-        if old is not None and key in _COMPARED and new[key] > old[key] * (1 + COMPARE_TOLERANCE) + COMPARE_SLACK:
-            why.append(f"{key.replace('_', ' ')} error {new[key] * 100:.1f} % is worse than the device's "
-                       f"model ({old[key] * 100:.1f} %)")
+    for c in comparisons:
+        if c.verdict == "worse":
+            why.append(f"{c.quantity.replace('_', ' ')} is worse than the device's model: {c.old:.4f} -> "
+                       f"{c.new:.4f}, difference {c.diff:+.4f} (95 % CI {c.lo:+.4f} .. {c.hi:+.4f}) above the "
+                       f"margin {c.margin:.3f}")
     return why
 
 
@@ -188,7 +184,7 @@ def _device_baseline(info: dict, baseline: str | Path | None, log: Callable[[str
 def train_and_deploy(session: DeviceSession, out: str | Path, *, quick: bool = False, seed: int = 0,
                      lib: Any = None, bundle: str | Path | None = None, baseline: str | Path | None = None,
                      thresholds: Thresholds = Thresholds(), reference: str | None = None,
-                     repeats: int = 2, progress: bool = True, overwrite: bool = False,
+                     progress: bool = True, overwrite: bool = False,
                      log: Callable[[str], None] = print) -> dict:
     """The whole flow on an open session (see the module docstring).
 
@@ -241,8 +237,10 @@ def train_and_deploy(session: DeviceSession, out: str | Path, *, quick: bool = F
         metrics = dict(new_bundle.manifest.get("metrics", {}))
     log(f"held-back materials: k median error {metrics.get('heldout_k_median_rel_err', math.nan) * 100:.1f} %, "
         f"90th percentile {metrics.get('heldout_k_p90_rel_err', math.nan) * 100:.1f} %")
+    from host.gate import compare, describe_set, format_report  # noqa: PLC0415
+
     with Ticker("evaluating the new bundle", enabled=progress):
-        score = score_bundle(new_bundle, instrument, repeats=repeats)
+        score = score_bundle(new_bundle, instrument)
     old_bundle = _device_baseline(info, baseline, log)
     old = None
     if old_bundle is not None:
@@ -250,10 +248,14 @@ def train_and_deploy(session: DeviceSession, out: str | Path, *, quick: bool = F
             old = score
         else:
             with Ticker("evaluating the device's bundle", enabled=progress):
-                old = score_bundle(old_bundle, instrument, repeats=repeats)
-    log("paper cases (mean |error|):  new " + _fmt_score(score)
-        + ("" if old is None else "\n                             device " + _fmt_score(old)))
-    why = judge(metrics, score, old, thresholds)
+                old = score_bundle(old_bundle, instrument)
+    log(f"evaluation set: {describe_set(instrument)}")
+    comparisons = [] if old is None else compare(score, old)
+    if comparisons:
+        log(format_report(comparisons))
+    log("paper cases (mean |error|, held to thresholds):  new " + _fmt_score(score["means"])
+        + ("" if old is None else "\n" + " " * 44 + "device " + _fmt_score(old["means"])))
+    why = judge(metrics, score["means"], comparisons, thresholds)
     if why:
         raise DeployRefused("not deploying " + str(path) + ": " + "; ".join(why))
     if old_bundle is not None and old_bundle.sha256 == new_bundle.sha256:
@@ -262,9 +264,9 @@ def train_and_deploy(session: DeviceSession, out: str | Path, *, quick: bool = F
     log(f"flashed {fl['bytes']} B; device reports sha256 {fl['model_sha256']}")
     with Ticker("self-check touch", enabled=progress):
         check = self_check(session, score, reference=reference, log=log)
-    result = {"model_sha256": fl["model_sha256"], "metrics": metrics,
-              "score": {k: v for k, v in score.items() if k != "rows"},
-              "device_score": None if old is None else {k: v for k, v in old.items() if k != "rows"},
+    result = {"model_sha256": fl["model_sha256"], "metrics": metrics, "score": dict(score["means"]),
+              "device_score": None if old is None else dict(old["means"]),
+              "gate": [dict(c.__dict__, verdict=c.verdict) for c in comparisons],
               "flash": fl, "self_check": check, "bundle": str(path)}
     if check is not None and not check["ok"]:
         raise DeviceUnavailable(f"self-check failed on {check['reference']}: e error {check['e_err'] * 100:+.1f} % "

@@ -6,6 +6,33 @@ edge.estimation.features) -> standardisation -> PCA to 2 components -> MLPRegres
 spans four decades, and a network fitted on k itself spends its capacity on
 the metals.  The bundle also carries the material library and the prior
 coefficients used by the default method, so the device needs nothing else.
+
+Reproducibility
+---------------
+:func:`train_bundle` with the same seed, recipe and library writes bit-identical
+arrays on one machine with one BLAS thread (:mod:`host.blas`), whether or not the
+training set comes from the cache and whatever the process ran before
+(``tests/host/test_train_repro.py``); the manifest differs (date, timings), so the
+bundle's sha256 does too.  Two things made retrains differ before:
+
+* the training set's noisy copies were resampled through
+  :func:`edge.estimation.spline.resample`, which evaluates the spline directly
+  on the first sighting of a time base and as a cached ``W @ y`` afterwards -
+  equal to rounding only.  Features u2 and u7 (differences of nearly equal
+  numbers near the log floor) turn 1e-16 into up to 60 % on a few series, and
+  the lbfgs fit turns any change of its input into different weights.  So a
+  training set depended on what the process had resampled before
+  (:class:`host.dataset._Resampler` fixes this; ``CODE_VERSION`` 2);
+* the shipped bundle (``models/default``, commit 602dca5) predates the cached
+  operator (merge 457badb): with today's code 265 of its 2688 noisy training
+  series differ in some feature by more than 1e-12 relative (188 by more than
+  1e-6), although ``training_set_sha256`` - a hash of the *inputs*, not of the
+  features - was unchanged.  Even the code of 602dca5, re-run here with one
+  BLAS thread, gives features within 3e-15 of the shipped ones but not equal
+  (``x_mean``), and weights up to 0.35 apart: the shipped bundle was trained
+  in an environment its manifest does not record (BLAS threads, NumPy/SciPy
+  builds).  It cannot be reproduced bit for bit; ``thermotouch deploy`` judges a
+  retrain on its merits instead (:mod:`host.gate`).
 """
 
 from __future__ import annotations

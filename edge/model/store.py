@@ -22,6 +22,7 @@ import re
 import secrets
 import threading
 from pathlib import Path
+from typing import Any, Callable
 
 from edge.storage import durable
 from edge.model.bundle import (
@@ -61,6 +62,11 @@ class ModelStore:
         Tolerance for the golden check.
     limits : edge.model.bundle.Limits
         Size bounds (the transport blob bound is ``limits.max_blob_bytes``).
+    semantic_check : callable, optional
+        ``semantic_check(bundle)`` raises ``ValueError`` (one-line message) if what an uploaded
+        bundle decides is wrong (:func:`edge.estimation.selfcheck.semantic_check`; injected like
+        the golden check because ``edge.model`` sits below ``edge.estimation``). Run on
+        :meth:`install` only, after the golden check and before any pointer moves.
     """
 
     CURRENT = "current"
@@ -74,8 +80,10 @@ class ModelStore:
         golden_check: GoldenCheck,
         golden_rtol: float = DEFAULT_GOLDEN_RTOL,
         limits: Limits = DEFAULT_LIMITS,
+        semantic_check: Callable[[Any], None] | None = None,
     ) -> None:
         self.root = Path(root)
+        self.semantic_check = semantic_check
         self.factory_path = Path(factory_path) if factory_path is not None else None
         self.golden_check = golden_check
         self.golden_rtol = golden_rtol
@@ -254,6 +262,7 @@ class ModelStore:
 
         bundle_from_bytes(blob, staging, self.limits)
         new = self._load_verified(staging)
+        self._check_semantics(new)
         target = self._bundle_path(new.sha256)
         if os.path.lexists(target):
             try:
@@ -276,6 +285,15 @@ class ModelStore:
         self._active, self.source, self.boot_errors = self._load_verified(target, new.sha256), self.CURRENT, []
         self._collect_garbage()
         return self._active
+
+    def _check_semantics(self, bundle: Bundle) -> None:
+        # Before the bundle is stored or named by a pointer: a refusal leaves the store as it was.
+        if self.semantic_check is None:
+            return
+        try:
+            self.semantic_check(bundle)
+        except (ValueError, ArithmeticError) as e:
+            raise InstallError(f"install refused, active model unchanged: semantic self-check: {e}") from e
 
     def rollback(self) -> Bundle:
         """Make ``previous`` current again (after verifying it); the two pointers swap.

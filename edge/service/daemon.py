@@ -69,6 +69,7 @@ from typing import Any, Callable, Mapping
 import edge
 from edge.estimation.estimate import pipeline_golden_check
 from edge.estimation.objects import recognition_fields
+from edge.estimation.selfcheck import semantic_check
 from edge.hw.board import Board
 from edge.hw.drivers.button import Button
 from edge.hw.drivers.heater import Heater, HeaterError, HeaterOffError
@@ -315,7 +316,7 @@ class Daemon:
         root = self.config.paths.model_store
         try:
             store = ModelStore(root, _factory_bundle(self.config), golden_check=pipeline_golden_check,
-                               limits=self.model_limits)
+                               limits=self.model_limits, semantic_check=semantic_check)
         except (ModelStoreError, OSError) as e:
             self._set_fault("model_store", f"cannot open {root}: {e}")
             return _UnavailableStore(root, str(e), self.model_limits)

@@ -91,3 +91,34 @@ def reseal(path: Path) -> None:
         data = (path / name).read_bytes()
         m["files"][name] = {"sha256": hashlib.sha256(data).hexdigest(), "size": len(data)}
     (path / "manifest.json").write_text(json.dumps(m))
+
+
+def broken_copy(src, dst: Path, how: str):
+    """A self-consistent but wrong copy of the bundle at ``src``: fresh hashes and golden vectors.
+
+    ``how``: ``"permuted_names"`` (the library's names rolled by one place: every material
+    carries another's name) or ``"negated_output"`` (the network's last layer negated, so
+    ln k -> -ln k).  Returns the written :class:`edge.model.bundle.Bundle`.
+    """
+    from edge.estimation.estimate import Estimator, pipeline_golden_check
+    from edge.model import bundle as B
+
+    src_b = B.load_bundle(src, pipeline_golden_check)
+    arrays = {k: np.array(v) for k, v in src_b.arrays.items()}
+    if how == "permuted_names":
+        arrays["lib_names"] = np.roll(arrays["lib_names"], 1)
+    elif how == "negated_output":
+        last = int(arrays["mlp_n_layers"]) - 1
+        arrays[f"mlp_W{last}"] = -arrays[f"mlp_W{last}"]
+        arrays[f"mlp_b{last}"] = -arrays[f"mlp_b{last}"]
+    else:
+        raise ValueError(how)
+    with np.load(Path(src) / "golden.npz") as z:
+        golden = {k: z[k] for k in z.files}
+    # Golden vectors recomputed from the tampered arrays: they agree with it, as a forger's would.
+    golden["mlp_outputs"] = MLP.from_arrays(arrays).predict(golden["mlp_inputs"])
+    if "pipeline_features" in golden:
+        golden["pipeline_k"] = Estimator(arrays, "").paper_k(golden["pipeline_features"])[0]
+    extra = {k: v for k, v in src_b.manifest.items() if k not in ("files", "schema_version")}
+    extra["model_version"] = f"{src_b.model_version}-{how}"
+    return B.write_bundle(dst, arrays, golden, extra, golden_check=pipeline_golden_check)

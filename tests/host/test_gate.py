@@ -1,0 +1,103 @@
+"""The deploy gate's statistics and its verdicts on real and deliberately broken bundles."""
+
+import numpy as np
+import pytest
+
+from edge.estimation.estimate import pipeline_golden_check
+from edge.model.bundle import load_bundle
+from host.deploy import Thresholds, judge
+from host.gate import MARGINS, Comparison, compare, evaluate, evaluation_touches, format_report, paired_bootstrap
+from tests.support.bundles import broken_copy
+from thermotouch_models import DEFAULT_BUNDLE
+
+
+def test_equal_errors_give_a_zero_interval():
+    e = np.random.default_rng(0).uniform(0, 0.3, 80)
+    assert paired_bootstrap(e, e.copy()) == (0.0, 0.0, 0.0, 80)
+
+
+def test_a_known_regression_is_detected_and_a_small_one_is_within_noise():
+    rng = np.random.default_rng(1)
+    old = rng.uniform(0.0, 0.3, 90)
+    # Per-touch noise of 0.05 around a true shift: +0.04 is detected, +0.002 is not.
+    worse = old + 0.04 + rng.normal(0, 0.05, 90)
+    diff, lo, hi, n = paired_bootstrap(worse, old)
+    assert n == 90 and 0.025 < diff < 0.055 and lo > 0.01 and lo < diff < hi
+    tiny = old + 0.002 + rng.normal(0, 0.05, 90)
+    _, lo, hi, _ = paired_bootstrap(tiny, old)
+    assert lo < 0 < hi
+    # Pairing is what makes this possible: the shared material-to-material spread cancels.
+    spread = rng.uniform(0.0, 1.0, 90)
+    _, lo, _, _ = paired_bootstrap(spread + 0.03 + rng.normal(0, 0.01, 90), spread)
+    assert lo > 0.02
+
+
+def test_bootstrap_is_seeded_and_skips_pairs_without_both_values():
+    rng = np.random.default_rng(2)
+    a, b = rng.uniform(size=50), rng.uniform(size=50)
+    assert paired_bootstrap(a, b) == paired_bootstrap(a, b)
+    a[3] = np.nan
+    assert paired_bootstrap(a, b)[3] == 49
+    assert paired_bootstrap(np.full(3, np.nan), np.ones(3))[3] == 0
+
+
+def test_verdicts():
+    c = lambda lo, hi, diff=0.0: Comparison("paper_e", 0.1, 0.1 + diff, diff, lo, hi, 90, 0.01)  # noqa: E731
+    assert c(0.02, 0.05, 0.03).verdict == "worse"
+    assert c(0.005, 0.02, 0.01).verdict == "worse within the margin"  # significant, not beyond the margin
+    assert c(-0.005, 0.02, 0.01).verdict == "no significant change"
+    assert c(-0.03, -0.01, -0.02).verdict == "better"
+    assert c(0.0, 0.0).verdict == "same"
+
+
+GOOD = {"paper_k": 0.10, "paper_alpha": 0.20, "default_e": 0.03, "default_k": 0.10}
+METRICS = {"heldout_k_median_rel_err": 0.15}
+
+
+def test_judge_refuses_on_a_worse_verdict_or_a_threshold_only():
+    same = Comparison("paper_e", 0.1, 0.1, 0.0, 0.0, 0.0, 90, MARGINS["paper_e"])
+    worse = Comparison("name_e", 0.06, 0.40, 0.34, 0.27, 0.41, 81, MARGINS["name_e"])
+    assert judge(METRICS, GOOD, [same]) == []
+    assert judge(METRICS, GOOD) == []  # device's bundle unknown: thresholds only
+    why = judge(METRICS, GOOD, [same, worse])
+    assert len(why) == 1 and "name e is worse than the device's model" in why[0] and "95 % CI +0.2700" in why[0]
+    # Prior-limited numbers are held to thresholds, never compared.
+    assert judge(METRICS, dict(GOOD, paper_k=0.30), [same]) == []
+    assert "paper alpha" in judge(METRICS, dict(GOOD, paper_alpha=0.70))[0]
+    assert "held-back" in judge({"heldout_k_median_rel_err": 0.5}, GOOD)[0]
+    assert judge(METRICS, GOOD, (), Thresholds(default_e=0.01))[0].startswith("default e error 3.0 %")
+
+
+@pytest.fixture(scope="module")
+def shipped_eval():
+    return evaluate(load_bundle(DEFAULT_BUNDLE, pipeline_golden_check), "mcp9600")
+
+
+def test_evaluation_set_is_fixed_and_the_same_bundle_passes(shipped_eval):
+    assert len(evaluation_touches("mcp9600")) == 90
+    again = evaluate(load_bundle(DEFAULT_BUNDLE, pipeline_golden_check), "mcp9600")
+    cmp = compare(again, shipped_eval)
+    assert [c.verdict for c in cmp] == ["same"] * 3
+    assert "verdict" in format_report(cmp)
+
+
+@pytest.mark.parametrize("how, refused_on", [("permuted_names", {"name_e"}),
+                                             ("negated_output", {"paper_e", "paper_k_vs_prior"})])
+def test_broken_bundles_are_refused(tmp_path, shipped_eval, how, refused_on):
+    bad = evaluate(broken_copy(DEFAULT_BUNDLE, tmp_path / how, how), "mcp9600")
+    cmp = compare(bad, shipped_eval)
+    assert {c.quantity for c in cmp if c.verdict == "worse"} == refused_on
+    assert judge(METRICS, bad["means"], cmp)
+
+
+@pytest.mark.slow  # ~15 s: the full recipe is trained once
+@pytest.mark.filterwarnings("ignore:lbfgs failed to converge")
+def test_a_seeded_retrain_of_the_shipped_recipe_passes_the_gate(tmp_path, monkeypatch, shipped_eval):
+    from host.train import train_bundle
+
+    monkeypatch.setenv("THERMOTOUCH_CACHE", str(tmp_path / "cache"))
+    b, metrics = train_bundle(tmp_path / "retrain", seed=0, log=lambda s: None)
+    new = evaluate(b, "mcp9600")
+    cmp = compare(new, shipped_eval)
+    assert not any(c.verdict == "worse" for c in cmp), format_report(cmp)
+    assert judge(metrics, new["means"], cmp) == []
