@@ -382,14 +382,25 @@ def work_root(fallback: Path | None = None) -> Iterator[Path]:
 
 # ---------------------------------------------------------------------------------------------- daemons
 
-def child_daemon(point_dir: Path, **sections: Any) -> Any:
-    """The daemon as ``thermotouch-edge`` starts it, on a sim rig whose GPIO and PWM state live in files."""
+def child_daemon(point_dir: Path, model_store: Any = None, **sections: Any) -> Any:
+    """The daemon as ``thermotouch-edge`` starts it, on a sim rig whose GPIO and PWM state live in files.
+
+    ``model_store``: an already verified store to hand it (operations that do not touch the model
+    save the golden check, a third of a child's start); None: the daemon opens its own.
+    """
     from firmware_sim.rigs.daemon_rig import make_rig
     from edge.service.daemon import Daemon
     from tests.support.daemons import FakeEstimator, sim_config
 
     rig = make_rig(gpio_state_dir=point_dir / "gpio", pwm_root=point_dir / "pwm")
-    return Daemon(sim_config(point_dir, **sections), rig.board, estimator=FakeEstimator())
+    return Daemon(sim_config(point_dir, **sections), rig.board, estimator=FakeEstimator(), model_store=model_store)
+
+
+def _verified_store(root: Path) -> Callable[[Path], Any]:
+    """``make_daemon`` for operations that leave the model alone: one store, verified once, in every child."""
+    store = _open_store(Path(tempfile.mkdtemp(prefix="shared-store-", dir=root)))
+    store.current()
+    return lambda point_dir: child_daemon(point_dir, model_store=store)
 
 
 def heater_line(point_dir: Path, which: str = "gpio") -> dict | None:
@@ -418,7 +429,7 @@ def full_restart(point_dir: Path, *, measure: bool = True, **sections: Any) -> d
                "pwm_duty": rig.parts.pwm_tree.history(rig.parts.pwm_chip, rig.parts.pwm_channel)[-1].fraction,
                "config": d.config.runtime()}
         if measure:
-            out["measure"] = d.measure(contact_time_s=0.3)
+            out["measure"] = d.measure()  # the touch the (possibly just changed) configuration asks for
         out["heater_on_after"] = d.heater.is_on
     out["line_after_close"] = heater_line(point_dir)
     return out
@@ -516,7 +527,8 @@ def measure_operation(root: Path, n_prior: int = 2) -> Operation:
                 problems.append(f"measurement {body['measurement_id']} differs from what the host was told")
         return problems + _heater_problems(point)
 
-    return Operation("measure", template, [(Command.MEASURE, {})], check, child_daemon, ("sqlite", "heater"))
+    return Operation("measure", template, [(Command.MEASURE, {})], check, _verified_store(root),
+                     ("sqlite", "heater"))
 
 
 def _variant_blobs(tags: tuple[str, ...]) -> dict[str, bytes]:
@@ -590,11 +602,11 @@ def flash_operation(root: Path, chunk_bytes: int = 48 * 1024) -> Operation:
             problems.append(f"pointers {[p[:12] if p else p for p in pointers]} are neither the old nor the new state")
         if committed and states is not None and states.get(pointers) != "new":
             problems.append("the flash was confirmed to the host but the old model is active")
-        for which, p in zip(("current", "previous"), pointers):
+        if pointers[1] != pointers[0]:  # current() has just verified the bundle ``current`` names
             try:
-                st._load_verified(st._bundle_path(p), p)  # fully: hashes, schema, golden vectors
+                st._load_verified(st._bundle_path(pointers[1]), pointers[1])  # hashes, schema, golden vectors
             except Exception as e:  # noqa: BLE001
-                problems.append(f"{which} names a bundle that does not verify: {e}")
+                problems.append(f"previous names a bundle that does not verify (no rollback): {e}")
         leftovers = sorted(os.listdir(st.tmp_dir)) + [e for e in os.listdir(st.root) if e.startswith(".")]
         unreferenced = sorted(set(os.listdir(st.bundles_dir)) - set(pointers))
         if leftovers:
@@ -666,4 +678,4 @@ def config_operation(root: Path, keys: tuple[str, ...] | None = None) -> Operati
             problems.append(f"{confirmed} CONFIG_SETs confirmed to the host, {n_new} survive")
         return problems + _heater_problems(point)
 
-    return Operation("config", template, requests, check, child_daemon)
+    return Operation("config", template, requests, check, _verified_store(root))
