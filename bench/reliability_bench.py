@@ -113,9 +113,9 @@ def signals(tmp: Path) -> dict:
         rec = None
         if name != "SIGKILL":
             report = json.loads(stdout.strip().splitlines()[-1])
-            rec = [(r["status"], r["reason"]) for r in report["records"]]
+            rec = [[r["status"], r["reason"]] for r in report["records"]]  # lists: as in the JSON results
         ok = heating and on_before == 1 and line["level"] == 0 and (
-            rec is None or rec == [("aborted", "stopped")])
+            rec is None or rec == [["aborted", "stopped"]])
         out[name] = {"heater_off_after": line["level"] == 0, "was_heating": heating and on_before == 1,
                      "records": rec, "returncode": proc.returncode, "ok": ok}
     return out
@@ -202,8 +202,8 @@ def host_stops_reading(tmp: Path) -> dict:
 def table(res: dict) -> str:
     """The README block."""
     kp = res["kill_points"]
-    lines = ["| operation | kill points (by kind) | survived | lost / half-written | full restarts clean | ms per point |",
-             "|---|---|---|---|---|---|"]
+    lines = ["| operation | kill points (by kind) | survived | lost / half-written | full restarts clean "
+             "| ms per point |", "|---|---|---|---|---|---|"]
     for name, r in kp.items():
         kinds = ", ".join(f"{k} {v}" for k, v in r["by_kind"].items())
         lines.append(f"| {name} | {r['points']} ({kinds}) | {r['survived']} | {r['lost_or_half_written']} | "
@@ -217,7 +217,7 @@ def table(res: dict) -> str:
               "(no calibration operation).", "",
               f"Signals mid-heating with the heater off afterwards: {sum(v['ok'] for v in sig.values())} of "
               f"{len(sig)} ({', '.join(sig)}); the touch stored as aborted (`stopped`) after "
-              f"{sum(v['records'] == [['aborted', 'stopped']] or v['records'] == [('aborted', 'stopped')] for v in sig.values())} "
+              f"{sum(v['records'] == [['aborted', 'stopped']] for v in sig.values())} "
               f"of the {sum(v['records'] is not None for v in sig.values())} catchable ones.", "",
               "Stop latency, median [max] of " + str(next(iter(stop.values()))["n"]) + ": "
               + ", ".join(f"{k} {v['median_s'] * 1e3:.0f} [{v['max_s'] * 1e3:.0f}] ms" for k, v in stop.items())
