@@ -1,6 +1,6 @@
 """Kill -9 at every step of a device operation, restart, and check that nothing was lost or half-written.
 
-An *operation* (a MEASURE, a model flash, a run of CONFIG_SETs) is a list of protocol requests
+An *operation* (a MEASURE, a model flash, a run of CONFIG_SETs, the daemon's start-up) is a list of protocol requests
 that a daemon built on the simulated rig answers. A *step* is anything the operation does that
 outlives the process:
 
@@ -9,8 +9,9 @@ outlives the process:
   :mod:`edge.storage.durable`, :mod:`edge.model.store`, :mod:`edge.model.bundle` or
   :mod:`edge.service.config` (found by the caller's stack, so ``shutil.rmtree`` and
   ``Path.unlink`` inside ``durable.remove_tree`` count, step by step);
-* ``sqlite``: every writing statement the history issues (``BEGIN``, ``INSERT``, ``COMMIT``);
-  SQLite's own page writes happen inside one C call and cannot be split from Python;
+* ``sqlite``: every writing statement the history issues (``BEGIN``, ``INSERT``, ``COMMIT``; at
+  start-up ``PRAGMA journal_mode``, ``CREATE TABLE``, ``PRAGMA user_version``); SQLite's own page
+  writes (and its WAL recovery) happen inside one C call and cannot be split from Python;
 * ``heater``: every write to the simulated hardware that drives the heater (PWM sysfs files,
   the enable line);
 * ``sample``: every sensor read of the touch (the heater is on during most of them; a kill there
@@ -59,7 +60,8 @@ __all__ = ["Steps", "Operation", "PointResult", "dry_run", "kill_at", "run_all",
            "child_daemon", "full_restart"]
 
 #: Modules whose file-system calls are steps (the durable layer and everything that writes state through it).
-WATCHED_MODULES = frozenset({"edge.storage.durable", "edge.model.store", "edge.model.bundle", "edge.service.config"})
+WATCHED_MODULES = frozenset({"edge.storage.durable", "edge.storage.history", "edge.model.store", "edge.model.bundle",
+                             "edge.service.config"})
 #: The os calls that change the file system (``open`` only with O_CREAT: opening to read, or to fsync a
 #: directory, changes nothing).
 MUTATING_OS_CALLS = ("open", "write", "fsync", "replace", "rename", "mkdir", "unlink", "rmdir")
@@ -130,8 +132,9 @@ def _watched_caller() -> str | None:
 
 
 def _describe(name: str, args: tuple) -> str:
-    shown = [os.path.basename(str(a)) if isinstance(a, (str, os.PathLike)) else "fd" for a in args[:2]
-             if not isinstance(a, (bytes, memoryview, bytearray)) and not (name == "open" and isinstance(a, int))]
+    if name in ("write", "fsync"):
+        return f"{name} fd"
+    shown = [os.path.basename(str(a)) for a in args[:2] if isinstance(a, (str, os.PathLike))]
     return f"{name} {' -> '.join(shown)}".strip()
 
 
@@ -150,6 +153,11 @@ def instrument_files(steps: Steps) -> None:
         setattr(os, name, wrapper)
 
 
+#: Statements that write the database file (reads and per-connection settings are no steps).
+_SQL_WRITES = frozenset({"BEGIN", "COMMIT", "INSERT", "UPDATE", "DELETE", "CREATE", "DROP", "ALTER"})
+_SQL_WRITING_PRAGMAS = ("PRAGMA JOURNAL_MODE", "PRAGMA USER_VERSION=")
+
+
 class _CountingConnection:
     """Stands in for the history's sqlite3 connection: every writing statement is a step."""
 
@@ -158,13 +166,24 @@ class _CountingConnection:
         self._steps = steps
 
     def execute(self, sql: str, *args: Any) -> Any:
-        verb = sql.split(None, 1)[0].upper()
-        if verb not in ("SELECT", "PRAGMA"):
-            self._steps.step("sqlite", verb)
+        words = " ".join(sql.split()).upper()
+        if words.split(" ", 1)[0] in _SQL_WRITES or words.startswith(_SQL_WRITING_PRAGMAS):
+            self._steps.step("sqlite", " ".join(words.split(" ", 2)[:2]) if words.startswith(("CREATE", "PRAGMA"))
+                             else words.split(" ", 1)[0])
         return self._conn.execute(sql, *args)
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._conn, name)
+
+
+def instrument_sqlite_connect(steps: Steps) -> None:
+    """Count the writing statements of every connection opened from now on (a history opened at start-up)."""
+    real = sqlite3.connect
+
+    def connect(*args: Any, **kw: Any) -> Any:
+        return _CountingConnection(real(*args, **kw), steps)
+
+    sqlite3.connect = connect
 
 
 def instrument_history(daemon: Any, steps: Steps) -> None:
@@ -230,6 +249,8 @@ class Operation:
     check: Callable[[Path, list[dict]], list[str]]
     make_daemon: Callable[[Path], Any]
     instrument: tuple[str, ...] = ()
+    #: The daemon's start-up is the operation: instrument first, then build the daemon.
+    startup: bool = False
 
 
 @dataclass
@@ -245,8 +266,13 @@ class PointResult:
 
 def _child(op: Operation, point_dir: Path, n: int | None, trace_fd: int, host_fd: int) -> None:
     steps = Steps(n, trace_fd)
-    daemon = op.make_daemon(point_dir)
-    instrument_files(steps)
+    if op.startup:
+        instrument_files(steps)
+        instrument_sqlite_connect(steps)
+        daemon = op.make_daemon(point_dir)
+    else:
+        daemon = op.make_daemon(point_dir)
+        instrument_files(steps)
     if "sqlite" in op.instrument:
         instrument_history(daemon, steps)
     if "heater" in op.instrument:
@@ -691,3 +717,87 @@ def config_operation(root: Path, keys: tuple[str, ...] | None = None) -> Operati
         return problems + _heater_problems(point)
 
     return Operation("config", template, requests, check, _verified_store(root))
+
+
+def _die_after(fn: Callable[[], None]) -> None:
+    """Run ``fn`` in a child that is then SIGKILLed (leaves what a killed daemon leaves: a WAL not checkpointed)."""
+    pid = os.fork()
+    if pid == 0:  # pragma: no cover - the child never returns
+        try:
+            fn()
+            os.kill(os.getpid(), signal.SIGKILL)
+        finally:
+            os._exit(_EXIT_CRASHED)
+    _, status = os.waitpid(pid, 0)
+    assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL, status
+
+
+def startup_operation(root: Path, *, after_crash: bool) -> Operation:
+    """The daemon's start-up, then one STATUS: on an empty state directory (first boot), or on what a
+    killed daemon left (``after_crash``: a record only in the WAL, a staged upload, pointer and
+    overrides temporaries, a bundle no pointer names).
+    """
+    from edge.storage.history import History
+
+    template = Path(tempfile.mkdtemp(prefix=f"startup-{'crash' if after_crash else 'first'}-template-", dir=root))
+    blobs = _variant_blobs(("A", "B")) if after_crash else {}
+    sha: dict[str, str] = {}
+    prior: dict[int, str] = {}
+    if after_crash:
+        store = _open_store(template)
+        sha = {tag: store.install(blobs[tag], hashlib.sha256(blobs[tag]).hexdigest(), len(blobs[tag])).sha256
+               for tag in ("A", "B")}
+        (template / "runtime.json").write_text(json.dumps({"heater.power_W": 2.0}))
+        rec = {"status": "ok", "flags": [], "config": {}, "raw_t_s": [0.0, 0.1], "raw_T_C": [25.0, 25.5],
+               "raw_q_W_m2": [0.0, 900.0]}
+
+        def add_and_die() -> None:
+            h = History(template / "history.db")
+            h.add(rec)
+            h.add(rec)
+
+        _die_after(add_and_die)
+        models = template / "models"
+        shutil.copytree(models / "bundles" / sha["A"], models / "bundles" / ("c" * 64))  # moved in, never named
+        (models / "tmp" / "upload-0123456789ab").mkdir()
+        (models / "tmp" / "upload-0123456789ab" / "arrays.npz").write_bytes(b"partial")
+        (models / ".current.tmp4242").write_bytes(b"half a poi")
+        (template / ".runtime.json.tmp777").write_bytes(b"{\"heater.pow")
+        problems, rows = _history_rows(Path(shutil.copytree(template, root / "startup-probe")) / "history.db")
+        shutil.rmtree(root / "startup-probe")
+        assert not problems and len(rows) == 2, problems
+        prior = {mid: _row_digest(r) for mid, r in rows.items()}
+        assert (template / "history.db-wal").stat().st_size > 0  # the records live in the WAL only
+
+    def check(point: Path, replies: list[dict]) -> list[str]:
+        problems, rows = _history_rows(point / "history.db") if (point / "history.db").exists() else ([], {})
+        if set(rows) != set(prior) or any(_row_digest(rows[m]) != d for m, d in prior.items()):
+            problems.append(f"history records changed across the start-up: {sorted(rows)} vs {sorted(prior)}")
+        st = _open_store(point)
+        try:
+            active = st.current()
+            if after_crash and (st.source, active.sha256) != ("current", sha["B"]):
+                problems.append(f"serves {st.source} {active.sha256[:12]}, not the installed model")
+            if not after_crash and st.source != "factory":
+                problems.append(f"first boot serves {st.source}")
+        except Exception as e:  # noqa: BLE001
+            problems.append(f"no model after the kill: {e}")
+        leftovers = sorted(os.listdir(st.tmp_dir)) + [e for e in os.listdir(st.root) if e.startswith(".")]
+        pointers = {p for p in (st._read_pointer(st.CURRENT), st._read_pointer(st.PREVIOUS)) if p}
+        unreferenced = sorted(set(os.listdir(st.bundles_dir)) - pointers)
+        if leftovers or unreferenced:
+            problems.append(f"left after a second start-up: temporaries {leftovers}, unreferenced {unreferenced}")
+        from edge.service.config import RuntimeOverrides
+        from tests.support.daemons import sim_config
+
+        ro = RuntimeOverrides(point / "runtime.json")
+        ro.clean_temporaries()
+        cfg = ro.load(sim_config(point))
+        if ro.errors or cfg.heater.power_W != (2.0 if after_crash else sim_config(point).heater.power_W):
+            problems.append(f"runtime overrides: {ro.errors}, power {cfg.heater.power_W}")
+        if replies and replies[0]["body"].get("faults"):
+            problems.append(f"the daemon started with faults: {replies[0]['body']['faults']}")
+        return problems + _heater_problems(point)
+
+    return Operation(f"startup-{'crash' if after_crash else 'first'}", template, [(Command.STATUS, {})], check,
+                     child_daemon, startup=True)
