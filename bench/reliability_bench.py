@@ -8,7 +8,8 @@ Run::
 What it measures (the same checks the tests make, counted instead of asserted):
 
 * kill points (tests/support/killpoints.py, tests/edge/service/test_kill_points.py): for a
-  MEASURE, a model flash through the upload path and six CONFIG_SETs, a forked daemon dies by
+  MEASURE, a model flash through the upload path, six CONFIG_SETs and the daemon's start-up
+  (first boot, and on what a killed daemon left), a forked daemon dies by
   SIGKILL before every step, and a restart checks that nothing was lost or half-written; per
   operation: points found (by kind), survived, lost/half-written, median time per point, and
   full daemon restarts (no fault, heater off, measures again) at a few points;
@@ -48,7 +49,10 @@ def kill_points() -> dict:
 
     out = {}
     with K.work_root() as root:
-        for build in (K.measure_operation, K.flash_operation, K.config_operation):
+        builds = (K.measure_operation, K.flash_operation, K.config_operation,
+                  lambda r: K.startup_operation(r, after_crash=False),
+                  lambda r: K.startup_operation(r, after_crash=True))
+        for build in builds:
             op = build(root)
             t0 = time.perf_counter()
             trace, results = K.run_all(op, root)
@@ -210,11 +214,12 @@ def table(res: dict) -> str:
                      f"{r['full_restarts_clean']} of {r['full_restarts']} | {r['ms_per_point_median']:.0f} |")
     total = sum(r["points"] for r in kp.values())
     survived = sum(r["survived"] for r in kp.values())
+    core = sum(kp[k]["points"] for k in ("measure", "flash", "config"))
     sig = res["signals"]
     stop = res["stop_latency"]
     h = res["host_stops_reading"]
-    lines += ["", f"{survived} of {total} kill points survive. Calibration storage does not exist yet "
-              "(no calibration operation).", "",
+    lines += ["", f"{survived} of {total} kill points survive ({core} of them in measure, flash and config). "
+              "Calibration storage does not exist yet (no calibration operation).", "",
               f"Signals mid-heating with the heater off afterwards: {sum(v['ok'] for v in sig.values())} of "
               f"{len(sig)} ({', '.join(sig)}); the touch stored as aborted (`stopped`) after "
               f"{sum(v['records'] == [['aborted', 'stopped']] for v in sig.values())} "
