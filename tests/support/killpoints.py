@@ -22,9 +22,11 @@ outlives the process:
 :func:`dry_run` runs the operation once in a forked child and lists its steps. :func:`kill_at`
 forks again, and the child kills itself with ``SIGKILL`` right before step N (``end``: right
 after the last reply), so no ``finally``, ``atexit`` or signal handler runs -- exactly what
-``kill -9`` or the OOM killer does. The parent then *restarts*: it opens the history, the model
-store and the runtime overrides fresh, as the daemon does at start-up, and checks the
-operation's invariants (:class:`Operation.check`). Instrumentation is monkeypatched into the
+``kill -9`` or the OOM killer does. Right after step N is right before step N+1 as far as
+anything outside the process can tell, so "before every step, and after the last" covers both.
+The parent then *restarts*: it opens the history, the model store and the runtime overrides
+fresh, as the daemon does at start-up, and checks the operation's invariants
+(:class:`Operation.check`). Instrumentation is monkeypatched into the
 child only; production code has no hooks.
 
 Forking from the test process keeps a point at a few tens of ms (everything is imported, the
@@ -56,8 +58,9 @@ from edge.protocol.commands import Command
 from edge.protocol.errors import CommandError
 from edge.protocol.messages import Request
 
-__all__ = ["Steps", "Operation", "PointResult", "dry_run", "kill_at", "run_all", "work_root",
-           "child_daemon", "full_restart"]
+__all__ = ["Steps", "Operation", "PointResult", "warm_up", "dry_run", "kill_at", "run_all", "work_root",
+           "child_daemon", "full_restart", "measure_operation", "flash_operation", "config_operation",
+           "startup_operation", "CONFIG_KEYS", "CONFIG_VALUES"]
 
 #: Modules whose file-system calls are steps (the durable layer and everything that writes state through it).
 WATCHED_MODULES = frozenset({"edge.storage.durable", "edge.storage.history", "edge.model.store", "edge.model.bundle",
@@ -471,10 +474,6 @@ def full_restart(point_dir: Path, *, measure: bool = True, **sections: Any) -> d
         out["heater_on_after"] = d.heater.is_on
     out["line_after_close"] = heater_line(point_dir)
     return out
-
-
-def sha256_file(path: Path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 # ---------------------------------------------------------------------------------------------- the three operations
