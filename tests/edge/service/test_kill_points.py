@@ -149,3 +149,32 @@ def test_a_broken_operation_is_caught(root, monkeypatch):
     monkeypatch.setattr(durable, "atomic_write_file", in_place)  # inherited by the forked children
     trace, results = K.run_all(op, root)
     assert any(r.problems for r in results), trace
+
+
+def test_a_reply_before_the_commit_is_caught(root, monkeypatch):
+    """The harness is not vacuous for the history either: a daemon that answers from an uncommitted
+    transaction (the reply goes out, the COMMIT never happens) loses a confirmed measurement."""
+    from edge.storage.history import History
+
+    real_add = History.add
+
+    def add_without_commit(self, record):
+        db = self._db
+
+        class NoCommit:
+            def execute(self, sql, *args):
+                return None if sql.strip().upper() == "COMMIT" else db.execute(sql, *args)
+
+            def __getattr__(self, name):
+                return getattr(db, name)
+
+        self._db = NoCommit()
+        try:
+            return real_add(self, record)
+        finally:
+            self._db = db
+
+    monkeypatch.setattr(History, "add", add_without_commit)  # inherited by the forked children
+    op = K.measure_operation(root, n_prior=0)
+    with pytest.raises(AssertionError, match="confirmed to the host and is lost"):
+        K.run_all(op, root)
