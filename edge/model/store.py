@@ -143,6 +143,16 @@ class ModelStore:
         for entry in os.listdir(self.root):
             if entry.startswith(".") and ".tmp" in entry:
                 durable.remove_tree(self.root / entry)
+        # An install killed after moving its bundle into bundles/ but before ``current`` names it,
+        # or while collecting the bundle it replaced, leaves bundles no pointer names (whole, or
+        # half deleted). Nothing ever loads them; without this they stayed until the next install.
+        # Only with a readable ``current``: a store whose pointer is lost keeps its bundles for a
+        # person to look at (and ``_collect_garbage`` itself keeps everything if a pointer is corrupt).
+        try:
+            if self._read_pointer(self.CURRENT) is not None:
+                self._collect_garbage()
+        except ModelStoreError:
+            pass
 
     # ---------------------------------------------------------------- boot
 

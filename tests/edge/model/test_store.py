@@ -209,6 +209,35 @@ def test_startup_removes_stale_staging(tmp_path, blobs):
     assert os.listdir(root / "tmp") == [] and not (root / ".current.tmp123").exists()
 
 
+def test_startup_removes_bundles_no_pointer_names(tmp_path, blobs):
+    """A flash killed after its bundle moved into bundles/ (or mid-collection) leaves it unreferenced.
+
+    Found by tests/edge/service/test_kill_points.py: such bundles survived every restart until the
+    next successful install.
+    """
+    root = tmp_path / "s"
+    store = ModelStore(root, golden_check=mlp_golden_check)
+    _install(store, blobs, "A")
+    _install(store, blobs, "B")
+    whole = root / "bundles" / blobs["C"][1]
+    shutil.copytree(root / "bundles" / blobs["A"][1], whole)  # moved in, pointer not yet written
+    half = root / "bundles" / ("e" * 64)
+    shutil.copytree(root / "bundles" / blobs["A"][1], half)
+    (half / "manifest.json").unlink()  # the collection was killed after its first unlink
+    fresh = ModelStore(root, golden_check=mlp_golden_check)
+    assert sorted(os.listdir(root / "bundles")) == sorted([blobs["A"][1], blobs["B"][1]])
+    assert fresh.current().sha256 == blobs["B"][1]
+
+
+def test_startup_keeps_bundles_when_current_is_lost(tmp_path, blobs):
+    root = tmp_path / "s"
+    store = ModelStore(root, golden_check=mlp_golden_check)
+    _install(store, blobs, "A")
+    (root / "current").unlink()
+    ModelStore(root, golden_check=mlp_golden_check)
+    assert os.listdir(root / "bundles") == [blobs["A"][1]]  # for a person to look at, not collected
+
+
 # ------------------------------------------------------------------ power cut at every step
 
 

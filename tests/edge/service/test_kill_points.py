@@ -1,0 +1,180 @@
+"""kill -9 at every step of a MEASURE, a model flash and a run of CONFIG_SETs: nothing lost or half-written.
+
+Each operation runs in a forked child that dies by SIGKILL right before step N, for every N
+(:mod:`tests.support.killpoints` says what a step is); the test process then opens the history,
+the model store and the runtime overrides fresh, as the daemon does at start-up, and checks:
+
+* measure: the history passes ``PRAGMA integrity_check``, the records stored before are intact,
+  a record the host was told about is present, no record is half-written;
+* flash: the store serves a fully verified model, the old or the new one (the new one once the
+  host was told), both pointers name bundles that verify, no temporaries or unreferenced bundles
+  survive start-up;
+* config: the overrides file parses, every key holds its old or its new value, the new values
+  are a prefix of the CONFIG_SETs sent and include every confirmed one, no temporaries survive;
+* start-up (first boot on an empty directory, and a boot on what a killed daemon left: a record
+  only in the WAL, a staged upload, temporaries, a bundle no pointer names): the records, the
+  model and the overrides come through, and the next start-up leaves nothing stray;
+* all: the heater's enable line is low once the child is dead (the pull-down of a released line).
+
+A few points also get a full restart: a daemon started on the dead child's state reports no
+fault, keeps the heater off and measures again.
+
+Calibration storage does not exist yet; when it does, it gets an operation here.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+
+import pytest
+
+from tests.support import killpoints as K
+
+pytestmark = pytest.mark.hil
+
+#: Kill points each operation had when this suite was written. Fewer means a step is no longer
+#: seen (a refactor bypassed edge.storage.durable or the history's connection): fail, look, then
+#: change the figure on purpose. (The issue's 109 measure / 61 flash points were counted some other
+#: way; this enumeration is the one the suite and bench/reliability_bench.py report.)
+MIN_POINTS = {"measure": 37, "flash": 35, "config": 43, "startup-first": 12, "startup-crash": 14}
+
+
+@pytest.fixture(scope="module")
+def root(tmp_path_factory):
+    with K.work_root(tmp_path_factory.mktemp("killpts")) as r:
+        yield r
+
+
+def _all_points(op, root) -> list[str]:
+    trace, results = K.run_all(op, root)
+    broken = [f"#{r.n} {r.step!r}: {p}" for r in results for p in r.problems]
+    assert not broken, f"{op.name}: {len(broken)} problem(s) after kill -9:\n" + "\n".join(broken[:20])
+    assert len(results) == len(trace) >= MIN_POINTS[op.name], (op.name, len(trace))
+    return trace
+
+
+def _restart_is_clean(point, expected_history_total: int | None = None) -> dict:
+    out = K.full_restart(point)
+    st = out["status"]
+    assert st["state"] == "idle" and st["faults"] == [] and st["can_measure"] is True, st
+    assert st["heater_on"] is False and out["heater_level"] == 0 and out["pwm_duty"] == 0.0
+    if expected_history_total is not None:
+        assert st["history_total"] == expected_history_total
+    assert out["measure"]["status"] == "ok" and out["measure"]["measurement_id"] == st["history_total"] + 1
+    assert out["heater_on_after"] is False and out["line_after_close"]["level"] == 0
+    return out
+
+
+def _point(trace, kind_and_what: str, nth: int = 0) -> int:
+    """1-based step number of the ``nth`` step with this label."""
+    return [i + 1 for i, s in enumerate(trace) if s == kind_and_what][nth]
+
+
+def test_measure_survives_kill_at_every_step(root):
+    op = K.measure_operation(root)
+    trace = _all_points(op, root)
+    kinds = Counter(s.split("\t")[0] for s in trace)
+    assert kinds["sqlite"] == 3 and kinds["heater"] >= 4 and kinds["sample"] >= 20, kinds
+    # Full restarts: mid-heating, just before COMMIT, and after the reply.
+    heating = [i + 1 for i, s in enumerate(trace) if s.endswith("heater on")]
+    for n, stored in ((heating[len(heating) // 2], 0), (_point(trace, "sqlite\tCOMMIT"), 0),
+                      (len(trace), 1)):
+        res = K.kill_at(op, root, n, trace[n - 1], keep=True)
+        assert not res.problems
+        _restart_is_clean(root / f"measure-k{n}" / "state", expected_history_total=2 + stored)
+
+
+def test_flash_survives_kill_at_every_step(root):
+    op = K.flash_operation(root)
+    trace = _all_points(op, root)
+    for step in ("file\treplace .current.tmp# -> current", "file\treplace .previous.tmp# -> previous"):
+        assert step in trace
+    renames = [i + 1 for i, s in enumerate(trace) if s.startswith("file\trename")]
+    assert len(renames) == 2  # unpacked staging into place, then into bundles/
+    # Full restarts: bundle moved in but no pointer yet, between the two pointers, mid-collection.
+    for n in (renames[-1] + 1, _point(trace, "file\topen .current.tmp#"), len(trace) - 2):
+        res = K.kill_at(op, root, n, trace[n - 1], keep=True)
+        assert not res.problems
+        out = _restart_is_clean(root / f"flash-k{n}" / "state")
+        assert out["info"]["model_source"] == "current"
+
+
+def test_config_survives_kill_at_every_step(root):
+    op = K.config_operation(root)
+    trace = _all_points(op, root)
+    assert Counter(trace)["file\treplace .runtime.json.tmp# -> runtime.json"] == len(K.CONFIG_KEYS)
+    # Full restart between the temp file's fsync and its rename, on the third CONFIG_SET.
+    n = _point(trace, "file\treplace .runtime.json.tmp# -> runtime.json", 2)
+    res = K.kill_at(op, root, n, trace[n - 1], keep=True)
+    assert not res.problems and res.confirmed == 2
+    out = _restart_is_clean(root / f"config-k{n}" / "state")
+    assert out["config"]["heater.power_W"] == K.CONFIG_VALUES["heater.power_W"]
+    assert out["config"]["measurement.sample_rate_Hz"] != K.CONFIG_VALUES["measurement.sample_rate_Hz"]
+
+
+@pytest.mark.parametrize("after_crash", [False, True], ids=["first-boot", "after-crash"])
+def test_startup_survives_kill_at_every_step(root, after_crash):
+    op = K.startup_operation(root, after_crash=after_crash)
+    trace = _all_points(op, root)
+    assert "sqlite\tCREATE TABLE" in trace
+    assert ({"file\tunlink .runtime.json.tmp#", "file\trmdir upload-#"} if after_crash else {"file\tmkdir models"}) \
+        <= set(trace)
+    if after_crash:
+        # Killed while start-up deletes the bundle no pointer names: the next start-up finishes the job.
+        n = _point(trace, "file\tunlink golden.npz")
+        res = K.kill_at(op, root, n, trace[n - 1], keep=True)
+        assert not res.problems
+        out = _restart_is_clean(root / f"{op.name}-k{n}" / "state", expected_history_total=2)
+        assert out["info"]["model_source"] == "current"
+
+
+def test_enough_kill_points_in_all():
+    # The issue's bar: kill -9 at >= 100 points of measure/flash/config.
+    assert sum(MIN_POINTS[k] for k in ("measure", "flash", "config")) >= 100
+
+
+def test_a_broken_operation_is_caught(root, monkeypatch):
+    """The harness is not vacuous: an overrides file written in place (no temp, no rename) fails it."""
+    from edge.storage import durable
+
+    op = K.config_operation(root, keys=("heater.power_W",))
+    def in_place(path, data):
+        # What the code would do without durable's temp-and-rename: truncate, then write in two parts.
+        with open(path, "wb") as f:
+            f.write(data[: len(data) // 2])
+            f.flush()
+            K.os.fsync(f.fileno())  # a step: the kill lands here with half the file written
+            f.write(data[len(data) // 2:])
+
+    monkeypatch.setattr(durable, "atomic_write_file", in_place)  # inherited by the forked children
+    trace, results = K.run_all(op, root)
+    assert any(r.problems for r in results), trace
+
+
+def test_a_reply_before_the_commit_is_caught(root, monkeypatch):
+    """The harness is not vacuous for the history either: a daemon that answers from an uncommitted
+    transaction (the reply goes out, the COMMIT never happens) loses a confirmed measurement."""
+    from edge.storage.history import History
+
+    real_add = History.add
+
+    def add_without_commit(self, record):
+        db = self._db
+
+        class NoCommit:
+            def execute(self, sql, *args):
+                return None if sql.strip().upper() == "COMMIT" else db.execute(sql, *args)
+
+            def __getattr__(self, name):
+                return getattr(db, name)
+
+        self._db = NoCommit()
+        try:
+            return real_add(self, record)
+        finally:
+            self._db = db
+
+    monkeypatch.setattr(History, "add", add_without_commit)  # inherited by the forked children
+    op = K.measure_operation(root, n_prior=0)
+    with pytest.raises(AssertionError, match="confirmed to the host and is lost"):
+        K.run_all(op, root)
