@@ -478,6 +478,44 @@ class ObjectSet:
         return Recognition(obj, obj_p, cls, cls_p, candidates, p_unknown,
                            {c: float(p) for c, p in zip(self.class_names, class_post)}, z_min, self.names[near])
 
+    # -- open-set design rates -----------------------------------------------------
+    def acceptance_intervals(self, u_ln_e: float) -> np.ndarray:
+        """The ln e intervals the open-set test accepts at ``u_ln_e`` (e alone), merged and sorted.
+
+        An e-only touch is accepted when ``|ln e - ln e_i| <= z_crit sqrt(T v_i)``
+        for some object, ``v_i = u² + spread_i² + calibration_ln²``; the
+        acceptance region is the union of those intervals. Returns an
+        ``(m, 2)`` array of disjoint ``[lo, hi]`` rows.
+        """
+        half = self.z_crit * np.sqrt(self.temperature * (u_ln_e ** 2 + self.spread ** 2 + self.calibration_ln ** 2))
+        iv = np.column_stack([self.ln_e - half, self.ln_e + half])
+        iv = iv[np.argsort(iv[:, 0])]
+        merged = [iv[0].copy()]
+        for lo, hi in iv[1:]:
+            if lo <= merged[-1][1]:  # overlapping neighbours: one interval
+                merged[-1][1] = max(merged[-1][1], hi)
+            else:
+                merged.append(np.array([lo, hi]))
+        return np.array(merged)
+
+    def acceptance_probability(self, mean_ln_e: float, sd_ln_e: float, u_ln_e: float) -> float:
+        """Design probability that the open-set test accepts a touch (e alone).
+
+        The touch's measured ln e is taken as normal with mean ``mean_ln_e``
+        and standard deviation ``sd_ln_e`` (specimen spread and measurement
+        noise together), reported with uncertainty ``u_ln_e``. For an object of
+        the set, ``1 -`` this is the design false-reject rate (with
+        ``sd_ln_e = sqrt(spread² + u²)``); for an object outside it, this is
+        the design false-accept rate -- the best an e-only test of this width
+        can do, whatever the method, so benchmarks can tell "the test is
+        wrong" from "the object's e lies inside an object's spread".
+        """
+        if not sd_ln_e > 0:
+            raise ValueError(f"sd_ln_e must be positive, got {sd_ln_e!r}")
+        iv = (self.acceptance_intervals(u_ln_e) - mean_ln_e) / (sd_ln_e * math.sqrt(2.0))
+        # P(lo < x < hi) = (erf(hi') - erf(lo')) / 2, via erfc for accuracy in the tails.
+        return float(sum(0.5 * (math.erfc(lo) - math.erfc(hi)) for lo, hi in iv))
+
     # -- separability -------------------------------------------------------------
     def confusion_pairs(self, u_ln_e: float, *, factor: float = 2.0, involving: str | None = None,
                         grid_step: float | None = None) -> Confusion:
