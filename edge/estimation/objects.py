@@ -112,7 +112,7 @@ UNKNOWN_LN_E_SPAN = math.log(_E_RANGE[1] / _E_RANGE[0])
 #: Calibration of the built-in library set (:meth:`ObjectSet.from_library`): fitted by
 #: ``python bench/tactile_bench.py`` (host.recognition.calibrate on simulated precision-board touches
 #: of every library material, 0.5-2 s contacts, 5 % spread); reported there with its reliability table.
-LIBRARY_CALIBRATION = {"temperature": 1.0, "z_crit": DEFAULT_Z_CRIT}
+LIBRARY_CALIBRATION = {"temperature": 1.03, "z_crit": 1.96}
 #: Prior probability that a touched object is outside the set, before the user says otherwise.
 DEFAULT_PRIOR_UNKNOWN = 0.05
 _LN_SQRT_2PI = 0.5 * math.log(2 * math.pi)

@@ -79,3 +79,13 @@ def test_recognise_an_estimate_dict():
     s = ObjectSet([KnownObject("glass", "glass", 1400.0)])
     assert recognise(s, {"effusivity_W_s05_m2K": 1410.0, "effusivity_W_s05_m2K_u": 28.0}).object == "glass"
     assert recognise(s, {"effusivity_W_s05_m2K": None, "effusivity_W_s05_m2K_u": None}) is None
+
+
+def test_acceptance_target_is_the_goal_plus_a_sampling_margin():
+    from host.recognition import IN_SET_ACCEPTANCE_GOAL, acceptance_target
+    assert IN_SET_ACCEPTANCE_GOAL == 0.95
+    assert acceptance_target(100) == pytest.approx(0.95 + 1.645 * math.sqrt(0.95 * 0.05 / 100))
+    assert acceptance_target(10 ** 6) == pytest.approx(0.95, abs=1e-3)
+    assert acceptance_target(1) == 0.999  # capped: a quantile of 1 is the largest distance seen
+    with pytest.raises(ValueError):
+        acceptance_target(0)

@@ -223,3 +223,10 @@ def test_false_accept_of_outside_draws_matches_the_design_rate():
     assert s.acceptance_probability(math.log(475), sd, u) > 0.95
     with pytest.raises(ValueError):
         s.acceptance_probability(0.0, 0.0, u)
+
+
+def test_the_library_set_carries_its_fitted_calibration():
+    from edge.estimation.objects import LIBRARY_CALIBRATION
+    lib = ObjectSet.from_library()
+    assert (lib.temperature, lib.z_crit) == (LIBRARY_CALIBRATION["temperature"], LIBRARY_CALIBRATION["z_crit"])
+    assert ObjectSet.from_library(temperature=2.0).temperature == 2.0  # an explicit value wins
