@@ -31,7 +31,12 @@ standardised distance: the chi-square p-value of the object's distance
 ``p < p_crit`` is ``|z| > z_crit``) is below ``p_crit = 2 (1 - Φ(z_crit))`` for
 every object -- not a threshold on the argmax posterior, which is near 1 for
 the nearest object however far it is. ``z_crit`` is chosen on the host so that
-at least 95 % of touches of in-set objects are accepted.
+at least 95 % of touches of in-set objects are accepted
+(host/recognition.acceptance_target). :meth:`ObjectSet.acceptance_probability`
+gives the test's design rates: the share of an object's touches it accepts
+(1 - false reject) and of an outside object's (false accept) -- an outside
+object whose e lies within an in-set object's spread is accepted by any
+e-only test, and the design rate says how often.
 
 "unknown" also gets posterior mass, as a background hypothesis: prior
 probability ``prior_unknown`` (each object gets ``(1 - prior_unknown) / n``)
@@ -42,6 +47,11 @@ by the test above, so reported masses stay honest where the two disagree
 (near the critical distance).
 
 Class posteriors are sums of the object posteriors over each class.
+
+The built-in library set (:meth:`ObjectSet.from_library`) carries
+:data:`LIBRARY_CALIBRATION`, fitted the same way on simulated touches of every
+library material (bench/tactile_bench.py), so its posteriors are calibrated
+too; a user set carries its own fit as ``#@`` directives.
 
 CSV format
 ----------
