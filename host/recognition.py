@@ -46,6 +46,7 @@ __all__ = [
     "simulate_touches",
     "fit_temperature",
     "fit_z_crit",
+    "scatter_temperature",
     "acceptance_target",
     "IN_SET_ACCEPTANCE_GOAL",
     "classify_touches",
@@ -57,6 +58,9 @@ __all__ = [
 #: Heater power density of the simulated touches (as bench identification).
 DEFAULT_Q_V_W_M3 = 7.7e7
 CONTACT_TIMES_S = (0.5, 1.0, 1.5, 2.0)
+#: Mean change of the temperature-scaling NLL (nats per touch) over a factor 16 in T below which the
+#: posteriors carry no information on T (see fit_temperature).
+NLL_FLAT_NATS = 1e-3
 #: Share of in-set touches the open-set test must accept (issue #12).
 IN_SET_ACCEPTANCE_GOAL = 0.95
 RELIABILITY_BINS = (0.0, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.0)
@@ -154,7 +158,14 @@ def _true_index(object_set: ObjectSet, names: Sequence[str], obj: np.ndarray) ->
 def fit_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, bounds=(0.02, 100.0)) -> float:
     """The variance scale T minimising the mean negative log posterior of the true objects.
 
-    Golden-section search on ln T (the NLL of temperature scaling is unimodal in practice).
+    Golden-section search on ln T (the NLL of temperature scaling is unimodal
+    in practice). When the posteriors do not depend on T -- the set's objects
+    are so far apart that no touch lies between two of them, and every
+    posterior is 1 whatever T -- the search would wander over a flat NLL and
+    return an arbitrary T, which still widens or narrows the open-set test.
+    T is then the scatter of the touches about their own object instead,
+    ``mean(q_true)`` (the maximum-likelihood variance scale of the Gaussian
+    model, :func:`scatter_temperature`).
     """
     q, hld, _ = object_set.log_terms(np.asarray(ln_e, float), np.asarray(u_ln_e, float))
     ti = np.asarray(true_index, int)
@@ -167,6 +178,11 @@ def fit_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, bounds=(
         m = lw.max(axis=1)
         lse = m + np.log(np.exp(lw - m[:, None]).sum(axis=1))
         return float(np.mean(lse - lw[rows, ti]))
+
+    t_scatter = float(np.clip(np.mean(q[rows, ti]), *bounds))
+    probe = [nll(math.log(t_scatter * f)) for f in (0.25, 1.0, 4.0)]
+    if max(probe) - min(probe) < NLL_FLAT_NATS:
+        return t_scatter
 
     a, b = math.log(bounds[0]), math.log(bounds[1])
     g = (math.sqrt(5) - 1) / 2
@@ -182,6 +198,13 @@ def fit_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, bounds=(
             d = a + g * (b - a)
             fd = nll(d)
     return float(math.exp(0.5 * (a + b)))
+
+
+def scatter_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index) -> float:
+    """``mean(q_true)``: the variance scale that makes the touches' scatter about their own object match the model."""
+    q, _, _ = object_set.log_terms(np.asarray(ln_e, float), np.asarray(u_ln_e, float))
+    ti = np.asarray(true_index, int)
+    return float(np.mean(q[np.arange(ti.size), ti]))
 
 
 def fit_z_crit(object_set: ObjectSet, ln_e, u_ln_e, *, acceptance: float = 0.975, floor: float = 1.96,

@@ -89,3 +89,13 @@ def test_acceptance_target_is_the_goal_plus_a_sampling_margin():
     assert acceptance_target(1) == 0.999  # capped: a quantile of 1 is the largest distance seen
     with pytest.raises(ValueError):
         acceptance_target(0)
+
+
+@pytest.mark.parametrize("true_sd, expected", [(math.hypot(0.02, 0.01), 1.0),
+                                               (0.05, 0.05 ** 2 / (0.02 ** 2 + 0.01 ** 2))])
+def test_temperature_of_a_well_separated_set_is_the_scatter_not_an_arbitrary_value(true_sd, expected):
+    from host.recognition import scatter_temperature
+    s = _ladder(n=3, step=3.0)  # objects 30 sd apart: every posterior is 1 whatever T
+    ln_e, u, ti = _synthetic(s, true_sd, 0.02, n=2000)
+    t = fit_temperature(s, ln_e, u, ti)
+    assert t == pytest.approx(scatter_temperature(s, ln_e, u, ti)) and t == pytest.approx(expected, rel=0.15)
