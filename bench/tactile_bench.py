@@ -508,8 +508,9 @@ def report(res: dict, cmd: str) -> list[str]:
              f"the 5 % spread already describe how touches scatter: the library's posteriors were calibrated "
              f"before (ECE {lc['uncalibrated']['ece'] * 100:.1f} % vs {lc['shipped']['ece'] * 100:.1f} %, within "
              f"the sampling noise of {lc['shipped']['n']} touches); what the fit changes is the open-set test "
-             f"(z_crit {DEFAULT_Z_CRIT:g} -> {lc['stored']['z_crit']:g}). With 128 overlapping materials few "
-             f"touches reach a posterior of 0.9 -- the library names a material class, rarely one material.")
+             f"(z_crit {DEFAULT_Z_CRIT:g} -> {lc['stored']['z_crit']:g}). With {lc['materials']} overlapping materials "
+             f"few touches reach a posterior of 0.9: material accuracy {pct(lc['shipped']['accuracy'])} %, class "
+             f"accuracy {pct(lc['shipped_class']['accuracy'])} % (class ECE {lc['shipped_class']['ece'] * 100:.1f} %).")
     L.append("")
     for inst in (PRECISION, REFERENCE):
         L.append(f"**Confusion matrix, {inst}, 2 s, calibrated** (rows: touched; columns: answer, numbered as the "
