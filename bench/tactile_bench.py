@@ -430,6 +430,17 @@ def report(res: dict, cmd: str) -> list[str]:
         L.append("")
         L += contact_table(B[inst]["sets"]["calibrated"])
         L.append("")
+    for inst in (PRECISION, REFERENCE):
+        r2 = B[inst]["sets"]["calibrated"]["by_contact_time"]["2.0"]
+        u_by = r2["median_u_by_object"]
+        n_ref = {name: sum(row[-1] for row in [res["confusion_matrix"][inst]["counts"][i]])
+                 for i, name in enumerate(res["confusion_matrix"][inst]["rows"])}
+        L.append(f"Median u(e) by object, {inst}, 2 s (in-set objects in order of e; refused touches of "
+                 f"{res['touches_per_object']}): " + ", ".join(
+                     f"{o.name} {u_by[o.name] * 100:.0f} %" + (f" ({n_ref[o.name]} refused)" if n_ref[o.name] else "")
+                     if o.name in u_by else f"{o.name} refused" for o in sorted(IN_SET, key=lambda o: o.e_W_s05_m2K))
+                 + ".")
+        L.append("")
     L.append("Uncalibrated (T = 1, z_crit = 2.5), 2 s: " + "; ".join(
         f"{inst} object {pct(r['object_accuracy'])} %, in-set accepted {pct(r['in_set_acceptance'])} %, "
         f"distinguishable 'unknown' {pct(r['unknown_far'])} %" for inst in (PRECISION, REFERENCE)
