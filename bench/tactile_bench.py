@@ -433,8 +433,8 @@ def report(res: dict, cmd: str) -> list[str]:
     for inst in (PRECISION, REFERENCE):
         r2 = B[inst]["sets"]["calibrated"]["by_contact_time"]["2.0"]
         u_by = r2["median_u_by_object"]
-        n_ref = {name: sum(row[-1] for row in [res["confusion_matrix"][inst]["counts"][i]])
-                 for i, name in enumerate(res["confusion_matrix"][inst]["rows"])}
+        cm = res["confusion_matrix"][inst]
+        n_ref = {name: row[-1] for name, row in zip(cm["rows"], cm["counts"])}  # last column: refused
         L.append(f"Median u(e) by object, {inst}, 2 s (in-set objects in order of e; refused touches of "
                  f"{res['touches_per_object']}): " + ", ".join(
                      f"{o.name} {u_by[o.name] * 100:.0f} %" + (f" ({n_ref[o.name]} refused)" if n_ref[o.name] else "")
