@@ -31,7 +31,12 @@ standardised distance: the chi-square p-value of the object's distance
 ``p < p_crit`` is ``|z| > z_crit``) is below ``p_crit = 2 (1 - Φ(z_crit))`` for
 every object -- not a threshold on the argmax posterior, which is near 1 for
 the nearest object however far it is. ``z_crit`` is chosen on the host so that
-at least 95 % of touches of in-set objects are accepted.
+at least 95 % of touches of in-set objects are accepted
+(host/recognition.acceptance_target). :meth:`ObjectSet.acceptance_probability`
+gives the test's design rates: the share of an object's touches it accepts
+(1 - false reject) and of an outside object's (false accept) -- an outside
+object whose e lies within an in-set object's spread is accepted by any
+e-only test, and the design rate says how often.
 
 "unknown" also gets posterior mass, as a background hypothesis: prior
 probability ``prior_unknown`` (each object gets ``(1 - prior_unknown) / n``)
@@ -42,6 +47,11 @@ by the test above, so reported masses stay honest where the two disagree
 (near the critical distance).
 
 Class posteriors are sums of the object posteriors over each class.
+
+The built-in library set (:meth:`ObjectSet.from_library`) carries
+:data:`LIBRARY_CALIBRATION`, fitted the same way on simulated touches of every
+library material (bench/tactile_bench.py), so its posteriors are calibrated
+too; a user set carries its own fit as ``#@`` directives.
 
 CSV format
 ----------
@@ -77,6 +87,7 @@ __all__ = [
     "DEFAULT_PRIOR_UNKNOWN",
     "UNKNOWN_LN_E_SPAN",
     "BROAD_LN",
+    "LIBRARY_CALIBRATION",
     "COLUMNS",
     "DIRECTIVES",
     "ObjectSetError",
@@ -108,6 +119,10 @@ K_SPREAD_FACTOR = math.sqrt(1.25)
 _E_RANGE = (math.sqrt(K_RANGE_W_MK[0] * RHO_C_RANGE_J_M3K[0]), math.sqrt(K_RANGE_W_MK[1] * RHO_C_RANGE_J_M3K[1]))
 #: Width in ln e of the flat density of the "unknown" hypothesis (the plausible range of e).
 UNKNOWN_LN_E_SPAN = math.log(_E_RANGE[1] / _E_RANGE[0])
+#: Calibration of the built-in library set (:meth:`ObjectSet.from_library`): fitted by
+#: ``python bench/tactile_bench.py`` (host.recognition.calibrate on simulated precision-board touches
+#: of every library material, 0.5-2 s contacts, 5 % spread); reported there with its reliability table.
+LIBRARY_CALIBRATION = {"temperature": 1.03, "z_crit": 1.96}
 #: Prior probability that a touched object is outside the set, before the user says otherwise.
 DEFAULT_PRIOR_UNKNOWN = 0.05
 _LN_SQRT_2PI = 0.5 * math.log(2 * math.pi)
@@ -331,8 +346,14 @@ class ObjectSet:
     # -- construction --------------------------------------------------------------
     @classmethod
     def from_library(cls, library=None, *, spread_rel: float = DEFAULT_SPREAD_REL, **kw) -> "ObjectSet":
-        """The default set: every material of the library (a MaterialLibrary; default the packaged one)."""
+        """The default set: every material of the library (a MaterialLibrary; default the packaged one).
+
+        Its temperature and z_crit default to :data:`LIBRARY_CALIBRATION` (fitted
+        on held-out simulated touches), so its posteriors are calibrated too.
+        """
         lib = load_materials() if library is None else library
+        for key, value in LIBRARY_CALIBRATION.items():
+            kw.setdefault(key, value)
         objs = [KnownObject.from_properties(m.name, m.cls, m.k_W_mK, m.rho_kg_m3, m.c_J_kgK, spread_rel,
                                             source=m.source) for m in lib]
         kw.setdefault("label", getattr(lib, "path", "library"))
@@ -477,6 +498,44 @@ class ObjectSet:
         z_min = math.sqrt(d2[near]) if dof[near] == 1 else (_norm_isf2(pn) if pn > 0 else math.inf)
         return Recognition(obj, obj_p, cls, cls_p, candidates, p_unknown,
                            {c: float(p) for c, p in zip(self.class_names, class_post)}, z_min, self.names[near])
+
+    # -- open-set design rates -----------------------------------------------------
+    def acceptance_intervals(self, u_ln_e: float) -> np.ndarray:
+        """The ln e intervals the open-set test accepts at ``u_ln_e`` (e alone), merged and sorted.
+
+        An e-only touch is accepted when ``|ln e - ln e_i| <= z_crit sqrt(T v_i)``
+        for some object, ``v_i = u² + spread_i² + calibration_ln²``; the
+        acceptance region is the union of those intervals. Returns an
+        ``(m, 2)`` array of disjoint ``[lo, hi]`` rows.
+        """
+        half = self.z_crit * np.sqrt(self.temperature * (u_ln_e ** 2 + self.spread ** 2 + self.calibration_ln ** 2))
+        iv = np.column_stack([self.ln_e - half, self.ln_e + half])
+        iv = iv[np.argsort(iv[:, 0])]
+        merged = [iv[0].copy()]
+        for lo, hi in iv[1:]:
+            if lo <= merged[-1][1]:  # overlapping neighbours: one interval
+                merged[-1][1] = max(merged[-1][1], hi)
+            else:
+                merged.append(np.array([lo, hi]))
+        return np.array(merged)
+
+    def acceptance_probability(self, mean_ln_e: float, sd_ln_e: float, u_ln_e: float) -> float:
+        """Design probability that the open-set test accepts a touch (e alone).
+
+        The touch's measured ln e is taken as normal with mean ``mean_ln_e``
+        and standard deviation ``sd_ln_e`` (specimen spread and measurement
+        noise together), reported with uncertainty ``u_ln_e``. For an object of
+        the set, ``1 -`` this is the design false-reject rate (with
+        ``sd_ln_e = sqrt(spread² + u²)``); for an object outside it, this is
+        the design false-accept rate -- the best an e-only test of this width
+        can do, whatever the method, so benchmarks can tell "the test is
+        wrong" from "the object's e lies inside an object's spread".
+        """
+        if not sd_ln_e > 0:
+            raise ValueError(f"sd_ln_e must be positive, got {sd_ln_e!r}")
+        iv = (self.acceptance_intervals(u_ln_e) - mean_ln_e) / (sd_ln_e * math.sqrt(2.0))
+        # P(lo < x < hi) = (erf(hi') - erf(lo')) / 2, via erfc for accuracy in the tails.
+        return float(sum(0.5 * (math.erfc(lo) - math.erfc(hi)) for lo, hi in iv))
 
     # -- separability -------------------------------------------------------------
     def confusion_pairs(self, u_ln_e: float, *, factor: float = 2.0, involving: str | None = None,

@@ -1,4 +1,8 @@
-"""``thermotouch objects add|list|remove|select``: the user's object sets on the probe.
+"""``thermotouch objects add|list|remove|select|calibrate``: the user's object sets on the probe.
+
+``calibrate`` runs on the host alone: it fits the set's temperature and
+z_crit on simulated touches of its own objects (host.recognition.calibrate)
+and writes the set with the fit as ``#@`` directives, ready for ``add``.
 
 The active set names the object of every measurement (``measure`` prints it;
 ``measure --json`` carries ``object``, ``class``, their posteriors and the
@@ -7,7 +11,7 @@ The active set names the object of every measurement (``measure`` prints it;
 
 from __future__ import annotations
 
-from host.cli.args import add_device_args, existing_file
+from host.cli.args import add_device_args, existing_file, non_negative_int, positive_int
 from host.cli.common import device_session, load_object_set, note
 from host.cli.errors import EXIT_BAD_INPUT, EXIT_RUNTIME, CliError
 from host.cli.report import dumps
@@ -41,6 +45,19 @@ def add_parser(sub, parents):
     rm.add_argument("name", metavar="NAME")
     add_device_args(rm)
     rm.set_defaults(func=run_remove)
+    cal = verbs.add_parser("calibrate", help="fit an object-set CSV's posterior temperature and open-set z_crit "
+                                             "on simulated touches (host only) and write the calibrated CSV",
+                           parents=parents)
+    cal.add_argument("file", metavar="FILE", type=existing_file, help="object-set CSV (as for add)")
+    cal.add_argument("--board", choices=("ads122c04", "mcp9600"), default="ads122c04",
+                     help="instrument model of the simulated touches (default: the precision board)")
+    cal.add_argument("--touches", type=positive_int, default=10,
+                     help="specimens per object, each touched at 0.5 / 1 / 1.5 / 2 s (default 10)")
+    cal.add_argument("--seed", type=non_negative_int, default=0)
+    cal.add_argument("--out", "-o", default=None,
+                     help="where to write the calibrated CSV (default: FILE's stem + '_calibrated.csv')")
+    cal.add_argument("--json", action="store_true")
+    cal.set_defaults(func=run_calibrate)
     sel = verbs.add_parser("select", help="make a stored set, or 'library', the active one", parents=parents)
     sel.add_argument("name", metavar="NAME")
     add_device_args(sel)
@@ -121,4 +138,31 @@ def run_select(args) -> int:
     with device_session(args) as session:
         res = _device_call(select_object_set, session.client, args.name)
     print(f"active set: {res['active']}")
+    return 0
+
+
+def run_calibrate(args) -> int:
+    """Fit temperature and z_crit on simulated touches; write the set with them as ``#@`` directives."""
+    from pathlib import Path  # noqa: PLC0415
+
+    from host.atomic import write_text_atomic  # noqa: PLC0415
+    from host.recognition import calibrate  # noqa: PLC0415
+
+    objects, _ = load_object_set(args.file)
+    src = Path(args.file)
+    out = Path(args.out) if args.out else src.with_name(src.stem + "_calibrated.csv")
+    try:
+        cal, rep = calibrate(objects, args.board, touches=args.touches, seed=args.seed)
+    except ValueError as exc:  # e.g. every simulated touch refused (metals on the reference board)
+        raise CliError(f"{args.file}: cannot calibrate on {args.board}: {exc}") from None
+    write_text_atomic(out, cal.to_csv_text())
+    summary = dict(file=str(out), board=args.board, touches=rep["touches"], temperature=rep["temperature"],
+                   z_crit=rep["z_crit"], acceptance=rep["acceptance"],
+                   ece_before=rep["reliability_before"]["ece"], ece_after=rep["reliability_after"]["ece"])
+    if args.json:
+        print(dumps(summary))
+    else:
+        print(f"{out}: temperature {rep['temperature']:.3g}, z_crit {rep['z_crit']:.3g} (fitted on {rep['touches']} "
+              f"simulated {args.board} touches; posterior ECE {summary['ece_before'] * 100:.1f} % -> "
+              f"{summary['ece_after'] * 100:.1f} %); upload it with: thermotouch objects add {out}")
     return 0

@@ -79,3 +79,23 @@ def test_recognise_an_estimate_dict():
     s = ObjectSet([KnownObject("glass", "glass", 1400.0)])
     assert recognise(s, {"effusivity_W_s05_m2K": 1410.0, "effusivity_W_s05_m2K_u": 28.0}).object == "glass"
     assert recognise(s, {"effusivity_W_s05_m2K": None, "effusivity_W_s05_m2K_u": None}) is None
+
+
+def test_acceptance_target_is_the_goal_plus_a_sampling_margin():
+    from host.recognition import IN_SET_ACCEPTANCE_GOAL, acceptance_target
+    assert IN_SET_ACCEPTANCE_GOAL == 0.95
+    assert acceptance_target(100) == pytest.approx(0.95 + 1.645 * math.sqrt(0.95 * 0.05 / 100))
+    assert acceptance_target(10 ** 6) == pytest.approx(0.95, abs=1e-3)
+    assert acceptance_target(1) == 0.999  # capped: a quantile of 1 is the largest distance seen
+    with pytest.raises(ValueError):
+        acceptance_target(0)
+
+
+@pytest.mark.parametrize("true_sd, expected", [(math.hypot(0.02, 0.01), 1.0),
+                                               (0.05, 0.05 ** 2 / (0.02 ** 2 + 0.01 ** 2))])
+def test_temperature_of_a_well_separated_set_is_the_scatter_not_an_arbitrary_value(true_sd, expected):
+    from host.recognition import scatter_temperature
+    s = _ladder(n=3, step=3.0)  # objects 30 sd apart: every posterior is 1 whatever T
+    ln_e, u, ti = _synthetic(s, true_sd, 0.02, n=2000)
+    t = fit_temperature(s, ln_e, u, ti)
+    assert t == pytest.approx(scatter_temperature(s, ln_e, u, ti)) and t == pytest.approx(expected, rel=0.15)

@@ -186,3 +186,47 @@ def test_recognition_fields_are_the_result_keys_of_every_output():
     assert recognition_fields(s, {"effusivity_W_s05_m2K": 560.0})["object"] == "pmma"
     zero = _set(("a", "wood", 300, 0.0), ("b", "wood", 600, 0.0))
     assert recognition_fields(zero, {"effusivity_W_s05_m2K": 300.0})["object"] == "a"  # no division by zero
+
+
+def _draw_rates(s, mean_ln_e, sd, u, n, seed):
+    """Share of ``n`` synthetic touches (ln e ~ N(mean, sd)) the open-set test accepts."""
+    rng = __import__("numpy").random.default_rng(seed)
+    x = rng.normal(mean_ln_e, sd, n)
+    return sum(s.classify(math.exp(v), u).accepted for v in x) / n
+
+
+@pytest.mark.parametrize("z_crit, temperature", [(1.96, 1.0), (2.5, 1.0), (2.0, 1.5)])
+def test_false_reject_of_in_set_draws_matches_the_design_rate(z_crit, temperature):
+    s = _set(("pmma", "polymer", 560, 0.05), ("glass", "glass", 1400, 0.05), ("steel", "alloy", 8000, 0.03),
+             z_crit=z_crit, temperature=temperature)
+    u, n = 0.02, 1500
+    for i, spread in ((0, 0.05), (2, 0.03)):  # isolated objects: the design rate is the two-sided tail
+        sd = math.hypot(spread, u)
+        design = s.acceptance_probability(float(s.ln_e[i]), sd, u)
+        assert design == pytest.approx(1 - p_crit_of(z_crit * math.sqrt(temperature)), abs=1e-6)
+        got = _draw_rates(s, float(s.ln_e[i]), sd, u, n, seed=i)
+        assert got == pytest.approx(design, abs=4 * math.sqrt(design * (1 - design) / n) + 1e-3)
+
+
+def test_false_accept_of_outside_draws_matches_the_design_rate():
+    # Two overlapping objects (merged acceptance interval) and an outsider at 2.5 sd from the upper one.
+    s = _set(("oak", "wood", 450, 0.05), ("abs", "polymer", 500, 0.05), z_crit=1.96)
+    u, n = 0.02, 1500
+    sd = math.hypot(0.05, u)
+    assert len(s.acceptance_intervals(u)) == 1
+    for mean in (math.log(500) + 2.5 * sd, math.log(500) + 4.0 * sd, math.log(450) - 3.0 * sd):
+        design = s.acceptance_probability(mean, sd, u)
+        got = _draw_rates(s, mean, sd, u, n, seed=int(mean * 100))
+        assert got == pytest.approx(design, abs=4 * math.sqrt(design * (1 - design) / n) + 1e-3)
+    # Far away: nothing accepted; at an object's centre: the two-sided 1.96 rate or better.
+    assert s.acceptance_probability(math.log(5000), sd, u) < 1e-12
+    assert s.acceptance_probability(math.log(475), sd, u) > 0.95
+    with pytest.raises(ValueError):
+        s.acceptance_probability(0.0, 0.0, u)
+
+
+def test_the_library_set_carries_its_fitted_calibration():
+    from edge.estimation.objects import LIBRARY_CALIBRATION
+    lib = ObjectSet.from_library()
+    assert (lib.temperature, lib.z_crit) == (LIBRARY_CALIBRATION["temperature"], LIBRARY_CALIBRATION["z_crit"])
+    assert ObjectSet.from_library(temperature=2.0).temperature == 2.0  # an explicit value wins

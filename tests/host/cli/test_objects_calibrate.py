@@ -1,0 +1,32 @@
+"""``thermotouch objects calibrate``: the fit written into the set's CSV, offline."""
+
+import json
+
+from edge.estimation.objects import ObjectSet
+from host.cli.main import main
+
+KITCHEN = "name,class,k_W_mK,rho_kg_m3,c_J_kgK,e_W_s05_m2K\nwindow,glass,1.1,2450,810,\nlid,polymer,0.19,1180,1430,\n" \
+          "pan,alloy,,,,8200\n"
+
+
+def test_calibrate_writes_the_fit_as_directives(capsys, tmp_path):
+    src = tmp_path / "kitchen.csv"
+    src.write_text(KITCHEN)
+    code = main(["objects", "calibrate", str(src), "--touches", "2", "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    rep = json.loads(out)
+    written = tmp_path / "kitchen_calibrated.csv"
+    assert rep["file"] == str(written) and rep["board"] == "ads122c04" and rep["touches"] == 3 * 2 * 4
+    s = ObjectSet.from_csv_text(written.read_text())
+    assert s.names == ("window", "lid", "pan")
+    assert s.temperature == rep["temperature"] and s.z_crit == rep["z_crit"] >= 1.96
+    assert src.read_text() == KITCHEN  # the input is left alone
+
+
+def test_calibrate_refuses_a_bad_file_in_one_line(capsys, tmp_path):
+    src = tmp_path / "bad.csv"
+    src.write_text("name,class\nx,wood\n")
+    code = main(["objects", "calibrate", str(src), "--out", str(tmp_path / "o.csv")])
+    _, err = capsys.readouterr()
+    assert code == 2 and "Traceback" not in err and not (tmp_path / "o.csv").exists()
