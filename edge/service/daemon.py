@@ -64,6 +64,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 import edge
+from edge.security.policy import UpdatePolicy
 from edge.estimation.estimate import pipeline_golden_check
 from edge.hw.board import Board
 from edge.hw.drivers.button import Button
@@ -298,8 +299,10 @@ class Daemon:
     def _open_store(self) -> Any:
         root = self.config.paths.model_store
         try:
+            sec = self.config.security
+            policy = UpdatePolicy(trusted_keys_dir=sec.trusted_keys_dir or None, allow_unsigned=sec.allow_unsigned)
             store = ModelStore(root, _factory_bundle(self.config), golden_check=pipeline_golden_check,
-                               limits=self.model_limits)
+                               limits=self.model_limits, policy=policy)
         except (ModelStoreError, OSError) as e:
             self._set_fault("model_store", f"cannot open {root}: {e}")
             return _UnavailableStore(root, str(e), self.model_limits)
@@ -706,7 +709,7 @@ class Daemon:
         return {"aborted": True, "measurement_id": self._last_run_id if done else None}
 
     def _cmd_model_begin(self, args: dict) -> dict:
-        out = self.upload.begin(args["size"], args["sha256"], args.get("version"))
+        out = self.upload.begin(args["size"], args["sha256"], args.get("version"), bool(args.get("force", False)))
         return {**out, "session": self.upload.session}
 
     def _cmd_model_chunk(self, args: dict) -> dict:
