@@ -14,7 +14,7 @@ import logging
 import os
 import sys
 
-from host.cli import deploy, demo, estimate, evaluate, flash, history, info, measure, model, sim, train
+from host.cli import deploy, demo, estimate, evaluate, flash, history, info, keys, measure, model, sim, train
 from host.cli.args import Parser, check_outputs
 from host.blas import limit_blas_threads
 from host.cli.errors import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_RUNTIME, CliError
@@ -22,7 +22,7 @@ from host.cli.errors import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_RUNTIME, CliE
 __all__ = ["VERBS", "build_parser", "main", "version"]
 
 #: One module per verb, in the order of ``thermotouch --help``.
-VERBS = (measure, info, history, flash, sim, demo, deploy, model, train, evaluate, estimate)
+VERBS = (measure, info, history, flash, sim, demo, deploy, keys, model, train, evaluate, estimate)
 
 #: Loggers of this code base (the edge daemon and simulator log under ``thermotouch``).
 _LOGGERS = ("thermotouch", "host", "edge", "firmware_sim")
