@@ -28,7 +28,6 @@ attacker can time it. The device only verifies, with public data.
 from __future__ import annotations
 
 import hashlib
-import secrets
 
 __all__ = [
     "PUBLIC_KEY_BYTES",
@@ -198,6 +197,8 @@ def _bytes(value: object, n: int, what: str) -> bytes:
 
 def generate_secret() -> bytes:
     """A new 32-byte secret key from the operating system's CSPRNG."""
+    import secrets  # noqa: PLC0415 - only the host makes keys; the device's import stays lighter
+
     return secrets.token_bytes(SECRET_KEY_BYTES)
 
 
