@@ -11,8 +11,8 @@ timed inside fresh subprocesses (``python -c``), interleaved the same way;
 ``hashlib`` (OpenSSL), which the device loads anyway for the bundle hashes,
 is reported alone to show how much of the import is its.
 
-Run:  python bench/ed25519_bench.py [--rounds 9] [--batch 20]
-Writes bench/results/ed25519.json.
+Run:  python bench/ed25519_bench.py [--rounds 9] [--batch 20] [--update-readme]
+Writes bench/results/ed25519.json (and the README table between the ed25519-bench markers).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from _common import ROOT, write_json
+from _common import ROOT, update_readme, write_json
 
 from edge.security import ed25519  # noqa: E402
 from edge.security.keys import SecretKey, signature_document  # noqa: E402
@@ -52,6 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=9)
     ap.add_argument("--batch", type=int, default=20)
+    ap.add_argument("--update-readme", action="store_true", help="rewrite the README table")
     args = ap.parse_args(argv)
 
     from thermotouch_models import DEFAULT_BUNDLE  # noqa: PLC0415
@@ -98,7 +99,33 @@ def main(argv: list[str] | None = None) -> int:
     for mod, s in result["import_in_fresh_interpreter"].items():
         print(f"  import {mod:40} median {s['median_ms']:7.2f} ms  (range {s['min_ms']:.2f}-{s['max_ms']:.2f})")
     print(f"wrote {path}")
+    if args.update_readme:
+        update_readme("ed25519-bench", readme_table(result))
+        print("README.md table updated")
     return 0
+
+
+_README_ROWS = (
+    ("per_call", "verify", "verify one signature (shipped manifest, {n} B)"),
+    ("per_call", "authenticate (read key dir + parse + verify)",
+     "authenticate an update (read trusted keys, parse, verify)"),
+    ("per_call", "sign", "sign (host)"),
+    ("per_call", "public_key", "derive a public key (host)"),
+    ("import_in_fresh_interpreter", "edge.security.ed25519", "`import edge.security.ed25519` in a fresh interpreter"),
+    ("import_in_fresh_interpreter", "edge.security.policy",
+     "`import edge.security.policy` (datetime, logging, json: already loaded in the daemon)"),
+    ("import_in_fresh_interpreter", "hashlib", "`import hashlib` alone (OpenSSL; the device loads it anyway)"),
+)
+
+
+def readme_table(result: dict) -> str:
+    """The README's table of the figures in ``result``."""
+    lines = ["| step | median | range |", "|---|---|---|"]
+    for group, name, label in _README_ROWS:
+        s = result[group][name]
+        lines.append(f"| {label.format(n=result['message_bytes'])} | {s['median_ms']:.1f} ms | "
+                     f"{s['min_ms']:.1f}–{s['max_ms']:.1f} ms |")
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":
