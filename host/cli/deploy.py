@@ -1,7 +1,8 @@
 """``thermotouch deploy``: train a bundle, prove it is no worse than the probe's, flash it, check a touch.
 
 (Formerly the separate ``train-and-deploy`` script; the flow is :func:`host.deploy.train_and_deploy`.)
-Exit status 0 deployed, 1 device or self-check failure, 2 bad input, 3 refused (nothing flashed).
+Exit status 0 deployed, 1 device or self-check failure, 2 bad input (also a bundle or key the device
+refuses: unsigned, untrusted, bad signature, not newer), 3 refused (nothing flashed).
 """
 
 from __future__ import annotations
