@@ -45,6 +45,13 @@ def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Ma
     ``[touch] contact_lead_s``) and the heating ends before the touch does.
     The configuration carries the nominal probe (``[heater]``, ``[sensors]``),
     never the scene's ``[as_built]`` deviations. ``overrides`` are extra ``{section: {key: value}}``.
+
+    A simulated probe is a development device: it accepts unsigned model
+    updates (``security.allow_unsigned``), so ``thermotouch demo`` and
+    ``flash --sim`` work without a key, and it trusts the public key files in
+    ``WORKDIR/trusted_keys`` (signed updates are checked as on a real probe:
+    a bad or untrusted signature, or a signed downgrade without ``--force``,
+    is refused).
     """
     w = Path(workdir)
     b, s, t = scene.board, scene.sensors, scene.touch
@@ -76,6 +83,7 @@ def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Ma
         "measurement": {"baseline_s": baseline, "contact_time_s": contact, "trigger_button": False},
         "paths": {"model_store": str(w / "models"), "history_db": str(w / "history.sqlite3"),
                   "runtime_overrides": str(w / "runtime.json")},
+        "security": {"allow_unsigned": True, "trusted_keys_dir": str(w / "trusted_keys")},
     }
     for section, table in (overrides or {}).items():
         values.setdefault(section, {}).update(table)

@@ -16,10 +16,12 @@ __all__ = ["atomic_path", "write_text_atomic"]
 
 
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+def atomic_path(path: str | os.PathLike, *, mode: int | None = None) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; on success it is renamed to ``path``, else removed.
 
     The temporary file keeps ``path``'s suffix (writers that pick a format by suffix still work).
+    ``mode``: the file's permissions (default 0666 less the umask); the temporary file is created
+    0600, so a secret written with ``mode=0o600`` is never readable by others, not even briefly.
     """
     target = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".tmp{target.suffix}", dir=target.parent)
@@ -29,7 +31,7 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         yield tmp_path
         with open(tmp_path, "rb+") as fh:
             os.fsync(fh.fileno())
-        os.chmod(tmp_path, 0o666 & ~_umask())
+        os.chmod(tmp_path, (0o666 & ~_umask()) if mode is None else mode)
         os.replace(tmp_path, target)
     finally:
         with contextlib.suppress(FileNotFoundError):

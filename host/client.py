@@ -440,7 +440,7 @@ class DeviceClient:
 
     def upload_model(self, data: bytes, sha256: str | None = None, chunk_size: int | None = None,
                      progress: Callable[[int, int], None] | None = None, *,
-                     version: str | None = None) -> dict[str, Any]:
+                     version: str | None = None, force: bool = False) -> dict[str, Any]:
         """Upload a model bundle in chunks and commit it.
 
         Parameters
@@ -455,6 +455,9 @@ class DeviceClient:
             Called as ``progress(bytes_sent, total_bytes)`` after each chunk.
         version : str, optional
             Model version label passed to MODEL_BEGIN.
+        force : bool
+            Ask the device to install a signed bundle that is not newer than its active one
+            (MODEL_BEGIN ``force``; sent only when true, so older devices are unaffected).
 
         Returns
         -------
@@ -481,6 +484,8 @@ class DeviceClient:
         begin = {"size": len(data), "sha256": digest}
         if version is not None:
             begin["version"] = version
+        if force:
+            begin["force"] = True
         self.upload_session = None
         self.request(Command.MODEL_BEGIN, begin)  # sets upload_session; later MODEL_* requests carry it
         if self.upload_session is not None:

@@ -185,7 +185,7 @@ def train_and_deploy(session: DeviceSession, out: str | Path, *, quick: bool = F
                      lib: Any = None, bundle: str | Path | None = None, baseline: str | Path | None = None,
                      thresholds: Thresholds = Thresholds(), reference: str | None = None,
                      progress: bool = True, overwrite: bool = False,
-                     log: Callable[[str], None] = print) -> dict:
+                     log: Callable[[str], None] = print, key: Any = None) -> dict:
     """The whole flow on an open session (see the module docstring).
 
     Parameters
@@ -199,6 +199,8 @@ def train_and_deploy(session: DeviceSession, out: str | Path, *, quick: bool = F
         Skip training and deploy this existing bundle (its manifest metrics are used).
     baseline : path, optional
         The device's current bundle, if it is not the shipped default.
+    key : edge.security.keys.SecretKey, optional
+        Sign the bundle's manifest with it when flashing (see :func:`host.flash.flash_bundle`).
 
     Returns
     -------
@@ -260,7 +262,7 @@ def train_and_deploy(session: DeviceSession, out: str | Path, *, quick: bool = F
         raise DeployRefused("not deploying " + str(path) + ": " + "; ".join(why))
     if old_bundle is not None and old_bundle.sha256 == new_bundle.sha256:
         log("device already runs this model; flashing anyway to verify the link")
-    fl = flash_bundle(session, path, progress=progress)
+    fl = flash_bundle(session, path, progress=progress, key=key)
     log(f"flashed {fl['bytes']} B; device reports sha256 {fl['model_sha256']}")
     with Ticker("self-check touch", enabled=progress):
         check = self_check(session, score, reference=reference, log=log)

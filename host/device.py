@@ -69,8 +69,9 @@ def device_errors(port: str | None = None) -> Iterator[None]:
     try:
         yield
     except ClientError as exc:
-        # The device refusing an argument is bad input (exit status 2), like the host refusing it.
-        bad_arg = isinstance(exc, DeviceError) and exc.code.name == "BAD_ARGUMENT"
+        # The device refusing an argument or a bundle (bad signature, untrusted key, downgrade, failed
+        # checks) is bad input (exit status 2), like the host refusing it.
+        bad_arg = isinstance(exc, DeviceError) and exc.code.name in ("BAD_ARGUMENT", "MODEL_REJECTED")
         raise DeviceUnavailable(describe_error(exc, port), 2 if bad_arg else 1) from None
 
 

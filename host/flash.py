@@ -8,7 +8,7 @@ from typing import Any
 from host.device import DeviceSession, DeviceUnavailable
 from host.progress import ProgressBar
 
-__all__ = ["BundleRefused", "load_verified", "flash_bundle"]
+__all__ = ["BundleRefused", "load_verified", "load_signing_key", "flash_bundle"]
 
 
 class BundleRefused(DeviceUnavailable):
@@ -38,8 +38,37 @@ def load_verified(path: str | Path) -> Any:
         raise BundleRefused(f"bundle {p} refused: {exc}") from None
 
 
-def flash_bundle(session: DeviceSession, path: str | Path, *, progress: bool = True) -> dict:
+def load_signing_key(path: str | Path | None) -> Any:
+    """The secret key of ``--key FILE`` (None without one).
+
+    Raises
+    ------
+    BundleRefused
+        Unreadable or malformed key file, or a public one (exit status 2).
+    """
+    if path is None:
+        return None
+    from edge.security.keys import KeyFileError  # noqa: PLC0415
+    from host.keys import load_secret_key  # noqa: PLC0415
+
+    try:
+        return load_secret_key(path)
+    except KeyFileError as exc:
+        raise BundleRefused(f"signing key refused: {exc}") from None
+
+
+def flash_bundle(session: DeviceSession, path: str | Path, *, progress: bool = True, key: Any = None,
+                 force: bool = False) -> dict:
     """Verify ``path``, upload it over the session's link and confirm the device reports its sha256.
+
+    Parameters
+    ----------
+    key : edge.security.keys.SecretKey, optional
+        Sign the manifest with it on the host; the signature travels with the upload
+        (the bundle directory is not changed). Without it the bundle's own
+        ``signature.json`` is sent if it has one, else the upload is unsigned.
+    force : bool
+        Ask the device to install a signed bundle that is not newer than its model.
 
     Returns
     -------
@@ -56,16 +85,21 @@ def flash_bundle(session: DeviceSession, path: str | Path, *, progress: bool = T
     from edge.model.bundle import BundleError, bundle_to_bytes  # noqa: PLC0415
 
     bundle = load_verified(path)
+    signature = None
+    if key is not None:
+        from host.keys import sign_manifest  # noqa: PLC0415
+
+        signature = sign_manifest(path, key)
     try:
-        blob = bundle_to_bytes(path)
+        blob = bundle_to_bytes(path, signature=signature)
     except BundleError as exc:
         raise BundleRefused(f"bundle {path} refused: {exc}") from None
     c = session.client
     before = c.info().get("model_sha256")
     with ProgressBar("flashing", "B", enabled=progress, unit_scale=True) as bar:
-        c.upload_model(blob, progress=bar, version=bundle.model_version)
+        c.upload_model(blob, progress=bar, version=bundle.model_version, force=force)
     now = c.info().get("model_sha256")
     if now != bundle.sha256:
         raise DeviceUnavailable(f"device reports model {now} after flashing {path}, expected {bundle.sha256}")
     return {"model_sha256": now, "model_version": bundle.model_version, "bytes": len(blob),
-            "previous_sha256": before}
+            "previous_sha256": before, "key_id": None if key is None else key.key_id}

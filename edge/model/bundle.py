@@ -1,11 +1,14 @@
 """Model bundles: a directory of plain numeric arrays, a manifest and golden vectors.
 
-On disk a bundle is a directory holding exactly three files::
+On disk a bundle is a directory holding three files and optionally a fourth::
 
     manifest.json   schema_version, model_version, description, created_utc,
                     training_set_sha256, metrics, files: {arrays.npz|golden.npz: {sha256, size}}
     arrays.npz      every weight and preprocessing constant (see edge.model.schema)
     golden.npz      golden input/output vectors the device re-runs before trusting the model
+    signature.json  optional: a detached Ed25519 signature over the manifest's bytes
+                    ({key_id, signature_hex}; edge.security.keys). Not part of the identity:
+                    the same bundle signed by another key is the same model.
 
 The bundle's identity (:attr:`Bundle.sha256`) is the SHA-256 of ``manifest.json``; as the
 manifest carries the hashes of the two array files, it covers the whole bundle.
@@ -18,8 +21,8 @@ For serial upload a bundle travels as one "transport blob" (:func:`bundle_to_byt
 
     b"TTBUNDLE"                  8-byte magic
     u16 format_version (=1)      little-endian
-    u16 n_entries (=3)
-    n_entries x { u16 name_len, name (ASCII, one of the three file names),
+    u16 n_entries (=3, or 4 with signature.json)
+    n_entries x { u16 name_len, name (ASCII, one of the bundle's file names),
                   u64 data_len, data }
     sha256 of all preceding bytes (32 bytes)
 """
@@ -53,6 +56,10 @@ MANIFEST_FILE = "manifest.json"
 ARRAYS_FILE = "arrays.npz"
 GOLDEN_FILE = "golden.npz"
 BUNDLE_FILES = (MANIFEST_FILE, ARRAYS_FILE, GOLDEN_FILE)
+#: The optional detached signature (same name as edge.security.keys.SIGNATURE_FILE).
+SIGNATURE_FILE = "signature.json"
+#: Longest signature.json accepted (bytes); the real one is about 180.
+MAX_SIGNATURE_BYTES = 4096
 HASHED_FILES = (ARRAYS_FILE, GOLDEN_FILE)
 
 BLOB_MAGIC = b"TTBUNDLE"
@@ -802,7 +809,7 @@ def _temp_sibling(path: Path, tag: str) -> Path:
 
 def _write_dir(dirpath: Path, files: Mapping[str, bytes]) -> None:
     durable.make_dir(dirpath)
-    for label in BUNDLE_FILES:
+    for label in BUNDLE_FILES + ((SIGNATURE_FILE,) if SIGNATURE_FILE in files else ()):
         durable.write_new_file(dirpath / label, files[label])
     durable.fsync_dir(dirpath)
 
@@ -881,11 +888,26 @@ def pack_entries(entries: list[tuple[bytes, bytes]]) -> bytes:
     return bytes(out)
 
 
-def bundle_to_bytes(path: str | os.PathLike, limits: Limits = DEFAULT_LIMITS) -> bytes:
+def read_signature(path: str | os.PathLike) -> bytes | None:
+    """The bytes of the bundle directory's ``signature.json``, or None if it has none."""
+    p = Path(path) / SIGNATURE_FILE
+    if not os.path.lexists(p):
+        return None
+    return _read_regular_file(p, SIGNATURE_FILE, MAX_SIGNATURE_BYTES)
+
+
+def bundle_to_bytes(path: str | os.PathLike, limits: Limits = DEFAULT_LIMITS, *,
+                    signature: bytes | None = None) -> bytes:
     """Pack a bundle directory into one transport blob (see module docstring for the format).
 
     The bundle is verified (hashes and schema; golden check skipped) first so a broken bundle
     is caught on the host, not after the upload.
+
+    Parameters
+    ----------
+    signature : bytes, optional
+        A ``signature.json`` to carry (e.g. made on the host at flash time); by default the
+        directory's own ``signature.json`` if it has one.
     """
     root = Path(path)
     load_bundle(root, golden_check=None, limits=limits)
@@ -893,11 +915,20 @@ def bundle_to_bytes(path: str | os.PathLike, limits: Limits = DEFAULT_LIMITS) ->
     for label in BUNDLE_FILES:
         bound = limits.max_manifest_bytes if label == MANIFEST_FILE else limits.max_npz_bytes
         entries.append((label.encode("ascii"), _read_regular_file(root / label, label, bound)))
+    if signature is None:
+        signature = read_signature(root)
+    if signature is not None:
+        if len(signature) > MAX_SIGNATURE_BYTES:
+            raise SizeLimitError(f"{SIGNATURE_FILE} is {len(signature)} bytes, above the limit of "
+                                 f"{MAX_SIGNATURE_BYTES}", SIGNATURE_FILE)
+        entries.append((SIGNATURE_FILE.encode("ascii"), bytes(signature)))
     return pack_entries(entries)
 
 
 def parse_blob(data: bytes, limits: Limits = DEFAULT_LIMITS) -> dict[str, bytes]:
     """Parse a transport blob into ``{file name: bytes}`` with every field bounded.
+
+    The three bundle files are required; ``signature.json`` may come as a fourth entry.
 
     Raises
     ------
@@ -922,8 +953,9 @@ def parse_blob(data: bytes, limits: Limits = DEFAULT_LIMITS) -> dict[str, bytes]
     version, count = struct.unpack_from("<HH", data, len(BLOB_MAGIC))
     if version != BLOB_FORMAT_VERSION:
         raise TransportError(f"transport blob format version {version} is not supported (want {BLOB_FORMAT_VERSION})")
-    if count != len(BUNDLE_FILES):
-        raise TransportError(f"transport blob holds {count} entries, expected {len(BUNDLE_FILES)}")
+    if count not in (len(BUNDLE_FILES), len(BUNDLE_FILES) + 1):
+        raise TransportError(f"transport blob holds {count} entries, expected {len(BUNDLE_FILES)} "
+                             f"(or {len(BUNDLE_FILES) + 1} with {SIGNATURE_FILE})")
     pos = head
     files: dict[str, bytes] = {}
     for _ in range(count):
@@ -941,13 +973,15 @@ def parse_blob(data: bytes, limits: Limits = DEFAULT_LIMITS) -> dict[str, bytes]
             raise UnsafePathError(f"transport blob entry name {raw_name!r} is not ASCII") from None
         if "/" in name or "\\" in name or ".." in name or "\x00" in name or name.startswith("."):
             raise UnsafePathError(f"transport blob entry {name!r} looks like path traversal; refused", name)
-        if name not in BUNDLE_FILES:
-            raise UnsafePathError(f"transport blob entry {name!r} is not one of {list(BUNDLE_FILES)}", name)
+        if name not in BUNDLE_FILES and name != SIGNATURE_FILE:
+            raise UnsafePathError(f"transport blob entry {name!r} is not one of "
+                                  f"{list(BUNDLE_FILES) + [SIGNATURE_FILE]}", name)
         if name in files:
             raise TransportError(f"transport blob holds {name!r} twice", name)
         (dlen,) = struct.unpack_from("<Q", body, pos)
         pos += 8
-        bound = limits.max_manifest_bytes if name == MANIFEST_FILE else limits.max_npz_bytes
+        bound = (limits.max_manifest_bytes if name == MANIFEST_FILE else
+                 MAX_SIGNATURE_BYTES if name == SIGNATURE_FILE else limits.max_npz_bytes)
         if dlen > bound:
             raise SizeLimitError(f"transport blob entry {name!r} is {dlen} bytes, above the limit of {bound}", name)
         if pos + dlen > len(body):
@@ -956,6 +990,9 @@ def parse_blob(data: bytes, limits: Limits = DEFAULT_LIMITS) -> dict[str, bytes]
         pos += dlen
     if pos != len(body):
         raise TransportError(f"transport blob has {len(body) - pos} unexpected trailing bytes")
+    missing = [n for n in BUNDLE_FILES if n not in files]
+    if missing:
+        raise TransportError(f"transport blob lacks {missing}", missing[0])
     return files
 
 

@@ -12,6 +12,15 @@ directory is complete and fsynced before any pointer names it, so after a crash 
 the pointers name either the old or the new bundle, each intact. At boot the store tries
 ``current``, then ``previous``, then the factory bundle shipped with the software, each fully
 verified (hashes, schema, golden vectors) before use.
+
+Authenticity: an upload is installed only if the store's
+:class:`~edge.security.policy.UpdatePolicy` accepts it -- a signature over the
+manifest by a trusted key (or no signature where the policy allows unsigned
+updates) and, for a signed update, a ``created_utc`` newer than the active
+model's unless the upload is forced. A store without a policy refuses every
+upload. Bundles already in the store (and the factory bundle, trusted by being
+on the read-only install) are not re-authenticated at boot: only what comes
+over the link is.
 """
 
 from __future__ import annotations
@@ -32,9 +41,12 @@ from edge.model.bundle import (
     BundleError,
     GoldenCheck,
     Limits,
+    MANIFEST_FILE,
     bundle_from_bytes,
     load_bundle,
+    read_signature,
 )
+from edge.security.policy import UpdatePolicy, UpdateRefused
 
 _HEX64 = re.compile(r"^[0-9a-f]{64}$")
 
@@ -67,6 +79,9 @@ class ModelStore:
         bundle decides is wrong (:func:`edge.estimation.selfcheck.semantic_check`; injected like
         the golden check because ``edge.model`` sits below ``edge.estimation``). Run on
         :meth:`install` only, after the golden check and before any pointer moves.
+    policy : edge.security.policy.UpdatePolicy or None
+        Which uploads :meth:`install` accepts (signatures, version floor).
+        None: the store only loads, and refuses every upload.
     """
 
     CURRENT = "current"
@@ -81,9 +96,11 @@ class ModelStore:
         golden_rtol: float = DEFAULT_GOLDEN_RTOL,
         limits: Limits = DEFAULT_LIMITS,
         semantic_check: Callable[[Any], None] | None = None,
+        policy: UpdatePolicy | None = None,
     ) -> None:
         self.root = Path(root)
         self.semantic_check = semantic_check
+        self.policy = policy
         self.factory_path = Path(factory_path) if factory_path is not None else None
         self.golden_check = golden_check
         self.golden_rtol = golden_rtol
@@ -95,6 +112,8 @@ class ModelStore:
         self.source: str | None = None
         """Where the active model came from: 'current', 'previous' or 'factory'."""
         self.boot_errors: list[str] = []
+        self.last_authentication = None
+        """How the last installed upload was authenticated (:class:`~edge.security.policy.Authentication`)."""
         """Why earlier candidates were skipped at the last boot (for the device log)."""
         for d in (self.root, self.bundles_dir, self.tmp_dir):
             if not d.is_dir():
@@ -215,12 +234,14 @@ class ModelStore:
 
     # ---------------------------------------------------------------- install
 
-    def install(self, blob: bytes, expected_sha256: str, expected_size: int | None = None) -> Bundle:
+    def install(self, blob: bytes, expected_sha256: str, expected_size: int | None = None, *,
+                force: bool = False) -> Bundle:
         """Verify and activate a bundle received as a transport blob.
 
         Steps: check size and sha256 of the blob; unpack into ``tmp/``; fsync; load with the
-        golden check; move into ``bundles/<identity>``; point ``previous`` at the model that was
-        active; point ``current`` at the new one; drop unreferenced bundles.
+        golden check; authenticate the manifest's signature and check the version floor
+        (:attr:`policy`); move into ``bundles/<identity>``; point ``previous`` at the model that
+        was active; point ``current`` at the new one; drop unreferenced bundles.
 
         Parameters
         ----------
@@ -230,6 +251,9 @@ class ModelStore:
             SHA-256 (hex) of ``blob`` as announced by the sender.
         expected_size : int, optional
             Announced length of ``blob`` in bytes.
+        force : bool
+            Install a signed bundle even if it is not newer than the active one (a deliberate
+            rollback); authentication is never skipped.
 
         Returns
         -------
@@ -244,15 +268,20 @@ class ModelStore:
         with self._lock:
             staging = self.tmp_dir / f"upload-{secrets.token_hex(6)}"
             try:
-                return self._install(blob, expected_sha256, expected_size, staging)
+                return self._install(blob, expected_sha256, expected_size, staging, force)
             except InstallError:
                 raise
+            except UpdateRefused as e:
+                raise InstallError(f"install refused, active model unchanged: {e}") from e
             except (BundleError, OSError, ValueError) as e:
                 raise InstallError(f"install refused, active model unchanged: {e}") from e
             finally:
                 durable.remove_tree(staging)
 
-    def _install(self, blob: bytes, expected_sha256: str, expected_size: int | None, staging: Path) -> Bundle:
+    def _install(self, blob: bytes, expected_sha256: str, expected_size: int | None, staging: Path,
+                 force: bool) -> Bundle:
+        if self.policy is None:
+            raise InstallError("install refused: this model store has no update policy (it only loads models)")
         if not isinstance(expected_sha256, str) or not _HEX64.match(expected_sha256.lower()):
             raise InstallError("expected_sha256: must be 64 hex digits")
         if len(blob) > self.limits.max_blob_bytes:
@@ -272,6 +301,15 @@ class ModelStore:
 
         bundle_from_bytes(blob, staging, self.limits)
         new = self._load_verified(staging)
+        # The signature covers the exact manifest bytes received (their sha256 is the identity).
+        with open(staging / MANIFEST_FILE, "rb") as f:
+            manifest_bytes = f.read(self.limits.max_manifest_bytes + 1)
+        if hashlib.sha256(manifest_bytes).hexdigest() != new.sha256:
+            raise InstallError("manifest changed while installing")
+        auth = self.policy.authenticate(manifest_bytes, read_signature(staging))
+        self.policy.check_newer(new.manifest, new.sha256, None if active is None else active.manifest,
+                                None if active is None else active.sha256, auth=auth, force=force)
+        self.last_authentication = auth
         self._check_semantics(new)
         target = self._bundle_path(new.sha256)
         if os.path.lexists(target):

@@ -40,6 +40,12 @@ logging
 limits
     What the device can hold: its RAM (``ram_bytes``), from which the model
     bundle bounds are derived (:func:`edge.model.bundle.limits_for_ram`).
+security
+    Who may update the device: the directory of trusted public key files
+    (``trusted_keys_dir``) and whether unsigned updates are accepted
+    (``allow_unsigned``, false on a real device; :mod:`edge.security.policy`).
+    Neither is settable over the link: whoever holds the link is exactly who
+    must not be able to loosen them.
 
 Runtime settings
 ----------------
@@ -356,6 +362,19 @@ class LimitsConfig:
     )
 
 
+@dataclass(frozen=True)
+class SecurityConfig:
+    """The ``[security]`` section (file only: never settable over the link)."""
+
+    trusted_keys_dir: str = setting(
+        "str", "/etc/thermotouch/trusted_keys",
+        "directory of trusted public key files (thermotouch keys new writes NAME.public.json); '' = none",
+    )
+    allow_unsigned: bool = setting(
+        "bool", False, "accept model updates without a signature (development devices and simulators only)"
+    )
+
+
 #: Section name -> its typed, frozen dataclass; the schema is read off their fields.
 SECTIONS: Mapping[str, type] = MappingProxyType(
     {
@@ -369,6 +388,7 @@ SECTIONS: Mapping[str, type] = MappingProxyType(
         "watchdog": WatchdogConfig,
         "logging": LoggingConfig,
         "limits": LimitsConfig,
+        "security": SecurityConfig,
     }
 )
 

@@ -67,6 +67,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 import edge
+from edge.security.policy import UpdatePolicy
 from edge.estimation.estimate import pipeline_golden_check
 from edge.estimation.objects import recognition_fields
 from edge.estimation.selfcheck import semantic_check
@@ -315,8 +316,10 @@ class Daemon:
     def _open_store(self) -> Any:
         root = self.config.paths.model_store
         try:
+            sec = self.config.security
+            policy = UpdatePolicy(trusted_keys_dir=sec.trusted_keys_dir or None, allow_unsigned=sec.allow_unsigned)
             store = ModelStore(root, _factory_bundle(self.config), golden_check=pipeline_golden_check,
-                               limits=self.model_limits, semantic_check=semantic_check)
+                               limits=self.model_limits, semantic_check=semantic_check, policy=policy)
         except (ModelStoreError, OSError) as e:
             self._set_fault("model_store", f"cannot open {root}: {e}")
             return _UnavailableStore(root, str(e), self.model_limits)
@@ -772,7 +775,7 @@ class Daemon:
             self._check_objects()  # the set in use may have changed: say so now, not at the next re-check
 
     def _cmd_model_begin(self, args: dict) -> dict:
-        out = self.upload.begin(args["size"], args["sha256"], args.get("version"))
+        out = self.upload.begin(args["size"], args["sha256"], args.get("version"), bool(args.get("force", False)))
         return {**out, "session": self.upload.session}
 
     def _cmd_model_chunk(self, args: dict) -> dict:

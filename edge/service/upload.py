@@ -40,8 +40,9 @@ MAX_UPLOAD_BYTES = 8 * 1024 * 1024
 class _Pending:
     """What MODEL_BEGIN announced and the bytes received so far."""
 
-    def __init__(self, size: int, sha256: str, version: str | None, session: int) -> None:
+    def __init__(self, size: int, sha256: str, version: str | None, session: int, force: bool = False) -> None:
         self.session = session
+        self.force = force
         self.size = size
         self.sha256 = sha256
         self.version = version
@@ -102,8 +103,11 @@ class ModelUpload:
         up = self._pending
         return None if up is None else {"received": len(up.data), "size": up.size}
 
-    def begin(self, size: int, sha256: str, version: str | None = None) -> dict[str, Any]:
+    def begin(self, size: int, sha256: str, version: str | None = None, force: bool = False) -> dict[str, Any]:
         """Start an upload of ``size`` bytes with digest ``sha256`` (drops one in progress).
+
+        ``force`` lets a signed bundle that is not newer than the active one be installed
+        (see :mod:`edge.security.policy`); the signature is checked all the same.
 
         Returns
         -------
@@ -121,8 +125,9 @@ class ModelUpload:
                                "size")
         if self._pending is not None:
             log.info("model upload session %d superseded by a new MODEL_BEGIN", self._pending.session)
-        self._pending = _Pending(size, sha256, version, self._new_session())
-        log.info("model upload session %d started: %d B, sha256 %s", self._pending.session, size, sha256[:12])
+        self._pending = _Pending(size, sha256, version, self._new_session(), bool(force))
+        log.info("model upload session %d started: %d B, sha256 %s%s", self._pending.session, size, sha256[:12],
+                 " (forced)" if force else "")
         return {"size": size}
 
     def chunk(self, offset: int, data: bytes, session: int | None = None, *,
@@ -180,12 +185,14 @@ class ModelUpload:
             raise CommandError(ErrorCode.BAD_STATE, f"upload incomplete: {len(up.data)} of {up.size} B")
         self._pending = None
         try:
-            bundle = self.store.install(bytes(up.data), up.sha256, up.size)
+            bundle = self.store.install(bytes(up.data), up.sha256, up.size, force=up.force)
         except InstallError as e:
             detail = str(e)  # InstallError's message already carries the cause
             log.warning("model upload refused: %s", detail)
             raise CommandError(ErrorCode.MODEL_REJECTED, detail[:1000]) from None
-        log.info("model %s (%s) installed", bundle.model_version, bundle.sha256[:12])
+        auth = getattr(self.store, "last_authentication", None)
+        log.info("model %s (%s) installed%s", bundle.model_version, bundle.sha256[:12],
+                 f", {auth.describe()}" if auth is not None else "")
         return {"model_sha256": up.sha256, "bundle_sha256": bundle.sha256, "model_version": bundle.model_version}
 
     def abort(self, session: int | None = None, *, require_session: bool = False) -> dict[str, Any]:

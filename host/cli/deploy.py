@@ -1,7 +1,8 @@
 """``thermotouch deploy``: train a bundle, prove it is no worse than the probe's, flash it, check a touch.
 
 (Formerly the separate ``train-and-deploy`` script; the flow is :func:`host.deploy.train_and_deploy`.)
-Exit status 0 deployed, 1 device or self-check failure, 2 bad input, 3 refused (nothing flashed).
+Exit status 0 deployed, 1 device or self-check failure, 2 bad input (also a bundle or key the device
+refuses: unsigned, untrusted, bad signature, not newer), 3 refused (nothing flashed).
 """
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ def add_parser(sub, parents):
     p.add_argument("--seed", type=seed, default=0, help="random seed, 0 .. 2^32-1 (default 0)")
     p.add_argument("--bundle", help="deploy this existing bundle instead of training one")
     p.add_argument("--baseline", help="the device's current bundle directory, if not the shipped default")
+    p.add_argument("--key", metavar="FILE", default=None,
+                   help="secret key file to sign the deployed bundle's manifest with (thermotouch keys new)")
     p.add_argument("--reference", choices=("tempered_glass", "pmma", "aluminium_alloy"),
                    help="with --port: the reference sample the probe rests on for the self-check touch")
     for f in Thresholds.__dataclass_fields__:
@@ -59,10 +62,13 @@ def run(args: argparse.Namespace) -> int:
         from host.flash import load_verified  # noqa: PLC0415
 
         load_verified(args.baseline)
+    from host.flash import load_signing_key  # noqa: PLC0415
+
+    key = load_signing_key(args.key)  # a bad key is refused before training (exit 2)
     th = Thresholds(**{f: getattr(args, f"max_{f}") for f in Thresholds.__dataclass_fields__})
     with device_session(args) as session:
         r = train_and_deploy(session, args.out, quick=args.quick, seed=args.seed, bundle=args.bundle,
                              baseline=args.baseline, thresholds=th, reference=args.reference,
-                             overwrite=args.overwrite, log=say)
+                             overwrite=args.overwrite, log=say, key=key)
     print(f"deployed {r['bundle']} (sha256 {r['model_sha256']})")
     return 0

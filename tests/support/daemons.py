@@ -16,12 +16,18 @@ from firmware_sim.rigs.daemon_rig import heater_invariant, make_rig
 
 
 def sim_config(tmp: Path, **sections) -> Config:
-    """A sim-board config with every path under ``tmp``; ``sections`` override tables."""
+    """A sim-board config with every path under ``tmp``; ``sections`` override tables.
+
+    Like a simulated probe (:func:`firmware_sim.run.config_for_scene`) it accepts unsigned
+    updates and trusts the key files in ``tmp/trusted_keys``; signed-update tests override
+    ``security``.
+    """
     values = {
         "board": {"kind": "sim"},
         "paths": {"model_store": str(tmp / "models"), "history_db": str(tmp / "history.db"),
                   "runtime_overrides": str(tmp / "runtime.json")},
         "measurement": {"cooldown_s": 1.0},
+        "security": {"allow_unsigned": True, "trusted_keys_dir": str(tmp / "trusted_keys")},
     }
     for name, table in sections.items():
         values.setdefault(name, {}).update(table)

@@ -591,8 +591,11 @@ def _open_store(point: Path) -> Any:
     from edge.service.config import Config
     from thermotouch_models import DEFAULT_BUNDLE
 
+    from edge.security.policy import UpdatePolicy
+
+    # A development policy, as the simulated daemon's: these kill points are about durability, not signatures.
     return ModelStore(point / "models", DEFAULT_BUNDLE, golden_check=pipeline_golden_check,
-                      limits=limits_for_ram(Config().limits.ram_bytes))
+                      limits=limits_for_ram(Config().limits.ram_bytes), policy=UpdatePolicy(allow_unsigned=True))
 
 
 def flash_operation(root: Path, chunk_bytes: int = 48 * 1024) -> Operation:

@@ -16,6 +16,10 @@ from edge.estimation.estimate import mlp_golden_check
 from edge.model import bundle as B
 from edge.storage import durable
 from edge.model.store import InstallError, ModelStore, ModelStoreError
+from edge.security.policy import UpdatePolicy
+
+#: These tests are about atomicity and verification, not authentication (tests/edge/model/test_store_signed.py).
+DEV_POLICY = UpdatePolicy(allow_unsigned=True)
 
 
 def _sha(b: bytes) -> str:
@@ -48,14 +52,14 @@ def _install(store, blobs, tag):
 
 
 def test_empty_store_without_factory_has_no_model(tmp_path):
-    store = ModelStore(tmp_path / "store", golden_check=mlp_golden_check)
+    store = ModelStore(tmp_path / "store", golden_check=mlp_golden_check, policy=DEV_POLICY)
     with pytest.raises(ModelStoreError, match="no usable model"):
         store.current()
     assert any("no pointer" in e for e in store.boot_errors)
 
 
 def test_factory_used_until_first_install(tmp_path, blobs):
-    store = ModelStore(tmp_path / "s", blobs["factory_path"], golden_check=mlp_golden_check)
+    store = ModelStore(tmp_path / "s", blobs["factory_path"], golden_check=mlp_golden_check, policy=DEV_POLICY)
     assert store.current().model_version == "factory" and store.source == "factory"
     b = _install(store, blobs, "A")
     assert b.sha256 == blobs["A"][1] and store.current() is b and store.source == "current"
@@ -64,12 +68,12 @@ def test_factory_used_until_first_install(tmp_path, blobs):
 
 def test_install_persists_and_keeps_previous(tmp_path, blobs):
     root = tmp_path / "s"
-    store = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
+    store = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check, policy=DEV_POLICY)
     _install(store, blobs, "A")
     _install(store, blobs, "B")
     assert (root / "current").read_text() == blobs["B"][1] + "\n"
     assert (root / "previous").read_text() == blobs["A"][1] + "\n"
-    fresh = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
+    fresh = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check, policy=DEV_POLICY)
     assert fresh.current().sha256 == blobs["B"][1] and fresh.source == "current"
     _install(fresh, blobs, "C")
     # Only current and previous are kept.
@@ -78,7 +82,7 @@ def test_install_persists_and_keeps_previous(tmp_path, blobs):
 
 
 def test_reinstall_same_bundle_is_harmless(tmp_path, blobs):
-    store = ModelStore(tmp_path / "s", golden_check=mlp_golden_check)
+    store = ModelStore(tmp_path / "s", golden_check=mlp_golden_check, policy=DEV_POLICY)
     _install(store, blobs, "A")
     _install(store, blobs, "B")
     b = _install(store, blobs, "B")
@@ -98,19 +102,19 @@ def test_reinstall_same_bundle_is_harmless(tmp_path, blobs):
 )
 def test_bad_uploads_leave_current_untouched(tmp_path, blobs, mutate, match):
     root = tmp_path / "s"
-    store = ModelStore(root, golden_check=mlp_golden_check)
+    store = ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY)
     _install(store, blobs, "A")
     data, sha, size = mutate(blobs["B"][0])
     with pytest.raises(InstallError, match=match):
         store.install(data, sha, size)
     assert store.current().sha256 == blobs["A"][1]
-    assert ModelStore(root, golden_check=mlp_golden_check).current().sha256 == blobs["A"][1]
+    assert ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY).current().sha256 == blobs["A"][1]
     assert os.listdir(root / "bundles") == [blobs["A"][1]] and os.listdir(root / "tmp") == []
 
 
 def test_rollback_on_bad_golden(tmp_path, blobs):
     root = tmp_path / "s"
-    store = ModelStore(root, golden_check=mlp_golden_check)
+    store = ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY)
     _install(store, blobs, "A")
     blob = blobs["BAD"][0]
     with pytest.raises(InstallError, match="golden vectors do not reproduce") as ei:
@@ -123,7 +127,7 @@ def test_rollback_on_bad_golden(tmp_path, blobs):
 
 
 def test_store_level_golden_check_is_applied(tmp_path, blobs):
-    store = ModelStore(tmp_path / "s", golden_check=lambda b, g: 1.0)
+    store = ModelStore(tmp_path / "s", golden_check=lambda b, g: 1.0, policy=DEV_POLICY)
     with pytest.raises(InstallError, match="golden"):
         _install(store, blobs, "A")
 
@@ -138,7 +142,7 @@ def _corrupt_bundle(root: Path, sha: str) -> None:
 @pytest.mark.parametrize("how", ["garbage pointer", "empty pointer", "corrupt bundle", "missing bundle"])
 def test_boot_falls_back_to_previous(tmp_path, blobs, how):
     root = tmp_path / "s"
-    store = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
+    store = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check, policy=DEV_POLICY)
     _install(store, blobs, "A")
     _install(store, blobs, "B")
     if how == "garbage pointer":
@@ -149,63 +153,63 @@ def test_boot_falls_back_to_previous(tmp_path, blobs, how):
         _corrupt_bundle(root, blobs["B"][1])
     else:
         shutil.rmtree(root / "bundles" / blobs["B"][1])
-    fresh = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
+    fresh = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check, policy=DEV_POLICY)
     assert fresh.current().sha256 == blobs["A"][1]
     assert fresh.source == "previous" and fresh.boot_errors and fresh.boot_errors[0].startswith("current:")
 
 
 def test_boot_falls_back_to_factory_then_fails(tmp_path, blobs):
     root = tmp_path / "s"
-    store = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
+    store = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check, policy=DEV_POLICY)
     _install(store, blobs, "A")
     _install(store, blobs, "B")
     _corrupt_bundle(root, blobs["A"][1])
     _corrupt_bundle(root, blobs["B"][1])
-    fresh = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
+    fresh = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check, policy=DEV_POLICY)
     assert fresh.current().model_version == "factory" and fresh.source == "factory"
     assert len(fresh.boot_errors) == 2
     with pytest.raises(ModelStoreError, match="sha256 mismatch for arrays.npz"):
-        ModelStore(root, tmp_path / "no_such_factory", golden_check=mlp_golden_check).current()
+        ModelStore(root, tmp_path / "no_such_factory", golden_check=mlp_golden_check, policy=DEV_POLICY).current()
     # Installing over a broken store works and does not record the broken bundle as previous.
     b = _install(fresh, blobs, "C")
-    assert ModelStore(root, golden_check=mlp_golden_check).current().sha256 == b.sha256
+    assert ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY).current().sha256 == b.sha256
 
 
 def test_pointer_to_wrong_identity_is_refused(tmp_path, blobs):
     root = tmp_path / "s"
-    store = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
+    store = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check, policy=DEV_POLICY)
     _install(store, blobs, "A")
     _install(store, blobs, "B")
     # Make the "B" directory hold A's files: hashes are fine but the identity is not B.
     dirb = root / "bundles" / blobs["B"][1]
     shutil.rmtree(dirb)
     shutil.copytree(root / "bundles" / blobs["A"][1], dirb)
-    fresh = ModelStore(root, golden_check=mlp_golden_check)
+    fresh = ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY)
     assert fresh.current().sha256 == blobs["A"][1] and fresh.source == "previous"
     assert "identity" in fresh.boot_errors[0]
 
 
 def test_rollback(tmp_path, blobs):
     root = tmp_path / "s"
-    store = ModelStore(root, golden_check=mlp_golden_check)
+    store = ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY)
     with pytest.raises(ModelStoreError, match="no previous"):
         store.rollback()
     _install(store, blobs, "A")
     _install(store, blobs, "B")
     assert store.rollback().sha256 == blobs["A"][1]
-    assert ModelStore(root, golden_check=mlp_golden_check).current().sha256 == blobs["A"][1]
+    assert ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY).current().sha256 == blobs["A"][1]
     assert (root / "previous").read_text().strip() == blobs["B"][1]
-    st = ModelStore(root, golden_check=mlp_golden_check).status()
+    st = ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY).status()
     assert st["source"] == "current" and st["model_version"] == "A"
 
 
 def test_startup_removes_stale_staging(tmp_path, blobs):
     root = tmp_path / "s"
-    store = ModelStore(root, golden_check=mlp_golden_check)
+    store = ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY)
     _install(store, blobs, "A")
     (root / "tmp" / "upload-dead").mkdir()
     (root / ".current.tmp123").write_text("junk")
-    ModelStore(root, golden_check=mlp_golden_check)
+    ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY)
     assert os.listdir(root / "tmp") == [] and not (root / ".current.tmp123").exists()
 
 
@@ -216,7 +220,7 @@ def test_startup_removes_bundles_no_pointer_names(tmp_path, blobs):
     next successful install.
     """
     root = tmp_path / "s"
-    store = ModelStore(root, golden_check=mlp_golden_check)
+    store = ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY)
     _install(store, blobs, "A")
     _install(store, blobs, "B")
     whole = root / "bundles" / blobs["C"][1]
@@ -224,17 +228,17 @@ def test_startup_removes_bundles_no_pointer_names(tmp_path, blobs):
     half = root / "bundles" / ("e" * 64)
     shutil.copytree(root / "bundles" / blobs["A"][1], half)
     (half / "manifest.json").unlink()  # the collection was killed after its first unlink
-    fresh = ModelStore(root, golden_check=mlp_golden_check)
+    fresh = ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY)
     assert sorted(os.listdir(root / "bundles")) == sorted([blobs["A"][1], blobs["B"][1]])
     assert fresh.current().sha256 == blobs["B"][1]
 
 
 def test_startup_keeps_bundles_when_current_is_lost(tmp_path, blobs):
     root = tmp_path / "s"
-    store = ModelStore(root, golden_check=mlp_golden_check)
+    store = ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY)
     _install(store, blobs, "A")
     (root / "current").unlink()
-    ModelStore(root, golden_check=mlp_golden_check)
+    ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY)
     assert os.listdir(root / "bundles") == [blobs["A"][1]]  # for a person to look at, not collected
 
 
@@ -285,7 +289,7 @@ def no_disk_flush(monkeypatch):
 
 
 def _store_with(root, blobs, tags):
-    store = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
+    store = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check, policy=DEV_POLICY)
     for t in tags:
         _install(store, blobs, t)
     return store
@@ -312,7 +316,7 @@ def test_power_cut_at_every_step_leaves_a_working_model(tmp_path, blobs, no_disk
             _arm(mp, i, [])
             _install(store, blobs, new_tag)
         # Reboot: a new process sees whatever reached the disk.
-        rebooted = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check)
+        rebooted = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check, policy=DEV_POLICY)
         b = rebooted.current()
         assert b.sha256 in {before_sha, blobs[new_tag][1]} or (before_sha is None and rebooted.source == "factory")
         if before_sha is not None:
@@ -321,7 +325,7 @@ def test_power_cut_at_every_step_leaves_a_working_model(tmp_path, blobs, no_disk
         outcomes.append("new" if b.sha256 == blobs[new_tag][1] else "old")
         # The store is still usable: the install can be retried.
         assert _install(rebooted, blobs, new_tag).sha256 == blobs[new_tag][1]
-        assert ModelStore(root, golden_check=mlp_golden_check).current().sha256 == blobs[new_tag][1]
+        assert ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY).current().sha256 == blobs[new_tag][1]
     # Monotone: once the switch happened, later crashes keep the new model.
     assert outcomes == sorted(outcomes, key=lambda o: o == "new")
     assert outcomes[0] == "old" and "new" in outcomes
@@ -339,6 +343,6 @@ def test_power_cut_during_rollback(tmp_path, blobs, no_disk_flush):
         with pytest.MonkeyPatch.context() as mp, pytest.raises(PowerCut):
             _arm(mp, i, [])
             store.rollback()
-        rebooted = ModelStore(root, golden_check=mlp_golden_check)
+        rebooted = ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY)
         assert rebooted.current().sha256 in {blobs["A"][1], blobs["B"][1]}
         assert rebooted.source == "current"

@@ -12,8 +12,11 @@ from edge.estimation.estimate import pipeline_golden_check
 from edge.estimation.selfcheck import SemanticCheckError, semantic_check
 from edge.model import bundle as B
 from edge.model.store import InstallError, ModelStore
+from edge.security.policy import UpdatePolicy
 from tests.support.bundles import broken_copy
 from thermotouch_models import DEFAULT_BUNDLE
+
+DEV_POLICY = UpdatePolicy(allow_unsigned=True)  # this file is about what a bundle decides, not who signed it
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +37,7 @@ def test_shipped_bundle_passes_the_semantic_check():
 @pytest.mark.parametrize("how, says", [("permuted_names", "library entry"), ("negated_output", "network's k")])
 def test_self_consistent_garbage_is_refused_in_one_line_and_the_old_model_serves(tmp_path, broken, how, says):
     store = ModelStore(tmp_path / "store", DEFAULT_BUNDLE, golden_check=pipeline_golden_check,
-                       semantic_check=semantic_check)
+                       semantic_check=semantic_check, policy=DEV_POLICY)
     before = store.current().sha256
     blob, sha = _blob(broken[how])
     with pytest.raises(InstallError) as ei:
@@ -44,7 +47,7 @@ def test_self_consistent_garbage_is_refused_in_one_line_and_the_old_model_serves
     assert store.current().sha256 == before and store.source == "factory"
     assert not any((tmp_path / "store" / "bundles").iterdir())  # nothing stored, no pointer moved
     # Without the injected check the store accepts it: the hashes and golden vectors are consistent.
-    assert ModelStore(tmp_path / "plain", golden_check=pipeline_golden_check).install(blob, sha, len(blob))
+    assert ModelStore(tmp_path / "plain", golden_check=pipeline_golden_check, policy=DEV_POLICY).install(blob, sha, len(blob))
 
 
 def test_the_reference_touch_alone_catches_swapped_names(monkeypatch):

@@ -167,8 +167,9 @@ def test_stop_is_prompt_in_every_state(tmp_path, state):
                 flood = threading.Thread(target=_flood, args=(nm.host_port, 3000, 100_000, 2.0), daemon=True)
                 flood.start()
                 deadline = time.monotonic() + WAIT_s
-                # ready() comes before serve() sets ``endpoint``: it may not be there yet.
-                while getattr(getattr(d, "endpoint", None), "replies_dropped", 0) == 0 and time.monotonic() < deadline:
+                # DaemonThread.start returns once the daemon exists; serve() sets its endpoint just after.
+                while (getattr(d, "endpoint", None) is None or d.endpoint.replies_dropped == 0) \
+                        and time.monotonic() < deadline:
                     time.sleep(0.01)
                 assert d.endpoint.replies_dropped > 0
             latency = _stop_latency(dt)

@@ -1,0 +1,168 @@
+"""What the device accepts as an update: who must have signed it, and that it is newer than what runs.
+
+Authentication
+--------------
+An update carries a detached Ed25519 signature over its manifest bytes
+(:data:`edge.security.keys.SIGNATURE_FILE`). It is accepted only if the
+signature's key is among the public key files in ``trusted_keys_dir`` and the
+signature verifies. An unsigned update is refused unless ``allow_unsigned``
+(a development device). A signature that is present is always checked, even
+where unsigned updates are allowed: a bad or untrusted signature is a sign of
+tampering or of the wrong key, never silently ignored.
+
+Version ordering (downgrade protection)
+---------------------------------------
+Updates are ordered by the manifest's ``created_utc`` (ISO 8601,
+``YYYY-MM-DDTHH:MM:SSZ``; every bundle has it, ``thermotouch train`` writes
+it when it builds the bundle). A signed update that is not strictly newer than
+the active model is refused unless the upload was begun with ``force`` (an
+operator's deliberate rollback); re-sending the active bundle itself is not a
+version change and is accepted. This stops a replay of an old, legitimately
+signed bundle with a known flaw.
+
+The floor is applied to authenticated updates only: for an unsigned upload
+(allowed on a development device) ``created_utc`` is whatever the sender
+wrote, so comparing it would stop nobody and only get in the developer's way.
+
+The factory bundle is trusted by being on the read-only install, not by a
+signature; it is never installed through this policy.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Mapping
+
+from edge.security import ed25519
+from edge.security.keys import KeyFileError, PublicKey, load_trusted_keys, parse_signature
+
+__all__ = ["UpdateRefused", "UpdatePolicy", "Authentication", "release_time"]
+
+log = logging.getLogger("thermotouch.edge")
+
+_TIME_FORMAT = "%Y-%m-%dT%H:%M:%SZ"
+
+
+class UpdateRefused(ValueError):
+    """An update failed authentication or the version floor; the message says which, on one line."""
+
+
+@dataclass(frozen=True)
+class Authentication:
+    """Outcome of :meth:`UpdatePolicy.authenticate`: the signer's key id, or None for an allowed unsigned update."""
+
+    key_id: str | None
+
+    @property
+    def signed(self) -> bool:
+        return self.key_id is not None
+
+    def describe(self) -> str:
+        return f"signed by key {self.key_id}" if self.signed else "unsigned (allowed on this device)"
+
+
+def release_time(manifest: Mapping[str, Any], what: str) -> datetime:
+    """The manifest's ``created_utc`` as an aware datetime (the order of updates).
+
+    Raises
+    ------
+    UpdateRefused
+        Missing or not ``YYYY-MM-DDTHH:MM:SSZ``.
+    """
+    text = manifest.get("created_utc")
+    try:
+        return datetime.strptime(str(text), _TIME_FORMAT).replace(tzinfo=timezone.utc)
+    except ValueError:
+        raise UpdateRefused(f"{what} created_utc {text!r} is not YYYY-MM-DDTHH:MM:SSZ; "
+                            "cannot order it against the active model") from None
+
+
+@dataclass(frozen=True)
+class UpdatePolicy:
+    """The device's rules for accepting an update.
+
+    Parameters
+    ----------
+    trusted_keys_dir : str or None
+        Directory of public key files (``thermotouch keys new`` writes them);
+        read at each install, so adding a key needs no restart. None or ''
+        trusts no key.
+    allow_unsigned : bool
+        Accept updates without a signature (development devices only).
+    """
+
+    trusted_keys_dir: str | None = None
+    allow_unsigned: bool = False
+
+    def trusted_keys(self) -> dict[str, PublicKey]:
+        """The trusted public keys by key id (files that do not parse are logged and skipped)."""
+        if not self.trusted_keys_dir:
+            return {}
+        keys, skipped = load_trusted_keys(Path(self.trusted_keys_dir))
+        for why in skipped:
+            log.warning("trusted keys: %s", why)
+        return keys
+
+    def authenticate(self, manifest_bytes: bytes, signature_doc: bytes | None) -> Authentication:
+        """Check an update's signature over its manifest bytes.
+
+        Parameters
+        ----------
+        manifest_bytes : bytes
+            The exact bytes of ``manifest.json``.
+        signature_doc : bytes or None
+            The bytes of ``signature.json``; None when the update has none.
+
+        Raises
+        ------
+        UpdateRefused
+            Unsigned where that is not allowed, malformed signature, unknown
+            key, or a signature that does not verify.
+        """
+        if signature_doc is None:
+            if self.allow_unsigned:
+                return Authentication(None)
+            raise UpdateRefused("unsigned update refused: this device accepts only updates signed by a trusted key "
+                                "(thermotouch flash --key FILE)")
+        try:
+            kid, sig = parse_signature(signature_doc)
+        except KeyFileError as e:
+            raise UpdateRefused(f"signature refused: {e}") from None
+        keys = self.trusted_keys()
+        key = keys.get(kid)
+        if key is None:
+            where = self.trusted_keys_dir or "(no trusted_keys_dir configured)"
+            raise UpdateRefused(f"signature by untrusted key {kid} refused: not among the {len(keys)} trusted "
+                                f"key(s) in {where}")
+        try:
+            ed25519.check_signature(key.public, manifest_bytes, sig)
+        except ed25519.SignatureError as e:
+            raise UpdateRefused(f"bad signature by key {kid}: {e} (manifest changed after signing?)") from None
+        return Authentication(kid)
+
+    @staticmethod
+    def check_newer(new_manifest: Mapping[str, Any], new_sha256: str, active_manifest: Mapping[str, Any] | None,
+                    active_sha256: str | None, *, auth: Authentication, force: bool) -> None:
+        """Refuse a signed update that is not newer than the active model (unless ``force``).
+
+        See the module docstring for the rule and why unsigned updates skip it.
+
+        Raises
+        ------
+        UpdateRefused
+            Not newer, or a ``created_utc`` that cannot be ordered.
+        """
+        if force or not auth.signed or active_manifest is None or new_sha256 == active_sha256:
+            return
+        new_t = release_time(new_manifest, "update")
+        old_t = release_time(active_manifest, "active model")
+        if new_t <= old_t:
+            raise UpdateRefused(
+                f"downgrade refused: update {new_manifest.get('model_version')!r} created "
+                f"{new_t.strftime(_TIME_FORMAT)} is not newer than the active "
+                f"{active_manifest.get('model_version')!r} created {old_t.strftime(_TIME_FORMAT)} "
+                "(thermotouch flash --force to install it anyway)")
+

@@ -1,0 +1,131 @@
+"""Signed model updates over the simulated daemon and the virtual serial link.
+
+A probe configured like a real one (``security.allow_unsigned = false``)
+installs a bundle signed by a key in its ``trusted_keys_dir`` and refuses an
+unsigned one, one signed by another key, one whose manifest was changed after
+signing, and a signed one that is not newer than its model unless the upload
+is forced; every refusal is one line and leaves the old model serving.
+"""
+
+from __future__ import annotations
+
+import contextlib
+
+import pytest
+import serial
+
+from edge.estimation.estimate import mlp_golden_check
+from edge.model import bundle as B
+from edge.protocol.errors import ErrorCode
+from edge.security.keys import SecretKey, signature_document
+from firmware_sim.daemon_thread import DaemonThread
+from firmware_sim.ptylink import NullModem
+from firmware_sim.rigs.daemon_rig import make_rig
+from host.client import DeviceClient, DeviceError
+from host.device import describe_error
+from host.keys import new_key
+from tests.support.bundles import make_arrays, make_golden, manifest_extra
+from tests.support.daemons import FakeEstimator, sim_config
+
+pytestmark = pytest.mark.hil
+
+
+def _bundle(d, tag, seed, created_utc):
+    arrays = make_arrays(seed=seed, hidden=(12, 5))
+    extra = {**manifest_extra(tag), "created_utc": created_utc}
+    return B.write_bundle(d / tag, arrays, make_golden(arrays), extra, golden_check=mlp_golden_check)
+
+
+@pytest.fixture(scope="module")
+def bundles(tmp_path_factory):
+    d = tmp_path_factory.mktemp("signed")
+    return {
+        "factory": _bundle(d, "factory", 1, "2024-01-01T00:00:00Z"),
+        "v2": _bundle(d, "v2", 2, "2025-01-01T00:00:00Z"),
+        "v3": _bundle(d, "v3", 3, "2025-06-01T00:00:00Z"),
+        "v2b": _bundle(d, "v2b", 4, "2024-12-01T00:00:00Z"),  # newer than the factory, older than v3
+    }
+
+
+def _manifest(bundle) -> bytes:
+    return (bundle.path / B.MANIFEST_FILE).read_bytes()
+
+
+def _signed_blob(bundle, key) -> bytes:
+    return B.bundle_to_bytes(bundle.path, signature=signature_document(key, _manifest(bundle)))
+
+
+@contextlib.contextmanager
+def strict_probe(tmp_path, bundles):
+    """A daemon that accepts only signed updates, trusting the one key it returns."""
+    keys_dir = tmp_path / "trusted_keys"
+    trusted = new_key(keys_dir, "release")
+    (keys_dir / "release.secret.json").unlink()  # the probe holds public keys only
+    cfg = sim_config(tmp_path, paths={"factory_model": str(bundles["factory"].path)},
+                     security={"allow_unsigned": False, "trusted_keys_dir": str(keys_dir)})
+    rig = make_rig()
+    with NullModem() as nm, serial.Serial(nm.device_port, timeout=0.05) as port:
+        with DaemonThread(cfg, rig.board, port, estimator=FakeEstimator(rig.parts)) as dt:
+            with DeviceClient(nm.host_port, timeout_s=5.0) as client:
+                yield client, trusted
+        assert dt.error is None
+
+
+def _refused(client, blob, **kw) -> str:
+    with pytest.raises(DeviceError) as ei:
+        client.upload_model(blob, **kw)
+    assert ei.value.code == ErrorCode.MODEL_REJECTED
+    line = describe_error(ei.value)
+    assert "\n" not in line and line.startswith("device refused the bundle: install refused, active model unchanged")
+    return line
+
+
+def test_signed_by_a_trusted_key_is_installed(tmp_path, bundles):
+    with strict_probe(tmp_path, bundles) as (c, key):
+        assert c.info()["model_sha256"] == bundles["factory"].sha256
+        res = c.upload_model(_signed_blob(bundles["v2"], key))
+        assert res["bundle_sha256"] == bundles["v2"].sha256
+        info = c.info()
+        assert info["model_sha256"] == bundles["v2"].sha256 and info["model_source"] == "current"
+
+
+def test_unsigned_untrusted_and_tampered_are_refused_and_the_old_model_serves(tmp_path, bundles):
+    with strict_probe(tmp_path, bundles) as (c, key):
+        line = _refused(c, B.bundle_to_bytes(bundles["v2"].path))
+        assert "unsigned update refused" in line
+
+        stranger = SecretKey.generate()
+        line = _refused(c, _signed_blob(bundles["v2"], stranger))
+        assert f"signature by untrusted key {stranger.key_id} refused" in line
+
+        # Manifest edited after signing (its file hashes still match, so only the signature catches it).
+        files = B.parse_blob(_signed_blob(bundles["v2"], key))
+        files[B.MANIFEST_FILE] = files[B.MANIFEST_FILE].replace(b'"test bundle"', b'"test bundlf"')
+        tampered = B.pack_entries([(n.encode(), files[n]) for n in (*B.BUNDLE_FILES, B.SIGNATURE_FILE)])
+        line = _refused(c, tampered)
+        assert f"bad signature by key {key.key_id}: signature does not verify" in line
+
+        # A signature.json that is not one.
+        files[B.SIGNATURE_FILE] = b'{"key_id": "zz"}'
+        line = _refused(c, B.pack_entries([(n.encode(), files[n]) for n in (*B.BUNDLE_FILES, B.SIGNATURE_FILE)]))
+        assert "signature refused: signature.json: 'key_id' must be 16 lowercase hex digits" in line
+
+        info = c.info()
+        assert info["model_sha256"] == bundles["factory"].sha256 and info["model_source"] == "factory"
+        assert c.measure(contact_time_s=0.5)["status"] == "ok"  # still measuring with the old model
+
+
+def test_older_signed_version_is_refused_unless_forced(tmp_path, bundles):
+    with strict_probe(tmp_path, bundles) as (c, key):
+        c.upload_model(_signed_blob(bundles["v3"], key))
+        line = _refused(c, _signed_blob(bundles["v2b"], key))
+        assert ("downgrade refused: update 'v2b' created 2024-12-01T00:00:00Z is not newer than the active 'v3' "
+                "created 2025-06-01T00:00:00Z (thermotouch flash --force to install it anyway)") in line
+        assert c.info()["model_sha256"] == bundles["v3"].sha256
+        # Re-sending the model that runs is not a downgrade.
+        assert c.upload_model(_signed_blob(bundles["v3"], key))["bundle_sha256"] == bundles["v3"].sha256
+        # Forced: the operator's deliberate rollback, still authenticated.
+        res = c.upload_model(_signed_blob(bundles["v2b"], key), force=True)
+        assert res["bundle_sha256"] == bundles["v2b"].sha256
+        assert c.info()["model_sha256"] == bundles["v2b"].sha256
+        _refused(c, B.bundle_to_bytes(bundles["v3"].path), force=True)  # force never skips the signature
