@@ -1,6 +1,6 @@
 """The deploy gate on candidate bundles against the shipped one, on both boards.
 
-    python bench/gate_bench.py [--workdir DIR]
+Run:  python bench/gate_bench.py [--workdir DIR]
     python bench/gate_bench.py --seeds 1 2 3 [--workdir DIR]
 
 Trains the shipped recipe (seed 0) and the --quick recipe (seed 0) with an empty
