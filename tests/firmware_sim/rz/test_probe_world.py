@@ -173,7 +173,7 @@ def test_probe_in_air_relaxes_with_the_lumped_time_constant():
     h = 10.0
     sc = scene(touch=(1000.0, 1.0))
     geo = Geometry(substrate=None, h_air_W_m2K=h)
-    w = FaithfulWorld(sc, clock_at(200.0), heat(0.0, 2.0), geometry=geo, dt_s=0.05)
+    w = FaithfulWorld(sc, clock_at(200.0), heat(0.0, 2.0), geometry=geo, dt_s=0.1)
     a = math.sqrt(sc.stack.heater_area_m2 / math.pi)
     L = sc.stack.total_thickness_m
     C = PROBE_MATERIAL.rho_c_J_m3K * math.pi * a * a * L
@@ -185,7 +185,7 @@ def test_probe_in_air_relaxes_with_the_lumped_time_constant():
     assert -1.0 / slope == pytest.approx(tau, rel=0.02)
     # With the foam the film's heat also soaks upwards: the sensing layer cools faster at
     # first, then the warm foam holds it above the lumped curve; it still heads for ambient.
-    wf = FaithfulWorld(sc, clock_at(200.0), heat(0.0, 2.0), geometry=Geometry(h_air_W_m2K=h), dt_s=0.05)
+    wf = FaithfulWorld(sc, clock_at(200.0), heat(0.0, 2.0), geometry=Geometry(h_air_W_m2K=h), dt_s=0.1)
     dTf = wf.truth(t).thermocouple_C - 25.0
     assert np.all(dTf > 0) and np.all(np.diff(dTf) < 0)
     led = wf.energy_ledger(60.0)
