@@ -81,6 +81,11 @@ def test_heat_while_off_rules():
     assert heat_while_off(t, 30 - 1.0 * t, np.full(t.size, 600.0), LIMITS) is None
     # A warmer object warms the probe: the flux is reversed.
     assert heat_while_off(t, 25 + 1.0 * t, np.full(t.size, -2000.0), LIMITS) is None
+    # ... also a warm object of low effusivity (PMMA 1 K above the probe: ~100 W/m^2 in, 0.5 K up;
+    # the faithful world's pmma_15V_faithful scene was refused as a heater fault before).
+    assert heat_while_off(t, 25 + 0.3 * t, np.full(t.size, -100.0), LIMITS) is None
+    # A flux into the probe within the noise of a mean does not explain a rise: still a fault.
+    assert heat_while_off(t, 25 + 0.3 * t, np.full(t.size, -20.0), LIMITS)
     # Quantised, steady: no rise.
     assert heat_while_off(t, np.full(t.size, 25.0), np.full(t.size, 14.0), LIMITS) is None
 
