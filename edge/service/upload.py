@@ -37,6 +37,31 @@ log = logging.getLogger("thermotouch.edge")
 MAX_UPLOAD_BYTES = 8 * 1024 * 1024
 
 
+def append_chunk(held: bytearray, size: int, offset: int, data: bytes) -> int:
+    """Add one upload chunk to ``held`` (in place); the bytes held after it.
+
+    The one rule for every chunked upload (models, object sets): chunks come
+    in order; a chunk already held is accepted again when its bytes are the
+    same (a host that lost our reply resends it); nothing may run past the
+    announced ``size``.
+
+    Raises
+    ------
+    CommandError
+        BAD_ARGUMENT (field ``offset``) for a chunk past ``size`` or at an
+        offset other than the next byte (and not a resend).
+    """
+    n = len(held)
+    if offset + len(data) > size:
+        raise CommandError(ErrorCode.BAD_ARGUMENT, f"chunk [{offset}, {offset + len(data)}) runs past the "
+                           f"announced size {size}", "offset")
+    if offset == n:
+        held += data
+    elif not (offset + len(data) <= n and held[offset:offset + len(data)] == data):
+        raise CommandError(ErrorCode.BAD_ARGUMENT, f"chunk at offset {offset}, expected {n}", "offset")
+    return len(held)
+
+
 class _Pending:
     """What MODEL_BEGIN announced and the bytes received so far."""
 
@@ -150,17 +175,7 @@ class ModelUpload:
             next byte (and not a resend).
         """
         up = self._owned(session, "MODEL_CHUNK", required=require_session)
-        held = len(up.data)
-        if offset + len(data) > up.size:
-            raise CommandError(ErrorCode.BAD_ARGUMENT, f"chunk [{offset}, {offset + len(data)}) runs past the "
-                               f"announced size {up.size}", "offset")
-        if offset == held:
-            up.data += data
-        elif offset + len(data) <= held and up.data[offset:offset + len(data)] == data:
-            pass  # a host that lost our reply sends the chunk again: same bytes, nothing to do
-        else:
-            raise CommandError(ErrorCode.BAD_ARGUMENT, f"chunk at offset {offset}, expected {held}", "offset")
-        return {"received": len(up.data)}
+        return {"received": append_chunk(up.data, up.size, offset, data)}
 
     def commit(self, session: int | None = None, *, require_session: bool = False) -> dict[str, Any]:
         """Install the complete upload; the session ends whether the store accepts it or not.
