@@ -23,7 +23,7 @@ def set_name_of(path: str | Path) -> str:
 
 
 def upload_object_set(client: Any, name: str, data: bytes, *, activate: bool = True, chunk_size: int | None = None,
-                      progress: Callable[[int, int], None] | None = None) -> dict:
+                      progress: Callable[[int, int], None] | None = None, key: Any = None) -> dict:
     """Upload one object-set CSV in chunks and commit it.
 
     Parameters
@@ -39,6 +39,10 @@ def upload_object_set(client: Any, name: str, data: bytes, *, activate: bool = T
         Bytes per OBJECTS_CHUNK (default and maximum: what one frame holds).
     progress : callable, optional
         ``progress(bytes_sent, total)`` after each chunk.
+    key : edge.security.keys.SecretKey, optional
+        Sign the exact CSV bytes with it (the signature travels in
+        OBJECTS_BEGIN); without one the upload is unsigned, which a device
+        refuses unless it allows unsigned updates.
 
     Returns
     -------
@@ -58,8 +62,12 @@ def upload_object_set(client: Any, name: str, data: bytes, *, activate: bool = T
     digest = hashlib.sha256(data).hexdigest()
     max_chunk = client.max_payload - SESSION_CHUNK_HEADER_SIZE
     chunk_size = max_chunk if chunk_size is None else min(int(chunk_size), max_chunk)
-    begin = client.request(Command.OBJECTS_BEGIN, {"name": name, "size": len(data), "sha256": digest,
-                                                   "activate": bool(activate)})
+    args = {"name": name, "size": len(data), "sha256": digest, "activate": bool(activate)}
+    if key is not None:
+        from edge.security.keys import signature_document  # noqa: PLC0415
+
+        args["signature"] = signature_document(key, data).decode("utf-8")  # JSON text in a JSON request
+    begin = client.request(Command.OBJECTS_BEGIN, args)
     session = begin["session"]
     try:
         for offset in range(0, len(data), chunk_size):

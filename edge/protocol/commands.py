@@ -215,7 +215,10 @@ COMMANDS: dict[Command, CommandSpec] = {spec.command: spec for spec in (
                   doc="set name: letters, digits, '.', '_', '-' ('library' is the built-in set)"),
               arg("size", "int", required=True, lo=1, hi=MAX_OBJECTS_SIZE, doc="CSV size, bytes"),
               arg("sha256", "sha256", required=True, doc="hex digest of the whole CSV"),
-              arg("activate", "bool", default=True, doc="make it the active set once stored")),
+              arg("activate", "bool", default=True, doc="make it the active set once stored"),
+              arg("signature", "str", lo=1, hi=4096,
+                  doc="signature.json over the exact CSV bytes (Ed25519, edge.security.keys); "
+                      "required unless the device allows unsigned updates")),
         reply=(arg("size", "int", required=True),
                arg("session", "int", required=True, lo=1, hi=MAX_SESSION_ID,
                    doc="OBJECTS_CHUNK/COMMIT/ABORT must carry it")),
@@ -250,7 +253,7 @@ COMMANDS: dict[Command, CommandSpec] = {spec.command: spec for spec in (
         Command.OBJECTS_LIST,
         reply=(arg("active", "str", required=True, doc="name of the active set ('library': the built-in)"),
                arg("sets", "list", required=True,
-                   doc="stored sets: {name, sha256, size, objects, active} (or {name, error})"),
+                   doc="stored sets: {name, sha256, size, objects, active, signed_by} (or {name, error})"),
                arg("error", "str", nullable=True, doc="why the chosen set could not be used, if so")),
         doc="The stored object sets and which one names the objects of each measurement."),
     CommandSpec(

@@ -283,7 +283,7 @@ class Daemon:
             self.phase: Phase | None = None
             self._measure_t0: float | None = None
             self._object_set_hook = object_set
-            self.objects = ObjectSets(self._object_sets_root())
+            self.objects = ObjectSets(self._object_sets_root(), policy=self._update_policy())
             #: Idle readings of the probe for STATUS ``ready`` (settled probe temperature).
             self.readiness = Readiness()
             #: The link being served (set by :meth:`serve`; its ``replies_dropped`` counts replies a
@@ -313,11 +313,15 @@ class Daemon:
         # '' = beside the model store, so a configuration that predates object sets keeps them on the device.
         return Path(p.object_sets) if p.object_sets else Path(p.model_store).parent / "objects"
 
+    def _update_policy(self) -> UpdatePolicy:
+        """Who may update this device (models and object sets alike): ``[security]``."""
+        sec = self.config.security
+        return UpdatePolicy(trusted_keys_dir=sec.trusted_keys_dir or None, allow_unsigned=sec.allow_unsigned)
+
     def _open_store(self) -> Any:
         root = self.config.paths.model_store
         try:
-            sec = self.config.security
-            policy = UpdatePolicy(trusted_keys_dir=sec.trusted_keys_dir or None, allow_unsigned=sec.allow_unsigned)
+            policy = self._update_policy()
             store = ModelStore(root, _factory_bundle(self.config), golden_check=pipeline_golden_check,
                                limits=self.model_limits, semantic_check=semantic_check, policy=policy)
         except (ModelStoreError, OSError) as e:
@@ -745,7 +749,9 @@ class Daemon:
         return {"aborted": True, "measurement_id": self._last_run_id if done else None}
 
     def _cmd_objects_begin(self, args: dict) -> dict:
-        return self.objects.begin(args["name"], args["size"], args["sha256"], args.get("activate", True))
+        return self.objects.begin(args["name"], args["size"], args["sha256"], args.get("activate", True),
+                                  signature=None if args.get("signature") is None
+                                  else args["signature"].encode("utf-8"))
 
     def _cmd_objects_chunk(self, args: dict) -> dict:
         return self.objects.chunk(args["offset"], args["data"], args["session"])

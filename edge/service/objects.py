@@ -32,6 +32,7 @@ from typing import Any, Mapping
 from edge.estimation.objects import LIBRARY_SET, ObjectSet, recognition_fields
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.storage.objects_store import MAX_SET_BYTES, ObjectSetStore, ObjectStoreError, UploadRefused, check_name
+from edge.service.upload import append_chunk
 
 __all__ = ["ObjectSets", "parse_object_set"]
 
@@ -46,8 +47,10 @@ def parse_object_set(text: str, label: str) -> ObjectSet:
 class _Pending:
     """What OBJECTS_BEGIN announced and the bytes received so far."""
 
-    def __init__(self, name: str, size: int, sha256: str, activate: bool, session: int) -> None:
+    def __init__(self, name: str, size: int, sha256: str, activate: bool, session: int,
+                 signature: bytes | None = None) -> None:
         self.name, self.size, self.sha256, self.activate, self.session = name, size, sha256, activate, session
+        self.signature = signature
         self.data = bytearray()
 
 
@@ -63,9 +66,10 @@ class ObjectSets:
         Largest set accepted.
     """
 
-    def __init__(self, root: str | Path, *, max_bytes: int = MAX_SET_BYTES) -> None:
+    def __init__(self, root: str | Path, *, max_bytes: int = MAX_SET_BYTES, policy: Any = None) -> None:
         self.root = Path(root)
         self.max_bytes = int(max_bytes)
+        self.policy = policy
         self._pending: _Pending | None = None
         self._library: ObjectSet | None = None
         self._open_error: str | None = None
@@ -77,7 +81,8 @@ class ObjectSets:
         if self.store is not None:
             return
         try:
-            self.store, self._open_error = ObjectSetStore(self.root, parse_object_set, max_bytes=self.max_bytes), None
+            self.store = ObjectSetStore(self.root, parse_object_set, max_bytes=self.max_bytes, policy=self.policy)
+            self._open_error = None
         except OSError as e:
             err = f"object-set store {self.root} unavailable: {e}"
             if err != self._open_error:
@@ -126,7 +131,8 @@ class ObjectSets:
                                "(stale or another host's); it is left untouched", "session")
         return up
 
-    def begin(self, name: str, size: int, sha256: str, activate: bool = True) -> dict:
+    def begin(self, name: str, size: int, sha256: str, activate: bool = True,
+              signature: bytes | None = None) -> dict:
         """OBJECTS_BEGIN: open an upload session (dropping an unfinished one)."""
         self._require_store()
         try:
@@ -141,21 +147,13 @@ class ObjectSets:
         sid = 0
         while not sid:  # random and non-zero: an id from before a restart is (almost surely) stale
             sid = secrets.randbits(32)
-        self._pending = _Pending(name, size, sha256, bool(activate), sid)
+        self._pending = _Pending(name, size, sha256, bool(activate), sid, signature)
         return {"size": size, "session": sid}
 
     def chunk(self, offset: int, data: bytes, session: int) -> dict:
         """OBJECTS_CHUNK: append ``data`` at ``offset`` (a resent chunk already held is accepted)."""
         up = self._owned(session, "OBJECTS_CHUNK")
-        held = len(up.data)
-        if offset + len(data) > up.size:
-            raise CommandError(ErrorCode.BAD_ARGUMENT, f"chunk [{offset}, {offset + len(data)}) runs past the "
-                               f"announced size {up.size}", "offset")
-        if offset == held:
-            up.data += data
-        elif not (offset + len(data) <= held and up.data[offset:offset + len(data)] == data):
-            raise CommandError(ErrorCode.BAD_ARGUMENT, f"chunk at offset {offset}, expected {held}", "offset")
-        return {"received": len(up.data)}
+        return {"received": append_chunk(up.data, up.size, offset, data)}
 
     def commit(self, session: int) -> dict:
         """OBJECTS_COMMIT: verify and store the upload; the session ends either way.
@@ -174,7 +172,8 @@ class ObjectSets:
         self._pending = None
         store = self._require_store()
         try:
-            s = store.install(up.name, bytes(up.data), up.sha256, up.size, activate=up.activate)
+            s = store.install(up.name, bytes(up.data), up.sha256, up.size, activate=up.activate,
+                              signature=up.signature)
         except UploadRefused as e:
             log.warning("object-set upload refused: %s", e)
             raise CommandError(ErrorCode.MODEL_REJECTED, str(e)[:1000]) from None

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
+from edge.security.policy import UpdateRefused
 from edge.storage import durable
 
 __all__ = ["MAX_SET_BYTES", "MAX_SETS", "NAME_RE", "RESERVED_NAMES", "ObjectStoreError", "UploadRefused",
@@ -78,12 +79,13 @@ def check_name(name: str) -> str:
 
 
 def verify_upload(blob: bytes, expected_sha256: str, expected_size: int | None, *, name: str, parse: Parser,
-                  max_bytes: int = MAX_SET_BYTES) -> Any:
+                  max_bytes: int = MAX_SET_BYTES, policy: Any = None, signature: bytes | None = None,
+                  authenticate: bool = True) -> Any:
     """Every check an uploaded object set must pass before it is stored; returns the parsed set.
 
-    The one place an upload is judged (a signature check belongs here too):
-    size bound, announced size, sha256 of the bytes, UTF-8 text, then the
-    CSV parser with its line-and-column messages.
+    The one place an upload is judged: size bound, announced size, sha256
+    of the bytes, the signature over them (the model updates' policy), UTF-8
+    text, then the CSV parser with its line-and-column messages.
 
     Parameters
     ----------
@@ -99,6 +101,15 @@ def verify_upload(blob: bytes, expected_sha256: str, expected_size: int | None, 
         ``parse(text, label)`` -> object set; raises ValueError when malformed.
     max_bytes : int
         Largest set accepted.
+    policy : edge.security.policy.UpdatePolicy, optional
+        Who may send updates (signed by a trusted key, or unsigned where
+        allowed). None: every upload is refused, as by a model store
+        without a policy.
+    signature : bytes, optional
+        ``signature.json`` over ``blob``.
+    authenticate : bool
+        False for a set read back from the device's own store: it was
+        authenticated when it was installed (as a stored model bundle is).
 
     Raises
     ------
@@ -112,6 +123,14 @@ def verify_upload(blob: bytes, expected_sha256: str, expected_size: int | None, 
     got = hashlib.sha256(blob).hexdigest()
     if got != str(expected_sha256).lower():
         raise UploadRefused(f"object set {name!r}: sha256 mismatch, announced {expected_sha256}, received {got}")
+    if authenticate and policy is None:
+        raise UploadRefused(f"object set {name!r} refused: this device has no update policy")
+    try:
+        if authenticate:
+            policy.authenticate(blob, signature)
+    except UpdateRefused as e:
+        raise UploadRefused(f"object set {name!r}: {e}".replace("flash --key FILE", "objects add --key FILE")) \
+            from None
     try:
         text = blob.decode("utf-8-sig")
     except UnicodeDecodeError as e:
@@ -142,8 +161,10 @@ class ObjectSetStore:
     ACTIVE = "active"
 
     def __init__(self, root: str | os.PathLike, parse: Parser, *, max_bytes: int = MAX_SET_BYTES,
-                 max_sets: int = MAX_SETS) -> None:
+                 max_sets: int = MAX_SETS, policy: Any = None) -> None:
         self.root = Path(root)
+        #: Who may send sets (:class:`edge.security.policy.UpdatePolicy`; None: uploads are refused).
+        self.policy = policy
         self.sets_dir = self.root / "sets"
         self.parse = parse
         self.max_bytes = int(max_bytes)
@@ -162,6 +183,19 @@ class ObjectSetStore:
     # -- paths -----------------------------------------------------------------------
     def _set_path(self, name: str) -> Path:
         return self.sets_dir / f"{name}.csv"
+
+    def _signature_path(self, name: str) -> Path:
+        # Beside the set, not a set itself (names() lists *.csv only).
+        return self.sets_dir / f"{name}.sig"
+
+    def signed_by(self, name: str) -> str | None:
+        """Key id that signed the stored set ``name`` (None: uploaded unsigned, or unreadable)."""
+        from edge.security.keys import KeyFileError, parse_signature  # noqa: PLC0415
+
+        try:
+            return parse_signature(self._signature_path(name).read_bytes())[0]
+        except (OSError, KeyFileError):
+            return None
 
     def _clean_temporaries(self) -> None:
         # Leftovers of a write cut by a crash are never named by anything.
@@ -194,7 +228,8 @@ class ObjectSetStore:
             raise ObjectStoreError(f"object set {name!r} unreadable: {e}") from None
         sha = hashlib.sha256(blob).hexdigest()
         try:
-            objs = verify_upload(blob, sha, len(blob), name=name, parse=self.parse, max_bytes=self.max_bytes)
+            objs = verify_upload(blob, sha, len(blob), name=name, parse=self.parse, max_bytes=self.max_bytes,
+                                 authenticate=False)
         except UploadRefused as e:
             raise ObjectStoreError(f"stored {e}") from None
         return StoredSet(name, sha, len(blob), objs)
@@ -241,12 +276,12 @@ class ObjectSetStore:
                     out.append({"name": name, "error": str(e), "active": False})
                     continue
                 out.append({"name": name, "sha256": s.sha256, "size": s.size, "objects": len(s.objects),
-                            "active": act is not None and act.name == name})
+                            "active": act is not None and act.name == name, "signed_by": self.signed_by(name)})
             return out
 
     # -- changing --------------------------------------------------------------------
     def install(self, name: str, blob: bytes, expected_sha256: str, expected_size: int | None = None, *,
-                activate: bool = True) -> StoredSet:
+                activate: bool = True, signature: bytes | None = None) -> StoredSet:
         """Verify an uploaded set, store it under ``name`` (replacing one of that name), optionally activate it.
 
         Nothing is written unless every check passes; the set file is durable
@@ -264,7 +299,7 @@ class ObjectSetStore:
         except ObjectStoreError as e:
             raise UploadRefused(str(e)) from None
         objs = verify_upload(blob, expected_sha256, expected_size, name=name, parse=self.parse,
-                             max_bytes=self.max_bytes)
+                             max_bytes=self.max_bytes, policy=self.policy, signature=signature)
         with self._lock:
             existing = self.names()
             if name not in existing and len(existing) >= self.max_sets:
@@ -272,6 +307,13 @@ class ObjectSetStore:
                                        "remove one first")
             try:
                 durable.atomic_write_file(self._set_path(name), bytes(blob))
+                # Who signed it, for listings (the set itself was verified above, before any write).
+                sig = self._signature_path(name)
+                if signature is not None:
+                    durable.atomic_write_file(sig, bytes(signature))
+                elif os.path.lexists(sig):
+                    os.unlink(sig)
+                    durable.fsync_dir(self.sets_dir)
                 if activate:
                     durable.atomic_write_file(self.root / self.ACTIVE, (name + "\n").encode("ascii"))
             except OSError as e:
@@ -341,6 +383,9 @@ class ObjectSetStore:
                 self._clear_pointer()
             try:
                 os.unlink(p)
+                sig = self._signature_path(name)
+                if os.path.lexists(sig):
+                    os.unlink(sig)
                 durable.fsync_dir(self.sets_dir)
             except OSError as e:
                 raise ObjectStoreError(f"cannot remove object set {name!r}: {e}") from None

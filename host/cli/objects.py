@@ -33,6 +33,9 @@ def add_parser(sub, parents):
                         "optional spread_rel")
     a.add_argument("--name", default=None, help="store it under this name (default: the file's stem)")
     a.add_argument("--no-activate", action="store_true", help="store it without making it the active set")
+    a.add_argument("--key", metavar="SECRET.json", type=existing_file, default=None,
+                   help="sign the set with this secret key (thermotouch keys new); a probe that does not allow "
+                        "unsigned updates needs it")
     a.add_argument("--json", action="store_true")
     add_device_args(a)
     a.set_defaults(func=run_add)
@@ -79,7 +82,10 @@ def run_add(args) -> int:
     from host.objects import set_name_of, upload_object_set  # noqa: PLC0415
     from edge.storage.objects_store import ObjectStoreError, check_name  # noqa: PLC0415
 
+    from host.flash import load_signing_key  # noqa: PLC0415
+
     objects, raw = load_object_set(args.file)  # refused here, with line and column, before any connection
+    key = load_signing_key(args.key)  # a bad key file too, before any connection
     name = args.name or set_name_of(args.file)
     try:
         check_name(name)
@@ -91,7 +97,7 @@ def run_add(args) -> int:
                                                                  else "")
         note(f"note: effusivity alone hardly separates {shown} (within 2 u at u(e)/e = {TYPICAL_U_LN_E:.0%})")
     with device_session(args) as session:
-        res = _device_call(upload_object_set, session.client, name, raw, activate=not args.no_activate)
+        res = _device_call(upload_object_set, session.client, name, raw, activate=not args.no_activate, key=key)
     if args.json:
         print(dumps(res))
     else:
@@ -117,7 +123,9 @@ def run_list(args) -> int:
         if "error" in s:
             print(f"{mark} {s['name']:24} unusable: {s['error']}")
         else:
-            print(f"{mark} {s['name']:24} {s['objects']:4d} objects {s['size']:8d} B  sha256 {s['sha256'][:12]}")
+            signer = f"signed by {s['signed_by']}" if s.get("signed_by") else "unsigned"
+            print(f"{mark} {s['name']:24} {s['objects']:4d} objects {s['size']:8d} B  sha256 {s['sha256'][:12]}  "
+                  f"{signer}")
     if not res["sets"]:
         print("no object sets stored (thermotouch objects add FILE)")
     return 0

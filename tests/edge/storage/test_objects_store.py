@@ -4,6 +4,7 @@ import hashlib
 
 import pytest
 
+from edge.security.policy import UpdatePolicy
 from edge.service.objects import parse_object_set
 from edge.storage import durable
 from edge.storage.objects_store import ObjectSetStore, ObjectStoreError, UploadRefused, verify_upload
@@ -16,12 +17,17 @@ def sha(b):
     return hashlib.sha256(b).hexdigest()
 
 
+#: A development device's policy: these tests are about storage, not who signed (test_objects_signed.py).
+DEV = UpdatePolicy(allow_unsigned=True)
+
+
 def store(tmp_path, **kw):
+    kw.setdefault("policy", DEV)
     return ObjectSetStore(tmp_path / "objects", parse_object_set, **kw)
 
 
 def test_verify_upload_checks_size_digest_text_and_csv():
-    assert len(verify_upload(A, sha(A), len(A), name="a", parse=parse_object_set)) == 2
+    assert len(verify_upload(A, sha(A), len(A), name="a", parse=parse_object_set, policy=DEV)) == 2
     cases = [((A, sha(A), len(A)), dict(max_bytes=10), "above the limit"),
              ((A, sha(A), len(A) + 1), {}, "announced"),
              ((A, "0" * 64, len(A)), {}, "sha256 mismatch"),
@@ -29,7 +35,7 @@ def test_verify_upload_checks_size_digest_text_and_csv():
              ((b"name,class\n", sha(b"name,class\n"), 11), {}, "line 1")]
     for (blob, digest, size), kw, needle in cases:
         with pytest.raises(UploadRefused, match=needle):
-            verify_upload(blob, digest, size, name="a", parse=parse_object_set, **kw)
+            verify_upload(blob, digest, size, name="a", parse=parse_object_set, policy=DEV, **kw)
 
 
 def test_install_select_remove_and_reload(tmp_path):

@@ -138,3 +138,28 @@ def test_flash_with_a_public_key_file_is_refused_before_the_device(capsys, tmp_p
                          "--key", str(tmp_path / "thermotouch.public.json"))
     assert code == 2
     assert "signing key refused" in one_line_error(err) and "secret key file" in err
+
+
+@pytest.mark.hil
+def test_objects_add_with_key_refused_until_the_probe_trusts_it(capsys, tmp_path):
+    keys, secret, kid = _key(capsys, tmp_path)
+    work = tmp_path / "probe"
+    sim = ("--sim", "glass_15V", "--workdir", str(work))
+    csv = tmp_path / "kitchen.csv"
+    csv.write_text("name,class,e_W_s05_m2K\nmug,ceramic,1400\nsponge,foam,60\n")
+    code, out, err = run(capsys, "objects", "add", str(csv), *sim, "--key", secret)
+    assert code == 2 and f"signature by untrusted key {kid}" in one_line_error(err)
+    _trust(keys, work)
+    code, out, err = run(capsys, "objects", "add", str(csv), *sim, "--key", secret)
+    assert code == 0, err
+    code, out, err = run(capsys, "objects", "list", *sim)
+    assert code == 0 and f"signed by {kid}" in out
+
+
+def test_objects_add_with_a_public_key_file_is_refused_before_the_device(capsys, tmp_path):
+    assert run(capsys, "keys", "new", "--out", str(tmp_path))[0] == 0
+    csv = tmp_path / "kitchen.csv"
+    csv.write_text("name,class,e_W_s05_m2K\nmug,ceramic,1400\n")
+    code, out, err = run(capsys, "objects", "add", str(csv), "--port", "/dev/thermotouch-not-needed",
+                         "--key", str(tmp_path / "thermotouch.public.json"))
+    assert code == 2 and "signing key refused" in one_line_error(err)
