@@ -25,6 +25,7 @@ from typing import Any, Callable, Mapping
 
 import serial
 
+from edge.measure.profiles import probe_settings
 from edge.measure.sequence import EstimatorFn
 from edge.service.config import Config
 from edge.service.main import install_signal_handlers, run_daemon
@@ -79,6 +80,16 @@ def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Ma
     }
     for section, table in (overrides or {}).items():
         values.setdefault(section, {}).update(table)
+    if b.probe != "paper":
+        # A probe head with its own profile (the small-heater probe: 5 s at 50 Hz to resolve k and
+        # alpha) heats as long as the scene's touch allows, sampled as fast as its converters convert.
+        # What the caller overrode stays.
+        sens = Config({"sensors": values["sensors"]}).sensors
+        got = probe_settings(b.probe, sens, max(0.5, t.end_s - on - 0.3))
+        m = (overrides or {}).get("measurement", {})
+        for key, v in (got or {}).items():
+            if key not in m:
+                values["measurement"][key] = v
     return Config(values, source=f"scene {scene.name}")
 
 

@@ -59,6 +59,30 @@ def _num(x):
     return None if x is None or not math.isfinite(x) else float(x)
 
 
+#: Flux (W/m^2, mean over the record's second half) below which the heater's heat did not reach the
+#: sensor: the small-heater probe's 0.11 W spreads over the 10 x 10 mm sensor at ~1000 W/m^2 into any
+#: solid (PMMA ~700 W/m^2 after 1 s), so 20 W/m^2 is a touch in air or a dead heater, not a material.
+NO_SIGNAL_FLUX_W_m2 = 20.0
+
+
+def _signal_check(T: np.ndarray, q: np.ndarray, T_resolution_K: float) -> Flag | None:
+    """``no_signal`` when neither sensor saw the heat, ``insufficient_signal`` when only the flux did.
+
+    On the small-heater probe a metal rises ~0.1 K in 2 s: below one step of a
+    16-bit MCP9600 (0.2 K), so the thermometer reads a flat line while the
+    flux is plain. That is not "no signal" (the 1-D probe's test, made for a
+    paper-sized heater) but a record the fit cannot use: e needs the rise.
+    Two thermometer steps are asked of the rise (one step can be rounding).
+    """
+    flux = float(np.mean(q[q.size // 2:]))
+    rise = float(np.max(T))
+    if flux < NO_SIGNAL_FLUX_W_m2 and rise <= 2.0 * T_resolution_K:
+        return Flag.NO_SIGNAL
+    if flux < NO_SIGNAL_FLUX_W_m2 or not rise > max(2.0 * T_resolution_K, 0.0):
+        return Flag.INSUFFICIENT_SIGNAL
+    return None
+
+
 class AxiEstimator:
     """e, k, alpha and the material from one touch of an axisymmetric probe.
 
@@ -143,8 +167,9 @@ class AxiEstimator:
                "corr_k_alpha": None, "fit": None}
         if t.size < 4:
             raise ValueError(f"need at least 4 samples after heater-on, got {t.size}")
-        if float(np.mean(q[q.size // 2:])) < 20.0 or float(np.max(T)) <= 0.0:
-            out["flags"].append(str(Flag.NO_SIGNAL))
+        why = _signal_check(T, q, T_resolution_K)
+        if why is not None:
+            out["flags"].append(str(why))
             return out
         if back == "infinite":
             thickness_m = None
