@@ -355,7 +355,9 @@ class MeasurementSequence:
                 for k in range(n_base):
                     self._wait(t_base + k * period)
                     self._check_temperature(self._sample(ts, Ts, qs, sat, dts))
-                self._wait(t_base + n_base * period)
+                # At least baseline_s even when it is no whole number of periods (12.5 Hz: 6 x 80 ms would
+                # switch the heater on 20 ms early, before a touch timed to the configured baseline).
+                self._wait(t_base + max(n_base * period, params.baseline_s))
                 self._check_heat_off(ts, Ts, qs, "baseline")
                 decider = self._make_decider(params)
                 T0_run, q0_run = float(np.mean(Ts)), float(np.mean(qs))

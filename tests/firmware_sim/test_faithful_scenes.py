@@ -116,7 +116,10 @@ def test_a_late_touch_has_the_heater_on_before_the_contact(tmp_path):
     s = parse_scene(edit(edit(FULL, "start_s = 0.5", "start_s = 1.0"), "contact_lead_s = 1.0", "contact_lead_s = -0.5"))
     assert s.touch.heater_on_s == 0.5 and s.touch.end_s == 4.0
     cfg = config_for_scene(s, tmp_path)
-    assert cfg.measurement.baseline_s == 0.5 and cfg.measurement.contact_time_s == 2.0
+    # The small-heater probe heats as long as the touch allows (its profile asks 5 s), up to 0.3 s before the lift.
+    assert cfg.measurement.baseline_s == 0.5 and cfg.measurement.contact_time_s == pytest.approx(3.2)
+    paper = config_for_scene(dataclasses.replace(s, board=dataclasses.replace(s.board, probe="paper")), tmp_path)
+    assert paper.measurement.baseline_s == 0.5 and paper.measurement.contact_time_s == 2.0
 
 
 def test_as_built_needs_the_faithful_world():
