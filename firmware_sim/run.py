@@ -58,7 +58,9 @@ def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Ma
         sensors.update(thermocouple="mcp9600")
     if b.mcp9600 is not None:
         sensors["mcp9600_address"] = b.mcp9600
-    if b.ads1115 is not None:
+    # The flux too goes to the ADS122C04 when it is fitted (24 bit against the ADS1115's 14 W/m^2 steps,
+    # which are a few per cent of the small heater's flux); the ADS1115 otherwise.
+    if b.ads1115 is not None and b.ads122c04 is None:
         sensors.update(flux_adc="ads1115", ads1115_address=b.ads1115)
     else:
         sensors.update(flux_adc="ads122c04")

@@ -168,6 +168,8 @@ def test_small_heater_scene_is_its_paper_scene_on_the_small_probe_at_the_same_ar
     assert small.pop("name") == f"{paper}_small" and ref.pop("name") == paper
     assert small.pop("description").startswith(ref.pop("description"))
     assert small["board"].pop("world") == "faithful" and small["board"].pop("probe") == "small-heater"
+    # The precision converter added to the paper's board (the small heater's rise is a few 0.2-K steps).
+    assert small["board"].pop("ads122c04") == 0x40 and small["sensors"].pop("ads122c04_noise_rms_V") == 0.15e-6
     r_small, r_ref = small["heater"].pop("resistance_ohm"), ref["heater"].pop("resistance_ohm")
     assert small == ref   # everything else, key for key
     # Same supply, same areal power: R scales with the inverse of the heater area.
