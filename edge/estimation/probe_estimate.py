@@ -83,6 +83,12 @@ def _signal_check(T: np.ndarray, q: np.ndarray, T_resolution_K: float) -> Flag |
     return None
 
 
+#: Fitted object effusivity (W s^0.5/(m^2 K)) below which the probe touched nothing: still air is
+#: 5.5, the lightest foams ~28 (the ``[measurement] no_contact_e_W_s05_m2K`` default); the
+#: small-heater fit gives 2.4-2.6 for a probe in air on the simulator.
+NO_CONTACT_E_W_s05_m2K = 12.0
+
+
 class AxiEstimator:
     """e, k, alpha and the material from one touch of an axisymmetric probe.
 
@@ -195,6 +201,16 @@ class AxiEstimator:
         flags: list[str] = []
         if not f.converged:
             flags.append(str(Flag.NOT_CONVERGED))
+        e_fit = f.effusivity_W_s05_m2K
+        if math.isfinite(e_fit) and e_fit < NO_CONTACT_E_W_s05_m2K:
+            # Nothing under the probe but air. The sequence's own test (the effusivity the flux and
+            # the rise show, edge.measure.signal.contact_effusivity) is made for the 1-D probe: here
+            # the flux sensor, wider than the heater, reads the heat spreading through the probe's own
+            # sensing layer, ~340 in air against ~850 on PMMA, far above its 12. The fit models that
+            # layer, and what it leaves for the object in air is 2-3.
+            flags.append(str(Flag.NO_CONTACT))
+            out["flags"] = flags
+            return out
         if not (u_le_fit < 1.0 / MIN_SNR):
             # The records do not even fix e: a k or alpha from the prior given such an e would be a guess.
             flags.append(str(Flag.INSUFFICIENT_SIGNAL))

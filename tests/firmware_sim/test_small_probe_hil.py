@@ -57,11 +57,11 @@ def _glass_scene(probe: str):
     return dataclasses.replace(sc, board=board, sensors=sensors, heater=heater)
 
 
-def _touch(sc, store, tmp_path):
+def _touch(sc, store, tmp_path, overrides=None):
     """One touch through the device's sequence and the daemon's estimator; (outcome, config)."""
     sim = Simulator(sc)
     try:
-        cfg = config_for_scene(sc, tmp_path)
+        cfg = config_for_scene(sc, tmp_path, overrides)
         h, m = cfg.heater, cfg.measurement
         board = sim.board()
         heater = Heater(board, supply_voltage_V=h.supply_voltage_V, resistance_ohm=h.resistance_ohm)
@@ -110,3 +110,14 @@ def test_paper_probe_on_the_same_glass_reports_k_and_alpha_from_the_prior(store,
     assert r["k_W_mK"] == pytest.approx(e * e / rc, rel=1e-9)
     assert r["alpha_m2_s"] == pytest.approx(e * e / (rc * rc), rel=1e-9)
     assert r["k_W_mK_u"] / r["k_W_mK"] > 0.05          # the prior's spread, not a touch's precision
+
+
+def test_small_heater_probe_in_air_is_flagged_no_contact_not_a_material(store, tmp_path):
+    # The 1-D no_contact test reads ~340 here (the flux sensor sees the probe's own sensing layer spread
+    # the heat); the fit's object effusivity is what tells air (2-3) from a solid.
+    sc = _glass_scene("small-heater")
+    sc = dataclasses.replace(sc, touch=dataclasses.replace(sc.touch, start_s=30.0))   # touch after the measurement
+    out, _ = _touch(sc, store, tmp_path, {"measurement": {"contact_time_s": 1.0}})   # 1 s: the test's time
+    assert out.status == "ok", (out.reason, out.error)
+    assert "no_contact" in out.flags
+    assert out.result["k_W_mK"] is None and out.result["determined"] == []
