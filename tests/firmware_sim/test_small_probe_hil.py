@@ -1,8 +1,8 @@
 """The small-heater probe end to end on the simulator: the device's sequence and estimator on emulated chips.
 
 The touch is the shipped ``glass_15V_small`` scene (tempered glass, the
-paper's areal power on the 5-mm heater, faithful (r, z) world) on the
-precision converter (ADS122C04 reading the thermocouple and the flux; the
+paper's areal power on the 5-mm heater, faithful (r, z) world, the
+precision converter ADS122C04 reading the thermocouple and the flux; the
 reference board's 0.2-K thermometer steps are most of the small heater's
 rise), with the daemon's configuration for that scene
 (:func:`firmware_sim.run.config_for_scene`: the probe's profile, 50 Hz, as
@@ -50,11 +50,12 @@ def store():
 
 
 def _glass_scene(probe: str):
+    """The shipped scene (precision converter fitted), or the same touch on the paper's probe and heater."""
     sc = read_scene("glass_15V_small")
-    board = dataclasses.replace(sc.board, ads122c04=0x40, ads1115=None, probe=probe)
-    sensors = dataclasses.replace(sc.sensors, ads122c04_noise_rms_V=0.15e-6)
-    heater = sc.heater if probe == "small-heater" else dataclasses.replace(sc.heater, resistance_ohm=PAPER_HEATER_OHM)
-    return dataclasses.replace(sc, board=board, sensors=sensors, heater=heater)
+    if probe == "small-heater":
+        return sc
+    return dataclasses.replace(sc, board=dataclasses.replace(sc.board, probe=probe),
+                               heater=dataclasses.replace(sc.heater, resistance_ohm=PAPER_HEATER_OHM))
 
 
 def _touch(sc, store, tmp_path, overrides=None):
@@ -117,7 +118,7 @@ def test_small_heater_probe_in_air_is_flagged_no_contact_not_a_material(store, t
     # the heat); the fit's object effusivity is what tells air (2-3) from a solid.
     sc = _glass_scene("small-heater")
     sc = dataclasses.replace(sc, touch=dataclasses.replace(sc.touch, start_s=30.0))   # touch after the measurement
-    out, _ = _touch(sc, store, tmp_path, {"measurement": {"contact_time_s": 1.0}})   # 1 s: the test's time
+    out, _ = _touch(sc, store, tmp_path, {"measurement": {"contact_time_s": 1.0, "baseline_s": 0.5}})
     assert out.status == "ok", (out.reason, out.error)
     assert "no_contact" in out.flags
     assert out.result["k_W_mK"] is None and out.result["determined"] == []
