@@ -35,7 +35,7 @@ of touches where k and alpha were determined.
 
 Cost: one touch costs about 0.45 s of wall time per simulated second on
 this machine (the faithful world) plus the fit; the default
-``--solids 20 --touches 1`` is 2 x 20 x 3 touches, 136 s wall (load 1) on a shared
+``--solids 20 --touches 1`` is 2 x 20 x 3 touches, 136-164 s wall (load 1) on a shared
 2-core machine, single process (nothing parallel: the machine is shared).
 
 Run:  python bench/small_probe_bench.py [--solids 20] [--touches 1] [--board precision|reference]
