@@ -103,8 +103,14 @@ def synthetic_solids(n: int) -> list[tuple[str, Solid]]:
     return out
 
 
-def scene_for(probe: str, label: str, solid: Solid, contact_s: float, board: str, seed: int):
-    """The base scene with the solid, ideal contact, a touch long enough for the contact and the board."""
+#: ``--contact hand``: the shipped ``*_faithful`` scenes' touch (R_c 1e-4 m^2K/W, the object 1.5 K below the
+#: probe, contact 1 s before heater-on), as-built deviations left out.
+HAND = {"contact_resistance_m2K_W": 1e-4, "object_offset_K": -1.5, "contact_lead_s": 1.0}
+
+
+def scene_for(probe: str, label: str, solid: Solid, contact_s: float, board: str, seed: int,
+              contact: str = "ideal"):
+    """The base scene with the solid, the contact (``"ideal"`` or ``"hand"``), a touch long enough and the board."""
     sc = read_scene(BASE_SCENES[probe])
     b = sc.board
     if board == "precision":
@@ -117,6 +123,11 @@ def scene_for(probe: str, label: str, solid: Solid, contact_s: float, board: str
     touch = dataclasses.replace(sc.touch, start_s=0.5, length_s=contact_s + 0.8, contact_lead_s=0.0,
                                 contact_resistance_m2K_W=None, object_temperature_C=None, object_offset_K=None,
                                 repeat=False)
+    if contact == "hand":
+        touch = dataclasses.replace(touch, length_s=contact_s + 0.8 + HAND["contact_lead_s"],
+                                    contact_lead_s=HAND["contact_lead_s"],
+                                    contact_resistance_m2K_W=HAND["contact_resistance_m2K_W"],
+                                    object_offset_K=HAND["object_offset_K"])
     obj = ObjectSpec(solid=solid, back="insulated", thickness_m=0.1, label=label)
     # as_built None: the probe built as nominal (ideal conditions first).
     return dataclasses.replace(sc, board=b, sensors=sens, environment=env, touch=touch, object=obj,
@@ -168,7 +179,7 @@ def score(rows: list[dict]) -> dict:
             "determined_k_cov95_pct": cov(det, "k"), "determined_alpha_cov95_pct": cov(det, "alpha")}
 
 
-def run(n_solids: int, n_touches: int, board: str, probes: list[str]) -> dict:
+def run(n_solids: int, n_touches: int, board: str, probes: list[str], contact_kind: str = "ideal") -> dict:
     from thermotouch_models import DEFAULT_BUNDLE
 
     store = _Store(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
@@ -183,7 +194,7 @@ def run(n_solids: int, n_touches: int, board: str, probes: list[str]) -> dict:
             rows = []
             for j, (label, s) in enumerate(solids):
                 for rep in range(n_touches):
-                    sc = scene_for(probe, label, s, contact, board, seed=1000 + 17 * j + rep)
+                    sc = scene_for(probe, label, s, contact, board, seed=1000 + 17 * j + rep, contact=contact_kind)
                     t0 = time.perf_counter()
                     d = touch(sc, contact, store, workdir)
                     r = d["result"]
@@ -205,7 +216,8 @@ def run(n_solids: int, n_touches: int, board: str, probes: list[str]) -> dict:
                           f"det={row['determined']} {row['flags']} {row['wall_s']:.1f} s", flush=True)
             results[probe][f"{contact:g}s"] = score(rows)
     return {"board": board, "solids": n_solids, "touches": n_touches, "contacts_s": list(CONTACTS_S),
-            "conditions": "ideal contact: R_c = 0, object at the probe's temperature, no as-built deviations",
+            "conditions": ("ideal contact: R_c = 0, object at the probe's temperature, no as-built deviations"
+                           if contact_kind == "ideal" else f"hand contact {HAND}, no as-built deviations"),
             "wall_s": time.perf_counter() - t_start, "load_avg_1min": os.getloadavg()[0],
             "summary": results, "rows": rows_all}
 
@@ -231,13 +243,18 @@ def main() -> None:
     ap.add_argument("--touches", type=int, default=1, help="touches per solid and contact time (noise draws)")
     ap.add_argument("--board", choices=("precision", "reference"), default="precision")
     ap.add_argument("--probes", default="small-heater,paper")
+    ap.add_argument("--contact", choices=("ideal", "hand"), default="ideal",
+                    help="ideal (the README table) or the *_faithful scenes' touch (R_c, object off, lead)")
     ap.add_argument("--update-readme", action="store_true")
     args = ap.parse_args()
-    res = run(args.solids, args.touches, args.board, args.probes.split(","))
+    if args.update_readme and (args.contact != "ideal" or args.board != "precision"):
+        raise SystemExit("--update-readme writes the ideal-contact precision-board table only")
+    res = run(args.solids, args.touches, args.board, args.probes.split(","), args.contact)
     txt = table(res)
     print(txt)
     print(f"wall {res['wall_s']:.0f} s, load {res['load_avg_1min']:.1f}")
-    write_json("small_probe" if args.board == "precision" else f"small_probe_{args.board}", res)
+    suffix = "".join(f"_{x}" for x in (args.board, args.contact) if x not in ("precision", "ideal"))
+    write_json(f"small_probe{suffix}", res)
     if args.update_readme:
         note = (f"\n\n{args.solids} synthetic solids (not in the library) × {args.touches} touch, "
                 f"{args.board} board, ideal contact, through the simulator and the device's sequence and "
