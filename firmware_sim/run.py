@@ -25,6 +25,7 @@ from typing import Any, Callable, Mapping
 
 import serial
 
+from edge.measure.profiles import probe_settings
 from edge.measure.sequence import EstimatorFn
 from edge.service.config import Config
 from edge.service.main import install_signal_handlers, run_daemon
@@ -64,7 +65,9 @@ def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Ma
         sensors.update(thermocouple="mcp9600")
     if b.mcp9600 is not None:
         sensors["mcp9600_address"] = b.mcp9600
-    if b.ads1115 is not None:
+    # The flux too goes to the ADS122C04 when it is fitted (24 bit against the ADS1115's 14 W/m^2 steps,
+    # which are a few per cent of the small heater's flux); the ADS1115 otherwise.
+    if b.ads1115 is not None and b.ads122c04 is None:
         sensors.update(flux_adc="ads1115", ads1115_address=b.ads1115)
     else:
         sensors.update(flux_adc="ads122c04")
@@ -87,6 +90,16 @@ def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Ma
     }
     for section, table in (overrides or {}).items():
         values.setdefault(section, {}).update(table)
+    if b.probe != "paper":
+        # A probe head with its own profile (the small-heater probe: 5 s at 50 Hz to resolve k and
+        # alpha) heats as long as the scene's touch allows, sampled as fast as its converters convert.
+        # What the caller overrode stays.
+        sens = Config({"sensors": values["sensors"]}).sensors
+        got = probe_settings(b.probe, sens, max(0.5, t.end_s - on - 0.3))
+        m = (overrides or {}).get("measurement", {})
+        for key, v in (got or {}).items():
+            if key not in m:
+                values["measurement"][key] = v
     return Config(values, source=f"scene {scene.name}")
 
 

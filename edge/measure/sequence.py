@@ -254,7 +254,7 @@ class MeasurementSequence:
                 self.watchdog.close()
 
     # -- sampling ----------------------------------------------------------------------
-    def _sample(self, ts: list, Ts: list, qs: list, sat: list) -> Reading:
+    def _sample(self, ts: list, Ts: list, qs: list, sat: list, dts: list | None = None) -> Reading:
         self._beat()
         t0 = self.clock.monotonic()
         r = self.sensors.read()
@@ -264,6 +264,9 @@ class MeasurementSequence:
         Ts.append(r.T_C)
         qs.append(r.q_W_m2)
         sat.append(r.saturated)
+        if dts is not None:
+            # Each sensor's own time within the read (sensors that do not time themselves: 0).
+            dts.append((float(getattr(r, "T_dt_s", 0.0)), float(getattr(r, "q_dt_s", 0.0))))
         return r
 
     def _check_temperature(self, r: Reading) -> None:
@@ -333,6 +336,7 @@ class MeasurementSequence:
         Ts: list[float] = []
         qs: list[float] = []
         sat: list[bool] = []
+        dts: list[tuple[float, float]] = []
         on_before = self.heater.on_time_s
         t_on = t_off = None
         try:
@@ -350,8 +354,10 @@ class MeasurementSequence:
                 n_base = max(3, int(round(params.baseline_s * params.sample_rate_Hz)))
                 for k in range(n_base):
                     self._wait(t_base + k * period)
-                    self._check_temperature(self._sample(ts, Ts, qs, sat))
-                self._wait(t_base + n_base * period)
+                    self._check_temperature(self._sample(ts, Ts, qs, sat, dts))
+                # At least baseline_s even when it is no whole number of periods (12.5 Hz: 6 x 80 ms would
+                # switch the heater on 20 ms early, before a touch timed to the configured baseline).
+                self._wait(t_base + max(n_base * period, params.baseline_s))
                 self._check_heat_off(ts, Ts, qs, "baseline")
                 decider = self._make_decider(params)
                 T0_run, q0_run = float(np.mean(Ts)), float(np.mean(qs))
@@ -376,7 +382,7 @@ class MeasurementSequence:
                             break  # within a sample of the end anyway
                         raise _Stop(Reason.MAX_ON_TIME, "sensor reads too slow to stay within "
                                     f"max_on_time_s={self.limits.max_on_time_s} s")
-                    r = self._sample(ts, Ts, qs, sat)
+                    r = self._sample(ts, Ts, qs, sat, dts)
                     if self.clock.monotonic() - t_on > self.limits.max_on_time_s:
                         raise _Stop(Reason.MAX_ON_TIME, "a sensor read ended past max_on_time_s")
                     self._check_temperature(r)
@@ -433,7 +439,8 @@ class MeasurementSequence:
             out.decision["stopped_early"] = bool(params.until_decided and self.answer.decided)
         if out.status != Status.FAILED or out.reason != Reason.HEATER_FAULT:
             try:
-                self._finish(out, params, t_arr, T_arr, q_arr, any(sat), t_on, t_off)
+                self._finish(out, params, t_arr, T_arr, q_arr, any(sat), t_on, t_off,
+                             np.array(dts, float).reshape(-1, 2) if len(dts) == t_arr.size else None)
             except Exception as e:
                 # Whatever breaks after the heating (a bug in resampling or flagging), the touch
                 # heated and its raw data is returned for the record.
@@ -482,8 +489,11 @@ class MeasurementSequence:
             pass  # already reported: the run's own off() failed the same way
 
     def _finish(self, out: Outcome, params: MeasurementParams, t: np.ndarray, T: np.ndarray, q: np.ndarray,
-                saturated: bool, t_on: float | None, t_off: float | None) -> None:
-        """Baseline statistics, flags, resampling and estimation (heater already off)."""
+                saturated: bool, t_on: float | None, t_off: float | None, dts: np.ndarray | None = None) -> None:
+        """Baseline statistics, flags, resampling and estimation (heater already off).
+
+        ``dts`` (n, 2): each sample's thermocouple and flux read time relative to ``t`` (s), or None.
+        """
         c0 = time.perf_counter()
         base = t < 0 if t_on is not None else np.ones(t.shape, bool)
         if base.any():
@@ -512,7 +522,9 @@ class MeasurementSequence:
         self._set_state(Phase.RESAMPLING)
         try:
             g_t, g_dT, g_q = resample_uniform(t, T, q, out.T0_C, out.q_offset_W_m2, params.sample_rate_Hz,
-                                              t_off - t_on, getattr(self.sensors, "T_age_s", 0.0))
+                                              t_off - t_on, getattr(self.sensors, "T_age_s", 0.0),
+                                              T_dt_s=None if dts is None else dts[:, 0],
+                                              q_dt_s=None if dts is None else dts[:, 1])
         except ValueError as e:
             out.status, out.reason, out.error = Status.FAILED, Reason.TOO_FEW_SAMPLES, str(e)
             return

@@ -27,7 +27,8 @@ AIR_EFFUSIVITY_W_s05_m2K = 5.5
 
 
 def resample_uniform(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, T0_C: float, q_offset_W_m2: float,
-                     rate_Hz: float, t_end_s: float, T_age_s: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                     rate_Hz: float, t_end_s: float, T_age_s: float = 0.0, *, T_dt_s: np.ndarray | None = None,
+                     q_dt_s: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Heating-phase series on the grid ``k / rate_Hz``, k = 1 .. floor(t_end * rate).
 
     ``t_s`` is time since heater-on; samples with ``t_s < 0`` (baseline) are
@@ -48,6 +49,12 @@ def resample_uniform(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, T0_C:
         Heating duration (s); the grid never runs past it nor past the data.
     T_age_s : float
         Mean age of a temperature reading when read (s).
+    T_dt_s, q_dt_s : ndarray, optional
+        Each sample's thermocouple and flux read time relative to ``t_s`` (s;
+        :attr:`edge.measure.sensors.Reading.T_dt_s`): the sensors are read one
+        after the other, and the small-heater probe's fit turns a 1.5-ms skew
+        between the two records into several per cent on k and alpha.  The
+        grid still starts at heater-on (``t_s = 0``).
 
     Returns
     -------
@@ -59,7 +66,12 @@ def resample_uniform(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, T0_C:
     th, Th, qh = t_s[heat], np.asarray(T_C, float)[heat], np.asarray(q_W_m2, float)[heat]
     if th.size < 2:
         raise ValueError(f"need at least 2 heating samples to resample, got {th.size}")
-    tT, dT = th - T_age_s, Th - T0_C
+    tT = th - T_age_s
+    if T_dt_s is not None:
+        tT = tT + np.asarray(T_dt_s, float)[heat]
+    if q_dt_s is not None:
+        th = th + np.asarray(q_dt_s, float)[heat]
+    dT = Th - T0_C
     keep = tT > 0  # a reading taken before heater-on belongs to the baseline
     tT, dT = tT[keep], dT[keep]
     if tT.size < 1:

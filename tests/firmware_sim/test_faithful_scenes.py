@@ -116,7 +116,10 @@ def test_a_late_touch_has_the_heater_on_before_the_contact(tmp_path):
     s = parse_scene(edit(edit(FULL, "start_s = 0.5", "start_s = 1.0"), "contact_lead_s = 1.0", "contact_lead_s = -0.5"))
     assert s.touch.heater_on_s == 0.5 and s.touch.end_s == 4.0
     cfg = config_for_scene(s, tmp_path)
-    assert cfg.measurement.baseline_s == 0.5 and cfg.measurement.contact_time_s == 2.0
+    # The small-heater probe heats as long as the touch allows (its profile asks 5 s), up to 0.3 s before the lift.
+    assert cfg.measurement.baseline_s == 0.5 and cfg.measurement.contact_time_s == pytest.approx(3.2)
+    paper = config_for_scene(dataclasses.replace(s, board=dataclasses.replace(s.board, probe="paper")), tmp_path)
+    assert paper.measurement.baseline_s == 0.5 and paper.measurement.contact_time_s == 2.0
 
 
 def test_as_built_needs_the_faithful_world():
@@ -165,6 +168,8 @@ def test_small_heater_scene_is_its_paper_scene_on_the_small_probe_at_the_same_ar
     assert small.pop("name") == f"{paper}_small" and ref.pop("name") == paper
     assert small.pop("description").startswith(ref.pop("description"))
     assert small["board"].pop("world") == "faithful" and small["board"].pop("probe") == "small-heater"
+    # The precision converter added to the paper's board (the small heater's rise is a few 0.2-K steps).
+    assert small["board"].pop("ads122c04") == 0x40 and small["sensors"].pop("ads122c04_noise_rms_V") == 0.15e-6
     r_small, r_ref = small["heater"].pop("resistance_ohm"), ref["heater"].pop("resistance_ohm")
     assert small == ref   # everything else, key for key
     # Same supply, same areal power: R scales with the inverse of the heater area.
