@@ -182,8 +182,9 @@ def stop_latency(tmp: Path, repeats: int = 3) -> dict:
     return {state: {"median_s": statistics.median(v), "max_s": max(v), "n": len(v)} for state, v in lat.items()}
 
 
-def host_stops_reading(tmp: Path) -> dict:
-    """3000 PINGs nobody reads, then a reconnect (as test_host_that_stops_reading_does_not_wedge_the_daemon)."""
+def host_stops_reading(tmp: Path, silent_s: float = 60.0) -> dict:
+    """3000 PINGs nobody reads for ``silent_s``, then a reconnect (as
+    test_host_that_stops_reading_does_not_wedge_the_daemon, which is silent for 1 s)."""
     import serial
     from firmware_sim.daemon_thread import DaemonThread
     from firmware_sim.ptylink import NullModem
@@ -197,7 +198,7 @@ def host_stops_reading(tmp: Path) -> dict:
         dt = DaemonThread(sim_config(tmp), rig.board, port, estimator=FakeEstimator())
         dt.start()
         try:
-            _flood(nm.host_port, 3000, 100_000)
+            _flood(nm.host_port, 3000, 100_000, silent_s=silent_s)
             t0 = time.monotonic()
             with DeviceClient(nm.host_port, timeout_s=5.0) as c:
                 pong = c.ping("back")
@@ -205,7 +206,7 @@ def host_stops_reading(tmp: Path) -> dict:
                 st = c.status()
         finally:
             dt.stop(20)
-    return {"pings_sent": 3000, "replies_dropped": st["replies_dropped"], "answer_after_reconnect_s": back_s,
+    return {"pings_sent": 3000, "silent_s": silent_s, "replies_dropped": st["replies_dropped"], "answer_after_reconnect_s": back_s,
             "state_after": st["state"], "wedged": not (pong == {"echo": "back"} and st["state"] == "idle")}
 
 
@@ -233,7 +234,7 @@ def table(res: dict) -> str:
               "Stop latency, median [max] of " + str(next(iter(stop.values()))["n"]) + ": "
               + ", ".join(f"{k} {v['median_s'] * 1e3:.0f} [{v['max_s'] * 1e3:.0f}] ms" for k, v in stop.items())
               + ".", "",
-              f"A host that stops reading ({h['pings_sent']} PINGs unread): {h['replies_dropped']} replies dropped, "
+              f"A host that stops reading for {h['silent_s']:g} s ({h['pings_sent']} PINGs unread): {h['replies_dropped']} replies dropped, "
               f"answered {h['answer_after_reconnect_s'] * 1e3:.0f} ms after the reconnect, state "
               f"`{h['state_after']}`, {'wedged' if h['wedged'] else 'not wedged'}."]
     return "\n".join(lines)
@@ -242,6 +243,7 @@ def table(res: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--update-readme", action="store_true", help="write the table into README.md")
+    ap.add_argument("--silent-s", type=float, default=60.0, help="how long the host stops reading (default 60 s)")
     args = ap.parse_args(argv)
     logging.disable(logging.WARNING)  # the daemons' own warnings (stray temporaries removed...) are expected
     import tempfile
@@ -252,7 +254,7 @@ def main(argv: list[str] | None = None) -> int:
         (tmp / "stop").mkdir()
         (tmp / "flood").mkdir()
         res = {"kill_points": kill_points(), "signals": signals(tmp / "signals"),
-               "stop_latency": stop_latency(tmp / "stop"), "host_stops_reading": host_stops_reading(tmp / "flood")}
+               "stop_latency": stop_latency(tmp / "stop"), "host_stops_reading": host_stops_reading(tmp / "flood", args.silent_s)}
     path = write_json("reliability", res)
     text = table(res)
     print(text)

@@ -117,14 +117,15 @@ def test_client_measure_interrupted_by_ctrl_c_sends_abort_then_reraises(tmp_path
 
 # ---------------------------------------------------------------- 2. a host that stops reading
 
-def _flood(port_path: str, n: int, first_id: int, write_timeout_s: float = 30.0) -> None:
-    """Send ``n`` PINGs with long echoes and read nothing (a write the device stopped taking is given up)."""
+def _flood(port_path: str, n: int, first_id: int, write_timeout_s: float = 30.0, silent_s: float = 1.0) -> None:
+    """Send ``n`` PINGs with long echoes and read nothing for ``silent_s`` (a write the device stopped taking
+    is given up)."""
     with serial.Serial(port_path, timeout=0.05, write_timeout=write_timeout_s) as ser:
         try:
             ser.write(b"".join(encode_request(Command.PING, first_id + i, {"echo": "x" * 200}) for i in range(n)))
         except serial.SerialException:  # SerialTimeoutException: the daemon was stopped meanwhile
             return
-        time.sleep(1.0)  # and for a while nobody reads
+        time.sleep(silent_s)  # and for a while nobody reads
 
 
 def test_host_that_stops_reading_does_not_wedge_the_daemon(tmp_path):
