@@ -61,17 +61,11 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 from edge.estimation.estimate import pipeline_golden_check  # noqa: E402
-from edge.hw.drivers.heater import Heater  # noqa: E402
-from edge.measure.sensors import make_sensors, thermocouple_resolution_K  # noqa: E402
-from edge.measure.sequence import MeasurementParams, MeasurementSequence  # noqa: E402
-from edge.measure.watchdog import Limits  # noqa: E402
 from edge.model.bundle import load_bundle  # noqa: E402
 from edge.physics.solids import Solid  # noqa: E402
-from edge.service.estimator import ModelEstimator  # noqa: E402
-from firmware_sim.run import config_for_scene  # noqa: E402
+from firmware_sim.rigs.sequence_rig import OneBundleStore, sequence_touch  # noqa: E402
 from firmware_sim.scene.files import read_scene  # noqa: E402
 from firmware_sim.scene.model import ObjectSpec  # noqa: E402
-from firmware_sim.simulator import Simulator  # noqa: E402
 
 CONTACTS_S = (1.0, 2.0, 5.0)
 #: Scene each probe's touches are built from: the same experiment (glass, 15 V), the small-heater
@@ -80,16 +74,6 @@ BASE_SCENES = {"small-heater": "glass_15V_small", "paper": "glass_15V_faithful"}
 K_PMMA, K_ALU = 0.185, 237.0
 RC_PMMA, RC_ALU = 1178.35 * 1429.0, 2702.0 * 903.0      # J/(m^3 K)
 Z95 = 1.96
-
-
-class _Store:
-    """The one method of the model store the estimator uses, on the shipped bundle."""
-
-    def __init__(self, bundle) -> None:
-        self.bundle = bundle
-
-    def current(self):
-        return self.bundle
 
 
 def synthetic_solids(n: int) -> list[tuple[str, Solid]]:
@@ -136,27 +120,11 @@ def scene_for(probe: str, label: str, solid: Solid, contact_s: float, board: str
 
 def touch(sc, contact_s: float, store, workdir: str) -> dict:
     """One touch through the device code on the scene's simulator: the record's result and timings."""
-    sim = Simulator(sc)
-    try:
-        cfg = config_for_scene(sc, workdir, {"measurement": {"contact_time_s": contact_s}})
-        h, m = cfg.heater, cfg.measurement
-        board = sim.board()
-        heater = Heater(board, supply_voltage_V=h.supply_voltage_V, resistance_ohm=h.resistance_ohm)
-        est = ModelEstimator(store, thermocouple_resolution_K(cfg.sensors), probe=cfg.board.probe)
-        seq = MeasurementSequence(heater, make_sensors(board, cfg.sensors), board.clock,
-                                  Limits(h.max_on_time_s, h.over_temperature_C, h.fault_flux_W_m2, h.fault_rise_K),
-                                  est, m)
-        try:
-            out = seq.run(MeasurementParams(power_W=h.power_W, contact_time_s=m.contact_time_s,
-                                            baseline_s=m.baseline_s, sample_rate_Hz=m.sample_rate_Hz,
-                                            cooldown_s=0.0))
-        finally:
-            seq.close()
-        return {"status": str(out.status), "reason": None if out.reason is None else str(out.reason),
-                "flags": [str(f) for f in out.flags], "result": out.result or {},
-                "sample_rate_Hz": m.sample_rate_Hz, "contact_time_s": m.contact_time_s}
-    finally:
-        sim.close()
+    out, cfg, _ = sequence_touch(sc, store, workdir, {"measurement": {"contact_time_s": contact_s}})
+    m = cfg.measurement
+    return {"status": str(out.status), "reason": None if out.reason is None else str(out.reason),
+            "flags": [str(f) for f in out.flags], "result": out.result or {},
+            "sample_rate_Hz": m.sample_rate_Hz, "contact_time_s": m.contact_time_s}
 
 
 def score(rows: list[dict]) -> dict:
@@ -182,7 +150,7 @@ def score(rows: list[dict]) -> dict:
 def run(n_solids: int, n_touches: int, board: str, probes: list[str], contact_kind: str = "ideal") -> dict:
     from thermotouch_models import DEFAULT_BUNDLE
 
-    store = _Store(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
+    store = OneBundleStore(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
     solids = synthetic_solids(n_solids)
     results: dict = {}
     rows_all = []

@@ -18,25 +18,11 @@ import math
 import pytest
 
 from edge.estimation.estimate import Estimator
-from edge.hw.drivers.heater import Heater
-from edge.measure.sensors import make_sensors, thermocouple_resolution_K
-from edge.measure.sequence import MeasurementParams, MeasurementSequence
-from edge.measure.watchdog import Limits
-from edge.service.estimator import ModelEstimator
-from firmware_sim.run import config_for_scene
+from firmware_sim.rigs.sequence_rig import OneBundleStore, sequence_touch
 from firmware_sim.scene.files import read_scene
-from firmware_sim.simulator import Simulator
 
 #: The paper's 50-ohm heater (glass_15V): the same experiment on the paper's probe.
 PAPER_HEATER_OHM = 50.0
-
-
-class _Store:
-    def __init__(self, bundle) -> None:
-        self.bundle = bundle
-
-    def current(self):
-        return self.bundle
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +32,7 @@ def store():
     from edge.estimation.estimate import pipeline_golden_check
     from edge.model.bundle import load_bundle
 
-    return _Store(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
+    return OneBundleStore(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
 
 
 def _glass_scene(probe: str):
@@ -60,26 +46,9 @@ def _glass_scene(probe: str):
 
 def _touch(sc, store, tmp_path, overrides=None):
     """One touch through the device's sequence and the daemon's estimator; (outcome, config)."""
-    sim = Simulator(sc)
-    try:
-        cfg = config_for_scene(sc, tmp_path, overrides)
-        h, m = cfg.heater, cfg.measurement
-        board = sim.board()
-        heater = Heater(board, supply_voltage_V=h.supply_voltage_V, resistance_ohm=h.resistance_ohm)
-        est = ModelEstimator(store, thermocouple_resolution_K(cfg.sensors), probe=cfg.board.probe)
-        seq = MeasurementSequence(heater, make_sensors(board, cfg.sensors), board.clock,
-                                  Limits(h.max_on_time_s, h.over_temperature_C, h.fault_flux_W_m2, h.fault_rise_K),
-                                  est, m)
-        try:
-            out = seq.run(MeasurementParams(power_W=h.power_W, contact_time_s=m.contact_time_s,
-                                            baseline_s=m.baseline_s, sample_rate_Hz=m.sample_rate_Hz,
-                                            cooldown_s=0.0))
-        finally:
-            seq.close()
-        assert sim.heater_invariant(h.max_on_time_s)["ok"]
-        return out, cfg
-    finally:
-        sim.close()
+    out, cfg, invariant = sequence_touch(sc, store, str(tmp_path), overrides)
+    assert invariant["ok"]
+    return out, cfg
 
 
 def test_small_heater_touch_on_glass_determines_k_and_alpha_within_its_stated_uncertainty(store, tmp_path):

@@ -14,25 +14,16 @@ from edge.physics.probe import volumetric_heat_W_m3
 from edge.physics.solids import Solid
 from edge.service.config import Config, ConfigError
 from edge.service.estimator import ModelEstimator
+from firmware_sim.rigs.sequence_rig import OneBundleStore
 
 GLASS = Solid(1.097, 2458.4, 809.0)
-
-
-class _Store:
-    """The one method of ModelStore the estimator uses."""
-
-    def __init__(self, bundle):
-        self.bundle = bundle
-
-    def current(self):
-        return self.bundle
 
 
 @pytest.fixture(scope="module")
 def store():
     from thermotouch_models import DEFAULT_BUNDLE
 
-    return _Store(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
+    return OneBundleStore(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
 
 
 def test_config_probe_defaults_to_paper_and_takes_only_shipped_probes():
