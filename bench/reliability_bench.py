@@ -131,51 +131,19 @@ def stop_latency(tmp: Path, repeats: int = 3) -> dict:
     The states take turns (:func:`_common.interleaved`), so a busy spell of the machine does not
     land on one state only; only the stop itself is timed, not the set-up of the state.
     """
-    import serial
-    from edge.protocol.commands import Command
-    from firmware_sim.daemon_thread import DaemonThread
-    from firmware_sim.ptylink import NullModem
-    from firmware_sim.rigs.daemon_rig import make_rig
-    from tests.edge.service.test_daemon_busy import RawHost, hold_heating
-    from tests.edge.service.test_reliability import _flood
-    from tests.support.daemons import FakeEstimator, assert_heater_safe, sim_config
     from edge.service.config import Config
+    from tests.edge.service.test_reliability import daemon_in_state
+    from tests.support.daemons import assert_heater_safe
 
     lat: dict[str, list[float]] = {state: [] for state in STATES}
 
     def trial(state: str) -> None:
         d_tmp = tmp / f"stop-{state}-{len(lat[state])}"
         d_tmp.mkdir()
-        rig = make_rig()
-        with NullModem() as nm, serial.Serial(nm.device_port, timeout=0.05) as port:
-            dt = DaemonThread(sim_config(d_tmp), rig.board, port, estimator=FakeEstimator())
-            d = dt.start()
-            host = RawHost(nm.host_port)
-            flood = None
-            try:
-                if state == "measuring":
-                    heating = hold_heating(d, rig)
-                    host.send(Command.MEASURE, 1)
-                    heating.wait(20)
-                elif state == "uploading":
-                    r = host.ask(Command.MODEL_BEGIN, 1, {"size": 1000, "sha256": "ab" * 32})
-                    host.ask(Command.MODEL_CHUNK, 2, {"offset": 0, "data": b"x" * 100,
-                                                      "session": r.body["session"]})
-                elif state == "blocked_writer":
-                    flood = threading.Thread(target=_flood, args=(nm.host_port, 3000, 100_000, 2.0), daemon=True)
-                    flood.start()
-                    deadline = time.monotonic() + 20
-                    # ready() comes before serve() sets ``endpoint``: it may not be there yet.
-                    while (getattr(getattr(d, "endpoint", None), "replies_dropped", 0) == 0
-                           and time.monotonic() < deadline):
-                        time.sleep(0.01)
-                t0 = time.monotonic()
-                dt.stop(20)
-                lat[state].append(time.monotonic() - t0)
-            finally:
-                host.close()
-                if flood is not None:
-                    flood.join(20)
+        with daemon_in_state(d_tmp, state, wait_s=20) as (dt, rig):
+            t0 = time.monotonic()
+            dt.stop(20)
+            lat[state].append(time.monotonic() - t0)
         assert_heater_safe(rig.parts, Config().heater.max_on_time_s)
 
     interleaved({state: (lambda s=state: trial(s)) for state in STATES}, repeats, warmup=False)

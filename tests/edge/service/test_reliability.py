@@ -147,8 +147,18 @@ def _stop_latency(dt) -> float:
     return time.monotonic() - t0
 
 
-@pytest.mark.parametrize("state", ["idle", "measuring", "uploading", "blocked_writer"])
-def test_stop_is_prompt_in_every_state(tmp_path, state):
+#: The states a stop must be prompt in.
+STOP_STATES = ("idle", "measuring", "uploading", "blocked_writer")
+
+
+@contextmanager
+def daemon_in_state(tmp_path, state: str, wait_s: float = WAIT_s):
+    """A daemon thread on the sim rig brought into ``state``; yields ``(daemon_thread, rig)``.
+
+    ``measuring``: heating, its read held; ``uploading``: a model upload half sent;
+    ``blocked_writer``: a host that sent 3000 requests and reads nothing, replies already dropped.
+    Shared with bench/reliability_bench.py, which times the stop.
+    """
     rig = make_rig()
     with NullModem() as nm, serial.Serial(nm.device_port, timeout=0.05) as port:
         dt = DaemonThread(sim_config(tmp_path), rig.board, port, estimator=FakeEstimator())
@@ -159,7 +169,7 @@ def test_stop_is_prompt_in_every_state(tmp_path, state):
             if state == "measuring":
                 heating = hold_heating(d, rig)
                 host.send(Command.MEASURE, 1)
-                assert heating.wait(WAIT_s)
+                assert heating.wait(wait_s)
             elif state == "uploading":
                 r = host.ask(Command.MODEL_BEGIN, 1, {"size": 1000, "sha256": "ab" * 32})
                 host.ask(Command.MODEL_CHUNK, 2, {"offset": 0, "data": b"x" * 100, "session": r.body["session"]})
@@ -167,17 +177,21 @@ def test_stop_is_prompt_in_every_state(tmp_path, state):
             elif state == "blocked_writer":
                 flood = threading.Thread(target=_flood, args=(nm.host_port, 3000, 100_000, 2.0), daemon=True)
                 flood.start()
-                deadline = time.monotonic() + WAIT_s
-                # DaemonThread.start returns once the daemon exists; serve() sets its endpoint just after.
-                while (getattr(d, "endpoint", None) is None or d.endpoint.replies_dropped == 0) \
-                        and time.monotonic() < deadline:
+                deadline = time.monotonic() + wait_s
+                while d.endpoint.replies_dropped == 0 and time.monotonic() < deadline:
                     time.sleep(0.01)
                 assert d.endpoint.replies_dropped > 0
-            latency = _stop_latency(dt)
+            yield dt, rig
         finally:
             host.close()
             if flood is not None:
-                flood.join(WAIT_s)
+                flood.join(wait_s)
+
+
+@pytest.mark.parametrize("state", STOP_STATES)
+def test_stop_is_prompt_in_every_state(tmp_path, state):
+    with daemon_in_state(tmp_path, state) as (dt, rig):
+        latency = _stop_latency(dt)
     assert latency < STOP_LIMIT_s, f"{state}: stop took {latency:.2f} s"
     assert_heater_safe(rig.parts, MAX_ON)
 
