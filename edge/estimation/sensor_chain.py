@@ -197,8 +197,11 @@ def fit_sensor_chain(t_s, T_tc_C, q_m_W_m2, *, T_probe0_C: float | None = None,
     n_iterations : int
         Passes of phi_face.  The first uses the measured thermocouple as theta_b; further passes
         use the fitted theta_b, which is wrong over the unresolved contact transient and, through
-        B's sqrt(s) memory, biased e by +3..5 % on FaithfulWorld records (glass, R_c 1e-4, -1 K):
-        the default is 1.
+        B's sqrt(s) memory, biased e by +3..5 % on FaithfulWorld records (glass, R_c 1e-4, -1 K)
+        when used from t = 0.  Passes > 1 now keep the measured theta_b before ``fit_start_s``
+        and the fitted one after (removing the correlated noise of the measured one): on the
+        bench's cached 1-D records this helped glass/HDPE and hurt PMMA at R_c 1e-4 and
+        aluminium (mixed), so the default stays 1.
     """
     t = np.asarray(t_s, dtype=np.float64)
     T = np.asarray(T_tc_C, dtype=np.float64)
@@ -232,7 +235,10 @@ def fit_sensor_chain(t_s, T_tc_C, q_m_W_m2, *, T_probe0_C: float | None = None,
         scale[scale == 0] = 1.0
         p_s, *_ = np.linalg.lstsq(Xf / scale, yf, rcond=None)
         p = p_s / scale
-        theta = X @ p
+        # Next pass: the fitted theta_b (noise-free: the measured noise, through B's sqrt(s) gain, is
+        # correlated with y and biases 1/e) wherever the model follows the record; the measured
+        # one over the contact transient's first samples, which the model cannot resolve.
+        theta = np.where(fit, X @ p, theta)
     r = yf - Xf @ p
     m = r.size
     dof = max(1, m - 3)
