@@ -53,6 +53,7 @@ from edge.hw.drivers.mcp9600 import MCP9600  # noqa: E402
 from firmware_sim.clock import VirtualClock  # noqa: E402
 from firmware_sim.rz.probe_world import FaithfulWorld  # noqa: E402
 from firmware_sim.scene.files import read_scene  # noqa: E402
+from firmware_sim.world import ManualDrive  # noqa: E402
 
 PRE_S, TOUCH_S, TICK_S = 1.0, 2.0, 0.005
 SCENES = {"glass": "glass_15V", "PMMA": "pmma_15V", "aluminium": "alu_15V"}
@@ -62,25 +63,6 @@ TOUCH_SCENES = {"paper": ["glass_15V_faithful", "pmma_15V_faithful"],
 HEAT_S, READ_S = 2.0, 0.01
 
 
-class LiveDrive:
-    """Duty commanded so far (like the board's enable line and PWM history)."""
-
-    def __init__(self) -> None:
-        self.t: list[float] = []
-        self.d: list[float] = []
-
-    def set(self, t: float, duty: float) -> None:
-        self.t.append(t)
-        self.d.append(duty)
-
-    def duty_at(self, t_s: float) -> float:
-        i = int(np.searchsorted(self.t, t_s, side="right")) - 1
-        return self.d[i] if i >= 0 else 0.0
-
-    def change_times(self):
-        return list(self.t)
-
-
 def session(name: str, dt: float) -> dict:
     sc = read_scene(SCENES[name])
     sc = dataclasses.replace(
@@ -88,7 +70,7 @@ def session(name: str, dt: float) -> dict:
         environment=dataclasses.replace(sc.environment, initial_temperature_C=22.0, ambient_temperature_C=25.0),
         touch=dataclasses.replace(sc.touch, start_s=PRE_S, length_s=TOUCH_S))
     t0 = time.perf_counter()
-    clock, drive = VirtualClock(), LiveDrive()
+    clock, drive = VirtualClock(), ManualDrive()
     w = FaithfulWorld(sc, clock, drive, dt_s=dt)
     n = int(round((PRE_S + TOUCH_S) / TICK_S))
     T = q = 0.0

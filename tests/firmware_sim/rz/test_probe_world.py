@@ -21,7 +21,7 @@ from firmware_sim.rz.grid import PU_FOAM, Mesh
 from firmware_sim.rz.probe_world import AsBuilt, FaithfulWorld, Geometry
 from firmware_sim.scene.model import Fault
 from firmware_sim.scene.files import read_scene
-from firmware_sim.world import ScheduleDrive, ThermalWorld
+from firmware_sim.world import ManualDrive, ScheduleDrive, ThermalWorld
 
 #: The 1-D limit: no foam, no convection, heater and object far wider than the 2-s diffusion length.
 ONE_D = Geometry(substrate=None, h_air_W_m2K=0.0, heater_radius_m=0.1, object_radius_m=0.15,
@@ -282,29 +282,10 @@ def test_energy_ledger_closes_across_touches_lifts_and_gaps():
 # Drop-in: the clock, the drive changing "now", faults
 
 
-class _LiveDrive:
-    """A drive that only knows what has been commanded so far (like the board's)."""
-
-    def __init__(self) -> None:
-        self.t: list[float] = []
-        self.d: list[float] = []
-
-    def set(self, t: float, duty: float) -> None:
-        self.t.append(t)
-        self.d.append(duty)
-
-    def duty_at(self, t_s: float) -> float:
-        i = int(np.searchsorted(self.t, t_s, side="right")) - 1
-        return self.d[i] if i >= 0 else 0.0
-
-    def change_times(self):
-        return list(self.t)
-
-
 def test_provisional_steps_follow_the_drive_and_faults():
     sc = scene()
     clk = VirtualClock()
-    live = _LiveDrive()
+    live = ManualDrive()  # only what has been commanded so far, like the board
     w = FaithfulWorld(sc, clk, live)
     got = []
     for k in range(1, 301):   # a device polling every 7 ms, switching at odd instants
@@ -319,7 +300,7 @@ def test_provisional_steps_follow_the_drive_and_faults():
     got = np.array(got)
     # The same record computed after the fact, with everything known.
     ref = FaithfulWorld(dataclasses.replace(sc, faults=(w.faults[-1],)), clock_at(10.0),
-                        ScheduleDrive(live.t, live.d))
+                        ScheduleDrive(live.change_times(), [live.duty_at(t) for t in live.change_times()]))
     np.testing.assert_allclose(got[:, 1], ref.truth(got[:, 0]).thermocouple_C, rtol=0, atol=1e-9)
     np.testing.assert_allclose(got[:, 2], [ref.flux_voltage_V(x) for x in got[:, 0]], rtol=0, atol=1e-15)
     assert ref.heater_power_W(1.7) == pytest.approx(0.64 * sc.heater.max_power_W)
