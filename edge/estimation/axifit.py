@@ -43,6 +43,7 @@ from typing import Callable
 import numpy as np
 
 from edge.checks import finite_array, finite_positive, one_of
+from edge.estimation.design import covariance_ln_k_alpha
 from edge.physics.axisym import AxisymModel
 from edge.physics.geometry import ProbeGeometry
 
@@ -295,16 +296,8 @@ class AxiFitter:
         n = r.size
         dof = max(n - J.shape[1], 1)
         chi2_red = cost / dof
-        F = J.T @ J / chi2_red
-        # Vanishing prior (sd 100 in ln k, ln alpha): keeps F invertible on a large heater,
-        # where k and alpha are undetermined but e is not (see design.attainable).
-        F[0, 0] += 1e-4
-        F[1, 1] += 1e-4
-        dg = np.sqrt(np.diag(F))
-        try:
-            cov = np.linalg.inv(F / np.outer(dg, dg)) / np.outer(dg, dg)
-        except np.linalg.LinAlgError:
-            cov = np.full(F.shape, np.inf)
+        # Vanishing prior on ln k, ln alpha: e stays determined where k and alpha are not.
+        cov = covariance_ln_k_alpha(J.T @ J / chi2_red)
         var_lk, var_la = cov[0, 0], cov[1, 1]
         u_lk = math.sqrt(var_lk) if var_lk >= 0 else math.inf
         u_la = math.sqrt(var_la) if var_la >= 0 else math.inf

@@ -64,7 +64,7 @@ from edge.physics.axisym import AxisymModel
 from edge.physics.geometry import PROBES, ProbeGeometry
 from edge.physics.solids import Solid
 
-__all__ = ["Design", "attainable", "scan_heater_radius"]
+__all__ = ["Design", "attainable", "covariance_ln_k_alpha", "scan_heater_radius"]
 
 
 @dataclass(frozen=True)
@@ -82,6 +82,25 @@ class Design:
     def to_dict(self) -> dict:
         return {k: (float(v) if math.isfinite(v) else None) for k, v in self.__dict__.items()}
 
+
+
+def covariance_ln_k_alpha(F: np.ndarray) -> np.ndarray:
+    """Covariance from a Fisher matrix whose first two parameters are ln k and ln alpha.
+
+    A vanishing prior (sd 100 in ln k and ln alpha, i.e. no information) keeps F invertible
+    when a large heater leaves the k-alpha direction undetermined: u(k), u(alpha) then come out
+    as ~100 (reported as such), and u(e), which is determined, stays exact. The inverse is taken
+    on the diagonally scaled matrix (the parameters' scales differ by orders of magnitude).
+    Shared by the design (:func:`attainable`) and the fit (:mod:`edge.estimation.axifit`).
+    """
+    F = np.array(F, float)
+    F[0, 0] += 1e-4
+    F[1, 1] += 1e-4
+    d = np.sqrt(np.diag(F))
+    try:
+        return np.linalg.inv(F / np.outer(d, d)) / np.outer(d, d)
+    except np.linalg.LinAlgError:
+        return np.full(F.shape, np.inf)
 
 def attainable(solid: Solid, contact_time_s: float, *, probe: ProbeGeometry | str = "small-heater",
                heater_radius_m: float | None = None, dt_s: float = 0.02, sigma_T_K: float = 0.01,
@@ -127,18 +146,8 @@ def attainable(solid: Solid, contact_time_s: float, *, probe: ProbeGeometry | st
     if fit_contact:
         cols[2] = cols[2] * 1e-4  # R_c in units of 1e-4 m^2 K/W keeps F well scaled
     J = np.stack(cols, axis=1)
-    F = J.T @ J
-    # A vanishing prior (sd 100 in ln k and ln alpha, i.e. no information) keeps F invertible
-    # when a large heater leaves the k-alpha direction undetermined: u(k), u(alpha) then come
-    # out as ~100 (reported as such), and u(e), which is determined, stays exact.
-    F[0, 0] += 1e-4
-    F[1, 1] += 1e-4
-    d = np.sqrt(np.diag(F))
-    try:
-        cov = np.linalg.inv(F / np.outer(d, d)) / np.outer(d, d)
-    except np.linalg.LinAlgError:
-        cov = np.full(F.shape, np.inf)
-    gvec = np.zeros(F.shape[0])
+    cov = covariance_ln_k_alpha(J.T @ J)
+    gvec = np.zeros(cov.shape[0])
     gvec[0], gvec[1] = 1.0, -0.5
 
     def sd(v):
