@@ -6,7 +6,13 @@ Schema: a header row, then one row per sample; columns (any order)
 * ``T_K`` (absolute temperature, K) or ``dT_K`` (excess over the baseline, K);
   with ``T_K`` the baseline is the mean of samples with t_s <= 0 if any, else
   the first sample;
-* ``q_W_m2`` - heat flux into the object (W/m^2).
+* ``q_W_m2`` - heat flux into the object (W/m^2): the flux sensor's voltage over its
+  nominal sensitivity;
+* ``heater_W_m2`` (optional) - the heater's areal power.
+
+Samples before heater-on (``t_s`` < 0) are kept by :func:`read_series`, for the
+sensor-chain estimate, which fits from the moment of contact: a record that
+starts with the probe in air lets it find that moment.
 
 Lines starting with ``#`` are comments.  A comment of the form
 ``# key: value`` before the header row is metadata (:func:`read_record_metadata`);
@@ -55,8 +61,12 @@ def read_record_metadata(path: str | Path) -> dict[str, str]:
     return meta
 
 
-def read_record(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(t_s, dT_K, q_W_m2) from a CSV file, samples with t_s >= 0 only."""
+def read_series(path: str | Path) -> dict[str, np.ndarray | str]:
+    """The whole record, samples before heater-on included (for the sensor chain and calibration).
+
+    Returns ``t_s``, ``T`` (the ``T_K`` or ``dT_K`` column as written), ``q_W_m2``, ``heater_W_m2``
+    (absent: not in the file) and ``T_column`` (which one was found).
+    """
     path = Path(path)
     try:
         data = path.read_bytes()
@@ -77,6 +87,8 @@ def read_record(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         raise RecordError(f"{path}, line {header_line}: header must have t_s, q_W_m2 and T_K or dT_K, got {cols}")
     tcol = "dT_K" if "dT_K" in cols else "T_K"
     want = {"t_s": cols.index("t_s"), tcol: cols.index(tcol), "q_W_m2": cols.index("q_W_m2")}
+    if "heater_W_m2" in cols:
+        want["heater_W_m2"] = cols.index("heater_W_m2")
     data = {k: [] for k in want}
     for line_no, line in rows[1:]:
         fields = next(csv.reader([line]))
@@ -96,13 +108,40 @@ def read_record(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     bad = np.nonzero(np.diff(t) <= 0)[0]
     if bad.size:
         raise RecordError(f"{path}, line {rows[1 + bad[0] + 1][0]}, column 't_s': times must increase")
-    T = np.array(data[tcol])
-    q = np.array(data["q_W_m2"])
-    if tcol == "T_K":
+    out: dict[str, np.ndarray | str] = {"t_s": t, "T": np.array(data[tcol]), "q_W_m2": np.array(data["q_W_m2"]),
+                                        "T_column": tcol}
+    if "heater_W_m2" in data:
+        out["heater_W_m2"] = np.array(data["heater_W_m2"])
+    return out
+
+
+def read_record(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t_s, dT_K, q_W_m2) from a CSV file, samples with t_s >= 0 only."""
+    s = read_series(path)
+    t, T, q = s["t_s"], s["T"], s["q_W_m2"]
+    if s["T_column"] == "T_K":
         pre = t <= 0
         T = T - (T[pre].mean() if pre.any() else T[0])
     keep = t >= 0
+    if np.count_nonzero(keep) < 4:
+        raise RecordError(f"{path}: need at least 4 samples at t_s >= 0, got {np.count_nonzero(keep)}")
     return t[keep], T[keep], q[keep]
+
+
+def uniform_series(t_s: np.ndarray, *columns: np.ndarray, path: str | Path = "") -> tuple[np.ndarray, ...]:
+    """The columns on a uniform grid of the record's median step (linear interpolation).
+
+    The sensor chain's kernels need a uniform grid; a record whose steps differ by more than half a
+    step somewhere (a gap) is refused rather than bridged.
+    """
+    d = np.diff(t_s)
+    dt = float(np.median(d))
+    if np.any(d > 1.5 * dt):
+        i = int(np.argmax(d > 1.5 * dt))
+        raise RecordError(f"{path}: a gap of {d[i]:.3g} s after t_s = {t_s[i]:.6g} (the step is {dt:.3g} s)")
+    n = int(math.floor((t_s[-1] - t_s[0]) / dt + 1e-9)) + 1
+    tu = t_s[0] + dt * np.arange(n)
+    return (tu,) + tuple(np.interp(tu, t_s, c) for c in columns)
 
 
 def write_record(path: str | Path, t_s, dT_K, q_W_m2, *, probe: str | None = None) -> None:
@@ -116,4 +155,18 @@ def write_record(path: str | Path, t_s, dT_K, q_W_m2, *, probe: str | None = Non
         w = csv.writer(f)
         w.writerow(["t_s", "dT_K", "q_W_m2"])
         for row in zip(t_s, dT_K, q_W_m2):
+            w.writerow([f"{v:.9g}" for v in row])
+
+
+def write_series(path: str | Path, t_s, T_K, q_W_m2, *, probe: str | None = None) -> None:
+    """Write a whole record (absolute ``T_K``, samples before heater-on included), atomically."""
+    from host.atomic import atomic_path  # noqa: PLC0415
+
+    with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as f:
+        f.write("# ThermoTouch record: time since heater-on (negative before), thermocouple, flux-sensor reading\n")
+        if probe is not None:
+            f.write(f"# probe: {probe}\n")
+        w = csv.writer(f)
+        w.writerow(["t_s", "T_K", "q_W_m2"])
+        for row in zip(t_s, T_K, q_W_m2):
             w.writerow([f"{v:.9g}" for v in row])

@@ -48,7 +48,7 @@ from edge.physics.integrators import causal_convolution
 from edge.physics.laplace import talbot_invert
 from edge.physics.probe import DEFAULT_STACK
 
-__all__ = ["SensorChainCalibration", "SensorChainResult", "fit_sensor_chain", "simulate_chain"]
+__all__ = ["SensorChainCalibration", "SensorChainResult", "chain_design", "fit_sensor_chain", "simulate_chain"]
 
 
 @dataclass(frozen=True)
@@ -65,6 +65,10 @@ class SensorChainCalibration:
         Its diffusivity (m^2/s).
     tc_tau_s : float
         Thermocouple bead time constant (s); 0 for none.
+    flux_scale : float
+        True depth-averaged flux per unit of the reading (nominal sensitivity / true sensitivity):
+        the reading is the thermopile voltage over the *nominal* sensitivity, so a thermopile 3 %
+        more sensitive than its datasheet needs 1/1.03.
     """
 
     sensing_thickness_m: float = DEFAULT_STACK.sensing_thickness_m
@@ -72,9 +76,10 @@ class SensorChainCalibration:
     alpha_m2_s: float = DEFAULT_STACK.material.k_W_mK / (DEFAULT_STACK.material.rho_kg_m3
                                                           * DEFAULT_STACK.material.c_J_kgK)
     tc_tau_s: float = 0.0
+    flux_scale: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("sensing_thickness_m", "k_W_mK", "alpha_m2_s"):
+        for name in ("sensing_thickness_m", "k_W_mK", "alpha_m2_s", "flux_scale"):
             v = getattr(self, name)
             if not (v > 0 and math.isfinite(v)):
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")
@@ -155,7 +160,7 @@ def simulate_chain(t_s, q_m_W_m2, *, e_W_s05_m2K: float, R_c_m2K_W: float, T_obj
     lower-triangular system on the samples (O(n^2): a reference for tests, not the device path --
     fixed-point iteration diverges on low-effusivity objects, where B (R_c + D / e) exceeds 1).
     """
-    t, q = np.asarray(t_s, float), np.asarray(q_m_W_m2, float)
+    t, q = np.asarray(t_s, float), np.asarray(q_m_W_m2, float) * calibration.flux_scale
     n = t.size
     dt = float(t[1] - t[0])
     KA, KB = _slab_kernels(n, dt, calibration.sensing_thickness_m, calibration.k_W_mK, calibration.alpha_m2_s)
@@ -171,6 +176,55 @@ def simulate_chain(t_s, q_m_W_m2, *, e_W_s05_m2K: float, R_c_m2K_W: float, T_obj
     return T_probe0_C + _lag(theta[:, None], dt, calibration.tc_tau_s)[:, 0]
 
 
+@dataclass(frozen=True)
+class _Prepared:
+    t: np.ndarray
+    y: np.ndarray          # thermocouple minus the probe's temperature at contact
+    fit: np.ndarray        # samples the least squares weights
+    dt: float
+    Tp0: float
+    phiA: np.ndarray       # A(s) applied to the scaled thermopile reading
+    KB: np.ndarray
+    theta: np.ndarray      # first-pass theta_b: the measured thermocouple, its bead lag undone
+
+
+def _prepare(t_s, T_tc_C, q_m_W_m2, cal: SensorChainCalibration, T_probe0_C, fit_start_s) -> _Prepared:
+    t = np.asarray(t_s, dtype=np.float64)
+    T = np.asarray(T_tc_C, dtype=np.float64)
+    q = np.asarray(q_m_W_m2, dtype=np.float64) * cal.flux_scale
+    if t.ndim != 1 or t.size < 8 or T.shape != t.shape or q.shape != t.shape:
+        raise ValueError("t_s, T_tc_C and q_m_W_m2 must be 1-D of one length >= 8")
+    dt = float(t[1] - t[0])
+    if not (dt > 0 and np.allclose(np.diff(t), dt, rtol=1e-6, atol=1e-9)):
+        raise ValueError("t_s must be uniform and increasing")
+    if not (np.all(np.isfinite(T)) and np.all(np.isfinite(q))):
+        raise ValueError("records must be finite")
+    Tp0 = float(T[0]) if T_probe0_C is None else float(T_probe0_C)
+    KA, KB = _slab_kernels(t.size, dt, cal.sensing_thickness_m, cal.k_W_mK, cal.alpha_m2_s)
+    y = T - Tp0
+    # The measured thermocouple stands in for theta_b (the bead lag and noise only enter
+    # through the small storage term B).
+    theta = y.copy()
+    if cal.tc_tau_s > 0:
+        # The bead lags the junction: undo it (theta = y + tau dy/dt) for the storage term only.
+        theta = y + cal.tc_tau_s * np.gradient(y, dt)
+        theta[0] = 0.0
+    return _Prepared(t, y, (t - t[0]) >= fit_start_s, dt, Tp0, _apply(KA, q), KB, theta)
+
+
+def chain_design(t_s, T_tc_C, q_m_W_m2, calibration: SensorChainCalibration = SensorChainCalibration(), *,
+                 T_probe0_C: float | None = None, fit_start_s: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
+    """The first-pass linear model of :func:`fit_sensor_chain` on its fitted samples: ``y ~ X @ (dT_obj0, R_c, 1/e)``.
+
+    For calibration, where e is known and the chain's parameters are sought: (X, y), X of shape (m, 3)
+    with columns 1, phi_face and Duhamel(phi_face), each through the bead lag.
+    """
+    c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, T_probe0_C, fit_start_s)
+    phi = c.phiA - _apply(c.KB, c.theta)
+    X = _lag(np.column_stack((np.ones_like(c.t), phi, duhamel_apply(phi, c.dt))), c.dt, calibration.tc_tau_s)
+    return X[c.fit], c.y[c.fit]
+
+
 def fit_sensor_chain(t_s, T_tc_C, q_m_W_m2, *, T_probe0_C: float | None = None,
                      calibration: SensorChainCalibration = SensorChainCalibration(),
                      fit_start_s: float = 0.3, noise_T_K: float = 0.01, n_iterations: int = 1) -> SensorChainResult:
@@ -183,7 +237,8 @@ def fit_sensor_chain(t_s, T_tc_C, q_m_W_m2, *, T_probe0_C: float | None = None,
     T_tc_C : array (n,)
         Thermocouple reading (probe side of the contact), degC.
     q_m_W_m2 : array (n,)
-        Thermopile reading (depth-averaged flux, positive into the object), W/m^2.
+        Thermopile reading (its voltage over the nominal sensitivity; positive into the object), W/m^2;
+        ``calibration.flux_scale`` turns it into the depth-averaged flux.
     T_probe0_C : float, optional
         Probe temperature at contact (default: the first thermocouple sample, which the bead lag
         still holds at the probe's temperature).
@@ -203,31 +258,11 @@ def fit_sensor_chain(t_s, T_tc_C, q_m_W_m2, *, T_probe0_C: float | None = None,
         bench's cached 1-D records this helped glass/HDPE and hurt PMMA at R_c 1e-4 and
         aluminium (mixed), so the default stays 1.
     """
-    t = np.asarray(t_s, dtype=np.float64)
-    T = np.asarray(T_tc_C, dtype=np.float64)
-    q = np.asarray(q_m_W_m2, dtype=np.float64)
-    if t.ndim != 1 or t.size < 8 or T.shape != t.shape or q.shape != t.shape:
-        raise ValueError("t_s, T_tc_C and q_m_W_m2 must be 1-D of one length >= 8")
-    dt = float(t[1] - t[0])
-    if not (dt > 0 and np.allclose(np.diff(t), dt, rtol=1e-6, atol=1e-9)):
-        raise ValueError("t_s must be uniform and increasing")
-    if not (np.all(np.isfinite(T)) and np.all(np.isfinite(q))):
-        raise ValueError("records must be finite")
-    cal = calibration
-    Tp0 = float(T[0]) if T_probe0_C is None else float(T_probe0_C)
-    KA, KB = _slab_kernels(t.size, dt, cal.sensing_thickness_m, cal.k_W_mK, cal.alpha_m2_s)
-    phiA = _apply(KA, q)
-    y = T - Tp0
-    fit = (t - t[0]) >= fit_start_s
-    # First pass: the measured thermocouple stands in for theta_b (the bead lag and noise only enter
-    # through the small storage term B; later passes use the fitted, noise-free theta_b).
-    theta = y.copy()
-    if cal.tc_tau_s > 0:
-        # The bead lags the junction: undo it (theta = y + tau dy/dt) for the storage term only.
-        theta = y + cal.tc_tau_s * np.gradient(y, dt)
-        theta[0] = 0.0
+    c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, T_probe0_C, fit_start_s)
+    t, y, fit, dt, Tp0, cal = c.t, c.y, c.fit, c.dt, c.Tp0, calibration
+    theta = c.theta
     for it in range(max(1, n_iterations)):
-        phi = phiA - _apply(KB, theta)
+        phi = c.phiA - _apply(c.KB, theta)
         X = np.column_stack((np.ones_like(t), phi, duhamel_apply(phi, dt)))
         Xl = _lag(X, dt, cal.tc_tau_s)
         Xf, yf = Xl[fit], y[fit]

@@ -34,6 +34,17 @@ from edge.physics.solids import Solid
 #: The datasheet value; a probe's own value comes from calibration.
 FLUX_SENSITIVITY_V_per_W_m2 = 0.56e-6
 
+# What an UNCALIBRATED probe knows about itself (1 sigma): the prior of calibration and the
+# uncertainty an uncalibrated measurement carries.  Thermopile films differ from their type
+# sensitivity by several per cent, laminated layers from their nominal thickness likewise, and a
+# bead's lag is not on any datasheet (0 assumed, tens of ms typical of fine wire under a film).
+#: Relative spread of the flux sensor's sensitivity around FLUX_SENSITIVITY_V_per_W_m2.
+FLUX_SENSITIVITY_U_REL = 0.05
+#: Relative spread of the sensing layer's effective thickness (thermopile to object).
+SENSING_THICKNESS_U_REL = 0.05
+#: Spread of the thermocouple's bead time constant around 0 (s).
+THERMOCOUPLE_TAU_U_s = 0.05
+
 
 def heater_power_W(duty: float, supply_voltage_V: float, resistance_ohm: float) -> float:
     """Mean electrical power (W) at PWM duty ``duty`` (0..1): ``d * V**2 / R``.

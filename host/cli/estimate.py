@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from host.cli.args import existing_file, positive_float
+from host.cli.calibrate import calibration_file
 from host.cli.common import load_estimator, load_object_set
 from host.cli.errors import CliError
 from host.cli.report import dumps, print_result
@@ -36,6 +37,10 @@ def add_parser(sub, parents):
     p.add_argument("--objects", metavar="OBJECTS.csv", type=existing_file, default=None,
                    help="name the object among your own (columns name, class, k_W_mK, rho_kg_m3, c_J_kgK or "
                         "e_W_s05_m2K, optional spread_rel; default: every library material)")
+    p.add_argument("--calibration", metavar="CAL.json", type=calibration_file, default=None,
+                   help="paper probe: fit e, the contact resistance and the object's temperature from the moment "
+                        "of contact through this calibration's sensor chain (from `thermotouch calibrate`); the "
+                        "record should start before contact. Without it results are flagged 'uncalibrated'")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
 
@@ -50,6 +55,13 @@ def run(args) -> int:
         # The paper's network was trained on the paper's probe; the small heater has one method.
         raise CliError(f"--method is for the paper probe; --probe {args.probe} uses the axisymmetric fit")
     method = args.method or "default"
+    if args.calibration is not None:
+        if args.probe != "paper" or args.calibration.probe != args.probe:
+            # The small heater's axisymmetric fit has no sensor-chain model yet: refuse, never ignore.
+            raise CliError(f"--calibration is for the paper probe's sensor chain (calibration for "
+                           f"{args.calibration.probe!r}, --probe {args.probe})")
+        if args.method is not None or args.thickness is not None:
+            raise CliError("--calibration fits a thick object from contact; it does not combine with --method or --thickness")
     # The object file is checked before the record: a bad file is the user's to fix first.
     if args.objects is not None:
         objects, _ = load_object_set(args.objects)
@@ -64,6 +76,8 @@ def run(args) -> int:
     if recorded is not None and recorded != args.probe:
         # A record estimated with another probe's geometry gives confident nonsense: refuse.
         raise CliError(f"--csv {args.csv} was taken with probe {recorded!r}, not --probe {args.probe}")
+    if args.calibration is not None:
+        return _run_chain(args, objects, set_name)
     est, _ = load_estimator(args.bundle, method)
     back = "infinite" if args.thickness is None else (args.back or "insulated")
     try:
@@ -75,9 +89,51 @@ def run(args) -> int:
             d = AxiEstimator(est, args.probe).estimate(t, dT, q, thickness_m=args.thickness, back=back)
     except ValueError as exc:
         raise CliError(str(exc)) from None
+    # No calibration: the datasheet chain -- say so on every result (ISSUE #10 §4).
+    d["flags"] = list(dict.fromkeys(list(d.get("flags") or []) + ["uncalibrated"]))
     d.update(recognition_fields(objects, d, set_name=set_name))
     if args.json:
         print(dumps(d))
     else:
         print_result(d)
     return 0
+
+
+def _run_chain(args, objects, set_name) -> int:
+    """``--calibration``: the sensor-chain estimate from contact (:mod:`edge.estimation.chain_estimate`)."""
+    from edge.estimation.chain_estimate import estimate_from_contact  # noqa: PLC0415
+    from edge.estimation.objects import recognition_fields  # noqa: PLC0415
+    from host.records import RecordError, read_series, uniform_series  # noqa: PLC0415
+
+    try:
+        s = read_series(args.csv)
+        t, T, q = uniform_series(s["t_s"], s["T"], s["q_W_m2"], path=args.csv)
+    except RecordError as exc:
+        raise CliError(f"--csv {exc}") from None
+    try:
+        d = estimate_from_contact(t, T, q, args.calibration)
+    except ValueError as exc:
+        raise CliError(f"--csv {args.csv}: {exc}") from None
+    d["method"] = "sensor_chain"
+    if d.get("effusivity_W_s05_m2K") is not None:
+        d.update(recognition_fields(objects, d, set_name=set_name))
+    if args.json:
+        print(dumps(d))
+    else:
+        _print_chain(d)
+    return 0 if d.get("effusivity_W_s05_m2K") is not None else 1
+
+
+def _print_chain(d: dict) -> None:
+    if d.get("effusivity_W_s05_m2K") is None:
+        print(f"no estimate: {', '.join(d['flags'])}")
+        return
+    e, u = d["effusivity_W_s05_m2K"], d["effusivity_W_s05_m2K_u"]
+    print(f"e      {e:.1f} +- {u:.1f} W s^0.5/m^2/K  ({u / e:.1%}, k = 1)")
+    print(f"R_c    {d['contact_resistance_m2K_W']:.2e} +- {d['contact_resistance_m2K_W_u']:.1e} m^2 K/W")
+    print(f"T_obj0 {d['object_temperature0']:.3f} +- {d['object_temperature0_u']:.3f} (probe {d['probe_temperature0']:.3f})")
+    print(f"contact at t = {d['contact_t_s']:.3f} s ({'detected' if d['contact_detected'] else 'not seen'}), "
+          f"normalised residual {d['normalised_residual']:.2f}")
+    if d.get("object") is not None:
+        print(f"object {d['object']} ({d['object_posterior']:.2f}), class {d['class']}")
+    print(f"flags  {', '.join(d['flags']) or '-'}")

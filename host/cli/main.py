@@ -14,7 +14,7 @@ import logging
 import os
 import sys
 
-from host.cli import (deploy, demo, design, estimate, evaluate, flash, history, info, keys, measure, model, objects,
+from host.cli import (calibrate, deploy, demo, design, estimate, evaluate, flash, history, info, keys, measure, model, objects,
                        sim, train)
 from host.cli.args import Parser, check_outputs
 from host.blas import limit_blas_threads
@@ -23,7 +23,8 @@ from host.cli.errors import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_RUNTIME, CliE
 __all__ = ["VERBS", "build_parser", "main", "version"]
 
 #: One module per verb, in the order of ``thermotouch --help``.
-VERBS = (measure, info, history, flash, objects, sim, demo, deploy, keys, model, design, train, evaluate, estimate)
+VERBS = (measure, info, history, flash, objects, sim, demo, deploy, keys, model, design, train, evaluate, estimate,
+         calibrate)
 
 #: Loggers of this code base (the edge daemon and simulator log under ``thermotouch``).
 _LOGGERS = ("thermotouch", "host", "edge", "firmware_sim")

@@ -1,0 +1,187 @@
+"""Calibrating the sensor chain on touches of reference materials (ISSUE #10 §4).
+
+Model.  Every reference touch j of material m obeys the sensor chain of
+:mod:`edge.estimation.sensor_chain` from its contact on, with its own object
+temperature and contact resistance (nuisances, solved linearly by variable
+projection) and the material's effusivity e_m.  The probe's parameters
+theta = (ln flux_scale, ln sensing depth, bead lag) are shared by all
+touches.  Unknowns: theta and ln e_m.  Priors: ln e_m around the library's
+value with the reference's stated uncertainty (:data:`REFERENCE_U_REL`), and
+theta around the datasheet with the as-delivered spreads
+(:meth:`ProbeCalibration.nominal`): a parameter the references cannot
+resolve keeps its datasheet spread instead of wandering.
+
+Weights.  Each touch's residuals are scaled by its own residual level: the
+rms residual of an unconstrained chain fit on it, inflated for the
+residuals' lag-1 autocorrelation (as in the estimator).
+
+Solution.  Levenberg-Marquardt on the stacked, weighted residuals, Jacobian
+by forward differences (3 + M columns, each a few sub-millisecond fits).
+Covariance of theta: the theta block of (J^T J)^-1 at the solution.
+
+Transfer floor.  The calibrated chain then re-measures every reference
+touch with e free; the mean square of its relative errors less what each
+touch's stated noise and the reference's own uncertainty explain, scaled by
+n / (n - p) for the p = 3 parameters the same touches fixed, is stored as
+``u_rel_floor``: the part of the real probe the chain does not describe,
+added to every later measurement.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from datetime import datetime, timezone
+
+import numpy as np
+
+from edge.calibration.model import CalibrationError, ProbeCalibration, ReferenceFit
+from edge.estimation.contact import find_contact
+from edge.estimation.sensor_chain import chain_design, fit_sensor_chain
+
+__all__ = ["DEFAULT_REFERENCES", "REFERENCE_U_REL", "ReferenceTouch", "fit_calibration"]
+
+#: The references a user is walked through by default (one polymer, one ceramic, one metal).
+DEFAULT_REFERENCES = ("pmma", "pyroceram", "aisi_304")
+#: Relative standard uncertainty of a reference's effusivity.  Pyroceram 9606 and AISI 304 are
+#: certified thermal-conductivity references (about 2 %); PMMA is a well-characterised polymer whose
+#: grades differ by a few per cent.  Any other library material: a handbook value (5 %).
+REFERENCE_U_REL = {"pmma": 0.03, "pyroceram": 0.02, "aisi_304": 0.02}
+OTHER_REFERENCE_U_REL = 0.05
+FIT_START_s = 0.3
+_STEPS = (1e-4, 1e-4, 1e-3)
+_MAX_ITER = 30
+
+
+@dataclass(frozen=True)
+class ReferenceTouch:
+    """One touch of a reference material, on the device's clock (0 at heater-on).
+
+    ``T_C`` is the absolute thermocouple temperature, ``q_W_m2`` the flux-sensor voltage over its
+    nominal sensitivity.  The record should start with the probe in air (see
+    :func:`edge.estimation.contact.find_contact`).
+    """
+
+    name: str
+    e_W_s05_m2K: float
+    t_s: np.ndarray
+    T_C: np.ndarray
+    q_W_m2: np.ndarray
+
+    @property
+    def u_rel_e(self) -> float:
+        return REFERENCE_U_REL.get(self.name, OTHER_REFERENCE_U_REL)
+
+
+def _from_contact(touch: ReferenceTouch):
+    t, T, q = (np.asarray(x, dtype=np.float64) for x in (touch.t_s, touch.T_C, touch.q_W_m2))
+    c = find_contact(t, T, q)
+    i = c.index
+    return t[i:] - t[i], T[i:], q[i:]
+
+
+def fit_calibration(touches: list[ReferenceTouch], *, probe: str = "paper",
+                    created_utc: str | None = None) -> ProbeCalibration:
+    """Fit the probe's chain to reference touches; see the module docstring.
+
+    Raises
+    ------
+    CalibrationError
+        Fewer than two reference materials, a record too short, or a fit that does not converge.
+    """
+    names = sorted({tc.name for tc in touches})
+    if len(names) < 2:
+        raise CalibrationError(f"need touches of at least two reference materials, got {names or 'none'}")
+    prior = ProbeCalibration.nominal(probe)
+    th0 = prior.theta
+    u_th0 = prior.u_theta
+    segs = []
+    for tc in touches:
+        tt, TT, qq = _from_contact(tc)
+        if tt.size < 16:
+            raise CalibrationError(f"reference {tc.name}: record too short after contact ({tt.size} samples)")
+        r = fit_sensor_chain(tt, TT, qq, calibration=prior.chain, fit_start_s=FIT_START_s)
+        X, y = chain_design(tt, TT, qq, prior.chain, fit_start_s=FIT_START_s)
+        res = y - X @ np.linalg.lstsq(X, y, rcond=None)[0]
+        rho = float(np.clip((res[1:] @ res[:-1]) / max(float(res @ res), 1e-300), 0.0, 0.95))
+        w = 1.0 / max(r.rms_residual_K * math.sqrt((1 + rho) / (1 - rho)), 1e-6)
+        segs.append((tc, tt, TT, qq, w))
+    m_index = {n: i for i, n in enumerate(names)}
+    e_lib = {}
+    for tc in touches:
+        e_lib.setdefault(tc.name, tc.e_W_s05_m2K)
+        if not math.isclose(e_lib[tc.name], tc.e_W_s05_m2K, rel_tol=1e-12):
+            raise CalibrationError(f"reference {tc.name}: touches disagree on its effusivity")
+    ln_e0 = np.array([math.log(e_lib[n]) for n in names])
+    u_ln_e = np.array([next(tc.u_rel_e for tc in touches if tc.name == n) for n in names])
+
+    def residuals(p: np.ndarray) -> np.ndarray:
+        th, ln_e = p[:3], p[3:]
+        chain = prior.chain_at(th)
+        out = []
+        for tc, tt, TT, qq, w in segs:
+            X, y = chain_design(tt, TT, qq, chain, fit_start_s=FIT_START_s)
+            y2 = y - X[:, 2] * math.exp(-ln_e[m_index[tc.name]])
+            beta = np.linalg.lstsq(X[:, :2], y2, rcond=None)[0]
+            out.append(w * (y2 - X[:, :2] @ beta))
+        out.append((th - th0) / u_th0)
+        out.append((ln_e - ln_e0) / u_ln_e)
+        return np.concatenate(out)
+
+    steps = np.array(list(_STEPS) + [1e-4] * len(names))
+    p = np.concatenate([th0, ln_e0])
+    r = residuals(p)
+    cost = float(r @ r)
+    lam = 1e-3
+
+    def jac(p: np.ndarray, r: np.ndarray) -> np.ndarray:
+        J = np.empty((r.size, p.size))
+        for j in range(p.size):
+            pj = p.copy()
+            pj[j] += steps[j]
+            J[:, j] = (residuals(pj) - r) / steps[j]
+        return J
+
+    J = jac(p, r)
+    for _ in range(_MAX_ITER):
+        A = J.T @ J
+        g = J.T @ r
+        improved = False
+        for _ in range(10):
+            delta = np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), -g)
+            p_new = p + delta
+            p_new[2] = max(p_new[2], 0.0)   # a bead cannot lead its junction
+            r_new = residuals(p_new)
+            c_new = float(r_new @ r_new)
+            if c_new < cost:
+                improved = True
+                break
+            lam *= 10.0
+        if not improved:
+            break
+        done = cost - c_new < 1e-10 * max(cost, 1.0)
+        p, r, cost = p_new, r_new, c_new
+        lam = max(lam / 10.0, 1e-9)
+        J = jac(p, r)
+        if done:
+            break
+    if not np.all(np.isfinite(p)):
+        raise CalibrationError("the fit did not converge (non-finite parameters)")
+    cov = np.linalg.pinv(J.T @ J)[:3, :3]
+    cov = 0.5 * (cov + cov.T)
+    fitted = ProbeCalibration(probe=probe, chain=prior.chain_at(p[:3]), covariance=cov, calibrated=True)
+    # Transfer floor: re-measure each reference with e free.
+    rel: dict[str, list[float]] = {n: [] for n in names}
+    excess = []
+    for tc, tt, TT, qq, _ in segs:
+        rr = fit_sensor_chain(tt, TT, qq, calibration=fitted.chain, fit_start_s=FIT_START_s)
+        d = rr.e_W_s05_m2K / e_lib[tc.name] - 1.0
+        rel[tc.name].append(d)
+        # What noise (the touch's own stated u) and the reference's own uncertainty do not explain.
+        excess.append(d * d - (rr.u_e_W_s05_m2K / rr.e_W_s05_m2K) ** 2 - tc.u_rel_e**2)
+    n = len(excess)
+    floor = float(math.sqrt(max(float(np.mean(excess)), 0.0) * n / max(n - 3, 1)))
+    refs = tuple(ReferenceFit(nm, e_lib[nm], float(u_ln_e[m_index[nm]]), len(rel[nm]), tuple(rel[nm])) for nm in names)
+    stamp = created_utc or datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    return ProbeCalibration(probe=probe, chain=fitted.chain, covariance=cov, u_rel_floor=min(floor, 1.0),
+                            calibrated=True, created_utc=stamp, references=refs)

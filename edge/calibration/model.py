@@ -1,0 +1,234 @@
+"""A probe's calibration: its sensor chain's parameters, their covariance, and how well it transfers.
+
+ISSUE #10 §4.  The sensor-chain estimator (:mod:`edge.estimation.sensor_chain`)
+needs three things the datasheet gets wrong on a real probe: the thermopile's
+sensitivity (as ``flux_scale`` = nominal / true), the effective depth of the
+sensing layer between the thermopile and the object, and the thermocouple's
+bead lag.  A :class:`ProbeCalibration` holds them as the parameter vector
+``theta = (ln flux_scale, ln sensing_thickness_m, tc_tau_s)`` with a 3 x 3
+covariance, so every measurement can carry their uncertainty; plus
+``u_rel_floor``, the relative scatter of e that remained on the reference
+touches after calibration (what the chain model does not describe: a floor
+added to every measurement's u(e)).
+
+An uncalibrated probe is :meth:`ProbeCalibration.nominal`: datasheet values
+with the as-delivered spreads of :mod:`edge.physics.probe` as covariance,
+``calibrated = False`` (measurements are flagged ``uncalibrated``).
+
+On disk a calibration is one JSON object (:meth:`to_json`), versioned
+(``format``, ``schema_version``) and checked on load field by field with
+:mod:`edge.schema`; its identity is the SHA-256 of its canonical JSON
+(:attr:`ProbeCalibration.sha256`), which a stored file repeats and which
+measurements record.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from edge.estimation.sensor_chain import SensorChainCalibration
+from edge.physics.geometry import PROBES
+from edge.physics.probe import FLUX_SENSITIVITY_U_REL, SENSING_THICKNESS_U_REL, THERMOCOUPLE_TAU_U_s
+from edge.schema import Field, SchemaError, check_table
+
+__all__ = ["CalibrationError", "PARAMETERS", "ProbeCalibration", "ReferenceFit", "FORMAT", "SCHEMA_VERSION"]
+
+FORMAT = "thermotouch-calibration"
+SCHEMA_VERSION = 1
+#: Names of the calibrated parameter vector theta, in order.
+PARAMETERS = ("ln_flux_scale", "ln_sensing_thickness_m", "tc_tau_s")
+#: Largest calibration file accepted (bytes): a calibration is a few kB.
+MAX_BYTES = 65536
+
+
+class CalibrationError(ValueError):
+    """A calibration that cannot be used; the message names the field at fault."""
+
+
+@dataclass(frozen=True)
+class ReferenceFit:
+    """One reference material of a calibration and how the calibrated probe then read it."""
+
+    name: str
+    e_W_s05_m2K: float          # the library's value the calibration trusted
+    u_rel_e: float              # its stated relative standard uncertainty
+    n_touches: int
+    rel_errors: tuple[float, ...]   # (e measured with the calibration) / e - 1, per touch
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "e_W_s05_m2K": self.e_W_s05_m2K, "u_rel_e": self.u_rel_e,
+                "n_touches": self.n_touches, "rel_errors": list(self.rel_errors)}
+
+
+_REF_FIELDS = {
+    "name": Field("str", doc="library name", lo=1, hi=64),
+    "e_W_s05_m2K": Field("float", doc="reference effusivity", lo=0.0, lo_open=True),
+    "u_rel_e": Field("float", doc="its relative standard uncertainty", lo=0.0, hi=1.0),
+    "n_touches": Field("int", doc="touches of it", lo=1, hi=10000),
+    "rel_errors": Field("list_num", doc="calibrated e / reference e - 1 per touch", hi=10000),
+}
+_CHAIN_FIELDS = {
+    "sensing_thickness_m": Field("float", lo=1e-6, hi=0.01),
+    "k_W_mK": Field("float", lo=1e-3, hi=1e3),
+    "alpha_m2_s": Field("float", lo=1e-9, hi=1e-3),
+    "tc_tau_s": Field("float", lo=0.0, hi=10.0),
+    "flux_scale": Field("float", lo=0.1, hi=10.0),
+}
+_FIELDS = {
+    "format": Field("str", choices=(FORMAT,)),
+    "schema_version": Field("int", choices=(SCHEMA_VERSION,)),
+    "probe": Field("str", choices=tuple(PROBES)),
+    "calibrated": Field("bool"),
+    "created_utc": Field("str", hi=64),
+    "chain": Field("table"),
+    "parameters": Field("list_str", lo=3, hi=3),
+    "covariance": Field("list"),
+    "u_rel_floor": Field("float", lo=0.0, hi=1.0),
+    "references": Field("list", hi=64),
+    "sha256": Field("sha256", default=None),
+}
+
+
+@dataclass(frozen=True)
+class ProbeCalibration:
+    """The sensor chain of one probe, with uncertainties.
+
+    Attributes
+    ----------
+    probe : str
+        Probe head (a name in :data:`edge.physics.geometry.PROBES`).
+    chain : SensorChainCalibration
+        Values the estimator uses.
+    covariance : ndarray (3, 3)
+        Covariance of theta = (ln flux_scale, ln sensing_thickness_m, tc_tau_s).
+    u_rel_floor : float
+        Relative standard uncertainty added to every e (the scatter left on the references).
+    calibrated : bool
+        False for the datasheet probe (:meth:`nominal`).
+    created_utc : str
+    references : tuple of ReferenceFit
+    """
+
+    probe: str
+    chain: SensorChainCalibration
+    covariance: np.ndarray
+    u_rel_floor: float = 0.0
+    calibrated: bool = False
+    created_utc: str = ""
+    references: tuple[ReferenceFit, ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        if self.probe not in PROBES:
+            raise CalibrationError(f"probe: unknown probe {self.probe!r}; known: {', '.join(PROBES)}")
+        cov = np.array(self.covariance, dtype=np.float64)
+        if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
+            raise CalibrationError("covariance: must be a finite 3 x 3 matrix")
+        if not np.allclose(cov, cov.T, rtol=1e-9, atol=1e-300):
+            raise CalibrationError("covariance: must be symmetric")
+        if np.any(np.linalg.eigvalsh(0.5 * (cov + cov.T)) < -1e-12 * max(1e-300, float(np.max(np.abs(cov))))):
+            raise CalibrationError("covariance: must be positive semi-definite")
+        cov.flags.writeable = False
+        object.__setattr__(self, "covariance", cov)
+        if not (0.0 <= self.u_rel_floor <= 1.0 and math.isfinite(self.u_rel_floor)):
+            raise CalibrationError(f"u_rel_floor: must be in [0, 1], got {self.u_rel_floor!r}")
+
+    @classmethod
+    def nominal(cls, probe: str = "paper") -> "ProbeCalibration":
+        """The uncalibrated probe: datasheet values, as-delivered spreads as covariance."""
+        cov = np.diag([FLUX_SENSITIVITY_U_REL**2, SENSING_THICKNESS_U_REL**2, THERMOCOUPLE_TAU_U_s**2])
+        return cls(probe=probe, chain=SensorChainCalibration(), covariance=cov, calibrated=False)
+
+    @property
+    def theta(self) -> np.ndarray:
+        """(ln flux_scale, ln sensing_thickness_m, tc_tau_s)."""
+        c = self.chain
+        return np.array([math.log(c.flux_scale), math.log(c.sensing_thickness_m), c.tc_tau_s])
+
+    def chain_at(self, theta) -> SensorChainCalibration:
+        """The chain with parameters ``theta`` (a bead lag below 0 is 0: it cannot lead)."""
+        th = np.asarray(theta, dtype=np.float64)
+        return replace(self.chain, flux_scale=float(math.exp(th[0])), sensing_thickness_m=float(math.exp(th[1])),
+                       tc_tau_s=float(max(th[2], 0.0)))
+
+    @property
+    def u_theta(self) -> np.ndarray:
+        """Standard uncertainties of theta."""
+        return np.sqrt(np.diag(self.covariance))
+
+    # -- storage ---------------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        c = self.chain
+        return {
+            "format": FORMAT, "schema_version": SCHEMA_VERSION, "probe": self.probe,
+            "calibrated": bool(self.calibrated), "created_utc": self.created_utc,
+            "chain": {"sensing_thickness_m": c.sensing_thickness_m, "k_W_mK": c.k_W_mK,
+                      "alpha_m2_s": c.alpha_m2_s, "tc_tau_s": c.tc_tau_s, "flux_scale": c.flux_scale},
+            "parameters": list(PARAMETERS),
+            "covariance": [[float(x) for x in row] for row in self.covariance],
+            "u_rel_floor": float(self.u_rel_floor),
+            "references": [r.to_dict() for r in self.references],
+        }
+
+    @property
+    def sha256(self) -> str:
+        """Identity: SHA-256 of the canonical JSON of :meth:`to_dict`."""
+        return hashlib.sha256(_canonical(self.to_dict())).hexdigest()
+
+    def to_json(self) -> str:
+        """The file's text: the fields and their ``sha256``."""
+        d = self.to_dict()
+        d["sha256"] = self.sha256
+        return json.dumps(d, indent=1, sort_keys=True) + "\n"
+
+    @classmethod
+    def from_json(cls, data: bytes | str) -> "ProbeCalibration":
+        """Parse and check a calibration file's content. Raises :class:`CalibrationError`."""
+        if isinstance(data, str):
+            data = data.encode("utf-8")
+        if len(data) > MAX_BYTES:
+            raise CalibrationError(f"too large ({len(data)} bytes; a calibration is at most {MAX_BYTES})")
+        try:
+            d = json.loads(data.decode("utf-8-sig"))
+        except UnicodeDecodeError as exc:
+            raise CalibrationError(f"not UTF-8 text (byte {exc.start})") from None
+        except json.JSONDecodeError as exc:
+            raise CalibrationError(f"not JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})") from None
+        try:
+            top = check_table(d, _FIELDS)
+            chain = check_table(top["chain"], _CHAIN_FIELDS, "chain")
+            if tuple(top["parameters"]) != PARAMETERS:
+                raise SchemaError("parameters", f"must be {list(PARAMETERS)}")
+            refs = []
+            for i, r in enumerate(top["references"]):
+                rr = check_table(r, _REF_FIELDS, f"references[{i}]")
+                if any(x is None for x in rr["rel_errors"]):
+                    raise SchemaError(f"references[{i}].rel_errors", "must be numbers")
+                refs.append(ReferenceFit(rr["name"], rr["e_W_s05_m2K"], rr["u_rel_e"], rr["n_touches"],
+                                         tuple(float(x) for x in rr["rel_errors"])))
+        except SchemaError as exc:
+            raise CalibrationError(str(exc)) from None
+        cov = top["covariance"]
+        if not (isinstance(cov, list) and len(cov) == 3 and all(isinstance(r, list) and len(r) == 3 for r in cov)
+                and all(isinstance(x, (int, float)) and not isinstance(x, bool) for r in cov for x in r)):
+            raise CalibrationError("covariance: must be a 3 x 3 list of numbers")
+        try:
+            cal = cls(probe=top["probe"], chain=SensorChainCalibration(**chain), covariance=np.array(cov, float),
+                      u_rel_floor=top["u_rel_floor"], calibrated=top["calibrated"],
+                      created_utc=top["created_utc"], references=tuple(refs))
+        except CalibrationError:
+            raise
+        except ValueError as exc:
+            raise CalibrationError(f"chain: {exc}") from None
+        if top.get("sha256") is not None and top["sha256"] != cal.sha256:
+            raise CalibrationError("sha256: does not match the content (the file was changed or damaged)")
+        return cal
+
+
+def _canonical(d: dict[str, Any]) -> bytes:
+    return json.dumps(d, sort_keys=True, separators=(",", ":")).encode("utf-8")

@@ -1,0 +1,129 @@
+"""Where a touch begins: the contact instant found in a record that starts with the probe in air.
+
+ISSUE #10 §2.  The flux-driven relation of :mod:`edge.estimation.sensor_chain`
+holds from the moment of contact, whatever the probe did before, provided
+the probe was settled in air at that moment.  So the record must start in
+air and the contact must be found in it.  In air the thermopile reads about
+zero: natural convection moves a few W/m^2 per kelvin of excess. The
+thermocouple drifts slowly.  At contact with an object at another
+temperature both step.  With an object at the probe's temperature nothing
+steps, and nothing needs to: the probe and the object are then one uniform
+body until the heater starts, so heater-on is as good an origin as the true
+contact.
+
+The noise is measured on the record itself: the first ``quiet_s`` seconds,
+with the median absolute deviation of the first differences (robust to a
+slow drift).  Contact is the first sample, before heater-on, where the
+flux leaves that baseline, or the temperature jumps from one sample to the
+next, by ``n_sigma`` noise widths plus a floor (``q_floor_W_m2``,
+``T_floor_K``): the floors keep the convective drift of a probe cooling in
+air from counting as a touch.  The
+origin is the sample before it.  The true instant lies within one sample
+period before the detected sample, and the fit does not weight the first
+``fit_start_s`` after the origin.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Contact", "find_contact"]
+
+#: Flux step (W/m^2) below which a change is not a contact.  Convection from a
+#: probe 1 K above the room is ~5 W/m^2; a 0.5 K difference to foam (e ~ 40)
+#: gives ~20 W/m^2 after 0.5 s.
+Q_FLOOR_W_m2 = 8.0
+#: Temperature step (K) below which a change is not a contact, for the same reason.
+T_FLOOR_K = 0.03
+
+
+@dataclass(frozen=True)
+class Contact:
+    """Where the fit's clock starts.
+
+    Attributes
+    ----------
+    index : int
+        Sample taken as the contact instant (the last sample in air).
+    t_s : float
+        Its time on the record's clock (0 at heater-on).
+    detected : bool
+        A step was seen before heater-on.  False: none was seen, and the origin is the last
+        sample at or before heater-on (an object at the probe's temperature) -- or the record
+        has no samples in air.
+    recorded_in_air : bool
+        The record starts with the probe in air (at least ``quiet_s`` of quiet samples).
+        False: the touch began before the record, and the fit cannot start at contact.
+    noise_T_K, noise_q_W_m2 : float
+        Noise measured on the samples in air (NaN without them).
+    """
+
+    index: int
+    t_s: float
+    detected: bool
+    recorded_in_air: bool
+    noise_T_K: float
+    noise_q_W_m2: float
+
+
+def _noise(x: np.ndarray) -> float:
+    """Noise sigma from the first differences (MAD, robust to a drift and to one spike)."""
+    d = np.diff(x)
+    if d.size < 2:
+        return float("nan")
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
+
+
+def find_contact(t_s, T_C, q_W_m2, *, quiet_s: float = 0.3, n_sigma: float = 6.0,
+                 q_floor_W_m2: float = Q_FLOOR_W_m2, T_floor_K: float = T_FLOOR_K) -> Contact:
+    """Find the contact instant of a record whose clock has heater-on at 0.
+
+    Parameters
+    ----------
+    t_s : array (n,)
+        Increasing times, s (0 at heater-on; negative before).
+    T_C : array (n,)
+        Thermocouple, degC (or K: only differences are used).
+    q_W_m2 : array (n,)
+        Flux-sensor reading, W/m^2.
+    quiet_s : float
+        Length of the baseline at the start of the record that must be in air, s.
+    n_sigma : float
+        Detection threshold in noise widths (above the floors).
+
+    Returns
+    -------
+    Contact
+    """
+    t = np.asarray(t_s, dtype=np.float64)
+    T = np.asarray(T_C, dtype=np.float64)
+    q = np.asarray(q_W_m2, dtype=np.float64)
+    if t.ndim != 1 or T.shape != t.shape or q.shape != t.shape or t.size < 2:
+        raise ValueError("t_s, T_C and q_W_m2 must be 1-D of one length >= 2")
+    pre = np.nonzero(t <= 0.0)[0]
+    i_on = int(pre[-1]) if pre.size else 0
+    base = np.nonzero(t <= t[0] + quiet_s)[0]
+    if pre.size < 4 or base.size < 4 or base[-1] >= i_on:
+        # Nothing (or too little) before heater-on to call "air": the record starts in contact or at heater-on.
+        return Contact(i_on, float(t[i_on]), False, False, float("nan"), float("nan"))
+    sT, sq = _noise(T[:i_on + 1]), _noise(q[:i_on + 1])
+    T0, q0 = float(np.median(T[base])), float(np.median(q[base]))
+    thr_T = n_sigma * sT + T_floor_K
+    thr_q = n_sigma * sq + q_floor_W_m2
+    # The baseline itself must be quiet: a record that starts during a contact transient is not in air.
+    in_air = bool(np.all(np.abs(q[base] - q0) <= thr_q) and abs(float(q0)) <= thr_q
+                  and np.all(np.abs(T[base] - T0) <= thr_T))
+    if not in_air:
+        return Contact(0, float(t[0]), False, False, sT, sq)
+    # Temperature: a jump between consecutive samples, not a distance from the baseline (a probe
+    # cooling in air after the last touch drifts by more than the floor in a few seconds).
+    jump = np.abs(np.diff(T[:i_on + 1], prepend=T[0])) > math.sqrt(2.0) * n_sigma * sT + T_floor_K
+    out = (np.abs(q[:i_on + 1] - q0) > thr_q) | jump
+    hit = np.nonzero(out)[0]
+    if hit.size == 0:
+        return Contact(i_on, float(t[i_on]), False, True, sT, sq)
+    i = max(int(hit[0]) - 1, 0)
+    return Contact(i, float(t[i]), True, True, sT, sq)
