@@ -4,7 +4,7 @@ Model.  Every reference touch j of material m obeys the sensor chain of
 :mod:`edge.estimation.sensor_chain` from its contact on, with its own object
 temperature and contact resistance (nuisances, solved linearly by variable
 projection) and the material's effusivity e_m.  The probe's parameters
-theta = (ln flux_scale, ln sensing depth, bead lag) are shared by all
+theta = (ln flux_scale, ln sensing depth, bead lag, ln sensing-layer k) are shared by all
 touches.  Unknowns: theta and ln e_m.  Priors: ln e_m around the library's
 value with the reference's stated uncertainty (:data:`REFERENCE_U_REL`), and
 theta around the datasheet with the as-delivered spreads
@@ -16,13 +16,13 @@ rms residual of an unconstrained chain fit on it, inflated for the
 residuals' lag-1 autocorrelation (as in the estimator).
 
 Solution.  Levenberg-Marquardt on the stacked, weighted residuals, Jacobian
-by forward differences (3 + M columns, each a few sub-millisecond fits).
+by forward differences (4 + M columns, each a few sub-millisecond fits).
 Covariance of theta: the theta block of (J^T J)^-1 at the solution.
 
 Transfer floor.  The calibrated chain then re-measures every reference
 touch with e free; the mean square of its relative errors less what each
-touch's stated noise and the reference's own uncertainty explain, scaled by
-n / (n - p) for the p = 3 parameters the same touches fixed, is stored as
+touch's stated noise explains, scaled by
+n / (n - p) for the p = 4 parameters the same touches fixed, is stored as
 ``u_rel_floor``: the part of the real probe the chain does not describe,
 added to every later measurement.
 """
@@ -35,7 +35,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from edge.calibration.model import CalibrationError, ProbeCalibration, ReferenceFit
+from edge.calibration.model import N_PARAMETERS as NP, CalibrationError, ProbeCalibration, ReferenceFit
 from edge.estimation.contact import find_contact
 from edge.estimation.sensor_chain import chain_design, fit_sensor_chain
 
@@ -49,7 +49,7 @@ DEFAULT_REFERENCES = ("pmma", "pyroceram", "aisi_304")
 REFERENCE_U_REL = {"pmma": 0.03, "pyroceram": 0.02, "aisi_304": 0.02}
 OTHER_REFERENCE_U_REL = 0.05
 FIT_START_s = 0.3
-_STEPS = (1e-4, 1e-4, 1e-3)
+_STEPS = (1e-4, 1e-4, 1e-3, 1e-4)
 _MAX_ITER = 30
 
 
@@ -74,10 +74,11 @@ class ReferenceTouch:
 
 
 def _from_contact(touch: ReferenceTouch):
+    """(t from contact, T, q, breaks): the record from its contact on, and where the heater switched on."""
     t, T, q = (np.asarray(x, dtype=np.float64) for x in (touch.t_s, touch.T_C, touch.q_W_m2))
     c = find_contact(t, T, q)
     i = c.index
-    return t[i:] - t[i], T[i:], q[i:]
+    return t[i:] - t[i], T[i:], q[i:], ((-float(t[i]),) if t[i] < 0 else ())
 
 
 def fit_calibration(touches: list[ReferenceTouch], *, probe: str = "paper",
@@ -97,15 +98,15 @@ def fit_calibration(touches: list[ReferenceTouch], *, probe: str = "paper",
     u_th0 = prior.u_theta
     segs = []
     for tc in touches:
-        tt, TT, qq = _from_contact(tc)
+        tt, TT, qq, br = _from_contact(tc)
         if tt.size < 16:
             raise CalibrationError(f"reference {tc.name}: record too short after contact ({tt.size} samples)")
-        r = fit_sensor_chain(tt, TT, qq, calibration=prior.chain, fit_start_s=FIT_START_s)
-        X, y = chain_design(tt, TT, qq, prior.chain, fit_start_s=FIT_START_s)
+        r = fit_sensor_chain(tt, TT, qq, calibration=prior.chain, fit_start_s=FIT_START_s, breaks_s=br)
+        X, y = chain_design(tt, TT, qq, prior.chain, fit_start_s=FIT_START_s, breaks_s=br)
         res = y - X @ np.linalg.lstsq(X, y, rcond=None)[0]
         rho = float(np.clip((res[1:] @ res[:-1]) / max(float(res @ res), 1e-300), 0.0, 0.95))
         w = 1.0 / max(r.rms_residual_K * math.sqrt((1 + rho) / (1 - rho)), 1e-6)
-        segs.append((tc, tt, TT, qq, w))
+        segs.append((tc, tt, TT, qq, w, br))
     m_index = {n: i for i, n in enumerate(names)}
     e_lib = {}
     for tc in touches:
@@ -116,11 +117,11 @@ def fit_calibration(touches: list[ReferenceTouch], *, probe: str = "paper",
     u_ln_e = np.array([next(tc.u_rel_e for tc in touches if tc.name == n) for n in names])
 
     def residuals(p: np.ndarray) -> np.ndarray:
-        th, ln_e = p[:3], p[3:]
+        th, ln_e = p[:NP], p[NP:]
         chain = prior.chain_at(th)
         out = []
-        for tc, tt, TT, qq, w in segs:
-            X, y = chain_design(tt, TT, qq, chain, fit_start_s=FIT_START_s)
+        for tc, tt, TT, qq, w, br in segs:
+            X, y = chain_design(tt, TT, qq, chain, fit_start_s=FIT_START_s, breaks_s=br)
             y2 = y - X[:, 2] * math.exp(-ln_e[m_index[tc.name]])
             beta = np.linalg.lstsq(X[:, :2], y2, rcond=None)[0]
             out.append(w * (y2 - X[:, :2] @ beta))
@@ -167,20 +168,21 @@ def fit_calibration(touches: list[ReferenceTouch], *, probe: str = "paper",
             break
     if not np.all(np.isfinite(p)):
         raise CalibrationError("the fit did not converge (non-finite parameters)")
-    cov = np.linalg.pinv(J.T @ J)[:3, :3]
+    cov = np.linalg.pinv(J.T @ J)[:NP, :NP]
     cov = 0.5 * (cov + cov.T)
-    fitted = ProbeCalibration(probe=probe, chain=prior.chain_at(p[:3]), covariance=cov, calibrated=True)
+    fitted = ProbeCalibration(probe=probe, chain=prior.chain_at(p[:NP]), covariance=cov, calibrated=True)
     # Transfer floor: re-measure each reference with e free.
     rel: dict[str, list[float]] = {n: [] for n in names}
     excess = []
-    for tc, tt, TT, qq, _ in segs:
-        rr = fit_sensor_chain(tt, TT, qq, calibration=fitted.chain, fit_start_s=FIT_START_s)
+    for tc, tt, TT, qq, _, br in segs:
+        rr = fit_sensor_chain(tt, TT, qq, calibration=fitted.chain, fit_start_s=FIT_START_s, breaks_s=br)
         d = rr.e_W_s05_m2K / e_lib[tc.name] - 1.0
         rel[tc.name].append(d)
-        # What noise (the touch's own stated u) and the reference's own uncertainty do not explain.
-        excess.append(d * d - (rr.u_e_W_s05_m2K / rr.e_W_s05_m2K) ** 2 - tc.u_rel_e**2)
+        # What the touch's own stated noise does not explain.  (The reference's own uncertainty is not
+        # subtracted: the fit pulled e_m toward these very touches, so it hides in them less, not more.)
+        excess.append(d * d - (rr.u_e_W_s05_m2K / rr.e_W_s05_m2K) ** 2)
     n = len(excess)
-    floor = float(math.sqrt(max(float(np.mean(excess)), 0.0) * n / max(n - 3, 1)))
+    floor = float(math.sqrt(max(float(np.mean(excess)), 0.0) * n / max(n - NP, 1)))
     refs = tuple(ReferenceFit(nm, e_lib[nm], float(u_ln_e[m_index[nm]]), len(rel[nm]), tuple(rel[nm])) for nm in names)
     stamp = created_utc or datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
     return ProbeCalibration(probe=probe, chain=fitted.chain, covariance=cov, u_rel_floor=min(floor, 1.0),

@@ -2,11 +2,13 @@
 
 ISSUE #10 §4.  The sensor-chain estimator (:mod:`edge.estimation.sensor_chain`)
 needs three things the datasheet gets wrong on a real probe: the thermopile's
-sensitivity (as ``flux_scale`` = nominal / true), the effective depth of the
-sensing layer between the thermopile and the object, and the thermocouple's
-bead lag.  A :class:`ProbeCalibration` holds them as the parameter vector
-``theta = (ln flux_scale, ln sensing_thickness_m, tc_tau_s)`` with a 3 x 3
-covariance, so every measurement can carry their uncertainty; plus
+sensitivity (as ``flux_scale`` = nominal / true), the effective depth and
+conductivity of the sensing layer between the thermopile and the object
+(its rho c kept nominal: the conductivity moves its effusivity, which sets
+how much heat the layer itself stores, the depth its delay), and the
+thermocouple's bead lag.  A :class:`ProbeCalibration` holds them as the
+parameter vector ``theta = (ln flux_scale, ln sensing_thickness_m,
+tc_tau_s, ln sensing_k_W_mK)`` with a 4 x 4 covariance, so every measurement can carry their uncertainty; plus
 ``u_rel_floor``, the relative scatter of e that remained on the reference
 touches after calibration (what the chain model does not describe: a floor
 added to every measurement's u(e)).
@@ -34,7 +36,8 @@ import numpy as np
 
 from edge.estimation.sensor_chain import SensorChainCalibration
 from edge.physics.geometry import PROBES
-from edge.physics.probe import FLUX_SENSITIVITY_U_REL, SENSING_THICKNESS_U_REL, THERMOCOUPLE_TAU_U_s
+from edge.physics.probe import (FLUX_SENSITIVITY_U_REL, SENSING_K_U_REL, SENSING_THICKNESS_U_REL,
+                               THERMOCOUPLE_TAU_U_s)
 from edge.schema import Field, SchemaError, check_table
 
 __all__ = ["CalibrationError", "PARAMETERS", "ProbeCalibration", "ReferenceFit", "FORMAT", "SCHEMA_VERSION"]
@@ -42,7 +45,8 @@ __all__ = ["CalibrationError", "PARAMETERS", "ProbeCalibration", "ReferenceFit",
 FORMAT = "thermotouch-calibration"
 SCHEMA_VERSION = 1
 #: Names of the calibrated parameter vector theta, in order.
-PARAMETERS = ("ln_flux_scale", "ln_sensing_thickness_m", "tc_tau_s")
+PARAMETERS = ("ln_flux_scale", "ln_sensing_thickness_m", "tc_tau_s", "ln_sensing_k_W_mK")
+N_PARAMETERS = len(PARAMETERS)
 #: Largest calibration file accepted (bytes): a calibration is a few kB.
 MAX_BYTES = 65536
 
@@ -87,7 +91,7 @@ _FIELDS = {
     "calibrated": Field("bool"),
     "created_utc": Field("str", hi=64),
     "chain": Field("table"),
-    "parameters": Field("list_str", lo=3, hi=3),
+    "parameters": Field("list_str", lo=4, hi=4),
     "covariance": Field("list"),
     "u_rel_floor": Field("float", lo=0.0, hi=1.0),
     "references": Field("list", hi=64),
@@ -95,7 +99,7 @@ _FIELDS = {
 }
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ProbeCalibration:
     """The sensor chain of one probe, with uncertainties.
 
@@ -105,8 +109,8 @@ class ProbeCalibration:
         Probe head (a name in :data:`edge.physics.geometry.PROBES`).
     chain : SensorChainCalibration
         Values the estimator uses.
-    covariance : ndarray (3, 3)
-        Covariance of theta = (ln flux_scale, ln sensing_thickness_m, tc_tau_s).
+    covariance : ndarray (4, 4)
+        Covariance of theta = (ln flux_scale, ln sensing_thickness_m, tc_tau_s, ln sensing_k_W_mK).
     u_rel_floor : float
         Relative standard uncertainty added to every e (the scatter left on the references).
     calibrated : bool
@@ -127,8 +131,8 @@ class ProbeCalibration:
         if self.probe not in PROBES:
             raise CalibrationError(f"probe: unknown probe {self.probe!r}; known: {', '.join(PROBES)}")
         cov = np.array(self.covariance, dtype=np.float64)
-        if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
-            raise CalibrationError("covariance: must be a finite 3 x 3 matrix")
+        if cov.shape != (N_PARAMETERS, N_PARAMETERS) or not np.all(np.isfinite(cov)):
+            raise CalibrationError(f"covariance: must be a finite {N_PARAMETERS} x {N_PARAMETERS} matrix")
         if not np.allclose(cov, cov.T, rtol=1e-9, atol=1e-300):
             raise CalibrationError("covariance: must be symmetric")
         if np.any(np.linalg.eigvalsh(0.5 * (cov + cov.T)) < -1e-12 * max(1e-300, float(np.max(np.abs(cov))))):
@@ -138,23 +142,33 @@ class ProbeCalibration:
         if not (0.0 <= self.u_rel_floor <= 1.0 and math.isfinite(self.u_rel_floor)):
             raise CalibrationError(f"u_rel_floor: must be in [0, 1], got {self.u_rel_floor!r}")
 
+    def __eq__(self, other: object) -> bool:
+        # Two calibrations are the same when their files would be (the covariance is an array).
+        return isinstance(other, ProbeCalibration) and other.sha256 == self.sha256
+
+    def __hash__(self) -> int:
+        return hash(self.sha256)
+
     @classmethod
     def nominal(cls, probe: str = "paper") -> "ProbeCalibration":
         """The uncalibrated probe: datasheet values, as-delivered spreads as covariance."""
-        cov = np.diag([FLUX_SENSITIVITY_U_REL**2, SENSING_THICKNESS_U_REL**2, THERMOCOUPLE_TAU_U_s**2])
+        cov = np.diag([FLUX_SENSITIVITY_U_REL**2, SENSING_THICKNESS_U_REL**2, THERMOCOUPLE_TAU_U_s**2,
+                       SENSING_K_U_REL**2])
         return cls(probe=probe, chain=SensorChainCalibration(), covariance=cov, calibrated=False)
 
     @property
     def theta(self) -> np.ndarray:
-        """(ln flux_scale, ln sensing_thickness_m, tc_tau_s)."""
+        """(ln flux_scale, ln sensing_thickness_m, tc_tau_s, ln sensing_k_W_mK)."""
         c = self.chain
-        return np.array([math.log(c.flux_scale), math.log(c.sensing_thickness_m), c.tc_tau_s])
+        return np.array([math.log(c.flux_scale), math.log(c.sensing_thickness_m), c.tc_tau_s, math.log(c.k_W_mK)])
 
     def chain_at(self, theta) -> SensorChainCalibration:
-        """The chain with parameters ``theta`` (a bead lag below 0 is 0: it cannot lead)."""
+        """The chain with parameters ``theta`` (a bead lag below 0 is 0: it cannot lead; rho c is kept)."""
         th = np.asarray(theta, dtype=np.float64)
+        k = float(math.exp(th[3]))
+        rho_c = self.chain.k_W_mK / self.chain.alpha_m2_s
         return replace(self.chain, flux_scale=float(math.exp(th[0])), sensing_thickness_m=float(math.exp(th[1])),
-                       tc_tau_s=float(max(th[2], 0.0)))
+                       tc_tau_s=float(max(th[2], 0.0)), k_W_mK=k, alpha_m2_s=k / rho_c)
 
     @property
     def u_theta(self) -> np.ndarray:
@@ -214,9 +228,10 @@ class ProbeCalibration:
         except SchemaError as exc:
             raise CalibrationError(str(exc)) from None
         cov = top["covariance"]
-        if not (isinstance(cov, list) and len(cov) == 3 and all(isinstance(r, list) and len(r) == 3 for r in cov)
+        n = N_PARAMETERS
+        if not (isinstance(cov, list) and len(cov) == n and all(isinstance(r, list) and len(r) == n for r in cov)
                 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for r in cov for x in r)):
-            raise CalibrationError("covariance: must be a 3 x 3 list of numbers")
+            raise CalibrationError(f"covariance: must be a {n} x {n} list of numbers")
         try:
             cal = cls(probe=top["probe"], chain=SensorChainCalibration(**chain), covariance=np.array(cov, float),
                       u_rel_floor=top["u_rel_floor"], calibrated=top["calibrated"],

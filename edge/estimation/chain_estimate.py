@@ -9,14 +9,20 @@ the quadrature sum of
 
 * the fit's own (noise and residual) part;
 * the calibration's part: the covariance of theta (flux scale, sensing
-  depth, bead lag) pushed through the fit by finite differences (three
-  more fits; the perturbed kernels are cached) -- for R_c and T_obj0 too;
+  depth, bead lag, layer conductivity) pushed through the fit by finite
+  differences (four more fits; the perturbed kernels are cached) -- for R_c and T_obj0 too;
 * the calibration's transfer floor (the scatter left on its references);
 * without a contact recorded in air, the change of e between fitting from
   0.3 s and from 1.0 s after the record's start (the probe's state at the
-  record's start is not the uniform one the model assumes).
+  record's start is not the uniform one the model assumes);
+* the lateral loss of a finite heater, bracketed: e between the 1-D fit
+  and the fit of a uniform disk on a half-space
+  (:func:`edge.estimation.sensor_chain._disk_kernel`, the object's alpha
+  from the library's prior given e), half their log-distance as u, on the
+  fit window that states the least u.
 
 Flags: ``uncalibrated`` (the datasheet chain), ``contact_not_recorded``,
+``lateral_spread`` (the lateral correction moved e by more than 10 %),
 ``poor_fit`` (normalised residual above :data:`POOR_FIT`), ``no_contact``
 (no flux into anything).
 """
@@ -24,6 +30,7 @@ Flags: ``uncalibrated`` (the datasheet chain), ``contact_not_recorded``,
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -31,6 +38,7 @@ import numpy as np
 from edge.calibration.model import ProbeCalibration
 from edge.estimation.contact import find_contact
 from edge.estimation.sensor_chain import fit_sensor_chain
+from edge.physics.geometry import PROBES
 
 __all__ = ["estimate_from_contact", "POOR_FIT", "FIT_START_s"]
 
@@ -38,13 +46,46 @@ __all__ = ["estimate_from_contact", "POOR_FIT", "FIT_START_s"]
 POOR_FIT = 5.0
 #: Samples this long after contact are modelled but not weighted (the contact's first instants).
 FIT_START_s = 0.3
+#: A contact resistance whose standard uncertainty exceeds this (m^2K/W) was not determined by the
+#: touch: it spans the whole range of a dry contact.  Typical of low-effusivity objects, where R_c q is
+#: far below the noise and R_c only soaks up what the chain does not describe.
+R_C_RESOLVED_m2K_W = 3e-5
 #: Stated thermocouple noise when the record has no samples in air to measure it on (precision board).
 DEFAULT_NOISE_T_K = 0.01
-#: Finite-difference steps of theta = (ln flux_scale, ln depth, tau) for the calibration's part of u(e).
-_STEPS = (1e-3, 1e-3, 2e-3)
+#: Finite-difference steps of theta = (ln flux_scale, ln depth, tau, ln layer k) for the calibration's part of u(e).
+_STEPS = (1e-3, 1e-3, 2e-3, 1e-3)
 
 
-def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None = None) -> dict[str, Any]:
+#: Passes of the lateral-loss correction (e -> alpha from the prior -> e); the third changes e by < 0.1 %.
+DISK_PASSES = 3
+#: A lateral correction of e beyond this (relative) is flagged ``lateral_spread``.
+LATERAL_FLAG = 0.10
+#: Candidate fit windows after heater-on (s) for a finite heater (see estimate_from_contact).
+LATERAL_WINDOWS_s = (1.0, 2.0, 4.0, 8.0, math.inf)
+
+
+@lru_cache(maxsize=1)
+def _library():
+    """The material library as a prior on rho c given e (the same prior the default estimator uses)."""
+    from edge.estimation.estimate import DEFAULT_PRIOR_COEF  # noqa: PLC0415
+    from edge.estimation.identification import Library  # noqa: PLC0415
+    from edge.physics.materials import load_materials  # noqa: PLC0415
+
+    mats = list(load_materials())
+    s = [m.solid for m in mats]
+    return Library([x.effusivity_W_s05_m2K for x in s], [x.k_W_mK for x in s], [x.rho_c_J_m3K for x in s],
+                   [m.name for m in mats], [m.cls for m in mats], kernel_floor_ln=DEFAULT_PRIOR_COEF[0],
+                   rho_c_intrinsic_ln=DEFAULT_PRIOR_COEF[1], material_spread_ln=DEFAULT_PRIOR_COEF[2])
+
+
+def alpha_prior(e: float, u_ln_e: float = 0.02) -> tuple[float, float]:
+    """ln(alpha) mean and standard deviation of an object of effusivity e (alpha = (e / rho c)^2)."""
+    m, sd, _ = _library().prior_rho_c(e, u_ln_e)
+    return 2.0 * math.log(e) - 2.0 * m, 2.0 * sd
+
+
+def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None = None, *,
+                          heater_radius_m: float | None = None) -> dict[str, Any]:
     """e, R_c and T_obj0 of one touch, with their uncertainties, flags and the fit's quality.
 
     Parameters
@@ -57,6 +98,11 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
         Flux-sensor voltage over its nominal sensitivity, W/m^2.
     calibration : ProbeCalibration, optional
         Default: the uncalibrated datasheet probe (flagged).
+    heater_radius_m : float, optional
+        Radius of the heated disk (default: the calibration's probe's); ``math.inf`` for 1-D.  The
+        object loses heat sideways from a finite disk; the loss depends on the object's alpha, which
+        one touch does not give (only e): alpha comes from the library's prior given e, its width
+        goes into u(e) (``u_e_parts["lateral"]``).
 
     Returns
     -------
@@ -78,48 +124,102 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
         raise ValueError(f"record too short after contact ({tt[-1]:.2f} s from t = {t[i0]:.2f} s)")
     noise_T = c.noise_T_K if math.isfinite(c.noise_T_K) and c.noise_T_K > 0 else DEFAULT_NOISE_T_K
     noise_T = max(noise_T, 1e-4)   # a converter's step is never below 0.1 mK: keep the ratio finite
-    r = fit_sensor_chain(tt, TT, qq, calibration=cal.chain, fit_start_s=FIT_START_s, noise_T_K=noise_T)
-    if not (math.isfinite(r.e_W_s05_m2K) and r.e_W_s05_m2K > 0):
+    # The heater switched on at t = 0 of the record's clock: theta_b's slope jumps there.
+    breaks = (-float(t[i0]),) if t[i0] < 0 else ()
+    a = PROBES[cal.probe].heater_radius_m if heater_radius_m is None else float(heater_radius_m)
+
+    def fit(chain, disk, start=FIT_START_s):
+        return fit_sensor_chain(tt, TT, qq, calibration=chain, fit_start_s=start, noise_T_K=noise_T,
+                                breaks_s=breaks, disk=disk)
+
+    def bad(x) -> bool:
+        return not (math.isfinite(x.e_W_s05_m2K) and x.e_W_s05_m2K > 0)
+
+    r1d = r = fit(cal.chain, None)
+    disk = None
+    u_lat = 0.0
+    e_lat = None
+    if not bad(r) and math.isfinite(a):
+        # Lateral loss lies between two bounds: 1-D (none: e too high) and a uniform disk on a
+        # half-space (all of it: e too low on a finite block, whose sides stop the spread; -20..-50 %
+        # on metals after 10 s on the FaithfulWorld).  The estimate is their geometric mean, with half
+        # their log-distance as its standard uncertainty; the fit window (heater-on + 1, 2, 4, 8 s or
+        # the whole record) is the one whose stated u -- noise and bracket together -- is least.
+        full = (tt, TT, qq)
+        t_heat = -float(t[i0]) if t[i0] < 0 else 0.0
+        best = None
+        for extra in LATERAL_WINDOWS_s:
+            n_keep = int(np.searchsorted(full[0], t_heat + extra, side="right"))
+            if n_keep < 16 or (best is not None and n_keep >= full[0].size and extra != math.inf):
+                continue
+            tt, TT, qq = (x[:n_keep] for x in full)
+            c1 = fit(cal.chain, None)
+            cd = c1
+            for _ in range(DISK_PASSES):
+                if bad(cd):
+                    break
+                ln_a, _sd = alpha_prior(cd.e_W_s05_m2K)
+                dk = (a, math.exp(ln_a))
+                cd = fit(cal.chain, dk)
+            if bad(c1) or bad(cd):
+                continue
+            span = abs(math.log(c1.e_W_s05_m2K / cd.e_W_s05_m2K)) / 2.0
+            u_tot = math.hypot(cd.u_e_W_s05_m2K / cd.e_W_s05_m2K, span)
+            if best is None or u_tot < best[0]:
+                best = (u_tot, n_keep, c1, cd, dk, span)
+        if best is not None:
+            _, n_keep, r1d, r, disk, u_lat = best
+            tt, TT, qq = (x[:n_keep] for x in full)
+            e_lat = math.sqrt(r1d.e_W_s05_m2K * r.e_W_s05_m2K)
+        else:
+            tt, TT, qq = full
+    if bad(r):
         return {"flags": flags + ["no_fit"], "effusivity_W_s05_m2K": None, "effusivity_W_s05_m2K_u": None,
                 "contact_t_s": float(t[i0]), "normalised_residual": r.normalised_residual,
                 "determined": [], "calibration_sha256": cal.sha256}
-    e = r.e_W_s05_m2K
+    e = r.e_W_s05_m2K if e_lat is None else e_lat
+    if 2.0 * u_lat > LATERAL_FLAG:
+        flags.append("lateral_spread")
     # Calibration's part: d ln e / d theta by finite differences, through the covariance.
     # The same for R_c and T_obj0: an error in the sensing depth trades directly with R_c (dL / k).
     th0 = cal.theta
-    G = np.zeros((3, 3))   # rows: ln e, R_c, T_obj0; columns: theta
+    G = np.zeros((3, th0.size))   # rows: ln e, R_c, T_obj0; columns: theta
     for j, h in enumerate(_STEPS):
         th = th0.copy()
         th[j] += h
-        rj = fit_sensor_chain(tt, TT, qq, calibration=cal.chain_at(th), fit_start_s=FIT_START_s, noise_T_K=noise_T)
+        rj = fit(cal.chain_at(th), disk)
         if rj.e_W_s05_m2K > 0 and math.isfinite(rj.e_W_s05_m2K):
-            G[0, j] = (math.log(rj.e_W_s05_m2K) - math.log(e)) / h
+            G[0, j] = (math.log(rj.e_W_s05_m2K) - math.log(r.e_W_s05_m2K)) / h
         G[1, j] = (rj.R_c_m2K_W - r.R_c_m2K_W) / h
         G[2, j] = (rj.T_obj0_C - r.T_obj0_C) / h
     var_cal = np.maximum(np.diag(G @ cal.covariance @ G.T), 0.0)
     u_cal = math.sqrt(float(var_cal[0]))
-    u_fit = r.u_e_W_s05_m2K / e
+    u_fit = r.u_e_W_s05_m2K / r.e_W_s05_m2K
     u_contact = 0.0
     if not c.recorded_in_air:
         flags.append("contact_not_recorded")
-        r_late = fit_sensor_chain(tt, TT, qq, calibration=cal.chain, fit_start_s=1.0, noise_T_K=noise_T)
+        r_late = fit(cal.chain, disk, 1.0)
         if r_late.e_W_s05_m2K > 0 and math.isfinite(r_late.e_W_s05_m2K):
-            u_contact = abs(math.log(r_late.e_W_s05_m2K / e))
-    u_rel = math.sqrt(u_fit**2 + u_cal**2 + cal.u_rel_floor**2 + u_contact**2)
+            u_contact = abs(math.log(r_late.e_W_s05_m2K / r.e_W_s05_m2K))
+    u_rel = math.sqrt(u_fit**2 + u_cal**2 + cal.u_rel_floor**2 + u_contact**2 + u_lat**2)
+    u_Rc = math.sqrt(r.u_R_c_m2K_W**2 + float(var_cal[1]))
     if r.normalised_residual > POOR_FIT:
         flags.append("poor_fit")
     return {
         "effusivity_W_s05_m2K": e,
         "effusivity_W_s05_m2K_u": e * u_rel,
-        "u_e_parts": {"fit": u_fit, "calibration": u_cal, "floor": cal.u_rel_floor, "contact": u_contact},
+        "u_e_parts": {"fit": u_fit, "calibration": u_cal, "floor": cal.u_rel_floor, "contact": u_contact,
+                      "lateral": u_lat},
+        "lateral_correction": (e / r1d.e_W_s05_m2K - 1.0) if disk is not None else 0.0,
+        "fit_end_t_s": float(t[i0] + tt[-1]),
         "contact_resistance_m2K_W": r.R_c_m2K_W,
-        "contact_resistance_m2K_W_u": math.sqrt(r.u_R_c_m2K_W**2 + float(var_cal[1])),
+        "contact_resistance_m2K_W_u": u_Rc,
         "object_temperature0": r.T_obj0_C,
         "object_temperature0_u": math.sqrt(r.u_T_obj0_C**2 + float(var_cal[2])),
         "probe_temperature0": float(TT[0]),
         "contact_t_s": float(t[i0]), "contact_detected": c.detected,
         "normalised_residual": r.normalised_residual, "noise_T_K": noise_T,
         "flags": flags,
-        "determined": ["e", "R_c", "T_obj0"],
+        "determined": ["e", "T_obj0"] + (["R_c"] if u_Rc <= R_C_RESOLVED_m2K_W else []),
         "calibration_sha256": cal.sha256, "probe": cal.probe,
     }

@@ -109,20 +109,28 @@ def find_contact(t_s, T_C, q_W_m2, *, quiet_s: float = 0.3, n_sigma: float = 6.0
     if pre.size < 4 or base.size < 4 or base[-1] >= i_on:
         # Nothing (or too little) before heater-on to call "air": the record starts in contact or at heater-on.
         return Contact(i_on, float(t[i_on]), False, False, float("nan"), float("nan"))
-    sT, sq = _noise(T[:i_on + 1]), _noise(q[:i_on + 1])
     T0, q0 = float(np.median(T[base])), float(np.median(q[base]))
-    thr_T = n_sigma * sT + T_floor_K
-    thr_q = n_sigma * sq + q_floor_W_m2
+
+    def detect(sT: float, sq: float):
+        thr_T, thr_q = n_sigma * sT + T_floor_K, n_sigma * sq + q_floor_W_m2
+        # Temperature: a jump between consecutive samples, not a distance from the baseline (a probe
+        # cooling in air after the last touch drifts by more than the floor in a few seconds).
+        jump = np.abs(np.diff(T[:i_on + 1], prepend=T[0])) > math.sqrt(2.0) * n_sigma * sT + T_floor_K
+        out = (np.abs(q[:i_on + 1] - q0) > thr_q) | jump
+        quiet = bool(np.all(np.abs(q[base] - q0) <= thr_q) and abs(q0) <= thr_q
+                     and np.all(np.abs(T[base] - T0) <= thr_T))
+        return np.nonzero(out)[0], quiet
+
+    # Noise first on everything before heater-on (MAD: robust to most of a contact transient), then
+    # again on the samples in air only, and the contact found again with it.
+    sT, sq = _noise(T[:i_on + 1]), _noise(q[:i_on + 1])
+    hit, in_air = detect(sT, sq)
+    if hit.size and hit[0] >= 4:
+        sT, sq = _noise(T[:hit[0]]), _noise(q[:hit[0]])
+        hit, in_air = detect(sT, sq)
     # The baseline itself must be quiet: a record that starts during a contact transient is not in air.
-    in_air = bool(np.all(np.abs(q[base] - q0) <= thr_q) and abs(float(q0)) <= thr_q
-                  and np.all(np.abs(T[base] - T0) <= thr_T))
     if not in_air:
         return Contact(0, float(t[0]), False, False, sT, sq)
-    # Temperature: a jump between consecutive samples, not a distance from the baseline (a probe
-    # cooling in air after the last touch drifts by more than the floor in a few seconds).
-    jump = np.abs(np.diff(T[:i_on + 1], prepend=T[0])) > math.sqrt(2.0) * n_sigma * sT + T_floor_K
-    out = (np.abs(q[:i_on + 1] - q0) > thr_q) | jump
-    hit = np.nonzero(out)[0]
     if hit.size == 0:
         return Contact(i_on, float(t[i_on]), False, True, sT, sq)
     i = max(int(hit[0]) - 1, 0)

@@ -42,6 +42,8 @@ FLUX_SENSITIVITY_V_per_W_m2 = 0.56e-6
 FLUX_SENSITIVITY_U_REL = 0.05
 #: Relative spread of the sensing layer's effective thickness (thermopile to object).
 SENSING_THICKNESS_U_REL = 0.05
+#: Relative spread of the sensing layer's conductivity (its rho c taken as nominal).
+SENSING_K_U_REL = 0.05
 #: Spread of the thermocouple's bead time constant around 0 (s).
 THERMOCOUPLE_TAU_U_s = 0.05
 

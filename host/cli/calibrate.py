@@ -31,7 +31,7 @@ def add_parser(sub, parents):
 
 
 def run(args) -> int:
-    from edge.calibration.fit import ReferenceTouch, fit_calibration  # noqa: PLC0415
+    from edge.calibration.fit import DEFAULT_REFERENCES, ReferenceTouch, fit_calibration  # noqa: PLC0415
     from edge.calibration.model import CalibrationError  # noqa: PLC0415
     from edge.physics.geometry import PROBES  # noqa: PLC0415
     from edge.physics.materials import load_materials  # noqa: PLC0415
@@ -49,7 +49,9 @@ def run(args) -> int:
         try:
             m = lib.get(name)
         except KeyError:
-            raise CliError(f"--reference {name!r} is not a library material (see `thermotouch info --materials`)") from None
+            close = [n for n in lib.names() if name.lower() in n][:5] if hasattr(lib, "names") else []
+            hint = f"; did you mean {', '.join(close)}?" if close else f"; defaults: {', '.join(DEFAULT_REFERENCES)}"
+            raise CliError(f"--reference {name!r} is not a library material{hint}") from None
         try:
             recorded = read_record_metadata(path).get("probe")
             s = read_series(path)
@@ -72,6 +74,7 @@ def run(args) -> int:
         print(f"calibration {cal.sha256[:12]} for probe {cal.probe} written to {args.out}")
         print(f"  flux sensor sensitivity  x {1.0 / c.flux_scale:.4f} of nominal  (u {u[0]:.1%})")
         print(f"  sensing depth            {c.sensing_thickness_m * 1e3:.4f} mm  (u {u[1]:.1%})")
+        print(f"  sensing layer k          {c.k_W_mK:.4f} W/m/K  (u {u[3]:.1%})")
         print(f"  thermocouple lag         {c.tc_tau_s * 1e3:.1f} ms  (u {u[2] * 1e3:.1f} ms)")
         print(f"  transfer floor on e      {cal.u_rel_floor:.1%}")
         for r in cal.references:

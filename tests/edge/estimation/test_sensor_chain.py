@@ -26,7 +26,10 @@ def test_self_consistent_chain_recovers_its_parameters():
     for e, rc, tau in ((1500.0, 1e-4, 0.0), (560.0, 3e-5, 0.1), (20000.0, 1e-4, 0.0)):
         cal = SensorChainCalibration(tc_tau_s=tau)
         T = simulate_chain(t, q, e_W_s05_m2K=e, R_c_m2K_W=rc, T_obj0_C=24.0, T_probe0_C=25.0, calibration=cal)
-        r = fit_sensor_chain(t, T, q, calibration=cal)
+        # Unsmoothed: the fit's model is then the simulator's exactly.
+        r = fit_sensor_chain(t, T, q, calibration=cal, smooth_s=0.0)
+        # The default smooths theta_b against noise, at a small cost on a noise-free record.
+        assert fit_sensor_chain(t, T, q, calibration=cal, breaks_s=(1.0,)).e_W_s05_m2K == pytest.approx(e, rel=5e-3)
         # Exact without lag; with it the de-lagged reading stands in for theta_b in the storage term.
         tol = 1e-6 if tau == 0 else 2e-2
         assert r.e_W_s05_m2K == pytest.approx(e, rel=tol)
@@ -38,7 +41,7 @@ def test_self_consistent_chain_recovers_its_parameters():
         # With noise the estimate is still within 2u.
         Tn = T + 0.01 * rng.standard_normal(t.size)
         qn = q + 0.5 * rng.standard_normal(t.size)
-        r = fit_sensor_chain(t, Tn, qn, calibration=cal)
+        r = fit_sensor_chain(t, Tn, qn, calibration=cal, breaks_s=(1.0,))
         assert abs(r.e_W_s05_m2K - e) < 2.5 * r.u_e_W_s05_m2K + tol * e
 
 
