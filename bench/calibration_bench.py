@@ -1,6 +1,6 @@
 """Calibration on reference materials, then e of unseen solids, on the faithful world (ISSUE #10 done-when).
 
-For each of three as-built probes (sensitivity, sensing-layer thickness and
+For each of eight as-built probes (sensitivity, sensing-layer thickness and
 conductivity, bead lag off their datasheet values; never told to the device):
 
 1. six reference touches (pmma, pyroceram, aisi_304; two each, R_c 0 / 1e-5,
@@ -15,8 +15,10 @@ conductivity, bead lag off their datasheet values; never told to the device):
    :func:`edge.estimation.chain_estimate.estimate_from_contact` measures them
    with the datasheet chain (flagged ``uncalibrated``) and with the calibration.
 
-Every touch heats ``--heat`` s (default 10) and is recorded at 20 Hz with
-precision-board noise (10 mK, 0.5 W/m^2).  Geometry: the world's 1-D limit
+Every touch heats ``--heat`` s (default 10) and is recorded as the board
+records it (:data:`firmware_sim.rigs.contact_record.BOARDS`): the precision
+board at 20 Hz with 10 mK / 0.5 W/m^2 noise, or (``--board reference``) the
+MCP9600 + ADS1115 at 12.5 Hz with their noise and 0.0625 K / 14 W/m^2 steps.  Geometry: the world's 1-D limit
 (``1d``: wide heater, no substrate, no convection) and the paper probe
 (``paper``: 55 x 60 mm heater on 30 mm PU foam, in air).  Reported per
 geometry and chain (datasheet / calibrated), split at R_c = 3e-5: median and
@@ -24,8 +26,9 @@ geometry and chain (datasheet / calibrated), split at R_c = 3e-5: median and
 flagged ``poor_fit`` is refused and counted apart), coverage of the stated 95 % interval
 (|error| <= 1.96 u), R_c inside its 95 % interval, share flagged.
 
-Run:  python bench/calibration_bench.py [--geometry 1d paper] [--heat 10] [--update-readme]
-Writes bench/results/calibration.json.
+Run:  python bench/calibration_bench.py [--geometry 1d paper] [--heat 10] [--board precision|reference]
+      [--probes 8] [--solids 20] [--update-readme]
+Writes bench/results/calibration.json (calibration_reference.json for the reference board); about 7 min.
 """
 
 from __future__ import annotations
@@ -45,8 +48,12 @@ REFERENCES = (("pmma", 0.0, -1.0), ("pmma", 1e-5, 1.0), ("pyroceram", 0.0, 1.0),
 SOLIDS = ("polystyrene_extruded_foam", "cork_board", "balsa", "oak_cross_grain", "ptfe", "hdpe", "natural_rubber_soft",
           "epdm", "n_bk7", "borofloat_33", "soda_lime_plate_glass", "macor", "zirconia_3y", "granite", "marble",
           "ti_6al_4v", "inconel_x750", "cartridge_brass", "aluminium", "copper")
-#: As-built probes: (flux sensitivity factor, sensing thickness factor, sensing k factor, bead lag s).
-PROBES = ((1.04, 1.06, 1.00, 0.06), (0.97, 0.95, 1.05, 0.02), (1.05, 1.02, 0.95, 0.10))
+#: As-built probes: (flux sensitivity factor, sensing thickness factor, sensing k factor, bead lag s),
+#: drawn once (seeded) within the as-delivered spreads the device assumes (edge.physics.probe).
+_PRNG = np.random.default_rng(20261124)
+PROBES = tuple((round(float(_PRNG.uniform(0.95, 1.05)), 3), round(float(_PRNG.uniform(0.94, 1.06)), 3),
+                round(float(_PRNG.uniform(0.95, 1.05)), 3), round(float(_PRNG.uniform(0.01, 0.12)), 3))
+               for _ in range(8))
 RC_SPLIT = 3e-5
 
 
@@ -68,6 +75,8 @@ def main() -> None:
     ap.add_argument("--geometry", nargs="+", choices=("1d", "paper"), default=["1d", "paper"])
     ap.add_argument("--heat", type=float, default=10.0, help="heating time of every touch, s")
     ap.add_argument("--solids", type=int, default=len(SOLIDS), help="first N of the 20 solids")
+    ap.add_argument("--probes", type=int, default=len(PROBES), help="first N of the 8 as-built probes")
+    ap.add_argument("--board", choices=("precision", "reference"), default="precision")
     ap.add_argument("--update-readme", action="store_true")
     args = ap.parse_args()
     from edge.calibration.fit import REFERENCE_U_REL, ReferenceTouch, fit_calibration
@@ -86,7 +95,7 @@ def main() -> None:
         geo = one_d_geometry() if geo_name == "1d" else geometry_for_probe("paper")
         # The estimator is told the geometry: the world's 1-D limit is an infinite disk.
         radius = math.inf if geo_name == "1d" else None
-        for pi, p in enumerate(PROBES):
+        for pi, p in enumerate(PROBES[:args.probes]):
             ab = _as_built(p)
             refs = []
             # This probe's reference specimens: real blocks of pmma, pyroceram, AISI 304 differ from the
@@ -100,7 +109,7 @@ def main() -> None:
                 specimen[name] = dataclasses.replace(s0, k_W_mK=s0.k_W_mK * f, rho_kg_m3=s0.rho_kg_m3 * f)
             for j, (name, rc, off) in enumerate(REFERENCES):
                 r = record_touch(ContactTouch(specimen[name], rc, off, lead_s=1.0, heat_s=args.heat), as_built=ab,
-                                 geometry=geo, seed=1000 * pi + j)
+                                 geometry=geo, seed=1000 * pi + j, board=args.board)
                 refs.append(ReferenceTouch(name, lib.get(name).solid.effusivity_W_s05_m2K, r["t_s"], r["T_C"],
                                            r["q_W_m2"]))
             cal = fit_calibration(refs, created_utc="bench")
@@ -111,7 +120,7 @@ def main() -> None:
                 rc, off, lead = draws[pi * len(SOLIDS) + si]
                 solid = lib.get(name).solid
                 r = record_touch(ContactTouch(solid, rc, off, lead_s=lead, heat_s=args.heat), as_built=ab,
-                                 geometry=geo, seed=2000 * pi + si)
+                                 geometry=geo, seed=2000 * pi + si, board=args.board)
                 for chain_name, c in (("datasheet", None), ("calibrated", cal)):
                     d = estimate_from_contact(r["t_s"], r["T_C"], r["q_W_m2"], c, heater_radius_m=radius)
                     e, u = d["effusivity_W_s05_m2K"], d["effusivity_W_s05_m2K_u"]
@@ -141,7 +150,7 @@ def main() -> None:
             "flagged_poor_fit": float(np.mean(["poor_fit" in x["flags"] for x in rs])),
         }
 
-    out = {"heat_s": args.heat, "probes": PROBES, "solids": SOLIDS[:args.solids], "calibrations": cals,
+    out = {"heat_s": args.heat, "board": args.board, "probes": PROBES[:args.probes], "solids": SOLIDS[:args.solids], "calibrations": cals,
            "summary": {}, "rows": rows, "wall_s": time.perf_counter() - t0}
     lines = [f"| geometry | chain | R_c | accepted / n | median \\|e error\\| | 90th pct | 95 % coverage | R_c determined | "
              "R_c in its 95 % (all / determined) | flagged uncalibrated |", "|---|---|---|---|---|---|---|---|---|---|"]
@@ -158,10 +167,13 @@ def main() -> None:
     table = "\n".join(lines)
     print(table)
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "calibration.json").write_text(json.dumps(out, indent=1, default=float))
+    suffix = "" if args.board == "precision" else f"_{args.board}"
+    (RESULTS / f"calibration{suffix}.json").write_text(json.dumps(out, indent=1, default=float))
     if args.update_readme:
-        update_readme("calibration-bench", table + f"\n\n{len(PROBES)} as-built probes x {args.solids} solids, "
-                      f"{args.heat:g}-s heating (`python bench/calibration_bench.py`).")
+        cmd = "python bench/calibration_bench.py" + ("" if args.board == "precision" else f" --board {args.board}")
+        update_readme(f"calibration-bench{suffix.replace('_', '-')}",
+                      f"{args.board.capitalize()} board: {args.probes} as-built probes x {args.solids} solids, "
+                      f"{args.heat:g}-s heating, {out['wall_s']:.0f} s wall (`{cmd} --update-readme`).\n\n" + table)
 
 
 if __name__ == "__main__":

@@ -129,19 +129,13 @@ def read_record(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def uniform_series(t_s: np.ndarray, *columns: np.ndarray, path: str | Path = "") -> tuple[np.ndarray, ...]:
-    """The columns on a uniform grid of the record's median step (linear interpolation).
+    """The columns on a uniform grid (:func:`edge.estimation.chain_estimate.uniform_record`), errors named by file."""
+    from edge.estimation.chain_estimate import uniform_record  # noqa: PLC0415
 
-    The sensor chain's kernels need a uniform grid; a record whose steps differ by more than half a
-    step somewhere (a gap) is refused rather than bridged.
-    """
-    d = np.diff(t_s)
-    dt = float(np.median(d))
-    if np.any(d > 1.5 * dt):
-        i = int(np.argmax(d > 1.5 * dt))
-        raise RecordError(f"{path}: a gap of {d[i]:.3g} s after t_s = {t_s[i]:.6g} (the step is {dt:.3g} s)")
-    n = int(math.floor((t_s[-1] - t_s[0]) / dt + 1e-9)) + 1
-    tu = t_s[0] + dt * np.arange(n)
-    return (tu,) + tuple(np.interp(tu, t_s, c) for c in columns)
+    try:
+        return uniform_record(t_s, *columns)
+    except ValueError as exc:
+        raise RecordError(f"{path}: {exc}") from None
 
 
 def write_record(path: str | Path, t_s, dT_K, q_W_m2, *, probe: str | None = None) -> None:

@@ -200,6 +200,12 @@ class ProbeCalibration:
         d["sha256"] = self.sha256
         return json.dumps(d, indent=1, sort_keys=True) + "\n"
 
+    def to_json_compact(self) -> str:
+        """The same content as :meth:`to_json` without whitespace (what travels over the link)."""
+        d = self.to_dict()
+        d["sha256"] = self.sha256
+        return json.dumps(d, sort_keys=True, separators=(",", ":"))
+
     @classmethod
     def from_json(cls, data: bytes | str) -> "ProbeCalibration":
         """Parse and check a calibration file's content. Raises :class:`CalibrationError`."""

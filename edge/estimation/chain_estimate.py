@@ -40,7 +40,7 @@ from edge.estimation.contact import find_contact
 from edge.estimation.sensor_chain import fit_sensor_chain
 from edge.physics.geometry import PROBES
 
-__all__ = ["estimate_from_contact", "POOR_FIT", "FIT_START_s"]
+__all__ = ["estimate_from_contact", "uniform_record", "alpha_prior", "POOR_FIT", "FIT_START_s"]
 
 #: Normalised residual (rms residual / noise measured in air) above which the chain does not describe the record.
 POOR_FIT = 5.0
@@ -84,6 +84,37 @@ def alpha_prior(e: float, u_ln_e: float = 0.02) -> tuple[float, float]:
     return 2.0 * math.log(e) - 2.0 * m, 2.0 * sd
 
 
+def uniform_record(t_s, *columns) -> tuple[np.ndarray, ...]:
+    """The columns on a uniform grid of the record's median step (linear interpolation).
+
+    The chain's kernels need a uniform grid; a device's samples jitter by a few ms.  A gap (a step
+    above 1.5 times the median) is refused rather than bridged.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 8 samples, times not increasing, non-finite values, or a gap.
+    """
+    t = np.asarray(t_s, dtype=np.float64)
+    cols = [np.asarray(c, dtype=np.float64) for c in columns]
+    if t.ndim != 1 or t.size < 8 or any(c.shape != t.shape for c in cols):
+        raise ValueError("the record needs at least 8 samples, every column as long as t_s")
+    if not (np.all(np.isfinite(t)) and all(np.all(np.isfinite(c)) for c in cols)):
+        raise ValueError("the record has non-finite values")
+    d = np.diff(t)
+    if np.any(d <= 0):
+        raise ValueError(f"times must increase (t_s = {t[int(np.argmax(d <= 0)) + 1]:.6g})")
+    dt = float(np.median(d))
+    if np.any(d > 1.5 * dt):
+        i = int(np.argmax(d > 1.5 * dt))
+        raise ValueError(f"a gap of {d[i]:.3g} s after t_s = {t[i]:.6g} (the step is {dt:.3g} s)")
+    if np.allclose(d, dt, rtol=1e-6, atol=1e-9):
+        return (t, *cols)
+    n = int(math.floor((t[-1] - t[0]) / dt + 1e-9)) + 1
+    tu = t[0] + dt * np.arange(n)
+    return (tu, *(np.interp(tu, t, c) for c in cols))
+
+
 def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None = None, *,
                           heater_radius_m: float | None = None) -> dict[str, Any]:
     """e, R_c and T_obj0 of one touch, with their uncertainties, flags and the fit's quality.
@@ -113,9 +144,7 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
         ``normalised_residual``, ``flags``, ``determined``, ``calibration_sha256``.
     """
     cal = ProbeCalibration.nominal() if calibration is None else calibration
-    t = np.asarray(t_s, dtype=np.float64)
-    T = np.asarray(T_C, dtype=np.float64)
-    q = np.asarray(q_W_m2, dtype=np.float64)
+    t, T, q = uniform_record(t_s, T_C, q_W_m2)
     c = find_contact(t, T, q)
     flags: list[str] = [] if cal.calibrated else ["uncalibrated"]
     i0 = c.index

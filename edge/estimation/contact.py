@@ -77,6 +77,18 @@ def _noise(x: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
 
 
+def _lsb(x: np.ndarray) -> float:
+    """The smallest step between samples (a converter's LSB when it shows; 0 for continuous noise)."""
+    d = np.abs(np.diff(x))
+    d = d[d > 1e-12]
+    if d.size < 3:
+        return 0.0
+    step = float(d.min())
+    # Continuous noise has small steps too: call it quantised only when most steps are multiples of it.
+    ratio = d / step
+    return step if float(np.mean(np.abs(ratio - np.round(ratio)) < 0.05)) > 0.9 else 0.0
+
+
 def find_contact(t_s, T_C, q_W_m2, *, quiet_s: float = 0.3, n_sigma: float = 6.0,
                  q_floor_W_m2: float = Q_FLOOR_W_m2, T_floor_K: float = T_FLOOR_K) -> Contact:
     """Find the contact instant of a record whose clock has heater-on at 0.
@@ -110,6 +122,12 @@ def find_contact(t_s, T_C, q_W_m2, *, quiet_s: float = 0.3, n_sigma: float = 6.0
         # Nothing (or too little) before heater-on to call "air": the record starts in contact or at heater-on.
         return Contact(i_on, float(t[i_on]), False, False, float("nan"), float("nan"))
     T0, q0 = float(np.median(T[base])), float(np.median(q[base]))
+
+    # A coarse converter (the MCP9600's 0.0625 K, the ADS1115's 14 W/m^2) flips an LSB now and then
+    # while its noise measures ~0 by MAD: two steps are added to the floors.
+    lsb_T, lsb_q = _lsb(T[:i_on + 1]), _lsb(q[:i_on + 1])
+    T_floor_K = T_floor_K + 2.0 * lsb_T
+    q_floor_W_m2 = q_floor_W_m2 + 2.0 * lsb_q
 
     def detect(sT: float, sq: float):
         thr_T, thr_q = n_sigma * sT + T_floor_K, n_sigma * sq + q_floor_W_m2

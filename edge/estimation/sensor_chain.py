@@ -360,10 +360,12 @@ def fit_sensor_chain(t_s, T_tc_C, q_m_W_m2, *, T_probe0_C: float | None = None,
     rho = float(np.clip((r[1:] @ r[:-1]) / max(r @ r, 1e-300), 0.0, 0.95))
     infl = (1.0 + rho) / (1.0 - rho)
     Xs = Xf / scale
-    cov_s = np.linalg.inv(Xs.T @ Xs) * s2 * infl
+    # pinv: a record without a contact step or without heating leaves a column (nearly) unused.
+    cov_s = np.linalg.pinv(Xs.T @ Xs) * s2 * infl
     cov = cov_s / np.outer(scale, scale)
     sd = np.sqrt(np.diag(cov))
-    corr = cov / np.outer(sd, sd)
+    sdd = np.outer(sd, sd)
+    corr = np.divide(cov, sdd, out=np.zeros_like(cov), where=sdd > 0)
     inv_e, u_inv_e = p[2], sd[2]
     e = 1.0 / inv_e if inv_e > 0 else float("inf")
     u_e = u_inv_e / inv_e**2 if inv_e > 0 else float("inf")

@@ -46,6 +46,8 @@ class Command(enum.IntEnum):
     OBJECTS_LIST = 0x24
     OBJECTS_REMOVE = 0x25
     OBJECTS_SELECT = 0x26
+    CALIBRATION_SET = 0x30
+    CALIBRATION_GET = 0x31
 
 
 class MsgType(enum.IntEnum):
@@ -89,6 +91,9 @@ class CommandSpec:
 
 _CONFIG_MAX_KEYS = 64
 _STR_MAX = 256
+#: Longest calibration text CALIBRATION_SET carries (a frame holds 4 kB; a calibration on three
+#: references with two touches each is about 1.3 kB of compact JSON).
+MAX_CALIBRATION_CHARS = 3500
 #: Values of SERIES ``which``: the raw samples or the resampled grid (estimator input).
 SERIES_KINDS = ("raw", "grid")
 #: Most samples one SERIES reply may carry (the payload bound usually allows fewer).
@@ -268,6 +273,25 @@ COMMANDS: dict[Command, CommandSpec] = {spec.command: spec for spec in (
         args=(arg("name", "str", required=True, lo=1, hi=64, doc="a stored set, or 'library'"),),
         reply=(arg("active", "str", required=True),),
         doc="Make a stored set (or the built-in library) the active one."),
+    CommandSpec(
+        Command.CALIBRATION_SET,
+        args=(arg("calibration", "str", required=True, lo=2, hi=MAX_CALIBRATION_CHARS,
+                  doc="the calibration file's text (thermotouch calibrate --out), compact JSON"),
+              arg("signature", "str", lo=1, hi=1024,
+                  doc="signature.json over the exact calibration bytes (UTF-8); required unless the device "
+                      "allows unsigned updates")),
+        reply=(arg("sha256", "str", required=True), arg("probe", "str", required=True),
+               arg("created_utc", "str", required=True)),
+        idempotent=False,
+        doc="Install the probe's calibration (verified, signed per the update policy, stored atomically); "
+            "every later measurement uses it and records its sha256."),
+    CommandSpec(
+        Command.CALIBRATION_GET,
+        reply=(arg("calibration", "str", required=True, nullable=True, doc="the installed file's text, or null"),
+               arg("sha256", "str", required=True, nullable=True),
+               arg("calibrated", "bool", required=True),
+               arg("signed_by", "str", nullable=True)),
+        doc="The installed calibration (null: none; measurements are flagged 'uncalibrated')."),
 )}
 
 

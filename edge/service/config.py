@@ -318,6 +318,9 @@ class PathsConfig:
     object_sets: str = setting(
         "str", "", "object-set store directory ('' = 'objects' beside the model store)"
     )
+    calibration: str = setting(
+        "str", "", "probe calibration store directory ('' = 'calibration' beside the model store)"
+    )
     runtime_overrides: str = setting(
         "str",
         "/var/lib/thermotouch/runtime.json",

@@ -90,6 +90,7 @@ from edge.protocol.messages import Request
 from edge.service.config import Config, ConfigError, RuntimeOverrides
 from edge.service.estimator import ModelEstimator
 from edge.service.notify import Notifier
+from edge.service.calibration import ProbeCalibrations
 from edge.service.objects import ObjectSets
 from edge.service.requests import config_reply, fit_record, history_page, measure_params, series_page
 from edge.service.upload import MAX_UPLOAD_BYTES, ModelUpload
@@ -284,6 +285,8 @@ class Daemon:
             self._measure_t0: float | None = None
             self._object_set_hook = object_set
             self.objects = ObjectSets(self._object_sets_root(), policy=self._update_policy())
+            self.calibration = ProbeCalibrations(self._calibration_root(), self.config.board.probe,
+                                                 self._update_policy())
             #: Idle readings of the probe for STATUS ``ready`` (settled probe temperature).
             self.readiness = Readiness()
             #: The link being served (set by :meth:`serve`; its ``replies_dropped`` counts replies a
@@ -312,6 +315,10 @@ class Daemon:
         p = self.config.paths
         # '' = beside the model store, so a configuration that predates object sets keeps them on the device.
         return Path(p.object_sets) if p.object_sets else Path(p.model_store).parent / "objects"
+
+    def _calibration_root(self) -> Path:
+        p = self.config.paths
+        return Path(p.calibration) if p.calibration else Path(p.model_store).parent / "calibration"
 
     def _update_policy(self) -> UpdatePolicy:
         """Who may update this device (models and object sets alike): ``[security]``."""
@@ -364,6 +371,11 @@ class Daemon:
         self._check_storage()
         self._store_unsaved()
         self._check_objects()
+        err = self.calibration.error()
+        if err:
+            self._set_fault("calibration", err)
+        else:
+            self._clear_fault("calibration")
         if self.estimator is self._model_est:
             try:
                 self.store.current()
@@ -550,7 +562,7 @@ class Daemon:
         return {"protocol_version": PROTOCOL_VERSION, "firmware_version": FIRMWARE_VERSION,
                 "model_version": st.get("model_version"), "model_sha256": st.get("sha256"),
                 "model_source": st.get("source"), "board": self.board.name, "faults": self.fault_list(),
-                "object_set": self._named_object_set()[0]}
+                "object_set": self._named_object_set()[0], **self.calibration.info()}
 
     def _cmd_status(self, args: dict) -> dict:
         try:
@@ -640,6 +652,7 @@ class Daemon:
                     log.critical("heater still on after the measurement: %s", e)
         self.measurements += 1
         self._idle_since = self.board.clock.monotonic()
+        self.calibration.apply(outcome)
         t_commit = time.perf_counter()
         mid = self._add_record(outcome.record(cfg.to_dict()))
         commit_s = time.perf_counter() - t_commit
@@ -779,6 +792,14 @@ class Daemon:
             return self.objects.select(args["name"])
         finally:
             self._check_objects()  # the set in use may have changed: say so now, not at the next re-check
+
+    def _cmd_calibration_set(self, args: dict) -> dict:
+        if self.measuring:
+            raise CommandError(ErrorCode.BUSY, "a measurement is running")
+        return self.calibration.install(args["calibration"], args.get("signature"))
+
+    def _cmd_calibration_get(self, args: dict) -> dict:
+        return self.calibration.get()
 
     def _cmd_model_begin(self, args: dict) -> dict:
         out = self.upload.begin(args["size"], args["sha256"], args.get("version"), bool(args.get("force", False)))

@@ -23,6 +23,15 @@ __all__ = ["ContactTouch", "record_touch", "one_d_geometry"]
 #: Precision-board noise of one sample: thermocouple (K) and flux reading (W/m^2).
 PRECISION_NOISE = (0.01, 0.5)
 
+#: Per board: sample period (s), noise (K, W/m^2) and converter step (K, W/m^2; 0: none).  The
+#: reference board's MCP9600 converts at 12.5 Hz and reports 0.0625 K steps; its EMF noise of 1 uV
+#: is 0.025 K of type K (40.7 uV/K); the ADS1115's 2 uV noise and 7.8 uV LSB (PGA +-0.256 V) over the
+#: thermopile's 0.56 uV per W/m^2 are 3.6 and 14 W/m^2 (the shipped scenes' [noise] values).
+BOARDS = {
+    "precision": (0.05, PRECISION_NOISE, (0.0, 0.0)),
+    "reference": (0.08, (0.025, 3.6), (0.0625, 14.0)),
+}
+
 
 @dataclass(frozen=True)
 class ContactTouch:
@@ -34,7 +43,7 @@ class ContactTouch:
     lead_s: float = 1.0                # contact before heater-on
     heat_s: float = 2.0
     tail_s: float = 0.0                # recorded after the heater stops
-    pre_s: float = 0.5                 # recorded in air before contact
+    pre_s: float = 1.0                 # recorded in air before contact
 
 
 def one_d_geometry():
@@ -46,12 +55,18 @@ def one_d_geometry():
 
 
 def record_touch(touch: ContactTouch, *, as_built=None, geometry=None, scene_name: str = "glass_15V",
-                 dt_s: float = 0.05, world_dt_s: float = 0.05, noise=PRECISION_NOISE,
+                 dt_s: float | None = None, world_dt_s: float = 0.05, noise=None, board: str = "precision",
                  seed: int | None = 0) -> dict[str, np.ndarray]:
     """Record one touch; returns ``t_s`` (0 at heater-on), ``T_C``, ``q_W_m2`` (the reading) and the truth.
 
-    ``noise=None`` or ``seed=None``: noise-free.
+    ``board`` (:data:`BOARDS`) sets the sample period, noise and converter steps unless ``dt_s`` /
+    ``noise`` are given.  ``seed=None``: noise-free and unquantised.
     """
+    if board not in BOARDS:
+        raise ValueError(f"board must be one of {', '.join(BOARDS)}, got {board!r}")
+    b_dt, b_noise, (lsb_T, lsb_q) = BOARDS[board]
+    dt_s = b_dt if dt_s is None else dt_s
+    noise = b_noise if noise is None else noise
     from firmware_sim.clock import VirtualClock
     from firmware_sim.rz.probe_world import AsBuilt, FaithfulWorld, geometry_for_probe
     from firmware_sim.scene.files import read_scene
@@ -77,10 +92,14 @@ def record_touch(touch: ContactTouch, *, as_built=None, geometry=None, scene_nam
     s = w.series(t_abs)
     q_read = s["q_sensor"] * (w.flux_sensitivity / sc.sensors.flux_sensitivity_V_per_W_m2)
     T = s["y"].copy()
-    if noise is not None and seed is not None:
+    if seed is not None:
         rng = np.random.default_rng(seed)
         T = T + noise[0] * rng.standard_normal(T.size)
         q_read = q_read + noise[1] * rng.standard_normal(q_read.size)
+        if lsb_T > 0:
+            T = np.floor(T / lsb_T) * lsb_T      # the MCP9600 truncates to its step
+        if lsb_q > 0:
+            q_read = np.round(q_read / lsb_q) * lsb_q
     return {"t_s": t_abs - t_on, "T_C": T, "q_W_m2": q_read, "e_true": touch.solid.effusivity_W_s05_m2K,
             "T_probe0_C": T_amb, "T_obj0_C": T_amb + touch.object_offset_K,
             "contact_t_s": t_contact - t_on, "R_c": touch.contact_resistance_m2K_W}

@@ -1,37 +1,194 @@
-"""``thermotouch calibrate``: the probe's sensor chain from touches of reference materials (offline form).
+"""``thermotouch calibrate``: the probe's sensor chain from touches of reference materials.
 
-``thermotouch calibrate --record A.csv --reference pmma --record B.csv --reference pyroceram --out CAL.json``
+Fit (offline)::
+
+    thermotouch calibrate --record A.csv --reference pmma --record B.csv --reference pyroceram --out CAL.json
+
 pairs each ``--record`` with the ``--reference`` that follows it (library names), fits the
-thermopile's sensitivity, the sensing layer's effective depth and the thermocouple's lag
-(:func:`edge.calibration.fit.fit_calibration`) and writes the calibration as JSON (atomically; an
-existing file only with ``--overwrite``).  ``thermotouch estimate --calibration CAL.json`` uses it.
-Records should start with the probe in air, before contact (see ``host/records.py``).
+thermopile's sensitivity, the sensing layer's effective depth and conductivity and the
+thermocouple's lag (:func:`edge.calibration.fit.fit_calibration`) and writes the calibration as
+JSON (atomically; an existing file only with ``--overwrite``).  ``thermotouch estimate
+--calibration CAL.json`` uses it.  Records should start with the probe in air, before contact (see
+``host/records.py``).
+
+On the probe (``--port PORT`` or ``--sim SCENE``)::
+
+    thermotouch calibrate --install CAL.json [--key SECRET.json]   # verified, signed, stored atomically
+    thermotouch calibrate --show                                     # the installed one, or none
+    thermotouch calibrate --check --reference pmma                   # touch a reference: does it still hold?
+
+With ``--out`` as well, ``--record``/``--reference`` fit and ``--port``/``--sim`` install in one go.
 """
 
 from __future__ import annotations
 
 import argparse
 
-from host.cli.args import add_output, existing_file
-from host.cli.errors import CliError
+from host.cli.args import add_device_args, add_output, existing_file
+from host.cli.common import device_session
+from host.cli.errors import EXIT_BAD_INPUT, EXIT_RUNTIME, CliError
+from host.cli.report import dumps
+
+#: Device refusals that are the user's input to fix (exit 2), as for object sets.
+_INPUT_CODES = ("BAD_ARGUMENT", "MODEL_REJECTED")
 
 
 def add_parser(sub, parents):
     p = sub.add_parser("calibrate", help="calibrate the probe on touches of reference materials (offline records)",
                        parents=parents)
-    p.add_argument("--record", action="append", type=existing_file, required=True, metavar="FILE.csv",
+    p.add_argument("--record", action="append", type=existing_file, default=[], metavar="FILE.csv",
                    help="a touch of a reference, recorded from before contact (repeat; one per --reference)")
-    p.add_argument("--reference", action="append", required=True, metavar="NAME",
+    p.add_argument("--reference", action="append", default=[], metavar="NAME",
                    help="library name of the material the preceding --record touched (default set: "
-                        "pmma, pyroceram, aisi_304; at least two different)")
+                        "pmma, pyroceram, aisi_304; at least two different); with --check, the one touched")
     p.add_argument("--probe", default="paper", help="probe head that took the records (default paper)")
-    add_output(p, "--out", required=True, suffixes=(".json",), metavar="CAL.json", help="calibration file to write")
-    p.add_argument("--json", action="store_true", help="print the calibration as JSON")
+    add_output(p, "--out", suffixes=(".json",), metavar="CAL.json", default=None,
+               help="calibration file to write (the fit)")
+    mode = p.add_mutually_exclusive_group()
+    mode.add_argument("--install", metavar="CAL.json", type=existing_file, default=None,
+                      help="install this calibration on the probe (--port or --sim)")
+    mode.add_argument("--show", action="store_true", help="show the probe's installed calibration")
+    mode.add_argument("--check", action="store_true",
+                      help="touch one --reference now and say whether the installed calibration still holds")
+    p.add_argument("--key", metavar="SECRET.json", type=existing_file, default=None,
+                   help="sign what is installed with this secret key (thermotouch keys new)")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    add_device_args(p, sim_help="start a simulated probe on SCENE (shipped name or .toml) for --install/--show/"
+                                "--check (keep it with --workdir)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from edge.calibration.fit import DEFAULT_REFERENCES, ReferenceTouch, fit_calibration  # noqa: PLC0415
+    on_device = args.install is not None or args.show or args.check
+    device = getattr(args, "port", None) is not None or getattr(args, "sim", None) is not None
+    if args.check:
+        if len(args.reference) != 1 or args.record:
+            raise CliError("--check touches one reference: give exactly one --reference (and no --record)")
+        return _run_check(args)
+    if args.show:
+        if args.record or args.reference or args.out is not None:
+            raise CliError("--show takes no --record, --reference or --out")
+        return _run_show(args)
+    if args.install is not None:
+        if args.record or args.reference or args.out is not None:
+            raise CliError("--install takes a calibration file; --record/--reference/--out are for the fit")
+        return _run_install(args, _read_calibration_file(args.install))
+    if not args.record:
+        raise CliError("give --record FILE --reference NAME pairs and --out CAL.json (the fit), or --install, "
+                       "--show or --check with --port/--sim")
+    if args.out is None:
+        raise CliError("the fit needs --out CAL.json (where the calibration is written)")
+    cal = _fit(args)
+    if device and not on_device:
+        # Fit and install in one go.
+        _run_install(args, cal)
+    return 0
+
+
+def _device_call(fn, *a, **kw):
+    from host.client import DeviceError  # noqa: PLC0415
+
+    try:
+        return fn(*a, **kw)
+    except DeviceError as exc:
+        code = EXIT_BAD_INPUT if exc.code.name in _INPUT_CODES else EXIT_RUNTIME
+        raise CliError(f"device refused: {exc.message}", code) from None
+
+
+def _read_calibration_file(path):
+    from edge.calibration.model import CalibrationError, ProbeCalibration  # noqa: PLC0415
+
+    try:
+        with open(path, "rb") as fh:
+            return ProbeCalibration.from_json(fh.read(1 << 20))
+    except OSError as exc:
+        raise CliError(f"--install {path}: cannot read ({exc.strerror})") from None
+    except CalibrationError as exc:
+        raise CliError(f"--install {path}: {exc}") from None
+
+
+def _run_install(args, cal) -> int:
+    from host.calibration import install_calibration  # noqa: PLC0415
+    from host.flash import load_signing_key  # noqa: PLC0415
+
+    key = load_signing_key(args.key)   # a bad key file is refused before any connection
+    with device_session(args) as session:
+        rep = _device_call(install_calibration, session.client, cal, key=key)
+    if args.json:
+        print(dumps(rep))
+    else:
+        print(f"calibration {rep['sha256'][:12]} (probe {rep['probe']}, {rep['created_utc']}) installed")
+    return 0
+
+
+def _run_show(args) -> int:
+    from host.calibration import read_calibration  # noqa: PLC0415
+
+    with device_session(args) as session:
+        cal, rep = _device_call(read_calibration, session.client)
+    if args.json:
+        print(dumps({"calibrated": rep["calibrated"], "sha256": rep["sha256"], "signed_by": rep.get("signed_by"),
+                     "calibration": None if cal is None else cal.to_dict()}))
+    elif cal is None:
+        print("no calibration installed: measurements are flagged 'uncalibrated'")
+    else:
+        signer = f"signed by {rep['signed_by']}" if rep.get("signed_by") else "unsigned"
+        print(f"calibration {cal.sha256[:12]} for probe {cal.probe}, {cal.created_utc}, {signer}")
+        _print_calibration(cal)
+    return 0
+
+
+def _run_check(args) -> int:
+    from edge.calibration.fit import REFERENCE_U_REL, OTHER_REFERENCE_U_REL  # noqa: PLC0415
+    from edge.physics.materials import load_materials  # noqa: PLC0415
+    from host.calibration import check_record  # noqa: PLC0415
+
+    name = args.reference[0]
+    m = _reference(load_materials(), name)
+    with device_session(args) as session:
+        rec = _device_call(session.client.measure)
+    res = check_record(rec, m.solid.effusivity_W_s05_m2K, REFERENCE_U_REL.get(name, OTHER_REFERENCE_U_REL))
+    res["reference"] = name
+    res["measurement_id"] = rec.get("measurement_id")
+    if args.json:
+        print(dumps(res))
+    elif res["holds"] is None:
+        print(f"measurement {res['measurement_id']}: no answer to judge ({res['why']})")
+    else:
+        verdict = "holds" if res["holds"] else "does NOT hold: recalibrate"
+        cal = res.get("calibration_sha256")
+        print(f"{name}: e {res['e_W_s05_m2K']:.0f} +- {res['u_e_W_s05_m2K']:.0f} against "
+              f"{res['reference_e_W_s05_m2K']:.0f} ({res['deviation_rel']:+.1%}, z = {res['z']:+.2f}): "
+              f"the calibration {'(none installed) ' if cal is None else cal[:12] + ' '}{verdict}")
+    return 0 if res["holds"] else 1
+
+
+def _reference(lib, name):
+    from edge.calibration.fit import DEFAULT_REFERENCES  # noqa: PLC0415
+
+    try:
+        return lib.get(name)
+    except KeyError:
+        close = [n for n in lib.names() if name.lower() in n][:5]
+        hint = f"; did you mean {', '.join(close)}?" if close else f"; defaults: {', '.join(DEFAULT_REFERENCES)}"
+        raise CliError(f"--reference {name!r} is not a library material{hint}") from None
+
+
+def _print_calibration(cal) -> None:
+    c = cal.chain
+    u = cal.u_theta
+    print(f"  flux sensor sensitivity  x {1.0 / c.flux_scale:.4f} of nominal  (u {u[0]:.1%})")
+    print(f"  sensing depth            {c.sensing_thickness_m * 1e3:.4f} mm  (u {u[1]:.1%})")
+    print(f"  sensing layer k          {c.k_W_mK:.4f} W/m/K  (u {u[3]:.1%})")
+    print(f"  thermocouple lag         {c.tc_tau_s * 1e3:.1f} ms  (u {u[2] * 1e3:.1f} ms)")
+    print(f"  transfer floor on e      {cal.u_rel_floor:.1%}")
+    for r in cal.references:
+        errs = ", ".join(f"{x:+.1%}" for x in r.rel_errors)
+        print(f"  {r.name:<12} e {r.e_W_s05_m2K:.0f}: re-measured {errs}")
+
+
+def _fit(args):
+    from edge.calibration.fit import ReferenceTouch, fit_calibration  # noqa: PLC0415
     from edge.calibration.model import CalibrationError  # noqa: PLC0415
     from edge.physics.geometry import PROBES  # noqa: PLC0415
     from edge.physics.materials import load_materials  # noqa: PLC0415
@@ -46,12 +203,7 @@ def run(args) -> int:
     lib = load_materials()
     touches = []
     for path, name in zip(args.record, args.reference):
-        try:
-            m = lib.get(name)
-        except KeyError:
-            close = [n for n in lib.names() if name.lower() in n][:5] if hasattr(lib, "names") else []
-            hint = f"; did you mean {', '.join(close)}?" if close else f"; defaults: {', '.join(DEFAULT_REFERENCES)}"
-            raise CliError(f"--reference {name!r} is not a library material{hint}") from None
+        m = _reference(lib, name)
         try:
             recorded = read_record_metadata(path).get("probe")
             s = read_series(path)

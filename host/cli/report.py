@@ -132,7 +132,10 @@ def info_lines(port: str, info: dict, status: dict) -> list[str]:
         f"{info.get('model_source') or 'unknown source'})",
         f"state      {status['state']}, {status.get('history_total', 0)} measurement(s) stored",
     ] + ([f"objects    {info['object_set']} (names each measurement's object; thermotouch objects list)"]
-         if info.get("object_set") else [])
+         if info.get("object_set") else []) + (
+        [] if "calibrated" not in info else  # older firmware says nothing about calibration
+        [f"calibration {info['calibration_sha256'][:12]} (thermotouch calibrate --show)" if info["calibrated"]
+         else "calibration none: measurements are flagged 'uncalibrated' (thermotouch calibrate)"])
 
 
 HISTORY_CSV_COLUMNS = (

@@ -55,3 +55,13 @@ def test_a_record_that_starts_in_contact_says_so():
 def test_bad_shapes_are_refused():
     with pytest.raises(ValueError, match="1-D"):
         find_contact(np.zeros(5), np.zeros(4), np.zeros(5))
+
+
+def test_a_coarse_converters_lsb_flips_are_not_a_touch_but_a_real_contact_is():
+    # The reference board: 0.0625 K thermocouple steps, 14 W/m^2 flux steps, noise below one step.
+    t, T, q = _record(-1.5, -1.0, -300.0)
+    Tq, qq = np.floor(T / 0.0625) * 0.0625, np.round(q / 14.0) * 14.0
+    c = find_contact(t, Tq, qq)
+    assert c.detected and -1.5 - DT - 1e-9 <= c.t_s <= -1.5 + 1e-9
+    t, T, q = _record(10.0, 0.0, 0.0)
+    assert not find_contact(t, np.floor((T + 0.03) / 0.0625) * 0.0625, np.round(q / 14.0) * 14.0).detected

@@ -197,6 +197,8 @@ VALID = {
     Command.OBJECTS_LIST: [{}],
     Command.OBJECTS_REMOVE: [{"name": "kitchen"}],
     Command.OBJECTS_SELECT: [{"name": "library"}, {"name": "kitchen"}],
+    Command.CALIBRATION_SET: [{"calibration": "{}"}, {"calibration": "{}", "signature": "{\"k\": 1}"}],
+    Command.CALIBRATION_GET: [{}],
 }
 
 INVALID = [
@@ -266,6 +268,9 @@ INVALID = [
     (Command.OBJECTS_LIST, {"all": True}, "all"),
     (Command.OBJECTS_REMOVE, {}, "name"),
     (Command.OBJECTS_SELECT, {"name": 3}, "name"),
+    (Command.CALIBRATION_SET, {}, "calibration"),
+    (Command.CALIBRATION_SET, {"calibration": "x" * 3501}, "calibration"),
+    (Command.CALIBRATION_GET, {"which": 1}, "which"),
 ]
 
 

@@ -300,10 +300,13 @@ def sim_daemon(scene, tmp_path, estimator=None):
 @pytest.mark.parametrize("scene", PAPER_SCENES)
 def test_paper_scene_over_the_virtual_serial_link(tmp_path, scene):
     with sim_daemon(scene, tmp_path) as (c, d, sim):
-        assert c.info()["board"] == "sim"
+        info = c.info()
+        assert info["board"] == "sim" and info["calibrated"] is False and info["calibration_sha256"] is None
         rec = c.measure()
-        assert rec["status"] == "ok" and rec["flags"] == [], rec
+        # No calibration installed: the only flag says so; the sensor chain's answer rides along.
+        assert rec["status"] == "ok" and rec["flags"] == ["uncalibrated"], rec
         assert rec["result"]["effusivity_W_s05_m2K"] > 0
+        assert rec["result"]["sensor_chain"]["calibration_sha256"] is None
         assert c.history()["total"] == 1
         limit = d.config.heater.max_on_time_s
     # The scene world's own record of the film's power, and the GPIO/PWM history, agree: one safe pulse.
