@@ -20,8 +20,10 @@ by forward differences (4 + M columns, each a few sub-millisecond fits).
 Covariance of theta: the theta block of (J^T J)^-1 at the solution.
 
 Transfer floor.  The calibrated chain then re-measures every reference
-touch with e free; the mean square of its relative errors less what each
-touch's stated noise explains, scaled by
+touch with e free; the mean square of its relative errors against the
+reference values the fit settled on (the library's, moved within their
+stated uncertainty -- that part is in theta's covariance already) less
+what each touch's stated noise explains, scaled by
 n / (n - p) for the p = 4 parameters the same touches fixed, is stored as
 ``u_rel_floor``: the part of the real probe the chain does not describe,
 added to every later measurement.
@@ -174,12 +176,14 @@ def fit_calibration(touches: list[ReferenceTouch], *, probe: str = "paper",
     # Transfer floor: re-measure each reference with e free.
     rel: dict[str, list[float]] = {n: [] for n in names}
     excess = []
+    e_fit = {n: math.exp(p[NP + m_index[n]]) for n in names}
     for tc, tt, TT, qq, _, br in segs:
         rr = fit_sensor_chain(tt, TT, qq, calibration=fitted.chain, fit_start_s=FIT_START_s, breaks_s=br)
-        d = rr.e_W_s05_m2K / e_lib[tc.name] - 1.0
-        rel[tc.name].append(d)
-        # What the touch's own stated noise does not explain.  (The reference's own uncertainty is not
-        # subtracted: the fit pulled e_m toward these very touches, so it hides in them less, not more.)
+        rel[tc.name].append(rr.e_W_s05_m2K / e_lib[tc.name] - 1.0)
+        # The floor is what the chain does not describe: the re-measured e against the reference's e
+        # as the calibration itself settled it (e_fit: library value moved within its uncertainty, which
+        # the covariance of theta already carries), less what the touch's own noise explains.
+        d = rr.e_W_s05_m2K / e_fit[tc.name] - 1.0
         excess.append(d * d - (rr.u_e_W_s05_m2K / rr.e_W_s05_m2K) ** 2)
     n = len(excess)
     floor = float(math.sqrt(max(float(np.mean(excess)), 0.0) * n / max(n - NP, 1)))

@@ -169,7 +169,7 @@ def _reference(lib, name):
     try:
         return lib.get(name)
     except KeyError:
-        close = [n for n in lib.names() if name.lower() in n][:5]
+        close = [n for n in lib.names if name.lower() in n][:5]
         hint = f"; did you mean {', '.join(close)}?" if close else f"; defaults: {', '.join(DEFAULT_REFERENCES)}"
         raise CliError(f"--reference {name!r} is not a library material{hint}") from None
 

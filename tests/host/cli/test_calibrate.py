@@ -1,0 +1,102 @@
+"""``thermotouch calibrate`` and ``estimate --calibration`` on records of the faithful world.
+
+Three reference touches of an as-built probe (sensitivity +4 %, sensing layer 6 % thicker, a 60-ms
+bead) recorded from before contact are fitted; the calibrated probe then measures an unseen glass
+touched 2 K warm with a contact resistance, closer than the datasheet probe does and within its stated
+uncertainty.  Bad input: one line, exit 2, nothing written.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from edge.physics.materials import load_materials
+from firmware_sim.rigs.contact_record import ContactTouch, one_d_geometry, record_touch
+from firmware_sim.rz.probe_world import AsBuilt
+from host.cli.main import main
+from host.records import write_series
+
+AS_BUILT = AsBuilt(sensing_thickness_m=0.424e-3, flux_sensitivity_V_per_W_m2=0.56e-6 * 1.04,
+                   thermocouple_time_constant_s=0.06)
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture(scope="module")
+def records(tmp_path_factory):
+    d = tmp_path_factory.mktemp("rec")
+    lib = load_materials()
+    out = {}
+    for i, (name, rc, off) in enumerate((("pmma", 0.0, -1.0), ("pyroceram", 1e-5, 1.0), ("aisi_304", 0.0, 1.0),
+                                         ("borofloat_33", 2e-5, 2.0))):
+        r = record_touch(ContactTouch(lib.get(name).solid, rc, off, lead_s=1.0, heat_s=6.0), as_built=AS_BUILT,
+                         geometry=one_d_geometry(), seed=i)
+        p = d / f"{name}.csv"
+        write_series(p, r["t_s"], r["T_C"] + 273.15, r["q_W_m2"])
+        out[name] = (p, r["e_true"])
+    return out
+
+
+def test_fit_then_estimate_with_the_calibration_beats_the_datasheet(capsys, records, tmp_path):
+    cal = tmp_path / "cal.json"
+    args = []
+    for name in ("pmma", "pyroceram", "aisi_304"):
+        args += ["--record", str(records[name][0]), "--reference", name]
+    code, out, err = run(capsys, "calibrate", *args, "--out", str(cal))
+    assert code == 0, err
+    assert "calibration" in out and "sensing depth" in out and cal.exists()
+    # Refuses to overwrite without --overwrite, and the file stays.
+    before = cal.read_bytes()
+    code, _, err = run(capsys, "calibrate", *args, "--out", str(cal))
+    assert code == 2 and "--overwrite" in err and cal.read_bytes() == before
+    glass, e_true = records["borofloat_33"]
+    # The record is the 1-D-limit world: tell the estimate nothing else (the paper probe's lateral
+    # bracket is small on glass at 6 s).
+    code, out, err = run(capsys, "estimate", "--csv", str(glass), "--calibration", str(cal), "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["method"] == "sensor_chain" and "uncalibrated" not in d["flags"]
+    err_cal = d["effusivity_W_s05_m2K"] / e_true - 1
+    assert abs(err_cal) < 0.03 and abs(err_cal) * e_true <= 2 * d["effusivity_W_s05_m2K_u"]
+    assert d["contact_detected"] and d["contact_t_s"] == pytest.approx(-1.0, abs=0.06)
+    assert d["object"] is not None and d["candidates"]
+    # The datasheet chain, through the same command without the calibration's file: flagged.
+    code, out, err = run(capsys, "estimate", "--csv", str(glass), "--json")
+    assert code == 0 and "uncalibrated" in json.loads(out)["flags"]
+
+
+@pytest.mark.parametrize("argv,needle", [
+    (["calibrate"], "give --record"),
+    (["calibrate", "--record", "{pmma}", "--reference", "pmma"], "--out"),
+    (["calibrate", "--record", "{pmma}", "--out", "{out}"], "one --reference per --record"),
+    (["calibrate", "--record", "{pmma}", "--reference", "pmma", "--record", "{pyroceram}", "--reference",
+      "unobtainium", "--out", "{out}"], "not a library material"),
+    (["calibrate", "--record", "{pmma}", "--reference", "pmma", "--out", "{out}"], "at least two"),
+    (["calibrate", "--check", "--sim", "glass_15V"], "exactly one --reference"),
+    (["calibrate", "--show", "--record", "{pmma}", "--sim", "glass_15V"], "--show takes no"),
+    (["calibrate", "--install", "{pmma}", "--sim", "glass_15V"], "--install"),
+    (["estimate", "--csv", "{pmma}", "--calibration", "{pmma}"], "--calibration"),
+])
+def test_bad_input_is_one_line_exit_2_and_nothing_written(capsys, records, tmp_path, argv, needle):
+    out = tmp_path / "cal.json"
+    fill = {"pmma": str(records["pmma"][0]), "pyroceram": str(records["pyroceram"][0]), "out": str(out)}
+    code, _, err = run(capsys, *[a.format(**fill) for a in argv])
+    assert code == 2 and needle in err, err
+    assert len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_calibration_for_another_probe_is_refused(capsys, records, tmp_path):
+    from tests.support.calibrations import sample_calibration
+
+    p = tmp_path / "small.json"
+    p.write_text(sample_calibration(probe="small-heater").to_json())
+    code, _, err = run(capsys, "estimate", "--csv", str(records["pmma"][0]), "--calibration", str(p))
+    assert code == 2 and "small-heater" in err and math.isfinite(1.0)
