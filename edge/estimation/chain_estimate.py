@@ -50,6 +50,9 @@ FIT_START_s = 0.3
 #: touch: it spans the whole range of a dry contact.  Typical of low-effusivity objects, where R_c q is
 #: far below the noise and R_c only soaks up what the chain does not describe.
 R_C_RESOLVED_m2K_W = 3e-5
+#: Least thermocouple noise the goodness of fit assumes (K): the precision board's 24-bit converter
+#: reads a type-K junction to ~4 mK rms; nothing real is quieter than half that.
+NOISE_FLOOR_K = 2e-3
 #: Stated thermocouple noise when the record has no samples in air to measure it on (precision board).
 DEFAULT_NOISE_T_K = 0.01
 #: Finite-difference steps of theta = (ln flux_scale, ln depth, tau, ln layer k) for the calibration's part of u(e).
@@ -152,7 +155,9 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
     if tt.size < 8 or tt[-1] < FIT_START_s + 0.2:
         raise ValueError(f"record too short after contact ({tt[-1]:.2f} s from t = {t[i0]:.2f} s)")
     noise_T = c.noise_T_K if math.isfinite(c.noise_T_K) and c.noise_T_K > 0 else DEFAULT_NOISE_T_K
-    noise_T = max(noise_T, 1e-4)   # a converter's step is never below 0.1 mK: keep the ratio finite
+    # Air samples that hardly move (a quiet simulator, a converter sitting on one code) measure ~0:
+    # the goodness of fit is judged against at least NOISE_FLOOR_K.
+    noise_T = max(noise_T, NOISE_FLOOR_K)
     # The heater switched on at t = 0 of the record's clock: theta_b's slope jumps there.
     breaks = (-float(t[i0]),) if t[i0] < 0 else ()
     a = PROBES[cal.probe].heater_radius_m if heater_radius_m is None else float(heater_radius_m)
