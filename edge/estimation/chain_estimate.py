@@ -22,6 +22,7 @@ the quadrature sum of
   fit window that states the least u.
 
 Flags: ``uncalibrated`` (the datasheet chain), ``contact_not_recorded``,
+``contact_lost`` (the probe left the object during heating: no estimate),
 ``lateral_spread`` (the lateral correction moved e by more than 10 %),
 ``poor_fit`` (normalised residual above :data:`POOR_FIT`), ``no_contact``
 (no flux into anything).
@@ -37,7 +38,7 @@ import numpy as np
 
 from edge.calibration.model import ProbeCalibration
 from edge.estimation.contact import find_contact
-from edge.estimation.sensor_chain import fit_sensor_chain
+from edge.estimation.sensor_chain import face_flux, fit_sensor_chain
 from edge.physics.geometry import PROBES
 
 __all__ = ["estimate_from_contact", "uniform_record", "alpha_prior", "POOR_FIT", "FIT_START_s"]
@@ -63,6 +64,14 @@ _STEPS = (1e-3, 1e-3, 2e-3, 1e-3)
 DISK_PASSES = 3
 #: A lateral correction of e beyond this (relative) is flagged ``lateral_spread``.
 LATERAL_FLAG = 0.10
+#: Contact is lost when, during heating, the face flux falls below this share of its largest value so
+#: far and stays there for LOSS_HOLD_s (a lifted probe: the face flux drops to about nothing within
+#: a few samples while the heater runs; on an object it only ever eases).
+LOSS_FRACTION = 0.25
+LOSS_HOLD_s = 0.3
+#: ... and only once that largest value stands clear of the flux noise (W/m^2): on foam the face flux
+#: is tens of W/m^2 and its noise would otherwise look like a lift.
+LOSS_MIN_FLUX_W_m2 = 50.0
 #: Candidate fit windows after heater-on (s) for a finite heater (see estimate_from_contact).
 LATERAL_WINDOWS_s = (1.0, 2.0, 4.0, 8.0, math.inf)
 
@@ -118,6 +127,27 @@ def uniform_record(t_s, *columns) -> tuple[np.ndarray, ...]:
     return (tu, *(np.interp(tu, t, c) for c in cols))
 
 
+def contact_lost_at(t_from_contact: np.ndarray, phi_W_m2: np.ndarray, t_heat_s: float) -> float | None:
+    """Time from contact at which the probe left the object during heating (None: it stayed).
+
+    See :data:`LOSS_FRACTION`: the face flux falls below that share of its running maximum after
+    heater-on and stays below for :data:`LOSS_HOLD_s`.
+    """
+    t, phi = np.asarray(t_from_contact), np.asarray(phi_W_m2)
+    on = np.nonzero(t >= t_heat_s)[0]
+    if on.size < 4:
+        return None
+    dt = float(t[1] - t[0])
+    hold = max(2, int(round(LOSS_HOLD_s / dt)))
+    seg = phi[on]
+    peak = np.maximum.accumulate(seg)
+    low = (seg < LOSS_FRACTION * peak) & (peak > LOSS_MIN_FLUX_W_m2)
+    # First index from which `hold` consecutive samples are low.
+    run = np.convolve(low.astype(int), np.ones(hold, dtype=int), mode="valid")
+    hit = np.nonzero(run == hold)[0]
+    return None if hit.size == 0 else float(t[on[hit[0]]])
+
+
 def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None = None, *,
                           heater_radius_m: float | None = None) -> dict[str, Any]:
     """e, R_c and T_obj0 of one touch, with their uncertainties, flags and the fit's quality.
@@ -168,6 +198,15 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
 
     def bad(x) -> bool:
         return not (math.isfinite(x.e_W_s05_m2K) and x.e_W_s05_m2K > 0)
+
+    t_lost = contact_lost_at(tt, face_flux(tt, TT, qq, cal.chain, breaks_s=breaks), breaks[0] if breaks else 0.0)
+    if t_lost is not None:
+        # A lifted probe: what follows is the probe in air, not the object.  Refused, not fitted
+        # (fitting up to the lift would pass off a shorter, unplanned touch as the measurement).
+        return {"flags": flags + ["contact_lost"], "effusivity_W_s05_m2K": None, "effusivity_W_s05_m2K_u": None,
+                "contact_t_s": float(t[i0]), "contact_lost_t_s": float(t[i0] + t_lost),
+                "normalised_residual": None, "determined": [], "calibration_sha256": cal.sha256,
+                "probe": cal.probe}
 
     r1d = r = fit(cal.chain, None)
     disk = None

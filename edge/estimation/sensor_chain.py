@@ -48,7 +48,8 @@ from edge.physics.integrators import causal_convolution
 from edge.physics.laplace import talbot_invert
 from edge.physics.probe import DEFAULT_STACK
 
-__all__ = ["SensorChainCalibration", "SensorChainResult", "chain_design", "fit_sensor_chain", "simulate_chain"]
+__all__ = ["SensorChainCalibration", "SensorChainResult", "chain_design", "face_flux", "fit_sensor_chain",
+           "simulate_chain"]
 
 
 @dataclass(frozen=True)
@@ -276,6 +277,17 @@ def _response(phi: np.ndarray, dt: float, disk) -> np.ndarray:
     if disk is not None and math.isfinite(disk[0]):
         d = d - _apply(_disk_kernel(phi.shape[0], dt, float(disk[0]), float(disk[1])), phi)
     return d
+
+
+def face_flux(t_s, T_tc_C, q_m_W_m2, calibration: SensorChainCalibration = SensorChainCalibration(), *,
+              breaks_s: tuple[float, ...] = ()) -> np.ndarray:
+    """The flux into the object's face (W/m^2) the chain infers from a record that starts at contact.
+
+    phi = A q_m - B theta_b (first pass): what :func:`fit_sensor_chain` regresses on.  Used to see
+    the probe leave the object -- the face flux then falls to about nothing while the heater runs.
+    """
+    c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, None, 0.0, breaks_s)
+    return c.phiA - _apply(c.KB, c.theta)
 
 
 def chain_design(t_s, T_tc_C, q_m_W_m2, calibration: SensorChainCalibration = SensorChainCalibration(), *,

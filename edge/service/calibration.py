@@ -34,7 +34,7 @@ UNCALIBRATED = "uncalibrated"
 #: Fields of the chain estimate kept in a measurement record: the answer and what judges it.  (The rest
 #: -- u's parts, the fit window -- is recomputable from the stored raw series; a HISTORY page is one
 #: 4-kB frame, so every record stays small.)
-_KEEP = ("effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "contact_resistance_m2K_W",
+_KEEP = ("contact_lost_t_s", "effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "contact_resistance_m2K_W",
          "contact_resistance_m2K_W_u", "object_temperature0", "object_temperature0_u", "contact_t_s",
          "normalised_residual", "flags")
 
@@ -124,6 +124,9 @@ class ProbeCalibrations:
             chain = {"error": f"{type(e).__name__}: {e}"}
         chain["calibration_sha256"] = None if cal is None else cal.sha256
         outcome.result["sensor_chain"] = chain
+        if "contact_lost" in (chain.get("flags") or ()) and "contact_lost" not in outcome.flags:
+            # The probe left the object while heating: every answer of this record is suspect.
+            outcome.flags.append("contact_lost")
 
 
 def _plain(v: Any) -> Any:

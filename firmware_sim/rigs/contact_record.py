@@ -44,6 +44,7 @@ class ContactTouch:
     heat_s: float = 2.0
     tail_s: float = 0.0                # recorded after the heater stops
     pre_s: float = 1.0                 # recorded in air before contact
+    lift_s: float | None = None        # the probe leaves the object this long after heater-on
 
 
 def one_d_geometry():
@@ -76,7 +77,7 @@ def record_touch(touch: ContactTouch, *, as_built=None, geometry=None, scene_nam
     env = sc.environment
     T_amb = env.ambient_temperature_C
     t_contact = 1.0 + touch.pre_s
-    length = touch.lead_s + touch.heat_s + touch.tail_s + 1.0
+    length = touch.lead_s + (touch.heat_s + touch.tail_s + 1.0 if touch.lift_s is None else touch.lift_s)
     sc = dataclasses.replace(
         sc, object=dataclasses.replace(sc.object, solid=touch.solid, back="infinite"),
         environment=dataclasses.replace(env, initial_temperature_C=T_amb + touch.object_offset_K),
