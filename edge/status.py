@@ -56,6 +56,8 @@ class Reason(StrEnum):
     ESTIMATION_FAILED = "estimation_failed"
     #: The host sent ABORT (e.g. Ctrl-C or its own timeout): heater cut at once, record kept.
     HOST_ABORT = "host_abort"
+    #: Armed (``arm_s``): no contact came within the arming time; the heater never went on.
+    NO_CONTACT = "no_contact"
 
 
 class Flag(StrEnum):

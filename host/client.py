@@ -300,7 +300,8 @@ class DeviceClient:
 
     def measure(self, power_W: float | None = None, voltage_V: float | None = None,
                 contact_time_s: float | None = None, *, timeout_s: float | None = None,
-                sample_rate_Hz: float | None = None, until_decided: bool = False) -> dict[str, Any]:
+                sample_rate_Hz: float | None = None, until_decided: bool = False, arm_s: float | None = None,
+                settle_s: float | None = None) -> dict[str, Any]:
         """Run one measurement and return its result record (never retried).
 
         The default timeout is the client's plus the contact time (or 5 s)
@@ -322,12 +323,14 @@ class DeviceClient:
         DeviceError, PortUnavailable, BadReply
         """
         args = {k: v for k, v in (("power_W", power_W), ("voltage_V", voltage_V),
-                                  ("contact_time_s", contact_time_s), ("sample_rate_Hz", sample_rate_Hz))
+                                  ("contact_time_s", contact_time_s), ("sample_rate_Hz", sample_rate_Hz),
+                                  ("arm_s", arm_s), ("settle_s", settle_s))
                 if v is not None}
         if until_decided:
             args["until_decided"] = True
         if timeout_s is None:
-            timeout_s = self.timeout_s + (contact_time_s if contact_time_s is not None else 5.0) + 10.0
+            timeout_s = (self.timeout_s + (contact_time_s if contact_time_s is not None else 5.0) + 10.0
+                         + (arm_s or 0.0) + (settle_s or 0.0))
         self.last_abort: dict[str, Any] | None = None
         try:
             return self.request(Command.MEASURE, args, timeout_s=timeout_s)

@@ -36,6 +36,10 @@ __all__ = ["Contact", "find_contact"]
 #: probe 1 K above the room is ~5 W/m^2; a 0.5 K difference to foam (e ~ 40)
 #: gives ~20 W/m^2 after 0.5 s.
 Q_FLOOR_W_m2 = 8.0
+#: Largest steady flux reading (W/m^2) still taken for a probe in air: a channel offset of a few
+#: converter steps plus convection from a probe a kelvin or two off the room.  A record whose first
+#: samples read more starts during a contact.
+Q_AIR_MAX_W_m2 = 60.0
 #: Temperature step (K) below which a change is not a contact, for the same reason.
 T_FLOOR_K = 0.03
 
@@ -81,7 +85,7 @@ def _lsb(x: np.ndarray) -> float:
     """The smallest step between samples (a converter's LSB when it shows; 0 for continuous noise)."""
     d = np.abs(np.diff(x))
     d = d[d > 1e-12]
-    if d.size < 3:
+    if d.size < 2:
         return 0.0
     step = float(d.min())
     # Continuous noise has small steps too: call it quantised only when most steps are multiples of it.
@@ -117,7 +121,8 @@ def find_contact(t_s, T_C, q_W_m2, *, quiet_s: float = 0.3, n_sigma: float = 6.0
         raise ValueError("t_s, T_C and q_W_m2 must be 1-D of one length >= 2")
     pre = np.nonzero(t <= 0.0)[0]
     i_on = int(pre[-1]) if pre.size else 0
-    base = np.nonzero(t <= t[0] + quiet_s)[0]
+    # The baseline: the first quiet_s, and at least 4 samples (a 10-Hz record has 3 in 0.3 s).
+    base = np.arange(max(4, int(np.count_nonzero(t <= t[0] + quiet_s + 1e-9))))
     if pre.size < 4 or base.size < 4 or base[-1] >= i_on:
         # Nothing (or too little) before heater-on to call "air": the record starts in contact or at heater-on.
         return Contact(i_on, float(t[i_on]), False, False, float("nan"), float("nan"))
@@ -135,7 +140,9 @@ def find_contact(t_s, T_C, q_W_m2, *, quiet_s: float = 0.3, n_sigma: float = 6.0
         # cooling in air after the last touch drifts by more than the floor in a few seconds).
         jump = np.abs(np.diff(T[:i_on + 1], prepend=T[0])) > math.sqrt(2.0) * n_sigma * sT + T_floor_K
         out = (np.abs(q[:i_on + 1] - q0) > thr_q) | jump
-        quiet = bool(np.all(np.abs(q[base] - q0) <= thr_q) and abs(q0) <= thr_q
+        # In air the thermopile reads its channel's offset and a little convection: |q0| is bounded
+        # by Q_AIR_MAX_W_m2, not by the noise (a slowly decaying contact transient is quiet but not small).
+        quiet = bool(np.all(np.abs(q[base] - q0) <= thr_q) and abs(q0) <= max(thr_q, Q_AIR_MAX_W_m2)
                      and np.all(np.abs(T[base] - T0) <= thr_T))
         return np.nonzero(out)[0], quiet
 

@@ -108,14 +108,20 @@ class MeasurementParams:
     method: str = "default"
     #: Stop heating once the running answer is decided (needs the sequence's ``decision`` hook).
     until_decided: bool = False
+    #: Armed: sample in air up to this long waiting for the touch (0: off, the baseline is baseline_s).
+    arm_s: float = 0.0
+    #: Armed: heat this long after the detected contact.
+    settle_s: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("power_W", "contact_time_s", "baseline_s", "sample_rate_Hz"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
-        if not (math.isfinite(self.cooldown_s) and self.cooldown_s >= 0):
-            raise ValueError(f"cooldown_s must be >= 0, got {self.cooldown_s!r}")
+        for name in ("cooldown_s", "arm_s", "settle_s"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
 
 
 @dataclass
@@ -151,6 +157,8 @@ class Outcome:
     exception: BaseException | None = None
     #: The last running answer (a :class:`~edge.estimation.running.RunningAnswer` dict), if any.
     decision: dict[str, Any] | None = None
+    #: Armed runs: when the contact was detected, s after arming (None: not armed, or on something already).
+    contact_detected_s: float | None = None
 
     def record(self, config_snapshot: Mapping[str, Any]) -> dict[str, Any]:
         """Keyword set for :meth:`edge.storage.history.History.add`."""
@@ -350,17 +358,23 @@ class MeasurementSequence:
                     self._cool_down(self._last_off + params.cooldown_s, period)
                 # ---- baseline
                 self._set_state(Phase.BASELINE)
-                t_base = self.clock.monotonic()
-                n_base = max(3, int(round(params.baseline_s * params.sample_rate_Hz)))
-                for k in range(n_base):
-                    self._wait(t_base + k * period)
-                    self._check_temperature(self._sample(ts, Ts, qs, sat, dts))
-                # At least baseline_s even when it is no whole number of periods (12.5 Hz: 6 x 80 ms would
-                # switch the heater on 20 ms early, before a touch timed to the configured baseline).
-                self._wait(t_base + max(n_base * period, params.baseline_s))
+                if params.arm_s > 0:
+                    out.contact_detected_s = self._armed(params, period, ts, Ts, qs, sat, dts)
+                else:
+                    t_base = self.clock.monotonic()
+                    n_base = max(3, int(round(params.baseline_s * params.sample_rate_Hz)))
+                    for k in range(n_base):
+                        self._wait(t_base + k * period)
+                        self._check_temperature(self._sample(ts, Ts, qs, sat, dts))
+                    # At least baseline_s even when it is no whole number of periods (12.5 Hz: 6 x 80 ms
+                    # would switch the heater on 20 ms early, before a touch timed to the configured baseline).
+                    self._wait(t_base + max(n_base * period, params.baseline_s))
                 self._check_heat_off(ts, Ts, qs, "baseline")
                 decider = self._make_decider(params)
-                T0_run, q0_run = float(np.mean(Ts)), float(np.mean(qs))
+                # The running answer's reference: the last baseline_s before heating (armed, the samples
+                # before it are the probe in air and the contact's transient).
+                n_ref = max(1, int(round(params.baseline_s * params.sample_rate_Hz)))
+                T0_run, q0_run = float(np.mean(Ts[-n_ref:])), float(np.mean(qs[-n_ref:]))
                 decided = False
                 # ---- heating
                 self._set_state(Phase.HEATING)
@@ -454,6 +468,44 @@ class MeasurementSequence:
         self._set_state(Phase.IDLE)
         return out
 
+    def _armed(self, params: MeasurementParams, period: float, ts: list, Ts: list, qs: list, sat: list,
+               dts: list) -> float | None:
+        """Sample in air until the touch is found (:func:`edge.estimation.contact.find_contact`), then settle_s.
+
+        Returns the detected contact's time relative to the start of arming (None: the probe was
+        already on something when armed -- the record then says ``contact_not_recorded`` -- and the
+        settling runs from the start).  Raises ``_Stop(NO_CONTACT)`` after ``arm_s`` without one; the
+        heater is never switched on while armed.
+        """
+        from edge.estimation.contact import find_contact  # noqa: PLC0415
+
+        t0 = self.clock.monotonic()
+        n_quiet = max(4, int(math.ceil(0.3 / period)))
+        # "Already on something" is judged only on a longer look: a few coarse samples in air can
+        # flip an LSB and look unquiet.
+        n_judge = max(3 * n_quiet, int(math.ceil(1.0 / period)))
+        t_contact: float | None = None
+        settle_from: float | None = None
+        k = 0
+        while True:
+            self._wait(t0 + k * period)
+            self._check_temperature(self._sample(ts, Ts, qs, sat, dts))
+            k += 1
+            now = self.clock.monotonic()
+            if settle_from is None and k > n_quiet:
+                tt = np.asarray(ts)
+                # All samples are "before heater-on" here: the last one plays heater-on's part.
+                c = find_contact(tt - tt[-1], np.asarray(Ts), np.asarray(qs))
+                if not c.recorded_in_air:
+                    if k >= n_judge:
+                        settle_from = t0
+                elif c.detected:
+                    t_contact = settle_from = float(tt[c.index])
+            if settle_from is None and now - t0 >= params.arm_s:
+                raise _Stop(Reason.NO_CONTACT, f"no contact within arm_s = {params.arm_s:g} s (heater never on)")
+            if settle_from is not None and now >= settle_from + params.settle_s and k >= 3:
+                return None if t_contact is None else t_contact - t0
+
     def _make_decider(self, params: MeasurementParams) -> Any:
         self.answer = None
         if self.decision is None:
@@ -496,6 +548,10 @@ class MeasurementSequence:
         """
         c0 = time.perf_counter()
         base = t < 0 if t_on is not None else np.ones(t.shape, bool)
+        if params.arm_s > 0 and t_on is not None:
+            # Armed: the default method's baseline is the last baseline_s before heating (the earlier
+            # samples are the probe in air and the contact; the sensor chain uses them all).
+            base = base & (t >= -params.baseline_s)
         if base.any():
             out.T0_C = float(np.mean(T[base]))
             out.q_offset_W_m2 = float(np.mean(q[base]))

@@ -91,6 +91,9 @@ class CommandSpec:
 
 _CONFIG_MAX_KEYS = 64
 _STR_MAX = 256
+#: Longest arming and settling a MEASURE may ask for (s): the worker's budget covers them.
+MAX_ARM_s = 120.0
+MAX_SETTLE_s = 30.0
 #: Longest calibration text CALIBRATION_SET carries (a frame holds 4 kB; a calibration on three
 #: references with two touches each is about 1.3 kB of compact JSON).
 MAX_CALIBRATION_CHARS = 3500
@@ -128,7 +131,12 @@ COMMANDS: dict[Command, CommandSpec] = {spec.command: spec for spec in (
               arg("sample_rate_Hz", "float", lo=1.0, hi=200.0,
                   doc="sampling rate, Hz (default the device's; capped at what its converters can deliver)"),
               arg("until_decided", "bool", doc="stop heating once the running answer's posterior reaches "
-                  "measurement.decide_posterior (record flagged 'decided')")),
+                  "measurement.decide_posterior (record flagged 'decided')"),
+              arg("arm_s", "float", lo=0.0, hi=MAX_ARM_s,
+                  doc="armed: sample in air up to this long for the touch, heat settle_s after the detected "
+                      "contact (0 = off; default measurement.arm_s); no contact in time ends 'no_contact'"),
+              arg("settle_s", "float", lo=0.0, hi=MAX_SETTLE_s,
+                  doc="armed: contact to heater-on, s (default measurement.settle_s)")),
         exclusive=(("power_W", "voltage_V"),),
         reply=(arg("measurement_id", "int", required=True, lo=0),),
         idempotent=False,

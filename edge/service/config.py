@@ -231,6 +231,23 @@ class MeasurementConfig:
         lo_open=True,
         runtime=True,
     )
+    arm_s: float = setting(
+        "float",
+        0.0,
+        "armed: sample in air up to this long for the touch, find the contact, heat settle_s after it "
+        "(0 = off: the baseline is baseline_s and heating follows it)",
+        lo=0.0,
+        hi=600.0,
+        runtime=True,
+    )
+    settle_s: float = setting(
+        "float",
+        1.0,
+        "armed: time from the detected contact to heater-on, s",
+        lo=0.0,
+        hi=30.0,
+        runtime=True,
+    )
     contact_time_s: float = setting(
         "float",
         2.0,

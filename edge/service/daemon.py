@@ -600,11 +600,12 @@ class Daemon:
     def _cmd_measure(self, args: dict) -> dict:
         return self.measure(power_W=args.get("power_W"), voltage_V=args.get("voltage_V"),
                             contact_time_s=args.get("contact_time_s"), sample_rate_Hz=args.get("sample_rate_Hz"),
-                            until_decided=bool(args.get("until_decided") or False))
+                            until_decided=bool(args.get("until_decided") or False), arm_s=args.get("arm_s"),
+                            settle_s=args.get("settle_s"))
 
     def measure(self, *, power_W: float | None = None, voltage_V: float | None = None,
                 contact_time_s: float | None = None, sample_rate_Hz: float | None = None,
-                until_decided: bool = False) -> dict:
+                until_decided: bool = False, arm_s: float | None = None, settle_s: float | None = None) -> dict:
         """Run one measurement, store it, return its summary (CommandError on failure).
 
         While it runs, :attr:`state` is ``"measuring"`` (``phase`` names the
@@ -613,7 +614,7 @@ class Daemon:
         if not self._measure_lock.acquire(blocking=False):
             raise CommandError(ErrorCode.BUSY, "a measurement is already running")
         try:
-            return self._measure(power_W, voltage_V, contact_time_s, sample_rate_Hz, until_decided)
+            return self._measure(power_W, voltage_V, contact_time_s, sample_rate_Hz, until_decided, arm_s, settle_s)
         finally:
             self.readiness.reset()  # the probe was just heated: settle afresh
             self._measure_t0 = None
@@ -623,7 +624,8 @@ class Daemon:
             self._measure_lock.release()
 
     def _measure(self, power_W: float | None, voltage_V: float | None, contact_time_s: float | None,
-                 sample_rate_Hz: float | None = None, until_decided: bool = False) -> dict:
+                 sample_rate_Hz: float | None = None, until_decided: bool = False, arm_s: float | None = None,
+                 settle_s: float | None = None) -> dict:
         if self.state == State.FAULT:
             raise CommandError(ErrorCode.BAD_STATE, "heater fault: measurements are disabled until restart; "
                                + "; ".join(self.faults[-1:]))
@@ -637,7 +639,7 @@ class Daemon:
         cfg = self.config
         params = measure_params(cfg, self.heater.max_power_W, power_W=power_W, voltage_V=voltage_V,
                                 contact_time_s=contact_time_s, sample_rate_Hz=sample_rate_Hz,
-                                until_decided=until_decided)
+                                until_decided=until_decided, arm_s=arm_s, settle_s=settle_s)
         seq = self._get_sequence()
         self._measure_t0 = self.board.clock.monotonic()
         self.state = State.MEASURING

@@ -60,7 +60,8 @@ def max_sample_rate_Hz(sensors: Any) -> float:
 
 def measure_params(config: Config, max_power_W: float, *, power_W: float | None = None,
                    voltage_V: float | None = None, contact_time_s: float | None = None,
-                   sample_rate_Hz: float | None = None, until_decided: bool = False) -> MeasurementParams:
+                   sample_rate_Hz: float | None = None, until_decided: bool = False,
+                   arm_s: float | None = None, settle_s: float | None = None) -> MeasurementParams:
     """One measurement's settings: the configuration, overridden by MEASURE's arguments.
 
     Parameters
@@ -80,6 +81,9 @@ def measure_params(config: Config, max_power_W: float, *, power_W: float | None 
         (the record's ``sample_rate_Hz`` is the rate used).
     until_decided : bool
         Stop heating once the running answer is decided.
+    arm_s, settle_s : float, optional
+        Armed measurement (see :class:`edge.measure.sequence.MeasurementParams`); default
+        ``measurement.arm_s`` / ``measurement.settle_s``.
 
     Returns
     -------
@@ -110,7 +114,9 @@ def measure_params(config: Config, max_power_W: float, *, power_W: float | None 
         rate = min(float(sample_rate_Hz), max_sample_rate_Hz(config.sensors))
     return MeasurementParams(power_W=power, contact_time_s=contact, baseline_s=m.baseline_s,
                              sample_rate_Hz=rate, cooldown_s=m.cooldown_s,
-                             method=config.estimation.method, until_decided=bool(until_decided))
+                             method=config.estimation.method, until_decided=bool(until_decided),
+                             arm_s=m.arm_s if arm_s is None else float(arm_s),
+                             settle_s=m.settle_s if settle_s is None else float(settle_s))
 
 
 def fit_record(record: dict, max_payload: int) -> dict:

@@ -23,7 +23,7 @@ WORKER_JOIN_s = 60.0  # margin for estimation and storage beyond a measurement's
 
 
 def measurement_budget_s(measurement: Any, heater: Any) -> float:
-    """Longest a healthy measurement can take: baseline + heating limit + cooldown + a margin.
+    """Longest a healthy measurement can take: baseline (or arming and settling) + heating limit + cooldown + a margin.
 
     Parameters
     ----------
@@ -35,7 +35,11 @@ def measurement_budget_s(measurement: Any, heater: Any) -> float:
     float
         Seconds.
     """
-    return measurement.baseline_s + heater.max_on_time_s + measurement.cooldown_s + WORKER_JOIN_s
+    # A MEASURE may arm for up to the protocol's bound (edge.protocol.commands: MAX_ARM_s) whatever the config says.
+    from edge.protocol.commands import MAX_ARM_s, MAX_SETTLE_s  # noqa: PLC0415
+
+    arming = max(measurement.arm_s, MAX_ARM_s) + max(measurement.settle_s, MAX_SETTLE_s)
+    return measurement.baseline_s + arming + heater.max_on_time_s + measurement.cooldown_s + WORKER_JOIN_s
 
 
 class MeasurementWorker:

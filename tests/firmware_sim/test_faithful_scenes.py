@@ -266,3 +266,53 @@ def test_the_faithful_world_gives_the_chips_the_scenes_touch_timing():
     assert T[0] == pytest.approx(25.0, abs=1e-6) and T_obj < T[1] < T_obj + 0.5 * (25.0 - T_obj)
     assert math.isclose(sim.heater_on_time_s(), 0.0)
     sim.close()
+
+
+# ----------------------------------------------------------------------------------------------
+# Armed: the device waits in air for the touch, finds the contact, heats settle_s after it
+
+
+def _armed_on(scene: str, tmp_path, **measure):
+    stop, ports, box = threading.Event(), [], {}
+    th = threading.Thread(target=run_sim, args=(scene, stop, ports.append),
+                          kwargs=dict(estimator=FakeEstimator(), workdir=tmp_path,
+                                      on_ready=lambda d, s: box.update(d=d, s=s)), daemon=True)
+    th.start()
+    deadline = time.monotonic() + 20
+    while "s" not in box and th.is_alive() and time.monotonic() < deadline:
+        time.sleep(0.005)
+    try:
+        with DeviceClient(ports[0], timeout_s=10.0) as c:
+            rec = c.measure(**measure)
+            series = c.series(rec["measurement_id"], "raw")
+    finally:
+        stop.set()
+        th.join(20)
+    assert not th.is_alive()
+    return rec, series, box["s"]
+
+
+def test_armed_measurement_heats_settle_s_after_the_detected_contact(tmp_path):
+    rec, series, sim = _armed_on("pmma_15V_faithful", tmp_path, arm_s=5.0, settle_s=0.6, contact_time_s=2.0)
+    assert rec["status"] == "ok", rec
+    touch = sim.scene.touch
+    (a, b), = sim.heater_intervals()
+    # Contact at start_s is seen within a sample or two (MCP9600: 80 ms), heating settle_s later.
+    # The origin is the last sample in air: up to one sample period (0.1 s) before the touch.
+    assert touch.start_s + 0.6 - 0.11 <= a <= touch.start_s + 0.6 + 0.25
+    assert b - a == pytest.approx(2.0, abs=0.02)
+    # The record keeps the samples in air and the contact; the chain finds the contact there.
+    t = np.asarray(series["raw_t_s"])
+    assert t.min() <= -(a - touch.start_s) - 0.2
+    chain = rec["result"]["sensor_chain"]
+    assert chain["contact_t_s"] == pytest.approx(touch.start_s - a, abs=0.2)
+    assert_heater_safe(sim.parts, 10.0)
+    sim.close()
+
+
+def test_armed_without_a_touch_ends_no_contact_with_the_heater_never_on(tmp_path):
+    # pmma_15V_faithful's touch comes at 0.5 s; arming from ~0 for 0.3 s is over before it.
+    rec, series, sim = _armed_on("pmma_15V_faithful", tmp_path, arm_s=0.3, settle_s=0.5)
+    assert rec["status"] == "aborted" and rec["reason"] == "no_contact", rec
+    assert sim.heater_intervals() == []
+    sim.close()

@@ -37,6 +37,11 @@ def test_join_with_abort_stops_the_job_and_a_crash_is_contained():
 
 
 def test_budget_covers_a_whole_measurement():
-    m = SimpleNamespace(baseline_s=1.0, cooldown_s=5.0)
+    from edge.protocol.commands import MAX_ARM_s, MAX_SETTLE_s
+
+    m = SimpleNamespace(baseline_s=1.0, cooldown_s=5.0, arm_s=0.0, settle_s=1.0)
     h = SimpleNamespace(max_on_time_s=3.0)
-    assert measurement_budget_s(m, h) == 9.0 + WORKER_JOIN_s
+    # Whatever a MEASURE may ask for (arming and settling up to the protocol's bounds) fits.
+    assert measurement_budget_s(m, h) == 9.0 + MAX_ARM_s + MAX_SETTLE_s + WORKER_JOIN_s
+    m.arm_s = 2 * MAX_ARM_s
+    assert measurement_budget_s(m, h) == 9.0 + 2 * MAX_ARM_s + MAX_SETTLE_s + WORKER_JOIN_s
