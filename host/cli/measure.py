@@ -37,6 +37,13 @@ def add_parser(sub, parents):
     p.add_argument("--until-decided", action="store_true",
                    help="stop heating as soon as the running answer's posterior reaches the device's "
                         "measurement.decide_posterior (at most the contact time); prints the answer and when")
+    conv, rng = _protocol_bound("arm_s")
+    p.add_argument("--arm", type=conv, metavar="S", default=None,
+                   help=f"armed: the device samples in air up to S seconds for the touch, finds the contact from "
+                        f"its sensors and heats --settle seconds after it ({rng}; 0 = off)")
+    conv, rng = _protocol_bound("settle_s")
+    p.add_argument("--settle", type=conv, metavar="S", default=None,
+                   help=f"armed: detected contact to heater-on, s ({rng}; default the device's)")
     p.add_argument("--method", choices=("paper", "default"), default=None,
                    help="estimation method for this touch (default: the device's setting)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -68,7 +75,8 @@ def run(args) -> int:
         with Ticker("measuring", enabled=not args.json):
             t = touch(session, power_W=args.power, voltage_V=args.voltage, contact_time_s=args.time,
                       method=args.method, with_series=bool(args.plot), bundle_dir=args.bundle,
-                      sample_rate_Hz=rate, until_decided=args.until_decided)
+                      sample_rate_Hz=rate, until_decided=args.until_decided, arm_s=args.arm,
+                      settle_s=args.settle)
         label = session.simulator.scene.name if session.simulated else session.port
     d = measure_json(t.record)
     decision = (t.record.get("result") or {}).get("decision")
