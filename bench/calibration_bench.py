@@ -48,12 +48,21 @@ REFERENCES = (("pmma", 0.0, -1.0), ("pmma", 1e-5, 1.0), ("pyroceram", 0.0, 1.0),
 SOLIDS = ("polystyrene_extruded_foam", "cork_board", "balsa", "oak_cross_grain", "ptfe", "hdpe", "natural_rubber_soft",
           "epdm", "n_bk7", "borofloat_33", "soda_lime_plate_glass", "macor", "zirconia_3y", "granite", "marble",
           "ti_6al_4v", "inconel_x750", "cartridge_brass", "aluminium", "copper")
-#: As-built probes: (flux sensitivity factor, sensing thickness factor, sensing k factor, bead lag s),
-#: drawn once (seeded) within the as-delivered spreads the device assumes (edge.physics.probe).
-_PRNG = np.random.default_rng(20261124)
-PROBES = tuple((round(float(_PRNG.uniform(0.95, 1.05)), 3), round(float(_PRNG.uniform(0.94, 1.06)), 3),
-                round(float(_PRNG.uniform(0.95, 1.05)), 3), round(float(_PRNG.uniform(0.01, 0.12)), 3))
-               for _ in range(8))
+def _draw_probes(n: int) -> tuple:
+    """As-built probes: (flux sensitivity factor, sensing thickness factor, sensing k factor, bead lag s),
+    drawn once (seeded) from the as-delivered spreads the uncalibrated device states for itself
+    (edge.physics.probe): so the datasheet chain's stated u can be judged on probes that really are
+    that uncertain."""
+    from edge.physics.probe import (FLUX_SENSITIVITY_U_REL, SENSING_K_U_REL, SENSING_THICKNESS_U_REL,
+                                    THERMOCOUPLE_TAU_U_s)
+    rng = np.random.default_rng(20261124)
+    return tuple((round(1.0 + FLUX_SENSITIVITY_U_REL * float(rng.standard_normal()), 4),
+                  round(1.0 + SENSING_THICKNESS_U_REL * float(rng.standard_normal()), 4),
+                  round(1.0 + SENSING_K_U_REL * float(rng.standard_normal()), 4),
+                  round(abs(THERMOCOUPLE_TAU_U_s * float(rng.standard_normal())), 4)) for _ in range(n))
+
+
+PROBES = _draw_probes(8)
 RC_SPLIT = 3e-5
 
 
