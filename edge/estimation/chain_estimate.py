@@ -60,8 +60,8 @@ DEFAULT_NOISE_T_K = 0.01
 _STEPS = (1e-3, 1e-3, 2e-3, 1e-3)
 
 
-#: Passes of the lateral-loss correction (e -> alpha from the prior -> e); the third changes e by < 0.1 %.
-DISK_PASSES = 3
+#: Passes of the lateral-loss correction (e -> alpha from the prior -> e); a third changes e by < 0.1 %.
+DISK_PASSES = 2
 #: A lateral correction of e beyond this (relative) is flagged ``lateral_spread``.
 LATERAL_FLAG = 0.10
 #: Contact is lost when, during heating, the face flux falls below this share of its largest value so
