@@ -10,6 +10,10 @@ def add_parser(sub, parents):
     p = sub.add_parser("demo", help="simulated probe: deploy a model, touch the paper's samples, print and plot",
                        parents=parents)
     p.add_argument("--train", action="store_true", help="train a quick model and deploy it instead of the shipped one")
+    p.add_argument("--real-probe", action="store_true",
+                   help="instead: an as-built probe on the faithful world (precision board) is calibrated on three "
+                        "reference specimens, then measures the paper's glass, PMMA and aluminium with contact "
+                        "resistance and a temperature difference, before and after calibration (about a minute)")
     add_output(p, "--out", kind="dir", default="thermotouch-demo",
                help="output directory to create (default ./thermotouch-demo; an existing one needs --overwrite)")
     p.set_defaults(func=run)
@@ -18,4 +22,25 @@ def add_parser(sub, parents):
 def run(args) -> int:
     from host.demo import run_demo  # noqa: PLC0415
 
+    if args.real_probe:
+        return _run_real_probe(args)
+
     return run_demo(args.out, train=args.train, overwrite=args.overwrite, log=say)
+
+
+def _run_real_probe(args) -> int:
+    import shutil  # noqa: PLC0415
+
+    from host.cli.errors import CliError  # noqa: PLC0415
+    from host.realprobe import run_real_probe  # noqa: PLC0415
+
+    if args.train:
+        raise CliError("--real-probe uses the shipped model; --train is for the paper demo")
+    out = args.out
+    if out.exists() and not args.overwrite:
+        raise CliError(f"--out {out} exists (use --overwrite to replace it)")
+    # Our own subdirectories only: a fresh probe every run (reproducible numbers), nothing else touched.
+    for sub in ("scenes", "probe"):
+        shutil.rmtree(out / sub, ignore_errors=True)
+    run_real_probe(out, say=say)
+    return 0
