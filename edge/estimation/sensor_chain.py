@@ -209,6 +209,10 @@ def simulate_chain(t_s, q_m_W_m2, *, e_W_s05_m2K: float, R_c_m2K_W: float, T_obj
 #: foam and cork records at 20 Hz, 0.15 / 0.25 / 0.5 s: normalised residual 4.5 / 3.7 / 3.0, e error
 #: -1.1 / -0.9 / -0.9 %; without it 8-10 and -2.7 %.)
 SMOOTH_HALF_WIDTH_s = 0.5
+#: The half-width grows by one sample every SMOOTH_GROWTH samples from a segment's start: a moving
+#: average bends a curved theta_b by ~h^2 theta''/6, and theta_b is most curved just after contact
+#: and heater-on (growth 3: R_c -5e-6..-9e-6 m^2K/W on noise-free FaithfulWorld records; 6: see git log).
+SMOOTH_GROWTH = 6
 
 
 def _smooth_from_contact(x: np.ndarray, h_max: int, breaks: tuple[int, ...] = ()) -> np.ndarray:
@@ -216,7 +220,7 @@ def _smooth_from_contact(x: np.ndarray, h_max: int, breaks: tuple[int, ...] = ()
 
     Segments start at contact (sample 0) and at each of ``breaks`` (the heater switching: theta_b's
     slope jumps there, and an average across it would bend it by far more than the noise it removes).
-    Within a segment the half-width is j // 3 at its j-th sample -- narrow where a transient is fast,
+    Within a segment the half-width is j // SMOOTH_GROWTH at its j-th sample -- narrow where a transient is fast,
     wide where theta_b is smooth -- and shrinks symmetrically toward the segment's end.
     """
     n = x.size
@@ -227,7 +231,7 @@ def _smooth_from_contact(x: np.ndarray, h_max: int, breaks: tuple[int, ...] = ()
     c = np.concatenate(([0.0], np.cumsum(x)))
     for a, b in zip(edges[:-1], edges[1:]):
         i = np.arange(a, b)
-        h = np.minimum(np.minimum((i - a) // 3, h_max), b - 1 - i)
+        h = np.minimum(np.minimum((i - a) // SMOOTH_GROWTH, h_max), b - 1 - i)
         out[a:b] = (c[i + h + 1] - c[i - h]) / (2 * h + 1)
     return out
 
