@@ -138,29 +138,26 @@ def uniform_series(t_s: np.ndarray, *columns: np.ndarray, path: str | Path = "")
         raise RecordError(f"{path}: {exc}") from None
 
 
-def write_record(path: str | Path, t_s, dT_K, q_W_m2, *, probe: str | None = None) -> None:
-    """Write a record in the schema above (dT_K column), atomically; ``probe``: its ``# probe:`` line."""
+def _write_csv(path: str | Path, header: str, columns: tuple[str, str, str], rows, probe: str | None) -> None:
     from host.atomic import atomic_path  # noqa: PLC0415
 
     with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as f:
-        f.write("# ThermoTouch record: time since heater-on, excess temperature, flux into the object\n")
+        f.write(f"# {header}\n")
         if probe is not None:
             f.write(f"# probe: {probe}\n")
         w = csv.writer(f)
-        w.writerow(["t_s", "dT_K", "q_W_m2"])
-        for row in zip(t_s, dT_K, q_W_m2):
+        w.writerow(list(columns))
+        for row in rows:
             w.writerow([f"{v:.9g}" for v in row])
+
+
+def write_record(path: str | Path, t_s, dT_K, q_W_m2, *, probe: str | None = None) -> None:
+    """Write a record in the schema above (dT_K column), atomically; ``probe``: its ``# probe:`` line."""
+    _write_csv(path, "ThermoTouch record: time since heater-on, excess temperature, flux into the object",
+               ("t_s", "dT_K", "q_W_m2"), zip(t_s, dT_K, q_W_m2), probe)
 
 
 def write_series(path: str | Path, t_s, T_K, q_W_m2, *, probe: str | None = None) -> None:
     """Write a whole record (absolute ``T_K``, samples before heater-on included), atomically."""
-    from host.atomic import atomic_path  # noqa: PLC0415
-
-    with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as f:
-        f.write("# ThermoTouch record: time since heater-on (negative before), thermocouple, flux-sensor reading\n")
-        if probe is not None:
-            f.write(f"# probe: {probe}\n")
-        w = csv.writer(f)
-        w.writerow(["t_s", "T_K", "q_W_m2"])
-        for row in zip(t_s, T_K, q_W_m2):
-            w.writerow([f"{v:.9g}" for v in row])
+    _write_csv(path, "ThermoTouch record: time since heater-on (negative before), thermocouple, flux-sensor reading",
+               ("t_s", "T_K", "q_W_m2"), zip(t_s, T_K, q_W_m2), probe)

@@ -221,18 +221,9 @@ def _fit(args):
     if args.json:
         print(cal.to_json(), end="")
     else:
-        c = cal.chain
-        u = cal.u_theta
         print(f"calibration {cal.sha256[:12]} for probe {cal.probe} written to {args.out}")
-        print(f"  flux sensor sensitivity  x {1.0 / c.flux_scale:.4f} of nominal  (u {u[0]:.1%})")
-        print(f"  sensing depth            {c.sensing_thickness_m * 1e3:.4f} mm  (u {u[1]:.1%})")
-        print(f"  sensing layer k          {c.k_W_mK:.4f} W/m/K  (u {u[3]:.1%})")
-        print(f"  thermocouple lag         {c.tc_tau_s * 1e3:.1f} ms  (u {u[2] * 1e3:.1f} ms)")
-        print(f"  transfer floor on e      {cal.u_rel_floor:.1%}")
-        for r in cal.references:
-            errs = ", ".join(f"{x:+.1%}" for x in r.rel_errors)
-            print(f"  {r.name:<12} e {r.e_W_s05_m2K:.0f}: re-measured {errs}")
-    return 0
+        _print_calibration(cal)
+    return cal
 
 
 def calibration_file(text: str):

@@ -211,7 +211,7 @@ def test_faithful_scenes_touch_as_a_hand_does_with_a_probe_built_a_little_off(na
 # The unchanged daemon on a faithful scene
 
 
-def _measure_on(scene: str, tmp_path):
+def _measure_on(scene: str, tmp_path, **measure):
     stop, ports, box = threading.Event(), [], {}
     th = threading.Thread(target=run_sim, args=(scene, stop, ports.append),
                           kwargs=dict(estimator=FakeEstimator(), workdir=tmp_path,
@@ -222,7 +222,7 @@ def _measure_on(scene: str, tmp_path):
         time.sleep(0.005)
     try:
         with DeviceClient(ports[0], timeout_s=10.0) as c:
-            rec = c.measure()
+            rec = c.measure(**measure)
             series = c.series(rec["measurement_id"], "raw")
     finally:
         stop.set()
@@ -273,23 +273,8 @@ def test_the_faithful_world_gives_the_chips_the_scenes_touch_timing():
 
 
 def _armed_on(scene: str, tmp_path, **measure):
-    stop, ports, box = threading.Event(), [], {}
-    th = threading.Thread(target=run_sim, args=(scene, stop, ports.append),
-                          kwargs=dict(estimator=FakeEstimator(), workdir=tmp_path,
-                                      on_ready=lambda d, s: box.update(d=d, s=s)), daemon=True)
-    th.start()
-    deadline = time.monotonic() + 20
-    while "s" not in box and th.is_alive() and time.monotonic() < deadline:
-        time.sleep(0.005)
-    try:
-        with DeviceClient(ports[0], timeout_s=10.0) as c:
-            rec = c.measure(**measure)
-            series = c.series(rec["measurement_id"], "raw")
-    finally:
-        stop.set()
-        th.join(20)
-    assert not th.is_alive()
-    return rec, series, box["s"]
+    rec, series, _d, sim = _measure_on(scene, tmp_path, **measure)
+    return rec, series, sim
 
 
 def test_armed_measurement_heats_settle_s_after_the_detected_contact(tmp_path):
