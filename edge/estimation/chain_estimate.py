@@ -72,6 +72,8 @@ LOSS_HOLD_s = 0.3
 #: ... and only once that largest value stands clear of the flux noise (W/m^2): on foam the face flux
 #: is tens of W/m^2 and its noise would otherwise look like a lift.
 LOSS_MIN_FLUX_W_m2 = 50.0
+#: ... and above this many times the face flux's sample-to-sample noise.
+LOSS_NOISE_FACTOR = 8.0
 #: Candidate fit windows after heater-on (s) for a finite heater (see estimate_from_contact).
 LATERAL_WINDOWS_s = (1.0, 2.0, 4.0, 8.0, math.inf)
 
@@ -130,19 +132,24 @@ def uniform_record(t_s, *columns) -> tuple[np.ndarray, ...]:
 def contact_lost_at(t_from_contact: np.ndarray, phi_W_m2: np.ndarray, t_heat_s: float) -> float | None:
     """Time from contact at which the probe left the object during heating (None: it stayed).
 
-    See :data:`LOSS_FRACTION`: the face flux falls below that share of its running maximum after
-    heater-on and stays below for :data:`LOSS_HOLD_s`.
+    The face flux, averaged over LOSS_HOLD_s, falls below :data:`LOSS_FRACTION` of its largest value
+    since heater-on and stays there for LOSS_HOLD_s -- and that largest value stands clear of the face
+    flux's own noise (LOSS_NOISE_FACTOR times it, and LOSS_MIN_FLUX_W_m2): on a coarse thermometer
+    (the MCP9600's 0.0625 K steps) the storage term makes the inferred face flux swing by hundreds of
+    W/m^2 from sample to sample, and a swing is not a lift.
     """
     t, phi = np.asarray(t_from_contact), np.asarray(phi_W_m2)
     on = np.nonzero(t >= t_heat_s)[0]
-    if on.size < 4:
+    if on.size < 6:
         return None
     dt = float(t[1] - t[0])
     hold = max(2, int(round(LOSS_HOLD_s / dt)))
     seg = phi[on]
-    peak = np.maximum.accumulate(seg)
-    low = (seg < LOSS_FRACTION * peak) & (peak > LOSS_MIN_FLUX_W_m2)
-    # First index from which `hold` consecutive samples are low.
+    noise = 1.4826 * float(np.median(np.abs(np.diff(seg) - np.median(np.diff(seg))))) / math.sqrt(2.0)
+    w = min(hold, seg.size)
+    smooth = np.convolve(seg, np.ones(w) / w, mode="valid")      # smooth[j] averages seg[j:j + w]
+    peak = np.maximum.accumulate(smooth)
+    low = (smooth < LOSS_FRACTION * peak) & (peak > max(LOSS_MIN_FLUX_W_m2, LOSS_NOISE_FACTOR * noise))
     run = np.convolve(low.astype(int), np.ones(hold, dtype=int), mode="valid")
     hit = np.nonzero(run == hold)[0]
     return None if hit.size == 0 else float(t[on[hit[0]]])
