@@ -287,7 +287,12 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
         if r_late.e_W_s05_m2K > 0 and math.isfinite(r_late.e_W_s05_m2K):
             u_contact = abs(math.log(r_late.e_W_s05_m2K / r.e_W_s05_m2K))
     u_rel = math.sqrt(u_fit**2 + u_cal**2 + cal.u_rel_floor**2 + u_contact**2 + u_lat**2)
-    u_Rc = math.sqrt(r.u_R_c_m2K_W**2 + float(var_cal[1]))
+    # R_c leans on the first second after contact, where the smoothing of theta_b (a bias-variance
+    # choice) bends the storage term most: the change of R_c without it is part of R_c's uncertainty.
+    r_raw = fit_sensor_chain(tt, TT, qq, calibration=cal.chain, fit_start_s=FIT_START_s, noise_T_K=noise_T,
+                             breaks_s=breaks, disk=disk, smooth_s=0.0)
+    u_Rc_method = abs(r_raw.R_c_m2K_W - r.R_c_m2K_W) if math.isfinite(r_raw.R_c_m2K_W) else 0.0
+    u_Rc = math.sqrt(r.u_R_c_m2K_W**2 + float(var_cal[1]) + u_Rc_method**2)
     if r.normalised_residual > POOR_FIT:
         flags.append("poor_fit")
     return {
