@@ -25,12 +25,9 @@ from __future__ import annotations
 import argparse
 
 from host.cli.args import add_device_args, add_output, existing_file
-from host.cli.common import device_session
-from host.cli.errors import EXIT_BAD_INPUT, EXIT_RUNTIME, CliError
+from host.cli.common import device_call, device_session
+from host.cli.errors import CliError
 from host.cli.report import dumps
-
-#: Device refusals that are the user's input to fix (exit 2), as for object sets.
-_INPUT_CODES = ("BAD_ARGUMENT", "MODEL_REJECTED")
 
 
 def add_parser(sub, parents):
@@ -85,16 +82,6 @@ def run(args) -> int:
     return 0
 
 
-def _device_call(fn, *a, **kw):
-    from host.client import DeviceError  # noqa: PLC0415
-
-    try:
-        return fn(*a, **kw)
-    except DeviceError as exc:
-        code = EXIT_BAD_INPUT if exc.code.name in _INPUT_CODES else EXIT_RUNTIME
-        raise CliError(f"device refused: {exc.message}", code) from None
-
-
 def _read_calibration_file(path):
     from edge.calibration.model import CalibrationError, ProbeCalibration  # noqa: PLC0415
 
@@ -113,7 +100,7 @@ def _run_install(args, cal) -> int:
 
     key = load_signing_key(args.key)   # a bad key file is refused before any connection
     with device_session(args) as session:
-        rep = _device_call(install_calibration, session.client, cal, key=key)
+        rep = device_call(install_calibration, session.client, cal, key=key)
     if args.json:
         print(dumps(rep))
     else:
@@ -125,7 +112,7 @@ def _run_show(args) -> int:
     from host.calibration import read_calibration  # noqa: PLC0415
 
     with device_session(args) as session:
-        cal, rep = _device_call(read_calibration, session.client)
+        cal, rep = device_call(read_calibration, session.client)
     if args.json:
         print(dumps({"calibrated": rep["calibrated"], "sha256": rep["sha256"], "signed_by": rep.get("signed_by"),
                      "calibration": None if cal is None else cal.to_dict()}))
@@ -146,7 +133,7 @@ def _run_check(args) -> int:
     name = args.reference[0]
     m = _reference(load_materials(), name)
     with device_session(args) as session:
-        rec = _device_call(session.client.measure)
+        rec = device_call(session.client.measure)
     res = check_record(rec, m.solid.effusivity_W_s05_m2K, REFERENCE_U_REL.get(name, OTHER_REFERENCE_U_REL))
     res["reference"] = name
     res["measurement_id"] = rec.get("measurement_id")

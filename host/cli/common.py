@@ -7,9 +7,23 @@ import sys
 from typing import Any, Iterator
 
 from host.cli.args import resolve_port
-from host.cli.errors import EXIT_BAD_INPUT, CliError
+from host.cli.errors import EXIT_BAD_INPUT, EXIT_RUNTIME, CliError
 
-__all__ = ["device_session", "load_estimator", "load_object_set", "say", "note"]
+__all__ = ["device_call", "device_session", "load_estimator", "load_object_set", "say", "note"]
+
+#: Device refusals that are the user's input to fix, not the device's state (exit status 2).
+INPUT_CODES = ("MODEL_REJECTED", "BAD_ARGUMENT", "NOT_FOUND")
+
+
+def device_call(fn, *args, **kw):
+    """Run a device request; its refusal becomes one line (exit 2 when it is the input, else 1)."""
+    from host.client import DeviceError  # noqa: PLC0415
+
+    try:
+        return fn(*args, **kw)
+    except DeviceError as exc:
+        code = EXIT_BAD_INPUT if exc.code.name in INPUT_CODES else EXIT_RUNTIME
+        raise CliError(f"device refused: {exc.message}", code) from None
 
 
 @contextlib.contextmanager

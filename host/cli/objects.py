@@ -12,14 +12,12 @@ The active set names the object of every measurement (``measure`` prints it;
 from __future__ import annotations
 
 from host.cli.args import add_device_args, existing_file, non_negative_int, positive_int
-from host.cli.common import device_session, load_object_set, note
-from host.cli.errors import EXIT_BAD_INPUT, EXIT_RUNTIME, CliError
+from host.cli.common import device_call, device_session, load_object_set, note
+from host.cli.errors import CliError
 from host.cli.report import dumps
 
 #: Typical relative standard uncertainty of e on the precision board (README), for the add-time warning.
 TYPICAL_U_LN_E = 0.02
-#: Device refusals that are the user's input, not the device's state (exit status 2).
-_INPUT_CODES = ("MODEL_REJECTED", "BAD_ARGUMENT", "NOT_FOUND")
 
 
 def add_parser(sub, parents):
@@ -67,17 +65,6 @@ def add_parser(sub, parents):
     sel.set_defaults(func=run_select)
 
 
-def _device_call(fn, *args, **kw):
-    """Run a device request; its refusal becomes one line (exit 2 when it is the input, else 1)."""
-    from host.client import DeviceError  # noqa: PLC0415
-
-    try:
-        return fn(*args, **kw)
-    except DeviceError as exc:
-        code = EXIT_BAD_INPUT if exc.code.name in _INPUT_CODES else EXIT_RUNTIME
-        raise CliError(f"device refused: {exc.message}", code) from None
-
-
 def run_add(args) -> int:
     from host.objects import set_name_of, upload_object_set  # noqa: PLC0415
     from edge.storage.objects_store import ObjectStoreError, check_name  # noqa: PLC0415
@@ -97,7 +84,7 @@ def run_add(args) -> int:
                                                                  else "")
         note(f"note: effusivity alone hardly separates {shown} (within 2 u at u(e)/e = {TYPICAL_U_LN_E:.0%})")
     with device_session(args) as session:
-        res = _device_call(upload_object_set, session.client, name, raw, activate=not args.no_activate, key=key)
+        res = device_call(upload_object_set, session.client, name, raw, activate=not args.no_activate, key=key)
     if args.json:
         print(dumps(res))
     else:
@@ -110,7 +97,7 @@ def run_list(args) -> int:
     from host.objects import list_object_sets  # noqa: PLC0415
 
     with device_session(args) as session:
-        res = _device_call(list_object_sets, session.client)
+        res = device_call(list_object_sets, session.client)
     if args.json:
         print(dumps(res))
         return 0
@@ -135,7 +122,7 @@ def run_remove(args) -> int:
     from host.objects import remove_object_set  # noqa: PLC0415
 
     with device_session(args) as session:
-        res = _device_call(remove_object_set, session.client, args.name)
+        res = device_call(remove_object_set, session.client, args.name)
     print(f"object set {res['removed']} removed; active set: {res['active']}")
     return 0
 
@@ -144,7 +131,7 @@ def run_select(args) -> int:
     from host.objects import select_object_set  # noqa: PLC0415
 
     with device_session(args) as session:
-        res = _device_call(select_object_set, session.client, args.name)
+        res = device_call(select_object_set, session.client, args.name)
     print(f"active set: {res['active']}")
     return 0
 
