@@ -224,10 +224,12 @@ def main() -> None:
     suffix = "".join(f"_{x}" for x in (args.board, args.contact) if x not in ("precision", "ideal"))
     write_json(f"small_probe{suffix}", res)
     if args.update_readme:
-        note = (f"\n\n{args.solids} synthetic solids (not in the library) × {args.touches} touch, "
-                f"{args.board} board, ideal contact, through the simulator and the device's sequence and "
-                f"estimator; {res['wall_s']:.0f} s wall (`python bench/small_probe_bench.py --update-readme`, "
-                "`bench/results/small_probe.json`).")
+        extra = "".join(f" --{k} {v}" for k, v in (("solids", args.solids), ("touches", args.touches))
+                        if v != ap.get_default(k))
+        note = (f"\n\n{args.solids} synthetic solids (not in the library) × {args.touches} touch"
+                f"{'es' if args.touches > 1 else ''} (noise draws), {args.board} board, ideal contact, through the "
+                f"simulator and the device's sequence and estimator; {res['wall_s']:.0f} s wall "
+                f"(`python bench/small_probe_bench.py{extra} --update-readme`, `bench/results/small_probe.json`).")
         update_readme("small-probe-bench", txt + note + "\n")
 
 

@@ -31,7 +31,8 @@ from host.cli.report import dumps
 
 
 def add_parser(sub, parents):
-    p = sub.add_parser("calibrate", help="calibrate the probe on touches of reference materials (offline records)",
+    p = sub.add_parser("calibrate", help="the probe's calibration on reference materials: fit from records, install, "
+                                        "show, check",
                        parents=parents)
     p.add_argument("--record", action="append", type=existing_file, default=[], metavar="FILE.csv",
                    help="a touch of a reference, recorded from before contact (repeat; one per --reference)")
