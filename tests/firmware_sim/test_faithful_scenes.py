@@ -28,7 +28,7 @@ from firmware_sim.simulator import load_scene
 from firmware_sim.world import ScheduleDrive, ThermalWorld
 from host.client import DeviceClient
 from tests.firmware_sim.test_scene import BASE, edit
-from tests.support.daemons import FakeEstimator, assert_heater_safe
+from tests.support.daemons import FakeEstimator, assert_heater_safe, sim_daemon
 
 pytestmark = pytest.mark.hil
 
@@ -212,23 +212,10 @@ def test_faithful_scenes_touch_as_a_hand_does_with_a_probe_built_a_little_off(na
 
 
 def _measure_on(scene: str, tmp_path, **measure):
-    stop, ports, box = threading.Event(), [], {}
-    th = threading.Thread(target=run_sim, args=(scene, stop, ports.append),
-                          kwargs=dict(estimator=FakeEstimator(), workdir=tmp_path,
-                                      on_ready=lambda d, s: box.update(d=d, s=s)), daemon=True)
-    th.start()
-    deadline = time.monotonic() + 20
-    while "s" not in box and th.is_alive() and time.monotonic() < deadline:
-        time.sleep(0.005)
-    try:
-        with DeviceClient(ports[0], timeout_s=10.0) as c:
-            rec = c.measure(**measure)
-            series = c.series(rec["measurement_id"], "raw")
-    finally:
-        stop.set()
-        th.join(20)
-    assert not th.is_alive()
-    return rec, series, box["d"], box["s"]
+    with sim_daemon(scene, tmp_path) as (c, d, sim):
+        rec = c.measure(**measure)
+        series = c.series(rec["measurement_id"], "raw")
+    return rec, series, d, sim
 
 
 @pytest.mark.parametrize("scene", ["glass_15V_faithful", "pmma_15V_small"])

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -98,3 +101,29 @@ class HookedSensors:
         self.n += 1
         self.hook(n, self.heater.is_on)
         return self.inner.read()
+
+
+@contextlib.contextmanager
+def sim_daemon(scene, workdir, estimator=None):
+    """The unchanged daemon on ``scene``'s simulator (as ``thermotouch sim`` runs it), a client on its port.
+
+    Yields ``(client, daemon, simulator)``; on exit the daemon is stopped and its thread must end.
+    """
+    from firmware_sim.run import run_sim
+    from host.client import DeviceClient
+
+    stop, ports, box = threading.Event(), [], {}
+    th = threading.Thread(target=run_sim, args=(scene, stop, ports.append),
+                          kwargs=dict(estimator=estimator or FakeEstimator(), workdir=workdir,
+                                      on_ready=lambda d, s: box.update(d=d, s=s)), daemon=True)
+    th.start()
+    deadline = time.monotonic() + 20
+    while "s" not in box and th.is_alive() and time.monotonic() < deadline:
+        time.sleep(0.005)
+    try:
+        with DeviceClient(ports[0], timeout_s=10.0) as c:
+            yield c, box["d"], box["s"]
+    finally:
+        stop.set()
+        th.join(20)
+    assert not th.is_alive()

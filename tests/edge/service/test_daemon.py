@@ -16,7 +16,7 @@ from tests.support.bundles import (
     npz_bytes,
     write_raw_bundle,
 )
-from tests.support.daemons import FakeEstimator, assert_heater_safe, sim_config
+from tests.support.daemons import FakeEstimator, assert_heater_safe, sim_config, sim_daemon
 from edge.estimation.estimate import mlp_golden_check
 from edge.model import bundle as B
 from edge.service.config import Config
@@ -272,29 +272,6 @@ def test_console_script_rejects_a_bad_config(tmp_path, capsys):
 
 PAPER_SCENES = ("glass_12V", "glass_15V", "glass_18V", "pmma_8V", "pmma_15V", "pmma_20V",
                 "alu_15V", "alu_20V", "alu_25V")
-
-
-@contextlib.contextmanager
-def sim_daemon(scene, tmp_path, estimator=None):
-    import threading
-
-    from firmware_sim.run import run_sim
-
-    stop, ports, box = threading.Event(), [], {}
-    th = threading.Thread(target=run_sim, args=(scene, stop, ports.append),
-                          kwargs=dict(estimator=estimator or FakeEstimator(), workdir=tmp_path,
-                                      on_ready=lambda d, s: box.update(d=d, s=s)), daemon=True)
-    th.start()
-    deadline = time.monotonic() + 20
-    while "s" not in box and th.is_alive() and time.monotonic() < deadline:
-        time.sleep(0.005)
-    try:
-        with DeviceClient(ports[0], timeout_s=10.0) as c:
-            yield c, box["d"], box["s"]
-    finally:
-        stop.set()
-        th.join(20)
-    assert not th.is_alive()
 
 
 @pytest.mark.parametrize("scene", PAPER_SCENES)
