@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import threading
-import time
 import tomllib
 
 import numpy as np
@@ -20,15 +18,14 @@ import pytest
 from edge.physics.geometry import PROBES
 from firmware_sim.clock import VirtualClock
 from firmware_sim.rz.probe_world import FaithfulWorld
-from firmware_sim.run import config_for_scene, run_sim
+from firmware_sim.run import config_for_scene
 from firmware_sim.scene.files import SHIPPED_DIR, read_scene, scene_names
 from firmware_sim.scene.model import AsBuiltSpec, SceneError
 from firmware_sim.scene.parser import parse_scene
 from firmware_sim.simulator import load_scene
 from firmware_sim.world import ScheduleDrive, ThermalWorld
-from host.client import DeviceClient
 from tests.firmware_sim.test_scene import BASE, edit
-from tests.support.daemons import FakeEstimator, assert_heater_safe, sim_daemon
+from tests.support.daemons import assert_heater_safe, sim_daemon
 
 pytestmark = pytest.mark.hil
 

@@ -1,7 +1,6 @@
 """The daemon over a virtual null-modem cable, driven by host.client.DeviceClient."""
 
 import contextlib
-import time
 import hashlib
 import json
 
