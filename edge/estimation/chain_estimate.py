@@ -174,15 +174,16 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
         Default: the uncalibrated datasheet probe (flagged).
     heater_radius_m : float, optional
         Radius of the heated disk (default: the calibration's probe's); ``math.inf`` for 1-D.  The
-        object loses heat sideways from a finite disk; the loss depends on the object's alpha, which
-        one touch does not give (only e): alpha comes from the library's prior given e, its width
-        goes into u(e) (``u_e_parts["lateral"]``).
+        object loses heat sideways from a finite disk, by an amount that depends on its alpha and
+        size, which one touch does not give: e is bracketed between the 1-D fit and a disk on a
+        half-space (alpha from the library's prior given e), half the bracket going into u(e)
+        (``u_e_parts["lateral"]``).
 
     Returns
     -------
     dict
         ``effusivity_W_s05_m2K`` and ``..._u`` (k = 1) with its parts ``u_e_parts`` (fit,
-        calibration, floor, contact), ``contact_resistance_m2K_W`` (+ ``_u``),
+        calibration, floor, contact, lateral), ``contact_resistance_m2K_W`` (+ ``_u``),
         ``object_temperature0`` (+ ``_u``), ``probe_temperature0``, ``contact_t_s``,
         ``normalised_residual``, ``flags``, ``determined``, ``calibration_sha256``.
     """
@@ -261,7 +262,7 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
     if bad(r):
         return {"flags": flags + ["no_fit"], "effusivity_W_s05_m2K": None, "effusivity_W_s05_m2K_u": None,
                 "contact_t_s": float(t[i0]), "normalised_residual": r.normalised_residual,
-                "determined": [], "calibration_sha256": cal.sha256}
+                "determined": [], "calibration_sha256": cal.sha256, "probe": cal.probe}
     e = r.e_W_s05_m2K if e_lat is None else e_lat
     if 2.0 * u_lat > LATERAL_FLAG:
         flags.append("lateral_spread")
