@@ -127,3 +127,34 @@ def sim_daemon(scene, workdir, estimator=None):
         stop.set()
         th.join(20)
     assert not th.is_alive()
+
+
+@contextlib.contextmanager
+def linked_daemon(tmp_path, **sections):
+    """A daemon on a fresh rig behind a virtual serial cable (``sections``: config overrides); yields a client."""
+    import serial
+
+    from firmware_sim.daemon_thread import DaemonThread
+    from firmware_sim.ptylink import NullModem
+    from host.client import DeviceClient
+
+    cfg = sim_config(tmp_path, **sections)
+    rig = make_rig()
+    with NullModem() as nm, serial.Serial(nm.device_port, timeout=0.05) as port:
+        with DaemonThread(cfg, rig.board, port, estimator=FakeEstimator(rig.parts)) as dt:
+            with DeviceClient(nm.host_port, timeout_s=5.0) as client:
+                yield client
+        assert dt.error is None
+
+
+@contextlib.contextmanager
+def strict_probe(tmp_path, key_name: str = "lab", **sections):
+    """A daemon that accepts only updates signed by the one key it trusts; yields (client, that secret key)."""
+    from host.keys import new_key
+
+    keys_dir = tmp_path / "trusted_keys"
+    trusted = new_key(keys_dir, key_name)
+    (keys_dir / f"{key_name}.secret.json").unlink()  # the probe holds public keys only
+    with linked_daemon(tmp_path, security={"allow_unsigned": False, "trusted_keys_dir": str(keys_dir)},
+                       **sections) as client:
+        yield client, trusted

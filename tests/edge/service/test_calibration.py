@@ -7,34 +7,22 @@ and each record names the calibration it used.  Refusals are one line and keep w
 
 from __future__ import annotations
 
-import contextlib
 
 import pytest
-import serial
 
 from edge.protocol.commands import Command
 from edge.protocol.errors import ErrorCode
-from firmware_sim.daemon_thread import DaemonThread
-from firmware_sim.ptylink import NullModem
-from firmware_sim.rigs.daemon_rig import make_rig
 from host.calibration import install_calibration, read_calibration
-from host.client import DeviceClient, DeviceError
+from host.client import DeviceError
 from host.keys import new_key
 from tests.support.calibrations import sample_calibration
-from tests.support.daemons import FakeEstimator, sim_config
+from tests.support.daemons import linked_daemon
 
 pytestmark = pytest.mark.hil
 
 
-@contextlib.contextmanager
 def probe(tmp_path, **security):
-    cfg = sim_config(tmp_path, security=security) if security else sim_config(tmp_path)
-    rig = make_rig()
-    with NullModem() as nm, serial.Serial(nm.device_port, timeout=0.05) as port:
-        with DaemonThread(cfg, rig.board, port, estimator=FakeEstimator(rig.parts)) as dt:
-            with DeviceClient(nm.host_port, timeout_s=5.0) as client:
-                yield client
-        assert dt.error is None
+    return linked_daemon(tmp_path, security=security) if security else linked_daemon(tmp_path)
 
 
 def test_install_show_and_every_measurement_names_its_calibration(tmp_path):

@@ -7,41 +7,21 @@ was changed after signing; every refusal is one line and leaves the active set a
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 
 import pytest
-import serial
 
 from edge.protocol.commands import Command
 from edge.protocol.errors import ErrorCode
 from edge.security.keys import SecretKey, signature_document
-from firmware_sim.daemon_thread import DaemonThread
-from firmware_sim.ptylink import NullModem
-from firmware_sim.rigs.daemon_rig import make_rig
-from host.client import DeviceClient, DeviceError
-from host.keys import new_key
+from host.client import DeviceError
 from host.objects import list_object_sets, upload_object_set
-from tests.support.daemons import FakeEstimator, sim_config
+from tests.support.daemons import strict_probe
 
 pytestmark = pytest.mark.hil
 
 KITCHEN = b"name,class,e_W_s05_m2K\nmug,ceramic,1400\nsponge,foam,60\n"
 DESK = b"name,class,e_W_s05_m2K\ndesk,wood,400\n"
-
-
-@contextlib.contextmanager
-def strict_probe(tmp_path):
-    keys_dir = tmp_path / "trusted_keys"
-    trusted = new_key(keys_dir, "lab")
-    (keys_dir / "lab.secret.json").unlink()  # the probe holds public keys only
-    cfg = sim_config(tmp_path, security={"allow_unsigned": False, "trusted_keys_dir": str(keys_dir)})
-    rig = make_rig()
-    with NullModem() as nm, serial.Serial(nm.device_port, timeout=0.05) as port:
-        with DaemonThread(cfg, rig.board, port, estimator=FakeEstimator(rig.parts)) as dt:
-            with DeviceClient(nm.host_port, timeout_s=5.0) as client:
-                yield client, trusted
-        assert dt.error is None
 
 
 def _refused(client, name, data, key=None) -> str:

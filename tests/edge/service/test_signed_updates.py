@@ -9,23 +9,17 @@ is forced; every refusal is one line and leaves the old model serving.
 
 from __future__ import annotations
 
-import contextlib
 
 import pytest
-import serial
 
 from edge.estimation.estimate import mlp_golden_check
 from edge.model import bundle as B
 from edge.protocol.errors import ErrorCode
 from edge.security.keys import SecretKey, signature_document
-from firmware_sim.daemon_thread import DaemonThread
-from firmware_sim.ptylink import NullModem
-from firmware_sim.rigs.daemon_rig import make_rig
-from host.client import DeviceClient, DeviceError
+from host.client import DeviceError
 from host.device import describe_error
-from host.keys import new_key
 from tests.support.bundles import make_arrays, make_golden, manifest_extra
-from tests.support.daemons import FakeEstimator, sim_config
+from tests.support.daemons import strict_probe
 
 pytestmark = pytest.mark.hil
 
@@ -55,20 +49,9 @@ def _signed_blob(bundle, key) -> bytes:
     return B.bundle_to_bytes(bundle.path, signature=signature_document(key, _manifest(bundle)))
 
 
-@contextlib.contextmanager
-def strict_probe(tmp_path, bundles):
-    """A daemon that accepts only signed updates, trusting the one key it returns."""
-    keys_dir = tmp_path / "trusted_keys"
-    trusted = new_key(keys_dir, "release")
-    (keys_dir / "release.secret.json").unlink()  # the probe holds public keys only
-    cfg = sim_config(tmp_path, paths={"factory_model": str(bundles["factory"].path)},
-                     security={"allow_unsigned": False, "trusted_keys_dir": str(keys_dir)})
-    rig = make_rig()
-    with NullModem() as nm, serial.Serial(nm.device_port, timeout=0.05) as port:
-        with DaemonThread(cfg, rig.board, port, estimator=FakeEstimator(rig.parts)) as dt:
-            with DeviceClient(nm.host_port, timeout_s=5.0) as client:
-                yield client, trusted
-        assert dt.error is None
+def _strict(tmp_path, bundles):
+    """A daemon that accepts only signed updates (release key), on the test's factory bundle."""
+    return strict_probe(tmp_path, "release", paths={"factory_model": str(bundles["factory"].path)})
 
 
 def _refused(client, blob, **kw) -> str:
@@ -81,7 +64,7 @@ def _refused(client, blob, **kw) -> str:
 
 
 def test_signed_by_a_trusted_key_is_installed(tmp_path, bundles):
-    with strict_probe(tmp_path, bundles) as (c, key):
+    with _strict(tmp_path, bundles) as (c, key):
         assert c.info()["model_sha256"] == bundles["factory"].sha256
         res = c.upload_model(_signed_blob(bundles["v2"], key))
         assert res["bundle_sha256"] == bundles["v2"].sha256
@@ -90,7 +73,7 @@ def test_signed_by_a_trusted_key_is_installed(tmp_path, bundles):
 
 
 def test_unsigned_untrusted_and_tampered_are_refused_and_the_old_model_serves(tmp_path, bundles):
-    with strict_probe(tmp_path, bundles) as (c, key):
+    with _strict(tmp_path, bundles) as (c, key):
         line = _refused(c, B.bundle_to_bytes(bundles["v2"].path))
         assert "unsigned update refused" in line
 
@@ -116,7 +99,7 @@ def test_unsigned_untrusted_and_tampered_are_refused_and_the_old_model_serves(tm
 
 
 def test_older_signed_version_is_refused_unless_forced(tmp_path, bundles):
-    with strict_probe(tmp_path, bundles) as (c, key):
+    with _strict(tmp_path, bundles) as (c, key):
         c.upload_model(_signed_blob(bundles["v3"], key))
         line = _refused(c, _signed_blob(bundles["v2b"], key))
         assert ("downgrade refused: update 'v2b' created 2024-12-01T00:00:00Z is not newer than the active 'v3' "
