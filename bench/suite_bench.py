@@ -1,0 +1,85 @@
+"""Wall time of the README's test command (``python -m pytest -n 2``) and where it goes.
+
+Each run is a fresh pytest process on a checkout with no bytecode and no
+pytest cache (as CI's clean clone): ``--workers`` xdist workers, JUnit XML
+for the per-test times.  Reports the wall time (process start to exit, what
+issue #13's "test time" bar is about), the sum of the per-test times (setup,
+call and teardown: the CPU-bound work the workers share) and the slowest
+files.  Median [min-max] of ``--repeats`` runs.
+
+Run:  python bench/suite_bench.py [--repeats 1] [--workers 2] [--update-readme]
+Writes bench/results/suite.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+from _common import ROOT, update_readme, write_json
+
+
+def _clean_bytecode() -> None:
+    for d in ROOT.rglob("__pycache__"):
+        if ".venv" not in d.parts:
+            shutil.rmtree(d, ignore_errors=True)
+
+
+def _run(workers: int) -> dict:
+    _clean_bytecode()
+    with tempfile.TemporaryDirectory(prefix="suite-bench-") as tmp:
+        xml = Path(tmp) / "junit.xml"
+        cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", f"--junitxml={xml}"]
+        if workers > 0:
+            cmd += ["-n", str(workers)]
+        t0 = time.perf_counter()
+        out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=3600)
+        wall = time.perf_counter() - t0
+        if out.returncode != 0:
+            raise SystemExit(f"the suite failed (exit {out.returncode}):\n{out.stdout[-3000:]}")
+        per_file = collections.Counter()
+        n = 0
+        for case in ET.parse(xml).getroot().iter("testcase"):
+            n += 1
+            per_file[case.get("classname", "").rsplit(".", 1)[0].replace(".", "/") + ".py"] += float(
+                case.get("time", 0.0))
+    m = re.search(r"(\d+) passed", out.stdout)
+    return {"wall_s": wall, "tests_s": sum(per_file.values()), "n": n,
+            "passed": int(m.group(1)) if m else None, "files": per_file.most_common(8)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--update-readme", action="store_true")
+    args = ap.parse_args()
+    runs = [_run(args.workers) for _ in range(args.repeats)]
+    walls = sorted(r["wall_s"] for r in runs)
+    tests = sorted(r["tests_s"] for r in runs)
+    med = lambda v: v[len(v) // 2]  # noqa: E731
+    rng = lambda v: f" [{v[0]:.0f}–{v[-1]:.0f}]" if len(v) > 1 else ""  # noqa: E731
+    text = (f"{runs[0]['n']} tests in {med(walls):.0f} s of wall time{rng(walls)} on {args.workers} workers "
+            f"(the per-test times sum to {med(tests):.0f} s{rng(tests)}; "
+            f"{'median of ' + str(len(runs)) + ' runs' if len(runs) > 1 else 'one run'} from a tree without "
+            "bytecode, `python bench/suite_bench.py`).")
+    print(text)
+    for f, s in runs[0]["files"]:
+        print(f"  {s:6.1f} s  {f}")
+    os.makedirs(ROOT / "bench" / "results", exist_ok=True)
+    print(f"wrote {write_json('suite', {'runs': runs, 'workers': args.workers, 'target_wall_s': 45.0, 'command': 'python bench/suite_bench.py'})}")
+    if args.update_readme:
+        update_readme("suite-bench", text)
+
+
+if __name__ == "__main__":
+    main()
