@@ -13,7 +13,12 @@ history database of the daemon are left out (they do not touch the numbers).
 
 Conditions (first the ideal contact the issue asks for): no contact
 resistance, object at the probe's temperature, contact from heater-on, the
-scene's noise; the touch lasts the contact time + 0.8 s.  Board: the
+scene's noise; the touch lasts the contact time + 0.8 s.  The probe: by
+default (``--as-built calibrated``) each touch's thermopile sensitivity is off
+nominal by a draw from the 2 % spread of its calibration -- the spread the
+device's u(e) and u(k) carry, so coverage tests the stated intervals and not
+a probe better than any real one; ``--as-built nominal`` for the exact
+sensor.  Board: the
 precision option (ADS122C04 reading the thermocouple and the flux, 24 bit,
 0.15 uV rms) by default, ``--board reference`` for the MCP9600 (16 bit,
 0.2 K steps, 12.5 Hz) + ADS1115 (14 W/m^2 steps) board, on which the small
@@ -65,7 +70,8 @@ from edge.model.bundle import load_bundle  # noqa: E402
 from edge.physics.solids import Solid  # noqa: E402
 from firmware_sim.rigs.sequence_rig import OneBundleStore, sequence_touch  # noqa: E402
 from firmware_sim.scene.files import read_scene  # noqa: E402
-from firmware_sim.scene.model import ObjectSpec  # noqa: E402
+from edge.estimation.estimate import FLUX_CALIBRATION_U_REL  # noqa: E402
+from firmware_sim.scene.model import AsBuiltSpec, ObjectSpec  # noqa: E402
 
 CONTACTS_S = (1.0, 2.0, 5.0)
 #: Scene each probe's touches are built from: the same experiment (glass, 15 V), the small-heater
@@ -92,9 +98,26 @@ def synthetic_solids(n: int) -> list[tuple[str, Solid]]:
 HAND = {"contact_resistance_m2K_W": 1e-4, "object_offset_K": -1.5, "contact_lead_s": 1.0}
 
 
+def flux_factors(n_solids: int, n_touches: int, as_built: str) -> np.ndarray:
+    """True/nominal flux sensitivity of the probe that made touch (solid j, repeat r).
+
+    ``"calibrated"``: a probe drawn from the population the device's u(e) and u(k) describe -- a
+    thermopile whose sensitivity is known to :data:`FLUX_CALIBRATION_U_REL` (2 %), one draw per
+    (solid, repeat), the same probe at every contact time.  ``"nominal"``: exactly the nominal
+    sensitivity (the 2 % the device adds to u then has nothing to cover).
+    """
+    if as_built == "nominal":
+        return np.ones((n_solids, n_touches))
+    rng = np.random.default_rng(20261123)
+    return np.exp(rng.normal(0.0, FLUX_CALIBRATION_U_REL, (n_solids, n_touches)))
+
+
 def scene_for(probe: str, label: str, solid: Solid, contact_s: float, board: str, seed: int,
-              contact: str = "ideal"):
-    """The base scene with the solid, the contact (``"ideal"`` or ``"hand"``), a touch long enough and the board."""
+              contact: str = "ideal", flux_factor: float = 1.0):
+    """The base scene with the solid, the contact (``"ideal"`` or ``"hand"``), a touch long enough and the board.
+
+    ``flux_factor``: the as-built thermopile's sensitivity over the nominal one (the device is not told).
+    """
     sc = read_scene(BASE_SCENES[probe])
     b = sc.board
     if board == "precision":
@@ -113,9 +136,10 @@ def scene_for(probe: str, label: str, solid: Solid, contact_s: float, board: str
                                     contact_resistance_m2K_W=HAND["contact_resistance_m2K_W"],
                                     object_offset_K=HAND["object_offset_K"])
     obj = ObjectSpec(solid=solid, back="insulated", thickness_m=0.1, label=label)
-    # as_built None: the probe built as nominal (ideal conditions first).
+    # Only the flux sensitivity departs from nominal (the layer, lag and heater as designed).
+    ab = None if flux_factor == 1.0 else AsBuiltSpec(flux_sensitivity_factor=float(flux_factor))
     return dataclasses.replace(sc, board=b, sensors=sens, environment=env, touch=touch, object=obj,
-                               contact_resistance_m2K_W=0.0, seed=seed, as_built=None, name=f"{probe}:{label}")
+                               contact_resistance_m2K_W=0.0, seed=seed, as_built=ab, name=f"{probe}:{label}")
 
 
 def touch(sc, contact_s: float, store, workdir: str) -> dict:
@@ -147,11 +171,13 @@ def score(rows: list[dict]) -> dict:
             "determined_k_cov95_pct": cov(det, "k"), "determined_alpha_cov95_pct": cov(det, "alpha")}
 
 
-def run(n_solids: int, n_touches: int, board: str, probes: list[str], contact_kind: str = "ideal") -> dict:
+def run(n_solids: int, n_touches: int, board: str, probes: list[str], contact_kind: str = "ideal",
+        as_built: str = "calibrated") -> dict:
     from thermotouch_models import DEFAULT_BUNDLE
 
     store = OneBundleStore(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
     solids = synthetic_solids(n_solids)
+    flux = flux_factors(n_solids, n_touches, as_built)
     results: dict = {}
     rows_all = []
     workdir = tempfile.mkdtemp(prefix="small-probe-bench-")
@@ -162,12 +188,13 @@ def run(n_solids: int, n_touches: int, board: str, probes: list[str], contact_ki
             rows = []
             for j, (label, s) in enumerate(solids):
                 for rep in range(n_touches):
-                    sc = scene_for(probe, label, s, contact, board, seed=1000 + 17 * j + rep, contact=contact_kind)
+                    sc = scene_for(probe, label, s, contact, board, seed=1000 + 17 * j + rep, contact=contact_kind,
+                                   flux_factor=float(flux[j, rep]))
                     t0 = time.perf_counter()
                     d = touch(sc, contact, store, workdir)
                     r = d["result"]
                     k, a = r.get("k_W_mK"), r.get("alpha_m2_s")
-                    row = {"solid": label, "k_true_W_mK": s.k_W_mK, "alpha_true_m2_s": s.alpha_m2_s,
+                    row = {"solid": label, "flux_factor": float(flux[j, rep]), "k_true_W_mK": s.k_W_mK, "alpha_true_m2_s": s.alpha_m2_s,
                            "status": d["status"], "flags": d["flags"], "sample_rate_Hz": d["sample_rate_Hz"],
                            "contact_time_s": d["contact_time_s"],
                            "determined": bool({"k", "alpha"} <= set(r.get("determined") or [])),
@@ -184,8 +211,11 @@ def run(n_solids: int, n_touches: int, board: str, probes: list[str], contact_ki
                           f"det={row['determined']} {row['flags']} {row['wall_s']:.1f} s", flush=True)
             results[probe][f"{contact:g}s"] = score(rows)
     return {"board": board, "solids": n_solids, "touches": n_touches, "contacts_s": list(CONTACTS_S),
-            "conditions": ("ideal contact: R_c = 0, object at the probe's temperature, no as-built deviations"
-                           if contact_kind == "ideal" else f"hand contact {HAND}, no as-built deviations"),
+            "conditions": ("ideal contact: R_c = 0, object at the probe's temperature"
+                           if contact_kind == "ideal" else f"hand contact {HAND}")
+            + (", flux sensitivity drawn from the 2 % calibration spread" if as_built == "calibrated"
+               else ", no as-built deviations"),
+            "as_built": as_built,
             "wall_s": time.perf_counter() - t_start, "load_avg_1min": os.getloadavg()[0],
             "summary": results, "rows": rows_all}
 
@@ -213,21 +243,26 @@ def main() -> None:
     ap.add_argument("--probes", default="small-heater,paper")
     ap.add_argument("--contact", choices=("ideal", "hand"), default="ideal",
                     help="ideal (the README table) or the *_faithful scenes' touch (R_c, object off, lead)")
+    ap.add_argument("--as-built", choices=("calibrated", "nominal"), default="calibrated",
+                    help="calibrated: each touch's probe has a flux sensitivity off nominal by a draw from the "
+                         "2 %% calibration spread the device's u carries; nominal: exactly the nominal sensor")
     ap.add_argument("--update-readme", action="store_true")
     args = ap.parse_args()
-    if args.update_readme and (args.contact != "ideal" or args.board != "precision"):
-        raise SystemExit("--update-readme writes the ideal-contact precision-board table only")
-    res = run(args.solids, args.touches, args.board, args.probes.split(","), args.contact)
+    if args.update_readme and (args.contact != "ideal" or args.board != "precision" or args.as_built != "calibrated"):
+        raise SystemExit("--update-readme writes the ideal-contact, calibrated-probe, precision-board table only")
+    res = run(args.solids, args.touches, args.board, args.probes.split(","), args.contact, args.as_built)
     txt = table(res)
     print(txt)
     print(f"wall {res['wall_s']:.0f} s, load {res['load_avg_1min']:.1f}")
-    suffix = "".join(f"_{x}" for x in (args.board, args.contact) if x not in ("precision", "ideal"))
+    suffix = "".join(f"_{x}" for x in (args.board, args.contact, args.as_built)
+                     if x not in ("precision", "ideal", "calibrated"))
     write_json(f"small_probe{suffix}", res)
     if args.update_readme:
         extra = "".join(f" --{k} {v}" for k, v in (("solids", args.solids), ("touches", args.touches))
                         if v != ap.get_default(k))
         note = (f"\n\n{args.solids} synthetic solids (not in the library) × {args.touches} touch"
-                f"{'es' if args.touches > 1 else ''} (noise draws), {args.board} board, ideal contact, through the "
+                f"{'es' if args.touches > 1 else ''} (noise draws), {args.board} board, ideal contact, each touch's thermopile sensitivity "
+                f"off nominal by a draw from the 2 % calibration spread (the device is not told), through the "
                 f"simulator and the device's sequence and estimator; {res['wall_s']:.0f} s wall "
                 f"(`python bench/small_probe_bench.py{extra} --update-readme`, `bench/results/small_probe.json`).")
         update_readme("small-probe-bench", txt + note + "\n")

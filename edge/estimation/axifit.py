@@ -25,6 +25,14 @@ both to the two records with :class:`~edge.physics.axisym.AxisymModel`:
   column included, so its correlation with k and alpha is carried) and
   ``s^2 = chi^2 / (n - p)`` (the residual's own scatter, which also absorbs
   model error);
+* the flux record's scale: :attr:`AxiFit.flux_scale_sensitivity` is the
+  linearised shift of ln k, ln alpha and ln e per unit relative error of the
+  flux sensor's calibration, ``(J^T J)^-1 J^T dy`` with ``dy`` the weighted
+  flux record (the fit's response to a data perturbation).  With the heater
+  power free it is far from the naive 1 for k and 0 for alpha: T and q then
+  disagree by the scale error, and the fit reads the disagreement as lateral
+  spreading (on a PMMA-like solid at 5 s, d ln alpha / d ln s ~ -15).  The
+  caller combines it with the calibration's u (the fit cannot know it);
 * identifiability: a quantity is ``"measured"`` when its relative standard
   uncertainty is below ``identifiable_u_rel`` (30 %); otherwise k and
   alpha come from a caller-supplied prior on ln(rho c) given the measured
@@ -96,12 +104,15 @@ class AxiFit:
     evaluations: int
     converged: bool
     flags: list = field(default_factory=list)
+    #: d ln(quantity) / d ln(flux scale) for "k", "alpha", "effusivity" (see the module docstring).
+    flux_scale_sensitivity: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         def num(x):
             return None if x is None or not math.isfinite(x) else float(x)
         d = {k: (num(v) if isinstance(v, float) else v) for k, v in self.__dict__.items()}
         d["u_rel"] = {k: num(v) for k, v in self.u_rel.items()}
+        d["flux_scale_sensitivity"] = {k: num(v) for k, v in self.flux_scale_sensitivity.items()}
         return d
 
 
@@ -306,6 +317,11 @@ class AxiFitter:
         var_le = float(g @ cov @ g)
         u_le = math.sqrt(var_le) if var_le >= 0 else math.inf
         corr = float(cov[0, 1] / (u_lk * u_la)) if math.isfinite(u_lk * u_la) and u_lk * u_la > 0 else math.nan
+        # The fit's response to the flux record scaled by (1 + eps): d beta / d eps = (J^T J)^-1 J^T dy,
+        # with the same (vanishing) regularisation as the covariance.
+        dy = np.concatenate([np.zeros_like(yT), yq])
+        d_beta = covariance_ln_k_alpha(J.T @ J) @ (J.T @ dy)
+        sens = {"k": float(d_beta[0]), "alpha": float(d_beta[1]), "effusivity": float(d_beta[0] - 0.5 * d_beta[1])}
         k, a = math.exp(theta[0]), math.exp(theta[1])
         e = k / math.sqrt(a)
         u_scale = math.sqrt(max(cov[-1, -1], 0.0))
@@ -333,4 +349,5 @@ class AxiFitter:
                       effusivity_W_s05_m2K=e, effusivity_W_s05_m2K_u=e * u_le, corr_k_alpha=corr,
                       scale=float(s), scale_u=u_scale, contact_resistance_m2K_W=R, contact_resistance_m2K_W_u=u_R,
                       determined=det, fit_k_W_mK=k, fit_alpha_m2_s=a, u_rel=u_rel, chi2_reduced=chi2_red,
-                      iterations=iterations, evaluations=self.n_evals, converged=converged, flags=flags)
+                      iterations=iterations, evaluations=self.n_evals, converged=converged, flags=flags,
+                      flux_scale_sensitivity=sens)
