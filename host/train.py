@@ -47,7 +47,8 @@ from sklearn.decomposition import PCA
 from sklearn.neural_network import MLPRegressor
 from sklearn.preprocessing import StandardScaler
 
-from edge.estimation.estimate import DEFAULT_PRIOR_COEF, pipeline_golden_check
+from edge.estimation.estimate import DEFAULT_PRIOR_COEF, PRIOR_COEF_NAMES, pipeline_golden_check
+from edge.estimation.identification import loo_rho_c_intrinsic_ln
 from edge.estimation.features import FEATURE_VERSION
 from host.dataset import Dataset, DatasetSpec, generate
 from host.export import export_paper_model, pca_arrays_from_sklearn
@@ -153,6 +154,10 @@ def train_bundle(out: str | Path, *, quick: bool = False, seed: int = 0, lib: Ma
     coef = np.array(DEFAULT_PRIOR_COEF, float)
     coef[3] = max(u_ln_k, 0.02)
     extra = library_arrays(lib)
+    # The prior's spread of ln(rho c) at equal e, from the library itself (leave-one-out), so that
+    # the k and alpha intervals of a prior-limited touch cover materials the library does not hold.
+    coef[1] = loo_rho_c_intrinsic_ln(extra["lib_effusivity"], extra["lib_rho_c"], kernel_floor_ln=coef[0])
+    metrics["prior_rho_c_intrinsic_ln"] = float(coef[1])
     extra.update(prior_coef=coef, pca_score_min=p.min(axis=0), pca_score_max=p.max(axis=0))
     rng = np.random.default_rng(seed)
     gi = rng.choice(ds.features.shape[0], size=min(32, ds.features.shape[0]), replace=False)
@@ -166,3 +171,35 @@ def train_bundle(out: str | Path, *, quick: bool = False, seed: int = 0, lib: Ma
     log(f"PCA explained variance (p1+p2): {evr.sum() * 100:.2f} %; held-out k median error "
         f"{metrics['heldout_k_median_rel_err'] * 100:.1f} %; wrote {out} (sha256 {bundle.sha256[:12]})")
     return bundle, metrics
+
+
+def reprior_bundle(src: str | Path, out: str | Path, *, overwrite: bool = False, log=print):
+    """Copy the bundle at ``src`` to ``out`` with its prior's ln(rho c) spread re-fitted (leave-one-out).
+
+    Nothing else changes: the network, the library and the golden vectors are copied as they are
+    (a retrain would not reproduce the shipped network bit for bit, README), only
+    ``prior_coef[1]`` (``rho_c_intrinsic_ln``) becomes :func:`loo_rho_c_intrinsic_ln` of the bundle's
+    own library; the manifest records the old and new values and gets ``+prior-loo`` on its version.
+    """
+    from edge.model.bundle import load_bundle, write_bundle  # noqa: PLC0415
+
+    b = load_bundle(src, golden_check=pipeline_golden_check)
+    arrays = dict(b.arrays)
+    if "lib_effusivity" not in arrays:
+        raise ValueError(f"{src}: the bundle has no material library (lib_*) to fit a prior's spread on")
+    coef = np.array(arrays.get("prior_coef", DEFAULT_PRIOR_COEF), float)
+    old = float(coef[1])
+    coef[1] = loo_rho_c_intrinsic_ln(arrays["lib_effusivity"], arrays["lib_rho_c"], kernel_floor_ln=coef[0])
+    arrays["prior_coef"] = coef
+    man = b.manifest
+    metrics = dict(man.get("metrics", {}))
+    metrics["prior_rho_c_intrinsic_ln"] = float(coef[1])
+    metrics["prior_rho_c_intrinsic_ln_before"] = old
+    extra = {k: v for k, v in man.items() if k not in ("files", "schema_version", "created_utc", "metrics",
+                                                       "model_version")}
+    version = b.model_version if b.model_version.endswith("+prior-loo") else f"{b.model_version}+prior-loo"
+    extra.update(metrics=metrics, model_version=version)
+    log(f"{PRIOR_COEF_NAMES[1]}: {old:.4f} -> {coef[1]:.4f} (leave-one-out on {arrays['lib_effusivity'].size} "
+        "library materials)")
+    return write_bundle(out, arrays, dict(b.golden), extra, overwrite=overwrite, golden_check=pipeline_golden_check)
+

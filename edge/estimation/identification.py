@@ -17,10 +17,56 @@ from typing import Mapping
 
 import numpy as np
 
-__all__ = ["Library", "OUTSIDE_FACTOR"]
+__all__ = ["Library", "OUTSIDE_FACTOR", "loo_rho_c_intrinsic_ln"]
 
 #: An e beyond this factor of the library's range is flagged as outside it (the prior extrapolates).
 OUTSIDE_FACTOR = 1.5
+
+
+def _kernel_moments(ln_e: np.ndarray, ln_e_lib: np.ndarray, ln_rc_lib: np.ndarray, width: float,
+                    exclude_self: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Kernel-weighted mean and variance of the library's ln ρc at each ``ln_e`` (Gaussian kernel in ln e).
+
+    ``exclude_self``: query i is library entry i, left out of its own moments (leave-one-out).
+    """
+    z2 = ((ln_e[:, None] - ln_e_lib[None, :]) / width) ** 2
+    if exclude_self:
+        np.fill_diagonal(z2, np.inf)
+    w = np.exp(-0.5 * (z2 - np.min(z2, axis=1, keepdims=True)))
+    sw = np.sum(w, axis=1)
+    mean = np.sum(w * ln_rc_lib, axis=1) / sw
+    var = np.sum(w * (ln_rc_lib - mean[:, None]) ** 2, axis=1) / sw
+    return mean, var
+
+
+def loo_rho_c_intrinsic_ln(effusivity, rho_c, *, kernel_floor_ln: float) -> float:
+    """The ``rho_c_intrinsic_ln`` that makes the prior's stated spread true on the library itself.
+
+    Each material is left out in turn and its ln ρc predicted from the others at its own e;
+    the intrinsic spread is the value at which these leave-one-out residuals, divided by the
+    prior's stated standard deviation, have unit mean square (bisection: the mean square falls
+    monotonically as the spread grows). 0 when the kernel's own local variance already covers
+    them. A prior whose intervals did not cover the library's own materials would state k and α
+    better than the library knows them.
+    """
+    ln_e, ln_rc = np.log(np.asarray(effusivity, float)), np.log(np.asarray(rho_c, float))
+    if ln_e.size < 3:
+        raise ValueError("a leave-one-out spread needs at least 3 materials")
+    mean, var = _kernel_moments(ln_e, ln_e, ln_rc, float(kernel_floor_ln), exclude_self=True)
+    r2 = (ln_rc - mean) ** 2
+
+    def ms(s: float) -> float:
+        return float(np.mean(r2 / (var + s * s)))
+
+    lo, hi = 0.0, 1.0
+    if ms(lo) <= 1.0:
+        return 0.0
+    while ms(hi) > 1.0:
+        hi *= 2.0
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if ms(mid) > 1.0 else (lo, mid)
+    return 0.5 * (lo + hi)
 
 
 class Library:
@@ -68,11 +114,9 @@ class Library:
     def prior_rho_c(self, e: float, u_ln_e: float) -> tuple[float, float, bool]:
         """ln(ρc) mean and standard deviation given e; and whether e is outside the library."""
         width = math.hypot(u_ln_e, self.kernel_floor_ln)
-        z = (math.log(e) - np.log(self.effusivity)) / width
-        w = np.exp(-0.5 * (z ** 2 - np.min(z ** 2)))
-        ln_rc = np.log(self.rho_c)
-        mean = float(np.sum(w * ln_rc) / np.sum(w))
-        var = float(np.sum(w * (ln_rc - mean) ** 2) / np.sum(w)) + self.rho_c_intrinsic_ln ** 2
+        m, v = _kernel_moments(np.array([math.log(e)]), np.log(self.effusivity), np.log(self.rho_c), width)
+        mean = float(m[0])
+        var = float(v[0]) + self.rho_c_intrinsic_ln ** 2
         outside = bool(e < self.effusivity.min() / OUTSIDE_FACTOR or e > self.effusivity.max() * OUTSIDE_FACTOR)
         return mean, math.sqrt(var), outside
 

@@ -171,3 +171,27 @@ def test_estimate_thickness_the_record_cannot_show_is_flagged(capsys, tmp_path):
     d = json.loads(out)
     assert {"thickness_unresolved", "k_alpha_from_prior"} <= set(d["flags"]) and d["prior_reason"]
     assert abs(d["k_W_mK"] / 0.185 - 1) < 2 * d["k_W_mK_u"] / d["k_W_mK"]
+
+
+def test_train_reprior_copies_the_network_and_refits_only_the_priors_spread(tmp_path, capsys):
+    from edge.estimation.estimate import pipeline_golden_check
+    from edge.model.bundle import load_bundle
+    from thermotouch_models import DEFAULT_BUNDLE
+
+    src = load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check)
+    out = tmp_path / "rp"
+    assert main(["train", "--reprior", str(DEFAULT_BUNDLE), "--out", str(out)]) == 0
+    b = load_bundle(out, golden_check=pipeline_golden_check)
+    assert b.model_version.endswith("+prior-loo") and b.model_version.count("+prior-loo") == 1
+    for name, arr in src.arrays.items():
+        if name != "prior_coef":
+            np.testing.assert_array_equal(b.arrays[name], arr, err_msg=name)
+    # The shipped bundle already carries the fitted spread: a second fit finds the same value.
+    np.testing.assert_allclose(b.arrays["prior_coef"], src.arrays["prior_coef"], rtol=1e-12)
+    assert b.manifest["metrics"]["prior_rho_c_intrinsic_ln"] == pytest.approx(src.arrays["prior_coef"][1])
+    # An existing --out is refused (nothing replaced), and --quick does not apply.
+    capsys.readouterr()
+    assert main(["train", "--reprior", str(DEFAULT_BUNDLE), "--out", str(out)]) == 2
+    assert main(["train", "--reprior", str(DEFAULT_BUNDLE), "--quick", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert "exists" in err and "--quick" in err and not (tmp_path / "x").exists()
