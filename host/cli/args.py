@@ -75,6 +75,15 @@ def bounded_float(lo: float | None = None, hi: float | None = None, *, lo_open: 
     return conv
 
 
+def measure_bound(name: str):
+    """A converter with the protocol's bounds of MEASURE's ``name`` argument (one definition, edge.protocol),
+    and the bounds as text for the help."""
+    from edge.protocol.commands import COMMANDS, Command  # noqa: PLC0415
+
+    f = next(a for a in COMMANDS[Command.MEASURE].args if a.name == name)
+    return bounded_float(f.lo, f.hi, lo_open=f.lo_open), f"{'>' if f.lo_open else '>='} {f.lo:g}, <= {f.hi:g}"
+
+
 def _integer(text: str) -> int:
     try:
         return int(text, 10)

@@ -18,13 +18,26 @@ On the probe (``--port PORT`` or ``--sim SCENE``)::
     thermotouch calibrate --check --reference pmma                   # touch a reference: does it still hold?
 
 With ``--out`` as well, ``--record``/``--reference`` fit and ``--port``/``--sim`` install in one go.
+
+Walk-through (no ``--record``)::
+
+    thermotouch calibrate --port PORT [--reference NAME ...] --out CAL.json [--key SECRET.json]
+    thermotouch calibrate --sim SCENE [--reference NAME ...] --out CAL.json [--workdir DIR]
+
+touches each reference in turn (default pmma, pyroceram, aisi_304): the device is armed, samples
+the air, finds the contact, heats ``--settle`` after it for ``--heat`` seconds; the host fits its
+raw records, writes ``--out`` and installs the calibration.  On a port the user is asked to lift
+the probe and touch each reference (Enter to go on, when stdin is a terminal); on ``--sim`` each
+reference is the scene with that material as its object (its as-built probe, board and contact
+unchanged), all on one simulated probe's storage (``--workdir`` keeps it).  A touch that does not
+come, or a record that starts in contact, stops the walk with nothing installed.
 """
 
 from __future__ import annotations
 
 import argparse
 
-from host.cli.args import add_device_args, add_output, existing_file
+from host.cli.args import add_device_args, add_output, existing_file, measure_bound
 from host.cli.common import device_call, device_session
 from host.cli.errors import CliError
 from host.cli.report import dumps
@@ -50,6 +63,15 @@ def add_parser(sub, parents):
                       help="touch one --reference now and say whether the installed calibration still holds")
     p.add_argument("--key", metavar="SECRET.json", type=existing_file, default=None,
                    help="sign what is installed with this secret key (thermotouch keys new)")
+    conv, rng = measure_bound("contact_time_s")
+    p.add_argument("--heat", type=conv, default=None, metavar="S",
+                   help=f"walk-through: heating time of each reference touch ({rng}; default 8 s)")
+    conv, rng = measure_bound("arm_s")
+    p.add_argument("--arm", type=conv, default=30.0, metavar="S",
+                   help=f"walk-through: how long the device waits for each touch ({rng}; default 30 s)")
+    conv, rng = measure_bound("settle_s")
+    p.add_argument("--settle", type=conv, default=1.0, metavar="S",
+                   help=f"walk-through: contact to heater-on ({rng}; default 1 s)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     add_device_args(p, sim_help="start a simulated probe on SCENE (shipped name or .toml) for --install/--show/"
                                 "--check (keep it with --workdir)")
@@ -71,15 +93,110 @@ def run(args) -> int:
         if args.record or args.reference or args.out is not None:
             raise CliError("--install takes a calibration file; --record/--reference/--out are for the fit")
         return _run_install(args, _read_calibration_file(args.install))
+    if not args.record and (device or _port_from_env()):
+        return _run_walk(args)
     if not args.record:
-        raise CliError("give --record FILE --reference NAME pairs and --out CAL.json (the fit), or --install, "
-                       "--show or --check with --port/--sim")
+        raise CliError("give --record FILE --reference NAME pairs and --out CAL.json (the fit), --port/--sim with "
+                       "--out CAL.json (the walk-through), or --install, --show or --check with --port/--sim")
     if args.out is None:
         raise CliError("the fit needs --out CAL.json (where the calibration is written)")
     cal = _fit(args)
     if device and not on_device:
         # Fit and install in one go.
         _run_install(args, cal)
+    return 0
+
+
+def _port_from_env() -> bool:
+    import os  # noqa: PLC0415
+
+    from host.cli.args import PORT_ENV  # noqa: PLC0415
+
+    return bool(os.environ.get(PORT_ENV, "").strip())
+
+
+def _run_walk(args) -> int:
+    """Touch each reference on the probe, fit, write ``--out``, install (see the module docstring)."""
+    import contextlib  # noqa: PLC0415
+    import sys  # noqa: PLC0415
+    import tempfile  # noqa: PLC0415
+
+    from edge.calibration.fit import DEFAULT_REFERENCES, fit_calibration  # noqa: PLC0415
+    from edge.calibration.model import CalibrationError  # noqa: PLC0415
+    from edge.physics.materials import load_materials  # noqa: PLC0415
+    from host.atomic import write_text_atomic  # noqa: PLC0415
+    from host.calibration import HEAT_s, WalkError, install_calibration, reference_scene, touch_reference  # noqa: PLC0415
+    from host.cli.args import resolve_port  # noqa: PLC0415
+    from host.device import open_device  # noqa: PLC0415
+    from host.flash import load_signing_key  # noqa: PLC0415
+
+    if args.out is None:
+        raise CliError("the walk-through needs --out CAL.json (the calibration is kept on the host too)")
+    if args.probe != "paper":
+        raise CliError(f"--probe {args.probe}: the sensor-chain calibration exists for the paper probe only")
+    if not args.arm > 0:
+        raise CliError("--arm must be > 0 for the walk-through (the device waits that long for each touch)")
+    names = args.reference or list(DEFAULT_REFERENCES)
+    if len(set(names)) < 2:
+        raise CliError("calibration needs at least two different --reference materials")
+    lib = load_materials()
+    refs = {n: _reference(lib, n) for n in names}
+    heat = HEAT_s if args.heat is None else args.heat
+    key = load_signing_key(args.key)   # a bad key file is refused before any touch
+    resolve_port(args)
+    say = (lambda m: print(m, file=sys.stderr)) if args.json else print  # noqa: E731
+    interactive = args.port is not None and sys.stdin.isatty()
+    with contextlib.ExitStack() as stack:
+        workdir = args.workdir
+        if args.sim is not None and workdir is None:
+            workdir = stack.enter_context(tempfile.TemporaryDirectory(prefix="thermotouch-calibrate-"))
+        scenes = None if args.sim is None else stack.enter_context(
+            tempfile.TemporaryDirectory(prefix="thermotouch-references-"))
+        port_session = None
+        if args.port is not None:
+            port_session = stack.enter_context(open_device(args.port, None, timeout_s=args.timeout))
+
+        def session_for(name):
+            if port_session is not None:
+                return contextlib.nullcontext(port_session)
+            try:
+                path = reference_scene(args.sim, name, scenes, heat_s=heat, settle_s=args.settle)
+            except (OSError, ValueError) as exc:
+                raise CliError(f"--sim {args.sim}: {exc}") from None
+            return open_device(None, str(path), workdir=workdir, timeout_s=args.timeout)
+
+        touches = []
+        for i, name in enumerate(names, 1):
+            e_ref = refs[name].solid.effusivity_W_s05_m2K
+            say(f"reference {i}/{len(names)}: {name} (e {e_ref:.0f}). Hold the probe in the air, then put it on "
+                f"the {name} within {args.arm:g} s; keep it there {args.settle + heat:g} s.")
+            if interactive:
+                input("press Enter when the probe is in the air ... ")
+            with session_for(name) as session:
+                try:
+                    touch, rec = device_call(touch_reference, session.client, name, e_ref, heat_s=heat,
+                                             arm_s=args.arm, settle_s=args.settle)
+                except WalkError as exc:
+                    raise CliError(str(exc)) from None
+            chain = (rec.get("result") or {}).get("sensor_chain") or {}
+            say(f"  measurement {rec['measurement_id']}: {touch.t_s.size} samples, contact at "
+                f"{chain.get('contact_t_s', float('nan')):+.2f} s from heater-on")
+            touches.append(touch)
+        try:
+            cal = fit_calibration(touches, probe=args.probe)
+        except (CalibrationError, ValueError) as exc:
+            raise CliError(f"calibration: {exc}") from None
+        write_text_atomic(args.out, cal.to_json())
+        with (contextlib.nullcontext(port_session) if port_session is not None else
+              open_device(None, str(reference_scene(args.sim, names[0], scenes, heat_s=heat, settle_s=args.settle)),
+                          workdir=workdir, timeout_s=args.timeout)) as session:
+            rep = device_call(install_calibration, session.client, cal, key=key)
+    if args.json:
+        print(cal.to_json(), end="")
+    else:
+        print(f"calibration {cal.sha256[:12]} for probe {cal.probe} written to {args.out} and installed "
+              f"({rep['sha256'][:12]})")
+        _print_calibration(cal)
     return 0
 
 

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from host.cli.args import add_device_args, add_output, bounded_float
+from host.cli.args import add_device_args, add_output
+from host.cli.args import measure_bound as _protocol_bound
 from host.cli.common import device_session
 from host.cli.errors import EXIT_RUNTIME, CliError
 from host.cli.report import dumps, measure_json, print_result
@@ -11,12 +12,6 @@ from host.cli.report import dumps, measure_json, print_result
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 
 
-def _protocol_bound(name: str):
-    """A converter with the protocol's bounds of MEASURE's ``name`` argument (one definition, edge.protocol)."""
-    from edge.protocol.commands import COMMANDS, Command  # noqa: PLC0415
-
-    f = next(a for a in COMMANDS[Command.MEASURE].args if a.name == name)
-    return bounded_float(f.lo, f.hi, lo_open=f.lo_open), f"{'>' if f.lo_open else '>='} {f.lo:g}, <= {f.hi:g}"
 
 
 def add_parser(sub, parents):

@@ -83,6 +83,12 @@ def test_fit_then_estimate_with_the_calibration_beats_the_datasheet(capsys, reco
     (["calibrate", "--show", "--record", "{pmma}", "--sim", "glass_15V"], "--show takes no"),
     (["calibrate", "--install", "{pmma}", "--sim", "glass_15V"], "--install"),
     (["estimate", "--csv", "{pmma}", "--calibration", "{pmma}"], "--calibration"),
+    (["calibrate", "--sim", "alu_20V_faithful", "--reference", "pmma", "--out", "{out}"], "at least two"),
+    (["calibrate", "--sim", "alu_20V_faithful", "--reference", "pmma", "--reference", "unobtainium", "--out",
+      "{out}"], "not a library material"),
+    (["calibrate", "--sim", "alu_20V_faithful"], "needs --out"),
+    (["calibrate", "--sim", "alu_20V_faithful", "--arm", "500", "--out", "{out}"], "--arm"),
+    (["calibrate", "--sim", "alu_20V_faithful", "--probe", "small-heater", "--out", "{out}"], "paper probe only"),
 ])
 def test_bad_input_is_one_line_exit_2_and_nothing_written(capsys, records, tmp_path, argv, needle):
     out = tmp_path / "cal.json"
@@ -100,3 +106,33 @@ def test_calibration_for_another_probe_is_refused(capsys, records, tmp_path):
     p.write_text(sample_calibration(probe="small-heater").to_json())
     code, _, err = run(capsys, "estimate", "--csv", str(records["pmma"][0]), "--calibration", str(p))
     assert code == 2 and "small-heater" in err and math.isfinite(1.0)
+
+
+def test_walk_through_on_the_simulator_touches_each_reference_fits_writes_and_installs(capsys, tmp_path):
+    # alu_20V_faithful: an as-built probe (thermopile +3 %, layer 3 % thinner, 4 % more conductive, a
+    # 20-ms bead) on the precision board, dry contact. Each reference is that scene with the reference
+    # as its object; the device is armed, finds the contact, heats; the host fits its raw records.
+    out, work = tmp_path / "cal.json", tmp_path / "probe"
+    code, text, err = run(capsys, "calibrate", "--sim", "alu_20V_faithful", "--workdir", str(work), "--reference",
+                          "pmma", "--reference", "pyroceram", "--heat", "4", "--out", str(out))
+    assert code == 0, err
+    assert text.count("reference ") == 2 and "written to" in text and "installed" in text
+    cal = json.loads(out.read_text())
+    # The references, re-measured with the fitted calibration, come back within a few per cent.
+    assert all(abs(x) < 0.04 for r in cal["references"] for x in r["rel_errors"]), cal["references"]
+    # Installed on that probe's storage: the next session of the same probe shows it.
+    code, shown, err = run(capsys, "calibrate", "--show", "--sim", "alu_20V_faithful", "--workdir", str(work),
+                           "--json")
+    assert code == 0 and json.loads(shown)["sha256"] == cal["sha256"]
+
+
+def test_walk_through_without_a_touch_stops_with_nothing_written_or_installed(capsys, tmp_path):
+    # Armed for 0.3 s: the scene's touch comes at 1 s, so the device ends 'no_contact', heater never on.
+    out, work = tmp_path / "cal.json", tmp_path / "probe"
+    code, _, err = run(capsys, "calibrate", "--sim", "alu_20V_faithful", "--workdir", str(work), "--arm", "0.3",
+                       "--out", str(out))
+    assert code != 0 and "pmma: the touch ended no_contact: no touch within 0.3 s" in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
+    code, shown, _ = run(capsys, "calibrate", "--show", "--sim", "alu_20V_faithful", "--workdir", str(work), "--json")
+    assert code == 0 and json.loads(shown)["calibrated"] is False
+
