@@ -140,7 +140,8 @@ class AxiEstimator:
         return m
 
     def estimate(self, t_s, dT_K, q_W_m2, *, power_W: float | None = None, thickness_m: float | None = None,
-                 back: str = "infinite", T_resolution_K: float = 0.0) -> dict:
+                 back: str = "infinite", T_resolution_K: float = 0.0, flux_scale: float = 1.0,
+                 flux_u_rel: float | None = None) -> dict:
         """Estimate from one record (times from heater-on; thermocouple rise, flux-sensor reading).
 
         Parameters
@@ -153,6 +154,9 @@ class AxiEstimator:
             fitted as a free scale, so only its order matters.
         thickness_m, back : a known finite object (``"insulated"``/``"fixed"`` back).
         T_resolution_K : the thermometer's step, added to its noise (rounding).
+        flux_scale, flux_u_rel : the flux sensor's calibration -- true flux per unit of the reading
+            and its relative standard uncertainty (:func:`edge.calibration.axi.fit_flux_scale`);
+            default the datasheet sensor, known to FLUX_CALIBRATION_U_REL.
 
         Returns
         -------
@@ -167,8 +171,13 @@ class AxiEstimator:
         q = finite_array("q_W_m2", q_W_m2)
         if T.shape != t.shape or q.shape != t.shape:
             raise ValueError(f"t_s, dT_K and q_W_m2 must have equal lengths, got {t.size}, {T.size}, {q.size}")
+        if not (math.isfinite(flux_scale) and flux_scale > 0):
+            raise ValueError(f"flux_scale must be finite and > 0, got {flux_scale!r}")
+        u_flux = FLUX_CALIBRATION_U_REL if flux_u_rel is None else float(flux_u_rel)
+        if not (math.isfinite(u_flux) and u_flux >= 0):
+            raise ValueError(f"flux_u_rel must be finite and >= 0, got {flux_u_rel!r}")
         keep = (t > 0) & (t >= t[-1] / MAX_TIME_SPAN)
-        t, T, q = t[keep], T[keep], q[keep]
+        t, T, q = t[keep], T[keep], q[keep] * flux_scale
         est = self.estimator
         out = {"effusivity_W_s05_m2K": None, "effusivity_W_s05_m2K_u": None, "k_W_mK": None, "k_W_mK_u": None,
                "alpha_m2_s": None, "alpha_m2_s_u": None, "material": None, "material_confidence": 0.0,
@@ -226,13 +235,14 @@ class AxiEstimator:
         # flux_scale_sensitivity), not one to one. The fit's covariance (inflated as above) and the
         # calibration's part add; so do their k-alpha covariances.
         sens = f.flux_scale_sensitivity
-        u_le = math.hypot(u_le_fit, sens["effusivity"] * FLUX_CALIBRATION_U_REL)
-        u_lk = math.hypot(u_rel["k"], sens["k"] * FLUX_CALIBRATION_U_REL)
-        u_la = math.hypot(u_rel["alpha"], sens["alpha"] * FLUX_CALIBRATION_U_REL)
+        u_le = math.hypot(u_le_fit, sens["effusivity"] * u_flux)
+        u_lk = math.hypot(u_rel["k"], sens["k"] * u_flux)
+        u_la = math.hypot(u_rel["alpha"], sens["alpha"] * u_flux)
         if out["corr_k_alpha"] is not None and u_lk * u_la > 0:
-            cov = out["corr_k_alpha"] * u_rel["k"] * u_rel["alpha"] + sens["k"] * sens["alpha"] * FLUX_CALIBRATION_U_REL ** 2
+            cov = out["corr_k_alpha"] * u_rel["k"] * u_rel["alpha"] + sens["k"] * sens["alpha"] * u_flux ** 2
             out["corr_k_alpha"] = _num(max(-1.0, min(1.0, cov / (u_lk * u_la))))
         out["fit"]["flux_scale_sensitivity"] = {q: _num(v) for q, v in sens.items()}
+        out["fit"]["flux_scale"], out["fit"]["flux_u_rel"] = float(flux_scale), u_flux
         thr = self.identifiable_u_rel
         determined = ["e"] if u_le < thr else []
         k, alpha = f.fit_k_W_mK, f.fit_alpha_m2_s

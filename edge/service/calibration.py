@@ -109,10 +109,16 @@ class ProbeCalibrations:
     def apply(self, outcome: Any) -> None:
         """Add the chain estimate and the calibration's identity to a finished measurement (in place)."""
         cal = self.current()
+        if self.probe != "paper":
+            # The small heater's estimate applied the installed flux scale itself (ModelEstimator) and
+            # says so with its calibration_sha256; a result without one was made uncalibrated.
+            if outcome.result is None or outcome.result.get("calibration_sha256") is None:
+                if UNCALIBRATED not in outcome.flags:
+                    outcome.flags.append(UNCALIBRATED)
+            return
         if cal is None and UNCALIBRATED not in outcome.flags:
             outcome.flags.append(UNCALIBRATED)
-        if outcome.result is None or self.probe != "paper" or outcome.raw_t_s is None:
-            # The small heater's axisymmetric fit has no chain model yet: the flag says so.
+        if outcome.result is None or outcome.raw_t_s is None:
             return
         from edge.estimation.chain_estimate import estimate_from_contact  # noqa: PLC0415
 

@@ -253,7 +253,9 @@ class Daemon:
             except ModelStoreError as e:
                 log.error("no usable model yet: %s", e)
             self._model_est = ModelEstimator(self.store, thermocouple_resolution_K(self.config.sensors),
-                                           probe=self.config.board.probe)
+                                           probe=self.config.board.probe,
+                                           calibration=lambda: (self.calibration.current()
+                                                                if getattr(self, "calibration", None) else None))
             self.estimator = estimator if estimator is not None else self._model_est
             #: Set by ABORT: the running measurement stops with reason host_abort.
             self._cancel = threading.Event()

@@ -39,13 +39,17 @@ class ModelEstimator:
         The probe head (a name in :data:`edge.physics.geometry.PROBES`, ``board.probe``).
     """
 
-    def __init__(self, store: ModelStore, T_resolution_K: float = 0.0, probe: str = "paper") -> None:
+    def __init__(self, store: ModelStore, T_resolution_K: float = 0.0, probe: str = "paper",
+                 calibration=None) -> None:
         if probe not in PROBES:
             raise ValueError(f"unknown probe {probe!r}; shipped: {sorted(PROBES)}")
         self.store = store
         #: The probe head whose geometry decides the estimator.
         self.probe = probe
         self._axi = None
+        #: ``calibration()`` -> the installed ProbeCalibration or None: the small heater's flux scale
+        #: (the paper probe's chain is applied after the estimate, edge.service.calibration).
+        self.calibration = calibration
         #: The thermometer's resolution (K), which the estimator carries into u(e).
         self.T_resolution_K = float(T_resolution_K)
         self._sha: str | None = None
@@ -76,7 +80,13 @@ class ModelEstimator:
         if self.probe != "paper":
             # The sequence reports the heater's power density on the paper's heater volume (the
             # 1-D model's convention); the power itself is what the axisymmetric fit starts from.
-            return axi.estimate(t_s, dT_K, q_W_m2, power_W=q_v_W_m3 * HEATER_VOLUME_m3 if q_v_W_m3 else None,
-                                T_resolution_K=self.T_resolution_K)
+            cal = self.calibration() if self.calibration is not None else None
+            flux = {} if cal is None or cal.probe != self.probe else {
+                "flux_scale": cal.chain.flux_scale, "flux_u_rel": float(cal.u_theta[0])}
+            d = axi.estimate(t_s, dT_K, q_W_m2, power_W=q_v_W_m3 * HEATER_VOLUME_m3 if q_v_W_m3 else None,
+                             T_resolution_K=self.T_resolution_K, **flux)
+            if flux:
+                d["calibration_sha256"] = cal.sha256
+            return d
         return est.estimate(t_s, dT_K, q_W_m2, method=method, q_v_W_m3=q_v_W_m3,
                             T_resolution_K=self.T_resolution_K).to_dict()

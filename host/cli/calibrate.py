@@ -306,6 +306,15 @@ def _fit(args):
         raise CliError(f"give one --reference per --record ({len(args.record)} records, "
                        f"{len(args.reference)} references)")
     lib = load_materials()
+    if args.probe != "paper":
+        cal = _fit_axi(args, lib)
+        write_text_atomic(args.out, cal.to_json())
+        if args.json:
+            print(cal.to_json(), end="")
+        else:
+            print(f"calibration {cal.sha256[:12]} for probe {cal.probe} written to {args.out}")
+            _print_calibration(cal)
+        return cal
     touches = []
     for path, name in zip(args.record, args.reference):
         m = _reference(lib, name)
@@ -329,6 +338,34 @@ def _fit(args):
         print(f"calibration {cal.sha256[:12]} for probe {cal.probe} written to {args.out}")
         _print_calibration(cal)
     return cal
+
+
+def _fit_axi(args, lib):
+    """The small-heater probe: its flux sensor's scale from records that start at heater-on (estimate's format)."""
+    from edge.calibration.axi import AxiReferenceTouch, fit_flux_scale  # noqa: PLC0415
+    from edge.calibration.fit import OTHER_REFERENCE_U_REL, REFERENCE_U_REL  # noqa: PLC0415
+    from edge.calibration.model import CalibrationError  # noqa: PLC0415
+    from edge.estimation.probe_estimate import AxiEstimator  # noqa: PLC0415
+    from host.cli.common import load_estimator  # noqa: PLC0415
+    from host.records import RecordError, read_record, read_record_metadata  # noqa: PLC0415
+
+    touches = []
+    for path, name in zip(args.record, args.reference):
+        m = _reference(lib, name)
+        try:
+            recorded = read_record_metadata(path).get("probe")
+            t, dT, q = read_record(path)
+        except RecordError as exc:
+            raise CliError(f"--record {exc}") from None
+        if recorded is not None and recorded != args.probe:
+            raise CliError(f"--record {path} was taken with probe {recorded!r}, not --probe {args.probe}")
+        touches.append(AxiReferenceTouch(name, m.solid.k_W_mK, m.solid.alpha_m2_s,
+                                         REFERENCE_U_REL.get(name, OTHER_REFERENCE_U_REL), t, dT, q))
+    est, _ = load_estimator(None)
+    try:
+        return fit_flux_scale(AxiEstimator(est, args.probe), touches)
+    except (CalibrationError, ValueError) as exc:
+        raise CliError(f"calibration: {exc}") from None
 
 
 def calibration_file(text: str):

@@ -38,9 +38,10 @@ def add_parser(sub, parents):
                    help="name the object among your own (columns name, class, k_W_mK, rho_kg_m3, c_J_kgK or "
                         "e_W_s05_m2K, optional spread_rel; default: every library material)")
     p.add_argument("--calibration", metavar="CAL.json", type=calibration_file, default=None,
-                   help="paper probe: fit e, the contact resistance and the object's temperature from the moment "
-                        "of contact through this calibration's sensor chain (from `thermotouch calibrate`); the "
-                        "record should start before contact. Without it results are flagged 'uncalibrated'")
+                   help="the probe's calibration (from `thermotouch calibrate`, for --probe's probe). Paper probe: "
+                        "fit e, the contact resistance and the object's temperature from the moment of contact "
+                        "through its sensor chain (the record should start before contact); small heater: its "
+                        "flux sensor's scale and uncertainty. Without it results are flagged 'uncalibrated'")
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
 
@@ -56,11 +57,10 @@ def run(args) -> int:
         raise CliError(f"--method is for the paper probe; --probe {args.probe} uses the axisymmetric fit")
     method = args.method or "default"
     if args.calibration is not None:
-        if args.probe != "paper" or args.calibration.probe != args.probe:
-            # The small heater's axisymmetric fit has no sensor-chain model yet: refuse, never ignore.
-            raise CliError(f"--calibration is for the paper probe's sensor chain (calibration for "
-                           f"{args.calibration.probe!r}, --probe {args.probe})")
-        if args.method is not None or args.thickness is not None:
+        if args.calibration.probe != args.probe:
+            # Another probe's calibration would be applied to the wrong sensors: refuse, never ignore.
+            raise CliError(f"--calibration is for probe {args.calibration.probe!r}, not --probe {args.probe}")
+        if args.probe == "paper" and (args.method is not None or args.thickness is not None):
             raise CliError("--calibration fits a thick object from contact; it does not combine with --method or --thickness")
     # The object file is checked before the record: a bad file is the user's to fix first.
     if args.objects is not None:
@@ -76,7 +76,7 @@ def run(args) -> int:
     if recorded is not None and recorded != args.probe:
         # A record estimated with another probe's geometry gives confident nonsense: refuse.
         raise CliError(f"--csv {args.csv} was taken with probe {recorded!r}, not --probe {args.probe}")
-    if args.calibration is not None:
+    if args.calibration is not None and args.probe == "paper":
         return _run_chain(args, objects, set_name)
     est, _ = load_estimator(args.bundle, method)
     back = "infinite" if args.thickness is None else (args.back or "insulated")
@@ -86,11 +86,16 @@ def run(args) -> int:
         else:
             from edge.estimation.probe_estimate import AxiEstimator  # noqa: PLC0415
 
-            d = AxiEstimator(est, args.probe).estimate(t, dT, q, thickness_m=args.thickness, back=back)
+            cal = {} if args.calibration is None else {"flux_scale": args.calibration.chain.flux_scale,
+                                                       "flux_u_rel": float(args.calibration.u_theta[0])}
+            d = AxiEstimator(est, args.probe).estimate(t, dT, q, thickness_m=args.thickness, back=back, **cal)
     except ValueError as exc:
         raise CliError(str(exc)) from None
-    # No calibration: the datasheet chain -- say so on every result (ISSUE #10 §4).
-    d["flags"] = list(dict.fromkeys(list(d.get("flags") or []) + ["uncalibrated"]))
+    if args.calibration is None:
+        # No calibration: the datasheet chain -- say so on every result (ISSUE #10 §4).
+        d["flags"] = list(dict.fromkeys(list(d.get("flags") or []) + ["uncalibrated"]))
+    else:
+        d["calibration_sha256"] = args.calibration.sha256
     d.update(recognition_fields(objects, d, set_name=set_name))
     if args.json:
         print(dumps(d))

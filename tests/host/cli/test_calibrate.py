@@ -136,3 +136,65 @@ def test_walk_through_without_a_touch_stops_with_nothing_written_or_installed(ca
     code, shown, _ = run(capsys, "calibrate", "--show", "--sim", "alu_20V_faithful", "--workdir", str(work), "--json")
     assert code == 0 and json.loads(shown)["calibrated"] is False
 
+
+def test_small_heater_calibration_fits_the_flux_scale_and_estimate_uses_it(capsys, tmp_path):
+    import numpy as np
+
+    from edge.physics.axisym import AxisymModel
+    from edge.physics.geometry import PROBES
+    from host.records import write_record
+
+    t = np.arange(251) * 0.02
+    model = AxisymModel(PROBES["small-heater"], t)
+    rng = np.random.default_rng(5)
+    lib = load_materials()
+
+    def rec(name):
+        s = lib.get(name).solid
+        T, q = model.signals(s.k_W_mK, s.alpha_m2_s)   # the thermopile reads 4 % low
+        p = tmp_path / f"{name}.csv"
+        write_record(p, t, T + 0.01 * rng.standard_normal(t.size), 0.96 * q + 0.5 * rng.standard_normal(t.size),
+                     probe="small-heater")
+        return str(p)
+
+    cal = tmp_path / "small.json"
+    code, out, err = run(capsys, "calibrate", "--probe", "small-heater", "--record", rec("pmma"), "--reference", "pmma",
+                         "--record", rec("pyroceram"), "--reference", "pyroceram", "--out", str(cal))
+    assert code == 0, err
+    d = json.loads(cal.read_text())
+    assert d["probe"] == "small-heater" and d["chain"]["flux_scale"] == pytest.approx(1 / 0.96, rel=0.01)
+    glass = rec("borofloat_33")
+    code, out, err = run(capsys, "estimate", "--probe", "small-heater", "--csv", glass, "--calibration", str(cal),
+                         "--json")
+    assert code == 0, err
+    r = json.loads(out)
+    assert "uncalibrated" not in r["flags"] and r["calibration_sha256"] == d["sha256"]
+    assert abs(r["k_W_mK"] / lib.get("borofloat_33").solid.k_W_mK - 1) < 0.02
+    code, out, err = run(capsys, "estimate", "--probe", "small-heater", "--csv", glass, "--json")
+    assert code == 0 and "uncalibrated" in json.loads(out)["flags"]
+    # A paper-probe record is not a small-heater reference.
+    code, _, err = run(capsys, "calibrate", "--probe", "small-heater", "--record", rec("pmma"), "--reference", "pmma",
+                       "--record", str(tmp_path / "missing.csv"), "--reference", "pyroceram", "--out",
+                       str(tmp_path / "x.json"))
+    assert code == 2 and len(err.strip().splitlines()) == 1 and not (tmp_path / "x.json").exists()
+
+
+def test_a_small_heater_calibration_installed_on_the_device_is_applied_to_its_measurements(capsys, tmp_path):
+    from tests.support.calibrations import sample_calibration
+
+    cal = sample_calibration(probe="small-heater")
+    p = tmp_path / "small.json"
+    p.write_text(cal.to_json())
+    work = str(tmp_path / "probe")
+    code, out, err = run(capsys, "measure", "--sim", "glass_15V_small", "--workdir", work, "--json")
+    assert code == 0, err
+    before = json.loads(out)
+    assert "uncalibrated" in before["flags"] and before.get("calibration_sha256") is None
+    code, _, err = run(capsys, "calibrate", "--install", str(p), "--sim", "glass_15V_small", "--workdir", work)
+    assert code == 0, err
+    code, out, err = run(capsys, "measure", "--sim", "glass_15V_small", "--workdir", work, "--json")
+    assert code == 0, err
+    after = json.loads(out)
+    assert "uncalibrated" not in after["flags"] and after["calibration_sha256"] == cal.sha256
+    assert after["fit"]["flux_scale"] == pytest.approx(cal.chain.flux_scale)
+

@@ -1,0 +1,77 @@
+"""The small-heater probe's calibration: its flux sensor's scale from reference touches (edge.calibration.axi)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from edge.calibration.axi import AxiReferenceTouch, fit_flux_scale
+from edge.calibration.model import CalibrationError, ProbeCalibration
+from edge.estimation.estimate import Estimator, pipeline_golden_check
+from edge.estimation.probe_estimate import AxiEstimator
+from edge.model.bundle import load_bundle
+from edge.physics.axisym import AxisymModel
+from edge.physics.geometry import PROBES
+from edge.physics.materials import load_materials
+
+G = PROBES["small-heater"]
+T5 = np.arange(251) * 0.02
+#: The thermopile reads 3 % high: the true flux is the reading / 1.03.
+READS_HIGH = 1.03
+
+
+@pytest.fixture(scope="module")
+def axi():
+    from thermotouch_models import DEFAULT_BUNDLE
+
+    return AxiEstimator(Estimator.from_bundle(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check)),
+                        "small-heater")
+
+
+@pytest.fixture(scope="module")
+def model():
+    return AxisymModel(G, T5)
+
+
+def touch(model, name, rng, t=T5):
+    s = load_materials().get(name).solid
+    T, q = model.signals(s.k_W_mK, s.alpha_m2_s)
+    return AxiReferenceTouch(name, s.k_W_mK, s.alpha_m2_s, 0.02, t, T + 0.01 * rng.standard_normal(t.size),
+                             READS_HIGH * q + 0.5 * rng.standard_normal(t.size))
+
+
+def test_the_scale_is_recovered_and_the_calibrated_probe_measures_closer(axi, model):
+    rng = np.random.default_rng(11)
+    refs = [touch(model, n, rng) for n in ("pmma", "pyroceram", "aisi_304") for _ in range(2)]
+    cal = fit_flux_scale(axi, refs)
+    assert cal.probe == "small-heater" and cal.calibrated
+    f, u = cal.chain.flux_scale, cal.u_theta[0]
+    assert abs(np.log(f * READS_HIGH)) < 3 * u and u < 0.01
+    assert ProbeCalibration.from_json(cal.to_json()) == cal
+    assert {r.name for r in cal.references} == {"pmma", "pyroceram", "aisi_304"}
+    assert all(abs(x) < 0.01 for r in cal.references for x in r.rel_errors)
+    # An unseen glass: the datasheet sensor reads k ~3 % high; the calibrated one within its u.
+    glass = touch(model, "borofloat_33", rng)
+    raw = axi.estimate(glass.t_s, glass.dT_K, glass.q_W_m2)
+    fixed = axi.estimate(glass.t_s, glass.dT_K, glass.q_W_m2, flux_scale=f, flux_u_rel=u)
+    err_raw, err_fixed = (abs(np.log(d["k_W_mK"] / glass.k_W_mK)) for d in (raw, fixed))
+    assert err_fixed < 0.5 * err_raw and err_fixed < 3 * fixed["k_W_mK_u"] / fixed["k_W_mK"]
+    assert fixed["fit"]["flux_scale"] == f and fixed["fit"]["flux_u_rel"] == u
+
+
+def test_one_reference_or_none_resolved_is_refused(axi, model):
+    rng = np.random.default_rng(12)
+    with pytest.raises(CalibrationError, match="at least two different"):
+        fit_flux_scale(axi, [touch(model, "pmma", rng), touch(model, "pmma", rng)])
+    # 0.3 s of records: nothing resolves k and alpha.
+    t = T5[:16]
+    short = AxisymModel(G, t)
+    with pytest.raises(CalibrationError, match="no reference touch determined"):
+        fit_flux_scale(axi, [touch(short, "pmma", rng, t), touch(short, "aisi_304", rng, t)])
+
+
+def test_a_bad_scale_is_refused_by_the_estimate(axi, model):
+    g = touch(model, "pmma", np.random.default_rng(1))
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="flux_scale"):
+            axi.estimate(g.t_s, g.dT_K, g.q_W_m2, flux_scale=bad)
