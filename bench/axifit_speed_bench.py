@@ -18,7 +18,7 @@ interleaved (every case once, then again) so that load on the shared machine
 spreads over all of them; each is reported as the median with min-max over the
 repeats, and the overall median over all warm calls is the headline number.
 
-Run:  python bench/axifit_speed_bench.py [--repeat 7]
+Run:  python bench/axifit_speed_bench.py [--repeat 7] [--update-readme]
 Writes bench/results/axifit_speed.json.
 """
 
@@ -30,7 +30,7 @@ import statistics
 import sys
 import time
 
-from _common import ROOT, write_json
+from _common import ROOT, update_readme, write_json
 
 sys.path.insert(0, str(ROOT))
 
@@ -63,6 +63,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=7)
     ap.add_argument("--seed", type=int, default=11)
+    ap.add_argument("--update-readme", action="store_true")
     args = ap.parse_args()
     from thermotouch_models import DEFAULT_BUNDLE
 
@@ -123,6 +124,25 @@ def main() -> None:
         "repeat": args.repeat, "noise": {"sigma_T_K": 0.01, "sigma_q_W_m2": 0.5},
         "overall": overall, "cases": out})
     print(f"wrote {path}")
+    if args.update_readme:
+        update_readme("axifit-speed-bench", _readme_text(overall, out, len(all_ms), args.repeat, load_before))
+
+
+def _readme_text(overall: dict, out: dict, n: int, repeat: int, load: float) -> str:
+    cold = [c["cold_ms"] for c in out.values()]
+    lines = [f"median {overall['median_ms']:.0f} ms per measurement over all {n} warm calls (min "
+             f"{overall['min_ms']:.1f}, max {overall['max_ms']:.0f} ms; target <= {TARGET_MS:g} ms) with the machine's "
+             f"1-min load average at {load:.1f} on {os.cpu_count()} cores; the first touch on a new time grid also "
+             f"builds the model's probe part (cold: {min(cold):.0f}–{max(cold):.0f} ms). Per case, median (min–max) "
+             f"ms of {repeat} interleaved repeats, what the touch determined, and the errors of its one noisy record "
+             "(one draw per case, not a coverage test; u includes the flux sensor's 2 % calibration propagated "
+             "through the fit):", "", "| case | time (ms) | determined | k err (stated u) | α err (stated u) |",
+             "|---|---|---|---|---|"]
+    for key, c in out.items():
+        lines.append(f"| {key} | {c['median_ms']:.0f} ({c['min_ms']:.0f}–{c['max_ms']:.0f}) | "
+                     f"{', '.join(c['determined'])} | {100 * c['k_err']:+.1f} % ({100 * c['k_u_rel']:.1f} %) | "
+                     f"{100 * c['alpha_err']:+.1f} % ({100 * c['alpha_u_rel']:.1f} %) |")
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":
