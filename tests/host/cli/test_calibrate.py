@@ -114,7 +114,7 @@ def test_walk_through_on_the_simulator_touches_each_reference_fits_writes_and_in
     # as its object; the device is armed, finds the contact, heats; the host fits its raw records.
     out, work = tmp_path / "cal.json", tmp_path / "probe"
     code, text, err = run(capsys, "calibrate", "--sim", "alu_20V_faithful", "--workdir", str(work), "--reference",
-                          "pmma", "--reference", "pyroceram", "--heat", "4", "--out", str(out))
+                          "pmma", "--reference", "pyroceram", "--heat", "2", "--out", str(out))
     assert code == 0, err
     assert text.count("reference ") == 2 and "written to" in text and "installed" in text
     cal = json.loads(out.read_text())
@@ -186,13 +186,13 @@ def test_a_small_heater_calibration_installed_on_the_device_is_applied_to_its_me
     p = tmp_path / "small.json"
     p.write_text(cal.to_json())
     work = str(tmp_path / "probe")
-    code, out, err = run(capsys, "measure", "--sim", "glass_15V_small", "--workdir", work, "--json")
+    code, out, err = run(capsys, "measure", "--sim", "glass_15V_small", "--workdir", work, "--time", "2", "--json")
     assert code == 0, err
     before = json.loads(out)
     assert "uncalibrated" in before["flags"] and before.get("calibration_sha256") is None
     code, _, err = run(capsys, "calibrate", "--install", str(p), "--sim", "glass_15V_small", "--workdir", work)
     assert code == 0, err
-    code, out, err = run(capsys, "measure", "--sim", "glass_15V_small", "--workdir", work, "--json")
+    code, out, err = run(capsys, "measure", "--sim", "glass_15V_small", "--workdir", work, "--time", "2", "--json")
     assert code == 0, err
     after = json.loads(out)
     assert "uncalibrated" not in after["flags"] and after["calibration_sha256"] == cal.sha256
