@@ -293,12 +293,10 @@ def _print_calibration(cal) -> None:
 
 
 def _fit(args):
-    from edge.calibration.fit import ReferenceTouch, fit_calibration  # noqa: PLC0415
-    from edge.calibration.model import CalibrationError  # noqa: PLC0415
+    """``--record``/``--reference`` pairs: fit the probe's calibration and write ``--out``."""
     from edge.physics.geometry import PROBES  # noqa: PLC0415
     from edge.physics.materials import load_materials  # noqa: PLC0415
     from host.atomic import write_text_atomic  # noqa: PLC0415
-    from host.records import RecordError, read_record_metadata, read_series, uniform_series  # noqa: PLC0415
 
     if args.probe not in PROBES:
         raise CliError(f"--probe: unknown probe {args.probe!r}; shipped: {', '.join(PROBES)}")
@@ -306,31 +304,7 @@ def _fit(args):
         raise CliError(f"give one --reference per --record ({len(args.record)} records, "
                        f"{len(args.reference)} references)")
     lib = load_materials()
-    if args.probe != "paper":
-        cal = _fit_axi(args, lib)
-        write_text_atomic(args.out, cal.to_json())
-        if args.json:
-            print(cal.to_json(), end="")
-        else:
-            print(f"calibration {cal.sha256[:12]} for probe {cal.probe} written to {args.out}")
-            _print_calibration(cal)
-        return cal
-    touches = []
-    for path, name in zip(args.record, args.reference):
-        m = _reference(lib, name)
-        try:
-            recorded = read_record_metadata(path).get("probe")
-            s = read_series(path)
-            t, T, q = uniform_series(s["t_s"], s["T"], s["q_W_m2"], path=path)
-        except RecordError as exc:
-            raise CliError(f"--record {exc}") from None
-        if recorded is not None and recorded != args.probe:
-            raise CliError(f"--record {path} was taken with probe {recorded!r}, not --probe {args.probe}")
-        touches.append(ReferenceTouch(name, m.solid.effusivity_W_s05_m2K, t, T, q))
-    try:
-        cal = fit_calibration(touches, probe=args.probe)
-    except (CalibrationError, ValueError) as exc:
-        raise CliError(f"calibration: {exc}") from None
+    cal = _fit_axi(args, lib) if args.probe != "paper" else _fit_chain(args, lib)
     write_text_atomic(args.out, cal.to_json())
     if args.json:
         print(cal.to_json(), end="")
@@ -340,6 +314,42 @@ def _fit(args):
     return cal
 
 
+def _reference_records(args, lib, read):
+    """(name, library material, ``read(path)``) per ``--record``/``--reference`` pair; errors name the file."""
+    from host.records import RecordError, read_record_metadata  # noqa: PLC0415
+
+    out = []
+    for path, name in zip(args.record, args.reference):
+        m = _reference(lib, name)
+        try:
+            recorded = read_record_metadata(path).get("probe")
+            data = read(path)
+        except RecordError as exc:
+            raise CliError(f"--record {exc}") from None
+        if recorded is not None and recorded != args.probe:
+            raise CliError(f"--record {path} was taken with probe {recorded!r}, not --probe {args.probe}")
+        out.append((name, m, data))
+    return out
+
+
+def _fit_chain(args, lib):
+    """The paper probe: its sensor chain from records that start in air, before contact."""
+    from edge.calibration.fit import ReferenceTouch, fit_calibration  # noqa: PLC0415
+    from edge.calibration.model import CalibrationError  # noqa: PLC0415
+    from host.records import read_series, uniform_series  # noqa: PLC0415
+
+    def read(path):
+        s = read_series(path)
+        return uniform_series(s["t_s"], s["T"], s["q_W_m2"], path=path)
+
+    touches = [ReferenceTouch(name, m.solid.effusivity_W_s05_m2K, t, T, q)
+               for name, m, (t, T, q) in _reference_records(args, lib, read)]
+    try:
+        return fit_calibration(touches, probe=args.probe)
+    except (CalibrationError, ValueError) as exc:
+        raise CliError(f"calibration: {exc}") from None
+
+
 def _fit_axi(args, lib):
     """The small-heater probe: its flux sensor's scale from records that start at heater-on (estimate's format)."""
     from edge.calibration.axi import AxiReferenceTouch, fit_flux_scale  # noqa: PLC0415
@@ -347,20 +357,11 @@ def _fit_axi(args, lib):
     from edge.calibration.model import CalibrationError  # noqa: PLC0415
     from edge.estimation.probe_estimate import AxiEstimator  # noqa: PLC0415
     from host.cli.common import load_estimator  # noqa: PLC0415
-    from host.records import RecordError, read_record, read_record_metadata  # noqa: PLC0415
+    from host.records import read_record  # noqa: PLC0415
 
-    touches = []
-    for path, name in zip(args.record, args.reference):
-        m = _reference(lib, name)
-        try:
-            recorded = read_record_metadata(path).get("probe")
-            t, dT, q = read_record(path)
-        except RecordError as exc:
-            raise CliError(f"--record {exc}") from None
-        if recorded is not None and recorded != args.probe:
-            raise CliError(f"--record {path} was taken with probe {recorded!r}, not --probe {args.probe}")
-        touches.append(AxiReferenceTouch(name, m.solid.k_W_mK, m.solid.alpha_m2_s,
-                                         REFERENCE_U_REL.get(name, OTHER_REFERENCE_U_REL), t, dT, q))
+    touches = [AxiReferenceTouch(name, m.solid.k_W_mK, m.solid.alpha_m2_s,
+                                 REFERENCE_U_REL.get(name, OTHER_REFERENCE_U_REL), t, dT, q)
+               for name, m, (t, dT, q) in _reference_records(args, lib, read_record)]
     est, _ = load_estimator(None)
     try:
         return fit_flux_scale(AxiEstimator(est, args.probe), touches)
