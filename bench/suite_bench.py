@@ -50,8 +50,12 @@ def _run(workers: int) -> dict:
         n = 0
         for case in ET.parse(xml).getroot().iter("testcase"):
             n += 1
-            per_file[case.get("classname", "").rsplit(".", 1)[0].replace(".", "/") + ".py"] += float(
-                case.get("time", 0.0))
+            # classname is the test's module (dotted), or module.Class for a method in a test class.
+            mod = case.get("classname", "")
+            parts = mod.split(".")
+            if parts and parts[-1][:1].isupper():
+                parts = parts[:-1]
+            per_file["/".join(parts) + ".py"] += float(case.get("time", 0.0))
     m = re.search(r"(\d+) passed", out.stdout)
     return {"wall_s": wall, "tests_s": sum(per_file.values()), "n": n,
             "passed": int(m.group(1)) if m else None, "files": per_file.most_common(8)}
