@@ -1,0 +1,118 @@
+"""Two diagnoses behind the README's calibration notes, reproducible.
+
+1. The small-heater probe's response to its flux sensor's scale: for PMMA, tempered glass,
+   AISI 304 and aluminium, a noise-free 5-s record of the axisymmetric model at 50 Hz, the
+   estimate's ``fit.flux_scale_sensitivity`` (d ln k, d ln alpha per unit relative scale error,
+   linearised) and what refits of the record with the flux scaled by 0.98 and 1.02 give
+   (the fit's own k and alpha).
+2. The paper probe's contact-resistance bias: noise-free 1-D FaithfulWorld touches (nominal
+   probe, R_c 5e-5 m^2K/W, object 1.5 K warm, contact 1 s before heating, 4 s heating) fitted
+   by the sensor chain with the datasheet chain -- the probe's own -- with the thermocouple
+   smoothed before the storage term (as shipped) and without; the R_c error times e^2 is
+   constant (~5 J/m^2K) where a surface heat capacity explains it.  Then, from
+   ``bench/results/calibration.json`` (``python bench/calibration_bench.py``), the median
+   z = (R_c fit - R_c) / u(R_c) per solid of the calibrated 1-D touches.
+
+Run:  python bench/sensitivity_bench.py        (~1 min)
+Writes bench/results/sensitivity.json.
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+import sys
+from collections import defaultdict
+
+import numpy as np
+
+from _common import RESULTS, ROOT, write_json
+
+sys.path.insert(0, str(ROOT))
+
+from edge.estimation.estimate import Estimator, pipeline_golden_check  # noqa: E402
+from edge.estimation.probe_estimate import AxiEstimator  # noqa: E402
+from edge.estimation.sensor_chain import SensorChainCalibration, fit_sensor_chain  # noqa: E402
+from edge.model.bundle import load_bundle  # noqa: E402
+from edge.physics.axisym import AxisymModel  # noqa: E402
+from edge.physics.geometry import PROBES  # noqa: E402
+from edge.physics.materials import load_materials  # noqa: E402
+
+
+def flux_scale(lib) -> dict:
+    from thermotouch_models import DEFAULT_BUNDLE
+
+    axi = AxiEstimator(Estimator.from_bundle(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check)),
+                       "small-heater")
+    t = np.arange(251) * 0.02
+    model = AxisymModel(PROBES["small-heater"], t)
+    out = {}
+    print("small-heater probe, 5 s: d ln x / d ln (flux scale), linearised | from refits at 0.98 / 1.02")
+    for name in ("pmma", "tempered_glass", "aisi_304", "aluminium"):
+        s = lib.get(name).solid
+        T, q = model.signals(s.k_W_mK, s.alpha_m2_s)
+        d0 = axi.estimate(t, T, q)
+        lo, hi = axi.estimate(t, T, q * 0.98), axi.estimate(t, T, q * 1.02)
+        refit = {x: float(np.log(hi["fit"][f"{x}_W_mK" if x == "k" else "alpha_m2_s"]
+                                 / lo["fit"][f"{x}_W_mK" if x == "k" else "alpha_m2_s"]) / np.log(1.02 / 0.98))
+                 for x in ("k", "alpha")}
+        sens = d0["fit"]["flux_scale_sensitivity"]
+        out[name] = {"linearised": sens, "refit": refit,
+                     "u_rel_k": d0["k_W_mK_u"] / d0["k_W_mK"], "u_rel_alpha": d0["alpha_m2_s_u"] / d0["alpha_m2_s"]}
+        print(f"  {name:16s} k {sens['k']:+6.2f} | {refit['k']:+6.2f}   alpha {sens['alpha']:+6.2f} | "
+              f"{refit['alpha']:+6.2f}   stated u(k) {out[name]['u_rel_k']:.1%}, u(alpha) {out[name]['u_rel_alpha']:.1%}")
+    return out
+
+
+def rc_smoothing(lib) -> dict:
+    from firmware_sim.rigs.contact_record import ContactTouch, one_d_geometry, record_touch
+
+    geo, chain, rc = one_d_geometry(), SensorChainCalibration(), 5e-5
+    out = {}
+    print("\npaper probe, noise-free 1-D touches, R_c 5e-5: R_c error (x e^2, J/m^2K) with / without smoothing")
+    for name in ("cork_board", "natural_rubber_soft", "borofloat_33", "granite", "aluminium"):
+        s = lib.get(name).solid
+        r = record_touch(ContactTouch(s, rc, 1.5, lead_s=1.0, heat_s=4.0), geometry=geo, seed=None, dt_s=0.01)
+        m = r["t_s"] >= r["contact_t_s"] - 1e-9
+        row = {}
+        for label, sm in (("smoothed", None), ("raw", 0.0)):
+            kw = {} if sm is None else {"smooth_s": sm}
+            f = fit_sensor_chain(r["t_s"][m] - r["contact_t_s"], r["T_C"][m], r["q_W_m2"][m],
+                                 T_probe0_C=r["T_probe0_C"], calibration=chain, **kw)
+            row[label] = {"dR_c": f.R_c_m2K_W - rc, "e_err": f.e_W_s05_m2K / s.effusivity_W_s05_m2K - 1,
+                          "dR_c_e2": (f.R_c_m2K_W - rc) * s.effusivity_W_s05_m2K ** 2}
+        out[name] = row
+        print(f"  {name:20s} smoothed dR_c {row['smoothed']['dR_c']:+.2e} (x e^2 {row['smoothed']['dR_c_e2']:+6.1f})"
+              f"   raw {row['raw']['dR_c']:+.2e} (x e^2 {row['raw']['dR_c_e2']:+6.1f})")
+    return out
+
+
+def rc_z_from_calibration_bench() -> dict:
+    path = RESULTS / "calibration.json"
+    if not path.exists():
+        print(f"\n{path} missing: run python bench/calibration_bench.py")
+        return {}
+    rows = [r for r in json.loads(path.read_text())["rows"]
+            if r["chain"] == "calibrated" and r["e"] is not None and r["geometry"] == "1d"]
+    by = defaultdict(list)
+    e_of = {}
+    for r in rows:
+        by[r["solid"]].append((r["R_c_fit"] - r["R_c"]) / r["u_R_c"])
+        e_of[r["solid"]] = r["e_true"]
+    out = {s: {"e": e_of[s], "median_z": statistics.median(v), "n": len(v)} for s, v in by.items()}
+    allz = [z for v in by.values() for z in v]
+    print(f"\ncalibrated 1-D touches of the calibration bench: R_c inside its 95 % in "
+          f"{100 * np.mean(np.abs(allz) <= 1.96):.0f} % of {len(allz)}; median z per solid, by e:")
+    print("  " + ", ".join(f"{s} {d['median_z']:+.1f}" for s, d in sorted(out.items(), key=lambda x: x[1]["e"])))
+    return out
+
+
+def main() -> None:
+    lib = load_materials()
+    res = {"flux_scale": flux_scale(lib), "rc_smoothing": rc_smoothing(lib),
+           "rc_z_per_solid": rc_z_from_calibration_bench(), "command": "python bench/sensitivity_bench.py"}
+    print(f"wrote {write_json('sensitivity', res)}")
+
+
+if __name__ == "__main__":
+    main()
