@@ -4,7 +4,7 @@ The small heater's axisymmetric fit (:mod:`edge.estimation.probe_estimate`) free
 and takes the flux sensor's reading as calibrated; its one calibration parameter is that sensor's
 scale ``f`` (true flux per unit of the reading).  A scale error does not move k and alpha one to one:
 with the power free, T and q then disagree and the fit reads it as lateral spreading (on PMMA at
-5 s, d ln alpha / d ln f ~ -15) -- which is also what makes references with known k *and* alpha
+5 s, d ln alpha / d ln f ~ -16) -- which is also what makes references with known k *and* alpha
 pin ``f`` down well.
 
 Method: Gauss-Newton on ``x = ln f``.  Per touch of a reference the fit's own k and alpha at the
@@ -12,8 +12,8 @@ current ``f`` and their sensitivities to it (``fit.flux_scale_sensitivity``) giv
 ``ln k_fit - ln k_ref`` and ``ln alpha_fit - ln alpha_ref``, weighted by the fit's uncertainty and
 the reference's (k from its certificate, alpha twice as uncertain: it also carries rho c); the
 datasheet's spread of the sensor (:data:`edge.physics.probe.FLUX_SENSITIVITY_U_REL`) is the
-prior.  Touches that did not determine k and alpha (a short touch of a metal) weigh nothing and
-are reported.  The result is a :class:`~edge.calibration.model.ProbeCalibration` for probe
+prior.  Touches that did not determine k and alpha (a short touch of a metal) weigh nothing in
+the fit; their e still appears among the references' re-measured errors.  The result is a :class:`~edge.calibration.model.ProbeCalibration` for probe
 ``small-heater`` whose ``chain.flux_scale`` and first covariance entry are the fit; the paper
 probe's layer parameters keep their datasheet values (the small heater's model has its layers
 from its geometry).

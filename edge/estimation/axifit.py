@@ -31,7 +31,7 @@ both to the two records with :class:`~edge.physics.axisym.AxisymModel`:
   flux record (the fit's response to a data perturbation).  With the heater
   power free it is far from the naive 1 for k and 0 for alpha: T and q then
   disagree by the scale error, and the fit reads the disagreement as lateral
-  spreading (on a PMMA-like solid at 5 s, d ln alpha / d ln s ~ -15).  The
+  spreading (on PMMA at 5 s, d ln alpha / d ln s ~ -16, bench/sensitivity_bench.py).  The
   caller combines it with the calibration's u (the fit cannot know it);
 * identifiability: a quantity is ``"measured"`` when its relative standard
   uncertainty is below ``identifiable_u_rel`` (30 %); otherwise k and

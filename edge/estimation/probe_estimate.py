@@ -24,10 +24,12 @@ setting is only a start); the flux sensor's calibration (2 %,
 :data:`~edge.estimation.estimate.FLUX_CALIBRATION_U_REL`) is propagated
 through the fit (:attr:`AxiFit.flux_scale_sensitivity`): with the power
 free, T and q disagree by a scale error and the fit reads that as lateral
-spreading, so on a PMMA-like solid a 2 % error moves k by ~12 % and alpha by
-~30 % at 5 s, on a metal by about one to one -- the stated u(k), u(alpha) and
+spreading, so on PMMA at 5 s a 2 % error moves k by ~13 % and alpha by ~32 %,
+on glass and metals by about one to one (bench/sensitivity_bench.py) -- the stated
+u(k), u(alpha), u(e) and
 their correlation carry it, and a quantity it leaves above the threshold is
-not called determined.  The ``method``
+not called determined.  An installed calibration (``flux_scale``, ``flux_u_rel``;
+:mod:`edge.calibration.axi`) replaces the datasheet's scale and 2 %.  The ``method``
 argument of the 1-D path does not apply (the paper's network was trained
 on the paper's probe); results say ``method: "axisym"``.
 
