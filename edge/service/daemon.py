@@ -252,10 +252,11 @@ class Daemon:
                 log.info("model %s (%s) from %s", b.model_version, b.sha256[:12], self.store.source)
             except ModelStoreError as e:
                 log.error("no usable model yet: %s", e)
+            # Before the estimator: the small heater's estimate applies the installed flux scale.
+            self.calibration = ProbeCalibrations(self._calibration_root(), self.config.board.probe,
+                                                 self._update_policy())
             self._model_est = ModelEstimator(self.store, thermocouple_resolution_K(self.config.sensors),
-                                           probe=self.config.board.probe,
-                                           calibration=lambda: (self.calibration.current()
-                                                                if getattr(self, "calibration", None) else None))
+                                           probe=self.config.board.probe, calibration=self.calibration.current)
             self.estimator = estimator if estimator is not None else self._model_est
             #: Set by ABORT: the running measurement stops with reason host_abort.
             self._cancel = threading.Event()
@@ -287,8 +288,6 @@ class Daemon:
             self._measure_t0: float | None = None
             self._object_set_hook = object_set
             self.objects = ObjectSets(self._object_sets_root(), policy=self._update_policy())
-            self.calibration = ProbeCalibrations(self._calibration_root(), self.config.board.probe,
-                                                 self._update_policy())
             #: Idle readings of the probe for STATUS ``ready`` (settled probe temperature).
             self.readiness = Readiness()
             #: The link being served (set by :meth:`serve`; its ``replies_dropped`` counts replies a

@@ -178,19 +178,19 @@ def _run_walk(args) -> int:
                                              arm_s=args.arm, settle_s=args.settle)
                 except WalkError as exc:
                     raise CliError(str(exc)) from None
-            chain = (rec.get("result") or {}).get("sensor_chain") or {}
-            say(f"  measurement {rec['measurement_id']}: {touch.t_s.size} samples, contact at "
-                f"{chain.get('contact_t_s', float('nan')):+.2f} s from heater-on")
-            touches.append(touch)
-        try:
-            cal = fit_calibration(touches, probe=args.probe)
-        except (CalibrationError, ValueError) as exc:
-            raise CliError(f"calibration: {exc}") from None
-        write_text_atomic(args.out, cal.to_json())
-        with (contextlib.nullcontext(port_session) if port_session is not None else
-              open_device(None, str(reference_scene(args.sim, names[0], scenes, heat_s=heat, settle_s=args.settle)),
-                          workdir=workdir, timeout_s=args.timeout)) as session:
-            rep = device_call(install_calibration, session.client, cal, key=key)
+                chain = (rec.get("result") or {}).get("sensor_chain") or {}
+                say(f"  measurement {rec['measurement_id']}: {touch.t_s.size} samples, contact at "
+                    f"{chain.get('contact_t_s', float('nan')):+.2f} s from heater-on")
+                touches.append(touch)
+                if i < len(names):
+                    continue
+                # The last touch's session fits, keeps the file on the host and installs.
+                try:
+                    cal = fit_calibration(touches, probe=args.probe)
+                except (CalibrationError, ValueError) as exc:
+                    raise CliError(f"calibration: {exc}") from None
+                write_text_atomic(args.out, cal.to_json())
+                rep = device_call(install_calibration, session.client, cal, key=key)
     if args.json:
         print(cal.to_json(), end="")
     else:
