@@ -131,7 +131,10 @@ def evaluation_touches(instrument: str) -> tuple[EvalTouch, ...]:
                 # Each touch's noise depends on its own coordinates only, not on the order of evaluation.
                 rng = np.random.default_rng([EVAL_SEED, ci, int(round(v * 10)), s])
                 t = sim.touch(qv, instrument, rng)
-                out.append(EvalTouch(name, solid, v, qv, s, in_lib, t.tT, t.T, t.tq, t.q))
+                arrays = [np.array(a, dtype=float) for a in (t.tT, t.T, t.tq, t.q)]
+                for a in arrays:
+                    a.flags.writeable = False   # cached and shared by every evaluation in the process
+                out.append(EvalTouch(name, solid, v, qv, s, in_lib, *arrays))
     return tuple(out)
 
 

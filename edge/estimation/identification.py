@@ -99,6 +99,8 @@ class Library:
         self.kernel_floor_ln = float(kernel_floor_ln)
         self.rho_c_intrinsic_ln = float(rho_c_intrinsic_ln)
         self.material_spread_ln = float(material_spread_ln)
+        # The prior's kernel works in ln e and ln rho c: taken once, not per touch.
+        self._ln_e, self._ln_rc = np.log(self.effusivity), np.log(self.rho_c)
 
     @classmethod
     def from_arrays(cls, a: Mapping[str, np.ndarray], *, kernel_floor_ln: float, rho_c_intrinsic_ln: float,
@@ -114,7 +116,7 @@ class Library:
     def prior_rho_c(self, e: float, u_ln_e: float) -> tuple[float, float, bool]:
         """ln(ρc) mean and standard deviation given e; and whether e is outside the library."""
         width = math.hypot(u_ln_e, self.kernel_floor_ln)
-        m, v = _kernel_moments(np.array([math.log(e)]), np.log(self.effusivity), np.log(self.rho_c), width)
+        m, v = _kernel_moments(np.array([math.log(e)]), self._ln_e, self._ln_rc, width)
         mean = float(m[0])
         var = float(v[0]) + self.rho_c_intrinsic_ln ** 2
         outside = bool(e < self.effusivity.min() / OUTSIDE_FACTOR or e > self.effusivity.max() * OUTSIDE_FACTOR)
@@ -123,7 +125,7 @@ class Library:
     def identify(self, e: float, u_ln_e: float, top: int = 3) -> list[tuple[str, float]]:
         """Library materials ranked by likelihood of the measured e, with probabilities."""
         s = math.hypot(u_ln_e, self.material_spread_ln)
-        z = (math.log(e) - np.log(self.effusivity)) / s
+        z = (math.log(e) - self._ln_e) / s
         ll = -0.5 * z ** 2
         p = np.exp(ll - ll.max())
         p /= p.sum()
