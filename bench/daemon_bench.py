@@ -14,7 +14,8 @@ Reported (bench/results/daemon.json):
   a process that imports the daemon's modules and loads the estimator on
   the shipped bundle (what a Pi runs, minus the simulator);
 * ``compute_ms``: wall time from the last sample (heater already off) to the
-  result -- quality flags, resampling and estimation -- median / p95 / max;
+  result -- quality flags, resampling and estimation, and the sensor chain's
+  estimate from contact (``chain_ms`` alone) -- median / p95 / max;
   ``compute_and_commit_ms`` adds the durable SQLite commit;
 * soak: RSS growth and fd count change from measurement 10 to N, live
   objects gained per package (edge vs the simulator's own history), the heater
@@ -149,15 +150,15 @@ def edge_only_rss() -> float:
         "import sys; sys.path.insert(0, %r)\n"
         "import edge.service.daemon, edge.estimation.estimate, serial, sqlite3\n"
         "from thermotouch_models import DEFAULT_BUNDLE\n"
-        "from edge.model.bundle import load_bundle, mlp_golden_check\n"
-        "b = load_bundle(DEFAULT_BUNDLE, mlp_golden_check)\n"
+        "from edge.model.bundle import load_bundle\n"
+        "b = load_bundle(DEFAULT_BUNDLE, golden_check=edge.estimation.estimate.pipeline_golden_check)\n"
         "edge.estimation.estimate.Estimator.from_bundle(b)\n"
         "for l in open('/proc/self/status'):\n"
         "    if l.startswith('VmRSS:'): print(int(l.split()[1]) / 1024.0)\n"
     ) % str(ROOT)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    if out.returncode != 0:
-        return float("nan")
+    if out.returncode != 0:   # say why, never a silent NaN in the results
+        raise SystemExit(f"edge-only RSS probe failed:\n{out.stderr.strip()}")
     return float(out.stdout.strip().splitlines()[-1])
 
 
@@ -168,13 +169,14 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=1000, help="measurements in the soak (default 1000)")
     ap.add_argument("--child", metavar="WORKDIR", help=argparse.SUPPRESS)
+    ap.add_argument("--update-readme", action="store_true", help="rewrite the README's daemon-bench block")
     a = ap.parse_args(argv)
     if a.child:
         return child(a.child)
     if a.n < 20:
         ap.error("--n must be >= 20")
 
-    from _common import write_json
+    from _common import update_readme, write_json
     from host.client import DeviceClient
 
     with tempfile.TemporaryDirectory(prefix="daemon-bench-") as workdir:
@@ -242,6 +244,7 @@ def main(argv: list[str] | None = None) -> int:
         "object_growth_10_to_end": report["object_growth_10_to_end"],
         "python_blocks_growth_10_to_end": report["python_blocks_growth_10_to_end"],
         "compute_ms": stats(comp),
+        "chain_ms": stats([t["chain_s"] * 1e3 for t in report["timings"] if t.get("chain_s") is not None]),
         "compute_and_commit_ms": stats(comm),
         "heater_invariant": inv,
         "heater_invariant_ok": bool(inv["ok"]) and inv["n_intervals"] == a.n,
@@ -253,7 +256,31 @@ def main(argv: list[str] | None = None) -> int:
     show = {k: v for k, v in result.items() if k != "rss_samples"}
     print(json.dumps(show, indent=1))
     print(f"wrote {path}", file=sys.stderr)
+    if a.update_readme:
+        update_readme("daemon-bench", readme_text(result))
     return 0
+
+
+def readme_text(r: dict) -> str:
+    """The README's daemon figures, from one run's results."""
+    growth = r["object_growth_10_to_end"]
+    edge_grew = {k: v for k, v in growth.items() if k.startswith("edge") and v > 0}
+    c, ch, cc, inv = r["compute_ms"], r["chain_ms"], r["compute_and_commit_ms"], r["heater_invariant"]
+    return (f"Daemon figures (`{r['command']} --update-readme`, `bench/results/daemon.json`;\n"
+            "the daemon runs in a child process with the simulated board in the same process, the bench is\n"
+            f"the host over the virtual serial link): resident memory {r['rss_MB']['after_10']:.1f} MB after 10\n"
+            f"measurements and {r['rss_MB']['end']:.1f} MB after {r['n_measurements']} ({r['rss_edge_only_MB']:.1f} MB "
+            "for the daemon's modules and the estimator alone;\n"
+            f"target {r['targets']['rss_MB']} MB) -- the {r['rss_growth_MB_10_to_end']:.1f} MB of growth is the "
+            "simulated world's history,\n"
+            f"while the daemon's own object count {'grew: ' + str(edge_grew) if edge_grew else 'did not grow'}; "
+            f"compute from the last sample to the result,\nthe sensor chain's estimate from contact included, "
+            f"median {c['median']:.1f} ms (p95 {c['p95']:.1f} ms; target {r['targets']['compute_median_ms']} ms), "
+            f"of which the chain {ch['median']:.1f} ms;\n{cc['median']:.1f} ms with the durable database commit; "
+            f"{r['n_measurements']} measurements in a row, {r['statuses'].get('ok', 0)} ok and "
+            f"{r['history_total']} stored,\nfile descriptors {r['fds']['after_10']} → {r['fds']['end']}, heater on "
+            f"at most {inv['longest_on_s']:.3f} s per touch against a {r['max_on_time_s']:g} s\nlimit, "
+            f"{'off' if inv['off_now'] else 'ON'} at the end.")
 
 
 if __name__ == "__main__":
