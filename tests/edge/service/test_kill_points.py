@@ -19,7 +19,8 @@ the model store and the runtime overrides fresh, as the daemon does at start-up,
 A few points also get a full restart: a daemon started on the dead child's state reports no
 fault, keeps the heater off and measures again.
 
-Calibration storage does not exist yet; when it does, it gets an operation here.
+The calibration store's start-up steps are among the start-up points; its install (CALIBRATION_SET) does
+not have an operation here yet.
 """
 
 from __future__ import annotations
