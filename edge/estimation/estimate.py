@@ -303,6 +303,19 @@ class Estimator:
             return Estimate(None, None, None, None, None, None, None, 0.0, "default", self.sha256, flags)
         e = 1.0 / a
         u_ln_e = math.hypot(u_a / a, FLUX_CALIBRATION_U_REL)
+        return self.from_effusivity(e, u_ln_e, flags=flags, fit=fit, grid=grid)
+
+    def from_effusivity(self, e: float, u_ln_e: float, *, method: str = "default", flags: list | None = None,
+                        fit=None, grid=None) -> Estimate:
+        """The estimate a thick body's effusivity alone gives: k and α from the library prior given e.
+
+        ``k = e^2 / rho c``, ``alpha = k / rho c`` with ln rho c and its spread
+        from the library (:meth:`Library.prior_rho_c`), the material named by
+        :meth:`Library.identify`. The default method's last step, and the one
+        definition the device uses for an e measured another way (the sensor
+        chain's, :func:`edge.service.calibration.promote_chain`).
+        """
+        flags = [] if flags is None else flags
         ln_rc, u_ln_rc, outside = self.library.prior_rho_c(e, u_ln_e)
         if outside:
             flags.append(Flag.OUTSIDE_TRAINING_RANGE)
@@ -311,7 +324,7 @@ class Estimator:
         alpha = k / rc
         u_ln_k = math.hypot(2 * u_ln_e, u_ln_rc)
         u_ln_alpha = math.hypot(2 * u_ln_e, 2 * u_ln_rc)
-        return self._finish(e, u_ln_e, k, u_ln_k, alpha, u_ln_alpha, "default", flags, fit, grid)
+        return self._finish(e, u_ln_e, k, u_ln_k, alpha, u_ln_alpha, method, flags, fit, grid)
 
     def _default_finite(self, grid, Tg, qg, n_eff, flags, thickness_m, back, lsb_K) -> Estimate:
         # For fixed alpha the flux model is linear in 1/e: scan alpha, solve e.

@@ -25,7 +25,7 @@ from edge.calibration.model import ProbeCalibration
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.storage.calibration_store import CalibrationStore, CalibrationStoreError
 
-__all__ = ["ProbeCalibrations", "UNCALIBRATED"]
+__all__ = ["ProbeCalibrations", "UNCALIBRATED", "promote_chain", "PROMOTE_BLOCKERS"]
 
 log = logging.getLogger("thermotouch.edge")
 
@@ -133,6 +133,52 @@ class ProbeCalibrations:
         if "contact_lost" in (chain.get("flags") or ()) and "contact_lost" not in outcome.flags:
             # The probe left the object while heating: every answer of this record is suspect.
             outcome.flags.append("contact_lost")
+
+
+#: Chain flags that keep the default method's answer first: the chain did not describe the record.
+PROMOTE_BLOCKERS = frozenset({"poor_fit", "contact_lost", "no_contact", "no_fit"})
+#: Keys of the default method's answer kept under ``result["default_method"]`` once the chain's is first.
+DEFAULT_METHOD_KEYS = ("effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u", "alpha_m2_s",
+                       "alpha_m2_s_u", "material", "material_confidence", "candidates", "method")
+
+
+def promote_chain(result: dict | None, estimator: Any) -> bool:
+    """Make a calibrated chain's e the measurement's answer (in place); True when it did.
+
+    On a real probe the default method inverts the ideal 1-D model -- no
+    contact resistance, object at the probe's temperature, flux at the
+    object's face -- and is biased by tens of percent (ISSUE #10); the chain
+    models all of it. Once a calibration is installed its e is the answer:
+    ``effusivity_W_s05_m2K`` and its u are the chain's, k, α and the
+    material follow from it through the library prior exactly as for the
+    default method (:meth:`edge.estimation.estimate.Estimator.from_effusivity`),
+    ``method`` is ``"sensor_chain"``, and the default method's own answer is
+    kept in ``result["default_method"]``. Nothing changes when the probe is
+    uncalibrated (the datasheet chain is biased too), when the chain failed or
+    flagged that it does not describe the record (:data:`PROMOTE_BLOCKERS`),
+    or when ``estimator`` is not the model the measurement was made with.
+    """
+    if not result or result.get("method") not in ("default", "paper"):
+        return False
+    chain = result.get("sensor_chain")
+    if not isinstance(chain, dict) or chain.get("calibration_sha256") is None or "error" in chain:
+        return False
+    if PROMOTE_BLOCKERS & set(chain.get("flags") or ()):
+        return False
+    e, u = chain.get("effusivity_W_s05_m2K"), chain.get("effusivity_W_s05_m2K_u")
+    if not (isinstance(e, (int, float)) and isinstance(u, (int, float)) and math.isfinite(e) and e > 0
+            and math.isfinite(u) and u > 0):
+        return False
+    if estimator is None or getattr(estimator, "sha256", None) != result.get("model_sha256"):
+        return False
+    new = estimator.from_effusivity(float(e), float(u) / float(e), method="sensor_chain").to_dict()
+    result["default_method"] = {k: result.get(k) for k in DEFAULT_METHOD_KEYS}
+    for k in DEFAULT_METHOD_KEYS:
+        result[k] = new.get(k)
+    extra = [str(f) for f in new.get("flags") or () if str(f) not in (result.get("flags") or [])]
+    if extra:
+        result["flags"] = list(result.get("flags") or []) + extra
+    return True
 
 
 def _plain(v: Any) -> Any:

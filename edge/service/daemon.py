@@ -90,7 +90,7 @@ from edge.protocol.messages import Request
 from edge.service.config import Config, ConfigError, RuntimeOverrides
 from edge.service.estimator import ModelEstimator
 from edge.service.notify import Notifier
-from edge.service.calibration import ProbeCalibrations
+from edge.service.calibration import ProbeCalibrations, promote_chain
 from edge.service.objects import ObjectSets
 from edge.service.requests import config_reply, fit_record, history_page, measure_params, series_page
 from edge.service.upload import MAX_UPLOAD_BYTES, ModelUpload
@@ -536,6 +536,20 @@ class Daemon:
             res["object_error"] = f"{type(e).__name__}: {e}"
         return res
 
+    def _promote_chain(self, outcome: Any) -> None:
+        """A calibrated chain's e becomes the answer, and the object is named from it (edge.service.calibration)."""
+        if outcome.result is None or self.calibration.current() is None:
+            return
+        try:
+            if not promote_chain(outcome.result, self._model_est.estimator()):
+                return
+            name, objs = self._named_object_set()
+            if objs is not None and len(objs):
+                outcome.result.update(recognition_fields(objs, outcome.result, set_name=name))
+        except Exception as e:  # the default method's answer stands; the measurement is never lost
+            log.exception("promoting the sensor chain's answer failed")
+            outcome.result["promote_error"] = f"{type(e).__name__}: {e}"
+
     def _model_sha256(self) -> str | None:
         return self._model_est.model_sha256()
 
@@ -657,6 +671,7 @@ class Daemon:
         self._idle_since = self.board.clock.monotonic()
         t_chain = time.perf_counter()
         self.calibration.apply(outcome)   # the sensor chain's estimate: part of the compute after the last sample
+        self._promote_chain(outcome)
         chain_s = time.perf_counter() - t_chain
         t_commit = time.perf_counter()
         mid = self._add_record(outcome.record(cfg.to_dict()))

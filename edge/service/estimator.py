@@ -63,6 +63,15 @@ class ModelEstimator:
         except ModelStoreError:
             return None
 
+    def estimator(self) -> Estimator:
+        """The :class:`Estimator` of the active bundle (built when the bundle changed)."""
+        bundle = self.store.current()
+        with self._lock:
+            if self._sha != bundle.sha256:
+                self._est, self._sha = Estimator.from_bundle(bundle), bundle.sha256
+                self._axi = None
+            return self._est
+
     def __call__(self, t_s: np.ndarray, dT_K: np.ndarray, q_W_m2: np.ndarray, q_v_W_m3: float,
                  method: str) -> dict:
         """Estimate from the resampled series (see :data:`edge.measure.sequence.EstimatorFn`)."""

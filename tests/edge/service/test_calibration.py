@@ -45,6 +45,16 @@ def test_install_show_and_every_measurement_names_its_calibration(tmp_path):
         # The chain's own answer (or its error) is there; the measurement is never lost over it.
         chain = rec["result"]["sensor_chain"]
         assert "effusivity_W_s05_m2K" in chain or "error" in chain
+        # Calibrated and trusted, the chain's e is the answer and the default method's is kept beside it;
+        # otherwise the default method's stays first.
+        from edge.service.calibration import PROMOTE_BLOCKERS
+        res = rec["result"]
+        if "error" in chain or PROMOTE_BLOCKERS & set(chain.get("flags") or ()):
+            assert res["method"] == "default" and "default_method" not in res
+        else:
+            assert res["method"] == "sensor_chain" and res["default_method"]["method"] == "default"
+            assert res["effusivity_W_s05_m2K"] == pytest.approx(chain["effusivity_W_s05_m2K"], rel=1e-4)
+            assert res["object"] is not None
 
 
 @pytest.mark.parametrize("text,needle", [
@@ -74,3 +84,61 @@ def test_a_strict_probe_takes_only_signed_calibrations(tmp_path):
         assert c.info()["calibrated"] is False
         install_calibration(c, cal, key=key)
         assert read_calibration(c)[1]["signed_by"] == key.key_id
+
+
+# -- the calibrated chain's answer comes first ------------------------------------------------------
+@pytest.fixture(scope="module")
+def shipped_estimator():
+    from edge.estimation.estimate import Estimator, pipeline_golden_check
+    from edge.model.bundle import load_bundle
+    from thermotouch_models import DEFAULT_BUNDLE
+    return Estimator.from_bundle(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
+
+
+def _result(est, chain_e=620.0, **chain):
+    d = est.from_effusivity(560.0, 0.02).to_dict()
+    d["flags"] = []
+    d["sensor_chain"] = {"effusivity_W_s05_m2K": chain_e, "effusivity_W_s05_m2K_u": 0.015 * chain_e,
+                         "calibration_sha256": "ab" * 32, "flags": [], **chain}
+    return d
+
+
+def test_a_calibrated_chain_becomes_the_answer_and_the_default_method_is_kept(shipped_estimator):
+    from edge.service.calibration import promote_chain
+    est = shipped_estimator
+    r = _result(est)
+    before = dict(r)
+    assert promote_chain(r, est)
+    assert r["method"] == "sensor_chain"
+    assert r["effusivity_W_s05_m2K"] == 620.0 and r["effusivity_W_s05_m2K_u"] == pytest.approx(0.015 * 620.0)
+    # k, alpha and the material follow from the chain's e exactly as the default method's from its own.
+    ref = est.from_effusivity(620.0, 0.015).to_dict()
+    for k in ("k_W_mK", "k_W_mK_u", "alpha_m2_s", "alpha_m2_s_u", "material", "candidates"):
+        assert r[k] == ref[k]
+    assert r["default_method"]["effusivity_W_s05_m2K"] == before["effusivity_W_s05_m2K"] == pytest.approx(560.0)
+    assert r["default_method"]["method"] == "default" and r["default_method"]["material"] == before["material"]
+    assert not promote_chain(r, est)   # once only: the answer is the chain's already
+
+
+@pytest.mark.parametrize("change", [
+    {"calibration_sha256": None},              # the datasheet chain: biased too, the default stays first
+    {"flags": ["poor_fit"]}, {"flags": ["contact_lost"]}, {"error": "ValueError: x"},
+    {"effusivity_W_s05_m2K": None}, {"effusivity_W_s05_m2K_u": float("nan")},
+])
+def test_the_default_method_stays_first_when_the_chain_cannot_be_trusted(shipped_estimator, change):
+    from edge.service.calibration import promote_chain
+    r = _result(shipped_estimator, **change)
+    before = {k: v for k, v in r.items()}
+    assert not promote_chain(r, shipped_estimator)
+    assert r == before and "default_method" not in r
+
+
+def test_no_promotion_with_another_model_or_on_the_small_heater(shipped_estimator):
+    from edge.service.calibration import promote_chain
+    r = _result(shipped_estimator)
+    r["model_sha256"] = "00" * 32
+    assert not promote_chain(r, shipped_estimator)
+    r = _result(shipped_estimator)
+    r["method"] = "axisym"
+    assert not promote_chain(r, shipped_estimator)
+    assert not promote_chain(None, shipped_estimator)
