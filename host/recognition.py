@@ -26,12 +26,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from typing import Mapping, Optional, Sequence
 
 import numpy as np
 
 from edge.estimation.estimate import FLUX_CALIBRATION_U_REL, Estimator
-from edge.estimation.objects import KnownObject, ObjectSet, Recognition
+from edge.estimation.objects import KnownObject, ObjectSet, Recognition, measured_alpha, open_set_z
 from edge.measure.instrument import INSTRUMENTS
 from edge.physics.materials import load_materials
 from edge.physics.solids import Solid
@@ -44,6 +44,7 @@ __all__ = [
     "Touches",
     "library_estimator",
     "simulate_touches",
+    "simulate_probe_touches",
     "fit_temperature",
     "fit_z_crit",
     "scatter_temperature",
@@ -68,7 +69,12 @@ RELIABILITY_BINS = (0.0, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.0)
 
 @dataclass
 class Touches:
-    """Simulated touches, one row each (``e``/``u_ln_e`` NaN where the estimator refused)."""
+    """Simulated touches, one row each (``e``/``u_ln_e`` NaN where the estimator refused).
+
+    ``alpha``, ``u_ln_alpha``, ``corr`` are what a probe that measures α reported
+    (:func:`edge.estimation.objects.measured_alpha`), NaN where it did not (every
+    touch of the paper's probe).
+    """
 
     obj: np.ndarray  # index into the objects simulated
     instrument: np.ndarray  # board name
@@ -77,16 +83,35 @@ class Touches:
     e: np.ndarray
     u_ln_e: np.ndarray
     names: tuple[str, ...]
+    alpha: Optional[np.ndarray] = None
+    u_ln_alpha: Optional[np.ndarray] = None
+    corr: Optional[np.ndarray] = None
+
+    def __post_init__(self) -> None:
+        for name in ("alpha", "u_ln_alpha", "corr"):
+            if getattr(self, name) is None:
+                setattr(self, name, np.full(self.e.shape, np.nan))
 
     @property
     def ok(self) -> np.ndarray:
         """Touches that gave an estimate."""
         return np.isfinite(self.e)
 
+    @property
+    def has_alpha(self) -> bool:
+        """Whether any touch carries a measured α."""
+        return bool(np.any(np.isfinite(self.alpha)))
+
+    def alpha_terms(self) -> dict:
+        """``log_terms``' keyword arguments for the measured α (empty when no touch has one)."""
+        if not self.has_alpha:
+            return {}
+        return {"ln_alpha": np.log(self.alpha), "u_ln_alpha": self.u_ln_alpha, "corr": self.corr}
+
     def select(self, mask) -> "Touches":
         m = np.asarray(mask)
         return Touches(self.obj[m], self.instrument[m], self.contact_time_s[m], self.e_true[m], self.e[m],
-                       self.u_ln_e[m], self.names)
+                       self.u_ln_e[m], self.names, self.alpha[m], self.u_ln_alpha[m], self.corr[m])
 
 
 def library_estimator() -> Estimator:
@@ -147,6 +172,96 @@ def simulate_touches(objects: Sequence[KnownObject], *, instruments: Sequence[st
                    tuple(o.name for o in objects))
 
 
+#: Sampling rate of the small-heater probe's records: its measurement profile's 50 Hz
+#: (firmware_sim.run.config_for_scene), or the thermometer's rate where that is slower.
+PROBE_RATE_HZ = 50.0
+#: Scene a small-heater touch is built from (its probe, layer and sensors; the object replaced).
+SMALL_HEATER_SCENE = "glass_15V_small"
+
+
+def simulate_probe_touches(objects: Sequence[KnownObject], *, probe: str = "small-heater",
+                           instruments: Sequence[str] = tuple(INSTRUMENTS),
+                           contact_times_s: Sequence[float] = CONTACT_TIMES_S, touches: int = 10, seed: int = 0,
+                           flux_cal_u_rel: float = FLUX_CALIBRATION_U_REL, settle_s: float = 0.5,
+                           dt_s: float = 0.01, estimator: Estimator | None = None, progress=None) -> Touches:
+    """Like :func:`simulate_touches`, for a probe that measures α: touches on the faithful (r, z) world.
+
+    Each specimen is one run of :class:`firmware_sim.rz.probe_world.FaithfulWorld`
+    -- finite volumes in (r, z), not the axisymmetric model the estimator
+    inverts -- with the probe of :data:`SMALL_HEATER_SCENE` on a thick object
+    of the specimen's k and ρc, an ideal contact made ``settle_s`` before
+    heater-on, the object at the probe's temperature. A touch of contact time
+    ``t_c`` is the record's first ``t_c`` seconds (the heating is a step, so a
+    shorter touch is a prefix of a longer one). Each board samples it at
+    ``min(its thermometer's rate, PROBE_RATE_HZ)`` with the board's noise and
+    quantisation (absolute temperature, a baseline of up to 10 pre-heating samples),
+    each touch with its own flux-sensor calibration error; the device's
+    :class:`edge.estimation.probe_estimate.AxiEstimator` estimates e and α with
+    their covariance (:func:`edge.estimation.objects.measured_alpha`).
+    """
+    import dataclasses  # noqa: PLC0415
+
+    from edge.estimation.probe_estimate import AxiEstimator  # noqa: PLC0415
+    from firmware_sim.clock import VirtualClock  # noqa: PLC0415 - the simulator only here
+    from firmware_sim.rz.probe_world import FaithfulWorld  # noqa: PLC0415
+    from firmware_sim.scene.files import read_scene  # noqa: PLC0415
+    from firmware_sim.scene.model import ObjectSpec  # noqa: PLC0415
+    from firmware_sim.world import ScheduleDrive  # noqa: PLC0415
+
+    est = estimator or library_estimator()
+    axi = AxiEstimator(est, probe, max_models=len(instruments) * len(contact_times_s))
+    base = read_scene(SMALL_HEATER_SCENE)
+    if base.board.probe != probe:
+        raise ValueError(f"no scene for probe {probe!r}")
+    rng = np.random.default_rng(seed)
+    t_max = max(contact_times_s)
+    rows = []
+    for i, obj in enumerate(objects):
+        for _ in range(touches):
+            solid = _specimen(obj, rng, est)
+            sc = dataclasses.replace(
+                base, object=ObjectSpec(solid=solid, back="infinite", thickness_m=0.1, label=obj.name),
+                touch=dataclasses.replace(base.touch, start_s=0.0, length_s=settle_s + t_max + 0.5,
+                                          contact_lead_s=0.0, repeat=False))
+            clk = VirtualClock()
+            world = FaithfulWorld.for_scene(sc, clk, ScheduleDrive([settle_s, settle_s + t_max], [1.0, 0.0]),
+                                            dt_s=dt_s)
+            clk.advance(settle_s + t_max + 0.05)
+            for name in instruments:
+                inst = INSTRUMENTS[name]
+                rate = min(inst.T_rate_Hz, PROBE_RATE_HZ)
+                n_pre = max(1, min(10, int(settle_s * rate) - 1))   # baseline samples within the settle
+                tg = np.arange(-n_pre, int(round(t_max * rate)) + 1) / rate
+                ser = world.series(settle_s + tg)
+                off = rng.uniform(0.0, inst.T_lsb_K)
+                T = ser["y"] + off + rng.normal(0.0, inst.T_noise_K, tg.size)
+                T = np.round(T / inst.T_lsb_K) * inst.T_lsb_K - off
+                q = ser["q_sensor"] + rng.normal(0.0, inst.q_noise_W_m2, tg.size)
+                q = np.clip(np.round(q / inst.q_lsb_W_m2) * inst.q_lsb_W_m2, -inst.q_range_W_m2, inst.q_range_W_m2)
+                base_T = float(np.mean(T[tg < 0]))
+                for ct in contact_times_s:
+                    m = (tg > 0) & (tg <= ct + 1e-9)
+                    f = math.exp(rng.normal(0.0, flux_cal_u_rel))
+                    e = u = a = ua = r = math.nan
+                    try:
+                        d = axi.estimate(tg[m], T[m] - base_T, q[m] * f, T_resolution_K=inst.T_lsb_K)
+                    except ValueError:
+                        d = {}
+                    if d.get("effusivity_W_s05_m2K") is not None:
+                        e = d["effusivity_W_s05_m2K"]
+                        u = d["effusivity_W_s05_m2K_u"] / e
+                        ma = measured_alpha(d)
+                        if ma is not None:
+                            a, ua, r = ma
+                    rows.append((i, name, ct, solid.effusivity_W_s05_m2K, e, u, a, ua, r))
+            if progress is not None:
+                progress(obj.name)
+    cols = list(zip(*rows)) if rows else [[]] * 9
+    arr = [np.array(c, float) for c in cols[2:]]
+    return Touches(np.array(cols[0], int), np.array(cols[1], str), *arr[:4], tuple(o.name for o in objects),
+                   *arr[4:])
+
+
 def _true_index(object_set: ObjectSet, names: Sequence[str], obj: np.ndarray) -> np.ndarray:
     idx = {n: i for i, n in enumerate(object_set.names)}
     missing = sorted({names[i] for i in obj if names[i] not in idx})
@@ -155,7 +270,8 @@ def _true_index(object_set: ObjectSet, names: Sequence[str], obj: np.ndarray) ->
     return np.array([idx[names[i]] for i in obj], int)
 
 
-def fit_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, bounds=(0.02, 100.0)) -> float:
+def fit_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, bounds=(0.02, 100.0),
+                    alpha: Mapping | None = None) -> float:
     """The variance scale T minimising the mean negative log posterior of the true objects.
 
     Golden-section search on ln T (the NLL of temperature scaling is unimodal
@@ -165,9 +281,10 @@ def fit_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, bounds=(
     return an arbitrary T, which still widens or narrows the open-set test.
     T is then the scatter of the touches about their own object instead,
     ``mean(q_true)`` (the maximum-likelihood variance scale of the Gaussian
-    model, :func:`scatter_temperature`).
+    model, :func:`scatter_temperature`). ``alpha``: :meth:`Touches.alpha_terms`
+    of touches that measured α too.
     """
-    q, hld, _ = object_set.log_terms(np.asarray(ln_e, float), np.asarray(u_ln_e, float))
+    q, hld, _ = object_set.log_terms(np.asarray(ln_e, float), np.asarray(u_ln_e, float), **(alpha or {}))
     ti = np.asarray(true_index, int)
     if ti.size == 0:
         raise ValueError("no touches to fit on")
@@ -179,7 +296,7 @@ def fit_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, bounds=(
         lse = m + np.log(np.exp(lw - m[:, None]).sum(axis=1))
         return float(np.mean(lse - lw[rows, ti]))
 
-    t_scatter = float(np.clip(np.mean(q[rows, ti]), *bounds))
+    t_scatter = float(np.clip(scatter_temperature(object_set, ln_e, u_ln_e, ti, alpha=alpha), *bounds))
     probe = [nll(math.log(t_scatter * f)) for f in (0.25, 1.0, 4.0)]
     if max(probe) - min(probe) < NLL_FLAT_NATS:
         return t_scatter
@@ -200,22 +317,25 @@ def fit_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, bounds=(
     return float(math.exp(0.5 * (a + b)))
 
 
-def scatter_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index) -> float:
-    """``mean(q_true)``: the variance scale that makes the touches' scatter about their own object match the model."""
-    q, _, _ = object_set.log_terms(np.asarray(ln_e, float), np.asarray(u_ln_e, float))
+def scatter_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, alpha: Mapping | None = None) -> float:
+    """``mean(q_true / dof_true)``: the variance scale that makes the touches' scatter about their own object match the model."""
+    q, _, dof = object_set.log_terms(np.asarray(ln_e, float), np.asarray(u_ln_e, float), **(alpha or {}))
     ti = np.asarray(true_index, int)
-    return float(np.mean(q[np.arange(ti.size), ti]))
+    rows = np.arange(ti.size)
+    return float(np.mean(q[rows, ti] / dof[rows, ti]))
 
 
 def fit_z_crit(object_set: ObjectSet, ln_e, u_ln_e, *, acceptance: float = 0.975, floor: float = 1.96,
-               temperature: float | None = None) -> float:
+               temperature: float | None = None, alpha: Mapping | None = None) -> float:
     """The open-set critical distance that accepts ``acceptance`` of these in-set touches (at least ``floor``).
 
-    Aiming above the 95 % goal leaves margin for the sampling error of the quantile.
+    Aiming above the 95 % goal leaves margin for the sampling error of the quantile. The
+    statistic is the test's own (:func:`edge.estimation.objects.open_set_z`: a touch with α
+    has two degrees of freedom).
     """
     t = object_set.temperature if temperature is None else temperature
-    q, _, _ = object_set.log_terms(np.asarray(ln_e, float), np.asarray(u_ln_e, float))
-    z_min = np.sqrt(q.min(axis=1) / t)
+    q, _, dof = object_set.log_terms(np.asarray(ln_e, float), np.asarray(u_ln_e, float), **(alpha or {}))
+    z_min = open_set_z(q / t, dof)
     return float(max(floor, np.quantile(z_min, acceptance)))
 
 
@@ -254,9 +374,15 @@ def reliability(confidence, correct, bins: Sequence[float] = RELIABILITY_BINS) -
 
 
 def classify_touches(object_set: ObjectSet, touches: Touches) -> list[Recognition | None]:
-    """Recognition of every touch (None where the estimator refused)."""
-    return [object_set.classify(float(e), float(u)) if math.isfinite(e) else None
-            for e, u in zip(touches.e, touches.u_ln_e)]
+    """Recognition of every touch (None where the estimator refused), with its α where it measured one."""
+    out = []
+    for e, u, a, ua, r in zip(touches.e, touches.u_ln_e, touches.alpha, touches.u_ln_alpha, touches.corr):
+        if not math.isfinite(e):
+            out.append(None)
+            continue
+        kw = {"alpha": float(a), "u_ln_alpha": float(ua), "corr": float(r)} if math.isfinite(a) else {}
+        out.append(object_set.classify(float(e), float(u), **kw))
+    return out
 
 
 def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequence[float] = CONTACT_TIMES_S,
@@ -274,11 +400,11 @@ def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequen
                                   touches=touches, seed=seed)
     sim = sim.select(sim.ok)
     ti = _true_index(object_set, sim.names, sim.obj)
-    ln_e, u = np.log(sim.e), sim.u_ln_e
-    t = fit_temperature(object_set, ln_e, u, ti)
+    ln_e, u, alpha = np.log(sim.e), sim.u_ln_e, sim.alpha_terms()
+    t = fit_temperature(object_set, ln_e, u, ti, alpha=alpha)
     acceptance = acceptance_target(ti.size) if acceptance is None else acceptance
-    z = fit_z_crit(object_set, ln_e, u, acceptance=acceptance, temperature=t)
-    q, hld, _ = object_set.log_terms(ln_e, u)
+    z = fit_z_crit(object_set, ln_e, u, acceptance=acceptance, temperature=t, alpha=alpha)
+    q, hld, _ = object_set.log_terms(ln_e, u, **alpha)
     report = dict(instrument=instrument, touches=int(ti.size), temperature=t, z_crit=z, acceptance=acceptance)
     for label, temp in (("before", object_set.temperature), ("after", t)):
         p = object_set.posteriors(q, hld, temperature=temp)
@@ -289,12 +415,15 @@ def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequen
 def recognise(object_set: ObjectSet, estimate: Mapping) -> Recognition | None:
     """Recognition from an ``Estimate.to_dict()`` (None when it has no effusivity).
 
-    Only e is used: the default method's k and α on a thick body come from
-    the library prior given e and carry no independent information.
+    e, and α where the probe measured it (:func:`edge.estimation.objects.measured_alpha`):
+    the default method's k and α on a thick body come from the library prior
+    given e and carry no independent information.
     """
     e = estimate.get("effusivity_W_s05_m2K")
     u = estimate.get("effusivity_W_s05_m2K_u")
     if e is None or u is None:
         return None
-    return object_set.classify(float(e), float(u) / float(e))
+    a = measured_alpha(estimate)
+    kw = {} if a is None else {"alpha": a[0], "u_ln_alpha": a[1], "corr": a[2]}
+    return object_set.classify(float(e), float(u) / float(e), **kw)
 

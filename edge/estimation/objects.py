@@ -8,20 +8,23 @@ small-heater probe also measures k and α, with all three.
 
 Model
 -----
-Each object i is a Gaussian in ln e (and ln k, ln α when known) with variance
+Each object i is a Gaussian in ln e -- and, when a probe measures the
+diffusivity too (the small-heater probe), jointly in (ln e, ln α) -- with
+covariance
 
-    T * (u_ln_e^2 + spread_i^2 + calibration_ln^2)          (e term)
-    T * (u_ln_k^2 + 1.25 spread_i^2),  T * (u_ln_α^2 + spread_i^2)   (k, α terms)
+    T * (C_meas + diag(spread_i^2 + calibration_ln^2, spread_i^2))
 
-where ``T`` is the set's *temperature*: one scale on every variance, fitted
-on the host on held-out simulated touches (host/recognition.py) so that a
-posterior of 0.9 is right about 90 % of the time. The specimen spread is read
-as independent lognormal spreads of e and α (so k = e sqrt(α) spreads by
-sqrt(1.25) times as much). The k and α terms are taken as independent of the
-e term (their covariance is not modelled; the fitted temperature absorbs the
-resulting over-confidence). An object given by e alone gets, for a measured
-k or α, a broad term (standard deviation :data:`BROAD_LN`, centred on the
-measurement): the measurement neither confirms nor refutes it.
+where ``C_meas`` is the measurement's covariance of (ln e, ln α) (their
+correlation included: a short touch fixes e = k / sqrt(α) much better than
+α, and the two errors are correlated) and ``T`` is the set's *temperature*:
+one scale on every variance, fitted on the host on held-out simulated
+touches (host/recognition.py) so that a posterior of 0.9 is right about 90 %
+of the time. The specimen spread is read as independent lognormal spreads of
+e and α (so k = e sqrt(α) spreads by sqrt(1.25) times as much). (ln e, ln α)
+carries everything a touch measures: k = e sqrt(α) adds nothing. An object
+given by e alone gets, for a measured α, a broad term (standard deviation
+:data:`BROAD_LN`, centred on the measurement): the measurement neither
+confirms nor refutes it.
 
 Open set
 --------
@@ -102,6 +105,10 @@ __all__ = [
     "RESULT_KEYS",
     "LIBRARY_SET",
     "recognition_fields",
+    "measured_alpha",
+    "open_set_z",
+    "tail_p",
+    "z_of_p",
 ]
 
 #: The answer when the touched object is none of the set's.
@@ -111,10 +118,8 @@ DEFAULT_SPREAD_REL = 0.05
 #: Critical standardised distance of the open-set test before a calibration is fitted
 #: (nominal in-set acceptance 98.8 % for one property).
 DEFAULT_Z_CRIT = 2.5
-#: Standard deviation (ln units) of the term an object without k or α gets for a measured k or α.
+#: Standard deviation (ln units) of the term an object without α gets for a measured α.
 BROAD_LN = 1.0
-#: Extra relative spread of k under the model "ln e and ln α independent, sd spread".
-K_SPREAD_FACTOR = math.sqrt(1.25)
 
 _E_RANGE = (math.sqrt(K_RANGE_W_MK[0] * RHO_C_RANGE_J_M3K[0]), math.sqrt(K_RANGE_W_MK[1] * RHO_C_RANGE_J_M3K[1]))
 #: Width in ln e of the flat density of the "unknown" hypothesis (the plausible range of e).
@@ -164,6 +169,44 @@ def chi2_sf(x: float, dof: int) -> float:
     if dof == 3:
         return math.erfc(math.sqrt(x / 2.0)) + math.sqrt(2.0 * x / math.pi) * math.exp(-x / 2.0)
     raise ValueError(f"dof must be 1, 2 or 3, got {dof}")
+
+
+_ERFC = np.frompyfunc(math.erfc, 1, 1)
+
+
+def tail_p(d2, dof) -> np.ndarray:
+    """Element-wise :func:`chi2_sf` for arrays of squared distances and dof (1 or 2)."""
+    d2 = np.maximum(np.asarray(d2, float), 0.0)
+    dof = np.broadcast_to(np.asarray(dof, int), d2.shape)
+    if np.any((dof < 1) | (dof > 2)):
+        raise ValueError("dof must be 1 or 2")
+    p1 = np.asarray(_ERFC(np.sqrt(d2 / 2.0)), float)
+    return np.where(dof == 1, p1, np.exp(-d2 / 2.0))
+
+
+def z_of_p(p) -> np.ndarray:
+    """Element-wise |z| of a standard normal with two-sided tail probability ``p`` (bisection, to 1e-12)."""
+    p = np.asarray(p, float)
+    lo, hi = np.zeros(p.shape), np.full(p.shape, 40.0)
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        above = np.asarray(_ERFC(mid / math.sqrt(2.0)), float) > p
+        lo, hi = np.where(above, mid, lo), np.where(above, hi, mid)
+    return 0.5 * (lo + hi)
+
+
+def open_set_z(d2, dof) -> np.ndarray:
+    """The open-set test's statistic per touch: the 1-dof-equivalent |z| of the best-fitting object.
+
+    ``d2`` (..., n) tempered squared distances and ``dof`` (..., n) from
+    :meth:`ObjectSet.log_terms`: the largest chi-square p-value over the
+    objects, as the |z| with that two-sided tail (``sqrt(d2)`` when the best
+    object has e alone). One definition for the test (:meth:`ObjectSet.classify`)
+    and for fitting ``z_crit`` on the host (a touch with α has two degrees of
+    freedom: its distance is not compared with the 1-dof critical value).
+    """
+    p = tail_p(d2, dof).max(axis=-1)
+    return z_of_p(p)
 
 
 def p_crit_of(z_crit: float) -> float:
@@ -340,7 +383,6 @@ class ObjectSet:
         self.ln_e = np.log([o.e_W_s05_m2K for o in objs])
         self.spread = np.array([o.spread_rel for o in objs], float)
         self.has_props = np.array([o.has_properties for o in objs])
-        self.ln_k = np.log([o.k_W_mK if o.has_properties else 1.0 for o in objs])
         self.ln_alpha = np.log([o.alpha_m2_s if o.has_properties else 1.0 for o in objs])
 
     # -- construction --------------------------------------------------------------
@@ -410,33 +452,54 @@ class ObjectSet:
         return f"ObjectSet({len(self)} objects from {self.label}, T={self.temperature:.3g}, z_crit={self.z_crit:.3g})"
 
     # -- likelihood ----------------------------------------------------------------
-    def log_terms(self, ln_e, u_ln_e, *, ln_k=None, u_ln_k=None, ln_alpha=None, u_ln_alpha=None):
+    def log_terms(self, ln_e, u_ln_e, *, ln_alpha=None, u_ln_alpha=None, corr=None):
         """Untempered terms of every object's log-likelihood, for one or many touches.
 
-        Returns ``(q, half_logdet, dof)``: ``q`` (..., n) the squared standardised
-        distance over the properties each object has, ``half_logdet`` (..., n)
-        half the log of the variances' product (broad terms included), ``dof``
-        (n,) the number of properties in ``q``. The log-likelihood at
-        temperature T is ``-0.5 q / T - half_logdet`` up to a constant.
+        Parameters
+        ----------
+        ln_e, u_ln_e : array_like
+            Measured ln e and its standard uncertainty (any common shape ``...``).
+        ln_alpha, u_ln_alpha, corr : array_like, optional
+            A measured ln α, its standard uncertainty and the correlation of the
+            ln e and ln α errors (default 0). NaN in ``ln_alpha`` marks a touch
+            without α (its rows are the e-only terms).
+
+        Returns
+        -------
+        q : (..., n) ndarray
+            Squared standardised (Mahalanobis) distance over the properties each object has.
+        half_logdet : (..., n) ndarray
+            Half the log-determinant of each object's covariance (broad terms included).
+        dof : (..., n) ndarray of int
+            Number of properties in ``q``. The log-likelihood at temperature T is
+            ``-0.5 q / T - half_logdet - dof' ln sqrt(2 pi T)`` (``dof'`` counting broad terms).
         """
         x = np.asarray(ln_e, float)[..., None]
         u = np.asarray(u_ln_e, float)[..., None]
-        var = u ** 2 + self.spread ** 2 + self.calibration_ln ** 2
-        q = (x - self.ln_e) ** 2 / var
-        hld = 0.5 * np.log(var)
-        dof = np.ones(len(self), int)
-        extra = ((ln_k, u_ln_k, self.ln_k, K_SPREAD_FACTOR), (ln_alpha, u_ln_alpha, self.ln_alpha, 1.0))
-        for meas, um, ref, sfac in extra:
-            if meas is None:
-                continue
-            if um is None:
-                raise ValueError("a measured k or alpha needs its uncertainty")
-            m = np.asarray(meas, float)[..., None]
-            uv = np.asarray(um, float)[..., None] ** 2
-            v = np.where(self.has_props, uv + (sfac * self.spread) ** 2, uv + BROAD_LN ** 2)
-            q = q + np.where(self.has_props, (m - ref) ** 2 / v, 0.0)
-            hld = hld + 0.5 * np.log(v)
-            dof = dof + self.has_props
+        var_e = u ** 2 + self.spread ** 2 + self.calibration_ln ** 2
+        de = x - self.ln_e
+        q_e = de ** 2 / var_e
+        hld_e = 0.5 * np.log(var_e)
+        dof_e = np.ones(np.broadcast(x, self.ln_e).shape, int)
+        if ln_alpha is None:
+            return q_e, hld_e, dof_e
+        if u_ln_alpha is None:
+            raise ValueError("a measured alpha needs its uncertainty")
+        xa = np.asarray(ln_alpha, float)[..., None]
+        has = np.isfinite(xa)
+        ua = np.where(has, np.asarray(u_ln_alpha, float)[..., None], 1.0)
+        r = np.where(has, np.asarray(0.0 if corr is None else corr, float)[..., None], 0.0)
+        c_ea = r * u * ua
+        var_a = ua ** 2 + self.spread ** 2
+        det = var_e * var_a - c_ea ** 2
+        da = np.where(has, xa, 0.0) - self.ln_alpha
+        q_j = (var_a * de ** 2 - 2.0 * c_ea * de * da + var_e * da ** 2) / det
+        props = self.has_props & has
+        q = np.where(props, q_j, q_e)
+        # An object without alpha: the broad term's density at its centre (the measurement's own value).
+        hld_b = hld_e + 0.5 * np.log(ua ** 2 + BROAD_LN ** 2)
+        hld = np.where(props, 0.5 * np.log(det), np.where(has, hld_b, hld_e))
+        dof = dof_e + props
         return q, hld, dof
 
     def posteriors(self, q, half_logdet, *, temperature: float | None = None) -> np.ndarray:
@@ -448,38 +511,42 @@ class ObjectSet:
         return w / w.sum(axis=-1, keepdims=True)
 
     # -- recognition ---------------------------------------------------------------
-    def classify(self, e: float, u_ln_e: float, *, k: float | None = None, u_ln_k: float | None = None,
-                 alpha: float | None = None, u_ln_alpha: float | None = None, top: int = 3) -> Recognition:
+    def classify(self, e: float, u_ln_e: float, *, alpha: float | None = None, u_ln_alpha: float | None = None,
+                 corr: float = 0.0, top: int = 3) -> Recognition:
         """Which object a touch with effusivity ``e`` (relative standard uncertainty ``u_ln_e``) was.
 
-        ``k`` and ``alpha`` (with ``u_ln_k``, ``u_ln_alpha``) sharpen the answer
-        when a probe measures them; do not pass the default method's prior-based
-        k and α (they are functions of e and add nothing).
+        ``alpha`` (with ``u_ln_alpha`` and ``corr``, the correlation of the ln e
+        and ln α errors) sharpens the answer when a probe measures it (the
+        small-heater probe's fit, :func:`measured_alpha`); do not pass the default
+        method's prior-based α (a function of e: it adds nothing).
         """
         if not (e > 0 and math.isfinite(e)):
             raise ValueError(f"e must be a positive finite number, got {e!r}")
         if not (u_ln_e >= 0 and math.isfinite(u_ln_e)):
             raise ValueError(f"u_ln_e must be a non-negative finite number, got {u_ln_e!r}")
-        for name, v, uv in (("k", k, u_ln_k), ("alpha", alpha, u_ln_alpha)):
-            if v is not None and not (v > 0 and math.isfinite(v) and uv is not None and uv >= 0):
-                raise ValueError(f"{name} must be positive with a non-negative uncertainty, got {v!r} +- {uv!r}")
+        if alpha is not None:
+            if not (alpha > 0 and math.isfinite(alpha) and u_ln_alpha is not None and u_ln_alpha > 0
+                    and math.isfinite(u_ln_alpha)):
+                raise ValueError(f"alpha must be positive with a positive uncertainty, got {alpha!r} +- {u_ln_alpha!r}")
+            if not (math.isfinite(corr) and abs(corr) < 1.0):
+                raise ValueError(f"corr must lie in (-1, 1), got {corr!r}")
         q, hld, dof = self.log_terms(
-            math.log(e), u_ln_e, ln_k=None if k is None else math.log(k), u_ln_k=u_ln_k,
-            ln_alpha=None if alpha is None else math.log(alpha), u_ln_alpha=u_ln_alpha)
+            math.log(e), u_ln_e, ln_alpha=None if alpha is None else math.log(alpha), u_ln_alpha=u_ln_alpha,
+            corr=corr)
         t = self.temperature
         d2 = q / t
         # Open-set test: the p-value of each object's distance (1 property: |z| > z_crit).
-        pvals = np.array([chi2_sf(d, int(m)) for d, m in zip(d2, dof)])
+        pvals = tail_p(d2, dof)
         p_crit = p_crit_of(self.z_crit)
         near = int(np.argmax(pvals))
         accepted = bool(pvals[near] >= p_crit)
         # Mixture: objects (Gaussians, prior (1 - prior_unknown) / n each) and the flat background.
-        n_terms = 1 + (k is not None) + (alpha is not None)
+        n_terms = 1 + (alpha is not None)
         lw_obj = (math.log((1.0 - self.prior_unknown) / len(self)) - 0.5 * d2 - hld
                   - n_terms * (_LN_SQRT_2PI + 0.5 * math.log(t)))
         lw_unk = math.log(self.prior_unknown) - math.log(UNKNOWN_LN_E_SPAN)
-        for uv in ((u_ln_k,) if k is not None else ()) + ((u_ln_alpha,) if alpha is not None else ()):
-            lw_unk -= _LN_SQRT_2PI + 0.5 * math.log(uv ** 2 + BROAD_LN ** 2)
+        if alpha is not None:
+            lw_unk -= _LN_SQRT_2PI + 0.5 * math.log(u_ln_alpha ** 2 + BROAD_LN ** 2)
         lw = np.append(lw_obj, lw_unk)
         w = np.exp(lw - lw.max())
         post = w / w.sum()
@@ -495,7 +562,7 @@ class ObjectSet:
         else:
             obj, obj_p, cls, cls_p = UNKNOWN, p_unknown, UNKNOWN, p_unknown
         pn = float(pvals[near])
-        z_min = math.sqrt(d2[near]) if dof[near] == 1 else (_norm_isf2(pn) if pn > 0 else math.inf)
+        z_min = math.sqrt(d2[near]) if dof[near] == 1 else (float(z_of_p(pn)) if pn > 0 else math.inf)
         return Recognition(obj, obj_p, cls, cls_p, candidates, p_unknown,
                            {c: float(p) for c, p in zip(self.class_names, class_post)}, z_min, self.names[near])
 
@@ -623,23 +690,39 @@ def recognition_fields(object_set: ObjectSet, estimate: Mapping, *, set_name: st
     u = estimate.get("effusivity_W_s05_m2K_u")
     u_ln_e = float(u) / float(e) if u is not None and math.isfinite(float(u)) and float(u) >= 0 else 0.0
     # A tiny floor: an object with zero spread and a zero uncertainty would divide by zero.
-    r = object_set.classify(float(e), max(u_ln_e, 1e-9), top=top)
+    a = measured_alpha(estimate)
+    kw = {} if a is None else {"alpha": a[0], "u_ln_alpha": a[1], "corr": a[2]}
+    r = object_set.classify(float(e), max(u_ln_e, 1e-9), top=top, **kw)
     out.update({"object": r.object, "object_posterior": float(r.object_posterior), "class": r.cls,
                 "class_posterior": float(r.class_posterior), "unknown_posterior": float(r.unknown_posterior),
                 "candidates": [{"name": n, "posterior": float(p)} for n, p in r.candidates]})
     return out
 
 
-def _norm_isf2(p: float) -> float:
-    """The z with two-sided tail probability p (bisection on erfc)."""
-    lo, hi = 0.0, 40.0
-    for _ in range(100):
-        mid = 0.5 * (lo + hi)
-        if math.erfc(mid / math.sqrt(2.0)) > p:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
+def measured_alpha(estimate: Mapping) -> tuple[float, float, float] | None:
+    """``(alpha, u_ln_alpha, corr_e_alpha)`` a touch measured, or None.
+
+    Only a probe that sees a length scale measures α (the small-heater probe,
+    :class:`edge.estimation.probe_estimate.AxiEstimator`), and only where the
+    touch determined it (``"alpha"`` in the result's ``determined``: its
+    relative u below the fitter's 30 %). Its fit reports its own α with the
+    total uncertainty (fit and flux calibration) and the correlation of the
+    ln e and ln α errors in ``fit``. Where α is less certain the fit's
+    linearised u is a poor guide (the likelihood is far from Gaussian in
+    ln α), so such an α is left out rather than trusted.
+    The default method's α is the library prior given e and is never used.
+    """
+    fit = estimate.get("fit")
+    if (estimate.get("method") != "axisym" or not isinstance(fit, Mapping)
+            or "alpha" not in (estimate.get("determined") or ())):
+        return None
+    try:
+        alpha, u, r = (float(fit[key]) for key in ("alpha_m2_s", "u_ln_alpha", "corr_e_alpha"))
+    except (KeyError, TypeError, ValueError):
+        return None
+    if not (alpha > 0 and math.isfinite(alpha) and 0 < u < math.inf and abs(r) < 1):
+        return None
+    return alpha, u, r
 
 
 # -- CSV parsing -------------------------------------------------------------------------

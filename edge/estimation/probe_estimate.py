@@ -243,6 +243,14 @@ class AxiEstimator:
         if out["corr_k_alpha"] is not None and u_lk * u_la > 0:
             cov = out["corr_k_alpha"] * u_rel["k"] * u_rel["alpha"] + sens["k"] * sens["alpha"] * u_flux ** 2
             out["corr_k_alpha"] = _num(max(-1.0, min(1.0, cov / (u_lk * u_la))))
+        # What the record measured of (ln e, ln alpha), with the correlation of their errors, whatever is
+        # reported below: object recognition uses it where the touch determined alpha
+        # (edge.estimation.objects.measured_alpha), jointly with e.
+        c_fit = u_rel["alpha"] * (f.corr_k_alpha * u_rel["k"] - 0.5 * u_rel["alpha"])
+        c_ea = c_fit + sens["effusivity"] * sens["alpha"] * u_flux ** 2
+        if f.converged and u_la > 0 and math.isfinite(u_la) and math.isfinite(c_ea) and u_le > 0:
+            out["fit"]["u_ln_alpha"] = _num(u_la)
+            out["fit"]["corr_e_alpha"] = _num(max(-0.999, min(0.999, c_ea / (u_le * u_la))))
         out["fit"]["flux_scale_sensitivity"] = {q: _num(v) for q, v in sens.items()}
         out["fit"]["flux_scale"], out["fit"]["flux_u_rel"] = float(flux_scale), u_flux
         thr = self.identifiable_u_rel

@@ -99,3 +99,55 @@ def test_temperature_of_a_well_separated_set_is_the_scatter_not_an_arbitrary_val
     ln_e, u, ti = _synthetic(s, true_sd, 0.02, n=2000)
     t = fit_temperature(s, ln_e, u, ti)
     assert t == pytest.approx(scatter_temperature(s, ln_e, u, ti)) and t == pytest.approx(expected, rel=0.15)
+
+
+def _alpha_touches(s, stated_ue, stated_ua, corr, n=1500, seed=5, inflate=1.0):
+    """Touches of set ``s`` whose (ln e, ln alpha) errors have the stated covariance (times ``inflate``)."""
+    from host.recognition import Touches
+    rng = np.random.default_rng(seed)
+    ti = rng.integers(0, len(s), n)
+    cov = np.array([[stated_ue ** 2, corr * stated_ue * stated_ua], [corr * stated_ue * stated_ua, stated_ua ** 2]])
+    err = rng.multivariate_normal([0.0, 0.0], inflate * cov, n)
+    spread = s.spread[ti, None] * rng.standard_normal((n, 2))
+    ln_e = s.ln_e[ti] + err[:, 0] + spread[:, 0]
+    ln_a = s.ln_alpha[ti] + err[:, 1] + spread[:, 1]
+    full = lambda v: np.full(n, v, float)  # noqa: E731
+    return Touches(ti, np.full(n, "ads122c04"), full(2.0), np.exp(s.ln_e[ti]), np.exp(ln_e), full(stated_ue),
+                   s.names, np.exp(ln_a), full(stated_ua), full(corr)), ti
+
+
+def test_calibration_with_alpha_fits_the_joint_scatter_and_accepts_the_target_share():
+    # Two objects at equal e told apart by alpha only; touches with correlated (ln e, ln alpha) errors
+    # twice the stated variance: z_crit, fitted with the temperature on the test's own
+    # two-degree-of-freedom statistic, accepts the target share of new touches.
+    from host.recognition import classify_touches
+    s = ObjectSet([KnownObject.from_properties("cork_tile", "wood", 0.10, 1000, 1600, 0.03),
+                   KnownObject.from_properties("rubber_tile", "rubber", 0.20, 500, 1600, 0.03),
+                   KnownObject.from_properties("glass", "glass", 1.0, 2500, 750, 0.03)])
+    cal_t, _ = _alpha_touches(s, 0.02, 0.15, -0.7, inflate=2.0)
+    cal, report = calibrate(s, "ads122c04", sim=cal_t, acceptance=0.97)
+    assert report["touches"] == 1500
+    test_t, ti = _alpha_touches(s, 0.02, 0.15, -0.7, inflate=2.0, seed=6)
+    recs = classify_touches(cal, test_t)
+    accepted = np.mean([r.accepted for r in recs])
+    right = np.mean([r.object == s.names[i] for r, i in zip(recs, ti)])
+    assert 0.95 <= accepted <= 0.995 and right > 0.9
+    # Alpha is what names cork against rubber: dropped, the same touches are a coin toss between them.
+    from host.recognition import Touches
+    e_only = classify_touches(cal, Touches(test_t.obj, test_t.instrument, test_t.contact_time_s, test_t.e_true,
+                                           test_t.e, test_t.u_ln_e, test_t.names))
+    tile = ti < 2
+    assert np.mean([r.candidates[0][0] == s.names[i] for r, i, m in zip(e_only, ti, tile) if m]) < 0.75
+
+
+def test_small_heater_touches_on_the_faithful_world_measure_alpha_with_honest_uncertainty():
+    from host.recognition import simulate_probe_touches
+    glass = KnownObject.from_properties("glass", "glass", 1.0, 2500, 750, 0.0)
+    t = simulate_probe_touches([glass], instruments=("ads122c04",), contact_times_s=(1.0, 2.0), touches=1,
+                               seed=4)
+    assert list(t.contact_time_s) == [1.0, 2.0] and t.ok.all()
+    z_e = np.log(t.e / t.e_true) / t.u_ln_e
+    assert np.all(np.abs(z_e) < 3.0)
+    # At 2 s the 5-mm heater's edge has reached the axis on glass: alpha measured, within its uncertainty.
+    assert np.isfinite(t.alpha[1]) and t.u_ln_alpha[1] < 0.6 and -1.0 < t.corr[1] < 0.0
+    assert abs(math.log(t.alpha[1] / glass.alpha_m2_s)) < 3.0 * t.u_ln_alpha[1]

@@ -2,10 +2,11 @@
 
 import math
 
+import numpy as np
 import pytest
 
 from edge.estimation.objects import (DEFAULT_SPREAD_REL, UNKNOWN, KnownObject, ObjectSet, ObjectSetError, chi2_sf,
-                                     p_crit_of)
+                                     measured_alpha, open_set_z, p_crit_of, recognition_fields)
 
 GOOD = """\
 # my kitchen
@@ -123,26 +124,94 @@ def test_class_posterior_is_the_sum_over_the_class():
     assert r.class_posterior > r.object_posterior
 
 
-def test_k_and_alpha_sharpen_the_answer():
-    # Same effusivity, different conductivity: e alone cannot tell them apart.
+def test_alpha_sharpens_the_answer():
+    # Same effusivity, different conductivity and diffusivity: e alone cannot tell them apart.
     a = KnownObject.from_properties("cork_tile", "wood", 0.10, 1000, 1600)
     b = KnownObject.from_properties("rubber_tile", "rubber", 0.20, 500, 1600)
     s = ObjectSet([a, b])
     e_only = s.classify(a.e_W_s05_m2K, 0.02)
     assert e_only.object_posterior < 0.6
-    both = s.classify(a.e_W_s05_m2K, 0.02, k=0.10, u_ln_k=0.05, alpha=a.alpha_m2_s, u_ln_alpha=0.05)
+    both = s.classify(a.e_W_s05_m2K, 0.02, alpha=a.alpha_m2_s, u_ln_alpha=0.05)
     assert both.object == "cork_tile" and both.object_posterior > 0.95
     with pytest.raises(ValueError):
-        s.classify(400.0, 0.02, k=0.1)  # a measured k needs its uncertainty
+        s.classify(400.0, 0.02, alpha=1e-7)  # a measured alpha needs its uncertainty
+    with pytest.raises(ValueError):
+        s.classify(400.0, 0.02, alpha=1e-7, u_ln_alpha=0.1, corr=1.0)
 
 
-def test_k_and_alpha_against_objects_given_by_e_alone():
+def test_alpha_against_objects_given_by_e_alone():
     a = KnownObject.from_properties("cork_tile", "wood", 0.10, 1000, 1600)
     s = ObjectSet([a, KnownObject("mystery", "other", a.e_W_s05_m2K)])
-    r = s.classify(a.e_W_s05_m2K, 0.02, k=0.10, u_ln_k=0.05, alpha=a.alpha_m2_s, u_ln_alpha=0.05)
+    r = s.classify(a.e_W_s05_m2K, 0.02, alpha=a.alpha_m2_s, u_ln_alpha=0.05)
     assert r.object == "cork_tile"
-    far = s.classify(a.e_W_s05_m2K, 0.02, k=0.3, u_ln_k=0.05, alpha=a.alpha_m2_s * 9, u_ln_alpha=0.05)
-    assert far.object == "mystery"  # k and alpha refute the cork tile, not the e-only object
+    far = s.classify(a.e_W_s05_m2K, 0.02, alpha=a.alpha_m2_s * 9, u_ln_alpha=0.05)
+    assert far.object == "mystery"  # alpha refutes the cork tile, not the e-only object
+
+
+@pytest.mark.parametrize("corr", [-0.8, 0.0, 0.6])
+def test_joint_terms_are_the_bivariate_gaussian(corr):
+    # q and the log-determinant against a direct 2 x 2 solve, per object, with the spreads added.
+    objs = [KnownObject.from_properties(f"o{i}", "polymer", k, rho, 1500, sp)
+            for i, (k, rho, sp) in enumerate(((0.2, 1000, 0.05), (0.3, 900, 0.08), (0.15, 1300, 0.0)))]
+    s = ObjectSet(objs, calibration_ln=0.01)
+    x = np.array([math.log(520.0), math.log(1.4e-7)])
+    ue, ua = 0.03, 0.2
+    q, hld, dof = s.log_terms(x[0], ue, ln_alpha=x[1], u_ln_alpha=ua, corr=corr)
+    cm = np.array([[ue ** 2, corr * ue * ua], [corr * ue * ua, ua ** 2]])
+    for i, o in enumerate(objs):
+        c = cm + np.diag([o.spread_rel ** 2 + 0.01 ** 2, o.spread_rel ** 2])
+        d = x - [math.log(o.e_W_s05_m2K), math.log(o.alpha_m2_s)]
+        assert q[i] == pytest.approx(d @ np.linalg.solve(c, d), rel=1e-10)
+        assert hld[i] == pytest.approx(0.5 * math.log(np.linalg.det(c)), rel=1e-10)
+    assert list(dof) == [2, 2, 2]
+    # A touch without alpha (NaN) in a batch gets the e-only terms.
+    q2, hld2, dof2 = s.log_terms([x[0], x[0]], [ue, ue], ln_alpha=[x[1], np.nan], u_ln_alpha=[ua, ua],
+                                 corr=[corr, corr])
+    qe, hlde, _ = s.log_terms(x[0], ue)
+    np.testing.assert_allclose(q2[1], qe)
+    np.testing.assert_allclose(hld2[1], hlde)
+    assert list(dof2[1]) == [1, 1, 1] and np.allclose(q2[0], q)
+
+
+def test_correlated_errors_move_the_distance_the_way_they_should():
+    # A short touch's e and alpha errors are correlated: a measurement off along that direction
+    # is closer (in Mahalanobis terms) than the same offset against it.
+    o = KnownObject.from_properties("pmma", "polymer", 0.19, 1180, 1430, 0.01)
+    s = ObjectSet([o])
+    le, la = math.log(o.e_W_s05_m2K), math.log(o.alpha_m2_s)
+    along, _, _ = s.log_terms(le + 0.05, 0.05, ln_alpha=la + 0.3, u_ln_alpha=0.3, corr=0.9)
+    against, _, _ = s.log_terms(le + 0.05, 0.05, ln_alpha=la - 0.3, u_ln_alpha=0.3, corr=0.9)
+    assert along[0] < 1.5 < 6.0 < against[0]
+
+
+def test_open_set_statistic_has_the_right_tail_for_each_dof():
+    # 1 dof: |z| itself; 2 dof: the chi-square's 95 % point (5.991) maps to 1.96.
+    z = open_set_z(np.array([[1.96 ** 2, 50.0]]), np.array([[1, 1]]))
+    assert z[0] == pytest.approx(1.96, abs=1e-9)
+    z2 = open_set_z(np.array([[5.991464547, 50.0]]), np.array([[2, 2]]))
+    assert z2[0] == pytest.approx(1.959964, abs=1e-5)
+    # The best object wins whatever its dof.
+    z3 = open_set_z(np.array([[9.0, 5.991464547]]), np.array([[1, 2]]))
+    assert z3[0] == pytest.approx(1.959964, abs=1e-5)
+
+
+def test_recognition_fields_use_the_small_heater_fits_alpha_only():
+    a = KnownObject.from_properties("cork_tile", "wood", 0.10, 1000, 1600)
+    b = KnownObject.from_properties("rubber_tile", "rubber", 0.20, 500, 1600)
+    s = ObjectSet([a, b])
+    e = a.e_W_s05_m2K
+    axi = {"effusivity_W_s05_m2K": e, "effusivity_W_s05_m2K_u": 0.02 * e, "method": "axisym",
+           "determined": ["e", "k", "alpha"],
+           "fit": {"alpha_m2_s": b.alpha_m2_s, "u_ln_alpha": 0.1, "corr_e_alpha": -0.3}}
+    assert measured_alpha(axi) == (b.alpha_m2_s, 0.1, -0.3)
+    assert recognition_fields(s, axi)["object"] == "rubber_tile"
+    # The default method's alpha is the prior's: never used, nor an alpha the touch did not determine.
+    one_d = dict(axi, method="default")
+    vague = dict(axi, determined=["e"], from_prior=["k", "alpha"])
+    broken = dict(axi, fit={"alpha_m2_s": None, "u_ln_alpha": 0.1, "corr_e_alpha": 0.0})
+    for est in (one_d, vague, broken):
+        assert measured_alpha(est) is None
+        assert recognition_fields(s, est)["object_posterior"] < 0.6
 
 
 def test_confusion_pairs_and_bayes_ceiling():
