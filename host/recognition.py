@@ -133,6 +133,13 @@ def _specimen(obj: KnownObject, rng: np.random.Generator, est: Estimator) -> Sol
     return Solid(e * math.sqrt(alpha), e / math.sqrt(alpha), 1.0)
 
 
+def _specimens(objects: Sequence[KnownObject], touches: int, rng: np.random.Generator, est: Estimator):
+    """``(index, object, specimen solid)``, ``touches`` fresh specimens of each object in turn."""
+    for i, obj in enumerate(objects):
+        for _ in range(touches):
+            yield i, obj, _specimen(obj, rng, est)
+
+
 def simulate_touches(objects: Sequence[KnownObject], *, instruments: Sequence[str] = tuple(INSTRUMENTS),
                      contact_times_s: Sequence[float] = CONTACT_TIMES_S, touches: int = 10, seed: int = 0,
                      q_v_W_m3: float = DEFAULT_Q_V_W_M3, flux_cal_u_rel: float = FLUX_CALIBRATION_U_REL,
@@ -148,24 +155,22 @@ def simulate_touches(objects: Sequence[KnownObject], *, instruments: Sequence[st
     rng = np.random.default_rng(seed)
     t_max = max(contact_times_s)
     rows = []
-    for i, obj in enumerate(objects):
-        for _ in range(touches):
-            solid = _specimen(obj, rng, est)
-            sim = TouchSimulator(solid, duration_s=t_max)
-            for inst in instruments:
-                lsb = INSTRUMENTS[inst].T_lsb_K
-                for ct in contact_times_s:
-                    t = sim.touch(q_v_W_m3, inst, rng, duration_s=ct)
-                    q = t.q * math.exp(rng.normal(0.0, flux_cal_u_rel))
-                    e = u = math.nan
-                    try:
-                        r = est.estimate(t.tT, t.T, q, t_q_s=t.tq, T_resolution_K=lsb)
-                        if r.effusivity_W_s05_m2K is not None:
-                            e = r.effusivity_W_s05_m2K
-                            u = r.effusivity_W_s05_m2K_u / e
-                    except ValueError:
-                        pass
-                    rows.append((i, inst, ct, solid.effusivity_W_s05_m2K, e, u))
+    for i, obj, solid in _specimens(objects, touches, rng, est):
+        sim = TouchSimulator(solid, duration_s=t_max)
+        for inst in instruments:
+            lsb = INSTRUMENTS[inst].T_lsb_K
+            for ct in contact_times_s:
+                t = sim.touch(q_v_W_m3, inst, rng, duration_s=ct)
+                q = t.q * math.exp(rng.normal(0.0, flux_cal_u_rel))
+                e = u = math.nan
+                try:
+                    r = est.estimate(t.tT, t.T, q, t_q_s=t.tq, T_resolution_K=lsb)
+                    if r.effusivity_W_s05_m2K is not None:
+                        e = r.effusivity_W_s05_m2K
+                        u = r.effusivity_W_s05_m2K_u / e
+                except ValueError:
+                    pass
+                rows.append((i, inst, ct, solid.effusivity_W_s05_m2K, e, u))
     cols = list(zip(*rows)) if rows else [[]] * 6
     return Touches(np.array(cols[0], int), np.array(cols[1], str), np.array(cols[2], float),
                    np.array(cols[3], float), np.array(cols[4], float), np.array(cols[5], float),
@@ -216,46 +221,44 @@ def simulate_probe_touches(objects: Sequence[KnownObject], *, probe: str = "smal
     rng = np.random.default_rng(seed)
     t_max = max(contact_times_s)
     rows = []
-    for i, obj in enumerate(objects):
-        for _ in range(touches):
-            solid = _specimen(obj, rng, est)
-            sc = dataclasses.replace(
-                base, object=ObjectSpec(solid=solid, back="infinite", thickness_m=0.1, label=obj.name),
-                touch=dataclasses.replace(base.touch, start_s=0.0, length_s=settle_s + t_max + 0.5,
-                                          contact_lead_s=0.0, repeat=False))
-            clk = VirtualClock()
-            world = FaithfulWorld.for_scene(sc, clk, ScheduleDrive([settle_s, settle_s + t_max], [1.0, 0.0]),
-                                            dt_s=dt_s)
-            clk.advance(settle_s + t_max + 0.05)
-            for name in instruments:
-                inst = INSTRUMENTS[name]
-                rate = min(inst.T_rate_Hz, PROBE_RATE_HZ)
-                n_pre = max(1, min(10, int(settle_s * rate) - 1))   # baseline samples within the settle
-                tg = np.arange(-n_pre, int(round(t_max * rate)) + 1) / rate
-                ser = world.series(settle_s + tg)
-                off = rng.uniform(0.0, inst.T_lsb_K)
-                T = ser["y"] + off + rng.normal(0.0, inst.T_noise_K, tg.size)
-                T = np.round(T / inst.T_lsb_K) * inst.T_lsb_K - off
-                q = ser["q_sensor"] + rng.normal(0.0, inst.q_noise_W_m2, tg.size)
-                q = np.clip(np.round(q / inst.q_lsb_W_m2) * inst.q_lsb_W_m2, -inst.q_range_W_m2, inst.q_range_W_m2)
-                base_T = float(np.mean(T[tg < 0]))
-                for ct in contact_times_s:
-                    m = (tg > 0) & (tg <= ct + 1e-9)
-                    f = math.exp(rng.normal(0.0, flux_cal_u_rel))
-                    e = u = a = ua = r = math.nan
-                    try:
-                        d = axi.estimate(tg[m], T[m] - base_T, q[m] * f, T_resolution_K=inst.T_lsb_K)
-                    except ValueError:
-                        d = {}
-                    if d.get("effusivity_W_s05_m2K") is not None:
-                        e = d["effusivity_W_s05_m2K"]
-                        u = d["effusivity_W_s05_m2K_u"] / e
-                        ma = measured_alpha(d)
-                        if ma is not None:
-                            a, ua, r = ma
-                    rows.append((i, name, ct, solid.effusivity_W_s05_m2K, e, u, a, ua, r))
-            if progress is not None:
-                progress(obj.name)
+    for i, obj, solid in _specimens(objects, touches, rng, est):
+        sc = dataclasses.replace(
+            base, object=ObjectSpec(solid=solid, back="infinite", thickness_m=0.1, label=obj.name),
+            touch=dataclasses.replace(base.touch, start_s=0.0, length_s=settle_s + t_max + 0.5,
+                                      contact_lead_s=0.0, repeat=False))
+        clk = VirtualClock()
+        world = FaithfulWorld.for_scene(sc, clk, ScheduleDrive([settle_s, settle_s + t_max], [1.0, 0.0]),
+                                        dt_s=dt_s)
+        clk.advance(settle_s + t_max + 0.05)
+        for name in instruments:
+            inst = INSTRUMENTS[name]
+            rate = min(inst.T_rate_Hz, PROBE_RATE_HZ)
+            n_pre = max(1, min(10, int(settle_s * rate) - 1))   # baseline samples within the settle
+            tg = np.arange(-n_pre, int(round(t_max * rate)) + 1) / rate
+            ser = world.series(settle_s + tg)
+            off = rng.uniform(0.0, inst.T_lsb_K)
+            T = ser["y"] + off + rng.normal(0.0, inst.T_noise_K, tg.size)
+            T = np.round(T / inst.T_lsb_K) * inst.T_lsb_K - off
+            q = ser["q_sensor"] + rng.normal(0.0, inst.q_noise_W_m2, tg.size)
+            q = np.clip(np.round(q / inst.q_lsb_W_m2) * inst.q_lsb_W_m2, -inst.q_range_W_m2, inst.q_range_W_m2)
+            base_T = float(np.mean(T[tg < 0]))
+            for ct in contact_times_s:
+                m = (tg > 0) & (tg <= ct + 1e-9)
+                f = math.exp(rng.normal(0.0, flux_cal_u_rel))
+                e = u = a = ua = r = math.nan
+                try:
+                    d = axi.estimate(tg[m], T[m] - base_T, q[m] * f, T_resolution_K=inst.T_lsb_K)
+                except ValueError:
+                    d = {}
+                if d.get("effusivity_W_s05_m2K") is not None:
+                    e = d["effusivity_W_s05_m2K"]
+                    u = d["effusivity_W_s05_m2K_u"] / e
+                    ma = measured_alpha(d)
+                    if ma is not None:
+                        a, ua, r = ma
+                rows.append((i, name, ct, solid.effusivity_W_s05_m2K, e, u, a, ua, r))
+        if progress is not None:
+            progress(obj.name)
     cols = list(zip(*rows)) if rows else [[]] * 9
     arr = [np.array(c, float) for c in cols[2:]]
     return Touches(np.array(cols[0], int), np.array(cols[1], str), *arr[:4], tuple(o.name for o in objects),

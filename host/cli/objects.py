@@ -54,6 +54,9 @@ def add_parser(sub, parents):
                      help="instrument model of the simulated touches (default: the precision board)")
     cal.add_argument("--touches", type=positive_int, default=10,
                      help="specimens per object, each touched at 0.5 / 1 / 1.5 / 2 s (default 10)")
+    cal.add_argument("--probe", choices=("paper", "small-heater"), default="paper",
+                     help="probe head of the simulated touches: the paper's (e alone, exact 1-D model) or the "
+                          "small-heater probe (e and alpha, on the faithful (r, z) world: about 1 s per specimen)")
     cal.add_argument("--seed", type=non_negative_int, default=0)
     cal.add_argument("--out", "-o", default=None,
                      help="where to write the calibrated CSV (default: FILE's stem + '_calibrated.csv')")
@@ -141,23 +144,28 @@ def run_calibrate(args) -> int:
     from pathlib import Path  # noqa: PLC0415
 
     from host.atomic import write_text_atomic  # noqa: PLC0415
-    from host.recognition import calibrate  # noqa: PLC0415
+    from host.recognition import calibrate, simulate_probe_touches  # noqa: PLC0415
 
     objects, _ = load_object_set(args.file)
     src = Path(args.file)
     out = Path(args.out) if args.out else src.with_name(src.stem + "_calibrated.csv")
     try:
-        cal, rep = calibrate(objects, args.board, touches=args.touches, seed=args.seed)
+        # The small-heater probe also measures alpha: its set is calibrated on touches that carry it.
+        sim = (None if args.probe == "paper" else
+               simulate_probe_touches(objects.objects, probe=args.probe, instruments=(args.board,),
+                                      touches=args.touches, seed=args.seed))
+        cal, rep = calibrate(objects, args.board, touches=args.touches, seed=args.seed, sim=sim)
     except ValueError as exc:  # e.g. every simulated touch refused (metals on the reference board)
         raise CliError(f"{args.file}: cannot calibrate on {args.board}: {exc}") from None
     write_text_atomic(out, cal.to_csv_text())
-    summary = dict(file=str(out), board=args.board, touches=rep["touches"], temperature=rep["temperature"],
+    summary = dict(file=str(out), board=args.board, probe=args.probe, touches=rep["touches"],
+                   temperature=rep["temperature"],
                    z_crit=rep["z_crit"], acceptance=rep["acceptance"],
                    ece_before=rep["reliability_before"]["ece"], ece_after=rep["reliability_after"]["ece"])
     if args.json:
         print(dumps(summary))
     else:
         print(f"{out}: temperature {rep['temperature']:.3g}, z_crit {rep['z_crit']:.3g} (fitted on {rep['touches']} "
-              f"simulated {args.board} touches; posterior ECE {summary['ece_before'] * 100:.1f} % -> "
+              f"simulated {args.board} touches of the {args.probe} probe; posterior ECE {summary['ece_before'] * 100:.1f} % -> "
               f"{summary['ece_after'] * 100:.1f} %); upload it with: thermotouch objects add {out}")
     return 0

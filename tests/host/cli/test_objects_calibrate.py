@@ -30,3 +30,20 @@ def test_calibrate_refuses_a_bad_file_in_one_line(capsys, tmp_path):
     code = main(["objects", "calibrate", str(src), "--out", str(tmp_path / "o.csv")])
     _, err = capsys.readouterr()
     assert code == 2 and "Traceback" not in err and not (tmp_path / "o.csv").exists()
+
+
+def test_calibrate_for_the_small_heater_probe_fits_on_touches_that_measure_alpha(capsys, tmp_path):
+    # Two objects, one specimen each, on the faithful world: every touch at 0.5 / 1 / 1.5 / 2 s is fitted
+    # by the small-heater estimator (the 'pan' given by e alone gets alpha from the library prior).
+    src = tmp_path / "kitchen.csv"
+    src.write_text("name,class,k_W_mK,rho_kg_m3,c_J_kgK,e_W_s05_m2K\nwindow,glass,1.1,2450,810,\n"
+                   "pan,alloy,,,,8200\n")
+    out_csv = tmp_path / "small.csv"
+    code = main(["objects", "calibrate", str(src), "--probe", "small-heater", "--touches", "1", "--out",
+                 str(out_csv), "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    rep = json.loads(out)
+    assert rep["probe"] == "small-heater" and 0 < rep["touches"] <= 2 * 4
+    s = ObjectSet.from_csv_text(out_csv.read_text())
+    assert s.names == ("window", "pan") and s.temperature == rep["temperature"]
