@@ -137,9 +137,12 @@ class ProbeCalibrations:
 
 #: Chain flags that keep the default method's answer first: the chain did not describe the record.
 PROMOTE_BLOCKERS = frozenset({"poor_fit", "contact_lost", "no_contact", "no_fit"})
-#: Keys of the default method's answer kept under ``result["default_method"]`` once the chain's is first.
+#: Keys of the default method's answer kept under ``result["default_method"]`` once the chain's is first
+#: (its candidate list is not: a record must stay within one reply, edge.service.requests.fit_record).
 DEFAULT_METHOD_KEYS = ("effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u", "alpha_m2_s",
-                       "alpha_m2_s_u", "material", "material_confidence", "candidates", "method")
+                       "alpha_m2_s_u", "material", "material_confidence", "method")
+#: Keys the chain's answer replaces.
+_ANSWER_KEYS = DEFAULT_METHOD_KEYS + ("candidates",)
 
 
 def promote_chain(result: dict | None, estimator: Any) -> bool:
@@ -173,7 +176,7 @@ def promote_chain(result: dict | None, estimator: Any) -> bool:
         return False
     new = estimator.from_effusivity(float(e), float(u) / float(e), method="sensor_chain").to_dict()
     result["default_method"] = {k: result.get(k) for k in DEFAULT_METHOD_KEYS}
-    for k in DEFAULT_METHOD_KEYS:
+    for k in _ANSWER_KEYS:
         result[k] = new.get(k)
     extra = [str(f) for f in new.get("flags") or () if str(f) not in (result.get("flags") or [])]
     if extra:

@@ -117,6 +117,7 @@ def test_a_calibrated_chain_becomes_the_answer_and_the_default_method_is_kept(sh
         assert r[k] == ref[k]
     assert r["default_method"]["effusivity_W_s05_m2K"] == before["effusivity_W_s05_m2K"] == pytest.approx(560.0)
     assert r["default_method"]["method"] == "default" and r["default_method"]["material"] == before["material"]
+    assert "candidates" not in r["default_method"]   # kept small: a record must fit one reply
     assert not promote_chain(r, est)   # once only: the answer is the chain's already
 
 
