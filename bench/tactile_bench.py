@@ -62,7 +62,8 @@ import time
 import numpy as np
 
 from _common import write_json
-from edge.estimation.objects import DEFAULT_Z_CRIT, LIBRARY_CALIBRATION, UNKNOWN, KnownObject, ObjectSet
+from edge.estimation.objects import (DEFAULT_ALPHA_U_GROWTH, DEFAULT_Z_CRIT, LIBRARY_CALIBRATION, UNKNOWN,
+                                     KnownObject, ObjectSet)
 from edge.measure.instrument import INSTRUMENTS
 from edge.physics.materials import load_materials
 from host.recognition import (CONTACT_TIMES_S, Touches, calibrate, classify_touches, reliability,
@@ -546,8 +547,13 @@ def report(res: dict, cmd: str) -> list[str]:
                  f"board), each board's noise and steps, 2 % flux-calibration error per touch; estimated by the "
                  f"device's `AxiEstimator`; the set calibrated per board on {sh['cal_touches_per_object']} separately "
                  f"seeded specimens per object. In brackets the same touches recognised on e alone (α dropped, "
-                 f"its own calibration). 'α used': in-set touches whose fit determined α (u below 30 %, "
-                 f"`edge.estimation.objects.measured_alpha`); the ceiling is the e-only Bayes ceiling at the "
+                 f"its own calibration). 'α used': in-set touches whose fit pinned α to better than a factor e "
+                 f"(`edge.estimation.objects.measured_alpha`), its u widened as u (1 + a u) with a fitted per board "
+                 f"on the calibration touches (`host.recognition.fit_alpha_u_growth`: "
+                 + ", ".join(f"{inst} a = {b['e_alpha']['alpha_u_growth']:.2f}" for inst, b in sh["boards"].items()
+                             if "alpha_u_growth" in b.get("e_alpha", {}))
+                 + f"; stored for sets without their own fit as `DEFAULT_ALPHA_U_GROWTH`, now "
+                 f"{DEFAULT_ALPHA_U_GROWTH:g}); the ceiling is the e-only Bayes ceiling at the "
                  f"touches' own u(e). {sh['simulate_seconds']:.0f} s of simulation.")
         L.append("")
         L += small_heater_table(sh)
@@ -649,6 +655,7 @@ def small_heater_section(touches: int, cal_touches: int, seed: int) -> dict:
                 ev["alpha_used"] = float(np.mean(np.isfinite(sub.alpha[in_ok]))) if in_ok.any() else None
                 by_ct[str(ct)] = ev
             board[label] = dict(temperature=s.temperature, z_crit=s.z_crit, touches=rep_["touches"],
+                                alpha_u_growth=s.alpha_u_growth, alpha_touches=rep_["alpha_touches"],
                                 by_contact_time=by_ct)
         out["boards"][inst] = board
     out["bench_seconds"] = time.perf_counter() - t0

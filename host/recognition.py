@@ -31,7 +31,8 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from edge.estimation.estimate import FLUX_CALIBRATION_U_REL, Estimator
-from edge.estimation.objects import KnownObject, ObjectSet, Recognition, measured_alpha, open_set_z
+from edge.estimation.objects import (KnownObject, ObjectSet, Recognition, effective_u_ln_alpha, measured_alpha,
+                                     open_set_z)
 from edge.measure.instrument import INSTRUMENTS
 from edge.physics.materials import load_materials
 from edge.physics.solids import Solid
@@ -47,6 +48,7 @@ __all__ = [
     "simulate_probe_touches",
     "fit_temperature",
     "fit_z_crit",
+    "fit_alpha_u_growth",
     "scatter_temperature",
     "acceptance_target",
     "IN_SET_ACCEPTANCE_GOAL",
@@ -328,6 +330,37 @@ def scatter_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, alph
     return float(np.mean(q[rows, ti] / dof[rows, ti]))
 
 
+def fit_alpha_u_growth(object_set: ObjectSet, touches: Touches, true_index, *, hi: float = 100.0) -> float:
+    """The growth a with which measured α's scatter about their objects matches ``u (1 + a u)`` (mean z² = 1).
+
+    Over the touches that measured α of objects with k, ρ, c (each object's
+    specimen spread included): ``mean((ln α - ln α_i)² / (u_eff(a)² + spread_i²)) = 1``, solved by
+    bisection (it falls monotonically with a); 0 when the stated u already
+    covers the scatter. See :data:`edge.estimation.objects.DEFAULT_ALPHA_U_GROWTH`.
+    """
+    ti = np.asarray(true_index, int)
+    m = np.isfinite(touches.alpha) & object_set.has_props[ti]
+    if not m.any():
+        return float(object_set.alpha_u_growth)
+    d2 = (np.log(touches.alpha[m]) - object_set.ln_alpha[ti[m]]) ** 2
+    s2 = object_set.spread[ti[m]] ** 2
+    u = touches.u_ln_alpha[m]
+
+    def excess(a: float) -> float:
+        ue = effective_u_ln_alpha(u, a)
+        return float(np.mean(d2 / (ue ** 2 + s2))) - 1.0
+
+    if excess(0.0) <= 0.0:
+        return 0.0
+    if excess(hi) > 0.0:
+        return hi
+    lo_a, hi_a = 0.0, hi
+    for _ in range(60):
+        mid = 0.5 * (lo_a + hi_a)
+        lo_a, hi_a = (mid, hi_a) if excess(mid) > 0.0 else (lo_a, mid)
+    return 0.5 * (lo_a + hi_a)
+
+
 def fit_z_crit(object_set: ObjectSet, ln_e, u_ln_e, *, acceptance: float = 0.975, floor: float = 1.96,
                temperature: float | None = None, alpha: Mapping | None = None) -> float:
     """The open-set critical distance that accepts ``acceptance`` of these in-set touches (at least ``floor``).
@@ -404,11 +437,14 @@ def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequen
     sim = sim.select(sim.ok)
     ti = _true_index(object_set, sim.names, sim.obj)
     ln_e, u, alpha = np.log(sim.e), sim.u_ln_e, sim.alpha_terms()
+    growth = fit_alpha_u_growth(object_set, sim, ti)   # first: how far a measured alpha's u can be trusted
+    object_set = object_set.with_calibration(alpha_u_growth=growth)
     t = fit_temperature(object_set, ln_e, u, ti, alpha=alpha)
     acceptance = acceptance_target(ti.size) if acceptance is None else acceptance
     z = fit_z_crit(object_set, ln_e, u, acceptance=acceptance, temperature=t, alpha=alpha)
     q, hld, _ = object_set.log_terms(ln_e, u, **alpha)
-    report = dict(instrument=instrument, touches=int(ti.size), temperature=t, z_crit=z, acceptance=acceptance)
+    report = dict(instrument=instrument, touches=int(ti.size), temperature=t, z_crit=z, acceptance=acceptance,
+                  alpha_u_growth=growth, alpha_touches=int(np.isfinite(sim.alpha).sum()))
     for label, temp in (("before", object_set.temperature), ("after", t)):
         p = object_set.posteriors(q, hld, temperature=temp)
         report[f"reliability_{label}"] = reliability(p.max(axis=1), p.argmax(axis=1) == ti)

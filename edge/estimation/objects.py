@@ -21,7 +21,10 @@ one scale on every variance, fitted on the host on held-out simulated
 touches (host/recognition.py) so that a posterior of 0.9 is right about 90 %
 of the time. The specimen spread is read as independent lognormal spreads of
 e and α (so k = e sqrt(α) spreads by sqrt(1.25) times as much). (ln e, ln α)
-carries everything a touch measures: k = e sqrt(α) adds nothing. An object
+carries everything a touch measures: k = e sqrt(α) adds nothing. A measured
+α's stated u enters as ``u (1 + a u)`` (``alpha_u_growth``, fitted on the
+host like T: the fit's linearised u understates the scatter of a poorly
+determined α). An object
 given by e alone gets, for a measured α, a broad term (standard deviation
 :data:`BROAD_LN`, centred on the measurement): the measurement neither
 confirms nor refutes it.
@@ -60,7 +63,7 @@ CSV format
 ----------
 Lines whose first non-blank character is ``#`` and blank lines are comments,
 except *directives* ``#@ key = value`` (``temperature``, ``z_crit``,
-``calibration_ln``, ``prior_unknown``: the calibration stored with the set). The first
+``calibration_ln``, ``prior_unknown``, ``alpha_u_growth``: the calibration stored with the set). The first
 other line is the header: ``name``, ``class``, and either ``k_W_mK``,
 ``rho_kg_m3``, ``c_J_kgK`` or ``e_W_s05_m2K`` (both groups may be present;
 each row fills exactly one of them), and optionally ``spread_rel``,
@@ -106,6 +109,8 @@ __all__ = [
     "LIBRARY_SET",
     "recognition_fields",
     "measured_alpha",
+    "effective_u_ln_alpha",
+    "DEFAULT_ALPHA_U_GROWTH",
     "open_set_z",
     "tail_p",
     "z_of_p",
@@ -120,6 +125,21 @@ DEFAULT_SPREAD_REL = 0.05
 DEFAULT_Z_CRIT = 2.5
 #: Standard deviation (ln units) of the term an object without α gets for a measured α.
 BROAD_LN = 1.0
+#: Largest stated u(ln α) a measured α is used with: a record that pins α no better than a factor e
+#: says less than an object without α is granted (BROAD_LN).
+ALPHA_INFORMATIVE_U_LN = BROAD_LN
+#: Growth a of a measured α's uncertainty, ``u (1 + a u)``, for a set without its own fit: the
+#: small-heater fit's linearised u is honest where α is well determined and understates the scatter
+#: more the less it is (the likelihood is far from Gaussian in ln α). Fitted by
+#: ``python bench/tactile_bench.py`` (host.recognition.fit_alpha_u_growth on the precision board's
+#: small-heater calibration touches: 2.23; 5.1 on the reference board) and reported there.
+DEFAULT_ALPHA_U_GROWTH = 2.2
+
+
+def effective_u_ln_alpha(u_ln_alpha, growth: float):
+    """The uncertainty a measured α is used with: ``u (1 + growth u)`` (see :data:`DEFAULT_ALPHA_U_GROWTH`)."""
+    u = np.asarray(u_ln_alpha, float)
+    return u * (1.0 + growth * u)
 
 _E_RANGE = (math.sqrt(K_RANGE_W_MK[0] * RHO_C_RANGE_J_M3K[0]), math.sqrt(K_RANGE_W_MK[1] * RHO_C_RANGE_J_M3K[1]))
 #: Width in ln e of the flat density of the "unknown" hypothesis (the plausible range of e).
@@ -155,6 +175,8 @@ DIRECTIVES: dict[str, Field] = {
     "calibration_ln": Field("float", 0.0, "extra systematic sd of ln e (probe calibration)", lo=0.0, hi=1.0),
     "prior_unknown": Field("float", DEFAULT_PRIOR_UNKNOWN, "prior probability of touching an object outside the set",
                            lo=0.0, hi=1.0, lo_open=True, hi_open=True),
+    "alpha_u_growth": Field("float", DEFAULT_ALPHA_U_GROWTH, "growth a of a measured alpha's uncertainty, "
+                            "u (1 + a u) (fitted on held-out touches)", lo=0.0, hi=100.0),
 }
 
 
@@ -354,13 +376,15 @@ class ObjectSet:
         Extra systematic standard deviation of ln e (a probe calibration term).
     prior_unknown : float
         Prior probability that a touched object is none of these.
+    alpha_u_growth : float
+        A measured α's uncertainty is used as ``u (1 + a u)`` (see :func:`effective_u_ln_alpha`).
     label : str
         Where the set came from (messages only).
     """
 
     def __init__(self, objects: Iterable[KnownObject], *, temperature: float = 1.0, z_crit: float = DEFAULT_Z_CRIT,
                  calibration_ln: float = 0.0, prior_unknown: float = DEFAULT_PRIOR_UNKNOWN,
-                 label: str = "<memory>") -> None:
+                 alpha_u_growth: float = DEFAULT_ALPHA_U_GROWTH, label: str = "<memory>") -> None:
         objs = tuple(objects)
         if not objs:
             raise ValueError("an object set needs at least one object")
@@ -374,6 +398,7 @@ class ObjectSet:
         self.z_crit = check_value(DIRECTIVES["z_crit"], z_crit, "z_crit")
         self.calibration_ln = check_value(DIRECTIVES["calibration_ln"], calibration_ln, "calibration_ln")
         self.prior_unknown = check_value(DIRECTIVES["prior_unknown"], prior_unknown, "prior_unknown")
+        self.alpha_u_growth = check_value(DIRECTIVES["alpha_u_growth"], alpha_u_growth, "alpha_u_growth")
         self.label = label
         self.objects = objs
         self.names = tuple(names)
@@ -487,7 +512,7 @@ class ObjectSet:
             raise ValueError("a measured alpha needs its uncertainty")
         xa = np.asarray(ln_alpha, float)[..., None]
         has = np.isfinite(xa)
-        ua = np.where(has, np.asarray(u_ln_alpha, float)[..., None], 1.0)
+        ua = np.where(has, effective_u_ln_alpha(np.asarray(u_ln_alpha, float)[..., None], self.alpha_u_growth), 1.0)
         r = np.where(has, np.asarray(0.0 if corr is None else corr, float)[..., None], 0.0)
         c_ea = r * u * ua
         var_a = ua ** 2 + self.spread ** 2
@@ -546,7 +571,8 @@ class ObjectSet:
                   - n_terms * (_LN_SQRT_2PI + 0.5 * math.log(t)))
         lw_unk = math.log(self.prior_unknown) - math.log(UNKNOWN_LN_E_SPAN)
         if alpha is not None:
-            lw_unk -= _LN_SQRT_2PI + 0.5 * math.log(u_ln_alpha ** 2 + BROAD_LN ** 2)
+            ua = float(effective_u_ln_alpha(u_ln_alpha, self.alpha_u_growth))
+            lw_unk -= _LN_SQRT_2PI + 0.5 * math.log(ua ** 2 + BROAD_LN ** 2)
         lw = np.append(lw_obj, lw_unk)
         w = np.exp(lw - lw.max())
         post = w / w.sum()
@@ -703,24 +729,24 @@ def measured_alpha(estimate: Mapping) -> tuple[float, float, float] | None:
     """``(alpha, u_ln_alpha, corr_e_alpha)`` a touch measured, or None.
 
     Only a probe that sees a length scale measures α (the small-heater probe,
-    :class:`edge.estimation.probe_estimate.AxiEstimator`), and only where the
-    touch determined it (``"alpha"`` in the result's ``determined``: its
-    relative u below the fitter's 30 %). Its fit reports its own α with the
-    total uncertainty (fit and flux calibration) and the correlation of the
-    ln e and ln α errors in ``fit``. Where α is less certain the fit's
-    linearised u is a poor guide (the likelihood is far from Gaussian in
-    ln α), so such an α is left out rather than trusted.
-    The default method's α is the library prior given e and is never used.
+    :class:`edge.estimation.probe_estimate.AxiEstimator`). Its fit reports its
+    own α with the total uncertainty (fit and flux calibration) and the
+    correlation of the ln e and ln α errors in ``fit`` -- whether or not α was
+    precise enough to be called determined (below 30 %): a 60 % α still tells
+    objects of equal e apart. Where α is that uncertain the linearised u
+    understates its scatter; the set widens it (``alpha_u_growth``,
+    :func:`effective_u_ln_alpha`). None when the record pins α no better than
+    :data:`ALPHA_INFORMATIVE_U_LN`, and for the default method, whose α is the
+    library prior given e.
     """
     fit = estimate.get("fit")
-    if (estimate.get("method") != "axisym" or not isinstance(fit, Mapping)
-            or "alpha" not in (estimate.get("determined") or ())):
+    if estimate.get("method") != "axisym" or not isinstance(fit, Mapping):
         return None
     try:
         alpha, u, r = (float(fit[key]) for key in ("alpha_m2_s", "u_ln_alpha", "corr_e_alpha"))
     except (KeyError, TypeError, ValueError):
         return None
-    if not (alpha > 0 and math.isfinite(alpha) and 0 < u < math.inf and abs(r) < 1):
+    if not (alpha > 0 and math.isfinite(alpha) and 0 < u <= ALPHA_INFORMATIVE_U_LN and abs(r) < 1):
         return None
     return alpha, u, r
 

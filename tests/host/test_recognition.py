@@ -151,3 +151,23 @@ def test_small_heater_touches_on_the_faithful_world_measure_alpha_with_honest_un
     # At 2 s the 5-mm heater's edge has reached the axis on glass: alpha measured, within its uncertainty.
     assert np.isfinite(t.alpha[1]) and t.u_ln_alpha[1] < 0.6 and -1.0 < t.corr[1] < 0.0
     assert abs(math.log(t.alpha[1] / glass.alpha_m2_s)) < 3.0 * t.u_ln_alpha[1]
+
+
+@pytest.mark.parametrize("true_growth", [0.0, 2.0])
+def test_alpha_u_growth_is_fitted_from_the_scatter_of_measured_alpha(true_growth):
+    from host.recognition import Touches, fit_alpha_u_growth
+    s = ObjectSet([KnownObject.from_properties("cork_tile", "wood", 0.10, 1000, 1600, 0.03),
+                   KnownObject.from_properties("glass", "glass", 1.0, 2500, 750, 0.03)])
+    rng = np.random.default_rng(8)
+    n = 4000
+    ti = rng.integers(0, 2, n)
+    u = rng.uniform(0.05, 0.9, n)
+    sd = np.sqrt((u * (1 + true_growth * u)) ** 2 + 0.03 ** 2)
+    ln_a = s.ln_alpha[ti] + sd * rng.standard_normal(n)
+    full = lambda v: np.full(n, v, float)  # noqa: E731
+    t = Touches(ti, np.full(n, "ads122c04"), full(2.0), np.exp(s.ln_e[ti]), np.exp(s.ln_e[ti]), full(0.02), s.names,
+                np.exp(ln_a), u, full(0.0))
+    a = fit_alpha_u_growth(s, t, ti)
+    assert a == pytest.approx(true_growth, abs=0.1 + 0.15 * true_growth)
+    cal, rep = calibrate(s, "ads122c04", sim=t)
+    assert cal.alpha_u_growth == pytest.approx(a) and rep["alpha_u_growth"] == pytest.approx(a)

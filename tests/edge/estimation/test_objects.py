@@ -153,11 +153,12 @@ def test_joint_terms_are_the_bivariate_gaussian(corr):
     # q and the log-determinant against a direct 2 x 2 solve, per object, with the spreads added.
     objs = [KnownObject.from_properties(f"o{i}", "polymer", k, rho, 1500, sp)
             for i, (k, rho, sp) in enumerate(((0.2, 1000, 0.05), (0.3, 900, 0.08), (0.15, 1300, 0.0)))]
-    s = ObjectSet(objs, calibration_ln=0.01)
+    s = ObjectSet(objs, calibration_ln=0.01, alpha_u_growth=1.5)
     x = np.array([math.log(520.0), math.log(1.4e-7)])
     ue, ua = 0.03, 0.2
     q, hld, dof = s.log_terms(x[0], ue, ln_alpha=x[1], u_ln_alpha=ua, corr=corr)
-    cm = np.array([[ue ** 2, corr * ue * ua], [corr * ue * ua, ua ** 2]])
+    uw = ua * (1 + 1.5 * ua)   # the set widens a measured alpha's u
+    cm = np.array([[ue ** 2, corr * ue * uw], [corr * ue * uw, uw ** 2]])
     for i, o in enumerate(objs):
         c = cm + np.diag([o.spread_rel ** 2 + 0.01 ** 2, o.spread_rel ** 2])
         d = x - [math.log(o.e_W_s05_m2K), math.log(o.alpha_m2_s)]
@@ -205,9 +206,11 @@ def test_recognition_fields_use_the_small_heater_fits_alpha_only():
            "fit": {"alpha_m2_s": b.alpha_m2_s, "u_ln_alpha": 0.1, "corr_e_alpha": -0.3}}
     assert measured_alpha(axi) == (b.alpha_m2_s, 0.1, -0.3)
     assert recognition_fields(s, axi)["object"] == "rubber_tile"
-    # The default method's alpha is the prior's: never used, nor an alpha the touch did not determine.
+    # The default method's alpha is the prior's: never used, nor an alpha the record pins no better
+    # than a factor e; one the touch did not call determined (u above 30 %) still is.
+    assert measured_alpha(dict(axi, determined=["e"], fit=dict(axi["fit"], u_ln_alpha=0.6)))[1] == 0.6
     one_d = dict(axi, method="default")
-    vague = dict(axi, determined=["e"], from_prior=["k", "alpha"])
+    vague = dict(axi, determined=["e"], fit=dict(axi["fit"], u_ln_alpha=1.5))
     broken = dict(axi, fit={"alpha_m2_s": None, "u_ln_alpha": 0.1, "corr_e_alpha": 0.0})
     for est in (one_d, vague, broken):
         assert measured_alpha(est) is None
@@ -299,3 +302,17 @@ def test_the_library_set_carries_its_fitted_calibration():
     lib = ObjectSet.from_library()
     assert (lib.temperature, lib.z_crit) == (LIBRARY_CALIBRATION["temperature"], LIBRARY_CALIBRATION["z_crit"])
     assert ObjectSet.from_library(temperature=2.0).temperature == 2.0  # an explicit value wins
+
+
+def test_a_measured_alphas_uncertainty_grows_with_itself_and_round_trips_as_a_directive():
+    from edge.estimation.objects import effective_u_ln_alpha
+    np.testing.assert_allclose(effective_u_ln_alpha([0.1, 0.5], 2.0), [0.12, 1.0])
+    o = KnownObject.from_properties("pmma", "polymer", 0.19, 1180, 1430, 0.02)
+    tight, loose = ObjectSet([o], alpha_u_growth=0.0), ObjectSet([o], alpha_u_growth=3.0)
+    le, la = math.log(o.e_W_s05_m2K), math.log(o.alpha_m2_s)
+    q0, _, _ = tight.log_terms(le, 0.02, ln_alpha=la + 0.8, u_ln_alpha=0.4, corr=0.0)
+    q3, _, _ = loose.log_terms(le, 0.02, ln_alpha=la + 0.8, u_ln_alpha=0.4, corr=0.0)
+    assert q3[0] < q0[0] / 3   # the uncertain alpha counts for less
+    assert ObjectSet.from_csv_text(loose.to_csv_text()).alpha_u_growth == 3.0
+    with pytest.raises(ObjectSetError):
+        ObjectSet.from_csv_text(GOOD.replace("#@ temperature = 1.5", "#@ alpha_u_growth = -1"))
