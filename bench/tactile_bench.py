@@ -32,7 +32,7 @@ instead of the z test); and the library set's calibration fit
 Run:  python bench/tactile_bench.py [--touches 20] [--cal-touches 10] [--update-readme]
 Writes bench/results/tactile.json; --update-readme rewrites the README block
 between ``<!-- tactile-bench:begin -->`` and ``<!-- tactile-bench:end -->``.
-About 6 min on one core (the paper probe's part 1 min; --probe-touches 0 skips the
+About 7 min on one core (the paper probe's part 1 min; --probe-touches 0 skips the
 small-heater probe's faithful-world touches).
 
 Property sources (values near 300 K; handbook ranges are wide, the values
@@ -66,7 +66,7 @@ from edge.estimation.objects import (DEFAULT_ALPHA_U_GROWTH, DEFAULT_Z_CRIT, LIB
                                      KnownObject, ObjectSet)
 from edge.measure.instrument import INSTRUMENTS
 from edge.physics.materials import load_materials
-from host.recognition import (CONTACT_TIMES_S, Touches, calibrate, classify_touches, reliability,
+from host.recognition import (CONTACT_TIMES_S, calibrate, classify_touches, reliability,
                               simulate_probe_touches, simulate_touches)
 
 SPREAD = 0.05
@@ -611,12 +611,6 @@ def thermal_ceiling(objects=IN_SET, n: int = 20000, seed: int = 11) -> dict:
     return dict(object=hit / (n * len(objects)), cls=hit_c / (n * len(objects)), close_pairs=pairs, n=n)
 
 
-def without_alpha(t: Touches) -> Touches:
-    """The same touches with their measured α dropped (the e-only ablation)."""
-    nan = np.full(t.e.shape, np.nan)
-    return Touches(t.obj, t.instrument, t.contact_time_s, t.e_true, t.e, t.u_ln_e, t.names, nan, nan, nan)
-
-
 def small_heater_section(touches: int, cal_touches: int, seed: int) -> dict:
     """The small-heater probe: e and α on the faithful (r, z) world, both boards, every contact time.
 
@@ -630,10 +624,13 @@ def small_heater_section(touches: int, cal_touches: int, seed: int) -> dict:
     oset = ObjectSet(IN_SET, label="tactile_bench")
     t0 = time.perf_counter()
 
-    def tick(name, _n=[0]):  # noqa: B006 - a progress counter
-        _n[0] += 1
-        if _n[0] % 20 == 0:
-            print(f"  small-heater: {_n[0]} specimens, {time.perf_counter() - t0:.0f} s", flush=True)
+    done = 0
+
+    def tick(name):
+        nonlocal done
+        done += 1
+        if done % 20 == 0:
+            print(f"  small-heater: {done} specimens, {time.perf_counter() - t0:.0f} s", flush=True)
 
     test = simulate_probe_touches(IN_SET + HELD_OUT, touches=touches, seed=seed + 5000, progress=tick)
     cal = simulate_probe_touches(IN_SET, touches=cal_touches, seed=seed + 6000, progress=tick)
@@ -641,7 +638,7 @@ def small_heater_section(touches: int, cal_touches: int, seed: int) -> dict:
                simulate_seconds=time.perf_counter() - t0)
     for inst in INSTRUMENTS:
         board = {}
-        for label, tt, cc in (("e_alpha", test, cal), ("e_only", without_alpha(test), without_alpha(cal))):
+        for label, tt, cc in (("e_alpha", test, cal), ("e_only", test.without_alpha(), cal.without_alpha())):
             cc_i = cc.select(cc.instrument == inst)
             if int(cc_i.ok.sum()) < 2 * len(IN_SET):
                 board[label] = dict(skipped=f"{int(cc_i.ok.sum())} calibration touches gave an estimate")

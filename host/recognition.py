@@ -25,7 +25,7 @@ benchmark call:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Mapping, Optional, Sequence
 
 import numpy as np
@@ -109,6 +109,10 @@ class Touches:
         if not self.has_alpha:
             return {}
         return {"ln_alpha": np.log(self.alpha), "u_ln_alpha": self.u_ln_alpha, "corr": self.corr}
+
+    def without_alpha(self) -> "Touches":
+        """The same touches with their measured α dropped (recognition on e alone)."""
+        return Touches(self.obj, self.instrument, self.contact_time_s, self.e_true, self.e, self.u_ln_e, self.names)
 
     def select(self, mask) -> "Touches":
         m = np.asarray(mask)
@@ -206,8 +210,6 @@ def simulate_probe_touches(objects: Sequence[KnownObject], *, probe: str = "smal
     :class:`edge.estimation.probe_estimate.AxiEstimator` estimates e and α with
     their covariance (:func:`edge.estimation.objects.measured_alpha`).
     """
-    import dataclasses  # noqa: PLC0415
-
     from edge.estimation.probe_estimate import AxiEstimator  # noqa: PLC0415
     from firmware_sim.clock import VirtualClock  # noqa: PLC0415 - the simulator only here
     from firmware_sim.rz.probe_world import FaithfulWorld  # noqa: PLC0415
@@ -224,10 +226,10 @@ def simulate_probe_touches(objects: Sequence[KnownObject], *, probe: str = "smal
     t_max = max(contact_times_s)
     rows = []
     for i, obj, solid in _specimens(objects, touches, rng, est):
-        sc = dataclasses.replace(
+        sc = replace(
             base, object=ObjectSpec(solid=solid, back="infinite", thickness_m=0.1, label=obj.name),
-            touch=dataclasses.replace(base.touch, start_s=0.0, length_s=settle_s + t_max + 0.5,
-                                      contact_lead_s=0.0, repeat=False))
+            touch=replace(base.touch, start_s=0.0, length_s=settle_s + t_max + 0.5, contact_lead_s=0.0,
+                          repeat=False))
         clk = VirtualClock()
         world = FaithfulWorld.for_scene(sc, clk, ScheduleDrive([settle_s, settle_s + t_max], [1.0, 0.0]),
                                         dt_s=dt_s)
@@ -238,11 +240,8 @@ def simulate_probe_touches(objects: Sequence[KnownObject], *, probe: str = "smal
             n_pre = max(1, min(10, int(settle_s * rate) - 1))   # baseline samples within the settle
             tg = np.arange(-n_pre, int(round(t_max * rate)) + 1) / rate
             ser = world.series(settle_s + tg)
-            off = rng.uniform(0.0, inst.T_lsb_K)
-            T = ser["y"] + off + rng.normal(0.0, inst.T_noise_K, tg.size)
-            T = np.round(T / inst.T_lsb_K) * inst.T_lsb_K - off
-            q = ser["q_sensor"] + rng.normal(0.0, inst.q_noise_W_m2, tg.size)
-            q = np.clip(np.round(q / inst.q_lsb_W_m2) * inst.q_lsb_W_m2, -inst.q_range_W_m2, inst.q_range_W_m2)
+            T = inst.read_T(ser["y"], rng, rng.uniform(0.0, inst.T_lsb_K))
+            q = inst.read_q(ser["q_sensor"], rng)
             base_T = float(np.mean(T[tg < 0]))
             for ct in contact_times_s:
                 m = (tg > 0) & (tg <= ct + 1e-9)
@@ -285,11 +284,11 @@ def fit_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, bounds=(
     posterior is 1 whatever T -- the search would wander over a flat NLL and
     return an arbitrary T, which still widens or narrows the open-set test.
     T is then the scatter of the touches about their own object instead,
-    ``mean(q_true)`` (the maximum-likelihood variance scale of the Gaussian
-    model, :func:`scatter_temperature`). ``alpha``: :meth:`Touches.alpha_terms`
+    ``mean(q_true / dof_true)`` (the maximum-likelihood variance scale of the
+    Gaussian model, :func:`scatter_temperature`). ``alpha``: :meth:`Touches.alpha_terms`
     of touches that measured α too.
     """
-    q, hld, _ = object_set.log_terms(np.asarray(ln_e, float), np.asarray(u_ln_e, float), **(alpha or {}))
+    q, hld, dof = object_set.log_terms(np.asarray(ln_e, float), np.asarray(u_ln_e, float), **(alpha or {}))
     ti = np.asarray(true_index, int)
     if ti.size == 0:
         raise ValueError("no touches to fit on")
@@ -301,7 +300,7 @@ def fit_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, bounds=(
         lse = m + np.log(np.exp(lw - m[:, None]).sum(axis=1))
         return float(np.mean(lse - lw[rows, ti]))
 
-    t_scatter = float(np.clip(scatter_temperature(object_set, ln_e, u_ln_e, ti, alpha=alpha), *bounds))
+    t_scatter = float(np.clip(_scatter(q, dof, ti), *bounds))
     probe = [nll(math.log(t_scatter * f)) for f in (0.25, 1.0, 4.0)]
     if max(probe) - min(probe) < NLL_FLAT_NATS:
         return t_scatter
@@ -325,7 +324,10 @@ def fit_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, bounds=(
 def scatter_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, alpha: Mapping | None = None) -> float:
     """``mean(q_true / dof_true)``: the variance scale that makes the touches' scatter about their own object match the model."""
     q, _, dof = object_set.log_terms(np.asarray(ln_e, float), np.asarray(u_ln_e, float), **(alpha or {}))
-    ti = np.asarray(true_index, int)
+    return _scatter(q, dof, np.asarray(true_index, int))
+
+
+def _scatter(q: np.ndarray, dof: np.ndarray, ti: np.ndarray) -> float:
     rows = np.arange(ti.size)
     return float(np.mean(q[rows, ti] / dof[rows, ti]))
 
@@ -458,11 +460,6 @@ def recognise(object_set: ObjectSet, estimate: Mapping) -> Recognition | None:
     the default method's k and α on a thick body come from the library prior
     given e and carry no independent information.
     """
-    e = estimate.get("effusivity_W_s05_m2K")
-    u = estimate.get("effusivity_W_s05_m2K_u")
-    if e is None or u is None:
+    if estimate.get("effusivity_W_s05_m2K_u") is None:
         return None
-    a = measured_alpha(estimate)
-    kw = {} if a is None else {"alpha": a[0], "u_ln_alpha": a[1], "corr": a[2]}
-    return object_set.classify(float(e), float(u) / float(e), **kw)
-
+    return object_set.classify_estimate(estimate)

@@ -20,8 +20,8 @@ correlation included: a short touch fixes e = k / sqrt(α) much better than
 one scale on every variance, fitted on the host on held-out simulated
 touches (host/recognition.py) so that a posterior of 0.9 is right about 90 %
 of the time. The specimen spread is read as independent lognormal spreads of
-e and α (so k = e sqrt(α) spreads by sqrt(1.25) times as much). (ln e, ln α)
-carries everything a touch measures: k = e sqrt(α) adds nothing. A measured
+e and α. (ln e, ln α) carries everything a touch measures: k = e sqrt(α)
+adds nothing. A measured
 α's stated u enters as ``u (1 + a u)`` (``alpha_u_growth``, fitted on the
 host like T: the fit's linearised u understates the scatter of a poorly
 determined α). An object
@@ -181,29 +181,23 @@ DIRECTIVES: dict[str, Field] = {
 
 
 # -- small statistics (NumPy has no erf) ------------------------------------------------
-def chi2_sf(x: float, dof: int) -> float:
-    """P(χ²_dof > x) for dof 1, 2 or 3."""
-    x = max(float(x), 0.0)
-    if dof == 1:
-        return math.erfc(math.sqrt(x / 2.0))
-    if dof == 2:
-        return math.exp(-x / 2.0)
-    if dof == 3:
-        return math.erfc(math.sqrt(x / 2.0)) + math.sqrt(2.0 * x / math.pi) * math.exp(-x / 2.0)
-    raise ValueError(f"dof must be 1, 2 or 3, got {dof}")
-
-
 _ERFC = np.frompyfunc(math.erfc, 1, 1)
 
 
 def tail_p(d2, dof) -> np.ndarray:
-    """Element-wise :func:`chi2_sf` for arrays of squared distances and dof (1 or 2)."""
+    """P(χ²_dof > d2), element-wise, for dof 1, 2 or 3 (arrays broadcast)."""
     d2 = np.maximum(np.asarray(d2, float), 0.0)
     dof = np.broadcast_to(np.asarray(dof, int), d2.shape)
-    if np.any((dof < 1) | (dof > 2)):
-        raise ValueError("dof must be 1 or 2")
+    if np.any((dof < 1) | (dof > 3)):
+        raise ValueError(f"dof must be 1, 2 or 3, got {np.unique(dof).tolist()}")
     p1 = np.asarray(_ERFC(np.sqrt(d2 / 2.0)), float)
-    return np.where(dof == 1, p1, np.exp(-d2 / 2.0))
+    p3 = p1 + np.sqrt(2.0 * d2 / math.pi) * np.exp(-d2 / 2.0)
+    return np.where(dof == 1, p1, np.where(dof == 2, np.exp(-d2 / 2.0), p3))
+
+
+def chi2_sf(x: float, dof: int) -> float:
+    """P(χ²_dof > x) for dof 1, 2 or 3 (the scalar :func:`tail_p`)."""
+    return float(tail_p(x, dof))
 
 
 def z_of_p(p) -> np.ndarray:
@@ -592,6 +586,23 @@ class ObjectSet:
         return Recognition(obj, obj_p, cls, cls_p, candidates, p_unknown,
                            {c: float(p) for c, p in zip(self.class_names, class_post)}, z_min, self.names[near])
 
+    def classify_estimate(self, estimate: Mapping, *, top: int = 3) -> Recognition | None:
+        """:meth:`classify` of an estimate's dict (``Estimate.to_dict()`` or the small heater's), None without e.
+
+        e and its u (a missing u counts as 0: the objects' spreads still set
+        the widths), and α where the probe measured it (:func:`measured_alpha`).
+        One definition for every output (:func:`recognition_fields`) and the host.
+        """
+        e = estimate.get("effusivity_W_s05_m2K")
+        if e is None or not (math.isfinite(float(e)) and float(e) > 0):
+            return None
+        u = estimate.get("effusivity_W_s05_m2K_u")
+        u_ln_e = float(u) / float(e) if u is not None and math.isfinite(float(u)) and float(u) >= 0 else 0.0
+        a = measured_alpha(estimate)
+        kw = {} if a is None else {"alpha": a[0], "u_ln_alpha": a[1], "corr": a[2]}
+        # A tiny floor: an object with zero spread and a zero uncertainty would divide by zero.
+        return self.classify(float(e), max(u_ln_e, 1e-9), top=top, **kw)
+
     # -- open-set design rates -----------------------------------------------------
     def acceptance_intervals(self, u_ln_e: float) -> np.ndarray:
         """The ln e intervals the open-set test accepts at ``u_ln_e`` (e alone), merged and sorted.
@@ -710,15 +721,9 @@ def recognition_fields(object_set: ObjectSet, estimate: Mapping, *, set_name: st
     out: dict = {"object_set": object_set.label if set_name is None else set_name, "object": None,
                  "object_posterior": None, "class": None, "class_posterior": None, "unknown_posterior": None,
                  "candidates": []}
-    e = estimate.get("effusivity_W_s05_m2K")
-    if e is None or not (math.isfinite(float(e)) and float(e) > 0):
+    r = object_set.classify_estimate(estimate, top=top)
+    if r is None:
         return out
-    u = estimate.get("effusivity_W_s05_m2K_u")
-    u_ln_e = float(u) / float(e) if u is not None and math.isfinite(float(u)) and float(u) >= 0 else 0.0
-    # A tiny floor: an object with zero spread and a zero uncertainty would divide by zero.
-    a = measured_alpha(estimate)
-    kw = {} if a is None else {"alpha": a[0], "u_ln_alpha": a[1], "corr": a[2]}
-    r = object_set.classify(float(e), max(u_ln_e, 1e-9), top=top, **kw)
     out.update({"object": r.object, "object_posterior": float(r.object_posterior), "class": r.cls,
                 "class_posterior": float(r.class_posterior), "unknown_posterior": float(r.unknown_posterior),
                 "candidates": [{"name": n, "posterior": float(p)} for n, p in r.candidates]})

@@ -53,11 +53,20 @@ class Instrument:
         """
         tT = np.arange(0.0, t_s[-1] + 1e-12, 1.0 / self.T_rate_Hz)
         tq = np.arange(0.0, t_s[-1] + 1e-12, 1.0 / self.q_rate_Hz)
-        T = np.interp(tT, t_s, T_K) + t0_offset_K + rng.normal(0.0, self.T_noise_K, tT.size)
-        T = np.round(T / self.T_lsb_K) * self.T_lsb_K - t0_offset_K
-        q = np.interp(tq, t_s, q_W_m2) + rng.normal(0.0, self.q_noise_W_m2, tq.size)
-        q = np.clip(np.round(q / self.q_lsb_W_m2) * self.q_lsb_W_m2, -self.q_range_W_m2, self.q_range_W_m2)
+        T = self.read_T(np.interp(tT, t_s, T_K), rng, t0_offset_K)
+        q = self.read_q(np.interp(tq, t_s, q_W_m2), rng)
         return tT, T, tq, q
+
+    def read_T(self, T_K: np.ndarray, rng: np.random.Generator, offset_K: float = 0.0) -> np.ndarray:
+        """The thermometer's readings of true temperatures: noise, then quantisation of the value
+        shifted by ``offset_K`` (so the LSB grid is not aligned with the baseline)."""
+        T = np.asarray(T_K, float) + offset_K + rng.normal(0.0, self.T_noise_K, np.size(T_K))
+        return np.round(T / self.T_lsb_K) * self.T_lsb_K - offset_K
+
+    def read_q(self, q_W_m2: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """The flux converter's readings of true fluxes: noise, quantisation, range clipping."""
+        q = np.asarray(q_W_m2, float) + rng.normal(0.0, self.q_noise_W_m2, np.size(q_W_m2))
+        return np.clip(np.round(q / self.q_lsb_W_m2) * self.q_lsb_W_m2, -self.q_range_W_m2, self.q_range_W_m2)
 
 
 INSTRUMENTS = {

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import logging
 import math
-from typing import Any
+from typing import Any, Callable
 
 from edge.calibration.model import ProbeCalibration
 from edge.protocol.errors import CommandError, ErrorCode
@@ -145,7 +145,7 @@ DEFAULT_METHOD_KEYS = ("effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK
 _ANSWER_KEYS = DEFAULT_METHOD_KEYS + ("candidates",)
 
 
-def promote_chain(result: dict | None, estimator: Any) -> bool:
+def promote_chain(result: dict | None, estimator: Callable[[], Any]) -> bool:
     """Make a calibrated chain's e the measurement's answer (in place); True when it did.
 
     On a real probe the default method inverts the ideal 1-D model -- no
@@ -159,7 +159,8 @@ def promote_chain(result: dict | None, estimator: Any) -> bool:
     kept in ``result["default_method"]``. Nothing changes when the probe is
     uncalibrated (the datasheet chain is biased too), when the chain failed or
     flagged that it does not describe the record (:data:`PROMOTE_BLOCKERS`),
-    or when ``estimator`` is not the model the measurement was made with.
+    or when ``estimator()`` -- called only once the chain qualifies -- is not
+    the model the measurement was made with.
     """
     if not result or result.get("method") not in ("default", "paper"):
         return False
@@ -172,9 +173,10 @@ def promote_chain(result: dict | None, estimator: Any) -> bool:
     if not (isinstance(e, (int, float)) and isinstance(u, (int, float)) and math.isfinite(e) and e > 0
             and math.isfinite(u) and u > 0):
         return False
-    if estimator is None or getattr(estimator, "sha256", None) != result.get("model_sha256"):
+    est = estimator()
+    if est is None or getattr(est, "sha256", None) != result.get("model_sha256"):
         return False
-    new = estimator.from_effusivity(float(e), float(u) / float(e), method="sensor_chain").to_dict()
+    new = est.from_effusivity(float(e), float(u) / float(e), method="sensor_chain").to_dict()
     result["default_method"] = {k: result.get(k) for k in DEFAULT_METHOD_KEYS}
     for k in _ANSWER_KEYS:
         result[k] = new.get(k)

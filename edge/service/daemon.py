@@ -525,8 +525,8 @@ class Daemon:
             return
         self.readiness.add(now, r.T_C)
 
-    def _estimate(self, *args: Any) -> Mapping[str, Any]:
-        res = dict(self.estimator(*args))
+    def _name_object(self, res: dict) -> None:
+        """Add the active object set's recognition fields to a result (in place); never raises."""
         try:
             name, objs = self._named_object_set()
             if objs is not None and len(objs):
@@ -534,21 +534,24 @@ class Daemon:
         except Exception as e:  # naming the object must never lose the measurement
             log.exception("naming the object failed")
             res["object_error"] = f"{type(e).__name__}: {e}"
+
+    def _estimate(self, *args: Any) -> Mapping[str, Any]:
+        res = dict(self.estimator(*args))
+        self._name_object(res)
         return res
 
     def _promote_chain(self, outcome: Any) -> None:
         """A calibrated chain's e becomes the answer, and the object is named from it (edge.service.calibration)."""
-        if outcome.result is None or self.calibration.current() is None:
+        if outcome.result is None:
             return
         try:
-            if not promote_chain(outcome.result, self._model_est.estimator()):
-                return
-            name, objs = self._named_object_set()
-            if objs is not None and len(objs):
-                outcome.result.update(recognition_fields(objs, outcome.result, set_name=name))
+            promoted = promote_chain(outcome.result, self._model_est.estimator)
         except Exception as e:  # the default method's answer stands; the measurement is never lost
             log.exception("promoting the sensor chain's answer failed")
             outcome.result["promote_error"] = f"{type(e).__name__}: {e}"
+            return
+        if promoted:
+            self._name_object(outcome.result)
 
     def _model_sha256(self) -> str | None:
         return self._model_est.model_sha256()

@@ -63,24 +63,24 @@ class ModelEstimator:
         except ModelStoreError:
             return None
 
+    def _refresh(self) -> Estimator:
+        """The active bundle's :class:`Estimator`, rebuilt when the bundle changed (call under the lock)."""
+        bundle = self.store.current()
+        if self._sha != bundle.sha256:
+            self._est, self._sha = Estimator.from_bundle(bundle), bundle.sha256
+            self._axi = None
+        return self._est
+
     def estimator(self) -> Estimator:
         """The :class:`Estimator` of the active bundle (built when the bundle changed)."""
-        bundle = self.store.current()
         with self._lock:
-            if self._sha != bundle.sha256:
-                self._est, self._sha = Estimator.from_bundle(bundle), bundle.sha256
-                self._axi = None
-            return self._est
+            return self._refresh()
 
     def __call__(self, t_s: np.ndarray, dT_K: np.ndarray, q_W_m2: np.ndarray, q_v_W_m3: float,
                  method: str) -> dict:
         """Estimate from the resampled series (see :data:`edge.measure.sequence.EstimatorFn`)."""
-        bundle = self.store.current()
         with self._lock:
-            if self._sha != bundle.sha256:
-                self._est, self._sha = Estimator.from_bundle(bundle), bundle.sha256
-                self._axi = None
-            est = self._est
+            est = self._refresh()
             if self.probe != "paper" and self._axi is None:
                 from edge.estimation.probe_estimate import AxiEstimator  # noqa: PLC0415
 

@@ -108,7 +108,7 @@ def test_a_calibrated_chain_becomes_the_answer_and_the_default_method_is_kept(sh
     est = shipped_estimator
     r = _result(est)
     before = dict(r)
-    assert promote_chain(r, est)
+    assert promote_chain(r, lambda: est)
     assert r["method"] == "sensor_chain"
     assert r["effusivity_W_s05_m2K"] == 620.0 and r["effusivity_W_s05_m2K_u"] == pytest.approx(0.015 * 620.0)
     # k, alpha and the material follow from the chain's e exactly as the default method's from its own.
@@ -118,7 +118,7 @@ def test_a_calibrated_chain_becomes_the_answer_and_the_default_method_is_kept(sh
     assert r["default_method"]["effusivity_W_s05_m2K"] == before["effusivity_W_s05_m2K"] == pytest.approx(560.0)
     assert r["default_method"]["method"] == "default" and r["default_method"]["material"] == before["material"]
     assert "candidates" not in r["default_method"]   # kept small: a record must fit one reply
-    assert not promote_chain(r, est)   # once only: the answer is the chain's already
+    assert not promote_chain(r, lambda: est)   # once only: the answer is the chain's already
 
 
 @pytest.mark.parametrize("change", [
@@ -130,7 +130,7 @@ def test_the_default_method_stays_first_when_the_chain_cannot_be_trusted(shipped
     from edge.service.calibration import promote_chain
     r = _result(shipped_estimator, **change)
     before = {k: v for k, v in r.items()}
-    assert not promote_chain(r, shipped_estimator)
+    assert not promote_chain(r, lambda: shipped_estimator)
     assert r == before and "default_method" not in r
 
 
@@ -138,8 +138,8 @@ def test_no_promotion_with_another_model_or_on_the_small_heater(shipped_estimato
     from edge.service.calibration import promote_chain
     r = _result(shipped_estimator)
     r["model_sha256"] = "00" * 32
-    assert not promote_chain(r, shipped_estimator)
+    assert not promote_chain(r, lambda: shipped_estimator)
     r = _result(shipped_estimator)
     r["method"] = "axisym"
-    assert not promote_chain(r, shipped_estimator)
-    assert not promote_chain(None, shipped_estimator)
+    assert not promote_chain(r, lambda: shipped_estimator)
+    assert not promote_chain(None, lambda: shipped_estimator)
