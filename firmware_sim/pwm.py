@@ -47,6 +47,7 @@ import os
 import shutil
 import tempfile
 import threading
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -168,6 +169,11 @@ class SimPwmTree:
         self._owns_root = root is None
         self.root = Path(tempfile.mkdtemp(prefix="sim-pwm-")) if root is None else Path(root)
         self.root.mkdir(parents=True, exist_ok=True)
+        # A tree nobody closed (a simulator dropped mid-test, a session ended by an exception) is
+        # still removed when the object is collected or the interpreter exits: ten thousand
+        # leaked trees had piled up in /tmp before this.
+        self._cleanup = (weakref.finalize(self, shutil.rmtree, str(self.root), ignore_errors=True)
+                         if self._owns_root else None)
         self._lock = threading.RLock()
         self._npwm = chips
         self._mirror: dict[Path, str] = {}
@@ -236,9 +242,9 @@ class SimPwmTree:
     # ---- lifecycle
 
     def close(self) -> None:
-        """Remove the tree if this object created it."""
-        if self._owns_root:
-            shutil.rmtree(self.root, ignore_errors=True)
+        """Remove the tree if this object created it (idempotent)."""
+        if self._cleanup is not None:
+            self._cleanup()
 
     def __enter__(self) -> SimPwmTree:
         return self

@@ -1,6 +1,7 @@
 """Simulated sysfs PWM tree (kernel rules, raw-write policing, duty history) and the edge SysfsPwm driver."""
 
 import errno
+import gc
 
 import pytest
 
@@ -56,6 +57,22 @@ def test_temporary_root_is_removed_on_close():
     assert root.is_dir()
     t.close()
     assert not root.exists()
+    t.close()  # idempotent
+
+
+def test_a_tree_nobody_closed_is_removed_when_it_is_collected():
+    clock = VirtualClock()
+    t = SimPwmTree(clock)
+    root = t.root
+    del t, clock  # the clock holds the tree's advance hook: both go
+    gc.collect()
+    assert not root.exists()
+
+
+def test_a_caller_supplied_root_is_never_removed(tmp_path):
+    t = SimPwmTree(VirtualClock(), tmp_path / "sys")
+    t.close()
+    assert (tmp_path / "sys" / "pwmchip0").is_dir()
 
 
 # ---- kernel value rules through the synchronous io route
