@@ -13,7 +13,7 @@ benchmark call:
   posteriors are calibrated ("0.9" right 90 % of the time);
 * :func:`fit_z_crit` -- the open-set test's critical distance for a target
   in-set acceptance (never below 1.96); :func:`acceptance_target` -- that
-  target: 95 % plus a margin for the number of calibration touches;
+  target: 99 % plus a margin for the number of calibration touches;
 * :func:`calibrate` -- both, on held-out touches of the set's own objects;
   returns the set with the fitted scalars (stored in its CSV as ``#@``
   directives) and a report;
@@ -64,8 +64,13 @@ CONTACT_TIMES_S = (0.5, 1.0, 1.5, 2.0)
 #: Mean change of the temperature-scaling NLL (nats per touch) over a factor 16 in T below which the
 #: posteriors carry no information on T (see fit_temperature).
 NLL_FLAT_NATS = 1e-3
-#: Share of in-set touches the open-set test must accept (issue #12).
-IN_SET_ACCEPTANCE_GOAL = 0.95
+#: Share of in-set touches the open-set test must accept.  Issue #12 asks for at least 95 %; every
+#: rejected in-set touch is a wrong answer, and at 95 % the test gave away 1-3 points of object
+#: accuracy that the set's Bayes rate allows (the closed-set answer sat on that rate).  At 99 % an
+#: outside object still reads "unknown" when it lies more than about 3.3 sigma from every in-set
+#: object (90 %; the tactile bench's distinguishable objects are at least 3.9 sigma away): what the
+#: looser test gives up is near neighbours, which e alone cannot reject anyway.
+IN_SET_ACCEPTANCE_GOAL = 0.99
 RELIABILITY_BINS = (0.0, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95, 1.0)
 
 
@@ -367,7 +372,7 @@ def fit_z_crit(object_set: ObjectSet, ln_e, u_ln_e, *, acceptance: float = 0.975
                temperature: float | None = None, alpha: Mapping | None = None) -> float:
     """The open-set critical distance that accepts ``acceptance`` of these in-set touches (at least ``floor``).
 
-    Aiming above the 95 % goal leaves margin for the sampling error of the quantile. The
+    Aiming above the acceptance goal leaves margin for the sampling error of the quantile. The
     statistic is the test's own (:func:`edge.estimation.objects.open_set_z`: a touch with α
     has two degrees of freedom).
     """
@@ -380,7 +385,7 @@ def fit_z_crit(object_set: ObjectSet, ln_e, u_ln_e, *, acceptance: float = 0.975
 def acceptance_target(n: int, goal: float = IN_SET_ACCEPTANCE_GOAL, z_margin: float = 1.645) -> float:
     """The in-set acceptance to fit z_crit at, from ``n`` calibration touches.
 
-    The goal (95 % of in-set touches accepted) plus a one-sided margin of
+    The goal (:data:`IN_SET_ACCEPTANCE_GOAL` of in-set touches accepted) plus a one-sided margin of
     ``z_margin`` binomial standard errors, so that a z_crit fitted on ``n``
     touches still accepts the goal's share of new touches with about 95 %
     confidence -- rather than a fixed 97.5 %, which for hundreds of

@@ -53,6 +53,7 @@ from edge.physics.solids import Solid
 
 __all__ = [
     "CLASSES",
+    "RECOGNITION_CLASS",
     "CLASS_TO_GROUP",
     "REPORT_GROUPS",
     "REQUIRED_COLUMNS",
@@ -81,6 +82,22 @@ CLASS_TO_GROUP: dict[str, str] = {
     "glass": "glass",
     "ceramic": "ceramic",
     "stone": "stone",
+    "alloy": "metal",
+    "metal": "metal",
+    "other": "other",
+}
+
+#: The class a recognised object is reported in: issue #12's taxonomy, the question a robot asks
+#: ("is it metal?", "glass, ceramic or stone?"), coarser than the library's classes (steel is an
+#: "alloy" there and copper a "metal"; glass, porcelain and granite differ there and not to a gripper).
+RECOGNITION_CLASS: dict[str, str] = {
+    "foam": "foam",
+    "wood": "wood",
+    "polymer": "polymer",
+    "rubber": "rubber",
+    "glass": "glass/ceramic/stone",
+    "ceramic": "glass/ceramic/stone",
+    "stone": "glass/ceramic/stone",
     "alloy": "metal",
     "metal": "metal",
     "other": "other",

@@ -18,6 +18,10 @@ from host.cli.report import dumps
 
 #: Typical relative standard uncertainty of e on the precision board (README), for the add-time warning.
 TYPICAL_U_LN_E = 0.02
+#: Default specimens per object for ``objects calibrate``, by probe: z_crit is a tail quantile (about 99.5 %) of
+#: the touches' distances, so the fast paper-probe simulation uses enough of them for the tail; the
+#: small-heater probe's faithful-world touches take about a second each.
+CALIBRATION_TOUCHES = {"paper": 30, "small-heater": 10}
 
 
 def add_parser(sub, parents):
@@ -52,8 +56,9 @@ def add_parser(sub, parents):
     cal.add_argument("file", metavar="FILE", type=existing_file, help="object-set CSV (as for add)")
     cal.add_argument("--board", choices=("ads122c04", "mcp9600"), default="ads122c04",
                      help="instrument model of the simulated touches (default: the precision board)")
-    cal.add_argument("--touches", type=positive_int, default=10,
-                     help="specimens per object, each touched at 0.5 / 1 / 1.5 / 2 s (default 10)")
+    cal.add_argument("--touches", type=positive_int, default=None,
+                     help="specimens per object, each touched at 0.5 / 1 / 1.5 / 2 s (default 30 for the paper "
+                          "probe: z_crit is a tail quantile of the touches; 10 for the slower small-heater probe)")
     cal.add_argument("--probe", choices=("paper", "small-heater"), default="paper",
                      help="probe head of the simulated touches: the paper's (e alone, exact 1-D model) or the "
                           "small-heater probe (e and alpha, on the faithful (r, z) world: about 1 s per specimen)")
@@ -147,6 +152,8 @@ def run_calibrate(args) -> int:
     from host.recognition import calibrate, simulate_probe_touches  # noqa: PLC0415
 
     objects, _ = load_object_set(args.file)
+    if args.touches is None:
+        args.touches = CALIBRATION_TOUCHES[args.probe]
     src = Path(args.file)
     out = Path(args.out) if args.out else src.with_name(src.stem + "_calibrated.csv")
     try:

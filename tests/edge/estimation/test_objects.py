@@ -87,12 +87,12 @@ def test_csv_reports_every_bad_line():
 def test_classify_picks_the_nearest_and_normalises():
     s = _set(("pmma", "polymer", 560, 0.05), ("glass", "glass", 1400, 0.05), ("steel", "alloy", 8000, 0.05))
     r = s.classify(1450.0, 0.02)
-    assert r.object == "glass" and r.cls == "glass" and r.accepted
+    assert r.object == "glass" and r.cls == "glass/ceramic/stone" and r.accepted
     assert r.candidates[0][0] == "glass" and r.object_posterior > 0.9
     assert sum(p for _, p in r.candidates) + r.unknown_posterior == pytest.approx(1.0)
     assert sum(r.class_posteriors.values()) + r.unknown_posterior == pytest.approx(1.0)
     d = r.to_dict()
-    assert d["class"] == "glass" and d["object"] == "glass" and len(d["candidates"]) == 3
+    assert d["class"] == "glass/ceramic/stone" and d["object"] == "glass" and len(d["candidates"]) == 3
 
 
 def test_unknown_for_a_far_effusivity_though_the_closed_set_argmax_is_sure():
@@ -247,7 +247,7 @@ def test_recognition_fields_are_the_result_keys_of_every_output():
     s = _set(("pmma", "polymer", 560, 0.05), ("glass", "glass", 1400, 0.05), ("steel", "alloy", 8000, 0.05))
     d = recognition_fields(s, {"effusivity_W_s05_m2K": 1450.0, "effusivity_W_s05_m2K_u": 29.0}, set_name="mine")
     assert tuple(d) == RESULT_KEYS
-    assert d["object_set"] == "mine" and d["object"] == "glass" and d["class"] == "glass"
+    assert d["object_set"] == "mine" and d["object"] == "glass" and d["class"] == "glass/ceramic/stone"
     assert [c["name"] for c in d["candidates"]] == ["glass", "pmma", "steel"]
     assert d["candidates"][0]["posterior"] == d["object_posterior"]
     far = recognition_fields(s, {"effusivity_W_s05_m2K": 30.0, "effusivity_W_s05_m2K_u": 0.3})
@@ -316,3 +316,16 @@ def test_a_measured_alphas_uncertainty_grows_with_itself_and_round_trips_as_a_di
     assert ObjectSet.from_csv_text(loose.to_csv_text()).alpha_u_growth == 3.0
     with pytest.raises(ObjectSetError):
         ObjectSet.from_csv_text(GOOD.replace("#@ temperature = 1.5", "#@ alpha_u_growth = -1"))
+
+
+def test_results_name_the_recognition_class_and_sum_its_library_classes():
+    # Issue #12's taxonomy: steel ("alloy") and copper ("metal") are one class to a robot, and so are
+    # glass and porcelain; the class posterior sums over every object of the class.
+    s = _set(("steel", "alloy", 8000, 0.05), ("copper", "metal", 36000, 0.05),
+             ("glass", "glass", 1400, 0.05), ("mug", "ceramic", 1500, 0.05))
+    r = s.classify(1450.0, 0.02)
+    assert r.cls == "glass/ceramic/stone"
+    post = dict(r.candidates)
+    assert r.class_posterior == pytest.approx(post["glass"] + post["mug"])
+    assert set(r.class_posteriors) == {"metal", "glass/ceramic/stone"}
+    assert s.classify(35000.0, 0.02).cls == "metal"

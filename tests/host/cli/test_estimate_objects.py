@@ -29,7 +29,7 @@ def test_names_the_object_among_the_file(capsys, tmp_path, glass_record):
     code, out, err = run(capsys, "estimate", "--csv", glass_record, "--objects", objs, "--json")
     assert code == 0, err
     d = json.loads(out)
-    assert d["object"] == "window" and d["class"] == "glass"
+    assert d["object"] == "window" and d["class"] == "glass/ceramic/stone"
     assert d["object_posterior"] > 0.9 and d["class_posterior"] >= d["object_posterior"]
     assert [c["name"] for c in d["candidates"]][0] == "window" and len(d["candidates"]) == 3
     assert all(set(c) == {"name", "posterior"} for c in d["candidates"])
@@ -48,7 +48,7 @@ def test_without_objects_the_library_names_it(capsys, glass_record):
     code, out, err = run(capsys, "estimate", "--csv", glass_record, "--json")
     assert code == 0, err
     d = json.loads(out)
-    assert d["object_set"] == "library" and d["class"] == "glass" and len(d["candidates"]) == 3
+    assert d["object_set"] == "library" and d["class"] == "glass/ceramic/stone" and len(d["candidates"]) == 3
 
 
 def test_text_output_names_the_object(capsys, tmp_path, glass_record):

@@ -45,7 +45,7 @@ def test_add_list_measure_remove_on_a_kept_simulated_probe(capsys, tmp_path, kit
     code, out, err = run(capsys, "measure", *sim, "--json")
     assert code == 0, err
     m = json.loads(out)
-    assert m["object_set"] == "kitchen" and m["object"] == "window" and m["class"] == "glass"
+    assert m["object_set"] == "kitchen" and m["object"] == "window" and m["class"] == "glass/ceramic/stone"
     assert m["object_posterior"] > 0.9 and m["class_posterior"] > 0.9
     assert [c["name"] for c in m["candidates"]] == ["window", "lid"]
     assert all(set(c) == {"name", "posterior"} for c in m["candidates"])
@@ -56,7 +56,7 @@ def test_add_list_measure_remove_on_a_kept_simulated_probe(capsys, tmp_path, kit
     code, out, err = run(capsys, "measure", *sim, "--json")
     assert code == 0, err
     m = json.loads(out)
-    assert m["object_set"] == "library" and m["class"] == "glass" and len(m["candidates"]) == 3
+    assert m["object_set"] == "library" and m["class"] == "glass/ceramic/stone" and len(m["candidates"]) == 3
 
 
 def test_measure_json_carries_the_fields_estimate_json_gives(capsys, tmp_path):
