@@ -75,6 +75,10 @@ class Flag(StrEnum):
     UNSTABLE_BASELINE = "unstable_baseline"
     #: Heating stopped before the contact time because the answer was decided (MEASURE ``until_decided``).
     DECIDED = "decided"
+    #: Heating stopped early on a running answer that the full estimate does not confirm (another
+    #: object): the running estimate is the thick-body model on the raw thermopile reading, while the
+    #: result may be the calibrated sensor chain's.  The result is the answer; the decision is kept.
+    DECISION_DISAGREES = "decision_disagrees"
     #: The heater does not follow its command (see ``heater.fault_flux_W_m2``): the run is failed.
     HEATER_FAULT = "heater_fault"
     # -- from the estimator

@@ -95,7 +95,7 @@ from edge.service.objects import ObjectSets
 from edge.service.requests import config_reply, fit_record, history_page, measure_params, series_page
 from edge.service.upload import MAX_UPLOAD_BYTES, ModelUpload
 from edge.service.worker import MeasurementWorker, measurement_budget_s
-from edge.status import Reason, Status
+from edge.status import Flag, Reason, Status
 from edge.storage import durable
 from edge.storage.history import History, HistoryError
 
@@ -553,6 +553,17 @@ class Daemon:
         if promoted:
             self._name_object(outcome.result)
 
+    @staticmethod
+    def _check_decision(outcome: Any) -> None:
+        """Flag a touch stopped early on a running answer that its result names differently."""
+        res = outcome.result or {}
+        dec = res.get("decision") or {}
+        if not dec.get("stopped_early") or dec.get("object") in (None, res.get("object")):
+            return
+        for flags in (outcome.flags, res.setdefault("flags", [])):
+            if Flag.DECISION_DISAGREES not in flags:
+                flags.append(Flag.DECISION_DISAGREES)
+
     def _model_sha256(self) -> str | None:
         return self._model_est.model_sha256()
 
@@ -675,6 +686,7 @@ class Daemon:
         t_chain = time.perf_counter()
         self.calibration.apply(outcome)   # the sensor chain's estimate: part of the compute after the last sample
         self._promote_chain(outcome)
+        self._check_decision(outcome)
         chain_s = time.perf_counter() - t_chain
         t_commit = time.perf_counter()
         mid = self._add_record(outcome.record(cfg.to_dict()))

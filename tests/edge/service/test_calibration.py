@@ -143,3 +143,27 @@ def test_no_promotion_with_another_model_or_on_the_small_heater(shipped_estimato
     r["method"] = "axisym"
     assert not promote_chain(r, lambda: shipped_estimator)
     assert not promote_chain(None, lambda: shipped_estimator)
+
+
+@pytest.mark.parametrize("decision, result_object, flagged", [
+    ({"stopped_early": True, "object": "window"}, "acrylic_sheet", True),    # the chain renamed it
+    ({"stopped_early": True, "object": "window"}, "window", False),          # confirmed
+    ({"stopped_early": False, "object": "window"}, "acrylic_sheet", False),  # ran its full time
+    (None, "acrylic_sheet", False),                                          # no running decision
+])
+def test_an_early_stop_the_result_does_not_confirm_is_flagged(decision, result_object, flagged):
+    from types import SimpleNamespace
+
+    from edge.service.daemon import Daemon
+    from edge.status import Flag
+
+    res = {"object": result_object, "flags": ["decided"] if decision else []}
+    if decision is not None:
+        res["decision"] = dict(decision)
+    outcome = SimpleNamespace(result=res, flags=list(res["flags"]))
+    Daemon._check_decision(outcome)
+    assert (Flag.DECISION_DISAGREES in outcome.flags) is flagged
+    assert (Flag.DECISION_DISAGREES in res["flags"]) is flagged
+    assert res["object"] == result_object   # the result stays the answer
+    Daemon._check_decision(outcome)          # idempotent
+    assert outcome.flags.count(Flag.DECISION_DISAGREES) == int(flagged)
