@@ -84,11 +84,14 @@ def test_recognise_an_estimate_dict():
 def test_acceptance_target_is_the_goal_plus_a_sampling_margin():
     from host.recognition import IN_SET_ACCEPTANCE_GOAL, acceptance_target
     assert 0.95 <= IN_SET_ACCEPTANCE_GOAL < 1.0  # issue #12: at least 95 % of in-set touches accepted
-    assert acceptance_target(100, 0.95) == pytest.approx(0.95 + 1.645 * math.sqrt(0.95 * 0.05 / 100))
+    assert acceptance_target(1000, 0.95) == pytest.approx(0.95 + 1.645 * math.sqrt(0.95 * 0.05 / 1000))
     g = IN_SET_ACCEPTANCE_GOAL
-    assert acceptance_target(400) == pytest.approx(min(0.999, g + 1.645 * math.sqrt(g * (1 - g) / 400)))
+    assert acceptance_target(5000) == pytest.approx(min(0.999, g + 1.645 * math.sqrt(g * (1 - g) / 5000)))
     assert acceptance_target(10 ** 6) == pytest.approx(g, abs=1e-3)
-    assert acceptance_target(1) == 0.999  # capped: a quantile of 1 is the largest distance seen
+    # Too few touches for the tail: the target leaves 5 of them beyond it, never below 95 %.
+    assert acceptance_target(260) == pytest.approx(1 - 5 / 260)
+    assert acceptance_target(1) == 0.95
+    assert acceptance_target(10 ** 4, 0.999) == 0.999  # capped
     with pytest.raises(ValueError):
         acceptance_target(0)
 
