@@ -408,7 +408,7 @@ def report(res: dict, cmd: str) -> list[str]:
              f"{res['touches_per_object']} specimens each drawn with a {SPREAD * 100:.0f} % spread of e and α, "
              f"every specimen touched on both boards at 0.5 / 1 / 1.5 / 2 s (2 % flux-calibration error per touch). "
              f"Temperature and z_crit fitted per board on {res['cal_touches_per_object']} separately seeded "
-             f"specimens per object (`host.recognition.calibrate`, z_crit for {IN_SET_ACCEPTANCE_GOAL:.0%} in-set "
+             f"specimens per object (`host.recognition.calibrate`, z_crit for {IN_SET_ACCEPTANCE_GOAL * 100:.0f} % in-set "
              f"acceptance plus a sampling margin, `acceptance_target`):")
     L.append("")
     for inst in (PRECISION, REFERENCE):
@@ -465,7 +465,7 @@ def report(res: dict, cmd: str) -> list[str]:
                  for r in [B[inst]["sets"]["calibrated"]["by_contact_time"]["2.0"]]) + ".")
     L.append("")
     L.append("**The open-set trade-off**, 2 s, calibrated temperature, z_crit swept (the fit picks the smallest "
-             f"z_crit, at least 1.96, that accepts the {IN_SET_ACCEPTANCE_GOAL:.0%} goal plus a sampling margin; a larger one buys in-set "
+             f"z_crit, at least 1.96, that accepts the {IN_SET_ACCEPTANCE_GOAL * 100:.0f} % goal plus a sampling margin; a larger one buys in-set "
              "acceptance and object accuracy with held-out objects' rejections -- the distinguishable ones here "
              "are at least 3.9 σ away, but an outside object at 3.3 σ would be rejected 90 % at 1.96 and 75 % at "
              "2.58):")
