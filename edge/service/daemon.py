@@ -666,6 +666,12 @@ class Daemon:
         if blockers:
             raise CommandError(ErrorCode.BAD_STATE, "cannot measure, heater kept off: " + "; ".join(blockers))
         cfg = self.config
+        if until_decided and cfg.board.probe != "paper":
+            # The running answer is the thick-body fit at the flux sensor (edge.estimation.running): the
+            # small heater's 10 x 10 mm sensor sees its 5-mm heater's edge from the start, and stopping
+            # early would also throw away the k and alpha its whole profile is for.
+            raise CommandError(ErrorCode.BAD_ARGUMENT, f"until_decided needs the paper probe's running answer; "
+                               f"this device has the {cfg.board.probe} probe (measure its full profile)")
         params = measure_params(cfg, self.heater.max_power_W, power_W=power_W, voltage_V=voltage_V,
                                 contact_time_s=contact_time_s, sample_rate_Hz=sample_rate_Hz,
                                 until_decided=until_decided, arm_s=arm_s, settle_s=settle_s)

@@ -117,3 +117,19 @@ def test_quick_profile_rate_per_board(tmp_path):
         d.close()
         sim.close()
     assert rec["sample_rate_Hz"] == 50.0 and len(full["grid_t_s"]) >= 20
+
+
+def test_until_decided_is_refused_on_the_small_heater_probe_with_the_heater_off(tmp_path):
+    from edge.protocol.errors import CommandError
+
+    sim, d = _daemon("pmma_15V_small", tmp_path, object_set=lambda: SET)
+    try:
+        with pytest.raises(CommandError, match="until_decided needs the paper probe"):
+            d.measure(until_decided=True)
+        assert max(h.fraction for h in sim.pwm.history()) == 0.0   # the heater never went on
+        assert d._cmd_status({})["state"] == "idle"
+        rec = d.measure()  # the probe's own profile still measures
+        assert rec["status"] == "ok" and "decided" not in rec["flags"]
+    finally:
+        d.close()
+        sim.close()
