@@ -144,12 +144,14 @@ class RunningAnswer:
     n: int
     decided: bool = False
     cls: str | None = None
+    #: The running estimate it rests on: the thick-body fit of the raw reading or the calibrated sensor chain.
+    source: str = "thick_body"
 
     def to_dict(self) -> dict[str, Any]:
         return {"object": self.object, "posterior": round(float(self.posterior), 6),
                 "elapsed_s": round(float(self.elapsed_s), 4), "class": self.cls,
                 "effusivity_W_s05_m2K": float(self.effusivity_W_s05_m2K), "u_ln_e": float(self.u_ln_e),
-                "samples": int(self.n), "decided": bool(self.decided)}
+                "samples": int(self.n), "decided": bool(self.decided), "source": self.source}
 
 
 class SequentialDecision:
@@ -186,9 +188,15 @@ class SequentialDecision:
         est = self.running.estimate()
         if est is None:
             return self.answer
-        e, u = est
+        return self._answer(t_s, *est, self.running.n)
+
+    #: ``RunningAnswer.source`` of this decision's answers.
+    source = "thick_body"
+
+    def _answer(self, t_s: float, e: float, u: float, n: int) -> RunningAnswer:
+        """Name the object for a running (e, u_ln_e) at ``t_s``; decide at the threshold."""
         rec = self.objects.classify(e, u)
-        ans = RunningAnswer(rec.object, rec.object_posterior, t_s, e, u, self.running.n, cls=rec.cls)
+        ans = RunningAnswer(rec.object, rec.object_posterior, t_s, e, u, n, cls=rec.cls, source=self.source)
         if self.decided is None and t_s >= self.min_time_s and ans.posterior >= self.threshold:
             ans.decided = True
             self.decided = ans

@@ -381,6 +381,9 @@ class MeasurementSequence:
                 self.watchdog.arm()
                 t_on = self.clock.monotonic()
                 self.heater.on_power(params.power_W)
+                if decider is not None and hasattr(decider, "attach_record"):
+                    # A decider on the sensor chain fits the record from contact on, not only the heating.
+                    decider.attach_record(ts, Ts, qs, t_on)
                 guard = self.watchdog.guard_s
                 for k in range(int(math.floor(heat_s * params.sample_rate_Hz + 1e-9)) + 1):
                     self._wait(t_on + k * period)

@@ -76,6 +76,7 @@ from edge.hw.drivers.button import Button
 from edge.hw.drivers.heater import Heater, HeaterError, HeaterOffError
 from edge.hw.faults import SensorFault
 from edge.measure.sensors import make_sensors, thermocouple_resolution_K
+from edge.estimation.chain_decision import ChainDecision
 from edge.estimation.running import SequentialDecision
 from edge.measure.ready import Readiness
 from edge.measure.sequence import EstimatorFn, MeasurementParams, MeasurementSequence, Phase
@@ -497,11 +498,16 @@ class Daemon:
             return getattr(objs, "label", "custom"), objs
         return self.objects.active()
 
-    def _make_decision(self, params: MeasurementParams) -> SequentialDecision | None:
+    def _make_decision(self, params: MeasurementParams) -> SequentialDecision | ChainDecision | None:
         m = self.config.measurement
         objs = self.object_set()
         if objs is None or not len(objs):
             return None
+        store = getattr(self, "calibration", None)
+        cal = store.current() if store is not None else None
+        if cal is not None and cal.probe == self.config.board.probe:
+            # Calibrated: the running answer is the same estimate the result will be (promote_chain).
+            return ChainDecision(objs, m.decide_posterior, m.decide_min_s, calibration=cal)
         return SequentialDecision(objs, m.decide_posterior, m.decide_min_s,
                                   T_age_s=getattr(self.sensors, "T_age_s", 0.0),
                                   T_resolution_K=getattr(self.sensors, "T_resolution_K", 0.0))

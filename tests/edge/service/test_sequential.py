@@ -133,3 +133,28 @@ def test_until_decided_is_refused_on_the_small_heater_probe_with_the_heater_off(
     finally:
         d.close()
         sim.close()
+
+
+def test_a_calibrated_device_decides_on_the_sensor_chain(tmp_path):
+    from edge.estimation.chain_decision import ChainDecision
+    from edge.estimation.running import SequentialDecision
+    from tests.support.calibrations import sample_calibration
+
+    sim, d = _daemon("glass_15V_faithful", tmp_path, object_set=lambda: SET)
+    try:
+        params = measure_params(d.config, d.heater.max_power_W)
+        dec = d._make_decision(params)
+        assert type(dec) is SequentialDecision   # uncalibrated: the thick-body fit of the raw reading
+        cal = sample_calibration()
+        d.calibration.install(cal.to_json_compact(), None)
+        dec = d._make_decision(params)
+        assert isinstance(dec, ChainDecision) and dec.calibration == cal
+        rec = d.measure(until_decided=True)
+        assert rec["status"] == "ok"
+        decision = rec["result"]["decision"]
+        assert decision["source"] == "sensor_chain" and decision["object"] == "glass"
+        # The decision and the result are the same estimate: nothing to disagree about.
+        assert rec["result"]["object"] == "glass" and "decision_disagrees" not in rec["flags"]
+    finally:
+        d.close()
+        sim.close()

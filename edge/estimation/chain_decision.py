@@ -1,0 +1,85 @@
+"""The running decision through the calibrated sensor chain (a real probe's ``--until-decided``).
+
+:class:`~edge.estimation.running.SequentialDecision` fits the thick-body
+model to the raw thermopile reading: right for the flux at the object's
+face, wrong for a thermopile inside its sensing layer, which for the first
+second or two reads heat still warming the layer (on the faithful world a
+PMMA touch read as glass).  With a calibration installed the device's
+answer is the calibrated chain's (:func:`edge.service.calibration.promote_chain`);
+:class:`ChainDecision` makes the running answer the same estimate, on the
+record so far: :func:`edge.estimation.chain_estimate.estimate_from_contact`
+from the contact on (object temperature and contact resistance free), every
+``every_s`` of heating, and no answer while the chain flags that it does
+not describe the record.  It needs the samples since arming, not only the
+heating ones: the sequence hands it its record lists (:meth:`attach_record`).
+
+NumPy only (edge runtime).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from edge.estimation.chain_estimate import estimate_from_contact
+from edge.estimation.running import RunningAnswer, SequentialDecision
+
+__all__ = ["ChainDecision", "CHAIN_EVERY_s", "CHAIN_BLOCKERS"]
+
+#: Heating time between two chain fits: about 6 ms each on this machine (bench/daemon_bench.py), so a
+#: fit per 0.1 s keeps the sampling loop's budget on a Pi-class CPU.
+CHAIN_EVERY_s = 0.1
+#: Chain flags under which a running answer would not describe the record (as PROMOTE_BLOCKERS, plus
+#: not_converged: a fit on a short prefix that did not converge says nothing yet).
+CHAIN_BLOCKERS = frozenset({"poor_fit", "contact_lost", "no_contact", "no_fit", "not_converged"})
+
+
+class ChainDecision(SequentialDecision):
+    """Sequential decision on the calibrated sensor chain's running estimate.
+
+    Parameters
+    ----------
+    object_set, threshold, min_time_s
+        As for :class:`~edge.estimation.running.SequentialDecision`.
+    calibration : ProbeCalibration
+        The installed calibration (the chain's parameters and their u).
+    every_s : float
+        Heating time between fits (:data:`CHAIN_EVERY_s`).
+    """
+
+    source = "sensor_chain"
+
+    def __init__(self, object_set: Any, threshold: float, min_time_s: float, *, calibration: Any,
+                 every_s: float = CHAIN_EVERY_s) -> None:
+        super().__init__(object_set, threshold, min_time_s)
+        if not every_s > 0:
+            raise ValueError(f"every_s must be > 0, got {every_s!r}")
+        self.calibration = calibration
+        self.every_s = float(every_s)
+        self._record: tuple[list, list, list, float] | None = None
+        self._next_s = 0.0
+        self.fits = 0
+
+    def attach_record(self, t_s: list, T_C: list, q_W_m2: list, t_on_s: float) -> None:
+        """The sequence's record lists (appended in place; absolute clock times) and the heater-on time."""
+        self._record = (t_s, T_C, q_W_m2, float(t_on_s))
+
+    def update(self, t_s: float, dT_K: float, q_W_m2: float) -> RunningAnswer | None:
+        """One heating sample (the record itself comes from :meth:`attach_record`)."""
+        if self._record is None or t_s < max(self._next_s, self.min_time_s):
+            return self.answer
+        self._next_s = t_s + self.every_s
+        ts, Ts, qs, t_on = self._record
+        n = min(len(ts), len(Ts), len(qs))
+        try:
+            d = estimate_from_contact(np.asarray(ts[:n], float) - t_on, np.asarray(Ts[:n], float),
+                                      np.asarray(qs[:n], float), self.calibration)
+        except ValueError:  # a prefix the chain cannot fit yet (too few samples since contact)
+            return self.answer
+        finally:
+            self.fits += 1
+        e, u = d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u")
+        if e is None or u is None or not e > 0 or CHAIN_BLOCKERS & set(d.get("flags") or ()):
+            return self.answer
+        return self._answer(t_s, float(e), float(u) / float(e), n)
