@@ -112,6 +112,10 @@ def run_faithful(touches: int, threshold: float, min_s: float, seed: int, object
     whole record, or the chain's).
     """
     from calibration_bench import PROBES, REFERENCES, _as_built
+    from tactile_bench import bayes_ceiling
+
+    from edge.estimation.chain_decision import CHAIN_BLOCKERS
+    from host.recognition import CONTACT_TIMES_S
 
     from edge.calibration.fit import ReferenceTouch, fit_calibration
     from edge.estimation.chain_decision import ChainDecision
@@ -135,9 +139,19 @@ def run_faithful(touches: int, threshold: float, min_s: float, seed: int, object
         for _ in range(touches):
             solid = _specimen(obj, rng, est)
             rc, off = float(rng.uniform(0.0, 3e-5)), float(rng.uniform(-2.0, 2.0))
-            r = record_touch(ContactTouch(solid, rc, off, lead_s=1.0, heat_s=FIXED_S), as_built=ab,
+            r = record_touch(ContactTouch(solid, rc, off, lead_s=1.0, heat_s=max(CONTACT_TIMES_S)), as_built=ab,
                              seed=int(rng.integers(1 << 31)))
-            t, T, q = r["t_s"], r["T_C"], r["q_W_m2"]
+            t_all, T_all, q_all = r["t_s"], r["T_C"], r["q_W_m2"]
+            # Each contact time is the record's prefix (the heating is a step): the calibrated chain's answer.
+            by_ct = {}
+            for ct in CONTACT_TIMES_S:
+                m = t_all <= ct + 1e-9
+                c = estimate_from_contact(t_all[m], T_all[m], q_all[m], cal)
+                ok = c.get("effusivity_W_s05_m2K") and not (CHAIN_BLOCKERS & set(c.get("flags") or ()))
+                u = c["effusivity_W_s05_m2K_u"] / c["effusivity_W_s05_m2K"] if ok else None
+                by_ct[str(ct)] = dict(object=oset.classify(c["effusivity_W_s05_m2K"], u).object if ok else None, u=u)
+            keep = t_all <= FIXED_S + 1e-9
+            t, T, q = t_all[keep], T_all[keep], q_all[keep]
             base = (t > -0.5) & (t <= 0)
             T0, q0 = float(T[base].mean()), float(q[base].mean())
             heat = t > 0
@@ -162,7 +176,7 @@ def run_faithful(touches: int, threshold: float, min_s: float, seed: int, object
                         raw.update(a, b - T0, cq - q0)
                     if chain.decided is None:
                         chain.update(a, b - T0, cq - q0)
-            row = dict(object=obj.name)
+            row = dict(object=obj.name, by_contact_time=by_ct)
             for kind, dec, fixed in (("raw", raw, raw_fixed), ("chain", chain, chain_fixed)):
                 early = dec.decided is not None
                 row[kind] = dict(fixed=fixed, answer=dec.decided.object if early else fixed, early=early,
@@ -179,6 +193,22 @@ def run_faithful(touches: int, threshold: float, min_s: float, seed: int, object
                          median_decision_s=float(np.median(times)), decided_early=float(early.mean()),
                          accuracy_of_decided=float(ok[early].mean()) if early.any() else None,
                          wrong_early=int((early & ~ok).sum()))
+    # The calibrated chain per contact time against the e-only Bayes ceiling at its own u(e) (each object at
+    # the median u of its answered touches), as the tactile bench does on the exact model.
+    out["chain_by_contact_time"] = {}
+    for ct in CONTACT_TIMES_S:
+        ans = [(r["object"], r["by_contact_time"][str(ct)]) for r in rows]
+        u_of = {}
+        for name, a in ans:
+            if a["u"] is not None:
+                u_of.setdefault(name, []).append(a["u"])
+        n_of = {k: len(v) for k, v in u_of.items()}
+        ceiling = bayes_ceiling(oset, {k: float(np.median(v)) for k, v in u_of.items()}, n_of)[0] if u_of else None
+        answered = [(name, a) for name, a in ans if a["u"] is not None]
+        out["chain_by_contact_time"][str(ct)] = dict(
+            accuracy=float(np.mean([a["object"] == name for name, a in answered])) if answered else None,
+            ceiling=ceiling, refused=len(ans) - len(answered),
+            median_u_ln_e=float(np.median([a["u"] for _, a in answered])) if answered else None)
     return out
 
 
@@ -196,6 +226,14 @@ def faithful_table(res: dict) -> str:
         L.append(f"| {label} | {pct(r['fixed_accuracy'])} | {pct(r['until_decided_accuracy'])} | "
                  f"{r['median_decision_s']:.2f} s | {pct(r['decided_early'])} | {pct(r['accuracy_of_decided'])} | "
                  f"{r['wrong_early']} |")
+    ct = res.get("chain_by_contact_time")
+    if ct:
+        L += ["", "The calibrated chain by contact time (the same touches' prefixes; object accuracy of the answered "
+              "touches, an `unknown` counts as wrong; ceiling: e-only Bayes at the chain's own median u(e) per "
+              "object):", "", "| contact | object acc | Bayes ceiling | refused | median u(e) |", "|---|---|---|---|---|"]
+        for k, r in ct.items():
+            u = "-" if r["median_u_ln_e"] is None else f"{r['median_u_ln_e'] * 100:.1f} %"
+            L.append(f"| {float(k):g} s | {pct(r['accuracy'])} | {pct(r['ceiling'])} | {r['refused']}/{res['n']} | {u} |")
     return "\n".join(L)
 
 
