@@ -504,8 +504,9 @@ class Daemon:
         if objs is None or not len(objs):
             return None
         store = getattr(self, "calibration", None)
-        cal = store.current() if store is not None else None
-        if cal is not None and cal.probe == self.config.board.probe:
+        cal = store.current() if store is not None else None   # None too for one made for another probe
+        # The paper probe's chain (the small heater's calibration is a flux scale for its axisymmetric fit).
+        if cal is not None and self.config.board.probe == "paper":
             # Calibrated: the running answer is the same estimate the result will be (promote_chain).
             return ChainDecision(objs, m.decide_posterior, m.decide_min_s, calibration=cal)
         return SequentialDecision(objs, m.decide_posterior, m.decide_min_s,
