@@ -248,8 +248,9 @@ def test_lost_host_mid_measurement_loses_nothing(tmp_path):
             with serial.Serial(nm.host_port, timeout=0.05) as host:
                 host.write(encode_request(Command.MEASURE, 7, {}))
                 host.flush()
+            # Stored, and the serve loop done with it: RESULT meanwhile is BUSY by design.
             deadline = time.monotonic() + 20
-            while dt.daemon.history.count() == 0 and time.monotonic() < deadline:
+            while (dt.daemon.history.count() == 0 or dt.daemon.measuring) and time.monotonic() < deadline:
                 time.sleep(0.01)
             with DeviceClient(nm.host_port, timeout_s=5.0) as c:
                 rec = c.result()
