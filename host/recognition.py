@@ -399,8 +399,8 @@ def acceptance_target(n: int, goal: float = IN_SET_ACCEPTANCE_GOAL, z_margin: fl
         raise ValueError("no touches to fit on")
     target = goal + z_margin * math.sqrt(goal * (1.0 - goal) / n)
     # A tail quantile is only as good as the touches beyond it: with fewer than MIN_TAIL_TOUCHES of
-    # the n past the target it is the largest distances' noise (260 small-heater touches at 99 % put
-    # z_crit at their maximum, 3.1, and let outside objects in); aim lower then, never below 95 %.
+    # the n past the target it is the largest distances' noise (a few hundred small-heater touches at
+    # 99 % put z_crit at their largest distance and let outside objects in); aim lower then, never below 95 %.
     target = min(target, max(MIN_ACCEPTANCE, 1.0 - MIN_TAIL_TOUCHES / n))
     return float(min(0.999, target))
 
