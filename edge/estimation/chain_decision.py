@@ -61,8 +61,12 @@ class ChainDecision(SequentialDecision):
         self._next_s = 0.0
         self.fits = 0
 
-    def attach_record(self, t_s: list, T_C: list, q_W_m2: list, t_on_s: float) -> None:
-        """The sequence's record lists (appended in place; absolute clock times) and the heater-on time."""
+    def attach_record(self, t_s: list, T_C: list, q_W_m2: list, t_on_s: float, **_baseline: Any) -> None:
+        """The sequence's record lists (appended in place; absolute clock times) and the heater-on time.
+
+        The chain fits from the contact on, with the object's temperature free: the baseline the
+        sequence also passes (``T0_C``, ``q0_W_m2``, ``dts``) is not used.
+        """
         self._record = (t_s, T_C, q_W_m2, float(t_on_s))
 
     def update(self, t_s: float, dT_K: float, q_W_m2: float) -> RunningAnswer | None:

@@ -133,6 +133,11 @@ class AxiEstimator:
         key = t.tobytes()
         m = self._models.get(key)
         if m is None:
+            # A prefix of a grid already modelled (a running answer on the samples so far): its head.
+            for k, full in reversed(self._models.items()):
+                if full.t_s.size > t.size and np.array_equal(full.t_s[:t.size], t):
+                    self._models.move_to_end(k)
+                    return full.head(t.size)
             m = AxisymModel(self.geometry, t)
             self._models[key] = m
             while len(self._models) > self.max_models:
@@ -140,6 +145,11 @@ class AxiEstimator:
         else:
             self._models.move_to_end(key)
         return m
+
+    def prepare(self, t_s) -> None:
+        """Build the model for the grid a touch will be estimated on (its prefixes then reuse it)."""
+        t = strictly_increasing("t_s", finite_array("t_s", t_s, min_len=4))
+        self._model(t[(t > 0) & (t >= t[-1] / MAX_TIME_SPAN)])
 
     def estimate(self, t_s, dT_K, q_W_m2, *, power_W: float | None = None, thickness_m: float | None = None,
                  back: str = "infinite", T_resolution_K: float = 0.0, flux_scale: float = 1.0,

@@ -196,8 +196,12 @@ class SequentialDecision:
     def _answer(self, t_s: float, e: float, u: float, n: int) -> RunningAnswer:
         """Name the object for a running (e, u_ln_e) at ``t_s``; decide at the threshold."""
         rec = self.objects.classify(e, u)
-        ans = RunningAnswer(rec.object, rec.object_posterior, t_s, e, u, n, cls=rec.cls, source=self.source)
-        if self.decided is None and t_s >= self.min_time_s and ans.posterior >= self.threshold:
+        return self._settle(RunningAnswer(rec.object, rec.object_posterior, t_s, e, u, n, cls=rec.cls,
+                                          source=self.source))
+
+    def _settle(self, ans: RunningAnswer) -> RunningAnswer:
+        """Make ``ans`` the running answer; it decides when the threshold is reached after ``min_time_s``."""
+        if self.decided is None and ans.elapsed_s >= self.min_time_s and ans.posterior >= self.threshold:
             ans.decided = True
             self.decided = ans
         self.answer = ans

@@ -383,7 +383,7 @@ class MeasurementSequence:
                 self.heater.on_power(params.power_W)
                 if decider is not None and hasattr(decider, "attach_record"):
                     # A decider on the sensor chain fits the record from contact on, not only the heating.
-                    decider.attach_record(ts, Ts, qs, t_on)
+                    decider.attach_record(ts, Ts, qs, t_on, T0_C=T0_run, q0_W_m2=q0_run, dts=dts)
                 guard = self.watchdog.guard_s
                 for k in range(int(math.floor(heat_s * params.sample_rate_Hz + 1e-9)) + 1):
                     self._wait(t_on + k * period)

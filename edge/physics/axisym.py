@@ -302,6 +302,22 @@ class AxisymModel:
         self._qb = (_sh_ratio(gs, u0, L) - _sh_ratio(gs, u1, L)) / (gs * dz)
         self.n_nodes = int(gh.size)
 
+    def head(self, n: int) -> "AxisymModel":
+        """The same model on its first ``n`` output times (the contour and probe part shared, not copied).
+
+        The contour was built for all of :attr:`t_s`, so it is as accurate on any of them: a record's
+        prefix -- a running answer refitting the samples so far -- needs no model of its own.
+        """
+        n = int(n)
+        if not 1 <= n <= self.t_s.size:
+            raise ValueError(f"n must be in 1..{self.t_s.size}, got {n}")
+        m = object.__new__(AxisymModel)
+        m.__dict__.update(self.__dict__)
+        inv = self.inversion
+        m.inversion = HyperbolicInversion(t_s=inv.t_s[:n], s=inv.s, matrix=inv.matrix[:n])
+        m.t_s = m.inversion.t_s
+        return m
+
     # -- object
     def object_admittance(self, k_W_mK: float, alpha_m2_s: float, thickness_m: float | None = None,
                           back: str = "infinite") -> np.ndarray:

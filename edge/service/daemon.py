@@ -78,6 +78,7 @@ from edge.hw.faults import SensorFault
 from edge.measure.sensors import make_sensors, thermocouple_resolution_K
 from edge.estimation.chain_decision import ChainDecision
 from edge.estimation.running import SequentialDecision
+from edge.measure.estimator_decision import EstimatorDecision
 from edge.measure.ready import Readiness
 from edge.measure.sequence import EstimatorFn, MeasurementParams, MeasurementSequence, Phase
 from edge.measure.watchdog import HeaterWatchdog, Limits
@@ -498,11 +499,18 @@ class Daemon:
             return getattr(objs, "label", "custom"), objs
         return self.objects.active()
 
-    def _make_decision(self, params: MeasurementParams) -> SequentialDecision | ChainDecision | None:
+    def _make_decision(self, params: MeasurementParams) -> SequentialDecision | None:
         m = self.config.measurement
         objs = self.object_set()
         if objs is None or not len(objs):
             return None
+        if self.config.board.probe != "paper":
+            # The small heater's sensor sees its heater's edge from the first samples: no 1-D running
+            # model applies.  The running answer is the device's own estimate on the record so far.
+            return EstimatorDecision(objs, m.decide_posterior, m.decide_min_s, estimate_fn=self.estimator,
+                                     rate_Hz=params.sample_rate_Hz, heat_s=params.contact_time_s,
+                                     power_W=params.power_W, method=params.method,
+                                     T_age_s=getattr(self.sensors, "T_age_s", 0.0))
         store = getattr(self, "calibration", None)
         cal = store.current() if store is not None else None   # None too for one made for another probe
         # The paper probe's chain (the small heater's calibration is a flux scale for its axisymmetric fit).
@@ -673,12 +681,6 @@ class Daemon:
         if blockers:
             raise CommandError(ErrorCode.BAD_STATE, "cannot measure, heater kept off: " + "; ".join(blockers))
         cfg = self.config
-        if until_decided and cfg.board.probe != "paper":
-            # The running answer is the thick-body fit at the flux sensor (edge.estimation.running): the
-            # small heater's 10 x 10 mm sensor sees its 5-mm heater's edge from the start, and stopping
-            # early would also throw away the k and alpha its whole profile is for.
-            raise CommandError(ErrorCode.BAD_ARGUMENT, f"until_decided needs the paper probe's running answer; "
-                               f"this device has the {cfg.board.probe} probe (measure its full profile)")
         params = measure_params(cfg, self.heater.max_power_W, power_W=power_W, voltage_V=voltage_V,
                                 contact_time_s=contact_time_s, sample_rate_Hz=sample_rate_Hz,
                                 until_decided=until_decided, arm_s=arm_s, settle_s=settle_s)

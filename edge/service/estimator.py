@@ -14,6 +14,7 @@ what the touch determined and what came from the library prior.
 from __future__ import annotations
 
 import threading
+from typing import Any
 
 import numpy as np
 
@@ -76,16 +77,29 @@ class ModelEstimator:
         with self._lock:
             return self._refresh()
 
+    def _axi_estimator(self) -> Any:
+        """The small heater's estimator on the active bundle (call under the lock)."""
+        est = self._refresh()
+        if self._axi is None:
+            from edge.estimation.probe_estimate import AxiEstimator  # noqa: PLC0415
+
+            self._axi = AxiEstimator(est, get_probe(self.probe))
+        return self._axi
+
+    def prepare(self, t_s: np.ndarray) -> None:
+        """Get ready to estimate on grid ``t_s`` and its prefixes (the small heater's model; else nothing)."""
+        if self.probe == "paper":
+            return
+        with self._lock:
+            axi = self._axi_estimator()
+        axi.prepare(t_s)
+
     def __call__(self, t_s: np.ndarray, dT_K: np.ndarray, q_W_m2: np.ndarray, q_v_W_m3: float,
                  method: str) -> dict:
         """Estimate from the resampled series (see :data:`edge.measure.sequence.EstimatorFn`)."""
         with self._lock:
             est = self._refresh()
-            if self.probe != "paper" and self._axi is None:
-                from edge.estimation.probe_estimate import AxiEstimator  # noqa: PLC0415
-
-                self._axi = AxiEstimator(est, get_probe(self.probe))
-            axi = self._axi
+            axi = self._axi_estimator() if self.probe != "paper" else None
         if self.probe != "paper":
             # The sequence reports the heater's power density on the paper's heater volume (the
             # 1-D model's convention); the power itself is what the axisymmetric fit starts from.

@@ -106,6 +106,34 @@ def test_models_are_cached_per_time_grid(axi, rng):
     assert len(axi._models) == n
 
 
+def test_a_prefix_of_a_prepared_grid_is_fitted_on_its_head_and_agrees_with_its_own_model(shipped_estimator, rng,
+                                                                                          monkeypatch):
+    import edge.physics.axisym as axisym
+
+    t, T, q = record(GLASS, 2.0, 0.02, rng)
+    fresh = AxiEstimator(shipped_estimator, "small-heater")
+    own = fresh.estimate(t[:31], T[:31], q[:31])      # a 0.6-s prefix on a model of its own
+    axi = AxiEstimator(shipped_estimator, "small-heater")
+    axi.prepare(t)
+    built = []
+    real = axisym.AxisymModel.__init__
+
+    def counting(self, *a, **kw):
+        built.append(1)
+        real(self, *a, **kw)
+    monkeypatch.setattr(axisym.AxisymModel, "__init__", counting)
+    head = axi.estimate(t[:31], T[:31], q[:31])
+    assert built == [] and len(axi._models) == 1        # no model built for the prefix, none cached
+    # The two contours' quadrature errors differ (~1e-8 of the signal): the values agree to 1e-6,
+    # the u, scaled by the fit's residual, to 1e-4.
+    for key in ("effusivity_W_s05_m2K", "k_W_mK", "alpha_m2_s"):
+        assert head[key] == pytest.approx(own[key], rel=1e-6), key
+    for key in ("effusivity_W_s05_m2K_u", "k_W_mK_u", "alpha_m2_s_u"):
+        assert head[key] == pytest.approx(own[key], rel=1e-4), key
+    with pytest.raises(ValueError, match="n must be in"):
+        next(iter(axi._models.values())).head(0)
+
+
 def test_fast_sampled_record_drops_the_first_milliseconds(axi, rng):
     # 500 Hz over 2 s spans 1000x in time; the model's contour is tuned for 250x, so the samples
     # before 8 ms are left out (they carry next to nothing on k and alpha).

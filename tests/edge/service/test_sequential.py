@@ -119,17 +119,26 @@ def test_quick_profile_rate_per_board(tmp_path):
     assert rec["sample_rate_Hz"] == 50.0 and len(full["grid_t_s"]) >= 20
 
 
-def test_until_decided_is_refused_on_the_small_heater_probe_with_the_heater_off(tmp_path):
-    from edge.protocol.errors import CommandError
+def test_until_decided_on_the_small_heater_decides_on_the_devices_own_estimate(tmp_path):
+    from edge.measure.estimator_decision import EstimatorDecision
 
-    sim, d = _daemon("pmma_15V_small", tmp_path, object_set=lambda: SET)
+    sim, d = _daemon("glass_15V_small", tmp_path, object_set=lambda: SET)
     try:
-        with pytest.raises(CommandError, match="until_decided needs the paper probe"):
-            d.measure(until_decided=True)
-        assert max(h.fraction for h in sim.pwm.history()) == 0.0   # the heater never went on
-        assert d._cmd_status({})["state"] == "idle"
-        rec = d.measure()  # the probe's own profile still measures
-        assert rec["status"] == "ok" and "decided" not in rec["flags"]
+        params = measure_params(d.config, d.heater.max_power_W)
+        assert type(d._make_decision(params)) is EstimatorDecision
+        rec = d.measure(until_decided=True)
+        assert rec["status"] == "ok" and "decided" in rec["flags"]
+        decision = rec["result"]["decision"]
+        assert decision["source"] == "device_estimate" and decision["stopped_early"]
+        assert decision["object"] == "glass" and decision["elapsed_s"] < params.contact_time_s / 2
+        assert rec["heater_on_s"] < params.contact_time_s / 2
+        # The decision is the result's own estimator on a prefix: the result names the same object.
+        assert rec["result"]["object"] == "glass" and "decision_disagrees" not in rec["flags"]
+        assert max(h.fraction for h in sim.pwm.history()[-1:]) == 0.0   # and the heater is off
+        full = d.measure()   # the whole profile still measures, with its running answer undecided
+        assert full["status"] == "ok" and "decided" not in full["flags"]
+        assert full["result"]["decision"]["object"] == "glass" and not full["result"]["decision"]["stopped_early"]
+        assert full["heater_on_s"] == pytest.approx(params.contact_time_s, abs=0.05)
     finally:
         d.close()
         sim.close()

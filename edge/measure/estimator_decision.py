@@ -1,0 +1,134 @@
+"""The running decision on the device's own estimator (the small-heater probe's ``--until-decided``).
+
+The paper probe's running answer fits the 1-D thick-body model to the heating
+samples (:mod:`edge.estimation.running`).  The small-heater probe has no such
+early-time model: its 10 x 10 mm flux sensor sees the 5-mm heater's edge
+from the first samples.  :class:`EstimatorDecision` refits the estimator the
+result will come from -- the device's, with the installed flux calibration --
+on the record so far, resampled as the result will be
+(:func:`edge.measure.signal.resample_uniform`), every ``every_s`` of heating,
+and names the object from that estimate with e and, where the touch measured
+it, alpha (:meth:`edge.estimation.objects.ObjectSet.classify_estimate`).
+The running answer and the result are then one estimate at two lengths.
+
+Cost.  When heating starts the estimator builds its model for the touch's
+whole grid (``estimate_fn.prepare``); each refit works on that model's head,
+so it costs the fit alone (``python bench/daemon_bench.py`` reports it).
+
+NumPy only (edge runtime).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Any, Callable
+
+import numpy as np
+
+from edge.estimation.running import RunningAnswer, SequentialDecision
+from edge.measure.signal import resample_uniform
+from edge.physics.probe import volumetric_heat_W_m3
+
+__all__ = ["EstimatorDecision", "ESTIMATOR_EVERY_s", "ESTIMATOR_BLOCKERS"]
+
+log = logging.getLogger(__name__)
+
+#: Heating time between two refits.  A small-heater fit on a prepared model takes ~11 ms on this
+#: machine and a few times that on a Pi-class CPU: one per 0.25 s keeps the sampling loop's budget
+#: (its samples are 20 ms apart) and answers within a quarter second of when the record allows.
+ESTIMATOR_EVERY_s = 0.25
+#: Flags under which a running estimate says nothing about the object yet.
+ESTIMATOR_BLOCKERS = frozenset({"no_contact", "insufficient_signal", "not_converged", "saturated", "no_fit"})
+
+
+class EstimatorDecision(SequentialDecision):
+    """Sequential decision on the device estimator's refit of the record so far.
+
+    Parameters
+    ----------
+    object_set, threshold, min_time_s
+        As for :class:`~edge.estimation.running.SequentialDecision`.
+    estimate_fn : callable
+        The device's estimator, ``(t_s, dT_K, q_W_m2, q_v_W_m3, method) -> dict`` on a uniform
+        grid from heater-on (:class:`edge.service.estimator.ModelEstimator`); its optional
+        ``prepare(t_s)`` is called with the touch's whole grid when heating starts.
+    rate_Hz : float
+        The grid's rate (the profile's sample rate, as for the result).
+    heat_s : float
+        Planned heating time (the whole grid).
+    power_W : float
+        Heater power (the estimator's starting scale).
+    method : str
+        Passed to ``estimate_fn``.
+    T_age_s : float
+        Age of a thermocouple reading when read (as for the result's resampling).
+    every_s : float
+        Heating time between refits (:data:`ESTIMATOR_EVERY_s`).
+    """
+
+    source = "device_estimate"
+
+    def __init__(self, object_set: Any, threshold: float, min_time_s: float, *,
+                 estimate_fn: Callable[..., dict], rate_Hz: float, heat_s: float, power_W: float,
+                 method: str = "default", T_age_s: float = 0.0, every_s: float = ESTIMATOR_EVERY_s) -> None:
+        super().__init__(object_set, threshold, min_time_s, T_age_s=T_age_s)
+        for name, v in (("rate_Hz", rate_Hz), ("heat_s", heat_s), ("every_s", every_s)):
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be finite and > 0, got {v!r}")
+        self.estimate_fn = estimate_fn
+        self.rate_Hz, self.heat_s, self.every_s = float(rate_Hz), float(heat_s), float(every_s)
+        self.q_v_W_m3 = volumetric_heat_W_m3(power_W)
+        self.method = method
+        self.T_age_s = float(T_age_s)
+        self._record: tuple | None = None
+        self._next_s = 0.0
+        #: Refits made (one per ``every_s`` of heating at most).
+        self.fits = 0
+
+    def attach_record(self, t_s: list, T_C: list, q_W_m2: list, t_on_s: float, *, T0_C: float | None = None,
+                      q0_W_m2: float | None = None, dts: list | None = None) -> None:
+        """The sequence's record lists (appended in place; absolute clock times), heater-on time and baseline.
+
+        ``T0_C`` and ``q0_W_m2``: the baseline the heating is measured from; ``dts``: each sample's
+        read-time skews (see :func:`~edge.measure.signal.resample_uniform`).
+        """
+        if T0_C is None or q0_W_m2 is None:
+            raise ValueError("EstimatorDecision needs the baseline (T0_C, q0_W_m2)")
+        self._record = (t_s, T_C, q_W_m2, float(t_on_s), float(T0_C), float(q0_W_m2), dts)
+        prepare = getattr(self.estimate_fn, "prepare", None)
+        if prepare is not None:
+            n = int(math.floor(self.heat_s * self.rate_Hz + 1e-9))
+            if n >= 4:
+                prepare(np.arange(1, n + 1) / self.rate_Hz)
+
+    def update(self, t_s: float, dT_K: float, q_W_m2: float) -> RunningAnswer | None:
+        """One heating sample at ``t_s`` from heater-on (the record itself comes from :meth:`attach_record`)."""
+        if self._record is None or t_s < max(self._next_s, self.min_time_s):
+            return self.answer
+        self._next_s = t_s + self.every_s
+        ts, Ts, qs, t_on, T0, q0, dts = self._record
+        n = min(len(ts), len(Ts), len(qs))
+        t = np.asarray(ts[:n], float) - t_on
+        skew = np.asarray(dts[:n], float).reshape(-1, 2) if dts is not None and len(dts) >= n else None
+        try:
+            g_t, g_dT, g_q = resample_uniform(t, np.asarray(Ts[:n], float), np.asarray(qs[:n], float), T0, q0,
+                                              self.rate_Hz, t_s, self.T_age_s,
+                                              T_dt_s=None if skew is None else skew[:, 0],
+                                              q_dt_s=None if skew is None else skew[:, 1])
+            if g_t.size < 4:
+                return self.answer
+            d = self.estimate_fn(g_t, g_dT, g_q, self.q_v_W_m3, self.method)
+        except ValueError:   # a prefix the estimator cannot fit yet
+            return self.answer
+        finally:
+            self.fits += 1
+        if ESTIMATOR_BLOCKERS & set(d.get("flags") or ()):
+            return self.answer
+        rec = self.objects.classify_estimate(d)
+        if rec is None:
+            return self.answer
+        e, u = float(d["effusivity_W_s05_m2K"]), d.get("effusivity_W_s05_m2K_u")
+        u_ln_e = float(u) / e if u is not None and math.isfinite(float(u)) else float("inf")
+        return self._settle(RunningAnswer(rec.object, rec.object_posterior, t_s, e, u_ln_e, int(g_t.size),
+                                          cls=rec.cls, source=self.source))
