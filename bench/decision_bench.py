@@ -208,6 +208,135 @@ def run_faithful(touches: int, threshold: float, min_s: float, seed: int, object
     return out
 
 
+SMALL_HEAT_S = 2.0      # the small-heater probe's standard profile
+SMALL_RATE_Hz = 50.0    # its precision-board sampling (scene pmma_15V_small)
+
+
+def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, objects=IN_SET,
+                       fit_contact: bool = False) -> dict:
+    """Until-decided on the small-heater probe in the faithful (r, z) world against its fixed 2-s answer.
+
+    Every object's ``touches`` specimens are touched by the small-heater probe as built to its datasheet
+    (scene ``glass_15V_small``: 107 mW in the 5-mm heater), contact 1 s before heater-on, R_c drawn in
+    [0, 3e-5] m^2K/W, the object at the probe's temperature, 2 s of heating at 50 Hz, precision-board
+    noise.  Each record is answered by the device's own estimator (:class:`AxiEstimator` on the record
+    resampled as the device does) on the whole profile (fixed) and by
+    :class:`edge.measure.estimator_decision.EstimatorDecision` fed sample by sample (until decided; a
+    touch not decided by 2 s takes the fixed answer).  Objects are named with e and, where the touch
+    measured it, alpha.  Also reported: the refits' wall time, and how often the answer determined
+    k and alpha (what stopping early gives up).  ``fit_contact``: the estimator fits R_c too.
+    """
+    from edge.estimation.probe_estimate import AxiEstimator
+    from edge.measure.estimator_decision import EstimatorDecision
+    from edge.measure.signal import resample_uniform
+    from edge.physics.probe import HEATER_VOLUME_m3, volumetric_heat_W_m3
+    from firmware_sim.rigs.contact_record import ContactTouch, record_touch
+    from firmware_sim.rz.probe_world import geometry_for_probe
+    from firmware_sim.scene.files import read_scene
+
+    sc = read_scene("glass_15V_small")
+    power_W = sc.heater.supply_voltage_V ** 2 / sc.heater.resistance_ohm
+    geo = geometry_for_probe("small-heater")
+    axi = AxiEstimator(library_estimator(), "small-heater", fit_contact=fit_contact)
+    fit_s: list[float] = []
+
+    def estimate_fn(t, dT, q, q_v, method):   # the device's call (edge.service.estimator.ModelEstimator)
+        w = time.perf_counter()
+        d = axi.estimate(t, dT, q, power_W=q_v * HEATER_VOLUME_m3)
+        fit_s.append(time.perf_counter() - w)
+        return d
+    estimate_fn.prepare = axi.prepare
+
+    rng = np.random.default_rng(seed)
+    oset = ObjectSet(objects, label="tactile_bench IN_SET")
+    est = library_estimator()
+    rows = []
+    for obj in objects:
+        for _ in range(touches):
+            solid = _specimen(obj, rng, est)
+            rc = float(rng.uniform(0.0, 3e-5))
+            r = record_touch(ContactTouch(solid, rc, 0.0, lead_s=1.0, heat_s=SMALL_HEAT_S), geometry=geo,
+                             scene_name="glass_15V_small", dt_s=1.0 / SMALL_RATE_Hz,
+                             seed=int(rng.integers(1 << 31)))
+            t, T, q = r["t_s"], r["T_C"], r["q_W_m2"]
+            base = (t > -0.5) & (t <= 0)
+            T0, q0 = float(T[base].mean()), float(q[base].mean())
+            g = resample_uniform(t, T, q, T0, q0, SMALL_RATE_Hz, SMALL_HEAT_S)
+            n_fit = len(fit_s)
+            fixed_d = estimate_fn(*g, volumetric_heat_W_m3(power_W), "default")
+            del fit_s[n_fit:]              # the fixed answer's fit is not a refit
+            rec = oset.classify_estimate(fixed_d)
+            fixed = rec.object if rec is not None and not (
+                {"no_contact", "insufficient_signal"} & set(fixed_d.get("flags") or ())) else None
+            dec = EstimatorDecision(oset, threshold, min_s, estimate_fn=estimate_fn, rate_Hz=SMALL_RATE_Hz,
+                                    heat_s=SMALL_HEAT_S, power_W=power_W)
+            ts, Ts, qs = [], [], []
+            first = int(np.argmax(t > 0))
+            ts.extend(t[:first]), Ts.extend(T[:first]), qs.extend(q[:first])
+            dec.attach_record(ts, Ts, qs, 0.0, T0_C=T0, q0_W_m2=q0)
+            for a, b, c in zip(t[first:], T[first:], q[first:]):
+                ts.append(a), Ts.append(b), qs.append(c)
+                dec.update(a, b - T0, c - q0)
+                if dec.decided is not None:
+                    break
+            early = dec.decided is not None
+            if early:   # the result of a touch stopped there: the estimate of the record so far
+                g_e = resample_uniform(np.array(ts), np.array(Ts), np.array(qs), T0, q0, SMALL_RATE_Hz,
+                                       dec.decided.elapsed_s)
+                n_fit = len(fit_s)
+                early_d = estimate_fn(*g_e, volumetric_heat_W_m3(power_W), "default")
+                del fit_s[n_fit:]
+            rows.append(dict(object=obj.name, fixed=fixed, answer=dec.decided.object if early else fixed,
+                             early=early, t=dec.decided.elapsed_s if early else SMALL_HEAT_S,
+                             alpha_fixed="alpha" in (fixed_d.get("determined") or ()),
+                             alpha_answer="alpha" in ((early_d if early else fixed_d).get("determined") or ())))
+    ok = np.array([r["answer"] == r["object"] for r in rows])
+    fok = np.array([r["fixed"] == r["object"] for r in rows])
+    early = np.array([r["early"] for r in rows])
+    times = np.array([r["t"] for r in rows])
+    return dict(objects=len(objects), touches_per_object=touches, n=len(rows), threshold=threshold,
+                decide_min_s=min_s, fixed_contact_s=SMALL_HEAT_S, power_W=power_W, fit_contact=fit_contact,
+                fixed_accuracy=float(fok.mean()), until_decided_accuracy=float(ok.mean()),
+                median_decision_s=float(np.median(times)), decided_early=float(early.mean()),
+                accuracy_of_decided=float(ok[early].mean()) if early.any() else None,
+                wrong_early=int((early & ~ok).sum()),
+                alpha_determined_fixed=float(np.mean([r["alpha_fixed"] for r in rows])),
+                alpha_determined_until_decided=float(np.mean([r["alpha_answer"] for r in rows])),
+                refit_ms=dict(median=float(np.median(fit_s) * 1e3), p95=float(np.percentile(fit_s, 95) * 1e3),
+                              max=float(np.max(fit_s) * 1e3), n=len(fit_s)) if fit_s else None,
+                refits_per_touch=len(fit_s) / len(rows), rows=rows)
+
+
+def faithful_small_table(res: dict) -> str:
+    """The README block of :func:`run_faithful_small`."""
+    pct = lambda x: "-" if x is None else f"{x * 100:.0f} %"  # noqa: E731
+    f = res["refit_ms"]
+    per_object = {}
+    for r in res["rows"]:
+        per_object.setdefault(r["object"], []).append(r)
+    objs = " · ".join(f"{name} {sum(r['fixed'] == name for r in rs)}/{sum(r['answer'] == name for r in rs)}"
+                      for name, rs in per_object.items())
+    return "\n".join([
+        f"{res['n']} touches ({res['touches_per_object']} specimens of each of the {res['objects']} tactile objects) "
+        f"by the small-heater probe on the faithful world, precision board at {SMALL_RATE_Hz:g} Hz, threshold "
+        f"{res['threshold']:g} after {res['decide_min_s']:g} s"
+        + (", R_c fitted" if res.get("fit_contact") else "")
+        + f" (`python bench/decision_bench.py --world faithful --probe small-heater"
+        + (f" --fit-contact --touches {res['touches_per_object']}`):" if res.get("fit_contact")
+           else " --update-readme`):"), "",
+        "| answer | object accuracy | median heating | decided early | accuracy of early decisions "
+        "| wrong early decisions | α determined |", "|---|---|---|---|---|---|---|",
+        f"| fixed {res['fixed_contact_s']:g} s | {pct(res['fixed_accuracy'])} | {res['fixed_contact_s']:.2f} s | - | - "
+        f"| - | {pct(res['alpha_determined_fixed'])} |",
+        f"| until decided | {pct(res['until_decided_accuracy'])} | {res['median_decision_s']:.2f} s | "
+        f"{pct(res['decided_early'])} | {pct(res['accuracy_of_decided'])} | {res['wrong_early']} | "
+        f"{pct(res['alpha_determined_until_decided'])} |", "",
+        f"A refit of the record so far took {f['median']:.1f} ms (median; p95 {f['p95']:.1f} ms, max "
+        f"{f['max']:.1f} ms; {res['refits_per_touch']:.1f} per touch) on this machine. Right answers per object, "
+        f"fixed/until decided: {objs}.",
+    ])
+
+
 def faithful_table(res: dict) -> str:
     """The README block of :func:`run_faithful`."""
     pct = lambda x: "-" if x is None else f"{x * 100:.0f} %"  # noqa: E731
@@ -242,8 +371,22 @@ def main() -> None:
     p.add_argument("--seed", type=int, default=7)
     p.add_argument("--world", choices=("model", "faithful"), default="model",
                    help="the exact probe model (default) or the faithful (r, z) world with a calibrated chain")
+    p.add_argument("--probe", choices=("paper", "small-heater"), default="paper",
+                   help="with --world faithful: the probe (small-heater: its own estimator's running answer)")
+    p.add_argument("--fit-contact", action="store_true",
+                   help="with --probe small-heater: its estimator fits the contact resistance too (not the default)")
     p.add_argument("--update-readme", action="store_true", help="with --world faithful: rewrite its README block")
     a = p.parse_args()
+    if a.world == "faithful" and a.probe == "small-heater":
+        w = time.perf_counter()
+        res = run_faithful_small(a.touches, a.threshold, a.min_s, a.seed, fit_contact=a.fit_contact)
+        res["wall_s"] = round(time.perf_counter() - w, 1)
+        table = faithful_small_table(res)
+        print(table)
+        write_json("decision_faithful_small" + ("_rc" if a.fit_contact else ""), res)
+        if a.update_readme and not a.fit_contact:
+            update_readme("decision-faithful-small-bench", table)
+        return
     if a.world == "faithful":
         w = time.perf_counter()
         res = run_faithful(a.touches, a.threshold, a.min_s, a.seed)

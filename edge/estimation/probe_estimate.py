@@ -113,17 +113,21 @@ class AxiEstimator:
         Relative u below which the touch counts as having determined a quantity.
     max_models : int
         Time grids whose model is kept.
+    fit_contact : bool
+        Fit the contact resistance too (default: an ideal contact; freeing it costs alpha on most
+        touches and four times the fit time, ``bench/decision_bench.py --fit-contact``).
     """
 
     def __init__(self, estimator: Estimator, probe: ProbeGeometry | str = "small-heater", *,
                  sigma_T_K: float = 0.01, sigma_q_W_m2: float = 0.5, identifiable_u_rel: float = 0.30,
-                 max_models: int = 4) -> None:
+                 max_models: int = 4, fit_contact: bool = False) -> None:
         self.estimator = estimator
         self.geometry = get_probe(probe) if isinstance(probe, str) else probe
         self.sigma_T_K = float(sigma_T_K)
         self.sigma_q_W_m2 = float(sigma_q_W_m2)
         self.identifiable_u_rel = float(identifiable_u_rel)
         self.max_models = int(max_models)
+        self.fit_contact = bool(fit_contact)
         self._models: OrderedDict = OrderedDict()
 
     def _model(self, t: np.ndarray):
@@ -207,7 +211,8 @@ class AxiEstimator:
         sigma_T = math.hypot(self.sigma_T_K, T_resolution_K / math.sqrt(12.0))
         fitter = AxiFitter(self.geometry, t, sigma_T_K=sigma_T, sigma_q_W_m2=self.sigma_q_W_m2,
                            thickness_m=thickness_m, back=back if thickness_m is not None else "infinite",
-                           identifiable_u_rel=self.identifiable_u_rel, model=self._model(t))
+                           identifiable_u_rel=self.identifiable_u_rel, fit_contact=self.fit_contact,
+                           model=self._model(t))
         f = fitter.fit(T, q, power_W=power_W)
         # The fit scales its covariance by chi^2/dof. Below 1 (sensors quieter than the noise they are
         # weighted by) that would state k and alpha better than the sensors' specified noise allows, and

@@ -13,7 +13,8 @@ The running answer and the result are then one estimate at two lengths.
 
 Cost.  When heating starts the estimator builds its model for the touch's
 whole grid (``estimate_fn.prepare``); each refit works on that model's head,
-so it costs the fit alone (``python bench/daemon_bench.py`` reports it).
+so it costs the fit alone (``python bench/decision_bench.py --world faithful --probe small-heater``
+reports it: ~11 ms on this machine).
 
 NumPy only (edge runtime).
 """

@@ -134,6 +134,20 @@ def test_a_prefix_of_a_prepared_grid_is_fitted_on_its_head_and_agrees_with_its_o
         next(iter(axi._models.values())).head(0)
 
 
+def test_fit_contact_frees_the_contact_resistance_an_ideal_contact_fit_absorbs(shipped_estimator, rng):
+    # A steel-like solid under a dry contact: the ideal-contact fit reads R_c q as a lower effusivity.
+    steel = Solid(17.0, 7900.0, 500.0)
+    t = np.arange(101) * 0.02
+    T, q = AxisymModel(G, t).signals(steel.k_W_mK, steel.alpha_m2_s, contact_resistance_m2K_W=2e-5)
+    T, q = T + 0.002 * rng.standard_normal(t.size), q + 0.5 * rng.standard_normal(t.size)
+    e_true = steel.effusivity_W_s05_m2K
+    ideal = AxiEstimator(shipped_estimator, "small-heater").estimate(t, T, q)
+    free = AxiEstimator(shipped_estimator, "small-heater", fit_contact=True).estimate(t, T, q)
+    assert ideal["effusivity_W_s05_m2K"] < 0.8 * e_true
+    assert abs(free["effusivity_W_s05_m2K"] / e_true - 1) < abs(ideal["effusivity_W_s05_m2K"] / e_true - 1)
+    assert abs(math.log(free["effusivity_W_s05_m2K"] / e_true)) < 3 * free["effusivity_W_s05_m2K_u"] / e_true
+
+
 def test_fast_sampled_record_drops_the_first_milliseconds(axi, rng):
     # 500 Hz over 2 s spans 1000x in time; the model's contour is tuned for 250x, so the samples
     # before 8 ms are left out (they carry next to nothing on k and alpha).
