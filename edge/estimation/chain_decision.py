@@ -18,12 +18,13 @@ NumPy only (edge runtime).
 
 from __future__ import annotations
 
-from typing import Any
+import time
+from typing import Any, Callable
 
 import numpy as np
 
 from edge.estimation.chain_estimate import estimate_from_contact
-from edge.estimation.running import RunningAnswer, SequentialDecision
+from edge.estimation.running import RefitCadence, RunningAnswer, SequentialDecision
 
 __all__ = ["ChainDecision", "CHAIN_EVERY_s", "CHAIN_BLOCKERS"]
 
@@ -45,21 +46,25 @@ class ChainDecision(SequentialDecision):
     calibration : ProbeCalibration
         The installed calibration (the chain's parameters and their u).
     every_s : float
-        Heating time between fits (:data:`CHAIN_EVERY_s`).
+        Heating time between fits (:data:`CHAIN_EVERY_s`), stretched where a fit takes more than its
+        share (:class:`~edge.estimation.running.RefitCadence`).
+    timer : callable
+        Wall-clock seconds for the cadence (tests pass their own).
     """
 
     source = "sensor_chain"
 
     def __init__(self, object_set: Any, threshold: float, min_time_s: float, *, calibration: Any,
-                 every_s: float = CHAIN_EVERY_s) -> None:
+                 every_s: float = CHAIN_EVERY_s, timer: Callable[[], float] = time.perf_counter) -> None:
         super().__init__(object_set, threshold, min_time_s)
-        if not every_s > 0:
-            raise ValueError(f"every_s must be > 0, got {every_s!r}")
+        self.cadence = RefitCadence(every_s, min_time_s, timer=timer)
         self.calibration = calibration
-        self.every_s = float(every_s)
         self._record: tuple[list, list, list, float] | None = None
-        self._next_s = 0.0
-        self.fits = 0
+
+    @property
+    def fits(self) -> int:
+        """Chain fits made (one per ``every_s`` of heating at most)."""
+        return len(self.cadence.spent_s)
 
     def attach_record(self, t_s: list, T_C: list, q_W_m2: list, t_on_s: float, **_baseline: Any) -> None:
         """The sequence's record lists (appended in place; absolute clock times) and the heater-on time.
@@ -71,9 +76,11 @@ class ChainDecision(SequentialDecision):
 
     def update(self, t_s: float, dT_K: float, q_W_m2: float) -> RunningAnswer | None:
         """One heating sample (the record itself comes from :meth:`attach_record`)."""
-        if self._record is None or t_s < max(self._next_s, self.min_time_s):
+        if self._record is None or not self.cadence.due(t_s):
             return self.answer
-        self._next_s = t_s + self.every_s
+        return self.cadence.run(t_s, lambda: self._refit(t_s))
+
+    def _refit(self, t_s: float) -> RunningAnswer | None:
         ts, Ts, qs, t_on = self._record
         n = min(len(ts), len(Ts), len(qs))
         try:
@@ -81,8 +88,6 @@ class ChainDecision(SequentialDecision):
                                       np.asarray(qs[:n], float), self.calibration)
         except ValueError:  # a prefix the chain cannot fit yet (too few samples since contact)
             return self.answer
-        finally:
-            self.fits += 1
         e, u = d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u")
         if e is None or u is None or not e > 0 or CHAIN_BLOCKERS & set(d.get("flags") or ()):
             return self.answer

@@ -32,14 +32,16 @@ NumPy only (edge runtime).
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from edge.estimation.estimate import FLUX_CALIBRATION_U_REL, MIN_SNR, QUANTISATION_SAMPLES_PER_STEP
 
-__all__ = ["duhamel_m", "RunningEffusivity", "RunningAnswer", "SequentialDecision"]
+__all__ = ["duhamel_m", "RunningEffusivity", "RunningAnswer", "SequentialDecision", "RefitCadence",
+           "REFIT_MAX_SHARE"]
 
 _TWO_OVER_SQRT_PI = 2.0 / math.sqrt(math.pi)
 
@@ -206,3 +208,55 @@ class SequentialDecision:
             self.decided = ans
         self.answer = ans
         return ans
+
+
+#: Most of the heating time a running decision's refits may take.  They run in the sampling loop:
+#: a refit taking longer than its share stretches the interval to the next one, so a slower CPU
+#: (a Pi-class one runs them several times slower than the bench machine) refits less often
+#: instead of delaying the samples.
+REFIT_MAX_SHARE = 0.2
+
+
+class RefitCadence:
+    """When the next refit of a running decision is due.
+
+    Every ``every_s`` of heating from ``min_time_s`` on, and never sooner after a refit than
+    its own duration over ``max_share``.
+
+    Parameters
+    ----------
+    every_s : float
+        Heating time between refits when they are fast.
+    min_time_s : float
+        No refit before this much heating.
+    max_share : float
+        Largest share of the time the refits may take (:data:`REFIT_MAX_SHARE`).
+    timer : callable
+        Wall-clock seconds (``time.perf_counter``; a test passes its own).
+    """
+
+    def __init__(self, every_s: float, min_time_s: float = 0.0, *, max_share: float = REFIT_MAX_SHARE,
+                 timer: Callable[[], float] = time.perf_counter) -> None:
+        if not (math.isfinite(every_s) and every_s > 0):
+            raise ValueError(f"every_s must be finite and > 0, got {every_s!r}")
+        if not 0.0 < max_share <= 1.0:
+            raise ValueError(f"max_share must be in (0, 1], got {max_share!r}")
+        self.every_s, self.min_time_s, self.max_share = float(every_s), float(min_time_s), float(max_share)
+        self.timer = timer
+        self.next_s = 0.0
+        #: Wall time of each refit (s).
+        self.spent_s: list[float] = []
+
+    def due(self, t_s: float) -> bool:
+        """True when a refit is due at heating time ``t_s``."""
+        return t_s >= max(self.next_s, self.min_time_s)
+
+    def run(self, t_s: float, fit: Callable[[], Any]) -> Any:
+        """Run ``fit()`` at heating time ``t_s`` and schedule the next refit from its duration."""
+        start = self.timer()
+        try:
+            return fit()
+        finally:
+            spent = max(self.timer() - start, 0.0)
+            self.spent_s.append(spent)
+            self.next_s = t_s + max(self.every_s, spent / self.max_share)

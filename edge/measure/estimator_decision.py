@@ -21,19 +21,17 @@ NumPy only (edge runtime).
 
 from __future__ import annotations
 
-import logging
 import math
+import time
 from typing import Any, Callable
 
 import numpy as np
 
-from edge.estimation.running import RunningAnswer, SequentialDecision
+from edge.estimation.running import RefitCadence, RunningAnswer, SequentialDecision
 from edge.measure.signal import resample_uniform
 from edge.physics.probe import volumetric_heat_W_m3
 
 __all__ = ["EstimatorDecision", "ESTIMATOR_EVERY_s", "ESTIMATOR_BLOCKERS"]
-
-log = logging.getLogger(__name__)
 
 #: Heating time between two refits.  A small-heater fit on a prepared model takes ~11 ms on this
 #: machine and a few times that on a Pi-class CPU: one per 0.25 s keeps the sampling loop's budget
@@ -65,27 +63,34 @@ class EstimatorDecision(SequentialDecision):
     T_age_s : float
         Age of a thermocouple reading when read (as for the result's resampling).
     every_s : float
-        Heating time between refits (:data:`ESTIMATOR_EVERY_s`).
+        Heating time between refits (:data:`ESTIMATOR_EVERY_s`), stretched where a refit takes more
+        than its share (:class:`~edge.estimation.running.RefitCadence`).
+    timer : callable
+        Wall-clock seconds for the cadence (tests pass their own).
     """
 
     source = "device_estimate"
 
     def __init__(self, object_set: Any, threshold: float, min_time_s: float, *,
                  estimate_fn: Callable[..., dict], rate_Hz: float, heat_s: float, power_W: float,
-                 method: str = "default", T_age_s: float = 0.0, every_s: float = ESTIMATOR_EVERY_s) -> None:
+                 method: str = "default", T_age_s: float = 0.0, every_s: float = ESTIMATOR_EVERY_s,
+                 timer: Callable[[], float] = time.perf_counter) -> None:
         super().__init__(object_set, threshold, min_time_s, T_age_s=T_age_s)
-        for name, v in (("rate_Hz", rate_Hz), ("heat_s", heat_s), ("every_s", every_s)):
+        for name, v in (("rate_Hz", rate_Hz), ("heat_s", heat_s)):
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")
+        self.cadence = RefitCadence(every_s, min_time_s, timer=timer)
         self.estimate_fn = estimate_fn
-        self.rate_Hz, self.heat_s, self.every_s = float(rate_Hz), float(heat_s), float(every_s)
+        self.rate_Hz, self.heat_s = float(rate_Hz), float(heat_s)
         self.q_v_W_m3 = volumetric_heat_W_m3(power_W)
         self.method = method
         self.T_age_s = float(T_age_s)
         self._record: tuple | None = None
-        self._next_s = 0.0
-        #: Refits made (one per ``every_s`` of heating at most).
-        self.fits = 0
+
+    @property
+    def fits(self) -> int:
+        """Refits made (one per ``every_s`` of heating at most)."""
+        return len(self.cadence.spent_s)
 
     def attach_record(self, t_s: list, T_C: list, q_W_m2: list, t_on_s: float, *, T0_C: float | None = None,
                       q0_W_m2: float | None = None, dts: list | None = None) -> None:
@@ -105,9 +110,11 @@ class EstimatorDecision(SequentialDecision):
 
     def update(self, t_s: float, dT_K: float, q_W_m2: float) -> RunningAnswer | None:
         """One heating sample at ``t_s`` from heater-on (the record itself comes from :meth:`attach_record`)."""
-        if self._record is None or t_s < max(self._next_s, self.min_time_s):
+        if self._record is None or not self.cadence.due(t_s):
             return self.answer
-        self._next_s = t_s + self.every_s
+        return self.cadence.run(t_s, lambda: self._refit(t_s))
+
+    def _refit(self, t_s: float) -> RunningAnswer | None:
         ts, Ts, qs, t_on, T0, q0, dts = self._record
         n = min(len(ts), len(Ts), len(qs))
         t = np.asarray(ts[:n], float) - t_on
@@ -122,8 +129,6 @@ class EstimatorDecision(SequentialDecision):
             d = self.estimate_fn(g_t, g_dT, g_q, self.q_v_W_m3, self.method)
         except ValueError:   # a prefix the estimator cannot fit yet
             return self.answer
-        finally:
-            self.fits += 1
         if ESTIMATOR_BLOCKERS & set(d.get("flags") or ()):
             return self.answer
         rec = self.objects.classify_estimate(d)

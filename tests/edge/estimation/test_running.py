@@ -64,3 +64,29 @@ def test_no_decision_when_the_threshold_cannot_be_reached():
     d = SequentialDecision(_set(), 1.0, 0.3)
     _feed(d.running, touch)
     assert d.decided is None
+
+
+def test_refit_cadence_stretches_the_interval_when_a_refit_takes_more_than_its_share():
+    from edge.estimation.running import RefitCadence
+
+    now = [0.0]
+    cad = RefitCadence(0.1, 0.3, max_share=0.2, timer=lambda: now[0])
+
+    def fit(cost_s):
+        def f():
+            now[0] += cost_s
+            return "answer"
+        return f
+
+    assert not cad.due(0.29) and cad.due(0.3)
+    assert cad.run(0.3, fit(0.005)) == "answer"       # fast: the next one every_s later
+    assert cad.next_s == pytest.approx(0.4) and not cad.due(0.39) and cad.due(0.4)
+    cad.run(0.4, fit(0.05))                            # 50 ms: at most 20 % of the time -> 0.25 s later
+    assert cad.next_s == pytest.approx(0.65) and not cad.due(0.6)
+    with pytest.raises(RuntimeError):                  # a failing fit still counts and schedules
+        cad.run(0.7, lambda: (_ for _ in ()).throw(RuntimeError("boom")))
+    assert len(cad.spent_s) == 3 and cad.next_s == pytest.approx(0.8)
+    with pytest.raises(ValueError, match="every_s"):
+        RefitCadence(0.0)
+    with pytest.raises(ValueError, match="max_share"):
+        RefitCadence(0.1, max_share=0.0)

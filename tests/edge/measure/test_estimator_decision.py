@@ -79,6 +79,23 @@ def test_decides_at_the_threshold_after_the_minimum_time():
     assert dec.decided.elapsed_s >= 0.5 and dec.decided.posterior >= 0.9
 
 
+def test_a_slow_estimator_is_refitted_less_often_instead_of_delaying_the_samples():
+    now = [0.0]
+
+    class Slow(FakeEstimator):
+        def __call__(self, *a):
+            now[0] += 0.1         # 100 ms a fit, as on a slow CPU: 0.5 s between refits at most 20 %
+            return super().__call__(*a)
+
+    fast, slow = FakeEstimator(), Slow()
+    twins = SET.with_object(P("glass_twin", "glass", 1.0, 2500, 750))
+    for fn in (fast, slow):
+        run(EstimatorDecision(twins, 0.9, 0.3, estimate_fn=fn, rate_Hz=RATE_Hz, heat_s=2.0, power_W=0.1,
+                              every_s=0.25, timer=lambda: now[0]))
+    starts = [c[0][-1] for c in slow.calls]
+    assert np.all(np.diff(starts) >= 0.5 - 1e-9) and len(slow.calls) < len(fast.calls)
+
+
 @pytest.mark.parametrize("flags", [["insufficient_signal"], ["no_contact"], ["not_converged"]])
 def test_an_estimate_that_says_nothing_yet_gives_no_answer(flags):
     fn = FakeEstimator(flags=flags)
