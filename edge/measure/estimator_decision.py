@@ -135,6 +135,8 @@ class EstimatorDecision(SequentialDecision):
         if rec is None:
             return self.answer
         e, u = float(d["effusivity_W_s05_m2K"]), d.get("effusivity_W_s05_m2K_u")
-        u_ln_e = float(u) / e if u is not None and math.isfinite(float(u)) else float("inf")
+        if u is None or not (math.isfinite(float(u)) and float(u) > 0):
+            return self.answer       # an estimate without its uncertainty decides nothing (and STATUS is JSON)
+        u_ln_e = float(u) / e
         return self._settle(RunningAnswer(rec.object, rec.object_posterior, t_s, e, u_ln_e, int(g_t.size),
                                           cls=rec.cls, source=self.source))

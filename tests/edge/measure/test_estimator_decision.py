@@ -104,6 +104,19 @@ def test_an_estimate_that_says_nothing_yet_gives_no_answer(flags):
     assert fn.calls and all(a is None for a in answers) and dec.decided is None
 
 
+def test_an_estimate_without_its_uncertainty_gives_no_answer():
+    class NoU(FakeEstimator):
+        def __call__(self, *a):
+            d = super().__call__(*a)
+            d["effusivity_W_s05_m2K_u"] = None
+            return d
+
+    fn = NoU()
+    dec = EstimatorDecision(SET, 0.5, 0.3, estimate_fn=fn, rate_Hz=RATE_Hz, heat_s=1.0, power_W=0.1)
+    answers = run(dec, heat_s=1.0)
+    assert fn.calls and all(a is None for a in answers)
+
+
 def test_a_prefix_the_estimator_cannot_fit_yet_is_skipped_and_the_next_one_answers():
     fn = FakeEstimator(fail_below=20)
     dec = EstimatorDecision(SET, 1.0, 0.3, estimate_fn=fn, rate_Hz=RATE_Hz, heat_s=1.0, power_W=0.1)
