@@ -58,6 +58,7 @@ with ``status = "aborted"`` and ``reason``.
 from __future__ import annotations
 
 import logging
+import math
 import os
 import sqlite3
 import threading
@@ -178,6 +179,18 @@ class _UnavailableStore:
     def install(self, *args: Any, **kw: Any) -> Any:
         raise InstallError(f"model store {self.root} unavailable: {self.error}")
 
+
+
+def _non_finite_to_none(x: Any, path: str, bad: list[str]) -> Any:
+    """``x`` with every non-finite float (NaN, inf) replaced by None, their paths appended to ``bad``."""
+    if isinstance(x, float) and not math.isfinite(x):
+        bad.append(path)
+        return None
+    if isinstance(x, Mapping):
+        return {k: _non_finite_to_none(v, f"{path}.{k}", bad) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_non_finite_to_none(v, f"{path}[{j}]", bad) for j, v in enumerate(x)]
+    return x
 
 class Daemon:
     """Request handler and measurement owner for one board.
@@ -435,11 +448,22 @@ class Daemon:
         except HistoryError as e:
             err: Exception = e
         except (ValueError, TypeError) as e:
-            # Something in it the database refuses (e.g. a NaN in the estimator's result):
-            # keep the measurement, drop the part that cannot be stored, say so.
-            log.error("record not storable as is (%s); storing it without its result", e)
-            rec = dict(rec, result=None, flags=[str(f) for f in rec.get("flags") or []],
-                       error=f"{rec.get('error') or ''}; result not storable: {e}".lstrip("; "))
+            # Something in it the database refuses (e.g. a NaN in the estimator's result): keep the
+            # measurement and as much of its result as can be stored, say what was dropped.
+            bad: list[str] = []
+            result = _non_finite_to_none(rec.get("result"), "result", bad)
+            flags = [str(f) for f in rec.get("flags") or []]
+            err = None
+            if bad:
+                log.error("record not storable as is (%s); storing it with %s as null", e, ", ".join(bad))
+                try:
+                    return self.history.add(dict(rec, result=result, flags=flags, error=(
+                        f"{rec.get('error') or ''}; not finite, stored as null: {', '.join(bad)}").lstrip("; ")))
+                except (HistoryError, ValueError, TypeError) as e2:
+                    err = e2
+            log.error("record not storable as is (%s); storing it without its result", err or e)
+            rec = dict(rec, result=None, flags=flags,
+                       error=f"{rec.get('error') or ''}; result not storable: {err or e}".lstrip("; "))
             try:
                 return self.history.add(rec)
             except (HistoryError, ValueError, TypeError) as e2:

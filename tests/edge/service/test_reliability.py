@@ -266,13 +266,34 @@ def test_a_crash_after_heating_that_is_not_a_value_error_still_stores_the_record
     assert_heater_safe(rig.parts, MAX_ON)
 
 
-def test_an_unstorable_result_is_stored_without_it(tmp_path):
+def test_a_non_finite_value_in_the_result_is_stored_as_null_and_named(tmp_path):
     class NanEstimator(FakeEstimator):
         def __call__(self, *args):
-            return {**super().__call__(*args), "effusivity_W_s05_m2K": float("nan")}
+            d = super().__call__(*args)
+            return {**d, "effusivity_W_s05_m2K_u": float("nan"), "fit": {"trace": [1.0, float("inf")]}}
 
     rig = make_rig()
     with Daemon(sim_config(tmp_path), rig.board, estimator=NanEstimator()) as d:
+        rec = d.measure(contact_time_s=0.5)
+        stored = d.history.get(1)
+    assert rec["measurement_id"] == 1
+    for r in (rec, stored):
+        # The rest of the result is kept: the estimate is not lost with its one bad number.
+        assert r["result"]["effusivity_W_s05_m2K"] > 0 and r["result"]["effusivity_W_s05_m2K_u"] is None
+        assert r["result"]["fit"]["trace"] == [1.0, None]
+        assert "result.effusivity_W_s05_m2K_u" in r["error"] and "result.fit.trace[1]" in r["error"]
+
+
+def test_an_unstorable_result_is_stored_without_it(tmp_path):
+    class Unstorable:
+        pass
+
+    class OddEstimator(FakeEstimator):
+        def __call__(self, *args):
+            return {**super().__call__(*args), "extra": Unstorable()}
+
+    rig = make_rig()
+    with Daemon(sim_config(tmp_path), rig.board, estimator=OddEstimator()) as d:
         rec = d.measure(contact_time_s=0.5)
         assert rec["measurement_id"] == 1 and rec["result"] is None and "not storable" in rec["error"]
 
