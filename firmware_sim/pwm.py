@@ -134,6 +134,12 @@ class SimSysfsIO:
         self._tree._io_write(Path(path), str(text))
 
 
+
+def _remove_tree(root: str, owner_pid: int) -> None:
+    """Remove a simulated sysfs tree, in the process that created it only."""
+    if os.getpid() == owner_pid:
+        shutil.rmtree(root, ignore_errors=True)
+
 class SimPwmTree:
     """A sysfs PWM class directory backed by a simulated PWM controller.
 
@@ -171,8 +177,9 @@ class SimPwmTree:
         self.root.mkdir(parents=True, exist_ok=True)
         # A tree nobody closed (a simulator dropped mid-test, a session ended by an exception) is
         # still removed when the object is collected or the interpreter exits: ten thousand
-        # leaked trees had piled up in /tmp before this.
-        self._cleanup = (weakref.finalize(self, shutil.rmtree, str(self.root), ignore_errors=True)
+        # leaked trees had piled up in /tmp before this.  Only by the process that made it: a forked
+        # child (a test's daemon) inherits the parent's trees, and its collector must not delete them.
+        self._cleanup = (weakref.finalize(self, _remove_tree, str(self.root), os.getpid())
                          if self._owns_root else None)
         self._lock = threading.RLock()
         self._npwm = chips

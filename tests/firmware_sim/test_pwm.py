@@ -2,6 +2,7 @@
 
 import errno
 import gc
+import os
 
 import pytest
 
@@ -67,6 +68,30 @@ def test_a_tree_nobody_closed_is_removed_when_it_is_collected():
     del t, clock  # the clock holds the tree's advance hook: both go
     gc.collect()
     assert not root.exists()
+
+
+def test_a_forked_child_never_removes_its_parents_trees():
+    # A test's daemon runs in a forked child that inherits the parent's simulator objects; its
+    # collector running their finalizers deleted the parent's files (and, counted as file operations,
+    # made the kill-point tests nondeterministic).
+    clock = VirtualClock()
+    t = SimPwmTree(clock)
+    root = t.root
+    pid = os.fork()
+    if pid == 0:   # the child drops and collects its copy, then leaves without running exit handlers
+        code = 0
+        try:
+            del t, clock  # the clock holds the tree's advance hook: both go
+            gc.collect()
+        except BaseException:
+            code = 1
+        finally:
+            os._exit(code)
+    _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0
+    assert root.is_dir() and (root / "pwmchip0").is_dir()
+    t.close()
+    assert not root.exists() and clock is not None
 
 
 def test_a_caller_supplied_root_is_never_removed(tmp_path):
