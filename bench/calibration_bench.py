@@ -27,7 +27,7 @@ flagged ``poor_fit`` is refused and counted apart), coverage of the stated 95 % 
 (|error| <= 1.96 u), R_c inside its 95 % interval, share flagged.
 
 Run:  python bench/calibration_bench.py [--geometry 1d paper] [--heat 10] [--board precision|reference]
-      [--probes 8] [--solids 20] [--update-readme]
+      [--probes 8] [--solids 20] [--cal-smooth-growth N] [--update-readme]
 Writes bench/results/calibration.json (calibration_reference.json for the reference board); about 7 min.
 """
 
@@ -86,8 +86,17 @@ def main() -> None:
     ap.add_argument("--solids", type=int, default=len(SOLIDS), help="first N of the 20 solids")
     ap.add_argument("--probes", type=int, default=len(PROBES), help="first N of the 8 as-built probes")
     ap.add_argument("--board", choices=("precision", "reference"), default="precision")
+    ap.add_argument("--cal-smooth-growth", type=int, default=None,
+                    help="the calibration fit's smoothing growth (edge.calibration.fit.CAL_SMOOTH_GROWTH), to compare")
     ap.add_argument("--update-readme", action="store_true")
     args = ap.parse_args()
+    if args.cal_smooth_growth is not None:
+        import edge.calibration.fit as cal_fit
+        if args.cal_smooth_growth < 1:
+            ap.error("--cal-smooth-growth must be >= 1")
+        if args.update_readme:
+            ap.error("--cal-smooth-growth is for comparison; the README shows the shipped value")
+        cal_fit.CAL_SMOOTH_GROWTH = args.cal_smooth_growth
     from edge.calibration.fit import REFERENCE_U_REL, ReferenceTouch, fit_calibration
     from edge.estimation.chain_estimate import estimate_from_contact
     from edge.physics.materials import load_materials

@@ -215,12 +215,13 @@ SMOOTH_HALF_WIDTH_s = 0.5
 SMOOTH_GROWTH = 6
 
 
-def _smooth_from_contact(x: np.ndarray, h_max: int, breaks: tuple[int, ...] = ()) -> np.ndarray:
+def _smooth_from_contact(x: np.ndarray, h_max: int, breaks: tuple[int, ...] = (),
+                         growth: int = SMOOTH_GROWTH) -> np.ndarray:
     """Centred moving average whose half-width grows from 0 at each segment's start to ``h_max``.
 
     Segments start at contact (sample 0) and at each of ``breaks`` (the heater switching: theta_b's
     slope jumps there, and an average across it would bend it by far more than the noise it removes).
-    Within a segment the half-width is j // SMOOTH_GROWTH at its j-th sample -- narrow where a transient is fast,
+    Within a segment the half-width is j // ``growth`` at its j-th sample -- narrow where a transient is fast,
     wide where theta_b is smooth -- and shrinks symmetrically toward the segment's end.
     """
     n = x.size
@@ -231,7 +232,7 @@ def _smooth_from_contact(x: np.ndarray, h_max: int, breaks: tuple[int, ...] = ()
     c = np.concatenate(([0.0], np.cumsum(x)))
     for a, b in zip(edges[:-1], edges[1:]):
         i = np.arange(a, b)
-        h = np.minimum(np.minimum((i - a) // SMOOTH_GROWTH, h_max), b - 1 - i)
+        h = np.minimum(np.minimum((i - a) // growth, h_max), b - 1 - i)
         out[a:b] = (c[i + h + 1] - c[i - h]) / (2 * h + 1)
     return out
 
@@ -249,7 +250,8 @@ class _Prepared:
 
 
 def _prepare(t_s, T_tc_C, q_m_W_m2, cal: SensorChainCalibration, T_probe0_C, fit_start_s,
-             breaks_s: tuple[float, ...] = (), smooth_s: float = SMOOTH_HALF_WIDTH_s) -> _Prepared:
+             breaks_s: tuple[float, ...] = (), smooth_s: float = SMOOTH_HALF_WIDTH_s,
+             smooth_growth: int = SMOOTH_GROWTH) -> _Prepared:
     t = np.asarray(t_s, dtype=np.float64)
     T = np.asarray(T_tc_C, dtype=np.float64)
     q = np.asarray(q_m_W_m2, dtype=np.float64) * cal.flux_scale
@@ -271,7 +273,7 @@ def _prepare(t_s, T_tc_C, q_m_W_m2, cal: SensorChainCalibration, T_probe0_C, fit
         theta = y + cal.tc_tau_s * np.gradient(y, dt)
         theta[0] = 0.0
     breaks = tuple(int(round(b / dt)) for b in breaks_s)
-    theta = _smooth_from_contact(theta, int(round(smooth_s / dt)), breaks)
+    theta = _smooth_from_contact(theta, int(round(smooth_s / dt)), breaks, smooth_growth)
     return _Prepared(t, y, (t - t[0]) >= fit_start_s, dt, Tp0, _apply(KA, q), KB, theta)
 
 
@@ -296,14 +298,16 @@ def face_flux(t_s, T_tc_C, q_m_W_m2, calibration: SensorChainCalibration = Senso
 
 def chain_design(t_s, T_tc_C, q_m_W_m2, calibration: SensorChainCalibration = SensorChainCalibration(), *,
                  T_probe0_C: float | None = None, fit_start_s: float = 0.3,
-                 breaks_s: tuple[float, ...] = (), disk: tuple[float, float] | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
+                 breaks_s: tuple[float, ...] = (), disk: tuple[float, float] | None = None,
+                 smooth_growth: int = SMOOTH_GROWTH) -> tuple[np.ndarray, np.ndarray]:
     """The first-pass linear model of :func:`fit_sensor_chain` on its fitted samples: ``y ~ X @ (dT_obj0, R_c, 1/e)``.
 
     For calibration, where e is known and the chain's parameters are sought: (X, y), X of shape (m, 3)
-    with columns 1, phi_face and Duhamel(phi_face), each through the bead lag.
+    with columns 1, phi_face and Duhamel(phi_face), each through the bead lag.  ``smooth_growth``:
+    see :data:`SMOOTH_GROWTH`.
     """
-    c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, T_probe0_C, fit_start_s, breaks_s)
+    c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, T_probe0_C, fit_start_s, breaks_s,
+                 smooth_growth=smooth_growth)
     phi = c.phiA - _apply(c.KB, c.theta)
     X = _lag(np.column_stack((np.ones_like(c.t), phi, _response(phi, c.dt, disk))), c.dt, calibration.tc_tau_s)
     return X[c.fit], c.y[c.fit]
