@@ -34,7 +34,7 @@ from edge.estimation.objects import ObjectSet
 from edge.estimation.running import SequentialDecision
 from edge.measure.instrument import INSTRUMENTS
 from host.evaluate import TouchSimulator
-from host.recognition import _specimen, library_estimator
+from host.recognition import _specimen, _specimens, library_estimator
 from tactile_bench import IN_SET
 
 FIXED_S = 1.5
@@ -133,51 +133,49 @@ def run_faithful(touches: int, threshold: float, min_s: float, seed: int, object
     oset = ObjectSet(objects, label="tactile_bench IN_SET")
     est = library_estimator()
     rows = []
-    for obj in objects:
-        for _ in range(touches):
-            solid = _specimen(obj, rng, est)
-            rc, off = float(rng.uniform(0.0, 3e-5)), float(rng.uniform(-2.0, 2.0))
-            r = record_touch(ContactTouch(solid, rc, off, lead_s=1.0, heat_s=max(CONTACT_TIMES_S)), as_built=ab,
-                             seed=int(rng.integers(1 << 31)))
-            t_all, T_all, q_all = r["t_s"], r["T_C"], r["q_W_m2"]
-            # Each contact time is the record's prefix (the heating is a step): the calibrated chain's answer.
-            # (as the running decision, no answer where the chain flags that it does not describe the record).
-            by_ct = {}
-            for ct in CONTACT_TIMES_S:
-                m = t_all <= ct + 1e-9
-                c = estimate_from_contact(t_all[m], T_all[m], q_all[m], cal)
-                rec = None if CHAIN_BLOCKERS & set(c.get("flags") or ()) else oset.classify_estimate(c)
-                by_ct[str(ct)] = dict(object=rec.object if rec else None,
-                                      u=(c.get("effusivity_W_s05_m2K_u") or 0.0) / c["effusivity_W_s05_m2K"]
-                                      if rec else None)
-            chain_fixed = by_ct[str(FIXED_S)]["object"]
-            keep = t_all <= FIXED_S + 1e-9
-            t, T, q = t_all[keep], T_all[keep], q_all[keep]
-            base = (t > -0.5) & (t <= 0)
-            T0, q0 = float(T[base].mean()), float(q[base].mean())
-            heat = t > 0
-            try:
-                rec = oset.classify_estimate(est.estimate(t[heat], T[heat] - T0, q[heat] - q0).to_dict())
-                raw_fixed = rec.object if rec else None
-            except ValueError:
-                raw_fixed = None
-            raw = SequentialDecision(oset, threshold, min_s)
-            chain = ChainDecision(oset, threshold, min_s, calibration=cal)
-            ts, Ts, qs = [], [], []
-            chain.attach_record(ts, Ts, qs, 0.0)
-            for a, b, cq in zip(t, T, q):
-                ts.append(a), Ts.append(b), qs.append(cq)
-                if a > 0:
-                    if raw.decided is None:
-                        raw.update(a, b - T0, cq - q0)
-                    if chain.decided is None:
-                        chain.update(a, b - T0, cq - q0)
-            row = dict(object=obj.name, by_contact_time=by_ct)
-            for kind, dec, fixed in (("raw", raw, raw_fixed), ("chain", chain, chain_fixed)):
-                early = dec.decided is not None
-                row[kind] = dict(fixed=fixed, answer=dec.decided.object if early else fixed, early=early,
-                                 t=dec.decided.elapsed_s if early else FIXED_S)
-            rows.append(row)
+    for _, obj, solid in _specimens(objects, touches, rng, est):
+        rc, off = float(rng.uniform(0.0, 3e-5)), float(rng.uniform(-2.0, 2.0))
+        r = record_touch(ContactTouch(solid, rc, off, lead_s=1.0, heat_s=max(CONTACT_TIMES_S)), as_built=ab,
+                         seed=int(rng.integers(1 << 31)))
+        t_all, T_all, q_all = r["t_s"], r["T_C"], r["q_W_m2"]
+        # Each contact time is the record's prefix (the heating is a step): the calibrated chain's answer.
+        # (as the running decision, no answer where the chain flags that it does not describe the record).
+        by_ct = {}
+        for ct in CONTACT_TIMES_S:
+            m = t_all <= ct + 1e-9
+            c = estimate_from_contact(t_all[m], T_all[m], q_all[m], cal)
+            rec = None if CHAIN_BLOCKERS & set(c.get("flags") or ()) else oset.classify_estimate(c)
+            by_ct[str(ct)] = dict(object=rec.object if rec else None,
+                                  u=(c.get("effusivity_W_s05_m2K_u") or 0.0) / c["effusivity_W_s05_m2K"]
+                                  if rec else None)
+        chain_fixed = by_ct[str(FIXED_S)]["object"]
+        keep = t_all <= FIXED_S + 1e-9
+        t, T, q = t_all[keep], T_all[keep], q_all[keep]
+        base = (t > -0.5) & (t <= 0)
+        T0, q0 = float(T[base].mean()), float(q[base].mean())
+        heat = t > 0
+        try:
+            rec = oset.classify_estimate(est.estimate(t[heat], T[heat] - T0, q[heat] - q0).to_dict())
+            raw_fixed = rec.object if rec else None
+        except ValueError:
+            raw_fixed = None
+        raw = SequentialDecision(oset, threshold, min_s)
+        chain = ChainDecision(oset, threshold, min_s, calibration=cal)
+        ts, Ts, qs = [], [], []
+        chain.attach_record(ts, Ts, qs, 0.0)
+        for a, b, cq in zip(t, T, q):
+            ts.append(a), Ts.append(b), qs.append(cq)
+            if a > 0:
+                if raw.decided is None:
+                    raw.update(a, b - T0, cq - q0)
+                if chain.decided is None:
+                    chain.update(a, b - T0, cq - q0)
+        row = dict(object=obj.name, by_contact_time=by_ct)
+        for kind, dec, fixed in (("raw", raw, raw_fixed), ("chain", chain, chain_fixed)):
+            early = dec.decided is not None
+            row[kind] = dict(fixed=fixed, answer=dec.decided.object if early else fixed, early=early,
+                             t=dec.decided.elapsed_s if early else FIXED_S)
+        rows.append(row)
     out = dict(objects=len(objects), touches_per_object=touches, n=len(rows), threshold=threshold, decide_min_s=min_s,
                fixed_contact_s=FIXED_S, probe=list(PROBES[probe]), calibration_floor=cal.u_rel_floor)
     for kind in ("raw", "chain"):
@@ -251,45 +249,43 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
     oset = ObjectSet(objects, label="tactile_bench IN_SET")
     est = library_estimator()
     rows = []
-    for obj in objects:
-        for _ in range(touches):
-            solid = _specimen(obj, rng, est)
-            rc = float(rng.uniform(0.0, 3e-5))
-            r = record_touch(ContactTouch(solid, rc, 0.0, lead_s=1.0, heat_s=SMALL_HEAT_S), geometry=geo,
-                             scene_name="glass_15V_small", dt_s=1.0 / SMALL_RATE_Hz,
-                             seed=int(rng.integers(1 << 31)))
-            t, T, q = r["t_s"], r["T_C"], r["q_W_m2"]
-            base = (t > -0.5) & (t <= 0)
-            T0, q0 = float(T[base].mean()), float(q[base].mean())
-            g = resample_uniform(t, T, q, T0, q0, SMALL_RATE_Hz, SMALL_HEAT_S)
+    for _, obj, solid in _specimens(objects, touches, rng, est):
+        rc = float(rng.uniform(0.0, 3e-5))
+        r = record_touch(ContactTouch(solid, rc, 0.0, lead_s=1.0, heat_s=SMALL_HEAT_S), geometry=geo,
+                         scene_name="glass_15V_small", dt_s=1.0 / SMALL_RATE_Hz,
+                         seed=int(rng.integers(1 << 31)))
+        t, T, q = r["t_s"], r["T_C"], r["q_W_m2"]
+        base = (t > -0.5) & (t <= 0)
+        T0, q0 = float(T[base].mean()), float(q[base].mean())
+        g = resample_uniform(t, T, q, T0, q0, SMALL_RATE_Hz, SMALL_HEAT_S)
+        n_fit = len(fit_s)
+        fixed_d = estimate_fn(*g, volumetric_heat_W_m3(power_W), "default")
+        del fit_s[n_fit:]              # the fixed answer's fit is not a refit
+        rec = oset.classify_estimate(fixed_d)
+        fixed = rec.object if rec is not None and not (
+            {"no_contact", "insufficient_signal"} & set(fixed_d.get("flags") or ())) else None
+        dec = EstimatorDecision(oset, threshold, min_s, estimate_fn=estimate_fn, rate_Hz=SMALL_RATE_Hz,
+                                heat_s=SMALL_HEAT_S, power_W=power_W)
+        ts, Ts, qs = [], [], []
+        first = int(np.argmax(t > 0))
+        ts.extend(t[:first]), Ts.extend(T[:first]), qs.extend(q[:first])
+        dec.attach_record(ts, Ts, qs, 0.0, T0_C=T0, q0_W_m2=q0)
+        for a, b, c in zip(t[first:], T[first:], q[first:]):
+            ts.append(a), Ts.append(b), qs.append(c)
+            dec.update(a, b - T0, c - q0)
+            if dec.decided is not None:
+                break
+        early = dec.decided is not None
+        if early:   # the result of a touch stopped there: the estimate of the record so far
+            g_e = resample_uniform(np.array(ts), np.array(Ts), np.array(qs), T0, q0, SMALL_RATE_Hz,
+                                   dec.decided.elapsed_s)
             n_fit = len(fit_s)
-            fixed_d = estimate_fn(*g, volumetric_heat_W_m3(power_W), "default")
-            del fit_s[n_fit:]              # the fixed answer's fit is not a refit
-            rec = oset.classify_estimate(fixed_d)
-            fixed = rec.object if rec is not None and not (
-                {"no_contact", "insufficient_signal"} & set(fixed_d.get("flags") or ())) else None
-            dec = EstimatorDecision(oset, threshold, min_s, estimate_fn=estimate_fn, rate_Hz=SMALL_RATE_Hz,
-                                    heat_s=SMALL_HEAT_S, power_W=power_W)
-            ts, Ts, qs = [], [], []
-            first = int(np.argmax(t > 0))
-            ts.extend(t[:first]), Ts.extend(T[:first]), qs.extend(q[:first])
-            dec.attach_record(ts, Ts, qs, 0.0, T0_C=T0, q0_W_m2=q0)
-            for a, b, c in zip(t[first:], T[first:], q[first:]):
-                ts.append(a), Ts.append(b), qs.append(c)
-                dec.update(a, b - T0, c - q0)
-                if dec.decided is not None:
-                    break
-            early = dec.decided is not None
-            if early:   # the result of a touch stopped there: the estimate of the record so far
-                g_e = resample_uniform(np.array(ts), np.array(Ts), np.array(qs), T0, q0, SMALL_RATE_Hz,
-                                       dec.decided.elapsed_s)
-                n_fit = len(fit_s)
-                early_d = estimate_fn(*g_e, volumetric_heat_W_m3(power_W), "default")
-                del fit_s[n_fit:]
-            rows.append(dict(object=obj.name, fixed=fixed, answer=dec.decided.object if early else fixed,
-                             early=early, t=dec.decided.elapsed_s if early else SMALL_HEAT_S,
-                             alpha_fixed="alpha" in (fixed_d.get("determined") or ()),
-                             alpha_answer="alpha" in ((early_d if early else fixed_d).get("determined") or ())))
+            early_d = estimate_fn(*g_e, volumetric_heat_W_m3(power_W), "default")
+            del fit_s[n_fit:]
+        rows.append(dict(object=obj.name, fixed=fixed, answer=dec.decided.object if early else fixed,
+                         early=early, t=dec.decided.elapsed_s if early else SMALL_HEAT_S,
+                         alpha_fixed="alpha" in (fixed_d.get("determined") or ()),
+                         alpha_answer="alpha" in ((early_d if early else fixed_d).get("determined") or ())))
     ok = np.array([r["answer"] == r["object"] for r in rows])
     fok = np.array([r["fixed"] == r["object"] for r in rows])
     early = np.array([r["early"] for r in rows])
