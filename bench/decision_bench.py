@@ -239,11 +239,15 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
     fit_s: list[float] = []
 
     def estimate_fn(t, dT, q, q_v, method):   # the device's call (edge.service.estimator.ModelEstimator)
+        return axi.estimate(t, dT, q, power_W=q_v * HEATER_VOLUME_m3)
+
+    def refit(*args):                          # the decision's refits, timed
         w = time.perf_counter()
-        d = axi.estimate(t, dT, q, power_W=q_v * HEATER_VOLUME_m3)
+        d = estimate_fn(*args)
         fit_s.append(time.perf_counter() - w)
         return d
-    estimate_fn.prepare = axi.prepare
+    refit.prepare = axi.prepare
+    q_v = volumetric_heat_W_m3(power_W)
 
     rng = np.random.default_rng(seed)
     oset = ObjectSet(objects, label="tactile_bench IN_SET")
@@ -258,13 +262,10 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
         base = (t > -0.5) & (t <= 0)
         T0, q0 = float(T[base].mean()), float(q[base].mean())
         g = resample_uniform(t, T, q, T0, q0, SMALL_RATE_Hz, SMALL_HEAT_S)
-        n_fit = len(fit_s)
-        fixed_d = estimate_fn(*g, volumetric_heat_W_m3(power_W), "default")
-        del fit_s[n_fit:]              # the fixed answer's fit is not a refit
-        rec = oset.classify_estimate(fixed_d)
-        fixed = rec.object if rec is not None and not (
-            {"no_contact", "insufficient_signal"} & set(fixed_d.get("flags") or ())) else None
-        dec = EstimatorDecision(oset, threshold, min_s, estimate_fn=estimate_fn, rate_Hz=SMALL_RATE_Hz,
+        fixed_d = estimate_fn(*g, q_v, "default")
+        rec = oset.classify_estimate(fixed_d)    # None where the estimate refused (no e)
+        fixed = rec.object if rec is not None else None
+        dec = EstimatorDecision(oset, threshold, min_s, estimate_fn=refit, rate_Hz=SMALL_RATE_Hz,
                                 heat_s=SMALL_HEAT_S, power_W=power_W)
         ts, Ts, qs = [], [], []
         first = int(np.argmax(t > 0))
@@ -279,9 +280,7 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
         if early:   # the result of a touch stopped there: the estimate of the record so far
             g_e = resample_uniform(np.array(ts), np.array(Ts), np.array(qs), T0, q0, SMALL_RATE_Hz,
                                    dec.decided.elapsed_s)
-            n_fit = len(fit_s)
-            early_d = estimate_fn(*g_e, volumetric_heat_W_m3(power_W), "default")
-            del fit_s[n_fit:]
+            early_d = estimate_fn(*g_e, q_v, "default")
         rows.append(dict(object=obj.name, fixed=fixed, answer=dec.decided.object if early else fixed,
                          early=early, t=dec.decided.elapsed_s if early else SMALL_HEAT_S,
                          alpha_fixed="alpha" in (fixed_d.get("determined") or ()),

@@ -382,8 +382,13 @@ class MeasurementSequence:
                 t_on = self.clock.monotonic()
                 self.heater.on_power(params.power_W)
                 if decider is not None and hasattr(decider, "attach_record"):
-                    # A decider on the sensor chain fits the record from contact on, not only the heating.
-                    decider.attach_record(ts, Ts, qs, t_on, T0_C=T0_run, q0_W_m2=q0_run, dts=dts)
+                    # A decider that refits the record (the sensor chain from contact on, the small
+                    # heater's estimator) gets the record lists; failing, it ends the running answer only.
+                    try:
+                        decider.attach_record(ts, Ts, qs, t_on, T0_C=T0_run, q0_W_m2=q0_run, dts=dts)
+                    except Exception:
+                        log.exception("running decision unavailable; heating goes on without it")
+                        decider = None
                 guard = self.watchdog.guard_s
                 for k in range(int(math.floor(heat_s * params.sample_rate_Hz + 1e-9)) + 1):
                     self._wait(t_on + k * period)

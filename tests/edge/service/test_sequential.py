@@ -144,6 +144,30 @@ def test_until_decided_on_the_small_heater_decides_on_the_devices_own_estimate(t
         sim.close()
 
 
+@pytest.mark.parametrize("where", ["attach_record", "update"])
+def test_a_failing_running_decision_never_fails_the_touch(tmp_path, where):
+    sim, d = _daemon("glass_15V_small", tmp_path, object_set=lambda: SET)
+    make = d._make_decision
+
+    def broken(params):
+        dec = make(params)
+
+        def boom(*a, **kw):
+            raise RuntimeError("decision bug")
+        setattr(dec, where, boom)
+        return dec
+    d._make_decision = broken
+    d.sequence = None
+    try:
+        rec = d.measure(until_decided=True)
+        assert rec["status"] == "ok" and "decided" not in rec["flags"]
+        assert rec["result"]["object"] == "glass" and "decision" not in rec["result"]
+        assert rec["heater_on_s"] == pytest.approx(measure_params(d.config, 1.0).contact_time_s, abs=0.05)
+    finally:
+        d.close()
+        sim.close()
+
+
 def test_a_calibrated_device_decides_on_the_sensor_chain(tmp_path):
     from edge.estimation.chain_decision import ChainDecision
     from edge.estimation.running import SequentialDecision
