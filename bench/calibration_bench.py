@@ -131,7 +131,10 @@ def main() -> None:
                 refs.append(ReferenceTouch(name, lib.get(name).solid.effusivity_W_s05_m2K, r["t_s"], r["T_C"],
                                            r["q_W_m2"]))
             cal = fit_calibration(refs, created_utc="bench")
-            cals[f"{geo_name}/{pi}"] = {"chain": cal.to_dict()["chain"], "u_theta": cal.u_theta.tolist(),
+            # The fitted sensing depth against the as-built one, in units of its stated u (ln depth).
+            depth_err = math.log(cal.chain.sensing_thickness_m / ab.sensing_thickness_m)
+            cals[f"{geo_name}/{pi}"] = {"depth_err_rel": depth_err, "depth_z": depth_err / float(cal.u_theta[1]),
+                                        "chain": cal.to_dict()["chain"], "u_theta": cal.u_theta.tolist(),
                                         "u_rel_floor": cal.u_rel_floor,
                                         "references": [x.to_dict() for x in cal.references]}
             for si, name in enumerate(SOLIDS[:args.solids]):
@@ -182,10 +185,21 @@ def main() -> None:
                              f"{sm['p90_abs_err']:.1%} | {sm['coverage_95']:.0%} | {sm['R_c_determined']:.0%} | "
                              f"{sm['R_c_in_95']:.0%} / {_pct(sm['R_c_in_95_determined'])} | "
                              f"{sm['flagged_uncalibrated']:.0%} |")
+    for g in args.geometry:
+        c = [v for k, v in cals.items() if k.startswith(f"{g}/")]
+        dz = np.array([v["depth_err_rel"] for v in c])
+        u = np.array([v["u_theta"][1] for v in c])
+        out["summary"][f"{g}/depth"] = {"mean_err": float(dz.mean()), "sd_err": float(dz.std(ddof=1)),
+                                        "median_u": float(np.median(u))}
+        lines.append("")
+        lines.append(f"Calibrated sensing depth against the as-built one ({g}): mean {dz.mean():+.1%}, "
+                     f"sd {dz.std(ddof=1):.1%} over the {len(c)} probes; stated u {np.median(u):.1%} (median).")
     table = "\n".join(lines)
     print(table)
     RESULTS.mkdir(exist_ok=True)
     suffix = "" if args.board == "precision" else f"_{args.board}"
+    if args.cal_smooth_growth is not None:   # a comparison run: beside the shipped results, not over them
+        suffix += f"_growth{args.cal_smooth_growth}"
     (RESULTS / f"calibration{suffix}.json").write_text(json.dumps(out, indent=1, default=float))
     if args.update_readme:
         cmd = "python bench/calibration_bench.py" + ("" if args.board == "precision" else f" --board {args.board}")
