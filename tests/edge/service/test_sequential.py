@@ -146,7 +146,8 @@ def test_until_decided_on_the_small_heater_decides_on_the_devices_own_estimate(t
 
 @pytest.mark.parametrize("where", ["attach_record", "update"])
 def test_a_failing_running_decision_never_fails_the_touch(tmp_path, where):
-    sim, d = _daemon("glass_15V_small", tmp_path, object_set=lambda: SET)
+    # The sequence hands its record to any decision that takes one (attach_record), then feeds it.
+    sim, d = _daemon("pmma_15V", tmp_path, object_set=lambda: SET)
     make = d._make_decision
 
     def broken(params):
@@ -161,8 +162,8 @@ def test_a_failing_running_decision_never_fails_the_touch(tmp_path, where):
     try:
         rec = d.measure(until_decided=True)
         assert rec["status"] == "ok" and "decided" not in rec["flags"]
-        assert rec["result"]["object"] == "glass" and "decision" not in rec["result"]
-        assert rec["heater_on_s"] == pytest.approx(measure_params(d.config, 1.0).contact_time_s, abs=0.05)
+        assert rec["result"]["object"] == "pmma" and "decision" not in rec["result"]
+        assert rec["heater_on_s"] == pytest.approx(measure_params(d.config, d.heater.max_power_W).contact_time_s, abs=0.05)
     finally:
         d.close()
         sim.close()
