@@ -220,8 +220,12 @@ REFIT_MAX_SHARE = 0.2
 class RefitCadence:
     """When the next refit of a running decision is due.
 
-    Every ``every_s`` of heating from ``min_time_s`` on, and never sooner after a refit than
-    its own duration over ``max_share``.
+    Every ``every_s`` of heating from ``min_time_s`` on, and never sooner after a refit than the
+    refits' cost over ``max_share``.  The cost is the shorter of the last two refits after the
+    first: the first pays one-time costs (imports, caches: a few times a warm refit in a fresh
+    ``thermotouch measure --sim``), and one slow refit (a cold start, a collector pause) must not
+    end the running answer for the rest of the touch -- it once stretched the next refit past the
+    end of a 2-s touch.
 
     Parameters
     ----------
@@ -257,6 +261,7 @@ class RefitCadence:
         try:
             return fit()
         finally:
-            spent = max(self.timer() - start, 0.0)
-            self.spent_s.append(spent)
-            self.next_s = t_s + max(self.every_s, spent / self.max_share)
+            self.spent_s.append(max(self.timer() - start, 0.0))
+            recent = self.spent_s[1:][-2:]
+            cost = min(recent) if recent else 0.0
+            self.next_s = t_s + max(self.every_s, cost / self.max_share)

@@ -79,13 +79,17 @@ def test_refit_cadence_stretches_the_interval_when_a_refit_takes_more_than_its_s
         return f
 
     assert not cad.due(0.29) and cad.due(0.3)
-    assert cad.run(0.3, fit(0.005)) == "answer"       # fast: the next one every_s later
+    assert cad.run(0.3, fit(2.0)) == "answer"         # the first pays one-time costs: not a measure
     assert cad.next_s == pytest.approx(0.4) and not cad.due(0.39) and cad.due(0.4)
     cad.run(0.4, fit(0.05))                            # 50 ms: at most 20 % of the time -> 0.25 s later
     assert cad.next_s == pytest.approx(0.65) and not cad.due(0.6)
+    cad.run(0.65, fit(0.06))                           # the shorter of the last two: 50 ms again
+    assert cad.next_s == pytest.approx(0.9)
+    cad.run(0.9, fit(1.0))                             # one slow refit (a pause) does not stop them
+    assert cad.next_s == pytest.approx(0.9 + 0.06 / 0.2)
     with pytest.raises(RuntimeError):                  # a failing fit still counts and schedules
-        cad.run(0.7, lambda: (_ for _ in ()).throw(RuntimeError("boom")))
-    assert len(cad.spent_s) == 3 and cad.next_s == pytest.approx(0.8)
+        cad.run(1.2, lambda: (_ for _ in ()).throw(RuntimeError("boom")))
+    assert len(cad.spent_s) == 5 and cad.next_s == pytest.approx(1.3)
     with pytest.raises(ValueError, match="every_s"):
         RefitCadence(0.0)
     with pytest.raises(ValueError, match="max_share"):
