@@ -24,7 +24,7 @@ from typing import Any, Callable
 import numpy as np
 
 from edge.estimation.chain_estimate import estimate_from_contact
-from edge.estimation.running import RefitCadence, RunningAnswer, SequentialDecision
+from edge.estimation.running import RefitDecision, RunningAnswer
 
 __all__ = ["ChainDecision", "CHAIN_EVERY_s", "CHAIN_BLOCKERS"]
 
@@ -36,7 +36,7 @@ CHAIN_EVERY_s = 0.1
 CHAIN_BLOCKERS = frozenset({"poor_fit", "contact_lost", "no_contact", "no_fit", "not_converged"})
 
 
-class ChainDecision(SequentialDecision):
+class ChainDecision(RefitDecision):
     """Sequential decision on the calibrated sensor chain's running estimate.
 
     Parameters
@@ -56,15 +56,8 @@ class ChainDecision(SequentialDecision):
 
     def __init__(self, object_set: Any, threshold: float, min_time_s: float, *, calibration: Any,
                  every_s: float = CHAIN_EVERY_s, timer: Callable[[], float] = time.perf_counter) -> None:
-        super().__init__(object_set, threshold, min_time_s)
-        self.cadence = RefitCadence(every_s, min_time_s, timer=timer)
+        super().__init__(object_set, threshold, min_time_s, every_s=every_s, timer=timer)
         self.calibration = calibration
-        self._record: tuple[list, list, list, float] | None = None
-
-    @property
-    def fits(self) -> int:
-        """Chain fits made (one per ``every_s`` of heating at most)."""
-        return len(self.cadence.spent_s)
 
     def attach_record(self, t_s: list, T_C: list, q_W_m2: list, t_on_s: float, **_baseline: Any) -> None:
         """The sequence's record lists (appended in place; absolute clock times) and the heater-on time.
@@ -74,12 +67,6 @@ class ChainDecision(SequentialDecision):
         """
         self._record = (t_s, T_C, q_W_m2, float(t_on_s))
 
-    def update(self, t_s: float, dT_K: float, q_W_m2: float) -> RunningAnswer | None:
-        """One heating sample (the record itself comes from :meth:`attach_record`)."""
-        if self._record is None or not self.cadence.due(t_s):
-            return self.answer
-        return self.cadence.run(t_s, lambda: self._refit(t_s))
-
     def _refit(self, t_s: float) -> RunningAnswer | None:
         ts, Ts, qs, t_on = self._record
         n = min(len(ts), len(Ts), len(qs))
@@ -88,7 +75,7 @@ class ChainDecision(SequentialDecision):
                                       np.asarray(qs[:n], float), self.calibration)
         except ValueError:  # a prefix the chain cannot fit yet (too few samples since contact)
             return self.answer
-        e, u = d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u")
-        if e is None or u is None or not e > 0 or CHAIN_BLOCKERS & set(d.get("flags") or ()):
+        u_ln_e = self.u_ln_e(d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u"))
+        if u_ln_e is None or CHAIN_BLOCKERS & set(d.get("flags") or ()):
             return self.answer
-        return self._answer(t_s, float(e), float(u) / float(e), n)
+        return self._answer(t_s, float(d["effusivity_W_s05_m2K"]), u_ln_e, n)

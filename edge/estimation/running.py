@@ -41,7 +41,7 @@ import numpy as np
 from edge.estimation.estimate import FLUX_CALIBRATION_U_REL, MIN_SNR, QUANTISATION_SAMPLES_PER_STEP
 
 __all__ = ["duhamel_m", "RunningEffusivity", "RunningAnswer", "SequentialDecision", "RefitCadence",
-           "REFIT_MAX_SHARE"]
+           "RefitDecision", "REFIT_MAX_SHARE"]
 
 _TWO_OVER_SQRT_PI = 2.0 / math.sqrt(math.pi)
 
@@ -265,3 +265,53 @@ class RefitCadence:
             recent = self.spent_s[1:][-2:]
             cost = min(recent) if recent else 0.0
             self.next_s = t_s + max(self.every_s, cost / self.max_share)
+
+
+class RefitDecision(SequentialDecision):
+    """A sequential decision that refits the record so far, on a :class:`RefitCadence`.
+
+    The base of the decisions that need more than the heating samples
+    (:class:`edge.estimation.chain_decision.ChainDecision`,
+    :class:`edge.measure.estimator_decision.EstimatorDecision`): the sequence hands them its
+    record lists (``attach_record``, which stores them in ``_record``), and :meth:`update` calls
+    ``_refit(t_s)`` whenever the cadence says a refit is due.
+
+    Parameters
+    ----------
+    object_set, threshold, min_time_s
+        As for :class:`SequentialDecision`.
+    every_s : float
+        Heating time between refits when they are fast.
+    timer : callable
+        Wall-clock seconds for the cadence (tests pass their own).
+    """
+
+    def __init__(self, object_set: Any, threshold: float, min_time_s: float, *, every_s: float,
+                 timer: Callable[[], float] = time.perf_counter) -> None:
+        super().__init__(object_set, threshold, min_time_s)
+        self.cadence = RefitCadence(every_s, min_time_s, timer=timer)
+        self._record: tuple | None = None
+
+    @property
+    def fits(self) -> int:
+        """Refits made (one per ``every_s`` of heating at most)."""
+        return len(self.cadence.spent_s)
+
+    def update(self, t_s: float, dT_K: float, q_W_m2: float) -> RunningAnswer | None:
+        """One heating sample at ``t_s`` from heater-on (the record itself comes from ``attach_record``)."""
+        if self._record is None or not self.cadence.due(t_s):
+            return self.answer
+        return self.cadence.run(t_s, lambda: self._refit(t_s))
+
+    def _refit(self, t_s: float) -> RunningAnswer | None:
+        raise NotImplementedError
+
+    @staticmethod
+    def u_ln_e(e: Any, u: Any) -> float | None:
+        """u(e)/e of a refit's estimate, or None where it decides nothing: no e, or no finite u (STATUS is JSON)."""
+        if e is None or u is None:
+            return None
+        e, u = float(e), float(u)
+        if not (math.isfinite(e) and e > 0 and math.isfinite(u) and u > 0):
+            return None
+        return u / e

@@ -14,7 +14,7 @@ The running answer and the result are then one estimate at two lengths.
 Cost.  When heating starts the estimator builds its model for the touch's
 whole grid (``estimate_fn.prepare``); each refit works on that model's head,
 so it costs the fit alone (``python bench/decision_bench.py --world faithful --probe small-heater``
-reports it: ~11 ms on this machine).
+reports it: about 12 ms on this machine).
 
 NumPy only (edge runtime).
 """
@@ -27,13 +27,13 @@ from typing import Any, Callable
 
 import numpy as np
 
-from edge.estimation.running import RefitCadence, RunningAnswer, SequentialDecision
+from edge.estimation.running import RefitDecision, RunningAnswer
 from edge.measure.signal import resample_uniform
 from edge.physics.probe import volumetric_heat_W_m3
 
 __all__ = ["EstimatorDecision", "ESTIMATOR_EVERY_s", "ESTIMATOR_BLOCKERS"]
 
-#: Heating time between two refits.  A small-heater fit on a prepared model takes ~11 ms on this
+#: Heating time between two refits.  A small-heater fit on a prepared model takes ~12 ms on this
 #: machine and a few times that on a Pi-class CPU: one per 0.25 s keeps the sampling loop's budget
 #: (its samples are 20 ms apart) and answers within a quarter second of when the record allows.
 ESTIMATOR_EVERY_s = 0.25
@@ -41,7 +41,7 @@ ESTIMATOR_EVERY_s = 0.25
 ESTIMATOR_BLOCKERS = frozenset({"no_contact", "insufficient_signal", "not_converged", "saturated", "no_fit"})
 
 
-class EstimatorDecision(SequentialDecision):
+class EstimatorDecision(RefitDecision):
     """Sequential decision on the device estimator's refit of the record so far.
 
     Parameters
@@ -75,22 +75,15 @@ class EstimatorDecision(SequentialDecision):
                  estimate_fn: Callable[..., dict], rate_Hz: float, heat_s: float, power_W: float,
                  method: str = "default", T_age_s: float = 0.0, every_s: float = ESTIMATOR_EVERY_s,
                  timer: Callable[[], float] = time.perf_counter) -> None:
-        super().__init__(object_set, threshold, min_time_s, T_age_s=T_age_s)
+        super().__init__(object_set, threshold, min_time_s, every_s=every_s, timer=timer)
         for name, v in (("rate_Hz", rate_Hz), ("heat_s", heat_s)):
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")
-        self.cadence = RefitCadence(every_s, min_time_s, timer=timer)
         self.estimate_fn = estimate_fn
         self.rate_Hz, self.heat_s = float(rate_Hz), float(heat_s)
         self.q_v_W_m3 = volumetric_heat_W_m3(power_W)
         self.method = method
         self.T_age_s = float(T_age_s)
-        self._record: tuple | None = None
-
-    @property
-    def fits(self) -> int:
-        """Refits made (one per ``every_s`` of heating at most)."""
-        return len(self.cadence.spent_s)
 
     def attach_record(self, t_s: list, T_C: list, q_W_m2: list, t_on_s: float, *, T0_C: float | None = None,
                       q0_W_m2: float | None = None, dts: list | None = None) -> None:
@@ -107,12 +100,6 @@ class EstimatorDecision(SequentialDecision):
             n = int(math.floor(self.heat_s * self.rate_Hz + 1e-9))
             if n >= 4:
                 prepare(np.arange(1, n + 1) / self.rate_Hz)
-
-    def update(self, t_s: float, dT_K: float, q_W_m2: float) -> RunningAnswer | None:
-        """One heating sample at ``t_s`` from heater-on (the record itself comes from :meth:`attach_record`)."""
-        if self._record is None or not self.cadence.due(t_s):
-            return self.answer
-        return self.cadence.run(t_s, lambda: self._refit(t_s))
 
     def _refit(self, t_s: float) -> RunningAnswer | None:
         ts, Ts, qs, t_on, T0, q0, dts = self._record
@@ -131,12 +118,9 @@ class EstimatorDecision(SequentialDecision):
             return self.answer
         if ESTIMATOR_BLOCKERS & set(d.get("flags") or ()):
             return self.answer
-        rec = self.objects.classify_estimate(d)
+        u_ln_e = self.u_ln_e(d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u"))
+        rec = self.objects.classify_estimate(d) if u_ln_e is not None else None
         if rec is None:
             return self.answer
-        e, u = float(d["effusivity_W_s05_m2K"]), d.get("effusivity_W_s05_m2K_u")
-        if u is None or not (math.isfinite(float(u)) and float(u) > 0):
-            return self.answer       # an estimate without its uncertainty decides nothing (and STATUS is JSON)
-        u_ln_e = float(u) / e
-        return self._settle(RunningAnswer(rec.object, rec.object_posterior, t_s, e, u_ln_e, int(g_t.size),
-                                          cls=rec.cls, source=self.source))
+        return self._settle(RunningAnswer(rec.object, rec.object_posterior, t_s, float(d["effusivity_W_s05_m2K"]),
+                                          u_ln_e, int(g_t.size), cls=rec.cls, source=self.source))
