@@ -94,3 +94,13 @@ def test_refit_cadence_stretches_the_interval_when_a_refit_takes_more_than_its_s
         RefitCadence(0.0)
     with pytest.raises(ValueError, match="max_share"):
         RefitCadence(0.1, max_share=0.0)
+
+
+@pytest.mark.parametrize("e, u, want", [(1000.0, 20.0, 0.02), (None, 20.0, None), (1000.0, None, None),
+                                        (1000.0, float("inf"), None), (1000.0, float("nan"), None),
+                                        (0.0, 20.0, None), (float("inf"), 20.0, None), (1000.0, 0.0, None)])
+def test_a_refit_decides_only_on_an_estimate_with_a_finite_e_and_u(e, u, want):
+    from edge.estimation.running import RefitDecision
+
+    got = RefitDecision.u_ln_e(e, u)
+    assert got == (pytest.approx(want) if want is not None else None)
