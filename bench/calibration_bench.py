@@ -27,7 +27,7 @@ flagged ``poor_fit`` is refused and counted apart), coverage of the stated 95 % 
 (|error| <= 1.96 u), R_c inside its 95 % interval, share flagged.
 
 Run:  python bench/calibration_bench.py [--geometry 1d paper] [--heat 10] [--board precision|reference]
-      [--probes 8] [--solids 20] [--cal-smooth-growth N] [--update-readme]
+      [--probes 8] [--solids 20] [--cal-smooth-growth N] [--noise-bias-draws N] [--update-readme]
 Writes bench/results/calibration.json (calibration_reference.json for the reference board); about 7 min.
 """
 
@@ -88,8 +88,16 @@ def main() -> None:
     ap.add_argument("--board", choices=("precision", "reference"), default="precision")
     ap.add_argument("--cal-smooth-growth", type=int, default=None,
                     help="the calibration fit's smoothing growth (edge.calibration.fit.CAL_SMOOTH_GROWTH), to compare")
+    ap.add_argument("--noise-bias-draws", type=int, default=None,
+                    help="antithetic noise pairs of the calibration's noise-bias correction "
+                         "(edge.calibration.fit.NOISE_BIAS_DRAWS; 0: none), to compare")
     ap.add_argument("--update-readme", action="store_true")
     args = ap.parse_args()
+    if args.noise_bias_draws is not None:
+        if args.noise_bias_draws < 0:
+            ap.error("--noise-bias-draws must be >= 0")
+        if args.update_readme:
+            ap.error("--noise-bias-draws is for comparison; the README shows the shipped value")
     if args.cal_smooth_growth is not None:
         import edge.calibration.fit as cal_fit
         if args.cal_smooth_growth < 1:
@@ -130,7 +138,8 @@ def main() -> None:
                                  geometry=geo, seed=1000 * pi + j, board=args.board)
                 refs.append(ReferenceTouch(name, lib.get(name).solid.effusivity_W_s05_m2K, r["t_s"], r["T_C"],
                                            r["q_W_m2"]))
-            cal = fit_calibration(refs, created_utc="bench")
+            cal = fit_calibration(refs, created_utc="bench", **({} if args.noise_bias_draws is None else
+                                                               {"noise_bias_draws": args.noise_bias_draws}))
             # The fitted sensing depth against the as-built one, in units of its stated u (ln depth).
             depth_err = math.log(cal.chain.sensing_thickness_m / ab.sensing_thickness_m)
             cals[f"{geo_name}/{pi}"] = {"depth_err_rel": depth_err, "depth_z": depth_err / float(cal.u_theta[1]),
@@ -200,6 +209,8 @@ def main() -> None:
     suffix = "" if args.board == "precision" else f"_{args.board}"
     if args.cal_smooth_growth is not None:   # a comparison run: beside the shipped results, not over them
         suffix += f"_growth{args.cal_smooth_growth}"
+    if args.noise_bias_draws is not None:
+        suffix += f"_draws{args.noise_bias_draws}"
     (RESULTS / f"calibration{suffix}.json").write_text(json.dumps(out, indent=1, default=float))
     if args.update_readme:
         cmd = "python bench/calibration_bench.py" + ("" if args.board == "precision" else f" --board {args.board}")

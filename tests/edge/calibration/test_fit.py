@@ -99,3 +99,41 @@ def test_the_nominal_prior_keeps_an_unresolvable_parameter_at_its_datasheet_spre
     prior = ProbeCalibration.nominal()
     assert cal.u_theta[2] <= prior.u_theta[2] * 1.0001
     assert np.all(np.isfinite(cal.covariance))
+
+
+def _noisy_refs(noise_T_K: float, seed0: int):
+    """Two touches per reference with a noisy thermocouple (the reference board's MCP9600 reads ~25 mK)."""
+    out = []
+    for i, (name, rc) in enumerate((("pmma", 0.0), ("pmma", 1e-5), ("pyroceram", 1e-5), ("pyroceram", 0.0),
+                                     ("aisi_304", 0.0), ("aisi_304", 1e-5))):
+        t, T, q = _touch(E[name], rc, 0.0, seed=seed0 + i, noise=False)
+        rng = np.random.default_rng(seed0 + 100 + i)
+        out.append(ReferenceTouch(name, E[name], t, T + noise_T_K * rng.standard_normal(T.size),
+                                  q + 0.3 * rng.standard_normal(q.size)))
+    return out
+
+
+def test_the_noise_bias_correction_undoes_most_of_the_depth_pull_of_a_noisy_thermocouple():
+    # A noisy thermocouple pulls the fitted sensing depth low (errors in variables through the storage
+    # term); the correction measures that pull on the chain's own records and undoes most of it.  The
+    # yardstick is the same touches without noise (these short references leave the depth to +-4 %).
+    clean = fit_calibration(_noisy_refs(0.0, 300), noise_bias_draws=0)
+    refs = _noisy_refs(0.03, 300)
+    raw = fit_calibration(refs, noise_bias_draws=0)
+    cal = fit_calibration(refs)
+    pull_raw, pull_cal = raw.theta[1] - clean.theta[1], cal.theta[1] - clean.theta[1]
+    assert pull_raw < -cal.u_theta[1], (pull_raw, cal.u_theta[1])      # the pull is there, beyond 1 u
+    assert abs(pull_cal) < 0.5 * abs(pull_raw), (pull_cal, pull_raw)
+    # The correction's own scatter is in the covariance: no parameter claims less than before.
+    assert np.all(cal.u_theta >= raw.u_theta * (1 - 1e-12))
+
+
+def test_a_calibration_is_reproducible_and_the_correction_is_optional():
+    # Seeded noise: the same touches give the same calibration, byte for byte (one pair is enough to see it).
+    refs = _refs()
+    a, b = (fit_calibration(refs, created_utc="t", noise_bias_draws=1) for _ in range(2))
+    assert a.sha256 == b.sha256
+    assert fit_calibration(refs, created_utc="t", noise_bias_draws=0).sha256 != a.sha256
+    for bad in (-1, 1.5, "3"):
+        with pytest.raises(ValueError, match="noise_bias_draws"):
+            fit_calibration(refs, noise_bias_draws=bad)
