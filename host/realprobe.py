@@ -31,7 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-__all__ = ["AS_BUILT", "REFERENCE_TOUCHES", "TEST_TOUCHES", "run_real_probe"]
+__all__ = ["AS_BUILT", "REFERENCE_TOUCHES", "TEST_TOUCHES", "calibrate_probe", "measure_nine", "run_real_probe"]
 
 #: The demonstration's probe as built ([as_built] of every scene).
 AS_BUILT = {"sensing_thickness_factor": 1.05, "sensing_k_factor": 0.96, "flux_sensitivity_factor": 1.04,
@@ -116,10 +116,10 @@ def _touch(out_dir: Path, workdir: Path, name: str, touch: Touch, seed: int, wit
     return {"record": rec, "series": series}
 
 
-def run_real_probe(out_dir: str | Path, *, say: Callable[[str], None] = print) -> dict[str, Any]:
-    """Calibrate the demonstration probe, install the calibration, measure the paper's materials.
+def calibrate_probe(scenes: Path, workdir: Path, *, say: Callable[[str], None] = print):
+    """Touch the three references with the demonstration probe, fit its calibration and install it.
 
-    Returns the calibration (its dict) and one row per test touch.
+    Returns the :class:`edge.calibration.model.ProbeCalibration`.
     """
     import numpy as np  # noqa: PLC0415
 
@@ -128,12 +128,7 @@ def run_real_probe(out_dir: str | Path, *, say: Callable[[str], None] = print) -
     from host.calibration import install_calibration  # noqa: PLC0415
     from host.device import open_device  # noqa: PLC0415
 
-    out = Path(out_dir)
-    scenes, workdir = out / "scenes", out / "probe"
-    scenes.mkdir(parents=True, exist_ok=True)
-    workdir.mkdir(parents=True, exist_ok=True)
     lib = load_materials()
-    say(f"as-built probe (never told to the device): {', '.join(f'{k} {v:g}' for k, v in AS_BUILT.items())}")
     refs = []
     for i, tc in enumerate(REFERENCE_TOUCHES):
         got = _touch(scenes, workdir, f"ref_{tc.material}", tc, 100 + i, with_series=True)
@@ -144,8 +139,6 @@ def run_real_probe(out_dir: str | Path, *, say: Callable[[str], None] = print) -
                                    t[keep], T[keep], q[keep]))
         say(f"reference {tc.material:<10} touched: {int(keep.sum())} samples, "
             f"{(got['record']['result'] or {}).get('sensor_chain', {}).get('contact_t_s', float('nan')):+.2f} s contact")
-    from edge.estimation.chain_estimate import estimate_from_contact  # noqa: PLC0415
-
     cal = fit_calibration(refs, probe="paper")
     say(f"calibration {cal.sha256[:12]}: sensitivity x {1 / cal.chain.flux_scale:.3f}, depth "
         f"{cal.chain.sensing_thickness_m * 1e3:.3f} mm, layer k {cal.chain.k_W_mK:.3f}, lag "
@@ -153,12 +146,25 @@ def run_real_probe(out_dir: str | Path, *, say: Callable[[str], None] = print) -
     with open_device(None, str(scenes / f"ref_{REFERENCE_TOUCHES[0].material}.toml"), workdir=workdir,
                      timeout_s=10.0) as session:
         install_calibration(session.client, cal)
+    return cal
+
+
+def measure_nine(scenes: Path, workdir: Path, *, seed: int = 200, say: Callable[[str], None] | None = print,
+                 ) -> list[dict[str, Any]]:
+    """Touch the paper's nine (:data:`TEST_TOUCHES`) with the device's installed calibration.
+
+    Scene i's noise is seeded ``seed + i``.  One row per touch: the default method's e, the
+    datasheet chain's (recomputed on the host from the raw record) and the device's calibrated chain.
+    """
+    import numpy as np  # noqa: PLC0415
+
+    from edge.estimation.chain_estimate import estimate_from_contact  # noqa: PLC0415
+    from edge.physics.materials import load_materials  # noqa: PLC0415
+
+    lib = load_materials()
     rows = []
-    say("")
-    say(f"{'object':<16} {'V':>3} {'true e':>7} | {'default':>8} | {'chain, datasheet':>19} | "
-        f"{'chain, calibrated':>19} | flags")
     for i, tc in enumerate(TEST_TOUCHES):
-        got = _touch(scenes, workdir, f"test_{i}_{tc.material}", tc, 200 + i, with_series=True)
+        got = _touch(scenes, workdir, f"test_{i}_{tc.material}", tc, seed + i, with_series=True)
         rec, s = got["record"], got["series"]
         t, T, q = (np.asarray(s[k], float) for k in ("raw_t_s", "raw_T_C", "raw_q_W_m2"))
         keep = np.isfinite(t) & np.isfinite(T) & np.isfinite(q)
@@ -175,17 +181,38 @@ def run_real_probe(out_dir: str | Path, *, say: Callable[[str], None] = print) -
                "uncalibrated": nominal, "calibrated": (rec.get("result") or {}).get("sensor_chain", {}),
                "flags": rec.get("flags")}
         rows.append(row)
+        if say is not None:
+            d = row["default"]
+            dtxt = f"{d / e_true - 1:+7.1%}" if d else "   -   "
+            say(f"{tc.material:<16} {tc.voltage_V:3.0f} {e_true:7.0f} | {dtxt:>8} | {_cell(row['uncalibrated'], e_true)} | "
+                f"{_cell(row['calibrated'], e_true)} | {', '.join(row['calibrated'].get('flags') or []) or '-'}")
+    return rows
 
-        def cell(c: dict) -> str:
-            e, u = c.get("effusivity_W_s05_m2K"), c.get("effusivity_W_s05_m2K_u")
-            if e is None or u is None:
-                return f"{'refused':>19}"
-            return f"{e:7.0f} ± {u:4.0f} {e / e_true - 1:+6.1%}"
 
-        d = row["default"]
-        dtxt = f"{d / e_true - 1:+7.1%}" if d else "   -   "
-        say(f"{tc.material:<16} {tc.voltage_V:3.0f} {e_true:7.0f} | {dtxt:>8} | {cell(row['uncalibrated'])} | "
-            f"{cell(row['calibrated'])} | {', '.join(row['calibrated'].get('flags') or []) or '-'}")
+def _cell(c: dict, e_true: float) -> str:
+    e, u = c.get("effusivity_W_s05_m2K"), c.get("effusivity_W_s05_m2K_u")
+    if e is None or u is None:
+        return f"{'refused':>19}"
+    return f"{e:7.0f} ± {u:4.0f} {e / e_true - 1:+6.1%}"
+
+
+def run_real_probe(out_dir: str | Path, *, say: Callable[[str], None] = print) -> dict[str, Any]:
+    """Calibrate the demonstration probe, install the calibration, measure the paper's materials.
+
+    Returns the calibration (its dict) and one row per test touch.
+    """
+    import numpy as np  # noqa: PLC0415
+
+    out = Path(out_dir)
+    scenes, workdir = out / "scenes", out / "probe"
+    scenes.mkdir(parents=True, exist_ok=True)
+    workdir.mkdir(parents=True, exist_ok=True)
+    say(f"as-built probe (never told to the device): {', '.join(f'{k} {v:g}' for k, v in AS_BUILT.items())}")
+    cal = calibrate_probe(scenes, workdir, say=say)
+    say("")
+    say(f"{'object':<16} {'V':>3} {'true e':>7} | {'default':>8} | {'chain, datasheet':>19} | "
+        f"{'chain, calibrated':>19} | flags")
+    rows = measure_nine(scenes, workdir, say=say)
     errs = [abs((r["calibrated"].get("effusivity_W_s05_m2K") or math.inf) / r["e_true"] - 1) for r in rows]
     say(f"\ncalibrated sensor chain: {sum(x <= 0.03 for x in errs)} of {len(errs)} within 3 %, "
         f"median |error| {float(np.median(errs)):.1%}; the device answered with it on "
