@@ -12,6 +12,9 @@
    constant (~5 J/m^2K) where a surface heat capacity explains it.  Then, from
    ``bench/results/calibration.json`` (``python bench/calibration_bench.py``), the median
    z = (R_c fit - R_c) / u(R_c) per solid of the calibrated 1-D touches.
+3. The real-probe demo's aluminium scenes (``host.realprobe.TEST_TOUCHES``) noise-free, the
+   datasheet probe known exactly, with the object at the probe's temperature and at the scene's
+   offset: e error of the chain's answer and of its two lateral bounds.
 
 Run:  python bench/sensitivity_bench.py        (~1 min)
 Writes bench/results/sensitivity.json.
@@ -107,10 +110,46 @@ def rc_z_from_calibration_bench() -> dict:
     return out
 
 
+def aluminium_offset(lib) -> dict:
+    """The real-probe demo's aluminium scenes noise-free, with the object at the probe's temperature and at the scene's offset."""
+    import math
+
+    from edge.calibration.model import ProbeCalibration
+    from edge.estimation.chain_estimate import estimate_from_contact
+    from firmware_sim.rigs.contact_record import ContactTouch, record_touch
+    from firmware_sim.rz.probe_world import geometry_for_probe
+    from host.realprobe import HEAT_s, TEST_TOUCHES
+
+    # The probe as the datasheet says, and told so exactly: what is left is the estimator's own model.
+    nom = ProbeCalibration.nominal("paper")
+    exact = ProbeCalibration(probe="paper", chain=nom.chain, covariance=nom.covariance * 1e-6, calibrated=True)
+    geo = geometry_for_probe("paper", infinite_thickness_m=0.05)   # the demo's 50-mm block
+    out = []
+    print("\nreal-probe demo's aluminium scenes, noise-free, datasheet probe known exactly, 8-s heating: e error of")
+    print("the answer (geometric mean) and of its two lateral bounds (1-D fit, uniform disk on a half-space)")
+    for tc in (t for t in TEST_TOUCHES if t.material == "aluminium_alloy"):
+        for off in (0.0, tc.object_offset_K):
+            r = record_touch(ContactTouch(lib.get(tc.material).solid, tc.contact_resistance_m2K_W, off,
+                                          lead_s=tc.lead_s, heat_s=HEAT_s), geometry=geo, seed=None)
+            d = estimate_from_contact(r["t_s"], r["T_C"], r["q_W_m2"], exact)
+            e = d["effusivity_W_s05_m2K"] / r["e_true"]
+            e_1d = e / (1.0 + d["lateral_correction"])
+            e_disk = e * e / e_1d
+            row = {"voltage_V": tc.voltage_V, "offset_K": off, "lead_s": tc.lead_s, "R_c": tc.contact_resistance_m2K_W,
+                   "answer": e - 1, "one_d": e_1d - 1, "disk": e_disk - 1, "fit_end_t_s": d["fit_end_t_s"],
+                   "u_rel": d["effusivity_W_s05_m2K_u"] / d["effusivity_W_s05_m2K"]}
+            out.append(row)
+            print(f"  {tc.voltage_V:3.0f} V scene, object {off:+.1f} K: answer {row['answer']:+.1%} (u {row['u_rel']:.1%})"
+                  f", 1-D {row['one_d']:+.1%}, disk {row['disk']:+.1%}; window to {row['fit_end_t_s']:.2f} s"
+                  f"{'' if math.isfinite(row['answer']) else ' (no answer)'}")
+    return out
+
+
 def main() -> None:
     lib = load_materials()
     res = {"flux_scale": flux_scale(lib), "rc_smoothing": rc_smoothing(lib),
-           "rc_z_per_solid": rc_z_from_calibration_bench(), "command": "python bench/sensitivity_bench.py"}
+           "rc_z_per_solid": rc_z_from_calibration_bench(), "aluminium_offset": aluminium_offset(lib),
+           "command": "python bench/sensitivity_bench.py"}
     print(f"wrote {write_json('sensitivity', res)}")
 
 
