@@ -280,7 +280,10 @@ def fit_calibration(touches: list[ReferenceTouch], *, probe: str = "paper",
     if noise_bias_draws > 0:
         # One pass: the bias evaluated at the corrected solution moved it by under 0.3 % on the bench's
         # probes (a tenth of the correction).
-        bias, cov_b = _noise_bias(arrays, idx, noise, prior, th0, u_th0, ln_e0, u_ln_e, p, noise_bias_draws)
+        try:
+            bias, cov_b = _noise_bias(arrays, idx, noise, prior, th0, u_th0, ln_e0, u_ln_e, p, noise_bias_draws)
+        except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
+            raise CalibrationError(f"the noise-bias correction failed on these touches ({exc})") from exc
         p = p - bias
         cov_bias = cov_b[:NP, :NP]
         p[2] = max(p[2], 0.0)   # a bead cannot lead its junction

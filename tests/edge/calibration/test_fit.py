@@ -137,3 +137,14 @@ def test_a_calibration_is_reproducible_and_the_correction_is_optional():
     for bad in (-1, 1.5, "3"):
         with pytest.raises(ValueError, match="noise_bias_draws"):
             fit_calibration(refs, noise_bias_draws=bad)
+
+
+def test_a_failing_noise_bias_correction_is_a_calibration_error(monkeypatch):
+    import edge.calibration.fit as fit_mod
+
+    def broken(*_a, **_k):
+        raise np.linalg.LinAlgError("Singular matrix")
+
+    monkeypatch.setattr(fit_mod, "simulate_chain", broken)
+    with pytest.raises(CalibrationError, match="noise-bias correction failed"):
+        fit_calibration(_refs())
