@@ -134,7 +134,7 @@ def test_a_calibration_is_reproducible_and_the_correction_is_optional():
     a, b = (fit_calibration(refs, created_utc="t", noise_bias_draws=1) for _ in range(2))
     assert a.sha256 == b.sha256
     assert fit_calibration(refs, created_utc="t", noise_bias_draws=0).sha256 != a.sha256
-    for bad in (-1, 1.5, "3"):
+    for bad in (-1, 1.5, "3", True):
         with pytest.raises(ValueError, match="noise_bias_draws"):
             fit_calibration(refs, noise_bias_draws=bad)
 
