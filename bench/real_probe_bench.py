@@ -25,6 +25,11 @@ import numpy as np
 from _common import update_readme, write_json
 
 
+def _pct(x, fmt: str) -> str:
+    """A table cell; '-' for a scene the device never answered (no error to show)."""
+    return "-" if x is None or not np.isfinite(x) else format(x, fmt)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=8, help="noise draws of each scene (the first is the demo's)")
@@ -67,12 +72,9 @@ def main() -> None:
              "median_abs_err": float(np.median(np.abs(err))) if ok else None,
              "within_3pct": float(within.mean()), "coverage_95": float(cover), "median_u_rel": float(u_rel)}
         scenes_out.append(s)
-        def pct(x, fmt: str) -> str:   # a scene the device never answered has no error to show
-            return "-" if x is None or not np.isfinite(x) else format(x, fmt)
-
         lines.append(f"| {tc.material} | {tc.voltage_V:g} | {tc.contact_resistance_m2K_W:.0e} | "
-                     f"{tc.object_offset_K:+g} K | {pct(s['median_err'], '+.1%')} | {pct(s['median_abs_err'], '.1%')} | "
-                     f"{s['within_3pct']:.0%} | {pct(s['coverage_95'], '.0%')} | {pct(s['median_u_rel'], '.1%')} | "
+                     f"{tc.object_offset_K:+g} K | {_pct(s['median_err'], '+.1%')} | {_pct(s['median_abs_err'], '.1%')} | "
+                     f"{s['within_3pct']:.0%} | {_pct(s['coverage_95'], '.0%')} | {_pct(s['median_u_rel'], '.1%')} | "
                      f"{len(ok)}/{len(ds)} |")
     head = (f"One as-built probe ({', '.join(f'{k} {v:g}' for k, v in AS_BUILT.items())}), calibrated once "
             f"(calibration {cal.sha256[:12]}), the nine scenes × {a.seeds} noise draws; "

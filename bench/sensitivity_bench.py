@@ -112,8 +112,6 @@ def rc_z_from_calibration_bench() -> dict:
 
 def aluminium_offset(lib) -> dict:
     """The real-probe demo's aluminium scenes noise-free, with the object at the probe's temperature and at the scene's offset."""
-    import math
-
     from edge.calibration.model import ProbeCalibration
     from edge.estimation.chain_estimate import estimate_from_contact
     from firmware_sim.rigs.contact_record import ContactTouch, record_touch
@@ -132,6 +130,10 @@ def aluminium_offset(lib) -> dict:
             r = record_touch(ContactTouch(lib.get(tc.material).solid, tc.contact_resistance_m2K_W, off,
                                           lead_s=tc.lead_s, heat_s=HEAT_s), geometry=geo, seed=None)
             d = estimate_from_contact(r["t_s"], r["T_C"], r["q_W_m2"], exact)
+            if d["effusivity_W_s05_m2K"] is None:
+                print(f"  {tc.voltage_V:3.0f} V scene, object {off:+.1f} K: no answer ({', '.join(d['flags'])})")
+                out.append({"voltage_V": tc.voltage_V, "offset_K": off, "answer": None, "flags": d["flags"]})
+                continue
             e = d["effusivity_W_s05_m2K"] / r["e_true"]
             e_1d = e / (1.0 + d["lateral_correction"])
             e_disk = e * e / e_1d
@@ -140,8 +142,7 @@ def aluminium_offset(lib) -> dict:
                    "u_rel": d["effusivity_W_s05_m2K_u"] / d["effusivity_W_s05_m2K"]}
             out.append(row)
             print(f"  {tc.voltage_V:3.0f} V scene, object {off:+.1f} K: answer {row['answer']:+.1%} (u {row['u_rel']:.1%})"
-                  f", 1-D {row['one_d']:+.1%}, disk {row['disk']:+.1%}; window to {row['fit_end_t_s']:.2f} s"
-                  f"{'' if math.isfinite(row['answer']) else ' (no answer)'}")
+                  f", 1-D {row['one_d']:+.1%}, disk {row['disk']:+.1%}; window to {row['fit_end_t_s']:.2f} s")
     return out
 
 

@@ -188,9 +188,9 @@ def simulate_chain(t_s, q_m_W_m2, *, e_W_s05_m2K: float, R_c_m2K_W: float, T_obj
     The model is implicit in theta_b (phi_face depends on it through B): (I + B Z) phi = A q with
     Z = R_c + D / e, a causal (lower-triangular) system, solved by blocked forward substitution --
     :data:`SIMULATE_BLOCK` columns of I + B Z at a time, each block applied to unit vectors by FFT:
-    O(n^2 log n / block) time, O(n block) memory (the calibration's noise-bias correction runs it
-    on every reference touch; a dense n x n solve took 1.2 s and 100 MB at 2000 samples and grew as
-    n^3).  Fixed-point iteration diverges on low-effusivity objects, where B (R_c + D / e) exceeds 1.
+    O(n^2 log n) time, O(n block) memory (the calibration's noise-bias correction runs it on every
+    reference touch, where a dense n x n system grew as n^3 in time and n^2 in memory).
+    Fixed-point iteration diverges on low-effusivity objects, where B (R_c + D / e) exceeds 1.
     """
     t, q = np.asarray(t_s, float), np.asarray(q_m_W_m2, float) * calibration.flux_scale
     n = t.size
