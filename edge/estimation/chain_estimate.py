@@ -15,11 +15,15 @@ the quadrature sum of
 * without a contact recorded in air, the change of e between fitting from
   0.3 s and from 1.0 s after the record's start (the probe's state at the
   record's start is not the uniform one the model assumes);
-* the lateral loss of a finite heater, bracketed: e between the 1-D fit
-  and the fit of a uniform disk on a half-space
-  (:func:`edge.estimation.sensor_chain._disk_kernel`, the object's alpha
-  from the library's prior given e), half their log-distance as u, on the
-  fit window that states the least u.
+* the lateral loss of a finite heater: the fit is that of a uniform disk
+  on a half-space (:func:`edge.estimation.sensor_chain._disk_kernel`) at
+  the object's most likely alpha -- profiled over ln(alpha) with the
+  library's prior given e (:func:`lateral_profile`) -- and u(e) carries
+  alpha's uncertainty and the change of e from the next shorter fit
+  window (a finite block departs from a half-space), on the fit window
+  that states the least u.  Where the record pins alpha (a metal, whose
+  heat reaches the heater's edge within seconds) the touch measures alpha
+  and k as well: ``determined`` then lists them.
 
 Flags: ``uncalibrated`` (the datasheet chain), ``contact_not_recorded``,
 ``contact_lost`` (the probe left the object during heating: no estimate),
@@ -31,17 +35,19 @@ Flags: ``uncalibrated`` (the datasheet chain), ``contact_not_recorded``,
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from edge.calibration.model import ProbeCalibration
 from edge.estimation.contact import find_contact
-from edge.estimation.sensor_chain import face_flux, fit_sensor_chain
+from edge.estimation.sensor_chain import DiskFitter, face_flux, fit_sensor_chain
 from edge.physics.geometry import PROBES
 
-__all__ = ["estimate_from_contact", "uniform_record", "alpha_prior", "POOR_FIT", "FIT_START_s"]
+__all__ = ["estimate_from_contact", "uniform_record", "alpha_prior", "lateral_profile", "LateralProfile", "POOR_FIT",
+           "FIT_START_s"]
 
 #: Normalised residual (rms residual / noise measured in air) above which the chain does not describe the record.
 POOR_FIT = 5.0
@@ -60,11 +66,23 @@ DEFAULT_NOISE_T_K = 0.01
 _STEPS = (1e-3, 1e-3, 2e-3, 1e-3)
 
 
-#: Most passes of the lateral-loss correction (e -> alpha from the prior -> e), stopping once e moves
-#: less than DISK_TOL (relative).  Glass converges in two; a metal, whose correction is tens of per
-#: cent, needs three or four (two passes left copper +30..58 % on the FaithfulWorld paper probe).
-DISK_PASSES = 6
-DISK_TOL = 1e-3
+#: The lateral loss is profiled over ln(alpha): ALPHA_GRID points across the library prior's mean
+#: +- ALPHA_SPAN_SD standard deviations (within ALPHA_BOUNDS_m2_s), then ALPHA_REFINE golden-section
+#: steps between the best point's neighbours.  Each point is one linear least-squares fit.
+ALPHA_GRID = 9
+ALPHA_SPAN_SD = 3.0
+ALPHA_REFINE = 10
+#: Diffusivities the profile may take (m^2/s): below a foam's, above silver's.
+ALPHA_BOUNDS_m2_s = (1e-8, 2e-4)
+#: Half-step of ln(alpha) for the profile's curvature and for d ln e / d ln alpha.
+ALPHA_STEP_LN = 0.05
+#: alpha (and k) count as determined by the touch when the profile leaves less than this share of
+#: the prior's standard deviation of ln(alpha).
+ALPHA_DETERMINED = 0.5
+#: The disk at the prior's alpha moving e less than this (relative) from the 1-D fit: the lateral
+#: loss is too small to stand out of the probe's own departures from the model (glass, polymers, foams,
+#: stainless steel: on AISI 304 a profile put alpha at 3x the truth), and alpha is not profiled.
+LATERAL_PROFILE_MIN = 0.03
 #: A lateral correction of e beyond this (relative) is flagged ``lateral_spread``.
 LATERAL_FLAG = 0.10
 #: Contact is lost when, during heating, the face flux falls below this share of its largest value so
@@ -99,6 +117,123 @@ def alpha_prior(e: float, u_ln_e: float = 0.02) -> tuple[float, float]:
     """ln(alpha) mean and standard deviation of an object of effusivity e (alpha = (e / rho c)^2)."""
     m, sd, _ = _library().prior_rho_c(e, u_ln_e)
     return 2.0 * math.log(e) - 2.0 * m, 2.0 * sd
+
+
+@dataclass(frozen=True)
+class LateralProfile:
+    """The disk fit at the diffusivity the touch and the library prior make most likely.
+
+    ``fit`` is the chain's fit with a uniform disk of the heater's radius on a half-space of
+    diffusivity ``exp(ln_alpha)``; ``u_ln_alpha`` the standard deviation of ln(alpha) from the
+    profile's curvature (the prior's when the record says nothing); ``slope`` d ln e / d ln alpha
+    there; ``prior`` the library's (mean, sd) of ln(alpha) given e; ``profiled`` False where the
+    lateral loss was negligible and alpha was left at the prior.
+    """
+
+    fit: Any
+    ln_alpha: float
+    u_ln_alpha: float
+    slope: float
+    prior: tuple[float, float]
+    profiled: bool
+
+    @property
+    def u_ln_e(self) -> float:
+        """The part of u(ln e) that alpha's uncertainty leaves."""
+        return abs(self.slope) * self.u_ln_alpha
+
+
+def lateral_profile(fit_disk: Callable[[float], Any], e_1d: float, noise_T_K: float) -> LateralProfile | None:
+    """Profile the chain's disk fit over ln(alpha), with the library's prior on alpha given e.
+
+    The heated disk loses heat sideways into the object at a rate set by its alpha, which the
+    centre's temperature history carries once sqrt(alpha t) nears the heater's radius (a metal
+    within seconds).  The objective is the fit's residual sum of squares over its variance plus the
+    prior's ((ln alpha - m(e)) / sd(e))^2, minimised on a grid and by golden section; its curvature
+    gives u(ln alpha) (Laplace), never more than the prior's.  The residual variance is the larger of
+    the noise measured in air and the best fit's own, times its lag-1 inflation: a smooth model error
+    (a finite block is not a half-space) must not pass for information on alpha.
+
+    Parameters
+    ----------
+    fit_disk : callable
+        alpha (m^2/s) -> the chain's fit with the disk at that alpha.
+    e_1d : float
+        The 1-D fit's e (the prior's first guess).
+    noise_T_K : float
+        Thermocouple noise (K).
+
+    Returns
+    -------
+    LateralProfile or None
+        None when no fit over the range is usable.
+    """
+    def ok(r) -> bool:
+        return math.isfinite(r.e_W_s05_m2K) and r.e_W_s05_m2K > 0 and r.n_fitted > 3
+
+    lo_b, hi_b = (math.log(x) for x in ALPHA_BOUNDS_m2_s)
+    m0, sd0 = alpha_prior(e_1d)
+    lo, hi = max(lo_b, m0 - ALPHA_SPAN_SD * sd0), min(hi_b, m0 + ALPHA_SPAN_SD * sd0)
+    if not lo < hi:
+        lo, hi = lo_b, hi_b
+    fits: dict[float, Any] = {}
+
+    def at(la: float):
+        if la not in fits:
+            fits[la] = fit_disk(math.exp(la))
+        return fits[la]
+
+    # A lateral loss (at the prior's alpha) too small to stand out of the probe's own departures from
+    # the model: alpha stays at the prior, which the record cannot improve on.
+    r_hi, r_m = at(min(hi, m0 + 2.0 * sd0)), at(m0)
+    if not (ok(r_hi) and ok(r_m)):
+        return None
+    if abs(math.log(r_m.e_W_s05_m2K / e_1d)) < LATERAL_PROFILE_MIN:
+        m, sd = alpha_prior(r_m.e_W_s05_m2K)
+        slope = math.log(r_hi.e_W_s05_m2K / r_m.e_W_s05_m2K) / (min(hi, m0 + 2.0 * sd0) - m0)
+        return LateralProfile(r_m, m0, sd, slope, (m, sd), profiled=False)
+    grid = np.linspace(lo, hi, ALPHA_GRID)
+    good = [at(x) for x in grid if ok(at(x))]
+    if not good:
+        return None
+    best = min(good, key=lambda r: r.rms_residual_K)
+    s2 = max(best.rms_residual_K ** 2 * best.n_fitted / max(1, best.n_fitted - 3), noise_T_K ** 2) \
+        * best.residual_inflation
+
+    def D(la: float) -> float:       # the data's part: residual sum of squares over its variance
+        r = at(la)
+        return r.rms_residual_K ** 2 * r.n_fitted / s2 if ok(r) else math.inf
+
+    def J(la: float) -> float:       # ... and the prior's
+        r = at(la)
+        if not ok(r):
+            return math.inf
+        m, sd = alpha_prior(r.e_W_s05_m2K)
+        return D(la) + ((la - m) / sd) ** 2
+
+    j = int(np.argmin([J(x) for x in grid]))
+    a, b = grid[max(0, j - 1)], grid[min(grid.size - 1, j + 1)]
+    g = (math.sqrt(5.0) - 1.0) / 2.0
+    c, d = b - g * (b - a), a + g * (b - a)
+    for _ in range(ALPHA_REFINE):
+        if J(c) < J(d):
+            b, d = d, c
+            c = b - g * (b - a)
+        else:
+            a, c = c, d
+            d = a + g * (b - a)
+    la = min((grid[j], c, d), key=J)
+    r = at(la)
+    m, sd = alpha_prior(r.e_W_s05_m2K)
+    h = ALPHA_STEP_LN
+    rp, rm = at(la + h), at(la - h)
+    slope = (math.log(rp.e_W_s05_m2K / rm.e_W_s05_m2K) / (2.0 * h)) if ok(rp) and ok(rm) else 0.0
+    # u(ln alpha): what the record alone pins (its curvature), or the prior's sd where the record
+    # pins less.  Not the posterior's: through rho c's prior given e, a low e raises the prior's alpha,
+    # which lowers e -- on a noise-limited copper touch that loop stated half the error it made.
+    curv = (D(la + h) - 2.0 * D(la) + D(la - h)) / (h * h)
+    u_data = math.sqrt(2.0 / curv) if curv > 0 and math.isfinite(curv) else math.inf
+    return LateralProfile(r, la, min(u_data, sd), slope, (m, sd), profiled=True)
 
 
 def uniform_record(t_s, *columns) -> tuple[np.ndarray, ...]:
@@ -174,10 +309,9 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
         Default: the uncalibrated datasheet probe (flagged).
     heater_radius_m : float, optional
         Radius of the heated disk (default: the calibration's probe's); ``math.inf`` for 1-D.  The
-        object loses heat sideways from a finite disk, by an amount that depends on its alpha and
-        size, which one touch does not give: e is bracketed between the 1-D fit and a disk on a
-        half-space (alpha from the library's prior given e), half the bracket going into u(e)
-        (``u_e_parts["lateral"]``).
+        object loses heat sideways from a finite disk at a rate set by its alpha: e is the disk
+        fit's at the alpha the record and the library prior make most likely, alpha's uncertainty
+        and the fit's change between windows going into u(e) (``u_e_parts["lateral"]``).
 
     Returns
     -------
@@ -185,7 +319,9 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
         ``effusivity_W_s05_m2K`` and ``..._u`` (k = 1) with its parts ``u_e_parts`` (fit,
         calibration, floor, contact, lateral), ``contact_resistance_m2K_W`` (+ ``_u``),
         ``object_temperature0`` (+ ``_u``), ``probe_temperature0``, ``contact_t_s``,
-        ``normalised_residual``, ``flags``, ``determined``, ``calibration_sha256``.
+        ``normalised_residual``, ``flags``, ``determined``, ``calibration_sha256``; with a finite
+        heater also ``alpha_m2_s``, ``k_W_mK`` (+ ``_u``; measured when ``determined`` lists them,
+        otherwise the prior's) and ``alpha_prior_ln`` (mean, sd of ln alpha).
     """
     cal = ProbeCalibration.nominal() if calibration is None else calibration
     t, T, q = uniform_record(t_s, T_C, q_W_m2)
@@ -221,50 +357,56 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
 
     r1d = r = fit(cal.chain, None)
     disk = None
+    lat: LateralProfile | None = None
     u_lat = 0.0
-    e_lat = None
     if not bad(r) and math.isfinite(a):
-        # Lateral loss lies between two bounds: 1-D (none: e too high) and a uniform disk on a
-        # half-space (all of it: e too low on a finite block, whose sides stop the spread; -20..-50 %
-        # on metals after 10 s on the FaithfulWorld).  The estimate is their geometric mean, with half
-        # their log-distance as its standard uncertainty; the fit window (heater-on + 1, 2, 4, 8 s or
-        # the whole record) is the one whose stated u -- noise and bracket together -- is least.
+        # The finite heater loses heat sideways into the object, at a rate set by the object's alpha
+        # (and its size, which one touch does not give).  Per fit window (heater-on + 1, 2, 4, 8 s or
+        # the whole record) alpha is profiled with the library's prior (lateral_profile), e taken at
+        # the most likely alpha and u(e) widened by alpha's uncertainty and by the change of e from
+        # the next shorter window (a finite block departs from a half-space the longer the window:
+        # e moves between windows where the disk does not describe the object).  The window is the
+        # one whose stated u is least.  On a metal the profile pins alpha to ~10 %: the touch then
+        # measures alpha and k too.
         full = (tt, TT, qq)
         t_heat = -float(t[i0]) if t[i0] < 0 else 0.0
-        best = None
+        cands = []
         for extra in LATERAL_WINDOWS_s:
             n_keep = int(np.searchsorted(full[0], t_heat + extra, side="right"))
-            if n_keep < 16 or (best is not None and n_keep >= full[0].size and extra != math.inf):
+            if n_keep < 16 or (cands and n_keep >= full[0].size and extra != math.inf):
                 continue
             tt, TT, qq = (x[:n_keep] for x in full)
-            c1 = fit(cal.chain, None)
-            cd = c1
-            for _ in range(DISK_PASSES):
-                if bad(cd):
-                    break
-                ln_a, _sd = alpha_prior(cd.e_W_s05_m2K)
-                dk = (a, math.exp(ln_a))
-                prev, cd = cd, fit(cal.chain, dk)
-                if not bad(cd) and prev is not c1 and abs(math.log(cd.e_W_s05_m2K / prev.e_W_s05_m2K)) < DISK_TOL:
-                    break
-            if bad(c1) or bad(cd):
+            F = DiskFitter(tt, TT, qq, calibration=cal.chain, fit_start_s=FIT_START_s, noise_T_K=noise_T,
+                           breaks_s=breaks)
+            c1 = F(None)
+            if bad(c1):
                 continue
-            span = abs(math.log(c1.e_W_s05_m2K / cd.e_W_s05_m2K)) / 2.0
-            u_tot = math.hypot(cd.u_e_W_s05_m2K / cd.e_W_s05_m2K, span)
-            if best is None or u_tot < best[0]:
-                best = (u_tot, n_keep, c1, cd, dk, span)
-        if best is not None:
-            _, n_keep, r1d, r, disk, u_lat = best
+            p = lateral_profile(lambda al, F=F: F((a, al)), c1.e_W_s05_m2K, noise_T)
+            if p is None or bad(p.fit):
+                continue
+            cands.append([n_keep, c1, p, math.hypot(p.fit.u_e_W_s05_m2K / p.fit.e_W_s05_m2K, p.u_ln_e), 0.0])
+        for k, cnd in enumerate(cands):
+            # Against the longest window at most 2/3 as long (the whole record may end just after 8 s),
+            # for the shortest against the next that is 1.5 times longer.
+            shorter = [x for x in cands[:k] if x[0] <= cnd[0] / 1.5]
+            longer = [x for x in cands[k + 1:] if x[0] >= cnd[0] * 1.5]
+            other = shorter[-1] if shorter else (longer[0] if longer else None)
+            if cnd[2].profiled and other is not None:
+                cnd[4] = abs(math.log(cnd[2].fit.e_W_s05_m2K / other[2].fit.e_W_s05_m2K))
+        if cands:
+            n_keep, r1d, lat, _, d_win = min(cands, key=lambda x: math.hypot(x[3], x[4]))
+            r = lat.fit
+            disk = (a, math.exp(lat.ln_alpha))
+            u_lat = math.hypot(lat.u_ln_e, d_win)
             tt, TT, qq = (x[:n_keep] for x in full)
-            e_lat = math.sqrt(r1d.e_W_s05_m2K * r.e_W_s05_m2K)
         else:
             tt, TT, qq = full
     if bad(r):
         return {"flags": flags + ["no_fit"], "effusivity_W_s05_m2K": None, "effusivity_W_s05_m2K_u": None,
                 "contact_t_s": float(t[i0]), "normalised_residual": r.normalised_residual,
                 "determined": [], "calibration_sha256": cal.sha256, "probe": cal.probe}
-    e = r.e_W_s05_m2K if e_lat is None else e_lat
-    if 2.0 * u_lat > LATERAL_FLAG:
+    e = r.e_W_s05_m2K
+    if disk is not None and abs(math.log(e / r1d.e_W_s05_m2K)) > LATERAL_FLAG:
         flags.append("lateral_spread")
     # Calibration's part: d ln e / d theta by finite differences, through the covariance.
     # The same for R_c and T_obj0: an error in the sensing depth trades directly with R_c (dL / k).
@@ -296,6 +438,18 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
     u_Rc = math.sqrt(r.u_R_c_m2K_W**2 + float(var_cal[1]) + u_Rc_method**2)
     if r.normalised_residual > POOR_FIT:
         flags.append("poor_fit")
+    determined = ["e", "T_obj0"] + (["R_c"] if u_Rc <= R_C_RESOLVED_m2K_W else [])
+    lateral: dict[str, Any] = {}
+    if lat is not None:
+        # ln k = ln e + ln(alpha) / 2 along the profile: alpha's part enters with slope + 1/2, the
+        # rest of u(ln e) as it is.
+        alpha = math.exp(lat.ln_alpha)
+        u_ln_k = math.sqrt(max(u_rel**2 - lat.u_ln_e**2, 0.0) + ((lat.slope + 0.5) * lat.u_ln_alpha) ** 2)
+        k = e * math.sqrt(alpha)
+        lateral = {"alpha_m2_s": alpha, "alpha_m2_s_u": alpha * lat.u_ln_alpha, "k_W_mK": k, "k_W_mK_u": k * u_ln_k,
+                   "alpha_prior_ln": list(lat.prior)}
+        if lat.profiled and lat.u_ln_alpha < ALPHA_DETERMINED * lat.prior[1]:
+            determined += ["alpha", "k"]
     return {
         "effusivity_W_s05_m2K": e,
         "effusivity_W_s05_m2K_u": e * u_rel,
@@ -311,6 +465,7 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
         "contact_t_s": float(t[i0]), "contact_detected": c.detected,
         "normalised_residual": r.normalised_residual, "noise_T_K": noise_T,
         "flags": flags,
-        "determined": ["e", "T_obj0"] + (["R_c"] if u_Rc <= R_C_RESOLVED_m2K_W else []),
+        "determined": determined,
         "calibration_sha256": cal.sha256, "probe": cal.probe,
+        **lateral,
     }

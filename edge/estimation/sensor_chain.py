@@ -48,8 +48,8 @@ from edge.physics.integrators import causal_convolution
 from edge.physics.laplace import talbot_invert
 from edge.physics.probe import DEFAULT_STACK
 
-__all__ = ["SensorChainCalibration", "SensorChainResult", "chain_design", "face_flux", "fit_sensor_chain",
-           "simulate_chain"]
+__all__ = ["DiskFitter", "SensorChainCalibration", "SensorChainResult", "chain_design", "face_flux",
+           "fit_sensor_chain", "simulate_chain"]
 
 
 @dataclass(frozen=True)
@@ -102,6 +102,8 @@ class SensorChainResult:
     normalised_residual: float     # rms residual / stated thermocouple noise
     rms_residual_K: float
     n_iterations: int
+    n_fitted: int = 0              # samples the least squares weighted
+    residual_inflation: float = 1.0   # (1 + rho) / (1 - rho) of the residuals' lag-1 autocorrelation rho
 
 
 @lru_cache(maxsize=8)
@@ -378,21 +380,35 @@ def fit_sensor_chain(t_s, T_tc_C, q_m_W_m2, *, T_probe0_C: float | None = None,
         aluminium (mixed), so the default stays 1.
     """
     c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, T_probe0_C, fit_start_s, breaks_s, smooth_s)
-    t, y, fit, dt, Tp0, cal = c.t, c.y, c.fit, c.dt, c.Tp0, calibration
+    t, y, fit, dt, cal = c.t, c.y, c.fit, c.dt, calibration
     theta = c.theta
     for it in range(max(1, n_iterations)):
         phi = c.phiA - _apply(c.KB, theta)
         X = np.column_stack((np.ones_like(t), phi, _response(phi, dt, disk)))
         Xl = _lag(X, dt, cal.tc_tau_s)
-        Xf, yf = Xl[fit], y[fit]
-        scale = np.sqrt(np.sum(Xf * Xf, axis=0))
-        scale[scale == 0] = 1.0
-        p_s, *_ = np.linalg.lstsq(Xf / scale, yf, rcond=None)
-        p = p_s / scale
+        p = _lstsq(Xl, y, fit)
         # Next pass: the fitted theta_b (noise-free: the measured noise, through B's sqrt(s) gain, is
         # correlated with y and biases 1/e) wherever the model follows the record; the measured
         # one over the contact transient's first samples, which the model cannot resolve.
         theta = np.where(fit, X @ p, theta)
+    return _result(Xl, y, fit, p, c.Tp0, noise_T_K, it + 1)
+
+
+def _lstsq(Xl: np.ndarray, y: np.ndarray, fit: np.ndarray) -> np.ndarray:
+    """(dT_obj0, R_c, 1/e) of the lagged columns Xl on the fitted samples (columns scaled to unit norm)."""
+    Xf = Xl[fit]
+    scale = np.sqrt(np.sum(Xf * Xf, axis=0))
+    scale[scale == 0] = 1.0
+    p_s, *_ = np.linalg.lstsq(Xf / scale, y[fit], rcond=None)
+    return p_s / scale
+
+
+def _result(Xl: np.ndarray, y: np.ndarray, fit: np.ndarray, p: np.ndarray, Tp0: float, noise_T_K: float,
+            n_iterations: int) -> SensorChainResult:
+    """The fit's values, their covariance (residual variance, lag-1 inflation) and quality."""
+    Xf, yf = Xl[fit], y[fit]
+    scale = np.sqrt(np.sum(Xf * Xf, axis=0))
+    scale[scale == 0] = 1.0
     r = yf - Xf @ p
     m = r.size
     dof = max(1, m - 3)
@@ -415,5 +431,33 @@ def fit_sensor_chain(t_s, T_tc_C, q_m_W_m2, *, T_probe0_C: float | None = None,
         e_W_s05_m2K=float(e), u_e_W_s05_m2K=float(u_e),
         R_c_m2K_W=float(p[1]), u_R_c_m2K_W=float(sd[1]),
         T_obj0_C=float(Tp0 + p[0]), u_T_obj0_C=float(sd[0]),
-        correlation=corr, normalised_residual=rms / noise_T_K, rms_residual_K=rms, n_iterations=it + 1,
+        correlation=corr, normalised_residual=rms / noise_T_K, rms_residual_K=rms, n_iterations=n_iterations,
+        n_fitted=int(m), residual_inflation=float(infl),
     )
+
+
+class DiskFitter:
+    """:func:`fit_sensor_chain` (one pass) of one record for many heated disks, as a callable ``disk -> result``.
+
+    The lateral loss only changes the object's column by ``-lag(K_disk * phi)``: phi, the 1-D
+    column and their lags are made once, so a profile over the object's alpha costs one FFT
+    convolution and one 3-column least squares per point (the same numbers as
+    :func:`fit_sensor_chain` to rounding).  Arguments as for :func:`fit_sensor_chain`.
+    """
+
+    def __init__(self, t_s, T_tc_C, q_m_W_m2, *, calibration: SensorChainCalibration = SensorChainCalibration(),
+                 fit_start_s: float = 0.3, noise_T_K: float = 0.01, breaks_s: tuple[float, ...] = (),
+                 smooth_s: float = SMOOTH_HALF_WIDTH_s, T_probe0_C: float | None = None) -> None:
+        c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, T_probe0_C, fit_start_s, breaks_s, smooth_s)
+        self._c, self._tau, self._noise = c, calibration.tc_tau_s, float(noise_T_K)
+        self._phi = c.phiA - _apply(c.KB, c.theta)
+        self._X1 = _lag(np.column_stack((np.ones_like(c.t), self._phi, duhamel_apply(self._phi, c.dt))),
+                        c.dt, self._tau)
+
+    def __call__(self, disk: tuple[float, float] | None = None) -> SensorChainResult:
+        c, Xl = self._c, self._X1
+        if disk is not None and math.isfinite(disk[0]):
+            loss = _apply(_disk_kernel(c.t.size, c.dt, float(disk[0]), float(disk[1])), self._phi)
+            Xl = Xl.copy()
+            Xl[:, 2] -= _lag(loss[:, None], c.dt, self._tau)[:, 0]
+        return _result(Xl, c.y, c.fit, _lstsq(Xl, c.y, c.fit), c.Tp0, self._noise, 1)
