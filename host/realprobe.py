@@ -184,8 +184,10 @@ def measure_nine(scenes: Path, workdir: Path, *, seed: int = 200, say: Callable[
         if say is not None:
             d = row["default"]
             dtxt = f"{d / e_true - 1:+7.1%}" if d else "   -   "
+            solid = lib.get(tc.material).solid
             say(f"{tc.material:<16} {tc.voltage_V:3.0f} {e_true:7.0f} | {dtxt:>8} | {_cell(row['uncalibrated'], e_true)} | "
-                f"{_cell(row['calibrated'], e_true)} | {', '.join(row['calibrated'].get('flags') or []) or '-'}")
+                f"{_cell(row['calibrated'], e_true)} | {', '.join(row['calibrated'].get('flags') or []) or '-'}"
+                f"{_alpha_cell(row['calibrated'], solid.k_W_mK / solid.rho_c_J_m3K)}")
     return rows
 
 
@@ -194,6 +196,14 @@ def _cell(c: dict, e_true: float) -> str:
     if e is None or u is None:
         return f"{'refused':>19}"
     return f"{e:7.0f} ± {u:4.0f} {e / e_true - 1:+6.1%}"
+
+
+def _alpha_cell(c: dict, alpha_true: float) -> str:
+    """The object's alpha where the touch measured it (a metal: its heat reaches the heater's edge)."""
+    a, u = c.get("alpha_m2_s"), c.get("alpha_m2_s_u")
+    if "alpha" not in (c.get("determined") or ()) or a is None or u is None:
+        return ""
+    return f"; alpha measured {a * 1e6:.0f} ± {u * 1e6:.0f} mm²/s ({a / alpha_true - 1:+.0%})"
 
 
 def run_real_probe(out_dir: str | Path, *, say: Callable[[str], None] = print) -> dict[str, Any]:

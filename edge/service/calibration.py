@@ -36,7 +36,7 @@ UNCALIBRATED = "uncalibrated"
 #: 4-kB frame, so every record stays small.)
 _KEEP = ("contact_lost_t_s", "effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "contact_resistance_m2K_W",
          "contact_resistance_m2K_W_u", "object_temperature0", "object_temperature0_u", "contact_t_s",
-         "normalised_residual", "flags")
+         "normalised_residual", "flags", "determined", "alpha_m2_s", "alpha_m2_s_u", "k_W_mK", "k_W_mK_u")
 
 
 class ProbeCalibrations:

@@ -27,3 +27,12 @@ def test_real_probe_refuses_train_in_one_line(capsys, tmp_path):
     code = main(["demo", "--real-probe", "--train", "--out", str(tmp_path / "d")])
     err = capsys.readouterr().err
     assert code == 2 and "--train" in err and len(err.strip().splitlines()) == 1
+
+
+def test_the_demo_shows_alpha_only_where_the_touch_determined_it():
+    from host.realprobe import _alpha_cell
+
+    measured = {"alpha_m2_s": 5.0e-5, "alpha_m2_s_u": 4e-6, "determined": ["e", "T_obj0", "alpha", "k"]}
+    assert _alpha_cell(measured, 5.2e-5) == "; alpha measured 50 ± 4 mm²/s (-4%)"
+    assert _alpha_cell({**measured, "determined": ["e", "T_obj0"]}, 5.2e-5) == ""
+    assert _alpha_cell({"error": "x"}, 5.2e-5) == ""

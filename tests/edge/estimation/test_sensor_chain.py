@@ -108,3 +108,24 @@ def test_blocked_causal_solve_equals_the_dense_system(n, e, rc, tau):
     phi = np.linalg.solve(eye + MB @ Zm, _apply(KA, q * cal.flux_scale))
     want = 25.0 + _lag((-0.7 + Zm @ phi)[:, None], dt, tau)[:, 0]
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-9 * max(1.0, float(np.max(np.abs(want - 25.0)))))
+
+
+@pytest.mark.parametrize("disk", [None, (0.03, 5e-5), (0.03, 1e-7)])
+def test_disk_fitter_gives_fit_sensor_chains_numbers(disk):
+    """DiskFitter shares the disk-independent columns across calls: the same fit as fit_sensor_chain."""
+    from edge.estimation.sensor_chain import DiskFitter
+
+    rng = np.random.default_rng(4)
+    t = np.arange(0.0, 8.0, DT_s)
+    q = np.where(t > 1.0, 2500.0, 300.0 / np.sqrt(1.0 + t))
+    cal = SensorChainCalibration(tc_tau_s=0.06)
+    T = simulate_chain(t, q, e_W_s05_m2K=9000.0, R_c_m2K_W=2e-5, T_obj0_C=24.0, T_probe0_C=25.0, calibration=cal)
+    T = T + 0.004 * rng.standard_normal(t.size)
+    kw = dict(calibration=cal, fit_start_s=0.3, noise_T_K=0.004, breaks_s=(1.0,))
+    f = DiskFitter(t, T, q, **kw)
+    f(None)                                    # a call before must not change the next one
+    a, b = f(disk), fit_sensor_chain(t, T, q, disk=disk, **kw)
+    for name in ("e_W_s05_m2K", "u_e_W_s05_m2K", "R_c_m2K_W", "u_R_c_m2K_W", "T_obj0_C", "rms_residual_K",
+                 "residual_inflation"):
+        assert getattr(a, name) == pytest.approx(getattr(b, name), rel=1e-9, abs=1e-12), name
+    assert a.n_fitted == b.n_fitted == int(np.sum(t >= 0.3))

@@ -45,6 +45,9 @@ def test_install_show_and_every_measurement_names_its_calibration(tmp_path):
         # The chain's own answer (or its error) is there; the measurement is never lost over it.
         chain = rec["result"]["sensor_chain"]
         assert "effusivity_W_s05_m2K" in chain or "error" in chain
+        if "error" not in chain and chain["effusivity_W_s05_m2K"] is not None:
+            # Which quantities the touch determined, and the object's alpha and k (measured when listed).
+            assert "e" in chain["determined"] and chain["alpha_m2_s"] > 0 and chain["k_W_mK"] > 0
         # Calibrated and trusted, the chain's e is the answer and the default method's is kept beside it;
         # otherwise the default method's stays first.
         from edge.service.calibration import PROMOTE_BLOCKERS
