@@ -144,7 +144,8 @@ class LateralProfile:
         return abs(self.slope) * self.u_ln_alpha
 
 
-def lateral_profile(fit_disk: Callable[[float], Any], e_1d: float, noise_T_K: float) -> LateralProfile | None:
+def lateral_profile(fit_disk: Callable[[float], Any], e_1d: float, noise_T_K: float,
+                    point: Callable[[float], Any] | None = None) -> LateralProfile | None:
     """Profile the chain's disk fit over ln(alpha), with the library's prior on alpha given e.
 
     The heated disk loses heat sideways into the object at a rate set by its alpha, which the
@@ -164,6 +165,9 @@ def lateral_profile(fit_disk: Callable[[float], Any], e_1d: float, noise_T_K: fl
         The 1-D fit's e (the prior's first guess).
     noise_T_K : float
         Thermocouple noise (K).
+    point : callable, optional
+        alpha -> e and the residual only (:meth:`edge.estimation.sensor_chain.DiskFitter.point`),
+        for the profile's inner loop; ``fit_disk`` then makes only the answer's full fit.
 
     Returns
     -------
@@ -182,9 +186,11 @@ def lateral_profile(fit_disk: Callable[[float], Any], e_1d: float, noise_T_K: fl
         lo, hi = lo_b, hi_b
     fits: dict[float, Any] = {}
 
+    inner = fit_disk if point is None else point
+
     def at(la: float):
         if la not in fits:
-            fits[la] = fit_disk(math.exp(la))
+            fits[la] = inner(math.exp(la))
         return fits[la]
 
     # A lateral loss (at the prior's alpha) too small to stand out of the probe's own departures from
@@ -195,7 +201,8 @@ def lateral_profile(fit_disk: Callable[[float], Any], e_1d: float, noise_T_K: fl
     if abs(math.log(r_m.e_W_s05_m2K / e_1d)) < LATERAL_PROFILE_MIN:
         m, sd = alpha_prior(r_m.e_W_s05_m2K)
         slope = math.log(r_hi.e_W_s05_m2K / r_m.e_W_s05_m2K) / (min(hi, m0 + 2.0 * sd0) - m0)
-        return LateralProfile(r_m, m0, sd, slope, (m, sd), profiled=False)
+        full = r_m if point is None else fit_disk(math.exp(m0))
+        return LateralProfile(full, m0, sd, slope, (m, sd), profiled=False) if ok(full) else None
     grid = np.linspace(lo, hi, ALPHA_GRID)
     good = [at(x) for x in grid if ok(at(x))]
     if not good:
@@ -228,7 +235,9 @@ def lateral_profile(fit_disk: Callable[[float], Any], e_1d: float, noise_T_K: fl
             a, c = c, d
             d = a + g * (b - a)
     la = min((grid[j], c, d), key=J)
-    r = at(la)
+    r = fit_disk(math.exp(la)) if point is not None else at(la)
+    if not ok(r):
+        return None
     h = ALPHA_STEP_LN
     rp, rm = at(la + h), at(la - h)
     slope = (math.log(rp.e_W_s05_m2K / rm.e_W_s05_m2K) / (2.0 * h)) if ok(rp) and ok(rm) else 0.0
@@ -385,7 +394,8 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
             c1 = F(None)
             if bad(c1):
                 continue
-            p = lateral_profile(lambda al, F=F: F((a, al)), c1.e_W_s05_m2K, noise_T)
+            p = lateral_profile(lambda al, F=F: F((a, al)), c1.e_W_s05_m2K, noise_T,
+                                point=lambda al, F=F: F.point((a, al)))
             if p is None or bad(p.fit):
                 continue
             cands.append([n_keep, c1, p, math.hypot(p.fit.u_e_W_s05_m2K / p.fit.e_W_s05_m2K, p.u_ln_e), 0.0])

@@ -48,7 +48,7 @@ from edge.physics.integrators import causal_convolution
 from edge.physics.laplace import talbot_invert
 from edge.physics.probe import DEFAULT_STACK
 
-__all__ = ["DiskFitter", "SensorChainCalibration", "SensorChainResult", "chain_design", "face_flux",
+__all__ = ["DiskFitter", "ProfilePoint", "SensorChainCalibration", "SensorChainResult", "chain_design", "face_flux",
            "fit_sensor_chain", "simulate_chain"]
 
 
@@ -167,15 +167,25 @@ def _apply(K: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 def _lag(x: np.ndarray, dt_s: float, tau_s: float) -> np.ndarray:
-    """First-order lag of columns x (n, m), exact for x linear between samples, starting at 0."""
+    """First-order lag of columns x (n, m), exact for x linear between samples, starting at 0.
+
+    The recursion y_i = a y_(i-1) + b x_i + (1 - a - b) x_(i-1), y_0 = 0 (a = exp(-dt/tau),
+    b = 1 - tau (1 - a) / dt) as one causal convolution per column with its impulse response
+    h_0 = b, h_k = a^(k-1) (a b + 1 - a - b), less the b a^i x_0 that y_0 = 0 leaves out: the
+    profile over alpha lags a column per point, and a Python loop over the samples was most of its cost.
+    """
     if tau_s <= 0:
         return x
     a = math.exp(-dt_s / tau_s)
     b = 1.0 - tau_s * (1.0 - a) / dt_s
-    y = np.empty_like(x)
+    n = x.shape[0]
+    with np.errstate(under="ignore"):
+        p = a ** np.arange(n, dtype=np.float64)       # underflows to 0 within a few hundred samples
+    h = np.empty(n)
+    h[0] = b
+    h[1:] = (a * b + 1.0 - a - b) * p[:-1]
+    y = np.column_stack([causal_convolution(h, x[:, j]) for j in range(x.shape[1])]) - b * np.outer(p, x[0])
     y[0] = 0.0
-    for i in range(1, x.shape[0]):
-        y[i] = a * y[i - 1] + (1.0 - a) * x[i - 1] + b * (x[i] - x[i - 1])
     return y
 
 
@@ -436,13 +446,25 @@ def _result(Xl: np.ndarray, y: np.ndarray, fit: np.ndarray, p: np.ndarray, Tp0: 
     )
 
 
+@dataclass(frozen=True)
+class ProfilePoint:
+    """The part of a chain fit a profile over alpha reads: e, the residual and its lag-1 inflation."""
+
+    e_W_s05_m2K: float
+    rms_residual_K: float
+    n_fitted: int
+    residual_inflation: float
+
+
 class DiskFitter:
     """:func:`fit_sensor_chain` (one pass) of one record for many heated disks, as a callable ``disk -> result``.
 
     The lateral loss only changes the object's column by ``-lag(K_disk * phi)``: phi, the 1-D
     column and their lags are made once, so a profile over the object's alpha costs one FFT
     convolution and one 3-column least squares per point (the same numbers as
-    :func:`fit_sensor_chain` to rounding).  Arguments as for :func:`fit_sensor_chain`.
+    :func:`fit_sensor_chain` to rounding); :meth:`point` does without the covariance, projecting
+    the object's column on the complement of the two fixed ones.  Arguments as for
+    :func:`fit_sensor_chain`.
     """
 
     def __init__(self, t_s, T_tc_C, q_m_W_m2, *, calibration: SensorChainCalibration = SensorChainCalibration(),
@@ -453,11 +475,36 @@ class DiskFitter:
         self._phi = c.phiA - _apply(c.KB, c.theta)
         self._X1 = _lag(np.column_stack((np.ones_like(c.t), self._phi, duhamel_apply(self._phi, c.dt))),
                         c.dt, self._tau)
+        # Orthonormal basis of the fixed columns (T_obj0, R_c) on the fitted samples, and the record
+        # with them projected out: a point of the profile then needs only dot products.
+        self._Q, _ = np.linalg.qr(self._X1[c.fit][:, :2])
+        yf = c.y[c.fit]
+        self._yp = yf - self._Q @ (self._Q.T @ yf)
+
+    def _column(self, disk) -> np.ndarray:
+        col = self._X1[:, 2]
+        if disk is not None and math.isfinite(disk[0]):
+            c = self._c
+            loss = _apply(_disk_kernel(c.t.size, c.dt, float(disk[0]), float(disk[1])), self._phi)
+            col = col - _lag(loss[:, None], c.dt, self._tau)[:, 0]
+        return col
 
     def __call__(self, disk: tuple[float, float] | None = None) -> SensorChainResult:
-        c, Xl = self._c, self._X1
-        if disk is not None and math.isfinite(disk[0]):
-            loss = _apply(_disk_kernel(c.t.size, c.dt, float(disk[0]), float(disk[1])), self._phi)
-            Xl = Xl.copy()
-            Xl[:, 2] -= _lag(loss[:, None], c.dt, self._tau)[:, 0]
+        c = self._c
+        Xl = self._X1.copy()
+        Xl[:, 2] = self._column(disk)
         return _result(Xl, c.y, c.fit, _lstsq(Xl, c.y, c.fit), c.Tp0, self._noise, 1)
+
+    def point(self, disk: tuple[float, float] | None = None) -> ProfilePoint:
+        """e and the residual of the fit with ``disk``, without its covariance (the profile's inner loop)."""
+        Q = self._Q
+        v = self._column(disk)[self._c.fit]
+        v = v - Q @ (Q.T @ v)
+        v = v - Q @ (Q.T @ v)                      # twice: the projection stays orthogonal to rounding
+        g = float(v @ v)
+        inv_e = float(v @ self._yp) / g if g > 0 else 0.0
+        r = self._yp - inv_e * v
+        rr = float(r @ r)
+        rho = float(np.clip((r[1:] @ r[:-1]) / max(rr, 1e-300), 0.0, 0.95))
+        return ProfilePoint(1.0 / inv_e if inv_e > 0 else float("inf"), math.sqrt(rr / r.size), int(r.size),
+                            (1.0 + rho) / (1.0 - rho))

@@ -129,3 +129,37 @@ def test_disk_fitter_gives_fit_sensor_chains_numbers(disk):
                  "residual_inflation"):
         assert getattr(a, name) == pytest.approx(getattr(b, name), rel=1e-9, abs=1e-12), name
     assert a.n_fitted == b.n_fitted == int(np.sum(t >= 0.3))
+
+
+@pytest.mark.parametrize("dt,tau,n", [(0.05, 0.06, 300), (0.01, 0.1, 2000), (0.08, 0.01, 50), (0.001, 0.2, 700)])
+def test_lag_as_a_convolution_is_the_recursion(dt, tau, n):
+    from edge.estimation.sensor_chain import _lag
+
+    rng = np.random.default_rng(7)
+    x = np.column_stack((np.ones(n), np.cumsum(rng.standard_normal(n)), 1e3 * rng.standard_normal(n)))
+    # The bead's first-order lag, exact for x linear between samples (the definition).
+    a = np.exp(-dt / tau)
+    b = 1.0 - tau * (1.0 - a) / dt
+    ref = np.zeros_like(x)
+    for i in range(1, n):
+        ref[i] = a * ref[i - 1] + (1.0 - a) * x[i - 1] + b * (x[i] - x[i - 1])
+    got = _lag(x, dt, tau)
+    assert np.allclose(got, ref, rtol=1e-10, atol=1e-10 * np.max(np.abs(x), axis=0))
+    assert _lag(x, dt, 0.0) is x
+
+
+def test_disk_fitter_point_is_the_full_fits_e_and_residual():
+    from edge.estimation.sensor_chain import DiskFitter
+
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 8.0, DT_s)
+    q = np.where(t > 1.0, 2500.0, 300.0 / np.sqrt(1.0 + t))
+    cal = SensorChainCalibration(tc_tau_s=0.06)
+    T = simulate_chain(t, q, e_W_s05_m2K=9000.0, R_c_m2K_W=2e-5, T_obj0_C=24.0, T_probe0_C=25.0, calibration=cal)
+    f = DiskFitter(t, T + 0.004 * rng.standard_normal(t.size), q, calibration=cal, noise_T_K=0.004, breaks_s=(1.0,))
+    for disk in (None, (0.03, 5e-5), (0.03, 2e-4)):
+        full, pt = f(disk), f.point(disk)
+        assert pt.e_W_s05_m2K == pytest.approx(full.e_W_s05_m2K, rel=1e-9)
+        assert pt.rms_residual_K == pytest.approx(full.rms_residual_K, rel=1e-9)
+        assert pt.residual_inflation == pytest.approx(full.residual_inflation, rel=1e-9)
+        assert pt.n_fitted == full.n_fitted

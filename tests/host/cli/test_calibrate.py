@@ -58,7 +58,7 @@ def test_fit_then_estimate_with_the_calibration_beats_the_datasheet(capsys, reco
     assert code == 2 and "--overwrite" in err and cal.read_bytes() == before
     glass, e_true = records["borofloat_33"]
     # The record is the 1-D-limit world: tell the estimate nothing else (the paper probe's lateral
-    # bracket is small on glass at 6 s).
+    # loss is negligible on glass at 6 s: alpha stays at the prior).
     code, out, err = run(capsys, "estimate", "--csv", str(glass), "--calibration", str(cal), "--json")
     assert code == 0, err
     d = json.loads(out)
