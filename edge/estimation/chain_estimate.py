@@ -150,8 +150,9 @@ def lateral_profile(fit_disk: Callable[[float], Any], e_1d: float, noise_T_K: fl
     The heated disk loses heat sideways into the object at a rate set by its alpha, which the
     centre's temperature history carries once sqrt(alpha t) nears the heater's radius (a metal
     within seconds).  The objective is the fit's residual sum of squares over its variance plus the
-    prior's ((ln alpha - m) / sd)^2 (m, sd the library's given the point's e), minimised on a grid and by golden section; the residual's curvature there gives
-    u(ln alpha) (Laplace), never more than the prior's.  The residual variance is the larger of
+    prior's ((ln alpha - m) / sd)^2 (m, sd the library's given the point's e), minimised on a grid
+    and by golden section; the residual's curvature there gives u(ln alpha) (Laplace), never more
+    than the prior's.  The residual variance is the larger of
     the noise measured in air and the best fit's own, times its lag-1 inflation: a smooth model error
     (a finite block is not a half-space) must not pass for information on alpha.
 
