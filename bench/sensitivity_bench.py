@@ -11,7 +11,8 @@
    smoothed before the storage term (as shipped) and without; the R_c error times e^2 is
    constant (~5 J/m^2K) where a surface heat capacity explains it.  Then, from
    ``bench/results/calibration.json`` (``python bench/calibration_bench.py``), the median
-   z = (R_c fit - R_c) / u(R_c) per solid of the calibrated 1-D touches.
+   z = (R_c fit - R_c) / u(R_c) per solid of the calibrated 1-D touches; and, from both boards'
+   calibration benches, each metal's mean e error and coverage on the paper geometry.
 3. The real-probe demo's aluminium scenes (``host.realprobe.TEST_TOUCHES``) noise-free, the
    datasheet probe known exactly, with the object at the probe's temperature and at the scene's
    offset: e error of the chain's answer and of its 1-D fit (no lateral loss), and the alpha
@@ -111,6 +112,29 @@ def rc_z_from_calibration_bench() -> dict:
     return out
 
 
+def metals_from_calibration_bench() -> dict:
+    """Per metal, the calibrated paper-geometry touches of both boards' calibration benches: mean e error, coverage."""
+    out = {}
+    for board, name in (("precision", "calibration.json"), ("reference", "calibration_reference.json")):
+        path = RESULTS / name
+        if not path.exists():
+            print(f"\n{path} missing: run python bench/calibration_bench.py" + ("" if board == "precision" else
+                                                                                 " --board reference"))
+            continue
+        by = defaultdict(list)
+        for r in json.loads(path.read_text())["rows"]:
+            if r["geometry"] == "paper" and r["chain"] == "calibrated" and r["e"] is not None and r["e_true"] > 5000:
+                by[r["solid"]].append((r["e"] / r["e_true"] - 1.0, abs(r["e"] - r["e_true"]) <= 1.96 * r["u_e"],
+                                       r["u_e"] / r["e"]))
+        out[board] = {s: {"mean_err": statistics.mean(x[0] for x in v), "covered": sum(x[1] for x in v), "n": len(v),
+                          "median_u_rel": statistics.median(x[2] for x in v)} for s, v in by.items()}
+        print(f"\ncalibration bench, {board} board, paper geometry, calibrated, metals (e > 5000): mean e error, "
+              "95 % interval holds e, median u(e)")
+        for sname, d in sorted(out[board].items()):
+            print(f"  {sname:<22} {d['mean_err']:+.1%}  {d['covered']}/{d['n']}  u {d['median_u_rel']:.1%}")
+    return out
+
+
 def aluminium_offset(lib) -> dict:
     """The real-probe demo's aluminium scenes noise-free, with the object at the probe's temperature and at the scene's offset."""
     from edge.calibration.model import ProbeCalibration
@@ -153,7 +177,8 @@ def aluminium_offset(lib) -> dict:
 def main() -> None:
     lib = load_materials()
     res = {"flux_scale": flux_scale(lib), "rc_smoothing": rc_smoothing(lib),
-           "rc_z_per_solid": rc_z_from_calibration_bench(), "aluminium_offset": aluminium_offset(lib),
+           "rc_z_per_solid": rc_z_from_calibration_bench(),
+           "metals_paper": metals_from_calibration_bench(), "aluminium_offset": aluminium_offset(lib),
            "command": "python bench/sensitivity_bench.py"}
     print(f"wrote {write_json('sensitivity', res)}")
 

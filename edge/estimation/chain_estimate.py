@@ -81,7 +81,7 @@ ALPHA_STEP_LN = 0.05
 ALPHA_DETERMINED = 0.5
 #: The disk at the prior's alpha moving e less than this (relative) from the 1-D fit: the lateral
 #: loss is too small to stand out of the probe's own departures from the model (glass, polymers, foams,
-#: stainless steel: on AISI 304 a profile put alpha at 3x the truth), and alpha is not profiled.
+#: stainless steel: there a free profile reads those departures as alpha), and alpha is not profiled.
 LATERAL_PROFILE_MIN = 0.03
 #: A lateral correction of e beyond this (relative) is flagged ``lateral_spread``.
 LATERAL_FLAG = 0.10
@@ -209,8 +209,8 @@ def lateral_profile(fit_disk: Callable[[float], Any], e_1d: float, noise_T_K: fl
         * best.residual_inflation
     # The prior at each point's own e.  Fixed at the e of the record's best grid point it followed the
     # noise: on the reference board's 0.0625-K steps an aluminium touch's best point can sit at any
-    # alpha (e -70..-88 % with u 25-33 % on the calibration bench); fixed at the e of the disk fit at
-    # the 1-D fit's prior alpha it let copper's alpha run low (+20 % at u 7.5 %).
+    # alpha (the calibration bench's reference board, at commit 654a9b8); fixed at the e of the disk
+    # fit at the 1-D fit's prior alpha it let copper's alpha run low.
     def D(la: float) -> float:       # the data's part: residual sum of squares over its variance
         r = at(la)
         return r.rms_residual_K ** 2 * r.n_fitted / s2 if ok(r) else math.inf
@@ -243,7 +243,7 @@ def lateral_profile(fit_disk: Callable[[float], Any], e_1d: float, noise_T_K: fl
     slope = (math.log(rp.e_W_s05_m2K / rm.e_W_s05_m2K) / (2.0 * h)) if ok(rp) and ok(rm) else 0.0
     # u(ln alpha): what the record alone pins (its curvature), or the prior's sd where the record
     # pins less.  Not the posterior's: through rho c's prior given e, a low e raises the prior's alpha,
-    # which lowers e -- on a noise-limited copper touch that loop stated half the error it made.
+    # which lowers e -- on a noise-limited copper touch that loop made the posterior over-confident.
     curv = (D(la + h) - 2.0 * D(la) + D(la - h)) / (h * h)
     u_data = math.sqrt(2.0 / curv) if curv > 0 and math.isfinite(curv) else math.inf
     return LateralProfile(r, la, min(u_data, sd), slope, (m, sd), profiled=True)

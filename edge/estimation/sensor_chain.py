@@ -310,12 +310,25 @@ def _prepare(t_s, T_tc_C, q_m_W_m2, cal: SensorChainCalibration, T_probe0_C, fit
     return _Prepared(t, y, (t - t[0]) >= fit_start_s, dt, Tp0, _apply(KA, q), KB, theta)
 
 
+def _disk_loss(phi: np.ndarray, dt: float, disk) -> np.ndarray | None:
+    """The disk's lateral loss in the object's face-temperature column (None for 1-D: no disk)."""
+    if disk is None or not math.isfinite(disk[0]):
+        return None
+    return _apply(_disk_kernel(phi.shape[0], dt, float(disk[0]), float(disk[1])), phi)
+
+
 def _response(phi: np.ndarray, dt: float, disk) -> np.ndarray:
     """The object's face-temperature column: Duhamel(phi), less the disk's lateral loss when ``disk`` = (a, alpha)."""
     d = duhamel_apply(phi, dt)
-    if disk is not None and math.isfinite(disk[0]):
-        d = d - _apply(_disk_kernel(phi.shape[0], dt, float(disk[0]), float(disk[1])), phi)
-    return d
+    loss = _disk_loss(phi, dt, disk)
+    return d if loss is None else d - loss
+
+
+def _ar1_inflation(r: np.ndarray) -> float:
+    """(1 + rho) / (1 - rho) of the residuals' lag-1 autocorrelation rho (in [0, 0.95]): smooth model
+    error makes residuals correlated, and their effective number smaller."""
+    rho = float(np.clip((r[1:] @ r[:-1]) / max(float(r @ r), 1e-300), 0.0, 0.95))
+    return (1.0 + rho) / (1.0 - rho)
 
 
 def face_flux(t_s, T_tc_C, q_m_W_m2, calibration: SensorChainCalibration = SensorChainCalibration(), *,
@@ -404,11 +417,17 @@ def fit_sensor_chain(t_s, T_tc_C, q_m_W_m2, *, T_probe0_C: float | None = None,
     return _result(Xl, y, fit, p, c.Tp0, noise_T_K, it + 1)
 
 
+def _unit_scale(Xf: np.ndarray) -> np.ndarray:
+    """Column norms of the fitted columns (1 for an all-zero column): the solve runs on unit columns."""
+    scale = np.sqrt(np.sum(Xf * Xf, axis=0))
+    scale[scale == 0] = 1.0
+    return scale
+
+
 def _lstsq(Xl: np.ndarray, y: np.ndarray, fit: np.ndarray) -> np.ndarray:
     """(dT_obj0, R_c, 1/e) of the lagged columns Xl on the fitted samples (columns scaled to unit norm)."""
     Xf = Xl[fit]
-    scale = np.sqrt(np.sum(Xf * Xf, axis=0))
-    scale[scale == 0] = 1.0
+    scale = _unit_scale(Xf)
     p_s, *_ = np.linalg.lstsq(Xf / scale, y[fit], rcond=None)
     return p_s / scale
 
@@ -417,15 +436,12 @@ def _result(Xl: np.ndarray, y: np.ndarray, fit: np.ndarray, p: np.ndarray, Tp0: 
             n_iterations: int) -> SensorChainResult:
     """The fit's values, their covariance (residual variance, lag-1 inflation) and quality."""
     Xf, yf = Xl[fit], y[fit]
-    scale = np.sqrt(np.sum(Xf * Xf, axis=0))
-    scale[scale == 0] = 1.0
+    scale = _unit_scale(Xf)
     r = yf - Xf @ p
     m = r.size
     dof = max(1, m - 3)
     s2 = float(r @ r) / dof
-    # Smooth model error makes residuals correlated: inflate by (1 + rho) / (1 - rho) (AR(1) effective n).
-    rho = float(np.clip((r[1:] @ r[:-1]) / max(r @ r, 1e-300), 0.0, 0.95))
-    infl = (1.0 + rho) / (1.0 - rho)
+    infl = _ar1_inflation(r)
     Xs = Xf / scale
     # pinv: a record without a contact step or without heating leaves a column (nearly) unused.
     cov_s = np.linalg.pinv(Xs.T @ Xs) * s2 * infl
@@ -482,12 +498,9 @@ class DiskFitter:
         self._yp = yf - self._Q @ (self._Q.T @ yf)
 
     def _column(self, disk) -> np.ndarray:
+        loss = _disk_loss(self._phi, self._c.dt, disk)
         col = self._X1[:, 2]
-        if disk is not None and math.isfinite(disk[0]):
-            c = self._c
-            loss = _apply(_disk_kernel(c.t.size, c.dt, float(disk[0]), float(disk[1])), self._phi)
-            col = col - _lag(loss[:, None], c.dt, self._tau)[:, 0]
-        return col
+        return col if loss is None else col - _lag(loss[:, None], self._c.dt, self._tau)[:, 0]
 
     def __call__(self, disk: tuple[float, float] | None = None) -> SensorChainResult:
         c = self._c
@@ -504,7 +517,5 @@ class DiskFitter:
         g = float(v @ v)
         inv_e = float(v @ self._yp) / g if g > 0 else 0.0
         r = self._yp - inv_e * v
-        rr = float(r @ r)
-        rho = float(np.clip((r[1:] @ r[:-1]) / max(rr, 1e-300), 0.0, 0.95))
-        return ProfilePoint(1.0 / inv_e if inv_e > 0 else float("inf"), math.sqrt(rr / r.size), int(r.size),
-                            (1.0 + rho) / (1.0 - rho))
+        return ProfilePoint(1.0 / inv_e if inv_e > 0 else float("inf"), math.sqrt(float(r @ r) / r.size),
+                            int(r.size), _ar1_inflation(r))
