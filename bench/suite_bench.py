@@ -38,7 +38,10 @@ def _run(workers: int) -> dict:
     _clean_bytecode()
     with tempfile.TemporaryDirectory(prefix="suite-bench-") as tmp:
         xml = Path(tmp) / "junit.xml"
-        cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", f"--junitxml={xml}"]
+        # A fresh --basetemp, as on CI's clean machine: pytest otherwise also deletes the temporary
+        # directories of older runs (it keeps three; ~2000 directories each for this suite).
+        cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", f"--junitxml={xml}",
+               f"--basetemp={Path(tmp) / 'basetemp'}"]
         if workers > 0:
             cmd += ["-n", str(workers)]
         t0 = time.perf_counter()

@@ -23,6 +23,21 @@ def _one_blas_thread():
     yield
 
 
+@pytest.fixture(scope="session", autouse=True)
+def faithful_world_test_step():
+    """The faithful world marches at ``TEST_DT_s`` (tests/support/faithful.py) unless a test chooses.
+
+    Session-scoped, so module and session fixtures that build worlds get it too.
+    """
+    from firmware_sim.rz.probe_world import FaithfulWorld
+    from tests.support.faithful import TEST_DT_s
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setitem(FaithfulWorld.__init__.__kwdefaults__, "dt_s", TEST_DT_s)
+        mp.setitem(FaithfulWorld.for_scene.__func__.__kwdefaults__, "dt_s", TEST_DT_s)
+        yield
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)

@@ -120,14 +120,30 @@ def _measured(x: float, floor: float) -> float:
 
 
 def _residual_fn(arrays, idx, prior: ProbeCalibration, th0, u_th0, ln_e0, u_ln_e):
-    """Stacked weighted residuals of p = (theta, ln e_m) over the touches (nuisances by variable projection)."""
+    """Stacked weighted residuals of p = (theta, ln e_m) over the touches (nuisances by variable projection).
+
+    The touches' designs depend on theta only: they are kept for the last few theta, so the
+    Jacobian's ln e_m columns (theta unchanged) reuse the base point's instead of rebuilding
+    every touch's chain -- the same arrays, so the same residuals to the bit.
+    """
+    designs: dict[bytes, list] = {}
+
+    def design(th: np.ndarray) -> list:
+        key = th.tobytes()
+        d = designs.pop(key, None)
+        if d is None:
+            chain = prior.chain_at(th)
+            d = [chain_design(tt, TT, qq, chain, fit_start_s=FIT_START_s, breaks_s=br,
+                              smooth_growth=CAL_SMOOTH_GROWTH) for tt, TT, qq, _, br in arrays]
+        designs[key] = d                   # most recent last
+        while len(designs) > NP + 2:       # the base point, its NP theta steps and a trial step
+            del designs[next(iter(designs))]
+        return d
+
     def residuals(p: np.ndarray) -> np.ndarray:
         th, ln_e = p[:NP], p[NP:]
-        chain = prior.chain_at(th)
         out = []
-        for (tt, TT, qq, w, br), m in zip(arrays, idx):
-            X, y = chain_design(tt, TT, qq, chain, fit_start_s=FIT_START_s, breaks_s=br,
-                                smooth_growth=CAL_SMOOTH_GROWTH)
+        for (X, y), (_, _, _, w, _), m in zip(design(th), arrays, idx):
             y2 = y - X[:, 2] * math.exp(-ln_e[m])
             beta = np.linalg.lstsq(X[:, :2], y2, rcond=None)[0]
             out.append(w * (y2 - X[:, :2] @ beta))

@@ -35,7 +35,9 @@ power changes (:meth:`Solver.superpose`), exactly as a direct run.
 
 from __future__ import annotations
 
+import hashlib
 import math
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
@@ -85,37 +87,114 @@ class BlockTridiagonal:
         a_in = off_in * s[:, :-1] * s[:, 1:]
         b = off_between * s[:-1] * s[1:]
         self.b = b
-        G = np.empty((n, m, m))
-        idx = np.arange(m)
-        prev = None
+        # Unknowns past the last coupled one of a block row (the grid's inactive cells beyond a
+        # layer's radius: no coupling at all) are their own solution, x = rhs / diag; the dense
+        # work is kept to the leading coupled part of each block (often half the grid's width,
+        # or none at all), which the block elimination sees unchanged.
+        coupled = np.zeros((n, m), dtype=bool)
+        coupled[:, :-1] |= a_in != 0
+        coupled[:, 1:] |= a_in != 0
+        coupled[:-1] |= b != 0
+        coupled[1:] |= b != 0
+        width = np.where(coupled.any(axis=1), m - np.argmax(coupled[:, ::-1], axis=1), 0)
+        self.width = width
+        G = []
+        prev, w_prev = None, 0
         for j in range(n):
-            S = np.zeros((m, m))
+            w = int(width[j])
+            idx = np.arange(w)
+            S = np.zeros((w, w))
             S[idx, idx] = 1.0
-            S[idx[:-1], idx[1:]] = a_in[j]
-            S[idx[1:], idx[:-1]] = a_in[j]
+            S[idx[:-1], idx[1:]] = a_in[j, : max(w - 1, 0)]
+            S[idx[1:], idx[:-1]] = a_in[j, : max(w - 1, 0)]
             if prev is not None:
-                S -= b[j - 1][:, None] * prev * b[j - 1][None, :]
-            prev = np.linalg.inv(S)
-            # Symmetrise: S_j is symmetric, its computed inverse only to round-off.
-            prev = 0.5 * (prev + prev.T)
-            G[j] = prev
+                # Only the leading min(w, w_prev) unknowns of the two rows can be coupled.
+                c = min(w, w_prev)
+                bj = b[j - 1, :c]
+                S[:c, :c] -= bj[:, None] * prev[:c, :c] * bj[None, :]
+            if w:
+                prev = np.linalg.inv(S)
+                # Symmetrise: S_j is symmetric, its computed inverse only to round-off.
+                prev = 0.5 * (prev + prev.T)
+            else:
+                prev = S
+            w_prev = w
+            G.append(prev)
         self.G = G
+        # Per block row j: the couplings to rows j - 1 and j + 1 over its own coupled width.
+        self._b_prev = [b[j - 1, : width[j]] if j else None for j in range(n)]
+        self._b_next = [b[j, : width[j]] if j < n - 1 else None for j in range(n)]
         self.n, self.m = n, m
+        self.nbytes = sum(g.nbytes for g in G)
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve ``A x = rhs`` for ``rhs`` of shape (n, m); returns a new (n, m) array."""
-        G, b = self.G, self.b
+        G, width, b_prev, b_next = self.G, self.width, self._b_prev, self._b_next
         f = rhs * self.scale
-        z = np.empty_like(f)
+        # Uncoupled unknowns keep f (scaled twice below: rhs / diag); the coupled ones are
+        # overwritten in place, row by row, through views (one mat-vec and two vector
+        # operations per row and sweep: the loop's cost is the NumPy calls, not the flops).
+        z = f.copy()
+        zs = [z[j, : width[j]] for j in range(self.n)]
+        fs = [f[j, : width[j]] for j in range(self.n)]
         # Forward sweep: z_j = S_j^{-1} (f_j - b_j z_{j-1}).
-        z[0] = G[0] @ f[0]
-        for j in range(1, self.n):
-            z[j] = G[j] @ (f[j] - b[j - 1] * z[j - 1])
+        prev = None
+        for j in range(self.n):
+            if not width[j]:
+                prev = None
+                continue
+            if prev is None:
+                np.dot(G[j], fs[j], out=zs[j])
+            else:
+                c = min(width[j], prev.size)
+                t = fs[j].copy()
+                t[:c] -= b_prev[j][:c] * prev[:c]
+                np.dot(G[j], t, out=zs[j])
+            prev = zs[j]
         # Back substitution: x_j = z_j - S_j^{-1} b_{j+1} x_{j+1}.
-        x = z
-        for j in range(self.n - 2, -1, -1):
-            x[j] = z[j] - G[j] @ (b[j] * x[j + 1])
-        return x * self.scale
+        nxt = None
+        for j in range(self.n - 1, -1, -1):
+            if not width[j]:
+                nxt = None
+                continue
+            if nxt is not None:
+                c = min(width[j], nxt.size)
+                t = np.zeros(width[j])
+                t[:c] = b_next[j][:c] * nxt[:c]
+                zs[j] -= np.dot(G[j], t)
+            nxt = zs[j]
+        return z * self.scale
+
+
+#: Factors shared by every solver of the same matrix (worlds rebuilt for the same probe, scene and
+#: step: a session's touches, a simulator per measurement), least recently used dropped first.
+_FACTOR_CACHE: OrderedDict[bytes, BlockTridiagonal] = OrderedDict()
+_FACTOR_CACHE_BYTES = 64 * 2**20
+
+
+def _factor(diag: np.ndarray, off_in: np.ndarray, off_between: np.ndarray) -> BlockTridiagonal:
+    """:class:`BlockTridiagonal` of these arrays, from the cache when the very same matrix was factored.
+
+    The key is a digest of the arrays' shapes and exact bytes, so a hit is the factor the
+    arrays would give (the factor is read-only once built).
+    """
+    h = hashlib.blake2b(digest_size=20)
+    for a in (diag, off_in, off_between):
+        a = np.ascontiguousarray(a, dtype=float)
+        h.update(repr(a.shape).encode())
+        h.update(a.tobytes())
+    key = h.digest()
+    fac = _FACTOR_CACHE.get(key)
+    if fac is not None:
+        _FACTOR_CACHE.move_to_end(key)
+        return fac
+    fac = BlockTridiagonal(diag, off_in, off_between)
+    _FACTOR_CACHE[key] = fac
+    total = sum(f.nbytes for f in _FACTOR_CACHE.values())
+    while total > _FACTOR_CACHE_BYTES and len(_FACTOR_CACHE) > 1:
+        _, old = _FACTOR_CACHE.popitem(last=False)
+        total -= old.nbytes
+    return fac
 
 
 class _Operator:
@@ -151,8 +230,8 @@ class _Operator:
         d = np.where(self.inactive, 1.0, d)
         off_r, off_z = -self.gr, -self.gz
         if self.transpose:
-            return BlockTridiagonal(d.T.copy(), off_z.T.copy(), off_r.T.copy())
-        return BlockTridiagonal(d, off_r, off_z)
+            return _factor(d.T.copy(), off_z.T.copy(), off_r.T.copy())
+        return _factor(d, off_r, off_z)
 
     def solve(self, fac: BlockTridiagonal, rhs: np.ndarray) -> np.ndarray:
         if self.transpose:

@@ -14,9 +14,21 @@ heater off at exit, and speaks systemd's notify protocol when
 in ``TMPDIR/gpio`` and ``TMPDIR/pwm``
 (:func:`firmware_sim.gpiod.state.read_line`), readable after this process
 is killed.
+
+``python daemon_proc.py --fork-server FD`` is the same program behind a fork
+server (:class:`ForkServer`): one interpreter pays for the imports (~0.5 s,
+NumPy's most of it), then forks a child per daemon asked for on the control
+socket ``FD``. From its fork on a child is that script's process: it runs
+``main()`` to a normal interpreter exit (``atexit``, thread joins, exit status
+and all), or dies by the signal the test sends it, just the same; what it
+skips is only the re-import.
 """
 
 import json
+import os
+import select
+import signal
+import socket
 import sys
 import threading
 import time
@@ -74,5 +86,234 @@ def main() -> int:
     return handlers.exit_status()
 
 
+# ---------------------------------------------------------------------------------------------- fork server
+
+#: Longest a fork-server reply (the child's pid, its exit status) is waited for.
+FORK_SERVER_TIMEOUT_s = 30.0
+
+
+def _serve_forks(ctl_fd: int) -> dict:
+    """Fork server loop: returns only in a forked child, with its job (``{"argv": [...]}`` or ``{"code": ...}``).
+
+    Each request on the SOCK_SEQPACKET control socket is one JSON job plus the child's stdin, stdout
+    and stderr as passed file descriptors. The server answers the child's pid, waits for it, then
+    answers its exit status (as :attr:`subprocess.Popen.returncode`: negative for a signal). One
+    child at a time: this process stays single-threaded, so a fork never inherits a held lock.
+    """
+    ctl = socket.socket(fileno=ctl_fd)
+    while True:
+        msg, fds, _, _ = socket.recv_fds(ctl, 1 << 16, 3)
+        if not msg:  # the test process has gone
+            os._exit(0)
+        job = json.loads(msg)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        pid = os.fork()
+        if pid == 0:
+            ctl.close()
+            for target, fd in enumerate(fds):
+                os.dup2(fd, target)
+                os.close(fd)
+            if job.get("env") is not None:
+                os.environ.clear()
+                os.environ.update(job["env"])
+            return job
+        for fd in fds:
+            os.close(fd)
+        ctl.send(json.dumps({"pid": pid}).encode())
+        _, status = os.waitpid(pid, 0)
+        ctl.send(json.dumps({"pid": pid, "returncode": os.waitstatus_to_exitcode(status)}).encode())
+
+
+class _Pipe:
+    """The read end of a child's stdout or stderr: text ``readline``/``read``, its own buffer (so that
+    :meth:`ForkedChild.communicate` gets what ``readline`` read ahead)."""
+
+    def __init__(self, fd: int) -> None:
+        self.fd = fd
+        self.buf = bytearray()
+        self.eof = False
+
+    def fileno(self) -> int:
+        return self.fd
+
+    def fill(self) -> bool:
+        """One read into the buffer; False at end of file."""
+        chunk = os.read(self.fd, 1 << 16)
+        self.eof = not chunk
+        self.buf += chunk
+        return bool(chunk)
+
+    def readline(self) -> str:
+        while b"\n" not in self.buf and not self.eof:
+            self.fill()
+        end = self.buf.find(b"\n") + 1 or len(self.buf)
+        line = bytes(self.buf[:end])
+        del self.buf[:end]
+        return line.decode()
+
+    def read(self) -> str:
+        while not self.eof:
+            self.fill()
+        out = bytes(self.buf)
+        self.buf.clear()
+        return out.decode()
+
+    def close(self) -> None:
+        if self.fd >= 0:
+            os.close(self.fd)
+            self.fd = -1
+
+
+class ForkedChild:
+    """A child of the fork server, driven like :class:`subprocess.Popen` (text ``stdout``/``stderr`` pipes).
+
+    It is the server's child, not ours: its exit status comes over the control socket.
+    """
+
+    def __init__(self, server: "ForkServer", pid: int, stdout, stderr) -> None:
+        self._server = server
+        self.pid = pid
+        self.stdout = stdout
+        self.stderr = stderr
+        self.returncode: int | None = None
+
+    def send_signal(self, sig: int) -> None:
+        if self.poll() is None:  # not reaped yet, so the pid is still this child's
+            os.kill(self.pid, sig)
+
+    def kill(self) -> None:
+        self.send_signal(signal.SIGKILL)
+
+    def poll(self) -> int | None:
+        if self.returncode is None:
+            self._server._collect(self, block=False)
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        if self.returncode is None:
+            self._server._collect(self, block=True, timeout_s=FORK_SERVER_TIMEOUT_s if timeout is None else timeout)
+        return self.returncode
+
+    def communicate(self, timeout: float | None = None) -> tuple[str, str]:
+        """Read stdout and stderr to their end (the child's exit closes them), then wait for it."""
+        import subprocess
+
+        deadline = time.monotonic() + (FORK_SERVER_TIMEOUT_s if timeout is None else timeout)
+        pending = [p for p in (self.stdout, self.stderr) if not p.eof]
+        while pending:
+            ready, _, _ = select.select(pending, [], [], max(deadline - time.monotonic(), 0.0))
+            if not ready:
+                raise subprocess.TimeoutExpired(f"forked child {self.pid}", timeout)
+            for p in ready:
+                if not p.fill():
+                    pending.remove(p)
+        self.wait(max(deadline - time.monotonic(), 0.1))
+        return self.stdout.read(), self.stderr.read()
+
+    def close(self) -> None:
+        for f in (self.stdout, self.stderr):
+            f.close()
+
+
+class ForkServer:
+    """Runs :func:`main` (or a code snippet) in children forked from one warmed-up interpreter.
+
+    ``spawn(tmp, env=None)`` stands in for ``Popen([python, daemon_proc.py, tmp], stdout=PIPE,
+    stderr=PIPE, text=True, env=env)``; ``run_code(code)`` for ``python -c code``.
+    """
+
+    def __init__(self) -> None:
+        import subprocess
+
+        self._ctl, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        self._proc = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--fork-server",
+                                       str(theirs.fileno())], pass_fds=(theirs.fileno(),),
+                                      stdin=subprocess.DEVNULL)
+        theirs.close()
+        self._child: ForkedChild | None = None
+
+    def _recv(self, timeout_s: float | None) -> dict:
+        self._ctl.settimeout(timeout_s)
+        msg = self._ctl.recv(1 << 16)
+        if not msg:
+            raise RuntimeError(f"the fork server died (status {self._proc.poll()})")
+        return json.loads(msg)
+
+    def _collect(self, child: ForkedChild, *, block: bool, timeout_s: float | None = None) -> None:
+        import subprocess
+
+        try:
+            reply = self._recv(timeout_s if block else 0.0)
+        except (socket.timeout, BlockingIOError):
+            if block:
+                raise subprocess.TimeoutExpired(f"forked child {child.pid}", timeout_s) from None
+            return
+        assert reply["pid"] == child.pid, reply
+        child.returncode = reply["returncode"]
+        self._child = None
+
+    def spawn(self, tmp: Path | str, env: dict | None = None) -> ForkedChild:
+        """A daemon process on ``tmp``, as ``python daemon_proc.py TMP`` (env: its environment)."""
+        return self._start({"argv": [str(tmp)], "env": None if env is None else dict(env)})
+
+    def run_code(self, code: str, timeout_s: float = FORK_SERVER_TIMEOUT_s) -> tuple[int, str, str]:
+        """Run ``code`` as a fresh interpreter's ``__main__`` would; (exit status, stdout, stderr)."""
+        child = self._start({"code": code, "env": None})
+        try:
+            out, err = child.communicate(timeout_s)
+        finally:
+            self.reap(child)
+        return child.returncode, out, err
+
+    def _start(self, job: dict) -> ForkedChild:
+        if self._child is not None:  # a test that failed before waiting: end it, the server serves one at a time
+            self.reap(self._child)
+        pipes = [os.pipe() for _ in range(2)]
+        devnull = os.open(os.devnull, os.O_RDONLY)
+        try:
+            socket.send_fds(self._ctl, [json.dumps(job).encode()], [devnull, pipes[0][1], pipes[1][1]])
+        finally:
+            for fd in (devnull, pipes[0][1], pipes[1][1]):
+                os.close(fd)
+        pid = self._recv(FORK_SERVER_TIMEOUT_s)["pid"]
+        self._child = ForkedChild(self, pid, _Pipe(pipes[0][0]), _Pipe(pipes[1][0]))
+        return self._child
+
+    def reap(self, child: ForkedChild) -> None:
+        """SIGKILL ``child`` if it still runs, wait for it, close its pipes."""
+        try:
+            if child.poll() is None:
+                child.kill()
+                child.wait()
+        finally:
+            child.close()
+
+    def close(self) -> None:
+        if self._child is not None:
+            self.reap(self._child)
+        self._ctl.close()  # the server sees EOF and exits
+        try:
+            self._proc.wait(FORK_SERVER_TIMEOUT_s)
+        finally:
+            if self._proc.poll() is None:
+                self._proc.kill()
+                self._proc.wait()
+
+    def __enter__(self) -> "ForkServer":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
 if __name__ == "__main__":
+    if sys.argv[1:2] == ["--fork-server"]:
+        _job = _serve_forks(int(sys.argv[2]))
+        # From here on this is the forked child: the job runs as this script's main program would.
+        del sys.argv[1:]
+        if "code" in _job:
+            exec(compile(_job["code"], "<string>", "exec"), {"__name__": "__main__", "__builtins__": __builtins__})
+            sys.exit(0)
+        sys.argv += _job["argv"]
     sys.exit(main())

@@ -37,6 +37,7 @@ SIGKILL does not drop the page cache, so tmpfs and a disk behave the same for th
 
 from __future__ import annotations
 
+import gc
 import hashlib
 import json
 import os
@@ -301,6 +302,9 @@ def _run_child(op: Operation, point_dir: Path, n: int | None) -> tuple[int, list
     trace_r, trace_w = os.pipe()
     host_r, host_w = os.pipe()
     err_r, err_w = os.pipe()
+    # Objects that exist now are the parent's: frozen, the child's collections do not walk (and so
+    # copy-on-write) the whole test process's heap -- a large one in a worker that collected the suite.
+    gc.freeze()
     pid = os.fork()
     if pid == 0:  # pragma: no cover - the child never returns into the test runner
         status = _EXIT_CRASHED
@@ -314,6 +318,7 @@ def _run_child(op: Operation, point_dir: Path, n: int | None) -> tuple[int, list
             _write_all(err_w, traceback.format_exc().encode())
         finally:
             os._exit(status)
+    gc.unfreeze()
     for fd in (trace_w, host_w, err_w):
         os.close(fd)
     bufs: dict[int, bytearray] = {trace_r: bytearray(), host_r: bytearray(), err_r: bytearray()}

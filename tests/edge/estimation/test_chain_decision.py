@@ -7,6 +7,8 @@ The probe is as on its datasheet, so the nominal chain is its correct calibratio
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import pytest
 
 from edge.calibration.model import ProbeCalibration
@@ -22,8 +24,13 @@ KITCHEN = ObjectSet([P("acrylic_sheet", "polymer", 0.19, 1190, 1470), P("window"
                      P("alu_case", "alloy", 160, 2800, 880), P("oak", "wood", 0.18, 700, 1600)])
 
 
+@lru_cache(maxsize=None)
 def _feed(material: str, truth: str, offset_K: float, R_c: float):
-    """One 2-s touch fed sample by sample to both decisions, as the sequence does."""
+    """One 2-s touch fed sample by sample to both decisions, as the sequence does.
+
+    Cached: the window touch serves two tests, which only read the fed decisions (a faithful touch
+    costs ~0.5 s of the (r, z) world).
+    """
     r = record_touch(ContactTouch(load_materials().get(material).solid, R_c, offset_K, lead_s=1.0, heat_s=2.0),
                      board="precision", seed=0)
     t, T, q = r["t_s"], r["T_C"], r["q_W_m2"]

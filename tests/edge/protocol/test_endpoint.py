@@ -114,13 +114,15 @@ class ToyDevice:
         self.upload = None
         self.seen = []
         self.fail_chunk_at = None
+        #: A PING "slow" is answered once this is set (the test sets it once its client has given up).
+        self.slow_release = threading.Event()
 
     def __call__(self, req):
         self.seen.append(req.command)
         c, a = req.command, req.args
         if c == Command.PING:
             if a.get("echo") == "slow":
-                time.sleep(0.5)
+                self.slow_release.wait(5.0)
             if a.get("echo") == "crash":
                 raise RuntimeError("boom")
             if a.get("echo") == "badreply":
@@ -261,7 +263,9 @@ def test_garbage_and_partial_frames_do_not_stop_device(link):
         # frame *without* its leading delimiter: only the timeout separates them.
         half = encode_request(Command.PING, 500, {"echo": "lost"})
         dev.ser.write(half[: len(half) // 2])
-        time.sleep(0.5)
+        deadline = time.monotonic() + 10.0  # the silence lasts until the endpoint has timed the half frame out
+        while endpoint.stats.timeouts == 0 and time.monotonic() < deadline:
+            time.sleep(0.01)
         rid = dev._new_id()
         dev.ser.write(encode_request(Command.PING, rid, {"echo": "x"})[1:])
         assert dev._await(rid, Command.PING, 2.0) == {"echo": "x"}
@@ -310,6 +314,7 @@ def test_stale_reply_is_skipped(link):
         with pytest.raises(DeviceNotAnswering) as ei:
             dev.ping("slow")
         assert ei.value.attempts == 1
+        device.slow_release.set()  # the device answers "slow" only now, after the client gave up
         # The device is still busy with "slow"; its late reply must be skipped.
         assert dev.request(Command.PING, {"echo": "next"}, timeout_s=3.0) == {"echo": "next"}
         assert dev.stale_replies == 1
@@ -317,7 +322,7 @@ def test_stale_reply_is_skipped(link):
 
 def test_no_device_raises_not_answering():
     with NullModem() as nm:
-        with DeviceClient(nm.host_port, timeout_s=0.1, retries=2, abort_timeout_s=0.6) as dev:
+        with DeviceClient(nm.host_port, timeout_s=0.05, retries=2, abort_timeout_s=0.3) as dev:
             with pytest.raises(DeviceNotAnswering) as ei:
                 dev.info()
             assert ei.value.attempts == 3 and ei.value.command == Command.INFO
@@ -325,10 +330,10 @@ def test_no_device_raises_not_answering():
             # is tried within its own deadline and then the original error stands
             t0 = time.monotonic()
             with pytest.raises(DeviceNotAnswering) as ei:
-                dev.measure(timeout_s=0.1)
+                dev.measure(timeout_s=0.05)
             assert ei.value.attempts == 1 and ei.value.command == Command.MEASURE
             assert dev.last_abort is None
-            assert time.monotonic() - t0 < 0.1 + 0.6 + 2.0  # a deadline, not a speed figure
+            assert time.monotonic() - t0 < 0.05 + 0.3 + 2.0  # a deadline, not a speed figure
 
 
 def test_port_unavailable():

@@ -85,13 +85,16 @@ def test_hardware_watchdog_is_pet_and_closed_with_the_magic_character(tmp_path):
 def test_daemon_pets_from_its_serve_loop_and_its_measurement_loop(tmp_path, notify_socket, monkeypatch):
     path, s = notify_socket
     monkeypatch.setenv("NOTIFY_SOCKET", path)
-    monkeypatch.setenv("WATCHDOG_USEC", "400000")  # pet every 0.1 s
+    monkeypatch.setenv("WATCHDOG_USEC", "200000")  # pet every 0.05 s
     rig = make_rig()
     d = Daemon(sim_config(tmp_path), rig.board, estimator=FakeEstimator())
     stuck, release = threading.Event(), threading.Event()
 
     def hook(n, on):
-        time.sleep(0.02)  # a read takes wall time, so the measurement spans several pet periods
+        if n <= 12:
+            # A read takes wall time, so the measurement spans several pet periods before it is stuck.
+            # (After the release one more pet at most: the serve loop below stops beating.)
+            time.sleep(0.015)
         if on and n == 12:
             stuck.set()
             release.wait(20)
@@ -109,11 +112,11 @@ def test_daemon_pets_from_its_serve_loop_and_its_measurement_loop(tmp_path, noti
         t_end = time.monotonic() + dt_s
         while time.monotonic() < t_end:
             d.notifier.beat("serve")
-            time.sleep(0.02)
+            time.sleep(0.01)
 
-    serve_for(0.15)  # at most one pet: the loop's last beat came right before the read
+    serve_for(0.08)  # at most one pet: the loop's last beat came right before the read
     _drain(s)
-    serve_for(0.6)
+    serve_for(0.3)  # six pet periods
     assert _drain(s) == []
     release.set()
     th.join(20)

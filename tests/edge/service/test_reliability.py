@@ -87,7 +87,7 @@ def test_client_measure_timeout_sends_abort_and_waits_for_the_confirmation(tmp_p
         hold_heating(dt.daemon, rig)
         with DeviceClient(nm.host_port, timeout_s=2.0) as c:
             with pytest.raises(DeviceNotAnswering):
-                c.measure(contact_time_s=2.0, timeout_s=0.5)
+                c.measure(contact_time_s=2.0, timeout_s=0.25)
             assert c.last_abort == {"aborted": True, "measurement_id": 1}
             assert heater_level(rig) == 0
             assert c.result(1)["reason"] == "host_abort"
@@ -117,20 +117,25 @@ def test_client_measure_interrupted_by_ctrl_c_sends_abort_then_reraises(tmp_path
 
 # ---------------------------------------------------------------- 2. a host that stops reading
 
-def _flood(port_path: str, n: int, first_id: int, write_timeout_s: float = 30.0, silent_s: float = 1.0) -> None:
-    """Send ``n`` PINGs with long echoes and read nothing for ``silent_s`` (a write the device stopped taking
-    is given up)."""
+def _flood(port_path: str, n: int, first_id: int, write_timeout_s: float = 30.0, silent_s: float = 1.0,
+           silent_until=lambda: False) -> None:
+    """Send ``n`` PINGs with long echoes, then read nothing until ``silent_until()`` holds (at most
+    ``silent_s``), the port still open; a write the device stopped taking is given up."""
     with serial.Serial(port_path, timeout=0.05, write_timeout=write_timeout_s) as ser:
         try:
             ser.write(b"".join(encode_request(Command.PING, first_id + i, {"echo": "x" * 200}) for i in range(n)))
         except serial.SerialException:  # SerialTimeoutException: the daemon was stopped meanwhile
             return
-        time.sleep(silent_s)  # and for a while nobody reads
+        deadline = time.monotonic() + silent_s
+        while not silent_until() and time.monotonic() < deadline:  # and for a while nobody reads
+            time.sleep(0.01)
 
 
 def test_host_that_stops_reading_does_not_wedge_the_daemon(tmp_path):
     with served(tmp_path) as (dt, nm, rig):
-        _flood(nm.host_port, 3000, 100_000)
+        # Silent until the daemon has given replies up (they did not fit a host that is not reading).
+        _flood(nm.host_port, 3000, 100_000, silent_s=WAIT_s,
+               silent_until=lambda: dt.daemon.endpoint.replies_dropped > 0)
         t0 = time.monotonic()
         with DeviceClient(nm.host_port, timeout_s=5.0) as c:  # reconnect
             assert c.ping("back") == {"echo": "back"}
@@ -165,6 +170,7 @@ def daemon_in_state(tmp_path, state: str, wait_s: float = WAIT_s):
         d = dt.start()
         host = RawHost(nm.host_port)
         flood = None
+        flood_done = threading.Event()
         try:
             if state == "measuring":
                 heating = hold_heating(d, rig)
@@ -175,7 +181,9 @@ def daemon_in_state(tmp_path, state: str, wait_s: float = WAIT_s):
                 host.ask(Command.MODEL_CHUNK, 2, {"offset": 0, "data": b"x" * 100, "session": r.body["session"]})
                 assert d.upload.in_progress
             elif state == "blocked_writer":
-                flood = threading.Thread(target=_flood, args=(nm.host_port, 3000, 100_000, 2.0), daemon=True)
+                flood = threading.Thread(target=_flood, args=(nm.host_port, 3000, 100_000, 2.0),
+                                         kwargs={"silent_s": WAIT_s, "silent_until": flood_done.is_set},
+                                         daemon=True)
                 flood.start()
                 deadline = time.monotonic() + wait_s
                 while d.endpoint.replies_dropped == 0 and time.monotonic() < deadline:
@@ -185,6 +193,12 @@ def daemon_in_state(tmp_path, state: str, wait_s: float = WAIT_s):
         finally:
             host.close()
             if flood is not None:
+                flood_done.set()
+                if not dt.thread.is_alive():
+                    # Stopped mid-flood: the flood's write waits for a reader; be it, rather than wait
+                    # out the write timeout.
+                    while flood.is_alive() and port.is_open:
+                        port.read(1 << 16)
                 flood.join(wait_s)
 
 

@@ -44,6 +44,24 @@ def records(tmp_path_factory):
     return out
 
 
+@pytest.fixture(scope="module")
+def record_files(tmp_path_factory):
+    """Well-formed records for the refusals, which never reach a fit: the faithful ``records`` cost
+    seconds, and a worker that runs only refusals need not simulate them."""
+    import numpy as np
+
+    d = tmp_path_factory.mktemp("files")
+    t = np.arange(-40, 121) * 0.05                       # 2 s in air, contact at -1 s, heater-on at 0
+    T = 25.0 + np.where(t > -1.0, 0.3, 0.0) + np.where(t > 0.0, 0.4 * np.sqrt(np.clip(t, 0, None)), 0.0)
+    q = np.where(t > 0.0, 2500.0, 0.0)
+    out = {}
+    for name in ("pmma", "pyroceram"):
+        p = d / f"{name}.csv"
+        write_series(p, t, T + 273.15, q)
+        out[name] = p
+    return out
+
+
 def test_fit_then_estimate_with_the_calibration_beats_the_datasheet(capsys, records, tmp_path):
     cal = tmp_path / "cal.json"
     args = []
@@ -90,21 +108,21 @@ def test_fit_then_estimate_with_the_calibration_beats_the_datasheet(capsys, reco
     (["calibrate", "--sim", "alu_20V_faithful", "--arm", "500", "--out", "{out}"], "--arm"),
     (["calibrate", "--sim", "alu_20V_faithful", "--probe", "small-heater", "--out", "{out}"], "paper probe only"),
 ])
-def test_bad_input_is_one_line_exit_2_and_nothing_written(capsys, records, tmp_path, argv, needle):
+def test_bad_input_is_one_line_exit_2_and_nothing_written(capsys, record_files, tmp_path, argv, needle):
     out = tmp_path / "cal.json"
-    fill = {"pmma": str(records["pmma"][0]), "pyroceram": str(records["pyroceram"][0]), "out": str(out)}
+    fill = {"pmma": str(record_files["pmma"]), "pyroceram": str(record_files["pyroceram"]), "out": str(out)}
     code, _, err = run(capsys, *[a.format(**fill) for a in argv])
     assert code == 2 and needle in err, err
     assert len(err.strip().splitlines()) == 1
     assert not out.exists()
 
 
-def test_calibration_for_another_probe_is_refused(capsys, records, tmp_path):
+def test_calibration_for_another_probe_is_refused(capsys, record_files, tmp_path):
     from tests.support.calibrations import sample_calibration
 
     p = tmp_path / "small.json"
     p.write_text(sample_calibration(probe="small-heater").to_json())
-    code, _, err = run(capsys, "estimate", "--csv", str(records["pmma"][0]), "--calibration", str(p))
+    code, _, err = run(capsys, "estimate", "--csv", str(record_files["pmma"]), "--calibration", str(p))
     assert code == 2 and "small-heater" in err and math.isfinite(1.0)
 
 
@@ -186,13 +204,15 @@ def test_a_small_heater_calibration_installed_on_the_device_is_applied_to_its_me
     p = tmp_path / "small.json"
     p.write_text(cal.to_json())
     work = str(tmp_path / "probe")
-    code, out, err = run(capsys, "measure", "--sim", "glass_15V_small", "--workdir", work, "--time", "2", "--json")
+    # 1-s touches (the scene's profile heats 2.2 s): what is checked is whether the installed
+    # calibration enters the estimate, not its accuracy, and half the faithful world's time is half the cost.
+    code, out, err = run(capsys, "measure", "--sim", "glass_15V_small", "--workdir", work, "--time", "1", "--json")
     assert code == 0, err
     before = json.loads(out)
     assert "uncalibrated" in before["flags"] and before.get("calibration_sha256") is None
     code, _, err = run(capsys, "calibrate", "--install", str(p), "--sim", "glass_15V_small", "--workdir", work)
     assert code == 0, err
-    code, out, err = run(capsys, "measure", "--sim", "glass_15V_small", "--workdir", work, "--time", "2", "--json")
+    code, out, err = run(capsys, "measure", "--sim", "glass_15V_small", "--workdir", work, "--time", "1", "--json")
     assert code == 0, err
     after = json.loads(out)
     assert "uncalibrated" not in after["flags"] and after["calibration_sha256"] == cal.sha256
