@@ -17,7 +17,6 @@ from __future__ import annotations
 import contextlib
 import logging
 import threading
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator
@@ -140,13 +139,19 @@ def simulated_probe(scene: str, workdir: str | Path | None = None, *,
     ports: list[str] = []
     box: dict[str, Any] = {}
     errors: list[BaseException] = []
+    started = threading.Event()  # set once the daemon answers, or the thread has ended
+
+    def ready(d: Any, s: Any) -> None:
+        box.update(daemon=d, sim=s)
+        started.set()
 
     def target() -> None:
         try:
-            run_sim(scene, stop, ports.append, workdir=workdir, overrides=overrides,
-                    on_ready=lambda d, s: box.update(daemon=d, sim=s))
+            run_sim(scene, stop, ports.append, workdir=workdir, overrides=overrides, on_ready=ready)
         except BaseException as exc:  # reported to the starter
             errors.append(exc)
+        finally:
+            started.set()
 
     # The daemon logs each measurement at INFO; the user sees results on stdout instead.
     # (unless the caller configured that logger, e.g. ``thermotouch --verbose``).
@@ -155,9 +160,7 @@ def simulated_probe(scene: str, workdir: str | Path | None = None, *,
         log.setLevel(logging.WARNING)
     th = threading.Thread(target=target, name="thermotouch-sim", daemon=True)
     th.start()
-    deadline = time.monotonic() + SIM_START_TIMEOUT_s
-    while "sim" not in box and th.is_alive() and time.monotonic() < deadline:
-        time.sleep(0.005)
+    started.wait(SIM_START_TIMEOUT_s)
     try:
         if "sim" not in box:
             why = f"{type(errors[0]).__name__}: {errors[0]}" if errors else "no answer"

@@ -58,8 +58,10 @@ def test_limits_follow_the_ram_and_never_loosen_the_defaults():
 
 
 def test_zip_bomb_is_refused_from_its_declared_size_without_inflating(monkeypatch):
-    data = _bomb(256 << 20)  # 256 MiB of zeros in a few hundred kB
-    assert len(data) < 1 << 20
+    # 64 MiB of zeros in well under 1 MiB: twice even the generic per-array bound and eight times the
+    # device's, so the declared size alone must refuse it (a bigger bomb only costs compressing time here).
+    data = _bomb(64 << 20)
+    assert len(data) < 1 << 20 and (64 << 20) >= 2 * B.DEFAULT_LIMITS.max_array_bytes
     inflated = Inflated(monkeypatch)
     with pytest.raises(B.SizeLimitError, match="x_mean"):
         B._parse_npz(data, "arrays.npz", RAM_LIMITS)
@@ -75,6 +77,15 @@ def test_a_header_claiming_a_huge_array_is_refused_having_inflated_only_the_head
     assert inflated.n < 1024
 
 
+@pytest.fixture(scope="module")
+def heavy_bundle(tmp_path_factory):
+    """``(path, total array bytes)`` of one heavy bundle, built once: compressing it takes longer than the tests.
+
+    Read-only: the tests parse, load and pack it, never change it.
+    """
+    return _heavy_bundle(tmp_path_factory.mktemp("heavy"))
+
+
 def _heavy_bundle(tmp_path):
     """Schema-valid arrays of ~56 MB (a 1900x1900 hidden layer and many golden vectors), all zeros."""
     arrays = {k: np.zeros_like(v) if v.dtype.kind == "f" else v
@@ -88,8 +99,8 @@ def _heavy_bundle(tmp_path):
     return path, total
 
 
-def test_valid_but_heavy_bundle_is_refused_before_inflating(tmp_path, monkeypatch):
-    path, total = _heavy_bundle(tmp_path)
+def test_valid_but_heavy_bundle_is_refused_before_inflating(heavy_bundle, monkeypatch):
+    path, total = heavy_bundle
     assert total > 56e6 and (path / "arrays.npz").stat().st_size < 1e6
     # Under the generic bounds every array passes the size stage; the device's RAM says no.
     assert total < B.DEFAULT_LIMITS.max_total_array_bytes
@@ -100,14 +111,14 @@ def test_valid_but_heavy_bundle_is_refused_before_inflating(tmp_path, monkeypatc
     assert inflated.n < 64 * 1024
 
 
-def test_heavy_upload_is_refused_and_the_old_model_keeps_serving(tmp_path):
+def test_heavy_upload_is_refused_and_the_old_model_keeps_serving(tmp_path, heavy_bundle):
     import hashlib
 
     from host.client import DeviceError
     from edge.protocol.errors import ErrorCode
     from tests.edge.service.test_daemon import running
 
-    path, _ = _heavy_bundle(tmp_path / "b")
+    path, _ = heavy_bundle
     blob = B.pack_entries([(n.encode(), (path / n).read_bytes()) for n in B.BUNDLE_FILES])
     assert len(blob) < 2e6
     with running(tmp_path / "state") as (c, d, rig, nm):

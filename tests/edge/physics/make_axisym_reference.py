@@ -31,12 +31,13 @@ T_END_s = 5.0
 OUT = Path(__file__).resolve().parent / "data" / "axisym_rz_reference.npz"
 
 
-def rz_step(solid: Solid, dt_s: float, refine: int, probe: str = "small-heater"):
+def rz_step(solid: Solid, dt_s: float, refine: int, probe: str = "small-heater", t_end_s: float = T_END_s):
+    """(t_s, T_tc_K, q_sensor_W_m2) per watt from 0 to ``t_end_s`` on the rz grid ``refine``."""
     g = PROBES[probe]
     grid = probe_grid(solid, object_thickness_m=OBJECT_SIZE_m, object_radius_m=OBJECT_SIZE_m,
                       heater_radius_m=g.heater_radius_m, probe_radius_m=g.probe_radius_m,
                       sensor_radius_m=g.sensor_radius_m, mesh=Mesh(refine=refine))
-    rec = Solver(grid, dt_s).step_response(int(round(T_END_s / dt_s)))
+    rec = Solver(grid, dt_s).step_response(int(round(t_end_s / dt_s)))
     return rec.t_s, rec.T_tc_K, rec.q_sensor_W_m2
 
 
