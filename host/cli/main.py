@@ -10,6 +10,7 @@ Ctrl-C -- never a traceback (``--log-file`` or ``--verbose`` records it;
 from __future__ import annotations
 
 import argparse
+import functools
 import logging
 import os
 import sys
@@ -53,7 +54,15 @@ def _log_file(text: str) -> str:
     return text
 
 
+@functools.lru_cache(maxsize=1)
 def build_parser() -> argparse.ArgumentParser:
+    """The ``thermotouch`` parser, built once per process.
+
+    Fifteen verbs' options cost ~10 ms to build, and a program (or the test suite) that calls
+    :func:`main` again and again would pay it each time; parsing leaves the parser unchanged
+    (no verb mutates a default, ``append`` actions copy theirs).  A verb's ``func`` is bound
+    when the parser is built.
+    """
     # Options every verb takes, before or after the verb (SUPPRESS: a verb's parser does not reset them).
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,

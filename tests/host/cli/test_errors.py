@@ -154,6 +154,18 @@ def test_default_port_from_the_environment(capsys, monkeypatch):
     assert code == 0 and json.loads(out)["info"]["board"]
 
 
+def test_the_once_built_parser_keeps_nothing_from_an_earlier_command_line(tmp_path):
+    from host.cli.main import build_parser
+
+    rec = tmp_path / "r.csv"
+    rec.write_text("t_s,T_K,q_W_m2\n")
+    p = build_parser()
+    first = p.parse_args(["calibrate", "--record", str(rec), "--reference", "pmma", "--out", str(tmp_path / "c.json")])
+    assert first.record == [rec] and first.reference == ["pmma"]
+    again = p.parse_args(["calibrate", "--sim", "glass_15V", "--out", str(tmp_path / "c.json")])
+    assert build_parser() is p and again.record == [] and again.reference == [] and again.sim == "glass_15V"
+
+
 def test_version(capsys):
     code, out, err = run(capsys, "--version")
     assert code == 0 and out.startswith("thermotouch ") and err == ""
@@ -344,13 +356,22 @@ def test_no_import_cycle_through_the_cli():
 
 # --- the one error path ---------------------------------------------------------------------------
 
+def _replace_verb(monkeypatch, module, fn):
+    """``module.run`` replaced by ``fn`` for this test; the parser is built afresh while it is (a
+    verb's ``func`` is bound when the once-per-process parser is built, host/cli/main.py)."""
+    import host.cli.main
+
+    monkeypatch.setattr(module, "run", fn)
+    monkeypatch.setattr(host.cli.main, "build_parser", host.cli.main.build_parser.__wrapped__)
+
+
 def test_unexpected_error_is_one_line_and_the_traceback_goes_to_the_log_file(capsys, tmp_path, monkeypatch):
     import host.cli.model
 
     def boom(args):
         raise RuntimeError("something broke")
 
-    monkeypatch.setattr(host.cli.model, "run", boom)
+    _replace_verb(monkeypatch, host.cli.model, boom)
     monkeypatch.delenv("THERMOTOUCH_DEBUG", raising=False)
     log = tmp_path / "tt.log"
     code, out, err = run(capsys, "model", "--material", "pmma", "--log-file", log)
@@ -367,7 +388,7 @@ def test_interrupt_is_one_line_exit_130(capsys, monkeypatch):
     def interrupted(args):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(host.cli.model, "run", interrupted)
+    _replace_verb(monkeypatch, host.cli.model, interrupted)
     code, out, err = run(capsys, "model", "--material", "pmma")
     assert code == 130 and one_line(err) == "thermotouch: interrupted"
 
