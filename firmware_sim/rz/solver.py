@@ -44,7 +44,7 @@ import numpy as np
 
 from firmware_sim.rz.grid import Grid
 
-__all__ = ["BlockTridiagonal", "Probes", "Record", "Solver", "steady_state", "axis_value", "SCHEMES"]
+__all__ = ["BlockTridiagonal", "clear_factor_cache", "Probes", "Record", "Solver", "steady_state", "axis_value", "SCHEMES"]
 
 SCHEMES = ("be", "cn", "trbdf2")
 _GAMMA = 2.0 - math.sqrt(2.0)
@@ -170,6 +170,11 @@ class BlockTridiagonal:
 #: step: a session's touches, a simulator per measurement), least recently used dropped first.
 _FACTOR_CACHE: OrderedDict[bytes, BlockTridiagonal] = OrderedDict()
 _FACTOR_CACHE_BYTES = 64 * 2**20
+
+
+def clear_factor_cache() -> None:
+    """Forget the shared factors (a benchmark that times a cold start calls it first)."""
+    _FACTOR_CACHE.clear()
 
 
 def _factor(diag: np.ndarray, off_in: np.ndarray, off_between: np.ndarray) -> BlockTridiagonal:

@@ -1,0 +1,69 @@
+"""The block-tridiagonal factor and the factors the solvers share."""
+
+import numpy as np
+import pytest
+
+from firmware_sim.rz import solver as S
+
+
+def _dense(diag, off_in, off_between):
+    n, m = diag.shape
+    A = np.diag(diag.reshape(-1))
+    for j in range(n):
+        for i in range(m - 1):
+            A[j * m + i, j * m + i + 1] = A[j * m + i + 1, j * m + i] = off_in[j, i]
+    for j in range(n - 1):
+        for i in range(m):
+            A[j * m + i, (j + 1) * m + i] = A[(j + 1) * m + i, j * m + i] = off_between[j, i]
+    return A
+
+
+def _system(rng, n=7, m=6, empty_rows=(), short_rows=()):
+    """A diagonally dominant SPD stencil; ``short_rows`` couple only their first half, ``empty_rows`` nothing
+    (the grid's inactive cells beyond a layer's radius, which the factor solves on their own)."""
+    off_in = -rng.uniform(0.1, 1.0, (n, m - 1))
+    off_between = -rng.uniform(0.1, 1.0, (n - 1, m))
+    for j in short_rows:
+        off_in[j, m // 2 - 1:] = 0.0
+        if j < n - 1:
+            off_between[j, m // 2:] = 0.0
+        if j:
+            off_between[j - 1, m // 2:] = 0.0
+    for j in empty_rows:
+        off_in[j] = 0.0
+        if j < n - 1:
+            off_between[j] = 0.0
+        if j:
+            off_between[j - 1] = 0.0
+    diag = 4.5 + rng.uniform(0.0, 1.0, (n, m))
+    return diag, off_in, off_between
+
+
+@pytest.mark.parametrize("empty_rows, short_rows", [((), ()), ((), (1, 2, 5)), ((3,), (0, 6)), ((0, 6), ())])
+def test_block_solve_equals_the_dense_solve_with_uncoupled_cells(empty_rows, short_rows):
+    rng = np.random.default_rng(3)
+    diag, off_in, off_between = _system(rng, empty_rows=empty_rows, short_rows=short_rows)
+    rhs = rng.normal(size=diag.shape)
+    x = S.BlockTridiagonal(diag, off_in, off_between).solve(rhs)
+    ref = np.linalg.solve(_dense(diag, off_in, off_between), rhs.reshape(-1)).reshape(diag.shape)
+    np.testing.assert_allclose(x, ref, rtol=1e-12, atol=1e-13)
+
+
+def test_the_same_matrix_shares_one_factor_and_the_cache_stays_within_its_bytes(monkeypatch):
+    rng = np.random.default_rng(4)
+    a = _system(rng)
+    b = _system(rng)
+    S.clear_factor_cache()
+    fa = S._factor(*a)
+    assert S._factor(*(x.copy() for x in a)) is fa          # equal bytes: the cached factor
+    assert S._factor(*b) is not fa
+    S.clear_factor_cache()
+    assert S._factor(*a) is not fa                           # cleared: factored afresh
+    # A budget of two factors: the least recently used goes first, the total never exceeds it.
+    monkeypatch.setattr(S, "_FACTOR_CACHE_BYTES", 2 * fa.nbytes)
+    S.clear_factor_cache()
+    systems = [_system(rng) for _ in range(5)]
+    factors = [S._factor(*s) for s in systems]
+    assert len(S._FACTOR_CACHE) == 2 and sum(f.nbytes for f in S._FACTOR_CACHE.values()) <= 2 * fa.nbytes
+    assert S._factor(*systems[-1]) is factors[-1] and S._factor(*systems[0]) is not factors[0]
+    S.clear_factor_cache()
