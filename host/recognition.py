@@ -203,7 +203,7 @@ def simulate_probe_touches(objects: Sequence[KnownObject], *, probe: str = "smal
                            instruments: Sequence[str] = tuple(INSTRUMENTS),
                            contact_times_s: Sequence[float] = CONTACT_TIMES_S, touches: int = 10, seed: int = 0,
                            flux_cal_u_rel: float = FLUX_CALIBRATION_U_REL, settle_s: float = 0.5,
-                           dt_s: float = 0.01, estimator: Estimator | None = None, progress=None) -> Touches:
+                           dt_s: float | None = None, estimator: Estimator | None = None, progress=None) -> Touches:
     """Like :func:`simulate_touches`, for a probe that measures α: touches on the faithful (r, z) world.
 
     Each specimen is one run of :class:`firmware_sim.rz.probe_world.FaithfulWorld`
@@ -217,7 +217,8 @@ def simulate_probe_touches(objects: Sequence[KnownObject], *, probe: str = "smal
     quantisation (absolute temperature, a baseline of up to 10 pre-heating samples),
     each touch with its own flux-sensor calibration error; the device's
     :class:`edge.estimation.probe_estimate.AxiEstimator` estimates e and α with
-    their covariance (:func:`edge.estimation.objects.measured_alpha`).
+    their covariance (:func:`edge.estimation.objects.measured_alpha`). ``dt_s``: the world's
+    time step (default: the world's own).
     """
     from edge.estimation.probe_estimate import AxiEstimator  # noqa: PLC0415
     from firmware_sim.clock import VirtualClock  # noqa: PLC0415 - the simulator only here
@@ -241,7 +242,7 @@ def simulate_probe_touches(objects: Sequence[KnownObject], *, probe: str = "smal
                           repeat=False))
         clk = VirtualClock()
         world = FaithfulWorld.for_scene(sc, clk, ScheduleDrive([settle_s, settle_s + t_max], [1.0, 0.0]),
-                                        dt_s=dt_s)
+                                        **({} if dt_s is None else {"dt_s": dt_s}))
         clk.advance(settle_s + t_max + 0.05)
         for name in instruments:
             inst = INSTRUMENTS[name]

@@ -27,17 +27,14 @@ def _one_blas_thread():
 def faithful_world_test_step():
     """The faithful world marches at ``TEST_DT_s`` (tests/support/faithful.py) unless a test chooses.
 
-    Session-scoped, so module and session fixtures that build worlds get it too;
-    ``host.recognition.simulate_probe_touches`` passes its own step to the world, so it is set there too.
+    Session-scoped, so module and session fixtures that build worlds get it too.
     """
     from firmware_sim.rz.probe_world import FaithfulWorld
-    from host.recognition import simulate_probe_touches
     from tests.support.faithful import TEST_DT_s
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setitem(FaithfulWorld.__init__.__kwdefaults__, "dt_s", TEST_DT_s)
         mp.setitem(FaithfulWorld.for_scene.__func__.__kwdefaults__, "dt_s", TEST_DT_s)
-        mp.setitem(simulate_probe_touches.__kwdefaults__, "dt_s", TEST_DT_s)
         yield
 
 

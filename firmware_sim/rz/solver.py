@@ -86,7 +86,6 @@ class BlockTridiagonal:
         self.scale = s
         a_in = off_in * s[:, :-1] * s[:, 1:]
         b = off_between * s[:-1] * s[1:]
-        self.b = b
         # Unknowns past the last coupled one of a block row (the grid's inactive cells beyond a
         # layer's radius: no coupling at all) are their own solution, x = rhs / diag; the dense
         # work is kept to the leading coupled part of each block (often half the grid's width,

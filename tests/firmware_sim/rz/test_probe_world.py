@@ -22,7 +22,6 @@ from firmware_sim.rz.probe_world import AsBuilt, FaithfulWorld, Geometry
 from firmware_sim.scene.model import Fault
 from firmware_sim.scene.files import read_scene
 from firmware_sim.world import ManualDrive, ScheduleDrive, ThermalWorld
-from tests.support.faithful import TEST_DT_s
 
 #: The 1-D limit: no foam, no convection, heater and object far wider than the 2-s diffusion length.
 ONE_D = Geometry(substrate=None, h_air_W_m2K=0.0, heater_radius_m=0.1, object_radius_m=0.15,
@@ -61,8 +60,7 @@ def heated():
     One world per (scene, geometry) for the module: several tests read the same touch
     (``FaithfulWorld(scene(name), clock_at(), heat(touch start), geometry=...)``). Reading
     only marches it on (fixed steps, nothing provisional with the clock at 100 s), so the
-    values at a time do not depend on which test asked first. Built here, before the
-    function-scoped step fixture of conftest.py applies, hence its step given explicitly.
+    values at a time do not depend on which test asked first.
     """
     worlds = {}
 
@@ -71,7 +69,7 @@ def heated():
         if key not in worlds:
             sc = scene(name)
             worlds[key] = FaithfulWorld(sc, clock_at(), heat(sc.touch.start_s),
-                                        geometry=Geometry() if geometry is None else geometry, dt_s=TEST_DT_s)
+                                        geometry=Geometry() if geometry is None else geometry)
         return worlds[key]
 
     return get
