@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -63,7 +64,7 @@ class BlockTridiagonal:
     between block rows ``j-1`` and ``j``.  Block elimination
     ``S_0 = D_0, S_j = D_j - diag(b_j) S_{j-1}^{-1} diag(b_j)``; the inverses
     ``G_j = S_j^{-1}`` are kept dense, so a solve is two sweeps of one
-    mat-vec per block row.  The matrix is symmetrically scaled to a unit
+    mat-vec per block row (:meth:`_plan`).  The matrix is symmetrically scaled to a unit
     diagonal first, which keeps the explicit inverses accurate when the
     conductances span many decades (foam to aluminium, micrometre to
     centimetre cells).
@@ -119,50 +120,101 @@ class BlockTridiagonal:
                 prev = S
             w_prev = w
             G.append(prev)
-        self.G = G
-        # Per block row j: the couplings to rows j - 1 and j + 1 over its own coupled width.
-        self._b_prev = [b[j - 1, : width[j]] if j else None for j in range(n)]
-        self._b_next = [b[j, : width[j]] if j < n - 1 else None for j in range(n)]
         self.n, self.m = n, m
-        self.nbytes = sum(g.nbytes for g in G)
+        self._plan(G, width, b)
+
+    def _plan(self, G: list[np.ndarray], width: np.ndarray, b: np.ndarray) -> None:
+        """Per-row operators of the two sweeps, laid out for one NumPy call per row and sweep.
+
+        The sweeps run on one work vector holding, per block row j with coupled width w_j,
+        a slot ``F_j`` (the right-hand side, later the solution ``x_j``) followed by a slot
+        ``Z_j`` (the forward sweep's ``z_j``), so that ``[Z_{j-1}, F_j]`` and ``[Z_j, F_{j+1}]``
+        are contiguous:
+
+        * forward, ``z_j = G_j (f_j - b_j z_{j-1}) = [-G_j diag(b_j) | G_j] [z_{j-1}; f_j]``:
+          one mat-vec with the row's augmented matrix;
+        * back, ``x_j = z_j - G_j diag(b_{j+1}) x_{j+1}``: a mat-vec and a subtraction, writing
+          ``x_j`` over ``f_j`` (no longer needed), next to ``z_{j-1}`` for the row above.
+
+        The arithmetic is the elimination's, regrouped (``G_j diag(b_j)`` formed once).  A row's
+        cost is its NumPy calls more than its flops: one call forward and two back, where the
+        elimination written out takes nine.  The price is memory, three dense blocks a row.
+        """
+        n = self.n
+        w = [int(x) for x in width]
+        f_at, pos = [], 0
+        for j in range(n):
+            f_at.append(pos)
+            pos += 2 * w[j]
+        self._size = pos
+        fwd, back = [], []
+        for j in range(n):
+            if not w[j]:
+                continue
+            F, Z = f_at[j], f_at[j] + w[j]
+            wp = w[j - 1] if j else 0
+            if wp:
+                # Only the leading min(w_j, w_{j-1}) unknowns of the two rows are coupled; the
+                # rest of z_{j-1} meets zero columns.
+                c = min(w[j], wp)
+                A = np.zeros((w[j], wp + w[j]))
+                A[:, :c] = -G[j][:, :c] * b[j - 1, :c]
+                A[:, wp:] = G[j]
+                fwd.append((A, f_at[j - 1] + wp, F + w[j], Z))
+            else:
+                fwd.append((G[j], F, F + w[j], Z))
+        for j in range(n - 1, -1, -1):
+            if not w[j]:
+                continue
+            F, Z = f_at[j], f_at[j] + w[j]
+            wn = w[j + 1] if j < n - 1 else 0
+            if wn:
+                c = min(w[j], wn)
+                N = np.zeros((w[j], wn))
+                N[:, :c] = G[j][:, :c] * b[j, :c]
+                back.append((N, f_at[j + 1], Z, F))
+            else:
+                back.append((None, 0, Z, F))
+        self._fwd, self._back = fwd, back
+        # Where each row's coupled unknowns sit in the (n, m) field and in the work vector.
+        self._field_idx = np.concatenate([j * self.m + np.arange(w[j]) for j in range(n)]).astype(np.intp)
+        self._work_idx = np.concatenate([f_at[j] + np.arange(w[j]) for j in range(n)]).astype(np.intp)
+        self.nbytes = sum(e[0].nbytes for e in fwd) + sum(e[0].nbytes for e in back if e[0] is not None)
+        # Work vectors and their per-row views, one set per thread (factors are shared between
+        # solvers, and worlds may step in different threads).
+        self._local = threading.local()
+
+    def _views(self) -> tuple[np.ndarray, list, list]:
+        loc = self._local
+        views = getattr(loc, "views", None)
+        if views is None:
+            buf = np.empty(self._size)
+            fwd = [(A, buf[s0:s1], buf[z:z + A.shape[0]]) for A, s0, s1, z in self._fwd]
+            back = []
+            for N, xn, z, f in self._back:
+                w = z - f
+                back.append((N, None if N is None else buf[xn:xn + N.shape[1]], buf[z:z + w], buf[f:f + w],
+                             np.empty(w)))
+            views = loc.views = (buf, fwd, back)
+        return views
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve ``A x = rhs`` for ``rhs`` of shape (n, m); returns a new (n, m) array."""
-        G, width, b_prev, b_next = self.G, self.width, self._b_prev, self._b_next
-        f = rhs * self.scale
-        # Uncoupled unknowns keep f (scaled twice below: rhs / diag); the coupled ones are
-        # overwritten in place, row by row, through views (one mat-vec and two vector
-        # operations per row and sweep: the loop's cost is the NumPy calls, not the flops).
-        z = f.copy()
-        zs = [z[j, : width[j]] for j in range(self.n)]
-        fs = [f[j, : width[j]] for j in range(self.n)]
-        # Forward sweep: z_j = S_j^{-1} (f_j - b_j z_{j-1}).
-        prev = None
-        for j in range(self.n):
-            if not width[j]:
-                prev = None
-                continue
-            if prev is None:
-                np.dot(G[j], fs[j], out=zs[j])
+        buf, fwd, back = self._views()
+        f = (rhs * self.scale).reshape(-1)
+        buf[self._work_idx] = f[self._field_idx]
+        dot, subtract = np.dot, np.subtract
+        for A, x, out in fwd:
+            dot(A, x, out=out)
+        for N, xn, z, out, tmp in back:
+            if N is None:
+                out[:] = z
             else:
-                c = min(width[j], prev.size)
-                t = fs[j].copy()
-                t[:c] -= b_prev[j][:c] * prev[:c]
-                np.dot(G[j], t, out=zs[j])
-            prev = zs[j]
-        # Back substitution: x_j = z_j - S_j^{-1} b_{j+1} x_{j+1}.
-        nxt = None
-        for j in range(self.n - 1, -1, -1):
-            if not width[j]:
-                nxt = None
-                continue
-            if nxt is not None:
-                c = min(width[j], nxt.size)
-                t = np.zeros(width[j])
-                t[:c] = b_next[j][:c] * nxt[:c]
-                zs[j] -= np.dot(G[j], t)
-            nxt = zs[j]
-        return z * self.scale
+                dot(N, xn, out=tmp)
+                subtract(z, tmp, out=out)
+        # Uncoupled unknowns keep f (scaled twice: rhs / diag).
+        f[self._field_idx] = buf[self._work_idx]
+        return f.reshape(self.n, self.m) * self.scale
 
 
 #: Factors shared by every solver of the same matrix (worlds rebuilt for the same probe, scene and
