@@ -220,7 +220,7 @@ class BlockTridiagonal:
 #: Factors shared by every solver of the same matrix (worlds rebuilt for the same probe, scene and
 #: step: a session's touches, a simulator per measurement), least recently used dropped first.
 _FACTOR_CACHE: OrderedDict[bytes, BlockTridiagonal] = OrderedDict()
-_FACTOR_CACHE_BYTES = 64 * 2**20
+_FACTOR_CACHE_BYTES = 128 * 2**20  # ~13 factors of the probe grid (9.8 MB each): a world's air and contact configurations with their start-up steps
 
 
 def clear_factor_cache() -> None:
