@@ -41,3 +41,17 @@ def faithful_world_test_step():
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """Modules with a ``slow`` test run first, each module kept together, the rest in file order.
+
+    pytest-xdist's ``load`` schedule hands the workers runs of consecutive tests and, as the
+    queue empties, smaller ones: a long test near the end of the collection leaves the other
+    worker idle for its whole length.  Longest first (the classic schedule for identical
+    machines) puts the short tests at the end, where they fill the gaps.  Keeping a module's
+    tests together keeps its module-scoped fixtures built once per worker.  The order is the
+    same on every worker (a stable sort of the collection), as xdist requires.
+    """
+    slow_modules = {item.module for item in items if item.get_closest_marker("slow") is not None}
+    items.sort(key=lambda item: item.module not in slow_modules)

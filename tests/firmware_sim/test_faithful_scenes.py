@@ -27,7 +27,7 @@ from firmware_sim.world import ScheduleDrive, ThermalWorld
 from tests.firmware_sim.test_scene import BASE, edit
 from tests.support.daemons import assert_heater_safe, sim_daemon
 
-pytestmark = pytest.mark.hil
+pytestmark = [pytest.mark.hil, pytest.mark.slow]
 
 PAPER_NINE = ("glass_12V", "glass_15V", "glass_18V", "pmma_8V", "pmma_15V", "pmma_20V",
               "alu_15V", "alu_20V", "alu_25V")

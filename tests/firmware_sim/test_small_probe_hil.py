@@ -21,6 +21,8 @@ from edge.estimation.estimate import Estimator
 from firmware_sim.rigs.sequence_rig import OneBundleStore, sequence_touch
 from firmware_sim.scene.files import read_scene
 
+pytestmark = pytest.mark.slow
+
 #: The paper's 50-ohm heater (glass_15V): the same experiment on the paper's probe.
 PAPER_HEATER_OHM = 50.0
 

@@ -10,6 +10,8 @@ from host.gate import MARGINS, Comparison, compare, evaluate, evaluation_touches
 from tests.support.bundles import broken_copy
 from thermotouch_models import DEFAULT_BUNDLE
 
+pytestmark = pytest.mark.slow  # the full recipe is trained once (test_a_seeded_retrain_...)
+
 
 def test_equal_errors_give_a_zero_interval():
     e = np.random.default_rng(0).uniform(0, 0.3, 80)
@@ -90,7 +92,6 @@ def test_broken_bundles_are_refused(tmp_path, shipped_eval, how, refused_on):
     assert judge(METRICS, bad["means"], cmp)
 
 
-@pytest.mark.slow  # ~15 s: the full recipe is trained once
 @pytest.mark.filterwarnings("ignore:lbfgs failed to converge")
 def test_a_seeded_retrain_of_the_shipped_recipe_passes_the_gate(tmp_path, monkeypatch, shipped_eval):
     from host.train import train_bundle

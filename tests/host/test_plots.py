@@ -11,6 +11,8 @@ pytest.importorskip("matplotlib")
 
 from host.plots import PlotError, PlotProcess, TouchFigure, plot_touch  # noqa: E402
 
+pytestmark = pytest.mark.slow
+
 PNG = b"\x89PNG"
 
 

@@ -19,6 +19,8 @@ from edge.calibration.model import CalibrationError, ProbeCalibration
 from edge.estimation.chain_estimate import estimate_from_contact
 from edge.estimation.sensor_chain import SensorChainCalibration, simulate_chain
 
+pytestmark = pytest.mark.slow
+
 DT = 0.05
 TRUE = SensorChainCalibration(sensing_thickness_m=0.43e-3, tc_tau_s=0.06, flux_scale=1 / 1.04)
 E = {"pmma": 558.0, "pyroceram": 2892.0, "aisi_304": 7493.0, "glass": 1450.0}

@@ -13,6 +13,8 @@ from edge.estimation.chain_estimate import estimate_from_contact, uniform_record
 from edge.physics.materials import load_materials
 from firmware_sim.rigs.contact_record import ContactTouch, record_touch
 
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def lib():

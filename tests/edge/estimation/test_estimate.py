@@ -16,6 +16,8 @@ from host.evaluate import TouchSimulator, q_v_for_voltage
 from edge.physics.materials import load_materials
 from host.records import RecordError, read_record, write_record
 
+pytestmark = pytest.mark.slow
+
 GLASS = Solid(1.097, 2458.4, 809.0)
 PMMA = Solid(0.185, 1178.35, 1429.0)
 ALU = Solid(120.4, 2651.5, 873.0)

@@ -11,6 +11,8 @@ from edge.service.requests import max_sample_rate_Hz, measure_params
 from firmware_sim.run import config_for_scene
 from firmware_sim.simulator import load_scene
 
+pytestmark = pytest.mark.slow
+
 P = KnownObject.from_properties
 SET = ObjectSet([P("foam", "foam", 0.035, 30, 1400), P("pmma", "polymer", 0.185, 1178.35, 1429),
                  P("glass", "glass", 1.0, 2500, 750), P("steel", "alloy", 17, 7900, 500)])

@@ -23,6 +23,8 @@ from firmware_sim.scene.model import Fault
 from firmware_sim.scene.files import read_scene
 from firmware_sim.world import ManualDrive, ScheduleDrive, ThermalWorld
 
+pytestmark = pytest.mark.slow
+
 #: The 1-D limit: no foam, no convection, heater and object far wider than the 2-s diffusion length.
 ONE_D = Geometry(substrate=None, h_air_W_m2K=0.0, heater_radius_m=0.1, object_radius_m=0.15,
                  mesh=Mesh(max_dr_m=0.01))

@@ -22,6 +22,8 @@ from firmware_sim.scene.files import read_scene
 from firmware_sim.simulator import load_scene
 from firmware_sim.world import REPEAT_RELEASE_S, ManualDrive, ScheduleDrive, ThermalWorld
 
+pytestmark = pytest.mark.slow
+
 DT = 0.02    # coarse steps keep each test well under 3 s; the physics checked here does not need finer
 TICK = 0.01
 #: Heatings of the session (on, off): one in the scene's touch, one in the first repeat touch.

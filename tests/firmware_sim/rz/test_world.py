@@ -20,6 +20,8 @@ from edge.physics.solids import Solid
 from firmware_sim.rz.grid import AIR, Boundary, Mesh, graded_faces, half_space_grid, probe_grid
 from firmware_sim.rz.solver import Solver, axis_value, steady_state
 
+pytestmark = pytest.mark.slow
+
 GLASS = Solid(k_W_mK=1.1, rho_kg_m3=2500.0, c_J_kgK=800.0)
 PMMA = Solid(k_W_mK=0.19, rho_kg_m3=1190.0, c_J_kgK=1470.0)
 ALU = Solid(k_W_mK=160.0, rho_kg_m3=2700.0, c_J_kgK=900.0)

@@ -19,6 +19,8 @@ from firmware_sim.rz.probe_world import AsBuilt
 from host.cli.main import main
 from host.records import write_series
 
+pytestmark = pytest.mark.slow
+
 AS_BUILT = AsBuilt(sensing_thickness_m=0.424e-3, flux_sensitivity_V_per_W_m2=0.56e-6 * 1.04,
                    thermocouple_time_constant_s=0.06)
 

@@ -18,6 +18,8 @@ import pytest
 
 from host.cli.main import main
 
+pytestmark = pytest.mark.slow
+
 GLASS = ("--k", "1.097", "--rho", "2458.4", "--c", "809")
 
 

@@ -2,8 +2,12 @@
 
 import json
 
+import pytest
+
 from edge.estimation.objects import ObjectSet
 from host.cli.main import main
+
+pytestmark = pytest.mark.slow
 
 KITCHEN = "name,class,k_W_mK,rho_kg_m3,c_J_kgK,e_W_s05_m2K\nwindow,glass,1.1,2450,810,\nlid,polymer,0.19,1180,1430,\n" \
           "pan,alloy,,,,8200\n"
