@@ -53,7 +53,7 @@ import traceback
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Collection, Iterator
 
 from edge.protocol.commands import Command
 from edge.protocol.errors import CommandError
@@ -392,7 +392,8 @@ def dry_run(op: Operation, root: Path) -> tuple[list[str], list[dict]]:
 
 
 def kill_at(op: Operation, root: Path, n: int, expected_step: str, *, keep: bool = False) -> PointResult:
-    """Kill the operation right before step ``n``, restart, check; the point's directory is removed unless ``keep``."""
+    """Kill the operation right before step ``n``, restart, check; the point's directory
+    (``root/<op>-k<n>/state``) is removed unless ``keep``."""
     t0 = time.perf_counter()
     point = _fresh_point(op, root, f"k{n}")
     status, trace, replies, err = _run_child(op, point, n)
@@ -409,10 +410,16 @@ def kill_at(op: Operation, root: Path, n: int, expected_step: str, *, keep: bool
     return res
 
 
-def run_all(op: Operation, root: Path) -> tuple[list[str], list[PointResult]]:
-    """Dry run, then a kill before every step; returns (steps, results)."""
+def run_all(op: Operation, root: Path, *, keep: Callable[[list[str]], Collection[int]] | None = None
+            ) -> tuple[list[str], list[PointResult]]:
+    """Dry run, then a kill before every step; returns (steps, results).
+
+    ``keep(steps)``: the points whose directories stay for a later look (a full restart), so that
+    they need not be killed a second time.
+    """
     trace, _ = dry_run(op, root)
-    return trace, [kill_at(op, root, i + 1, step) for i, step in enumerate(trace)]
+    kept = set(keep(trace)) if keep is not None else set()
+    return trace, [kill_at(op, root, i + 1, step, keep=i + 1 in kept) for i, step in enumerate(trace)]
 
 
 @contextmanager

@@ -17,6 +17,7 @@ from edge.model import bundle as B
 from edge.storage import durable
 from edge.model.store import InstallError, ModelStore, ModelStoreError
 from edge.security.policy import UpdatePolicy
+from tests.support.killpoints import work_root
 
 #: These tests are about atomicity and verification, not authentication (tests/edge/model/test_store_signed.py).
 DEV_POLICY = UpdatePolicy(allow_unsigned=True)
@@ -288,6 +289,15 @@ def no_disk_flush(monkeypatch):
     monkeypatch.setattr(os, "fsync", lambda fd: None)
 
 
+@pytest.fixture
+def scratch(tmp_path):
+    """The power-cut tests' stores, on tmpfs when there is one. The power cut is simulated at the
+    durable layer and fsync is stubbed (``no_disk_flush``), so the file system plays no part; on a
+    disk, deleting each point's bundles only waits for the device."""
+    with work_root(tmp_path) as d:
+        yield d
+
+
 def _store_with(root, blobs, tags):
     store = ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check, policy=DEV_POLICY)
     for t in tags:
@@ -295,13 +305,26 @@ def _store_with(root, blobs, tags):
     return store
 
 
+def _booted_copy(template, root, blobs):
+    """A store booted on a copy of ``template`` (a store the earlier installs left, built once a test).
+
+    The same files as installing the history again at every point, without re-verifying and
+    re-writing its bundles each time; the install under test starts from a store that has just
+    booted, and looks its active model up the way it does after any boot.
+    """
+    shutil.copytree(template, root)
+    return ModelStore(root, blobs["factory_path"], golden_check=mlp_golden_check, policy=DEV_POLICY)
+
+
 @pytest.mark.parametrize("history", [(), ("A",), ("A", "B")], ids=["first-install", "second", "third"])
-def test_power_cut_at_every_step_leaves_a_working_model(tmp_path, blobs, no_disk_flush, history):
+def test_power_cut_at_every_step_leaves_a_working_model(scratch, blobs, no_disk_flush, history):
     new_tag = "C"
     before_sha = blobs[history[-1]][1] if history else None
+    template = scratch / "template"
+    _store_with(template, blobs, history)
     # Dry run to count the durable steps of one install.
     log: list = []
-    store = _store_with(tmp_path / "dry", blobs, history)
+    store = _booted_copy(template, scratch / "dry", blobs)
     with pytest.MonkeyPatch.context() as mp:
         _arm(mp, None, log)
         _install(store, blobs, new_tag)
@@ -310,8 +333,8 @@ def test_power_cut_at_every_step_leaves_a_working_model(tmp_path, blobs, no_disk
 
     outcomes = []
     for i in range(n_steps):
-        root = tmp_path / f"crash{i}"
-        store = _store_with(root, blobs, history)
+        root = scratch / f"crash{i}"
+        store = _booted_copy(template, root, blobs)
         with pytest.MonkeyPatch.context() as mp, pytest.raises(PowerCut):
             _arm(mp, i, [])
             _install(store, blobs, new_tag)
@@ -326,23 +349,27 @@ def test_power_cut_at_every_step_leaves_a_working_model(tmp_path, blobs, no_disk
         # The store is still usable: the install can be retried.
         assert _install(rebooted, blobs, new_tag).sha256 == blobs[new_tag][1]
         assert ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY).current().sha256 == blobs[new_tag][1]
+        shutil.rmtree(root)
     # Monotone: once the switch happened, later crashes keep the new model.
     assert outcomes == sorted(outcomes, key=lambda o: o == "new")
     assert outcomes[0] == "old" and "new" in outcomes
 
 
-def test_power_cut_during_rollback(tmp_path, blobs, no_disk_flush):
+def test_power_cut_during_rollback(scratch, blobs, no_disk_flush):
+    template = scratch / "template"
+    _store_with(template, blobs, ("A", "B"))
     log: list = []
-    store = _store_with(tmp_path / "dry", blobs, ("A", "B"))
+    store = _booted_copy(template, scratch / "dry", blobs)
     with pytest.MonkeyPatch.context() as mp:
         _arm(mp, None, log)
         store.rollback()
     for i in range(len(log)):
-        root = tmp_path / f"rb{i}"
-        store = _store_with(root, blobs, ("A", "B"))
+        root = scratch / f"rb{i}"
+        store = _booted_copy(template, root, blobs)
         with pytest.MonkeyPatch.context() as mp, pytest.raises(PowerCut):
             _arm(mp, i, [])
             store.rollback()
         rebooted = ModelStore(root, golden_check=mlp_golden_check, policy=DEV_POLICY)
         assert rebooted.current().sha256 in {blobs["A"][1], blobs["B"][1]}
         assert rebooted.source == "current"
+        shutil.rmtree(root)

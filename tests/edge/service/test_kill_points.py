@@ -17,7 +17,8 @@ the model store and the runtime overrides fresh, as the daemon does at start-up,
 * all: the heater's enable line is low once the child is dead (the pull-down of a released line).
 
 A few points also get a full restart: a daemon started on the dead child's state reports no
-fault, keeps the heater off and measures again.
+fault, keeps the heater off and measures again (on the directory that point's kill left, kept
+for it).
 
 The calibration store's start-up steps are among the start-up points; its install (CALIBRATION_SET) does
 not have an operation here yet.
@@ -46,12 +47,13 @@ def root(tmp_path_factory):
         yield r
 
 
-def _all_points(op, root) -> list[str]:
-    trace, results = K.run_all(op, root)
+def _all_points(op, root, restarts=lambda trace: ()) -> tuple[list[str], list]:
+    """Kill at every point; the points ``restarts(trace)`` names keep their directories for a full restart."""
+    trace, results = K.run_all(op, root, keep=restarts)
     broken = [f"#{r.n} {r.step!r}: {p}" for r in results for p in r.problems]
     assert not broken, f"{op.name}: {len(broken)} problem(s) after kill -9:\n" + "\n".join(broken[:20])
     assert len(results) == len(trace) >= MIN_POINTS[op.name], (op.name, len(trace))
-    return trace
+    return trace, results
 
 
 def _restart_is_clean(point, expected_history_total: int | None = None) -> dict:
@@ -71,43 +73,50 @@ def _point(trace, kind_and_what: str, nth: int = 0) -> int:
     return [i + 1 for i, s in enumerate(trace) if s == kind_and_what][nth]
 
 
+def _measure_restarts(trace) -> tuple[tuple[int, int], ...]:
+    """(point, records it stores): mid-heating, just before COMMIT, and after the reply."""
+    heating = [i + 1 for i, s in enumerate(trace) if s.endswith("heater on")]
+    return (heating[len(heating) // 2], 0), (_point(trace, "sqlite\tCOMMIT"), 0), (len(trace), 1)
+
+
 def test_measure_survives_kill_at_every_step(root):
     op = K.measure_operation(root)
-    trace = _all_points(op, root)
+    trace, _ = _all_points(op, root, lambda t: [n for n, _ in _measure_restarts(t)])
     kinds = Counter(s.split("\t")[0] for s in trace)
     assert kinds["sqlite"] == 3 and kinds["heater"] >= 4 and kinds["sample"] >= 20, kinds
-    # Full restarts: mid-heating, just before COMMIT, and after the reply.
-    heating = [i + 1 for i, s in enumerate(trace) if s.endswith("heater on")]
-    for n, stored in ((heating[len(heating) // 2], 0), (_point(trace, "sqlite\tCOMMIT"), 0),
-                      (len(trace), 1)):
-        res = K.kill_at(op, root, n, trace[n - 1], keep=True)
-        assert not res.problems
+    for n, stored in _measure_restarts(trace):
         _restart_is_clean(root / f"measure-k{n}" / "state", expected_history_total=2 + stored)
+
+
+def _flash_restarts(trace) -> tuple[int, ...]:
+    """Bundle moved in but no pointer yet, between the two pointers, mid-collection."""
+    renames = [i + 1 for i, s in enumerate(trace) if s.startswith("file\trename")]
+    return renames[-1] + 1, _point(trace, "file\topen .current.tmp#"), len(trace) - 2
 
 
 def test_flash_survives_kill_at_every_step(root):
     op = K.flash_operation(root)
-    trace = _all_points(op, root)
+    trace, _ = _all_points(op, root, _flash_restarts)
     for step in ("file\treplace .current.tmp# -> current", "file\treplace .previous.tmp# -> previous"):
         assert step in trace
     renames = [i + 1 for i, s in enumerate(trace) if s.startswith("file\trename")]
     assert len(renames) == 2  # unpacked staging into place, then into bundles/
-    # Full restarts: bundle moved in but no pointer yet, between the two pointers, mid-collection.
-    for n in (renames[-1] + 1, _point(trace, "file\topen .current.tmp#"), len(trace) - 2):
-        res = K.kill_at(op, root, n, trace[n - 1], keep=True)
-        assert not res.problems
+    for n in _flash_restarts(trace):
         out = _restart_is_clean(root / f"flash-k{n}" / "state")
         assert out["info"]["model_source"] == "current"
 
 
+def _config_restart(trace) -> int:
+    """Between the temp file's fsync and its rename, on the third CONFIG_SET."""
+    return _point(trace, "file\treplace .runtime.json.tmp# -> runtime.json", 2)
+
+
 def test_config_survives_kill_at_every_step(root):
     op = K.config_operation(root)
-    trace = _all_points(op, root)
+    trace, results = _all_points(op, root, lambda t: [_config_restart(t)])
     assert Counter(trace)["file\treplace .runtime.json.tmp# -> runtime.json"] == len(K.CONFIG_KEYS)
-    # Full restart between the temp file's fsync and its rename, on the third CONFIG_SET.
-    n = _point(trace, "file\treplace .runtime.json.tmp# -> runtime.json", 2)
-    res = K.kill_at(op, root, n, trace[n - 1], keep=True)
-    assert not res.problems and res.confirmed == 2
+    n = _config_restart(trace)
+    assert results[n - 1].n == n and results[n - 1].confirmed == 2
     out = _restart_is_clean(root / f"config-k{n}" / "state")
     assert out["config"]["heater.power_W"] == K.CONFIG_VALUES["heater.power_W"]
     assert out["config"]["measurement.sample_rate_Hz"] != K.CONFIG_VALUES["measurement.sample_rate_Hz"]
@@ -116,15 +125,13 @@ def test_config_survives_kill_at_every_step(root):
 @pytest.mark.parametrize("after_crash", [False, True], ids=["first-boot", "after-crash"])
 def test_startup_survives_kill_at_every_step(root, after_crash):
     op = K.startup_operation(root, after_crash=after_crash)
-    trace = _all_points(op, root)
+    # Killed while start-up deletes the bundle no pointer names: the next start-up finishes the job.
+    restart = (lambda t: [_point(t, "file\tunlink golden.npz")]) if after_crash else (lambda t: ())
+    trace, _ = _all_points(op, root, restart)
     assert "sqlite\tCREATE TABLE" in trace
     assert ({"file\tunlink .runtime.json.tmp#", "file\trmdir upload-#"} if after_crash else {"file\tmkdir models"}) \
         <= set(trace)
-    if after_crash:
-        # Killed while start-up deletes the bundle no pointer names: the next start-up finishes the job.
-        n = _point(trace, "file\tunlink golden.npz")
-        res = K.kill_at(op, root, n, trace[n - 1], keep=True)
-        assert not res.problems
+    for n in restart(trace):
         out = _restart_is_clean(root / f"{op.name}-k{n}" / "state", expected_history_total=2)
         assert out["info"]["model_source"] == "current"
 
