@@ -130,6 +130,7 @@ class SignalHandlers:
 
 
 def install_signal_handlers(stop_event: threading.Event, *, heater_off: Callable[[], None] | None = None,
+                            wake: Callable[[], None] | None = None,
                             signals: Iterable[int] = STOP_SIGNALS) -> SignalHandlers:
     """Every catchable ending signal sets ``stop_event``; ``heater_off`` runs at exit (main thread only).
 
@@ -140,13 +141,18 @@ def install_signal_handlers(stop_event: threading.Event, *, heater_off: Callable
     as SIGPIPE would pass unnoticed) stops the daemon in order; job-control
     stops (TSTP, TTIN, TTOU) are ignored.
 
-    The handler only sets the event: the heater watchdog then cuts a running
-    heating within its poll period, the sampling loop ends, the serve loop
-    returns and :meth:`Daemon.close` runs. Switching the heater from inside
-    the handler could interleave with a half-finished ``Heater.on``.
+    The handler only sets the event (and wakes the serve loop, below): the
+    heater watchdog then cuts a running heating within its poll period, the
+    sampling loop ends, the serve loop returns and :meth:`Daemon.close` runs.
+    Switching the heater from inside the handler could interleave with a
+    half-finished ``Heater.on``.
     ``heater_off`` is registered with :mod:`atexit`, for an exit that skips
     the daemon's own clean-up (an exception escaping ``main``, ``sys.exit``
     from a library); its errors are logged, never raised.
+    ``wake`` is called by the signal that sets the event (once): the serve
+    loop waits in a read of the port and would otherwise see the event only
+    when that read times out (:meth:`~edge.service.daemon.Daemon.wake`); its
+    errors are logged, never raised.
 
     Returns
     -------
@@ -158,7 +164,13 @@ def install_signal_handlers(stop_event: threading.Event, *, heater_off: Callable
     def on_signal(signum: int, _frame: Any) -> None:
         h.received.append(signum)
         log.warning("signal %s: stopping (heater off)", _name(signum))
+        first = not stop_event.is_set()
         stop_event.set()
+        if first and wake is not None:  # once: a stopping loop needs no second wake-up
+            try:
+                wake()
+            except Exception as e:  # noqa: BLE001 - the stop event is set; the loop sees it at its next poll
+                log.error("waking the serve loop failed: %s", e)
 
     for s in signals:
         try:
@@ -236,7 +248,12 @@ def main(argv: list[str] | None = None) -> int:
             for f in force_heater_off(cfg):
                 log.critical("at exit, cannot drive the heater off: %s", f)
 
-    handlers = install_signal_handlers(stop, heater_off=heater_off_at_exit)
+    def wake_serve_loop() -> None:
+        d = built.get("daemon")
+        if d is not None:
+            d.wake()
+
+    handlers = install_signal_handlers(stop, heater_off=heater_off_at_exit, wake=wake_serve_loop)
     try:
         board = board_from_config(cfg)
     except Exception as e:

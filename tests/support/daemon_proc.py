@@ -52,7 +52,8 @@ def main() -> int:
     cfg = sim_config(tmp)
     stop = threading.Event()
     built = {}
-    handlers = install_signal_handlers(stop, heater_off=lambda: built["daemon"].heater.off())
+    handlers = install_signal_handlers(stop, heater_off=lambda: built["daemon"].heater.off(),
+                                       wake=lambda: built["daemon"].wake() if "daemon" in built else None)
     nm = NullModem()
     port = serial.Serial(nm.device_port, timeout=0.05)
     built["daemon"] = daemon = Daemon(cfg, rig.board, estimator=FakeEstimator(), stop_event=stop)

@@ -7,13 +7,15 @@ interpreter that has done the imports (:class:`tests.support.daemon_proc.ForkSer
 a test); from the fork on each is the script's own process, signals, ``atexit`` and exit status
 included. What is read from outside: the GPIO line states (mirrored to files
 with the holder's pid, :mod:`firmware_sim.gpiod.state`, which releases a dead holder's line as the
-kernel does) and the sysfs PWM tree (plain files).
+kernel does) and the sysfs PWM tree (plain files). One test checks in this process that the stop
+signal's handler wakes the serve loop (its port read), as thermotouch-edge and daemon_proc.py install it.
 """
 
 import json
 import os
 import signal
 import socket
+import threading
 import time
 from pathlib import Path
 
@@ -23,6 +25,7 @@ import serial
 from edge.protocol.commands import Command
 from edge.protocol.messages import encode_request
 from edge.service.config import Config
+from edge.service.main import install_signal_handlers
 from firmware_sim.gpiod.state import read_line
 from tests.support.daemon_proc import ForkServer
 from tests.support.killpoints import work_root
@@ -71,6 +74,19 @@ def _heat(proc, host_port):
 
 def _kill(forks, proc):
     forks.reap(proc)
+
+
+def test_the_first_stop_signal_wakes_the_serve_loop_once():
+    """thermotouch-edge's serve loop waits in a port read: the signal that stops it cuts that read short."""
+    stop, wakes = threading.Event(), []
+    handlers = install_signal_handlers(stop, wake=lambda: wakes.append(stop.is_set()))
+    try:
+        signal.raise_signal(signal.SIGUSR1)
+        signal.raise_signal(signal.SIGTERM)  # already stopping: no second wake-up
+    finally:
+        handlers.restore()
+    assert stop.is_set() and wakes == [True]  # after the event is set, so the woken loop sees it
+    assert handlers.received == [signal.SIGUSR1, signal.SIGTERM]
 
 
 @pytest.mark.parametrize("sig", [signal.SIGHUP, signal.SIGQUIT, signal.SIGUSR1, signal.SIGUSR2, signal.SIGPIPE,
@@ -150,9 +166,9 @@ def _pending_and_stopped(pid, sig):
 
 
 def test_a_frozen_daemon_stops_petting_and_the_watchdog_kill_leaves_the_heater_off(forks, state_dir):
-    # The test plays systemd: a notify socket, WatchdogSec=0.4 (pets every 0.1 s), SIGABRT then SIGKILL
+    # The test plays systemd: a notify socket, WatchdogSec=0.2 (pets every 0.05 s), SIGABRT then SIGKILL
     # when the pets stop. The period is the test's choice; what it shows is the same at systemd's 1..60 s.
-    watchdog_s = 0.4
+    watchdog_s = 0.2
     sock_path = str(state_dir / "notify.sock")
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
     sock.bind(sock_path)
