@@ -19,6 +19,7 @@ from edge.service.daemon import Daemon
 from firmware_sim.daemon_thread import DaemonThread
 from edge.protocol.commands import Command
 from edge.protocol.errors import ErrorCode
+from edge.protocol.endpoint import read_available
 from edge.protocol.messages import ErrorReply, Reply, decode_reply, encode_request
 from edge.protocol.frame import FrameDecoder
 from firmware_sim.rigs.daemon_rig import make_rig
@@ -46,7 +47,8 @@ class RawHost:
         while rid not in self.replies:
             if time.monotonic() > deadline:
                 raise AssertionError(f"no reply to request {rid}")
-            for frame in self.decoder.feed(self.ser.read(4096)):
+            # What has arrived, as soon as a byte has (a read of 4096 would wait out the port's timeout).
+            for frame in self.decoder.feed(read_available(self.ser)):
                 self.replies[frame.request_id] = decode_reply(frame)
         return self.replies.pop(rid)
 
@@ -188,15 +190,27 @@ def _serve_with_breaking_port(tmp_path, exc: BaseException):
     release = threading.Event()
     heating = hold_heating(d, rig, release)
     raised: list[BaseException] = []
+    joining, join_aborts = threading.Event(), []  # serve()'s wait for the worker has begun, with this abort
+    real_join_worker = d._join_worker
+
+    def join_worker(*, abort):
+        join_aborts.append(abort)
+        joining.set()
+        real_join_worker(abort=abort)
+
+    d._join_worker = join_worker
     with NullModem() as nm, serial.Serial(nm.device_port, timeout=0.05) as dev_port:
         port = BreakingPort(dev_port, heating, exc)
         host = RawHost(nm.host_port)
         host.send(Command.MEASURE, 1)
 
         def release_soon():
-            # Give serve() time to fail and start waiting for the worker, then let the measurement go on.
+            # Once serve() has failed and waits for the worker, let the measurement go on; a wait that
+            # stops the worker has set the stop event first (the hold then ends on the heater cut).
             heating.wait(WAIT_s)
-            time.sleep(0.2)
+            joining.wait(WAIT_s)
+            if join_aborts and join_aborts[0]:
+                d.stop_event.wait(WAIT_s)
             release.set()
 
         threading.Thread(target=release_soon, daemon=True).start()

@@ -34,6 +34,31 @@ def _wait_for(cond, what: str, timeout_s: float = 30.0) -> None:
         time.sleep(0.01)
 
 
+def _spy_button_polls(button) -> list:
+    """Record what each of the serve loop's button polls (``wait_for_event``) returned."""
+    polls: list = []
+    real = button.wait_for_event
+
+    def wait_for_event(timeout_s=None):
+        ev = real(timeout_s)
+        polls.append(ev)
+        return ev
+
+    button.wait_for_event = wait_for_event
+    return polls
+
+
+def _wait_until_presses_drained(polls: list, what: str) -> None:
+    """Until a button poll made from now on found no event: every press pending before it has been read.
+
+    The serve loop polls the button only while idle and not measuring, one event a turn, so a press
+    that started a measurement would hold this wait until that measurement ended (and show in the
+    history); virtual time stands still while the daemon is idle, so no new press can come in.
+    """
+    n = len(polls)
+    _wait_for(lambda: None in polls[n:], what)
+
+
 def test_each_press_measures_once_and_presses_during_a_measurement_are_ignored(tmp_path):
     sim = load_scene("glass_15V")  # its touch presses the trigger at start_s = 0.5 s
     t1 = sim.scene.touch.start_s
@@ -48,13 +73,15 @@ def test_each_press_measures_once_and_presses_during_a_measurement_are_ignored(t
         with DaemonThread(cfg, sim.board(), port, estimator=FakeEstimator()) as dt:
             d = dt.daemon
             assert d.button is not None
+            polls = _spy_button_polls(d.button)
             assert sim.now() == 0.0 and d.history.count() == 0
             sim.advance_to(t1 + 0.05)  # the scene's press, past the 20-ms debounce
             _wait_for(lambda: d.history.count() == 1 and d.state == "idle", "the first measurement")
             t_idle = sim.now()
             assert t_idle > t1 + BASELINE_s + CONTACT_s
-            # The ignored presses have been read by now; nothing else is pending, so no measurement starts.
-            time.sleep(0.3)
+            # The ignored presses are read once idle; nothing else is pending, so no measurement starts.
+            _wait_until_presses_drained(polls, "the presses during the first measurement to be read")
+            assert not d.measuring
             assert d.history.count() == 1 and d.state == "idle" and sim.now() == t_idle
             # A second touch with its own press, after the cool-down, and a press during that measurement.
             t2 = t_idle + COOLDOWN_s + 0.5
@@ -62,7 +89,8 @@ def test_each_press_measures_once_and_presses_during_a_measurement_are_ignored(t
             sim.parts.chip.press(trig, t2 + BASELINE_s + 0.5, 0.05)
             sim.advance_to(t2 + 0.05)
             _wait_for(lambda: d.history.count() == 2 and d.state == "idle", "the second measurement")
-            time.sleep(0.3)
+            _wait_until_presses_drained(polls, "the press during the second measurement to be read")
+            assert not d.measuring
             with DeviceClient(nm.host_port, timeout_s=5.0) as c:
                 items = c.history(0, 10)["items"]
                 st = c.status()

@@ -84,17 +84,22 @@ def test_hardware_watchdog_is_pet_and_closed_with_the_magic_character(tmp_path):
 
 def test_daemon_pets_from_its_serve_loop_and_its_measurement_loop(tmp_path, notify_socket, monkeypatch):
     path, s = notify_socket
+    # The gate is the mechanism under test, not the period: WatchdogSec=0.04 s pets every 0.01 s, and every
+    # wall-time span below is counted in pet periods.
+    pet_s = 0.01
     monkeypatch.setenv("NOTIFY_SOCKET", path)
-    monkeypatch.setenv("WATCHDOG_USEC", "200000")  # pet every 0.05 s
+    monkeypatch.setenv("WATCHDOG_USEC", str(int(4 * pet_s * 1e6)))
     rig = make_rig()
     d = Daemon(sim_config(tmp_path), rig.board, estimator=FakeEstimator())
+    assert d.notifier.pet_interval_s == pytest.approx(pet_s)
     stuck, release = threading.Event(), threading.Event()
 
     def hook(n, on):
         if n <= 12:
-            # A read takes wall time, so the measurement spans several pet periods before it is stuck.
+            # A read takes wall time (0.3 pet periods), so the measurement spans several pet periods before
+            # it is stuck: its loop beats between reads, a pet goes out at least every fourth read.
             # (After the release one more pet at most: the serve loop below stops beating.)
-            time.sleep(0.015)
+            time.sleep(0.3 * pet_s)
         if on and n == 12:
             stuck.set()
             release.wait(20)
@@ -103,23 +108,52 @@ def test_daemon_pets_from_its_serve_loop_and_its_measurement_loop(tmp_path, noti
     beats = []
     real_beat = d.notifier.beat
     d.notifier.beat = lambda loop: (beats.append(loop), real_beat(loop))[1]
+    # The notify socket is read all along, as systemd does: a unix datagram queue holds only
+    # net.unix.max_dgram_qlen (10) messages, and a pet sent to a full one blocks the loop that sends it.
+    got, reading = [], threading.Event()
+
+    def read_notify_socket():
+        while not reading.is_set():
+            got.extend(_drain(s))
+
+    reader = threading.Thread(target=read_notify_socket, daemon=True)
+    reader.start()
+
+    def received():
+        """Messages received once every pet sent so far has arrived (the loops are not beating)."""
+        deadline = time.monotonic() + 20
+        while got.count("WATCHDOG=1") < d.notifier.pets and time.monotonic() < deadline:
+            time.sleep(0.001)
+        return len(got)
+
     result = {}
     th = threading.Thread(target=lambda: result.setdefault("rec", d.measure()))
     th.start()
-    assert stuck.wait(20)
-    # The measurement loop is stuck in a read; a serve loop keeps beating, yet no pet goes out.
-    def serve_for(dt_s):
-        t_end = time.monotonic() + dt_s
-        while time.monotonic() < t_end:
-            d.notifier.beat("serve")
-            time.sleep(0.01)
+    try:
+        assert stuck.wait(20)
+        # The measurement loop is stuck in a read; a serve loop keeps beating, yet no pet goes out.
+        def serve_for(dt_s):
+            """Beat as a serve loop does for ``dt_s``, the last beat at or after its end."""
+            t_end = time.monotonic() + dt_s
+            while True:
+                last = time.monotonic() >= t_end
+                d.notifier.beat("serve")
+                if last:
+                    return
+                time.sleep(0.2 * pet_s)
 
-    serve_for(0.08)  # at most one pet: the loop's last beat came right before the read
-    _drain(s)
-    serve_for(0.3)  # six pet periods
-    assert _drain(s) == []
-    release.set()
-    th.join(20)
+        # At most one pet: the loop's last beat came right before the read. A beat a full pet period
+        # after the stuck read began sends it if it is due, so none is pending after this.
+        serve_for(2 * pet_s)
+        n = received()
+        serve_for(6 * pet_s)  # six pet periods
+        received()
+        assert got[n:] == []
+    finally:
+        release.set()
+        th.join(20)
+        reading.set()
+        reader.join(20)
     assert result["rec"]["status"] == "ok"
     assert "measure" in beats and d.notifier.pets >= 3  # pets went out while it ran
     d.close()

@@ -3,6 +3,7 @@ failures after heating, degraded start-up, and runtime settings checked against 
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import threading
@@ -14,6 +15,7 @@ import serial
 
 import edge.service.daemon as daemon_mod
 from edge.protocol.commands import Command
+from edge.protocol.endpoint import SerialEndpoint
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.protocol.messages import ErrorReply, Reply, encode_request
 from edge.service.config import Config, RUNTIME_KEYS, SCHEMA
@@ -84,10 +86,20 @@ def test_abort_cuts_the_heater_at_once_and_the_record_is_stored_aborted(tmp_path
 
 def test_client_measure_timeout_sends_abort_and_waits_for_the_confirmation(tmp_path):
     with served(tmp_path) as (dt, nm, rig):
-        hold_heating(dt.daemon, rig)
+        heating = hold_heating(dt.daemon, rig)
         with DeviceClient(nm.host_port, timeout_s=2.0) as c:
+            inner = c._await
+
+            def await_from_heating(rid, command, timeout_s):
+                # The MEASURE's reply timeout starts once the device heats, held there until the heater
+                # is cut: it then expires mid-heating however short it is.
+                if command == Command.MEASURE:
+                    assert heating.wait(WAIT_s)
+                return inner(rid, command, timeout_s)
+
+            c._await = await_from_heating
             with pytest.raises(DeviceNotAnswering):
-                c.measure(contact_time_s=2.0, timeout_s=0.25)
+                c.measure(contact_time_s=2.0, timeout_s=0.05)
             assert c.last_abort == {"aborted": True, "measurement_id": 1}
             assert heater_level(rig) == 0
             assert c.result(1)["reason"] == "host_abort"
@@ -161,7 +173,8 @@ def daemon_in_state(tmp_path, state: str, wait_s: float = WAIT_s):
     """A daemon thread on the sim rig brought into ``state``; yields ``(daemon_thread, rig)``.
 
     ``measuring``: heating, its read held; ``uploading``: a model upload half sent;
-    ``blocked_writer``: a host that sent 3000 requests and reads nothing, replies already dropped.
+    ``blocked_writer``: a host that sent 3000 requests and reads nothing, replies already dropped and
+    one write timed out (the link is full: the writer stays blocked however long it waits).
     Shared with bench/reliability_bench.py, which times the stop.
     """
     rig = make_rig()
@@ -181,6 +194,18 @@ def daemon_in_state(tmp_path, state: str, wait_s: float = WAIT_s):
                 host.ask(Command.MODEL_CHUNK, 2, {"offset": 0, "data": b"x" * 100, "session": r.body["session"]})
                 assert d.upload.in_progress
             elif state == "blocked_writer":
+                # Dropped replies alone do not say the writer is blocked: a queue that overflows while
+                # the link's buffers still take bytes is written out within milliseconds of a stop.
+                # A write that timed out does: the buffers are full, and nobody empties them.
+                write_timed_out = threading.Event()
+                endpoint, real_drop = d.endpoint, d.endpoint._drop
+
+                def drop(n, why):
+                    if why.startswith("not written within") or why.endswith("B written"):
+                        write_timed_out.set()
+                    real_drop(n, why)
+
+                endpoint._drop = drop
                 flood = threading.Thread(target=_flood, args=(nm.host_port, 3000, 100_000, 2.0),
                                          kwargs={"silent_s": WAIT_s, "silent_until": flood_done.is_set},
                                          daemon=True)
@@ -189,6 +214,7 @@ def daemon_in_state(tmp_path, state: str, wait_s: float = WAIT_s):
                 while d.endpoint.replies_dropped == 0 and time.monotonic() < deadline:
                     time.sleep(0.01)
                 assert d.endpoint.replies_dropped > 0
+                assert write_timed_out.wait(max(deadline - time.monotonic(), 0.0))
             yield dt, rig
         finally:
             host.close()
@@ -202,8 +228,19 @@ def daemon_in_state(tmp_path, state: str, wait_s: float = WAIT_s):
                 flood.join(wait_s)
 
 
+#: The daemon endpoint's write timeout in the blocked_writer state of the stop test (default 0.5 s).
+BLOCKED_WRITE_TIMEOUT_s = 0.1
+
+
 @pytest.mark.parametrize("state", STOP_STATES)
-def test_stop_is_prompt_in_every_state(tmp_path, state):
+def test_stop_is_prompt_in_every_state(tmp_path, monkeypatch, state):
+    if state == "blocked_writer":
+        # With a host that reads nothing the stop waits out write timeouts: the queued replies get one
+        # (endpoint.close), the reply being written finishes its own. What the limit below excludes is a
+        # stop that waits for the queue, ~290 replies of one timeout each; that holds at a shorter
+        # timeout too, set through the endpoint's own parameter.
+        monkeypatch.setattr(daemon_mod, "SerialEndpoint",
+                            functools.partial(SerialEndpoint, write_timeout_s=BLOCKED_WRITE_TIMEOUT_s))
     with daemon_in_state(tmp_path, state) as (dt, rig):
         latency = _stop_latency(dt)
     assert latency < STOP_LIMIT_s, f"{state}: stop took {latency:.2f} s"
