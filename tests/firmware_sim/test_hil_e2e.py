@@ -48,7 +48,7 @@ from host.deploy import DeployRefused, train_and_deploy
 from host.device import open_device
 from host.flash import flash_bundle, load_verified
 
-pytestmark = pytest.mark.hil
+pytestmark = [pytest.mark.hil, pytest.mark.slow]
 
 SMALL_LIBRARY = ("tempered_glass", "pmma", "aluminium_alloy", "polystyrene_extruded_foam", "cork_board", "plywood",
                  "ptfe", "polycarbonate", "fused_silica", "granite", "aisi_304", "copper")

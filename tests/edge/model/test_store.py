@@ -19,6 +19,8 @@ from edge.model.store import InstallError, ModelStore, ModelStoreError
 from edge.security.policy import UpdatePolicy
 from tests.support.killpoints import work_root
 
+pytestmark = pytest.mark.slow
+
 #: These tests are about atomicity and verification, not authentication (tests/edge/model/test_store_signed.py).
 DEV_POLICY = UpdatePolicy(allow_unsigned=True)
 

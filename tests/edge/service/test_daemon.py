@@ -30,7 +30,7 @@ from firmware_sim.rigs.daemon_rig import make_rig
 from firmware_sim.ptylink import NullModem
 from host.client import DeviceClient, DeviceError
 
-pytestmark = pytest.mark.hil
+pytestmark = [pytest.mark.hil, pytest.mark.slow]
 MAX_ON = Config().heater.max_on_time_s
 
 

@@ -32,7 +32,7 @@ import pytest
 
 from tests.support import killpoints as K
 
-pytestmark = pytest.mark.hil
+pytestmark = [pytest.mark.hil, pytest.mark.slow]
 
 #: Kill points each operation had when this suite was written. Fewer means a step is no longer
 #: seen (a refactor bypassed edge.storage.durable or the history's connection): fail, look, then

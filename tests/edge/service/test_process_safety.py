@@ -30,7 +30,7 @@ from firmware_sim.gpiod.state import read_line
 from tests.support.daemon_proc import ForkServer
 from tests.support.killpoints import work_root
 
-pytestmark = pytest.mark.hil
+pytestmark = [pytest.mark.hil, pytest.mark.slow]
 MAX_ON = Config().heater.max_on_time_s
 ENABLE = 17
 

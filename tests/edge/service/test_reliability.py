@@ -29,7 +29,7 @@ from host.client import DeviceClient, DeviceError, DeviceNotAnswering
 from tests.edge.service.test_daemon_busy import RawHost, hold_heating
 from tests.support.daemons import FakeEstimator, assert_heater_safe, sim_config
 
-pytestmark = pytest.mark.hil
+pytestmark = [pytest.mark.hil, pytest.mark.slow]
 MAX_ON = Config().heater.max_on_time_s
 WAIT_s = 20.0
 STOP_LIMIT_s = 2.0
