@@ -124,21 +124,21 @@ class BlockTridiagonal:
         self._plan(G, width, b)
 
     def _plan(self, G: list[np.ndarray], width: np.ndarray, b: np.ndarray) -> None:
-        """Per-row operators of the two sweeps, laid out for one NumPy call per row and sweep.
+        """Per-row operands of the two sweeps, laid out for few NumPy calls per row.
 
         The sweeps run on one work vector holding, per block row j with coupled width w_j,
         a slot ``F_j`` (the right-hand side, later the solution ``x_j``) followed by a slot
-        ``Z_j`` (the forward sweep's ``z_j``), so that ``[Z_{j-1}, F_j]`` and ``[Z_j, F_{j+1}]``
-        are contiguous:
+        ``Z_j`` (the forward sweep's ``z_j``):
 
-        * forward, ``z_j = G_j (f_j - b_j z_{j-1}) = [-G_j diag(b_j) | G_j] [z_{j-1}; f_j]``:
-          one mat-vec with the row's augmented matrix;
-        * back, ``x_j = z_j - G_j diag(b_{j+1}) x_{j+1}``: a mat-vec and a subtraction, writing
-          ``x_j`` over ``f_j`` (no longer needed), next to ``z_{j-1}`` for the row above.
+        * forward, ``z_j = G_j (f_j - b_j z_{j-1})``: the coupling subtracted from ``f_j`` in
+          place, then one mat-vec;
+        * back, ``x_j = z_j - (G_j diag(b_{j+1})) x_{j+1}``: a mat-vec with that product,
+          formed once, and a subtraction, writing ``x_j`` over ``f_j`` (no longer needed).
 
-        The arithmetic is the elimination's, regrouped (``G_j diag(b_j)`` formed once).  A row's
-        cost is its NumPy calls more than its flops: one call forward and two back, where the
-        elimination written out takes nine.  The price is memory, three dense blocks a row.
+        A row's cost is its NumPy calls as much as its flops: five calls where the elimination
+        written out takes nine.  Two dense blocks a row, as many bytes as the elimination reads:
+        the solve streams them from memory, and on the larger grids a third block (folding the
+        forward coupling into an augmented matrix, one call fewer) was slower, not faster.
         """
         n = self.n
         w = [int(x) for x in width]
@@ -151,18 +151,10 @@ class BlockTridiagonal:
         for j in range(n):
             if not w[j]:
                 continue
-            F, Z = f_at[j], f_at[j] + w[j]
             wp = w[j - 1] if j else 0
-            if wp:
-                # Only the leading min(w_j, w_{j-1}) unknowns of the two rows are coupled; the
-                # rest of z_{j-1} meets zero columns.
-                c = min(w[j], wp)
-                A = np.zeros((w[j], wp + w[j]))
-                A[:, :c] = -G[j][:, :c] * b[j - 1, :c]
-                A[:, wp:] = G[j]
-                fwd.append((A, f_at[j - 1] + wp, F + w[j], Z))
-            else:
-                fwd.append((G[j], F, F + w[j], Z))
+            # Only the leading min(w_j, w_{j-1}) unknowns of the two rows are coupled.
+            c = min(w[j], wp)
+            fwd.append((G[j], f_at[j], f_at[j] + w[j], b[j - 1, :c].copy() if c else None, f_at[j - 1] + wp))
         for j in range(n - 1, -1, -1):
             if not w[j]:
                 continue
@@ -189,7 +181,14 @@ class BlockTridiagonal:
         views = getattr(loc, "views", None)
         if views is None:
             buf = np.empty(self._size)
-            fwd = [(A, buf[s0:s1], buf[z:z + A.shape[0]]) for A, s0, s1, z in self._fwd]
+            fwd = []
+            for G, f, z, bj, zp in self._fwd:
+                w = z - f
+                if bj is None:
+                    fwd.append((G, buf[f:z], buf[z:z + w], None, None, None, None))
+                else:
+                    c = bj.size
+                    fwd.append((G, buf[f:z], buf[z:z + w], bj, buf[zp:zp + c], buf[f:f + c], np.empty(c)))
             back = []
             for N, xn, z, f in self._back:
                 w = z - f
@@ -203,9 +202,12 @@ class BlockTridiagonal:
         buf, fwd, back = self._views()
         f = (rhs * self.scale).reshape(-1)
         buf[self._work_idx] = f[self._field_idx]
-        dot, subtract = np.dot, np.subtract
-        for A, x, out in fwd:
-            dot(A, x, out=out)
+        dot, multiply, subtract = np.dot, np.multiply, np.subtract
+        for G, fj, zj, bj, z_prev, fj_c, tmp in fwd:
+            if bj is not None:
+                multiply(bj, z_prev, out=tmp)
+                subtract(fj_c, tmp, out=fj_c)
+            dot(G, fj, out=zj)
         for N, xn, z, out, tmp in back:
             if N is None:
                 out[:] = z
@@ -220,7 +222,7 @@ class BlockTridiagonal:
 #: Factors shared by every solver of the same matrix (worlds rebuilt for the same probe, scene and
 #: step: a session's touches, a simulator per measurement), least recently used dropped first.
 _FACTOR_CACHE: OrderedDict[bytes, BlockTridiagonal] = OrderedDict()
-_FACTOR_CACHE_BYTES = 128 * 2**20  # ~13 factors of the probe grid (9.8 MB each): a world's air and contact configurations with their start-up steps
+_FACTOR_CACHE_BYTES = 128 * 2**20  # ~20 factors of 6.6 MB (the paper probe's 121 x 75 grid), 13 of the small-heater probe's
 
 
 def clear_factor_cache() -> None:
