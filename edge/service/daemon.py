@@ -980,8 +980,9 @@ class Daemon:
                 try:
                     self.heater.off()
                 finally:
-                    # Replies already queued go out, within one write timeout: a host that
-                    # stopped reading cannot hold up a stop.
+                    # Replies already queued go out within one write timeout, and the write in
+                    # progress ends within another (bench/reliability_bench.py, blocked_writer):
+                    # a host that stopped reading cannot hold up a stop longer.
                     endpoint.close(timeout_s=endpoint.write_timeout_s)
 
     def wake(self) -> None:
