@@ -67,3 +67,33 @@ def test_the_same_matrix_shares_one_factor_and_the_cache_stays_within_its_bytes(
     assert len(S._FACTOR_CACHE) == 2 and sum(f.nbytes for f in S._FACTOR_CACHE.values()) <= 2 * fa.nbytes
     assert S._factor(*systems[-1]) is factors[-1] and S._factor(*systems[0]) is not factors[0]
     S.clear_factor_cache()
+
+
+def test_threads_solving_with_one_shared_factor_each_get_their_own_answer():
+    """Factors are shared between solvers (and worlds step in different threads): the sweeps' work
+    vectors are per thread, so concurrent solves never see each other's intermediate values."""
+    import sys
+    import threading
+
+    rng = np.random.default_rng(5)
+    fac = S.BlockTridiagonal(*_system(rng, n=12, m=9, short_rows=(3, 7)))
+    rhss = [rng.normal(size=(12, 9)) for _ in range(4)]
+    want = [fac.solve(r) for r in rhss]
+    old = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)  # switch threads between almost every bytecode: interleave the sweeps
+    wrong = []
+    try:
+        def solve_many(k):
+            for _ in range(300):
+                if not np.array_equal(fac.solve(rhss[k]), want[k]):
+                    wrong.append(k)
+                    return
+
+        threads = [threading.Thread(target=solve_many, args=(k,)) for k in range(4)]
+        for th in threads:
+            th.start()
+        for th in threads:
+            th.join(60)
+    finally:
+        sys.setswitchinterval(old)
+    assert not wrong
