@@ -97,7 +97,6 @@ class BlockTridiagonal:
         coupled[:-1] |= b != 0
         coupled[1:] |= b != 0
         width = np.where(coupled.any(axis=1), m - np.argmax(coupled[:, ::-1], axis=1), 0)
-        self.width = width
         G = []
         prev, w_prev = None, 0
         for j in range(n):
