@@ -299,24 +299,40 @@ def _read_regular_file(path: Path, label: str, max_bytes: int) -> bytes:
     return data
 
 
-def _npy_header(raw: bytes, label: str, name: str) -> tuple[tuple[int, ...], np.dtype, int]:
-    """Parse an npy header without reading data: (shape, dtype, header length)."""
+# Parsed npy headers by their exact bytes. A header is parsed with ``ast.literal_eval`` (numpy's
+# reader), the slowest part of a load; the same bundle is loaded at every daemon start, store check
+# and install, and its headers repeat. The parse is a pure function of the bytes, so a hit is
+# exactly what parsing would give; bounded because headers come from files we do not trust.
+_HEADER_CACHE: dict[bytes, tuple[tuple[int, ...], np.dtype, bool, int]] = {}
+_HEADER_CACHE_MAX = 1024
+
+
+def _npy_header(raw: bytes, label: str, name: str) -> tuple[tuple[int, ...], np.dtype, bool, int]:
+    """Parse an npy header without reading data: (shape, dtype, fortran order, header length)."""
+    hit = _HEADER_CACHE.get(raw)
+    if hit is not None:
+        return hit
     bio = io.BytesIO(raw)
     try:
         version = np.lib.format.read_magic(bio)
         if version == (1, 0):
-            shape, _fortran, dtype = np.lib.format.read_array_header_1_0(bio)
+            shape, fortran, dtype = np.lib.format.read_array_header_1_0(bio)
         elif version == (2, 0):
-            shape, _fortran, dtype = np.lib.format.read_array_header_2_0(bio)
+            shape, fortran, dtype = np.lib.format.read_array_header_2_0(bio)
         else:
             raise ValueError(f"unsupported npy format version {version}")
     except (ValueError, TypeError, SyntaxError, EOFError) as e:
         raise CorruptFileError(f"{label}: array {name!r} has an unreadable npy header ({e})", name) from None
-    return tuple(int(d) for d in shape), dtype, bio.tell()
+    out = (tuple(int(d) for d in shape), dtype, bool(fortran), bio.tell())
+    if len(_HEADER_CACHE) >= _HEADER_CACHE_MAX:
+        _HEADER_CACHE.clear()
+    _HEADER_CACHE[bytes(raw)] = out
+    return out
 
 
-def _read_npy_header(zf: zipfile.ZipFile, info: zipfile.ZipInfo, label: str, name: str) -> tuple[tuple[int, ...], np.dtype, int]:
-    """Shape, dtype and header length of one member, decompressing only its header."""
+def _read_npy_header(zf: zipfile.ZipFile, info: zipfile.ZipInfo, label: str,
+                     name: str) -> tuple[tuple[int, ...], np.dtype, bool, int]:
+    """Shape, dtype, order and header length of one member, decompressing only its header."""
     try:
         with zf.open(info) as f:
             head = f.read(12)  # magic (6), version (2), header length (2 or 4)
@@ -329,8 +345,7 @@ def _read_npy_header(zf: zipfile.ZipFile, info: zipfile.ZipInfo, label: str, nam
             head += f.read(hlen - len(head))
     except (zipfile.BadZipFile, OSError, ValueError, EOFError, NotImplementedError, zlib.error) as e:
         raise CorruptFileError(f"{label}: array {name!r} is unreadable ({e})", name) from None
-    shape, dtype, used = _npy_header(head, label, name)
-    return shape, dtype, used
+    return _npy_header(head, label, name)
 
 
 def _parse_npz(data: bytes, label: str, limits: Limits) -> dict[str, np.ndarray]:
@@ -378,8 +393,9 @@ def _parse_npz(data: bytes, label: str, limits: Limits) -> dict[str, np.ndarray]
         names[name] = info
     # 2. npy headers: shapes and dtypes, the data still compressed.
     total = 0
+    headers: dict[str, tuple[tuple[int, ...], np.dtype, bool, int]] = {}
     for name, info in names.items():
-        shape, dtype, hlen = _read_npy_header(zf, info, label, name)
+        shape, dtype, _fortran, hlen = headers[name] = _read_npy_header(zf, info, label, name)
         if dtype.hasobject:
             raise ObjectArrayError(f"{label}: array {name!r} has dtype object (refused: needs pickle)", name)
         if dtype.fields is not None or dtype.subdtype is not None:
@@ -412,11 +428,14 @@ def _parse_npz(data: bytes, label: str, limits: Limits) -> dict[str, np.ndarray]
         if len(raw) != info.file_size:
             raise CorruptFileError(f"{label}: array {name!r} holds {len(raw)} bytes, its entry says "
                                    f"{info.file_size}", name)
+        # The header was parsed and checked above (the data length against it too): the array is
+        # its bytes after the header, not a second parse by np.load.
+        shape, dtype, fortran, hlen = headers[name]
         try:
-            arr = np.load(io.BytesIO(raw), allow_pickle=False)
-        except (ValueError, OSError, EOFError) as e:
+            flat = np.frombuffer(raw, dtype=dtype, count=math.prod(shape), offset=hlen)
+        except ValueError as e:
             raise CorruptFileError(f"{label}: array {name!r} is unreadable ({e})", name) from None
-        arr = np.array(arr, order="C", copy=True)
+        arr = np.array(flat.reshape(shape, order="F" if fortran else "C"), order="C", copy=True)
         arr.flags.writeable = False
         out[name] = arr
     return out

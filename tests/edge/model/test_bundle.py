@@ -73,6 +73,24 @@ def test_loaded_bundle_is_read_only(good):
     assert b.model_version == "1.0"
 
 
+def test_fortran_ordered_members_load_as_their_values(tmp_path, arrays, golden):
+    # The loader builds each array from the bytes after the header it checked, so it must honour
+    # the header's order as np.load would; loaded twice, the second time from headers it has
+    # parsed before. A big-endian member keeps its byte order and is refused by name.
+    odd = {k: np.asfortranarray(v) if np.ndim(v) == 2 else v for k, v in arrays.items()}
+    path = _hostile(tmp_path, odd, golden)
+    with zipfile.ZipFile(path / "arrays.npz") as zf:
+        assert b"'fortran_order': True" in zf.read("mlp_W0.npy")[:128]
+    for _ in range(2):
+        b = B.load_bundle(path, golden_check=mlp_golden_check)
+        for k, v in arrays.items():
+            np.testing.assert_array_equal(b.arrays[k], v)
+            assert b.arrays[k].flags.c_contiguous and not b.arrays[k].flags.writeable
+    swapped = _hostile(tmp_path, dict(arrays, x_mean=np.asarray(arrays["x_mean"]).astype(">f8")), golden, "be")
+    with pytest.raises(B.DtypeError, match="'x_mean' expected dtype float64, got >f8"):
+        B.load_bundle(swapped, golden_check=mlp_golden_check)
+
+
 def test_writer_is_deterministic_and_refuses_overwrite(tmp_path, good, arrays, golden):
     again = B.write_bundle(tmp_path / "again", arrays, golden, manifest_extra(), golden_check=mlp_golden_check)
     assert again.sha256 == B.load_bundle(good, golden_check=mlp_golden_check).sha256
