@@ -21,6 +21,7 @@ reply to the first attempt still counts.  Failures raise:
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import threading
 import time
@@ -99,6 +100,35 @@ ABORT_TIMEOUT_s = 6.0
 ABORT_ATTEMPTS = 3
 
 
+try:
+    import termios
+    _TTY_ERRORS: tuple[type[BaseException], ...] = (termios.error,)
+except ImportError:  # no termios (Windows): pyserial raises SerialException there
+    _TTY_ERRORS = ()
+
+#: Attempts of one terminal call interrupted by signals before the port is called unusable.
+TTY_EINTR_ATTEMPTS = 20
+
+
+def _tty_call(fn: Callable[[], Any], port: str) -> Any:
+    """Run a pyserial call that ends in a termios call (``flush`` is tcdrain, ``reset_input_buffer`` tcflush).
+
+    Python retries system calls a signal interrupts (PEP 475), but not the termios module's:
+    a signal arriving while the line drains (SIGWINCH when the user resizes the terminal,
+    SIGCHLD) raises ``termios.error(EINTR)``, which is not an OSError, and used to end the
+    command as an internal error. An interrupted call is repeated; any other termios failure
+    means the port is unusable.
+    """
+    for _ in range(TTY_EINTR_ATTEMPTS):
+        try:
+            return fn()
+        except _TTY_ERRORS as exc:
+            if exc.args and exc.args[0] == errno.EINTR:
+                continue
+            raise PortUnavailable(port, f"terminal call failed: {exc}") from exc
+    raise PortUnavailable(port, f"terminal call interrupted by signals {TTY_EINTR_ATTEMPTS} times in a row")
+
+
 def _port_name(ser: Any) -> str:
     return str(getattr(ser, "port", None) or getattr(ser, "name", None) or ser)
 
@@ -165,7 +195,7 @@ class DeviceClient:
         reset = getattr(self.ser, "reset_input_buffer", None)
         if reset is not None:
             try:
-                reset()
+                _tty_call(reset, self.port)
             except (serial.SerialException, OSError) as exc:
                 raise PortUnavailable(self.port, str(exc)) from exc
 
@@ -254,7 +284,7 @@ class DeviceClient:
             self.ser.write(data)
             flush = getattr(self.ser, "flush", None)
             if flush is not None:
-                flush()
+                _tty_call(flush, self.port)
         except (serial.SerialException, OSError) as exc:
             raise PortUnavailable(self.port, f"write failed: {exc}") from exc
 
