@@ -726,12 +726,15 @@ class FaithfulWorld:
             self._h[name] = new
         self._cap = cap
 
-    def _record(self, cfg: _Config, power: float, y: float | None = None) -> None:
+    def _record(self, cfg: _Config, power: float, y: float | None = None, read: np.ndarray | None = None) -> None:
+        """Append the state's history row; ``read``: the probes' values of this field, if already read."""
         st = self._state
         if st.n_hist >= self._cap:
             self._grow()
-        s = cfg.solver(self.dt)
-        T_tc, q_s, q_f = s.probes.read(st.T, s.g_t)
+        if read is None:
+            s = cfg.solver(self.dt)
+            read = s.probes.read(st.T, s.g_t)
+        T_tc, q_s, q_f = read
         i = st.n_hist
         h = self._h
         h["t"][i] = st.t
@@ -794,15 +797,14 @@ class FaithfulWorld:
         t = t_a
         for n, d in enumerate(subs):
             s = cfg.solver(d, scheme)
-            rec = s.run(st.T, 1, cfg.src, power, keep_field=True)
+            st.T, e_in, e_lost = s.step(st.T, cfg.src, power)
             n_prev = st.n_hist - 1
-            st.T = rec.T_final_K
             st.t = t = t_b if n == len(subs) - 1 else t + d
-            st.e_in += float(rec.E_in_J[-1])
-            st.e_lost += float(rec.E_lost_J[-1])
-            T_tc_new = float(s.probes.read(st.T, s.g_t)[0])
-            y = self._lag(h["y"][n_prev], h["T_tc"][n_prev], T_tc_new, d)
-            self._record(cfg, power, y)
+            st.e_in += e_in
+            st.e_lost += e_lost
+            read = s.probes.read(st.T, s.g_t)
+            y = self._lag(h["y"][n_prev], h["T_tc"][n_prev], float(read[0]), d)
+            self._record(cfg, power, y, read)
         st.k += 1
         st.n_steps += 1
         if switch:

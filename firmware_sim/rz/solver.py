@@ -473,6 +473,7 @@ class Solver:
         # TR-BDF2 tau = gamma dt / 2 = w dt for both stages.
         self.tau = {"be": dt_s, "cn": 0.5 * dt_s, "trbdf2": 0.5 * _GAMMA * dt_s}[scheme]
         self.fac = self.op.factor(1.0 / self.tau)
+        self._Ct = self.op.cap / self.tau
         self.g_t = grid.g_b_W_K * grid.t_b_K   # ambient forcing vector g
         self.probes = _probes(grid) if grid.meta.get("sensor_radius_m") is not None else None
 
@@ -510,8 +511,7 @@ class Solver:
         keep_field : bool
             Return the final field in ``Record.T_final_K``.
         """
-        op, fac, tau, dt = self.op, self.fac, self.tau, self.dt
-        C = op.cap
+        C = self.op.cap
         Q = np.zeros(self.grid.shape) if source_W is None else np.asarray(source_W, float)
         p = np.broadcast_to(np.asarray(amplitude, float), (n_steps,))
         g = self.g_t
@@ -523,36 +523,10 @@ class Solver:
         E_st = np.zeros(n_steps + 1)
         E_lo = np.zeros(n_steps + 1)
         out[0] = self._read(T)
-        Ct = C / tau
         loss = self._loss(T)
+        dt = self.dt
         for n in range(n_steps):
-            f = p[n] * Q + g
-            if self.scheme == "be":
-                T = op.solve(fac, Ct * T + f)
-                loss_new = self._loss(T)
-                lost = dt * loss_new
-            elif self.scheme == "cn" and n < self.rannacher_steps:
-                # Two backward-Euler half steps: (2C/dt + K) is the CN matrix.
-                T_h = op.solve(fac, Ct * T + f)
-                l_h = self._loss(T_h)
-                T = op.solve(fac, Ct * T_h + f)
-                loss_new = self._loss(T)
-                lost = 0.5 * dt * (l_h + loss_new)
-            elif self.scheme == "cn":
-                T = op.solve(fac, Ct * T - op.apply_K(T) + 2.0 * f)
-                loss_new = self._loss(T)
-                lost = 0.5 * dt * (loss + loss_new)
-            else:  # TR-BDF2
-                # TR stage to t + gamma dt: (C/tau + K) T_g = (C/tau - K) T + 2 f.
-                T_g = op.solve(fac, Ct * T - op.apply_K(T) + 2.0 * f)
-                l_g = self._loss(T_g)
-                # BDF2 stage: (C/tau + K) T1 = C/tau [T_g / (g (2-g)) - (1-g)^2 / (g (2-g)) T] + f.
-                a = 1.0 / (_GAMMA * (2.0 - _GAMMA))
-                c = (1.0 - _GAMMA) ** 2 / (_GAMMA * (2.0 - _GAMMA))
-                T = op.solve(fac, Ct * (a * T_g - c * T) + f)
-                loss_new = self._loss(T)
-                lost = dt * ((loss + l_g) / (2.0 * (2.0 - _GAMMA)) + _W * loss_new)
-            loss = loss_new
+            T, loss, lost = self._advance(T, p[n] * Q + g, loss, n < self.rannacher_steps)
             out[n + 1] = self._read(T)
             E_in[n + 1] = E_in[n] + dt * p[n] * Q_tot
             E_lo[n + 1] = E_lo[n] + lost
@@ -560,6 +534,52 @@ class Solver:
         t = dt * np.arange(n_steps + 1)
         return Record(t_s=t, T_tc_K=out[:, 0], q_sensor_W_m2=out[:, 1], q_face_W_m2=out[:, 2],
                       E_in_J=E_in, E_stored_J=E_st, E_lost_J=E_lo, T_final_K=T if keep_field else None)
+
+    def _advance(self, T: np.ndarray, f: np.ndarray, loss: float, startup: bool) -> tuple[np.ndarray, float, float]:
+        """One step of the scheme from ``T`` with forcing ``f`` (source + ambient, constant in the step).
+
+        ``loss`` is the outward heat flow of ``T`` (W); ``startup``: a Rannacher half-step pair
+        (``"cn"`` only). Returns the new field, its outward heat flow and the heat lost in the
+        step (J, the scheme's own quadrature, so the energy ledger closes to round-off).
+        """
+        op, fac, dt, Ct = self.op, self.fac, self.dt, self._Ct
+        if self.scheme == "be":
+            T = op.solve(fac, Ct * T + f)
+            loss_new = self._loss(T)
+            lost = dt * loss_new
+        elif self.scheme == "cn" and startup:
+            # Two backward-Euler half steps: (2C/dt + K) is the CN matrix.
+            T_h = op.solve(fac, Ct * T + f)
+            l_h = self._loss(T_h)
+            T = op.solve(fac, Ct * T_h + f)
+            loss_new = self._loss(T)
+            lost = 0.5 * dt * (l_h + loss_new)
+        elif self.scheme == "cn":
+            T = op.solve(fac, Ct * T - op.apply_K(T) + 2.0 * f)
+            loss_new = self._loss(T)
+            lost = 0.5 * dt * (loss + loss_new)
+        else:  # TR-BDF2
+            # TR stage to t + gamma dt: (C/tau + K) T_g = (C/tau - K) T + 2 f.
+            T_g = op.solve(fac, Ct * T - op.apply_K(T) + 2.0 * f)
+            l_g = self._loss(T_g)
+            # BDF2 stage: (C/tau + K) T1 = C/tau [T_g / (g (2-g)) - (1-g)^2 / (g (2-g)) T] + f.
+            a = 1.0 / (_GAMMA * (2.0 - _GAMMA))
+            c = (1.0 - _GAMMA) ** 2 / (_GAMMA * (2.0 - _GAMMA))
+            T = op.solve(fac, Ct * (a * T_g - c * T) + f)
+            loss_new = self._loss(T)
+            lost = dt * ((loss + l_g) / (2.0 * (2.0 - _GAMMA)) + _W * loss_new)
+        return T, loss_new, lost
+
+    def step(self, T_K: np.ndarray, source_W: np.ndarray, amplitude: float) -> tuple[np.ndarray, float, float]:
+        """One step from field ``T_K``: ``(new field, heat in J, heat lost J)``.
+
+        The same arithmetic as one step of :meth:`run` (and the same numbers, bit for bit),
+        without its per-call records: a world that steps once per call pays for the step only.
+        For ``"cn"`` the step is a plain CN step (no Rannacher start).
+        """
+        T = np.array(T_K, dtype=float) * self.grid.active
+        T, _, lost = self._advance(T, amplitude * source_W + self.g_t, self._loss(T), False)
+        return T, self.dt * amplitude * float(np.sum(source_W)), lost
 
     # -- linear building blocks
     def heater_source_W(self, power_W: float = 1.0) -> np.ndarray:

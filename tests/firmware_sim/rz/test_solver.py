@@ -97,3 +97,19 @@ def test_threads_solving_with_one_shared_factor_each_get_their_own_answer():
     finally:
         sys.setswitchinterval(old)
     assert not wrong
+
+
+@pytest.mark.parametrize("scheme", ["trbdf2", "cn", "be"])
+def test_one_step_is_one_step_of_run_bit_for_bit(scheme):
+    # The world steps with Solver.step; the solver's own tests march with run. Both must be the
+    # same scheme to the last bit, from a field that is not uniform and with ambient forcing.
+    from edge.physics.solids import Solid
+    from firmware_sim.rz.grid import probe_grid
+
+    s = S.Solver(probe_grid(Solid(1.1, 2500.0, 800.0)), 0.01, scheme, rannacher_steps=0)
+    T0 = s.run(s.initial_field(25.0, 22.0), 3, s.heater_source_W(), 2.0, keep_field=True).T_final_K
+    rec = s.run(T0, 1, s.heater_source_W(), 5.0, keep_field=True)
+    T1, e_in, e_lost = s.step(T0, s.heater_source_W(), 5.0)
+    assert np.array_equal(T1, rec.T_final_K)
+    assert e_in == rec.E_in_J[-1] and e_lost == rec.E_lost_J[-1]
+    assert not np.array_equal(T1, T0) and e_in > 0
