@@ -262,7 +262,13 @@ class SimPwmTree:
     # ---- internals: files
 
     def _put(self, path: Path, text: str) -> None:
-        path.write_text(text)
+        # os-level, like _read: Path.write_text's text-wrapper set-up costs more than the write,
+        # and the simulator rewrites a channel's four files after every accepted change.
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o666)
+        try:
+            os.write(fd, text.encode())
+        finally:
+            os.close(fd)
         self._mirror[path] = text
 
     def _record(self, key: tuple[int, int], t: float) -> None:
