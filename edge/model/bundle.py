@@ -326,7 +326,7 @@ def _npy_header(raw: bytes, label: str, name: str) -> tuple[tuple[int, ...], np.
     out = (tuple(int(d) for d in shape), dtype, bool(fortran), bio.tell())
     if len(_HEADER_CACHE) >= _HEADER_CACHE_MAX:
         _HEADER_CACHE.clear()
-    _HEADER_CACHE[bytes(raw)] = out
+    _HEADER_CACHE[raw] = out
     return out
 
 

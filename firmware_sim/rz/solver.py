@@ -50,6 +50,9 @@ __all__ = ["BlockTridiagonal", "clear_factor_cache", "Probes", "Record", "Solver
 SCHEMES = ("be", "cn", "trbdf2")
 _GAMMA = 2.0 - math.sqrt(2.0)
 _W = (1.0 - _GAMMA) / (2.0 - _GAMMA)  # BDF2-stage weight; equals _GAMMA / 2 for this gamma
+# BDF2 stage's combination of the step's start and the TR stage: T_g / (g (2-g)) - (1-g)^2 / (g (2-g)) T.
+_BDF2_A = 1.0 / (_GAMMA * (2.0 - _GAMMA))
+_BDF2_C = (1.0 - _GAMMA) ** 2 / (_GAMMA * (2.0 - _GAMMA))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -563,9 +566,7 @@ class Solver:
             T_g = op.solve(fac, Ct * T - op.apply_K(T) + 2.0 * f)
             l_g = self._loss(T_g)
             # BDF2 stage: (C/tau + K) T1 = C/tau [T_g / (g (2-g)) - (1-g)^2 / (g (2-g)) T] + f.
-            a = 1.0 / (_GAMMA * (2.0 - _GAMMA))
-            c = (1.0 - _GAMMA) ** 2 / (_GAMMA * (2.0 - _GAMMA))
-            T = op.solve(fac, Ct * (a * T_g - c * T) + f)
+            T = op.solve(fac, Ct * (_BDF2_A * T_g - _BDF2_C * T) + f)
             loss_new = self._loss(T)
             lost = dt * ((loss + l_g) / (2.0 * (2.0 - _GAMMA)) + _W * loss_new)
         return T, loss_new, lost
