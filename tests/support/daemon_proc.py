@@ -21,7 +21,9 @@ NumPy's most of it), then forks a child per daemon asked for on the control
 socket ``FD``. From its fork on a child is that script's process: it runs
 ``main()`` to a normal interpreter exit (``atexit``, thread joins, exit status
 and all), or dies by the signal the test sends it, just the same; what it
-skips is only the re-import.
+skips is only the re-import. Other test helpers use the same server for their own children:
+:meth:`ForkServer.prepare` runs a function in the server itself (what its children should
+inherit), :meth:`ForkServer.start_call` runs one in a child.
 """
 
 import json
@@ -93,6 +95,14 @@ def main() -> int:
 FORK_SERVER_TIMEOUT_s = 30.0
 
 
+def _function(name: str):
+    """The function ``"package.module:name"`` names (imported here, in the server or its child)."""
+    import importlib
+
+    module, _, attr = name.partition(":")
+    return getattr(importlib.import_module(module), attr)
+
+
 def _serve_forks(ctl_fd: int) -> dict:
     """Fork server loop: returns only in a forked child, with its job (``{"argv": [...]}`` or ``{"code": ...}``).
 
@@ -100,6 +110,11 @@ def _serve_forks(ctl_fd: int) -> dict:
     and stderr as passed file descriptors. The server answers the child's pid, waits for it, then
     answers its exit status (as :attr:`subprocess.Popen.returncode`: negative for a signal). One
     child at a time: this process stays single-threaded, so a fork never inherits a held lock.
+
+    Two more jobs: ``{"prepare": "module:function", "arg": ...}`` calls the function in the server
+    itself and answers ``{"ok": true}`` or ``{"error": traceback}`` (no child); ``{"call":
+    "module:function", "arg": ...}`` forks a child that calls ``function(arg, fds)`` with the passed
+    descriptors as they came, and must end the process itself (``os._exit`` or a signal).
     """
     ctl = socket.socket(fileno=ctl_fd)
     while True:
@@ -107,11 +122,26 @@ def _serve_forks(ctl_fd: int) -> dict:
         if not msg:  # the test process has gone
             os._exit(0)
         job = json.loads(msg)
+        if "prepare" in job:
+            try:
+                _function(job["prepare"])(job["arg"])
+                reply = {"ok": True}
+            except BaseException:  # noqa: BLE001 - the test process reports it
+                import traceback
+
+                reply = {"error": traceback.format_exc()[-3000:]}
+            ctl.send(json.dumps(reply).encode())
+            continue
         sys.stdout.flush()
         sys.stderr.flush()
         pid = os.fork()
         if pid == 0:
             ctl.close()
+            if "call" in job:
+                try:
+                    _function(job["call"])(job["arg"], list(fds))
+                finally:
+                    os._exit(70)  # the function returned or raised instead of ending the process
             for target, fd in enumerate(fds):
                 os.dup2(fd, target)
                 os.close(fd)
@@ -214,7 +244,8 @@ class ForkedChild:
 
     def close(self) -> None:
         for f in (self.stdout, self.stderr):
-            f.close()
+            if f is not None:
+                f.close()
 
 
 class ForkServer:
@@ -267,9 +298,28 @@ class ForkServer:
             self.reap(child)
         return child.returncode, out, err
 
-    def _start(self, job: dict) -> ForkedChild:
+    def prepare(self, function: str, arg) -> None:
+        """Call ``function(arg)`` (``"module:function"``) in the server, so that every later child inherits
+        what it did (imports, warmed-up state); its exception is raised here as a RuntimeError."""
+        if self._child is not None:
+            self.reap(self._child)
+        self._ctl.send(json.dumps({"prepare": function, "arg": arg}).encode())
+        reply = self._recv(FORK_SERVER_TIMEOUT_s)
+        if "error" in reply:
+            raise RuntimeError(f"{function} failed in the fork server:\n{reply['error']}")
+
+    def start_call(self, function: str, arg, fds: list[int]) -> ForkedChild:
+        """A child that calls ``function(arg, fds)`` and ends itself; ``fds`` are passed (the caller closes its
+        copies). The child has no pipes of ours: ``stdout`` and ``stderr`` are None."""
+        return self._start({"call": function, "arg": arg}, fds)
+
+    def _start(self, job: dict, fds: list[int] | None = None) -> ForkedChild:
         if self._child is not None:  # a test that failed before waiting: end it, the server serves one at a time
             self.reap(self._child)
+        if fds is not None:
+            socket.send_fds(self._ctl, [json.dumps(job).encode()], fds)
+            self._child = ForkedChild(self, self._recv(FORK_SERVER_TIMEOUT_s)["pid"], None, None)
+            return self._child
         pipes = [os.pipe() for _ in range(2)]
         devnull = os.open(os.devnull, os.O_RDONLY)
         try:

@@ -31,6 +31,13 @@ child only; production code has no hooks.
 
 Forking from the test process keeps a point at a few tens of ms (everything is imported, the
 work directory is on tmpfs when there is one); a fresh interpreter per point would cost ~0.4 s.
+Given a :class:`tests.support.daemon_proc.ForkServer`, the children are forked from that small
+interpreter instead: the operation is rebuilt there from its description (:meth:`Operation.spec`),
+warmed up once, and each child is its fork. A fork copies the forking process's page tables and
+its children fault in copies of what they touch, so forking from a test worker that has grown to
+hundreds of megabytes costs ~25 ms more a point than forking from the server. Children of the test
+process itself (no server) inherit whatever the test monkeypatched, which the harness's own
+"is it vacuous" tests need.
 SIGKILL does not drop the page cache, so tmpfs and a disk behave the same for these kills
 (power cuts are :mod:`tests.edge.model.test_store`'s business).
 """
@@ -242,19 +249,57 @@ class Operation:
     instrument : list of str
         What else counts besides files: ``"sqlite"``, ``"heater"``.
     check : callable (point_dir, confirmed replies) -> list of str
-        The cheap restart check: what is wrong (empty: survived).
-    make_daemon : callable (point_dir) -> Daemon
-        Builds the daemon in the child, as at start-up.
+        The cheap restart check: what is wrong (empty: survived). None on the fork server's side.
+    store_root : Path or None
+        None: each child's daemon opens its model store, as at start-up. A directory: operations
+        that leave the model alone share one store, verified once (in the process the children
+        are forked from) under this directory, which saves a third of a child's start.
     """
 
     name: str
     template: Path
     requests: list[tuple[Command, dict]]
-    check: Callable[[Path, list[dict]], list[str]]
-    make_daemon: Callable[[Path], Any]
+    check: Callable[[Path, list[dict]], list[str]] | None
+    store_root: Path | None = None
     instrument: tuple[str, ...] = ()
     #: The daemon's start-up is the operation: instrument first, then build the daemon.
     startup: bool = False
+    _store: Any = field(default=None, init=False, repr=False, compare=False)
+    #: Where :meth:`spec` wrote the child side (set by :func:`dry_run` on a fork server).
+    spec_path: Path | None = field(default=None, init=False, repr=False, compare=False)
+
+    def make_daemon(self, point_dir: Path) -> Any:
+        """The daemon of the child, as ``thermotouch-edge`` starts it on ``point_dir``."""
+        if self.store_root is None:
+            return child_daemon(point_dir)
+        if self._store is None:
+            self._store = _open_store(Path(tempfile.mkdtemp(prefix="shared-store-", dir=self.store_root)))
+            self._store.current()
+        return child_daemon(point_dir, model_store=self._store)
+
+    def spec(self) -> Path:
+        """Write what a child needs (everything but ``check``) as JSON beside the template; return its path.
+
+        Request arguments that are bytes (model chunks) are written as ``{"bytes_hex": ...}``.
+        """
+        path = self.template.with_name(self.template.name + ".spec.json")
+        doc = {"name": self.name, "template": str(self.template),
+               "requests": [[c.name, {k: {"bytes_hex": v.hex()} if isinstance(v, bytes) else v for k, v in a.items()}]
+                            for c, a in self.requests],
+               "store_root": None if self.store_root is None else str(self.store_root),
+               "instrument": list(self.instrument), "startup": self.startup}
+        path.write_text(json.dumps(doc))
+        return path
+
+    @classmethod
+    def from_spec(cls, path: Path) -> "Operation":
+        """The child side of the operation :meth:`spec` wrote (no ``check``: that runs in the test process)."""
+        doc = json.loads(Path(path).read_text())
+        requests = [(Command[c], {k: bytes.fromhex(v["bytes_hex"]) if isinstance(v, dict) and "bytes_hex" in v else v
+                                  for k, v in a.items()}) for c, a in doc["requests"]]
+        return cls(doc["name"], Path(doc["template"]), requests, None,
+                   None if doc["store_root"] is None else Path(doc["store_root"]), tuple(doc["instrument"]),
+                   doc["startup"])
 
 
 @dataclass
@@ -297,28 +342,67 @@ def _child(op: Operation, point_dir: Path, n: int | None, trace_fd: int, host_fd
     daemon.close()
 
 
-def _run_child(op: Operation, point_dir: Path, n: int | None) -> tuple[int, list[str], list[dict], str]:
-    """Fork, run the operation (dying before step ``n``), return (wait status, trace, replies, stderr tail)."""
+def _child_process(op: Operation, point_dir: Path, n: int | None, trace_w: int, host_w: int, err_w: int) -> None:
+    """The forked child's whole life: the operation, then ``os._exit`` (or the SIGKILL at step ``n``)."""
+    status = _EXIT_CRASHED
+    try:
+        _child(op, point_dir, n, trace_w, host_w)
+        status = 0
+    except BaseException:
+        # sys.stderr may be the test runner's capture object: write to the pipe itself.
+        _write_all(err_w, traceback.format_exc().encode())
+    finally:
+        os._exit(status)
+
+
+#: The fork server's operations, by the path of their spec (filled in the server by :func:`_prepare_in_server`).
+_SERVER_OPS: dict[str, Operation] = {}
+
+
+def _prepare_in_server(spec: str) -> None:
+    """Fork-server side of :func:`dry_run`: rebuild the operation and warm it up there, once."""
+    op = Operation.from_spec(Path(spec))
+    warm_up(op, op.template.parent)
+    _SERVER_OPS[spec] = op
+
+
+def _point_in_server(arg: dict, fds: list[int]) -> None:  # pragma: no cover - runs in the server's child
+    trace_w, host_w, err_w = fds
+    _child_process(_SERVER_OPS[arg["spec"]], Path(arg["point"]), arg["n"], trace_w, host_w, err_w)
+
+
+def _run_child(op: Operation, point_dir: Path, n: int | None, server: Any = None
+               ) -> tuple[int, list[str], list[dict], str]:
+    """Fork, run the operation (dying before step ``n``), return (exit code, trace, replies, stderr tail).
+
+    The exit code is :attr:`subprocess.Popen.returncode`'s: ``-SIGKILL`` for the kill. ``server``: a
+    :class:`~tests.support.daemon_proc.ForkServer` the operation was prepared on (:func:`dry_run`);
+    None: fork this process.
+    """
     trace_r, trace_w = os.pipe()
     host_r, host_w = os.pipe()
     err_r, err_w = os.pipe()
-    # Objects that exist now are the parent's: frozen, the child's collections do not walk (and so
-    # copy-on-write) the whole test process's heap -- a large one in a worker that collected the suite.
-    gc.freeze()
-    pid = os.fork()
-    if pid == 0:  # pragma: no cover - the child never returns into the test runner
-        status = _EXIT_CRASHED
-        try:
+    child = None
+    if server is None:
+        # Objects that exist now are the parent's: frozen, the child's collections do not walk (and so
+        # copy-on-write) the whole test process's heap -- a large one in a worker that collected the suite.
+        gc.freeze()
+        pid = os.fork()
+        if pid == 0:  # pragma: no cover - the child never returns into the test runner
             for fd in (trace_r, host_r, err_r):
                 os.close(fd)
-            _child(op, point_dir, n, trace_w, host_w)
-            status = 0
+            _child_process(op, point_dir, n, trace_w, host_w, err_w)
+        gc.unfreeze()
+    else:
+        try:
+            child = server.start_call("tests.support.killpoints:_point_in_server",
+                                      {"spec": str(op.spec_path), "point": str(point_dir), "n": n},
+                                      [trace_w, host_w, err_w])
         except BaseException:
-            # sys.stderr may be the test runner's capture object: write to the pipe itself.
-            _write_all(err_w, traceback.format_exc().encode())
-        finally:
-            os._exit(status)
-    gc.unfreeze()
+            for fd in (trace_r, host_r, err_r, trace_w, host_w, err_w):
+                os.close(fd)
+            raise
+        pid = child.pid
     for fd in (trace_w, host_w, err_w):
         os.close(fd)
     bufs: dict[int, bytearray] = {trace_r: bytearray(), host_r: bytearray(), err_r: bytearray()}
@@ -340,10 +424,13 @@ def _run_child(op: Operation, point_dir: Path, n: int | None) -> tuple[int, list
     finally:
         for fd in bufs:
             os.close(fd)
-        _, status = os.waitpid(pid, 0)
+        if child is None:
+            code = os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
+        else:
+            code = child.wait()
     trace = bufs[trace_r].decode().splitlines()
     replies = [json.loads(line) for line in bufs[host_r].decode().splitlines()]
-    return status, trace, replies, bufs[err_r].decode()[-3000:]
+    return code, trace, replies, bufs[err_r].decode()[-3000:]
 
 
 def _fresh_point(op: Operation, root: Path, tag: str) -> Path:
@@ -377,13 +464,21 @@ def warm_up(op: Operation, root: Path) -> None:
     shutil.rmtree(point.parent)
 
 
-def dry_run(op: Operation, root: Path) -> tuple[list[str], list[dict]]:
-    """Run the operation to the end in a child (after :func:`warm_up`); return its steps and replies."""
-    warm_up(op, root)
+def dry_run(op: Operation, root: Path, server: Any = None) -> tuple[list[str], list[dict]]:
+    """Run the operation to the end in a child (after :func:`warm_up`); return its steps and replies.
+
+    ``server``: a :class:`~tests.support.daemon_proc.ForkServer` to fork this operation's children
+    from (the operation is rebuilt and warmed up there); None: this process.
+    """
+    if server is None:
+        warm_up(op, root)
+    else:
+        op.spec_path = op.spec()
+        server.prepare("tests.support.killpoints:_prepare_in_server", str(op.spec_path))
     point = _fresh_point(op, root, "dry")
-    status, trace, replies, err = _run_child(op, point, None)
-    if not (os.WIFEXITED(status) and os.WEXITSTATUS(status) == 0):
-        raise AssertionError(f"{op.name}: the dry run failed (status {status}):\n{err}")
+    code, trace, replies, err = _run_child(op, point, None, server)
+    if code != 0:
+        raise AssertionError(f"{op.name}: the dry run failed (exit code {code}):\n{err}")
     problems = op.check(point, replies)
     if problems:
         raise AssertionError(f"{op.name}: the operation run to its end breaks its own invariants: {problems}")
@@ -391,15 +486,17 @@ def dry_run(op: Operation, root: Path) -> tuple[list[str], list[dict]]:
     return trace, replies
 
 
-def kill_at(op: Operation, root: Path, n: int, expected_step: str, *, keep: bool = False) -> PointResult:
+def kill_at(op: Operation, root: Path, n: int, expected_step: str, *, keep: bool = False,
+            server: Any = None) -> PointResult:
     """Kill the operation right before step ``n``, restart, check; the point's directory
-    (``root/<op>-k<n>/state``) is removed unless ``keep``."""
+    (``root/<op>-k<n>/state``) is removed unless ``keep``. ``server``: as for :func:`dry_run`, which
+    must have run on it first."""
     t0 = time.perf_counter()
     point = _fresh_point(op, root, f"k{n}")
-    status, trace, replies, err = _run_child(op, point, n)
+    code, trace, replies, err = _run_child(op, point, n, server)
     res = PointResult(n, expected_step, len(replies))
-    if not (os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL):
-        res.problems.append(f"child was not killed at step {n} (status {status}): {err}")
+    if code != -signal.SIGKILL:
+        res.problems.append(f"child was not killed at step {n} (exit code {code}): {err}")
     elif trace != [expected_step]:
         res.problems.append(f"child died at {trace}, the dry run had {expected_step!r} (not deterministic)")
     else:
@@ -410,16 +507,16 @@ def kill_at(op: Operation, root: Path, n: int, expected_step: str, *, keep: bool
     return res
 
 
-def run_all(op: Operation, root: Path, *, keep: Callable[[list[str]], Collection[int]] | None = None
-            ) -> tuple[list[str], list[PointResult]]:
+def run_all(op: Operation, root: Path, *, keep: Callable[[list[str]], Collection[int]] | None = None,
+            server: Any = None) -> tuple[list[str], list[PointResult]]:
     """Dry run, then a kill before every step; returns (steps, results).
 
     ``keep(steps)``: the points whose directories stay for a later look (a full restart), so that
-    they need not be killed a second time.
+    they need not be killed a second time. ``server``: as for :func:`dry_run`.
     """
-    trace, _ = dry_run(op, root)
+    trace, _ = dry_run(op, root, server)
     kept = set(keep(trace)) if keep is not None else set()
-    return trace, [kill_at(op, root, i + 1, step, keep=i + 1 in kept) for i, step in enumerate(trace)]
+    return trace, [kill_at(op, root, i + 1, step, keep=i + 1 in kept, server=server) for i, step in enumerate(trace)]
 
 
 @contextmanager
@@ -447,13 +544,6 @@ def child_daemon(point_dir: Path, model_store: Any = None, **sections: Any) -> A
 
     rig = make_rig(gpio_state_dir=point_dir / "gpio", pwm_root=point_dir / "pwm")
     return Daemon(sim_config(point_dir, **sections), rig.board, estimator=FakeEstimator(), model_store=model_store)
-
-
-def _verified_store(root: Path) -> Callable[[Path], Any]:
-    """``make_daemon`` for operations that leave the model alone: one store, verified once, in every child."""
-    store = _open_store(Path(tempfile.mkdtemp(prefix="shared-store-", dir=root)))
-    store.current()
-    return lambda point_dir: child_daemon(point_dir, model_store=store)
 
 
 def heater_line(point_dir: Path, which: str = "gpio") -> dict | None:
@@ -576,8 +666,7 @@ def measure_operation(root: Path, n_prior: int = 2) -> Operation:
                 problems.append(f"measurement {body['measurement_id']} differs from what the host was told")
         return problems + _heater_problems(point)
 
-    return Operation("measure", template, [(Command.MEASURE, {})], check, _verified_store(root),
-                     ("sqlite", "heater"))
+    return Operation("measure", template, [(Command.MEASURE, {})], check, root, ("sqlite", "heater"))
 
 
 def _variant_blobs(tags: tuple[str, ...]) -> dict[str, bytes]:
@@ -667,7 +756,7 @@ def flash_operation(root: Path, chunk_bytes: int = 48 * 1024) -> Operation:
             problems.append(f"unreferenced bundles survive start-up: {[u[:12] for u in unreferenced]}")
         return problems + _heater_problems(point)
 
-    return Operation("flash", template, requests, check, child_daemon)
+    return Operation("flash", template, requests, check)
 
 
 #: A new value for every runtime key (each valid on the sim board, each unlike the default).
@@ -730,7 +819,7 @@ def config_operation(root: Path, keys: tuple[str, ...] | None = None) -> Operati
             problems.append(f"{confirmed} CONFIG_SETs confirmed to the host, {n_new} survive")
         return problems + _heater_problems(point)
 
-    return Operation("config", template, requests, check, _verified_store(root))
+    return Operation("config", template, requests, check, root)
 
 
 def _die_after(fn: Callable[[], None]) -> None:
@@ -814,4 +903,4 @@ def startup_operation(root: Path, *, after_crash: bool) -> Operation:
         return problems + _heater_problems(point)
 
     return Operation(f"startup-{'crash' if after_crash else 'first'}", template, [(Command.STATUS, {})], check,
-                     child_daemon, startup=True)
+                     startup=True)

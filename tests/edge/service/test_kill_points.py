@@ -16,6 +16,10 @@ the model store and the runtime overrides fresh, as the daemon does at start-up,
   model and the overrides come through, and the next start-up leaves nothing stray;
 * all: the heater's enable line is low once the child is dead (the pull-down of a released line).
 
+The children are forked from a small interpreter (:class:`tests.support.daemon_proc.ForkServer`),
+not from the test worker (cheaper per point); the two tests that check the harness itself fork
+from the test process, whose monkeypatched faults the children must inherit.
+
 A few points also get a full restart: a daemon started on the dead child's state reports no
 fault, keeps the heater off and measures again (on the directory that point's kill left, kept
 for it).
@@ -31,6 +35,7 @@ from collections import Counter
 import pytest
 
 from tests.support import killpoints as K
+from tests.support.daemon_proc import ForkServer
 
 pytestmark = [pytest.mark.hil, pytest.mark.slow]
 
@@ -47,9 +52,15 @@ def root(tmp_path_factory):
         yield r
 
 
-def _all_points(op, root, restarts=lambda trace: ()) -> tuple[list[str], list]:
+@pytest.fixture(scope="module")
+def server():
+    with ForkServer() as s:
+        yield s
+
+
+def _all_points(op, root, server, restarts=lambda trace: ()) -> tuple[list[str], list]:
     """Kill at every point; the points ``restarts(trace)`` names keep their directories for a full restart."""
-    trace, results = K.run_all(op, root, keep=restarts)
+    trace, results = K.run_all(op, root, keep=restarts, server=server)
     broken = [f"#{r.n} {r.step!r}: {p}" for r in results for p in r.problems]
     assert not broken, f"{op.name}: {len(broken)} problem(s) after kill -9:\n" + "\n".join(broken[:20])
     assert len(results) == len(trace) >= MIN_POINTS[op.name], (op.name, len(trace))
@@ -79,9 +90,9 @@ def _measure_restarts(trace) -> tuple[tuple[int, int], ...]:
     return (heating[len(heating) // 2], 0), (_point(trace, "sqlite\tCOMMIT"), 0), (len(trace), 1)
 
 
-def test_measure_survives_kill_at_every_step(root):
+def test_measure_survives_kill_at_every_step(root, server):
     op = K.measure_operation(root)
-    trace, _ = _all_points(op, root, lambda t: [n for n, _ in _measure_restarts(t)])
+    trace, _ = _all_points(op, root, server, lambda t: [n for n, _ in _measure_restarts(t)])
     kinds = Counter(s.split("\t")[0] for s in trace)
     assert kinds["sqlite"] == 3 and kinds["heater"] >= 4 and kinds["sample"] >= 20, kinds
     for n, stored in _measure_restarts(trace):
@@ -94,9 +105,9 @@ def _flash_restarts(trace) -> tuple[int, ...]:
     return renames[-1] + 1, _point(trace, "file\topen .current.tmp#"), len(trace) - 2
 
 
-def test_flash_survives_kill_at_every_step(root):
+def test_flash_survives_kill_at_every_step(root, server):
     op = K.flash_operation(root)
-    trace, _ = _all_points(op, root, _flash_restarts)
+    trace, _ = _all_points(op, root, server, _flash_restarts)
     for step in ("file\treplace .current.tmp# -> current", "file\treplace .previous.tmp# -> previous"):
         assert step in trace
     renames = [i + 1 for i, s in enumerate(trace) if s.startswith("file\trename")]
@@ -111,9 +122,9 @@ def _config_restart(trace) -> int:
     return _point(trace, "file\treplace .runtime.json.tmp# -> runtime.json", 2)
 
 
-def test_config_survives_kill_at_every_step(root):
+def test_config_survives_kill_at_every_step(root, server):
     op = K.config_operation(root)
-    trace, results = _all_points(op, root, lambda t: [_config_restart(t)])
+    trace, results = _all_points(op, root, server, lambda t: [_config_restart(t)])
     assert Counter(trace)["file\treplace .runtime.json.tmp# -> runtime.json"] == len(K.CONFIG_KEYS)
     n = _config_restart(trace)
     assert results[n - 1].n == n and results[n - 1].confirmed == 2
@@ -123,11 +134,11 @@ def test_config_survives_kill_at_every_step(root):
 
 
 @pytest.mark.parametrize("after_crash", [False, True], ids=["first-boot", "after-crash"])
-def test_startup_survives_kill_at_every_step(root, after_crash):
+def test_startup_survives_kill_at_every_step(root, server, after_crash):
     op = K.startup_operation(root, after_crash=after_crash)
     # Killed while start-up deletes the bundle no pointer names: the next start-up finishes the job.
     restart = (lambda t: [_point(t, "file\tunlink golden.npz")]) if after_crash else (lambda t: ())
-    trace, _ = _all_points(op, root, restart)
+    trace, _ = _all_points(op, root, server, restart)
     assert "sqlite\tCREATE TABLE" in trace
     assert ({"file\tunlink .runtime.json.tmp#", "file\trmdir upload-#"} if after_crash else {"file\tmkdir models"}) \
         <= set(trace)
@@ -186,3 +197,14 @@ def test_a_reply_before_the_commit_is_caught(root, monkeypatch):
     op = K.measure_operation(root, n_prior=0)
     with pytest.raises(AssertionError, match="confirmed to the host and is lost"):
         K.run_all(op, root)
+
+
+def test_a_failed_preparation_on_the_fork_server_is_reported_and_the_server_still_serves(root, server):
+    """The server runs the preparation in itself: a failure comes back as the error it was, and the server
+    keeps serving (a later operation's children are forked from it as usual)."""
+    missing = root / "no-such-operation.spec.json"
+    with pytest.raises(RuntimeError, match=r"(?s)_prepare_in_server failed in the fork server.*no-such-operation"):
+        server.prepare("tests.support.killpoints:_prepare_in_server", str(missing))
+    op = K.config_operation(root, keys=("heater.power_W",))
+    trace, results = K.run_all(op, root, server=server)
+    assert len(results) == len(trace) > 0 and not [r.problems for r in results if r.problems]
