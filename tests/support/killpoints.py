@@ -384,15 +384,15 @@ def _run_child(op: Operation, point_dir: Path, n: int | None, server: Any = None
     err_r, err_w = os.pipe()
     child = None
     if server is None:
-        # Objects that exist now are the parent's: frozen, the child's collections do not walk (and so
-        # copy-on-write) the whole test process's heap -- a large one in a worker that collected the suite.
-        gc.freeze()
         pid = os.fork()
         if pid == 0:  # pragma: no cover - the child never returns into the test runner
+            # No cyclic collections in the child: one would walk (and so copy-on-write) the whole
+            # test process's heap, a large one in a worker that collected the suite. The child
+            # lives for one operation.
+            gc.disable()
             for fd in (trace_r, host_r, err_r):
                 os.close(fd)
             _child_process(op, point_dir, n, trace_w, host_w, err_w)
-        gc.unfreeze()
     else:
         try:
             child = server.start_call("tests.support.killpoints:_point_in_server",
