@@ -362,7 +362,7 @@ _SERVER_OPS: dict[str, Operation] = {}
 def _prepare_in_server(spec: str) -> None:
     """Fork-server side of :func:`dry_run`: rebuild the operation and warm it up there, once."""
     op = Operation.from_spec(Path(spec))
-    warm_up(op, op.template.parent)
+    warm_up(op, op.template.parent)  # every builder makes its template in the operation's root
     _SERVER_OPS[spec] = op
 
 
@@ -379,6 +379,8 @@ def _run_child(op: Operation, point_dir: Path, n: int | None, server: Any = None
     :class:`~tests.support.daemon_proc.ForkServer` the operation was prepared on (:func:`dry_run`);
     None: fork this process.
     """
+    if server is not None and op.spec_path is None:
+        raise ValueError(f"{op.name}: not prepared on this fork server (run dry_run with it first)")
     trace_r, trace_w = os.pipe()
     host_r, host_w = os.pipe()
     err_r, err_w = os.pipe()
