@@ -93,6 +93,8 @@ def main() -> int:
 
 #: Longest a fork-server reply (the child's pid, its exit status) is waited for.
 FORK_SERVER_TIMEOUT_s = 30.0
+#: Exit status of a ``call`` child whose function returned or raised instead of ending the process.
+_EXIT_CALL_RETURNED = 70
 
 
 def _function(name: str):
@@ -141,7 +143,7 @@ def _serve_forks(ctl_fd: int) -> dict:
                 try:
                     _function(job["call"])(job["arg"], list(fds))
                 finally:
-                    os._exit(70)  # the function returned or raised instead of ending the process
+                    os._exit(_EXIT_CALL_RETURNED)
             for target, fd in enumerate(fds):
                 os.dup2(fd, target)
                 os.close(fd)
