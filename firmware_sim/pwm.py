@@ -278,13 +278,19 @@ class SimPwmTree:
         if hist[-1][1:] != s[1:]:
             hist.append(s)
 
-    def _write_channel_files(self, key: tuple[int, int]) -> None:
+    def _write_channel_files(self, key: tuple[int, int], *, changed_only: bool = False) -> None:
+        """Write the channel's four attribute files from its kernel state.
+
+        ``changed_only``: skip a file whose text is what it already holds -- right after a
+        :meth:`sync` (which leaves every file equal to its mirror), where one accepted write changes
+        one attribute and rewriting all four was most of the simulated PWM's cost per duty change.
+        """
         ch = self._channels[key]
-        d = self.channel_dir(*key)
-        self._put(d / "period", f"{ch.period}\n")
-        self._put(d / "duty_cycle", f"{ch.duty}\n")
-        self._put(d / "enable", f"{int(ch.enabled)}\n")
-        self._put(d / "polarity", f"{ch.polarity}\n")
+        text = {"period": f"{ch.period}\n", "duty_cycle": f"{ch.duty}\n", "enable": f"{int(ch.enabled)}\n",
+                "polarity": f"{ch.polarity}\n"}
+        for name, p in self._files(*key)[1]:
+            if not (changed_only and self._mirror.get(p) == text[name]):
+                self._put(p, text[name])
 
     def _resolve(self, path: Path) -> tuple[int, int | None, str]:
         """Map a path to (chip, channel or None, attribute name)."""
@@ -352,7 +358,8 @@ class SimPwmTree:
                 return
             key = (chip, channel)
             self._apply_attr(key, attr, text, path)
-            self._write_channel_files(key)
+            # sync() above left every file equal to its mirror.
+            self._write_channel_files(key, changed_only=True)
             self._record(key, t)
 
     def _io_read(self, path: Path) -> str:

@@ -15,6 +15,8 @@ ValueError naming the argument and the valid range.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = [
@@ -68,6 +70,38 @@ def _polyval(coeffs: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.polyval(coeffs[::-1], x)
 
 
+# dE/dt coefficients (lowest order first), for seebeck_uV_per_K.
+_DC_NEG = np.arange(1, _C_NEG.size) * _C_NEG[1:]
+_DC_POS = np.arange(1, _C_POS.size) * _C_POS[1:]
+
+
+def _horner(c_high_first: tuple[float, ...], x: float) -> float:
+    # np.polyval's own recurrence (y = y x + c from y = 0) in Python floats: the same IEEE
+    # operations in the same order, so a scalar gives the array path's value to the bit.
+    y = 0.0
+    for c in c_high_first:
+        y = y * x + c
+    return y
+
+
+def _high_first(coeffs: np.ndarray) -> tuple[float, ...]:
+    return tuple(float(c) for c in coeffs[::-1])
+
+
+# The scalar path: one conversion per converter sample in the drivers and the chip emulators, where
+# NumPy's per-call overhead on 0-d arrays (every branch evaluated, then np.where) was 30-75 us a call.
+_H = {name: _high_first(c) for name, c in
+      (("c_neg", _C_NEG), ("c_pos", _C_POS), ("dc_neg", _DC_NEG), ("dc_pos", _DC_POS),
+       ("d_neg", _D_NEG), ("d_mid", _D_MID), ("d_high", _D_HIGH))}
+
+
+def _real_scalar(x) -> float | None:
+    """``x`` as a float when it is a real Python or NumPy scalar (not a bool), else None."""
+    if isinstance(x, float) or (isinstance(x, (int, np.integer)) and not isinstance(x, bool)):
+        return float(x)
+    return None
+
+
 def _as_array(x, name: str) -> tuple[np.ndarray, bool]:
     arr = np.asarray(x, dtype=float)
     if not np.all(np.isfinite(arr)):
@@ -79,11 +113,36 @@ def _out(arr: np.ndarray, scalar: bool):
     return float(arr) if scalar else arr
 
 
+def _t_in_range(t: float, t_C) -> None:
+    if not math.isfinite(t):
+        raise ValueError(f"t_C must be finite, got {t_C!r}")
+    if t < T_MIN_C or t > T_MAX_C:
+        raise ValueError(f"t_C out of type K range [{T_MIN_C}, {T_MAX_C}] °C: {t_C!r}")
+
+
+def _emf_scalar(t: float) -> float:
+    if t < 0.0:
+        return _horner(_H["c_neg"], t)
+    d = t - _A2
+    return _horner(_H["c_pos"], t) + _A0 * float(np.exp(_A1 * (d * d)))
+
+
+def _seebeck_scalar(t: float) -> float:
+    if t < 0.0:
+        return _horner(_H["dc_neg"], t) * 1e3
+    d = t - _A2
+    return (_horner(_H["dc_pos"], t) + _A0 * float(np.exp(_A1 * (d * d))) * 2.0 * _A1 * d) * 1e3
+
+
 def emf_mV(t_C):
     """Type K EMF in mV for hot-junction temperature ``t_C`` (°C), reference at 0 °C.
 
     Valid for -270 °C <= t_C <= 1372 °C; raises ValueError outside.
     """
+    x = _real_scalar(t_C)
+    if x is not None:
+        _t_in_range(x, t_C)
+        return _emf_scalar(x)
     t, scalar = _as_array(t_C, "t_C")
     if np.any(t < T_MIN_C) or np.any(t > T_MAX_C):
         raise ValueError(f"t_C out of type K range [{T_MIN_C}, {T_MAX_C}] °C: {t_C!r}")
@@ -94,13 +153,32 @@ def emf_mV(t_C):
 
 def seebeck_uV_per_K(t_C):
     """Seebeck coefficient dE/dT in µV/K at ``t_C`` (°C), from the reference function."""
+    x = _real_scalar(t_C)
+    if x is not None:
+        _t_in_range(x, t_C)
+        return _seebeck_scalar(x)
     t, scalar = _as_array(t_C, "t_C")
     if np.any(t < T_MIN_C) or np.any(t > T_MAX_C):
         raise ValueError(f"t_C out of type K range [{T_MIN_C}, {T_MAX_C}] °C: {t_C!r}")
-    dneg = _polyval(np.arange(1, _C_NEG.size) * _C_NEG[1:], t)
-    dpos = (_polyval(np.arange(1, _C_POS.size) * _C_POS[1:], t)
+    dneg = _polyval(_DC_NEG, t)
+    dpos = (_polyval(_DC_POS, t)
             + _A0 * np.exp(_A1 * (t - _A2) ** 2) * 2.0 * _A1 * (t - _A2))
     return _out(np.where(t < 0.0, dneg, dpos) * 1e3, scalar)
+
+
+def _temperature_scalar(e: float, e_mV, refine: bool) -> float:
+    if not math.isfinite(e):
+        raise ValueError(f"e_mV must be finite, got {e_mV!r}")
+    if e < INVERSE_E_MIN_MV or e > E_MAX_MV:
+        raise ValueError(
+            f"e_mV out of type K inverse range [{INVERSE_E_MIN_MV}, {E_MAX_MV}] mV: {e_mV!r}")
+    t = _horner(_H["d_neg"] if e < 0.0 else _H["d_mid"] if e < _E_SPLIT_MV else _H["d_high"], e)
+    if refine:
+        for _ in range(2):
+            tc = min(max(t, T_MIN_C), T_MAX_C)
+            t = tc - (_emf_scalar(tc) - e) / (_seebeck_scalar(tc) * 1e-3)
+        t = min(max(t, T_MIN_C), T_MAX_C)
+    return t
 
 
 def temperature_C(e_mV, *, refine: bool = False):
@@ -111,6 +189,9 @@ def temperature_C(e_mV, *, refine: bool = False):
     Newton steps on the reference function remove the inverse-polynomial error
     (useful when millikelvin *differences* matter, e.g. with a 24-bit ADC).
     """
+    x = _real_scalar(e_mV)
+    if x is not None:
+        return _temperature_scalar(x, e_mV, refine)
     e, scalar = _as_array(e_mV, "e_mV")
     if np.any(e < INVERSE_E_MIN_MV) or np.any(e > E_MAX_MV):
         raise ValueError(
@@ -132,6 +213,16 @@ def hot_junction_C(emf_measured_mV, cold_junction_C, *, refine: bool = False):
     whose reference junction sits at ``cold_junction_C``; adding ``E(T_cj)``
     refers it to 0 °C before inverting.
     """
+    em, cj = _real_scalar(emf_measured_mV), _real_scalar(cold_junction_C)
+    if em is not None and cj is not None:
+        if not math.isfinite(em):
+            raise ValueError(f"emf_measured_mV must be finite, got {emf_measured_mV!r}")
+        e_sum = em + emf_mV(cj)
+        try:
+            return _temperature_scalar(e_sum, e_sum, refine)
+        except ValueError as exc:
+            raise ValueError(
+                f"emf_measured_mV + E(cold_junction_C) outside the type K inverse range: {exc}") from None
     e_meas, _ = _as_array(emf_measured_mV, "emf_measured_mV")
     e_total = e_meas + np.asarray(emf_mV(cold_junction_C))
     scalar = np.ndim(emf_measured_mV) == 0 and np.ndim(cold_junction_C) == 0

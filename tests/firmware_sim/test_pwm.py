@@ -131,6 +131,23 @@ def test_malformed_values_are_einval(tree, attr, text):
     assert errno_of(lambda: tree.io.write(ch(tree, attr), text)) == errno.EINVAL
 
 
+def test_a_write_rewrites_only_the_attribute_it_changed_and_keeps_a_raw_write_made_before(tree):
+    exported(tree)
+    tree.io.write(ch(tree, "period"), "1000")
+    before = {n: os.stat(ch(tree, n)).st_mtime_ns for n in ("period", "enable", "polarity")}
+    os.utime(ch(tree, "period"), ns=(1, 1))   # a marker: a rewrite of the file would move it
+    tree.io.write(ch(tree, "duty_cycle"), "400")
+    assert os.stat(ch(tree, "period")).st_mtime_ns == 1
+    assert all(os.stat(ch(tree, n)).st_mtime_ns == before[n] for n in ("enable", "polarity"))
+    # A raw write just before an accepted one is applied (the write syncs first), not overwritten.
+    ch(tree, "period").write_text("2000\n")
+    tree.io.write(ch(tree, "duty_cycle"), "1500")
+    assert tree.state()[1:3] == (2000, 1500)
+    assert [ch(tree, n).read_text() for n in ("period", "duty_cycle", "enable", "polarity")] == \
+        ["2000\n", "1500\n", "0\n", "normal\n"]
+    assert tree.violations == []
+
+
 def test_history_and_duty_at(tree):
     clock = tree.clock
     exported(tree)

@@ -65,3 +65,27 @@ def test_emf_range_check(bad):
 def test_array_with_one_bad_value_is_rejected():
     with pytest.raises(ValueError):
         typek.emf_mV([0.0, 2000.0])
+
+
+def test_a_scalar_gives_the_array_paths_value_to_the_bit():
+    # The drivers and emulators convert one sample at a time on a pure-Python path; it must be the
+    # same arithmetic as the vectorised one, on every branch and at the branches' edges.
+    rng = np.random.default_rng(7)
+    t = np.r_[rng.uniform(typek.T_MIN_C, typek.T_MAX_C, 400), -270.0, -1e-9, 0.0, 126.9686, 1372.0]
+    e = np.r_[rng.uniform(typek.INVERSE_E_MIN_MV, typek.E_MAX_MV, 400), typek.INVERSE_E_MIN_MV, -1e-9, 0.0,
+              20.644, typek.E_MAX_MV]
+    cj = rng.uniform(-20.0, 80.0, e.size)
+    em = rng.uniform(-1.0, 5.0, e.size)
+    for fn, x in ((typek.emf_mV, t), (typek.seebeck_uV_per_K, t), (typek.temperature_C, e),
+                  (lambda v: typek.temperature_C(v, refine=True), e)):
+        assert np.array_equal([fn(float(v)) for v in x], fn(x))
+    assert np.array_equal([typek.hot_junction_C(float(a), float(b), refine=True) for a, b in zip(em, cj)],
+                          typek.hot_junction_C(em, cj, refine=True))
+    assert isinstance(typek.temperature_C(np.float64(1.0)), float)
+
+
+@pytest.mark.parametrize("emf, cj, what", [(np.nan, 25.0, "emf_measured_mV"), (60.0, 25.0, "inverse range"),
+                                           (1.0, 1400.0, "t_C")])
+def test_cold_junction_compensation_names_what_is_wrong(emf, cj, what):
+    with pytest.raises(ValueError, match=what):
+        typek.hot_junction_C(emf, cj)
