@@ -1,6 +1,8 @@
 import gc
+import importlib
 import os
 import sys
+from pathlib import Path
 
 from host.blas import limit_blas_threads, set_blas_env
 
@@ -42,6 +44,30 @@ def faithful_world_test_step():
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection(session):
+    """On a fresh checkout, share pytest's assertion rewriting between the xdist workers.
+
+    See tests/support/rewrite_share.py.  A module imported here is the one collection uses (same
+    name, same file); one that fails to import is left to collection to import again and report.
+    Only for the whole suite (the configured ``testpaths``) and where pytest rewrites and caches.
+    """
+    from tests.support.rewrite_share import modules_to_warm
+
+    config = session.config
+    if (config.getoption("assertmode") != "rewrite" or sys.dont_write_bytecode
+            or getattr(config, "args_source", None) is not pytest.Config.ArgsSource.TESTPATHS):
+        return None
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")
+    n = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1") or 1)
+    for name in modules_to_warm(Path(__file__).resolve().parent, worker, n):
+        try:
+            importlib.import_module(name)
+        except (Exception, pytest.skip.Exception, pytest.fail.Exception):
+            pass  # collection imports it again and reports the error or the skip
+    return None
 
 
 def pytest_collection_modifyitems(session, config, items):

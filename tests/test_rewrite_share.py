@@ -1,0 +1,35 @@
+"""The suite's share-out of assertion rewriting between xdist workers (tests/support/rewrite_share.py)."""
+
+from pathlib import Path
+
+from tests.support.rewrite_share import modules_to_warm
+
+
+def _tree(root: Path, names: list[str]) -> Path:
+    pkg = root / "tests"
+    for name in names:
+        p = pkg / name
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_text("")
+    return pkg
+
+
+def test_the_slices_cover_every_module_once_and_gw0_imports_nothing(tmp_path):
+    pkg = _tree(tmp_path, ["test_a.py", "edge/test_b.py", "edge/test_c.py", "host/test_d.py", "host/util.py",
+                           "host/cli/test_e.py"])
+    assert modules_to_warm(pkg, "gw0", 3) == []
+    # Five modules in collection's order (edge/b, edge/c, host/cli/e, host/d, a) in slices of two.
+    assert modules_to_warm(pkg, "gw1", 3) == ["tests.host.cli.test_e", "tests.host.test_d"]
+    assert modules_to_warm(pkg, "gw2", 3) == ["tests.test_a"]
+    # Two workers: gw0's first three (its share rounded up), gw1 the rest; helpers are never imported.
+    assert modules_to_warm(pkg, "gw1", 2) == ["tests.host.test_d", "tests.test_a"]
+    # No sharing without workers, or with one, or for a name that is not a worker's.
+    assert modules_to_warm(pkg, "", 1) == modules_to_warm(pkg, "gw1", 1) == modules_to_warm(pkg, "main", 2) == []
+
+
+def test_this_suites_second_half_is_gw1s_and_importable_by_those_names():
+    root = Path(__file__).resolve().parent
+    names = modules_to_warm(root, "gw1", 2)
+    every = sorted(root.rglob("test_*.py"))
+    assert len(names) == len(every) // 2 > 50
+    assert __name__ == "tests.test_rewrite_share" and __name__ in names   # importable as collection names it
