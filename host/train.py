@@ -52,6 +52,7 @@ from edge.estimation.identification import loo_rho_c_intrinsic_ln
 from edge.estimation.features import FEATURE_VERSION
 from host.dataset import Dataset, DatasetSpec, generate
 from host.export import export_paper_model, pca_arrays_from_sklearn
+from host.malloc import large_blocks_on_heap
 from edge.physics.materials import MaterialLibrary, load_materials
 
 
@@ -84,7 +85,8 @@ def fit_paper_model(ds: Dataset, *, seed: int = 0, max_iter: int = 3000) -> Pape
     p = pca.transform(scaler.transform(x))
     mlp = MLPRegressor(hidden_layer_sizes=(100, 20), activation="tanh", solver="lbfgs", max_iter=max_iter,
                        tol=1e-7, random_state=seed)
-    mlp.fit(p, np.log(ds.k_W_mK))
+    with large_blocks_on_heap():   # ~800 loss evaluations, each allocating tens of MB (host/malloc.py)
+        mlp.fit(p, np.log(ds.k_W_mK))
     return PaperModel(floor, scaler, pca, mlp)
 
 
