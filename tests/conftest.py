@@ -58,6 +58,8 @@ def pytest_collection(session):
 
     config = session.config
     if (config.getoption("assertmode") != "rewrite" or sys.dont_write_bytecode
+            # Other import modes name (or load) a test module differently from a plain import.
+            or str(config.getoption("importmode")) != "prepend"
             or getattr(config, "args_source", None) is not pytest.Config.ArgsSource.TESTPATHS):
         return None
     worker = os.environ.get("PYTEST_XDIST_WORKER", "")
