@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
-import ctypes.util
 from collections.abc import Iterator
 
 # mallopt(3) parameters (malloc.h).
@@ -36,9 +35,10 @@ DEFAULT_THRESHOLD_BYTES = 1024 * 1024 * 1024
 
 
 def _mallopt():
+    # The process's own symbols (libc is loaded already): no ctypes.util.find_library, which runs
+    # ldconfig in a subprocess on Linux.
     try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or None)
-        fn = libc.mallopt
+        fn = ctypes.CDLL(None).mallopt
     except (OSError, AttributeError):
         return None
     fn.argtypes = (ctypes.c_int, ctypes.c_int)
