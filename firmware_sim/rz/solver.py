@@ -357,13 +357,14 @@ def _probes(grid: Grid) -> Probes:
     has_obj = j_s + 1 < nz and grid.layer_of_row[j_s + 1] != grid.layer_of_row[j_s]
     dz = grid.dz_m
     k_s = grid.k_cell_W_mK[j_s, 0]
+    area = grid.ring_area_m2  # a property that builds the whole array: once, not per ring and face
 
     def flat(j, i):
         return j * nr + i
 
     # Flux through the bottom face of cell (j_s, i), W/m^2, as weights on T (and on g T_inf).
     def bottom_flux(i):
-        A = grid.ring_area_m2[i]
+        A = area[i]
         if has_obj:
             g = grid.g_z_W_K[j_s, i]
             return [flat(j_s, i), flat(j_s + 1, i)], [g / A, -g / A], [], []
@@ -392,7 +393,7 @@ def _probes(grid: Grid) -> Probes:
     for f in range(f0, f1 + 1):  # faces f between rows f-1 and f
         wz = (0.5 * (dz[f - 1] if f > f0 else 0.0) + 0.5 * (dz[f] if f < f1 else 0.0)) / (z1 - z0)
         for i in range(n_s):
-            wa = grid.ring_area_m2[i] / A_s
+            wa = area[i] / A_s
             if f == nz:  # no object: the sensor's bottom is the probe's outer surface
                 fi, fw, gi, gw = bottom_flux(i)
                 qs_i += fi
@@ -400,13 +401,13 @@ def _probes(grid: Grid) -> Probes:
                 qs_gi += gi
                 qs_gw += [wz * wa * w for w in gw]
                 continue
-            g = grid.g_z_W_K[f - 1, i] / grid.ring_area_m2[i]
+            g = grid.g_z_W_K[f - 1, i] / area[i]
             qs_i += [flat(f - 1, i), flat(f, i)]
             qs_w += [wz * wa * g, -wz * wa * g]
 
     qf_i, qf_w, qf_gi, qf_gw = [], [], [], []
     for i in range(n_s):
-        wa = grid.ring_area_m2[i] / A_s
+        wa = area[i] / A_s
         fi, fw, gi, gw = bottom_flux(i)
         qf_i += fi
         qf_w += [wa * w for w in fw]
