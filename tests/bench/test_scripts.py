@@ -42,3 +42,13 @@ def test_interleaved_rounds_alternate_the_cases():
     assert res["a"]["min_s"] <= res["a"]["median_s"] <= res["a"]["max_s"]
     with pytest.raises(ValueError):
         _common.interleaved({"a": lambda: 1}, 0)
+
+
+def test_results_name_the_machine_they_were_measured_on():
+    import _common
+
+    m = _common.machine()
+    assert m["cpus"] >= 1 and m["cpu"] and m["numpy"]
+    # The SIMD level decides NumPy's tanh/exp speed (scalar without AVX-512): it must be recorded.
+    assert isinstance(m["simd"], list) and all(isinstance(s, str) for s in m["simd"])
+    assert all(isinstance(b, str) and b for b in m["blas"])
