@@ -85,9 +85,9 @@ def _cpu_model() -> str:
 def machine() -> dict:
     """What the figures were measured on: the CPU, NumPy's SIMD level and the BLAS.
 
-    The same code runs 2-3x slower on some machines of this class than on others: without
-    AVX-512, NumPy's float64 ``tanh`` has no SIMD loop, and ``tanh`` is most of the network's
-    training time (``py-spy`` on ``thermotouch train``).
+    Machines of this class differ in more than their load: without AVX-512, NumPy's float64
+    ``tanh`` has no SIMD loop, and ``tanh`` is most of the network's training time there
+    (``thermotouch train`` under py-spy).
     """
     import threadpoolctl
 
