@@ -49,6 +49,9 @@ class HeaterWatchdog:
     ``limit_s - guard_s`` or when ``abort_event`` is set. It checks from its
     own thread every ``poll_s`` of wall time and, if ``clock`` has
     ``on_advance`` (the simulator's virtual clock), on every clock step.
+    Disarmed, the thread sleeps until :meth:`arm` or :meth:`close`: an idle
+    device has nothing to watch, and a thread waking every ``poll_s`` takes
+    the interpreter's lock from the one doing the work.
 
     Parameters
     ----------
@@ -76,6 +79,8 @@ class HeaterWatchdog:
         self._armed = False
         self._stop = threading.Event()
         self._lock = threading.Lock()
+        # Wakes the thread on arm() and close() (shares the lock that guards _armed).
+        self._wake = threading.Condition(self._lock)
         #: Why the watchdog last cut the heater, or None.
         self.tripped: Trip | None = None
         on_advance = getattr(clock, "on_advance", None)
@@ -89,6 +94,7 @@ class HeaterWatchdog:
         with self._lock:
             self.tripped = None
             self._armed = True
+            self._wake.notify_all()
 
     def disarm(self) -> None:
         """Stop watching (after the heater is off)."""
@@ -118,7 +124,12 @@ class HeaterWatchdog:
         return reason
 
     def _run(self) -> None:
-        while not self._stop.wait(self.poll_s):
+        while True:
+            with self._lock:
+                while not self._armed and not self._stop.is_set():
+                    self._wake.wait()
+            if self._stop.wait(self.poll_s):
+                return
             try:
                 self.check()
             except Exception:  # never let the watchdog thread die
@@ -128,4 +139,6 @@ class HeaterWatchdog:
         """Stop the thread (the clock hook stays registered but is disarmed)."""
         self.disarm()
         self._stop.set()
+        with self._lock:
+            self._wake.notify_all()
         self._thread.join(timeout=2.0)

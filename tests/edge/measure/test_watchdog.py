@@ -1,0 +1,108 @@
+"""The heater watchdog's own thread, on a clock that cannot notify its steps (a real device's).
+
+Its clock-hook path (the simulator's virtual clock) is tested through the sequence in
+``tests/edge/service/test_safety.py``; here the wall-clock thread alone must cut the heater,
+and must not run while there is nothing to watch.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+
+from edge.measure.watchdog import HeaterWatchdog, Trip
+
+
+class _Heater:
+    """On-time grows with wall time while on; ``off()`` is recorded."""
+
+    def __init__(self) -> None:
+        self.on_since: float | None = None
+        self.offs = 0
+
+    def on(self) -> None:
+        self.on_since = time.monotonic()
+
+    def off(self) -> None:
+        self.offs += 1
+        self.on_since = None
+
+    @property
+    def current_on_time_s(self) -> float:
+        return 0.0 if self.on_since is None else time.monotonic() - self.on_since
+
+
+class _WallClock:
+    """No ``on_advance``: the watchdog has only its thread."""
+
+    def now(self) -> float:
+        return time.monotonic()
+
+
+def _counting(wd: HeaterWatchdog) -> list[int]:
+    calls = [0]
+    inner = wd.check
+
+    def check():
+        calls[0] += 1
+        return inner()
+
+    wd.check = check  # the thread looks the method up on the instance each time
+    return calls
+
+
+def _wait_for(cond, timeout_s=5.0) -> bool:
+    t_end = time.monotonic() + timeout_s
+    while time.monotonic() < t_end:
+        if cond():
+            return True
+        time.sleep(0.002)
+    return cond()
+
+
+def test_disarmed_the_thread_sleeps_and_armed_it_cuts_the_heater_at_its_limit():
+    heater = _Heater()
+    wd = HeaterWatchdog(heater, _WallClock(), limit_s=0.2, guard_s=0.05, poll_s=0.005)
+    try:
+        calls = _counting(wd)
+        time.sleep(0.1)          # 20 polls' worth of wall time
+        assert calls[0] == 0
+        heater.on()
+        wd.arm()
+        assert _wait_for(lambda: wd.tripped is not None)
+        assert wd.tripped == Trip.MAX_ON_TIME and heater.offs >= 1 and heater.on_since is None
+        assert calls[0] > 1
+        wd.disarm()
+        time.sleep(0.02)         # a check that was under way ends
+        settled = calls[0]
+        time.sleep(0.1)
+        assert calls[0] == settled
+    finally:
+        wd.close()
+    assert not wd._thread.is_alive()
+
+
+def test_the_thread_cuts_at_once_on_abort_and_close_ends_it_while_disarmed_or_armed():
+    abort = threading.Event()
+    heater = _Heater()
+    wd = HeaterWatchdog(heater, _WallClock(), limit_s=60.0, abort_event=abort, poll_s=0.005)
+    heater.on()
+    wd.arm()
+    abort.set()
+    assert _wait_for(lambda: wd.tripped is not None)
+    assert wd.tripped == Trip.ABORT and heater.on_since is None
+    wd.close()
+    assert not wd._thread.is_alive()
+
+    idle = HeaterWatchdog(_Heater(), _WallClock(), limit_s=1.0)   # never armed: asleep
+    t0 = time.monotonic()
+    idle.close()
+    assert not idle._thread.is_alive() and time.monotonic() - t0 < 1.0
+
+
+@pytest.mark.parametrize("limit_s,guard_s", [(0.01, 0.02), (1.0, -0.1)])
+def test_limits_that_leave_no_time_are_refused(limit_s, guard_s):
+    with pytest.raises(ValueError, match="limit_s > guard_s >= 0"):
+        HeaterWatchdog(_Heater(), _WallClock(), limit_s=limit_s, guard_s=guard_s)
