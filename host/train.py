@@ -50,6 +50,7 @@ from sklearn.preprocessing import StandardScaler
 from edge.estimation.estimate import DEFAULT_PRIOR_COEF, PRIOR_COEF_NAMES, pipeline_golden_check
 from edge.estimation.identification import loo_rho_c_intrinsic_ln
 from edge.estimation.features import FEATURE_VERSION
+from host.activations import sklearn_fast_tanh
 from host.dataset import Dataset, DatasetSpec, generate
 from host.export import export_paper_model, pca_arrays_from_sklearn
 from host.malloc import large_blocks_on_heap
@@ -85,7 +86,9 @@ def fit_paper_model(ds: Dataset, *, seed: int = 0, max_iter: int = 3000) -> Pape
     p = pca.transform(scaler.transform(x))
     mlp = MLPRegressor(hidden_layer_sizes=(100, 20), activation="tanh", solver="lbfgs", max_iter=max_iter,
                        tol=1e-7, random_state=seed)
-    with large_blocks_on_heap():   # ~800 loss evaluations, each allocating tens of MB (host/malloc.py)
+    # ~800 loss evaluations, each allocating tens of MB (host/malloc.py) and evaluating the tanh
+    # units on every sample (host/activations.py).
+    with large_blocks_on_heap(), sklearn_fast_tanh():
         mlp.fit(p, np.log(ds.k_W_mK))
     return PaperModel(floor, scaler, pca, mlp)
 

@@ -1,0 +1,88 @@
+"""The exp-based tanh the paper's network trains with, and its swap into scikit-learn."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from sklearn.neural_network import MLPRegressor, _base
+
+from host.activations import sklearn_fast_tanh, tanh_inplace
+
+# The fits here are a few iterations long on purpose (what is under test is the swap, not the fit).
+pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+
+
+def _ours(x):
+    y = np.array(x, dtype=float)
+    tanh_inplace(y)
+    return y
+
+
+def test_within_a_few_ulp_of_numpy_everywhere_and_exact_far_out():
+    rng = np.random.default_rng(3)
+    x = np.concatenate([rng.normal(0, 3, 20_000), np.linspace(-40, 40, 8001), [-1e-300, 0.0, 1e-300]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")          # exp's overflow far out is expected, not reported
+        y = _ours(x)
+        far = _ours([-np.inf, -1e300, -800.0, -355.0, 355.0, 800.0, 1e300, np.inf])
+    assert np.max(np.abs(y - np.tanh(x))) <= 4.5e-16
+    assert np.all(np.abs(y) <= 1.0)
+    assert far.tolist() == [-1.0] * 4 + [1.0] * 4
+    assert np.isnan(_ours([np.nan])[0])
+
+
+def test_works_in_place_on_a_2d_block():
+    x = np.linspace(-3, 3, 12).reshape(3, 4)
+    ref = np.tanh(x)
+    buf = x.copy()
+    assert tanh_inplace(buf) is None
+    np.testing.assert_allclose(buf, ref, rtol=0, atol=4.5e-16)
+
+
+def test_the_swap_is_used_by_fit_and_undone_on_exit_and_on_error():
+    stock = _base.ACTIVATIONS["tanh"]
+    calls = [0]
+
+    def counting(x):
+        calls[0] += 1
+        tanh_inplace(x)
+
+    x = np.linspace(-1, 1, 40).reshape(-1, 1)
+    with sklearn_fast_tanh() as on:
+        assert on and _base.ACTIVATIONS["tanh"] is tanh_inplace
+        _base.ACTIVATIONS["tanh"] = counting        # to see that fit looks the entry up
+        MLPRegressor(hidden_layer_sizes=(5,), activation="tanh", solver="lbfgs", max_iter=5,
+                     random_state=0).fit(x, x[:, 0] ** 2)
+    assert calls[0] > 0
+    assert _base.ACTIVATIONS["tanh"] is stock
+    with pytest.raises(RuntimeError, match="boom"), sklearn_fast_tanh():
+        raise RuntimeError("boom")
+    assert _base.ACTIVATIONS["tanh"] is stock
+
+
+def test_predict_after_the_fit_uses_numpys_tanh_like_the_device():
+    x = np.linspace(-2, 2, 50).reshape(-1, 1)
+    with sklearn_fast_tanh():
+        m = MLPRegressor(hidden_layer_sizes=(7,), activation="tanh", solver="lbfgs", max_iter=50,
+                         random_state=0).fit(x, np.sin(x[:, 0]))
+    h = np.tanh(x @ m.coefs_[0] + m.intercepts_[0])
+    assert np.array_equal(m.predict(x), (h @ m.coefs_[1] + m.intercepts_[1])[:, 0])
+
+
+def test_nested_or_foreign_entries_are_left_alone(monkeypatch):
+    stock = _base.ACTIVATIONS["tanh"]
+    with sklearn_fast_tanh() as outer, sklearn_fast_tanh() as inner:
+        assert outer and not inner
+    assert _base.ACTIVATIONS["tanh"] is stock
+
+    def someone_elses(x):
+        np.tanh(x, out=x)
+
+    monkeypatch.setitem(_base.ACTIVATIONS, "tanh", someone_elses)
+    with sklearn_fast_tanh() as on:
+        assert not on and _base.ACTIVATIONS["tanh"] is someone_elses
+    monkeypatch.delattr(_base, "ACTIVATIONS")
+    with sklearn_fast_tanh() as on:
+        assert not on
