@@ -1,14 +1,14 @@
 """A float64 tanh built on ``exp``, swapped into scikit-learn while the paper's network trains.
 
 The network (:mod:`host.train`) has 120 tanh units; scikit-learn's lbfgs fit
-evaluates them on every sample ~800 times, about 5e8 ``np.tanh`` calls for the
+evaluates them on every sample ~800 times, about 5e8 tanh evaluations for the
 shipped recipe.  NumPy's float64 ``tanh`` has a vector loop only on CPUs with
 AVX-512; on AVX2-only x86 it costs about twice ``np.exp`` per element
-(``python bench/tanh_bench.py``; ``bench/results/*.json`` name the CPU), and
-there it was over half of ``thermotouch train``'s fit time.  :func:`tanh_inplace` computes ``2 / (1 + exp(-2x)) - 1``: one ``exp``
-and four cheap passes, within 4e-16 of ``np.tanh`` (absolute; its relative
-error near 0 is larger, which a hidden unit feeding a weighted sum does not
-see), exactly ±1 far out, NaN for NaN.
+(``python bench/tanh_bench.py``; ``bench/results/*.json`` name the CPU).
+:func:`tanh_inplace` computes ``2 / (1 + exp(-2x)) - 1``: one ``exp`` and four
+cheap passes, within 4e-16 of ``np.tanh`` (absolute; its relative error near 0
+is larger, which a hidden unit feeding a weighted sum does not see), exactly ±1
+far out, NaN for NaN.
 
 Only the fit uses it (:func:`sklearn_fast_tanh` around ``MLPRegressor.fit``):
 ``predict`` - and so the golden outputs a bundle carries - uses NumPy's

@@ -13,6 +13,7 @@ import time
 import pytest
 
 from edge.measure.watchdog import HeaterWatchdog, Trip
+from tests.support.waiting import wait_until
 
 
 class _Heater:
@@ -53,15 +54,6 @@ def _counting(wd: HeaterWatchdog) -> list[int]:
     return calls
 
 
-def _wait_for(cond, timeout_s=5.0) -> bool:
-    t_end = time.monotonic() + timeout_s
-    while time.monotonic() < t_end:
-        if cond():
-            return True
-        time.sleep(0.002)
-    return cond()
-
-
 def test_disarmed_the_thread_sleeps_and_armed_it_cuts_the_heater_at_its_limit():
     heater = _Heater()
     wd = HeaterWatchdog(heater, _WallClock(), limit_s=0.2, guard_s=0.05, poll_s=0.005)
@@ -71,7 +63,7 @@ def test_disarmed_the_thread_sleeps_and_armed_it_cuts_the_heater_at_its_limit():
         assert calls[0] == 0
         heater.on()
         wd.arm()
-        assert _wait_for(lambda: wd.tripped is not None)
+        wait_until(lambda: wd.tripped is not None, "the watchdog to trip", timeout_s=5.0)
         assert wd.tripped == Trip.MAX_ON_TIME and heater.offs >= 1 and heater.on_since is None
         assert calls[0] > 1
         wd.disarm()
@@ -91,7 +83,7 @@ def test_the_thread_cuts_at_once_on_abort_and_close_ends_it_while_disarmed_or_ar
     heater.on()
     wd.arm()
     abort.set()
-    assert _wait_for(lambda: wd.tripped is not None)
+    wait_until(lambda: wd.tripped is not None, "the watchdog to trip", timeout_s=5.0)
     assert wd.tripped == Trip.ABORT and heater.on_since is None
     wd.close()
     assert not wd._thread.is_alive()

@@ -9,12 +9,11 @@ history.
 
 from __future__ import annotations
 
-import time
-
 import pytest
 import serial
 
 from tests.support.daemons import FakeEstimator, assert_heater_safe
+from tests.support.waiting import wait_until
 from firmware_sim.daemon_thread import DaemonThread
 from firmware_sim import load_scene
 from firmware_sim.ptylink import NullModem
@@ -24,14 +23,6 @@ from host.client import DeviceClient
 pytestmark = pytest.mark.hil
 
 BASELINE_s, CONTACT_s, COOLDOWN_s = 0.2, 1.5, 1.0
-
-
-def _wait_for(cond, what: str, timeout_s: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not cond():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.01)
 
 
 def _spy_button_polls(button) -> list:
@@ -56,7 +47,7 @@ def _wait_until_presses_drained(polls: list, what: str) -> None:
     history); virtual time stands still while the daemon is idle, so no new press can come in.
     """
     n = len(polls)
-    _wait_for(lambda: None in polls[n:], what)
+    wait_until(lambda: None in polls[n:], what)
 
 
 def test_each_press_measures_once_and_presses_during_a_measurement_are_ignored(tmp_path):
@@ -76,7 +67,7 @@ def test_each_press_measures_once_and_presses_during_a_measurement_are_ignored(t
             polls = _spy_button_polls(d.button)
             assert sim.now() == 0.0 and d.history.count() == 0
             sim.advance_to(t1 + 0.05)  # the scene's press, past the 20-ms debounce
-            _wait_for(lambda: d.history.count() == 1 and d.state == "idle", "the first measurement")
+            wait_until(lambda: d.history.count() == 1 and d.state == "idle", "the first measurement")
             t_idle = sim.now()
             assert t_idle > t1 + BASELINE_s + CONTACT_s
             # The ignored presses are read once idle; nothing else is pending, so no measurement starts.
@@ -88,7 +79,7 @@ def test_each_press_measures_once_and_presses_during_a_measurement_are_ignored(t
             sim.add_touch(t2, 2.5)
             sim.parts.chip.press(trig, t2 + BASELINE_s + 0.5, 0.05)
             sim.advance_to(t2 + 0.05)
-            _wait_for(lambda: d.history.count() == 2 and d.state == "idle", "the second measurement")
+            wait_until(lambda: d.history.count() == 2 and d.state == "idle", "the second measurement")
             _wait_until_presses_drained(polls, "the press during the second measurement to be read")
             assert not d.measuring
             with DeviceClient(nm.host_port, timeout_s=5.0) as c:
