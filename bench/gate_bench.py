@@ -1,6 +1,6 @@
 """The deploy gate on candidate bundles against the shipped one, on both boards.
 
-Run:  python bench/gate_bench.py [--workdir DIR]
+Run:  python bench/gate_bench.py [--workdir DIR] [--update-readme]
     python bench/gate_bench.py --seeds 1 2 3 [--workdir DIR]
 
 Trains the shipped recipe (seed 0) and the --quick recipe (seed 0) with an empty
@@ -14,6 +14,9 @@ bit-identical arrays, and the shipped bundle's arrays are not among them.
 With ``--seeds`` it instead trains the full recipe with each seed and prints the
 paired differences against the shipped bundle: the spread of equally good fits,
 from which host.gate.MARGINS are set.
+
+``--update-readme`` writes the reference board's reports into README.md's
+gate-bench block.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--workdir", help="where to write the bundles (default: a temporary directory)")
     ap.add_argument("--seeds", type=int, nargs="+", help="only the seed study: full-recipe retrains with these seeds")
+    ap.add_argument("--update-readme", action="store_true", help="write the reference board's reports into README.md")
     args = ap.parse_args(argv)
     work = Path(args.workdir or tempfile.mkdtemp(prefix="gate-bench-"))
     work.mkdir(parents=True, exist_ok=True)
@@ -66,6 +70,7 @@ def main(argv=None) -> int:
         b = broken_copy(DEFAULT_BUNDLE, work / how, how) if not (work / how).exists() else \
             load_bundle(work / how, pipeline_golden_check)
         cands[f"broken: {how}"] = (b, dict(shipped.manifest["metrics"]))
+    reference: list[str] = []
     for inst in ("mcp9600", "ads122c04"):
         print(f"\n### {describe_set(inst)}")
         old = evaluate(shipped, inst)
@@ -73,11 +78,16 @@ def main(argv=None) -> int:
             new = evaluate(b, inst)
             cmp = compare(new, old)
             why = judge(metrics, new["means"], cmp)
-            print(f"\n{name} vs shipped:")
-            print(format_report(cmp))
-            print("  thresholded (paper samples, mean |error|): " + ", ".join(
-                f"{k} {v * 100:.1f} % (shipped {old['means'][k] * 100:.1f} %)" for k, v in new["means"].items()))
-            print("  -> " + ("DEPLOY" if not why else "REFUSE: " + "; ".join(why)))
+            report = [f"{name} vs shipped:", format_report(cmp),
+                      "  thresholded (paper samples, mean |error|): " + ", ".join(
+                          f"{k} {v * 100:.1f} % (shipped {old['means'][k] * 100:.1f} %)"
+                          for k, v in new["means"].items()),
+                      "  -> " + ("DEPLOY" if not why else "REFUSE: " + "; ".join(why))]
+            print("\n" + "\n".join(report))
+            if inst == "mcp9600":
+                reference += report
+    if args.update_readme:
+        _common.update_readme("gate-bench", "```\n" + "\n".join(reference) + "\n```")
     return 0
 
 
