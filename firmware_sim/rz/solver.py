@@ -480,6 +480,51 @@ class Solver:
         self._Ct = self.op.cap / self.tau
         self.g_t = grid.g_b_W_K * grid.t_b_K   # ambient forcing vector g
         self.probes = _probes(grid) if grid.meta.get("sensor_radius_m") is not None else None
+        self._rest_key, self._rest = None, None
+        self._first_active = int(np.flatnonzero(grid.active)[0])
+
+    # -- rest
+    def _rest_range(self) -> tuple[float, float] | None:
+        """Temperatures a uniform, unheated field can have and be at rest; None if there are none.
+
+        With every outer surface at one temperature ``T_u`` (or none losing heat), the uniform
+        field ``T_u`` is the conductance matrix's steady state (rows of ``K`` sum to the surface
+        conductance), so with no source a step from it returns it.  A probe in air waiting for its
+        touch, or resting on an object at its temperature, spends a fifth of a simulated session
+        there, and the solve would only add round-off.  The surfaces' temperatures come out of
+        the forcing to a few ulps, so ``T_u`` may differ from each by 1e-12 of itself.  Checked,
+        not assumed: one step of the scheme from such a field must return it to round-off, or
+        there is no rest.  Keyed on the forcing array (a step response swaps in a zero forcing).
+        """
+        if self._rest_key is self.g_t:
+            return self._rest
+        self._rest_key, self._rest = self.g_t, None
+        gb = self.grid.g_b_W_K
+        on = gb > 0
+        if np.any(on):
+            T_s = self.g_t[on] / gb[on]
+            lo, hi = float(T_s.min()), float(T_s.max())
+            tol = 1e-12 * max(1.0, abs(lo), abs(hi))
+            if not hi - lo <= tol:
+                return None
+            rng, T_ref = (hi - tol, lo + tol), 0.5 * (lo + hi)
+        else:
+            rng, T_ref = (-math.inf, math.inf), 1.0     # adiabatic: any uniform field is at rest
+        field = T_ref * self.grid.active
+        T, _, _ = self._advance(field, self.g_t, self._loss(field), False, False)
+        if np.max(np.abs(T - field)) <= 1e-12 * max(1.0, abs(T_ref)):
+            self._rest = rng
+        return self._rest
+
+    def _at_rest(self, T: np.ndarray, amplitude: float) -> bool:
+        """``T`` is uniform over the active cells at a rest temperature, and nothing heats."""
+        if amplitude != 0.0:
+            return False
+        rng = self._rest_range()
+        if rng is None:
+            return False
+        T_u = float(T.flat[self._first_active])
+        return rng[0] <= T_u <= rng[1] and np.array_equal(T, T_u * self.grid.active)
 
     # -- fields
     def initial_field(self, T_probe_K: float, T_object_K: float | None = None) -> np.ndarray:
@@ -530,7 +575,7 @@ class Solver:
         loss = self._loss(T)
         dt = self.dt
         for n in range(n_steps):
-            T, loss, lost = self._advance(T, p[n] * Q + g, loss, n < self.rannacher_steps)
+            T, loss, lost = self._advance(T, p[n] * Q + g, loss, n < self.rannacher_steps, self._at_rest(T, p[n]))
             out[n + 1] = self._read(T)
             E_in[n + 1] = E_in[n] + dt * p[n] * Q_tot
             E_lo[n + 1] = E_lo[n] + lost
@@ -539,13 +584,18 @@ class Solver:
         return Record(t_s=t, T_tc_K=out[:, 0], q_sensor_W_m2=out[:, 1], q_face_W_m2=out[:, 2],
                       E_in_J=E_in, E_stored_J=E_st, E_lost_J=E_lo, T_final_K=T if keep_field else None)
 
-    def _advance(self, T: np.ndarray, f: np.ndarray, loss: float, startup: bool) -> tuple[np.ndarray, float, float]:
+    def _advance(self, T: np.ndarray, f: np.ndarray, loss: float, startup: bool,
+                 rest: bool) -> tuple[np.ndarray, float, float]:
         """One step of the scheme from ``T`` with forcing ``f`` (source + ambient, constant in the step).
 
         ``loss`` is the outward heat flow of ``T`` (W); ``startup``: a Rannacher half-step pair
-        (``"cn"`` only). Returns the new field, its outward heat flow and the heat lost in the
-        step (J, the scheme's own quadrature, so the energy ledger closes to round-off).
+        (``"cn"`` only); ``rest``: ``T`` is at rest (:meth:`_at_rest`), and the step returns it
+        without solving.  Returns the new field, its outward heat flow and the heat lost
+        in the step (J, the scheme's own quadrature, so the energy ledger closes to round-off).
         """
+        if rest:
+            # Every scheme's quadrature of a constant outward flow over the step is dt times it.
+            return T.copy(), loss, self.dt * loss
         op, fac, dt, Ct = self.op, self.fac, self.dt, self._Ct
         if self.scheme == "be":
             T = op.solve(fac, Ct * T + f)
@@ -580,7 +630,8 @@ class Solver:
         For ``"cn"`` the step is a plain CN step (no Rannacher start).
         """
         T = np.array(T_K, dtype=float) * self.grid.active
-        T, _, lost = self._advance(T, amplitude * source_W + self.g_t, self._loss(T), False)
+        T, _, lost = self._advance(T, amplitude * source_W + self.g_t, self._loss(T), False,
+                                   self._at_rest(T, amplitude))
         return T, self.dt * amplitude * float(np.sum(source_W)), lost
 
     # -- linear building blocks

@@ -113,3 +113,59 @@ def test_one_step_is_one_step_of_run_bit_for_bit(scheme):
     assert np.array_equal(T1, rec.T_final_K)
     assert e_in == rec.E_in_J[-1] and e_lost == rec.E_lost_J[-1]
     assert not np.array_equal(T1, T0) and e_in > 0
+
+
+def _air_probe(top_K: float = 300.0, side_K: float = 300.0):
+    """The probe alone, losing heat from its top, side and face to surroundings at those temperatures."""
+    from firmware_sim.rz.grid import Boundary, probe_grid
+
+    return probe_grid(None, top=Boundary(10.0, top_K), side=Boundary(5.0, side_K), bottom=Boundary(10.0, top_K))
+
+
+@pytest.mark.parametrize("scheme", ["trbdf2", "cn", "be"])
+def test_a_field_at_rest_stays_exactly_at_rest_and_books_the_solves_heat(scheme):
+    # The probe in air at the temperature of every surface, unheated: the step returns the field
+    # itself, where the solve returned it to round-off, and books the same heat.
+    s = S.Solver(_air_probe(), 0.01, scheme, rannacher_steps=0)
+    rest = s.initial_field(300.0)
+    T1, e_in, e_lost = s.step(rest, s.heater_source_W(), 0.0)
+    assert np.array_equal(T1, rest) and T1 is not rest and e_in == 0.0
+    solved, _, lost = s._advance(rest.copy(), s.g_t, s._loss(rest), False, rest=False)
+    assert np.max(np.abs(solved - rest)) <= 1e-12 * 300.0
+    assert e_lost == pytest.approx(lost, abs=1e-15)
+    rec = s.run(rest, 5, s.heater_source_W(), 0.0, keep_field=True)
+    assert np.array_equal(rec.T_final_K, rest) and np.all(rec.T_tc_K == rec.T_tc_K[0])
+
+
+def test_heat_a_different_field_or_a_second_surface_temperature_are_solved():
+    s = S.Solver(_air_probe(), 0.01)
+    rest = s.initial_field(300.0)
+    # Heated: it warms.
+    T1, e_in, _ = s.step(rest, s.heater_source_W(), 1.0)
+    assert e_in > 0 and T1.max() > 300.0
+    # Another uniform temperature is not at rest: it relaxes towards the surfaces' 300 K.
+    T2, _, lost = s.step(s.initial_field(301.0), s.heater_source_W(), 0.0)
+    assert T2.min() < 301.0 and lost > 0
+    # Surfaces at two temperatures: no uniform rest state, every step is solved.
+    s2 = S.Solver(_air_probe(top_K=300.0, side_K=290.0), 0.01)
+    assert s2._rest_range() is None
+    T3, _, _ = s2.step(s2.initial_field(300.0), s2.heater_source_W(), 0.0)
+    assert T3.min() < 300.0
+
+
+def test_the_rest_state_follows_the_forcing_a_step_response_swaps_in():
+    # step_response zeroes the ambient forcing for its run; the rest state must not outlive it.
+    s = S.Solver(_air_probe(), 0.01)
+    lo, hi = s._rest_range()
+    assert lo <= 300.0 <= hi and hi - lo < 1e-9
+    rec = s.step_response(3)
+    assert rec.T_tc_K[-1] > 0 and s._rest_range() == (lo, hi)
+    saved = s.g_t
+    s.g_t = np.zeros_like(saved)
+    try:
+        lo0, hi0 = s._rest_range()
+        assert lo0 <= 0.0 <= hi0 and hi0 < 1e-9
+        assert s._at_rest(np.zeros(s.grid.shape), 0.0) and not s._at_rest(s.initial_field(300.0), 0.0)
+    finally:
+        s.g_t = saved
+    assert s._at_rest(s.initial_field(300.0), 0.0) and not s._at_rest(np.zeros(s.grid.shape), 0.0)
