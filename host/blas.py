@@ -20,6 +20,7 @@ import os
 BLAS_ENV_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 _limiter = None
+_applied: int | None = None   # the limit the last call applied through threadpoolctl
 
 
 def blas_threads() -> int:
@@ -45,11 +46,17 @@ def limit_blas_threads(n: int | None = None) -> int:
     Sets the environment variables and, through threadpoolctl, the thread
     pools already loaded in this process.  Returns the limit.
     """
-    global _limiter
+    global _limiter, _applied
     n = set_blas_env(n)
+    if _applied == n:
+        # The pools loaded at the last call hold n, and runtimes loaded since read the variables
+        # set above: a second scan of the process's libraries (each CLI call in the test suite,
+        # a few ms each) would change nothing.
+        return n
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:  # pragma: no cover - threadpoolctl is in the host extra
         return n
     _limiter = threadpool_limits(limits=n)
+    _applied = n
     return n

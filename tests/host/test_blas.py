@@ -46,3 +46,23 @@ def test_edge_never_imports_threadpoolctl():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "False"
+
+
+def test_a_second_call_with_the_same_limit_does_not_rescan_but_a_new_limit_does(monkeypatch):
+    import threadpoolctl
+
+    from host import blas
+
+    calls = []
+    monkeypatch.setattr(threadpoolctl, "threadpool_limits", lambda limits: calls.append(limits))
+    monkeypatch.setattr(blas, "_applied", None)
+    monkeypatch.setattr(blas, "_limiter", blas._limiter)
+    for v in BLAS_ENV_VARS:
+        monkeypatch.setenv(v, "1")
+    monkeypatch.setenv("THERMOTOUCH_BLAS_THREADS", "1")
+    assert blas.limit_blas_threads() == 1 and blas.limit_blas_threads() == 1
+    assert calls == [1]
+    monkeypatch.setenv("THERMOTOUCH_BLAS_THREADS", "2")
+    assert blas.limit_blas_threads() == 2 and calls == [1, 2] and os.environ["OPENBLAS_NUM_THREADS"] == "2"
+    monkeypatch.setenv("THERMOTOUCH_BLAS_THREADS", "1")
+    assert blas.limit_blas_threads() == 1 and calls == [1, 2, 1]
