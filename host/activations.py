@@ -17,6 +17,11 @@ replaces an entry of scikit-learn's private activation table
 (``sklearn.neural_network._base.ACTIVATIONS``), which its fit looks up at
 every evaluation; where that table is missing or holds something else, the
 fit runs unchanged with NumPy's ``tanh``.
+
+The same ``with`` swaps the backward pass's tanh derivative
+(``DERIVATIVES["tanh"]``, ``delta *= 1 - Z**2``) for
+:func:`tanh_derivative_inplace`, the same arithmetic to the bit through one
+scratch array instead of two fresh temporaries per layer and evaluation.
 """
 
 from __future__ import annotations
@@ -26,10 +31,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-__all__ = ["tanh_inplace", "sklearn_fast_tanh"]
-
-#: The name of scikit-learn's own in-place tanh in its activation table.
-_STOCK_NAME = "inplace_tanh"
+__all__ = ["tanh_inplace", "tanh_derivative_inplace", "sklearn_fast_tanh"]
 
 
 def tanh_inplace(x: np.ndarray) -> None:
@@ -46,28 +48,46 @@ def tanh_inplace(x: np.ndarray) -> None:
     x -= 1.0
 
 
+def tanh_derivative_inplace(Z: np.ndarray, delta: np.ndarray) -> None:
+    """``delta *= 1 - Z**2`` (scikit-learn's tanh derivative), bit for bit, with one temporary."""
+    tmp = np.multiply(Z, Z)            # what Z**2 computes (NumPy's power fast path is a square)
+    np.subtract(1.0, tmp, out=tmp)
+    delta *= tmp
+
+
+#: (table in ``sklearn.neural_network._base``, scikit-learn's own entry's name, the replacement).
+_SWAPS = (("ACTIVATIONS", "inplace_tanh", tanh_inplace),
+          ("DERIVATIVES", "inplace_tanh_derivative", tanh_derivative_inplace))
+
+
 @contextlib.contextmanager
 def sklearn_fast_tanh() -> Iterator[bool]:
-    """Inside the ``with``, scikit-learn's MLPs evaluate tanh units with :func:`tanh_inplace`.
+    """Inside the ``with``, scikit-learn's MLPs evaluate tanh units with :func:`tanh_inplace`
+    and their derivative with :func:`tanh_derivative_inplace`.
 
-    Yields whether the swap took effect: False where scikit-learn's table is not
-    where it was (other versions) or its tanh entry is not scikit-learn's own
-    (already swapped by an enclosing ``with``). The table is restored on every
-    exit, an exception's too.
+    Yields whether the tanh swap took effect: False where scikit-learn's table is
+    not where it was (other versions) or its tanh entry is not scikit-learn's own
+    (already swapped by an enclosing ``with``).  Each table is swapped only if it
+    holds scikit-learn's own entry, and restored on every exit, an exception's too.
     """
     try:
         from sklearn.neural_network import _base  # noqa: PLC0415 - host only, and only to train
-
-        table = _base.ACTIVATIONS
-        stock = table["tanh"]
-    except (ImportError, AttributeError, KeyError, TypeError):
+    except ImportError:
         yield False
         return
-    if getattr(stock, "__name__", None) != _STOCK_NAME:
-        yield False
-        return
-    table["tanh"] = tanh_inplace
+    swapped, tanh_on = [], False
     try:
-        yield True
+        for name, stock_name, mine in _SWAPS:
+            try:
+                table = getattr(_base, name)
+                stock = table["tanh"]
+            except (AttributeError, KeyError, TypeError):
+                continue
+            if getattr(stock, "__name__", None) == stock_name:
+                table["tanh"] = mine
+                swapped.append((table, stock))
+                tanh_on = tanh_on or mine is tanh_inplace
+        yield tanh_on
     finally:
-        table["tanh"] = stock
+        for table, stock in reversed(swapped):
+            table["tanh"] = stock

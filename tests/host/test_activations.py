@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from sklearn.neural_network import MLPRegressor, _base
 
-from host.activations import sklearn_fast_tanh, tanh_inplace
+from host.activations import sklearn_fast_tanh, tanh_derivative_inplace, tanh_inplace
 
 # The fits here are a few iterations long on purpose (what is under test is the swap, not the fit).
 pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
@@ -86,3 +86,39 @@ def test_nested_or_foreign_entries_are_left_alone(monkeypatch):
     monkeypatch.delattr(_base, "ACTIVATIONS")
     with sklearn_fast_tanh() as on:
         assert not on
+
+
+_stock_derivative = _base.DERIVATIVES["tanh"]
+
+
+def test_the_derivative_is_scikit_learns_to_the_bit_and_is_swapped_and_restored():
+    rng = np.random.default_rng(3)
+    Z = np.tanh(rng.standard_normal((300, 17)) * 3)
+    delta = rng.standard_normal(Z.shape)
+    ref, mine = delta.copy(), delta.copy()
+    stock = _base.DERIVATIVES["tanh"]
+    stock(Z, ref)
+    assert tanh_derivative_inplace(Z, mine) is None and np.array_equal(mine, ref)
+    with sklearn_fast_tanh():
+        assert _base.DERIVATIVES["tanh"] is tanh_derivative_inplace
+    assert _base.DERIVATIVES["tanh"] is stock
+    with pytest.raises(RuntimeError, match="boom"), sklearn_fast_tanh():
+        raise RuntimeError("boom")
+    assert _base.DERIVATIVES["tanh"] is stock
+
+
+def test_a_fit_with_the_swapped_derivative_is_the_same_fit_to_the_bit(monkeypatch):
+    # Only the activation swapped, against both: the derivative changes no bit of the weights.
+    x = np.linspace(-2, 2, 60).reshape(-1, 1)
+
+    def fit():
+        return MLPRegressor(hidden_layer_sizes=(9, 4), activation="tanh", solver="lbfgs", max_iter=40,
+                            random_state=0).fit(x, np.sin(2 * x[:, 0]))
+
+    with sklearn_fast_tanh():
+        both = fit()
+    with sklearn_fast_tanh():
+        monkeypatch.setitem(_base.DERIVATIVES, "tanh", _stock_derivative)
+        one = fit()
+    assert all(np.array_equal(a, b) for a, b in zip(both.coefs_ + both.intercepts_, one.coefs_ + one.intercepts_))
+    assert both.n_iter_ == one.n_iter_ > 5
