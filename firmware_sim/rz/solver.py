@@ -490,7 +490,7 @@ class Solver:
         With every outer surface at one temperature ``T_u`` (or none losing heat), the uniform
         field ``T_u`` is the conductance matrix's steady state (rows of ``K`` sum to the surface
         conductance), so with no source a step from it returns it.  A probe in air waiting for its
-        touch, or resting on an object at its temperature, spends a fifth of a simulated session
+        touch, or resting on an object at its temperature, can spend much of a simulated session
         there, and the solve would only add round-off.  The surfaces' temperatures come out of
         the forcing to a few ulps, so ``T_u`` may differ from each by 1e-12 of itself.  Checked,
         not assumed: one step of the scheme from such a field must return it to round-off, or
