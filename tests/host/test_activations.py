@@ -42,7 +42,7 @@ def test_works_in_place_on_a_2d_block():
 
 
 def test_the_swap_is_used_by_fit_and_undone_on_exit_and_on_error():
-    stock = _base.ACTIVATIONS["tanh"]
+    stock, stock_d = _base.ACTIVATIONS["tanh"], _base.DERIVATIVES["tanh"]
     calls = [0]
 
     def counting(x):
@@ -52,14 +52,15 @@ def test_the_swap_is_used_by_fit_and_undone_on_exit_and_on_error():
     x = np.linspace(-1, 1, 40).reshape(-1, 1)
     with sklearn_fast_tanh() as on:
         assert on and _base.ACTIVATIONS["tanh"] is tanh_inplace
+        assert _base.DERIVATIVES["tanh"] is tanh_derivative_inplace
         _base.ACTIVATIONS["tanh"] = counting        # to see that fit looks the entry up
         MLPRegressor(hidden_layer_sizes=(5,), activation="tanh", solver="lbfgs", max_iter=5,
                      random_state=0).fit(x, x[:, 0] ** 2)
     assert calls[0] > 0
-    assert _base.ACTIVATIONS["tanh"] is stock
+    assert _base.ACTIVATIONS["tanh"] is stock and _base.DERIVATIVES["tanh"] is stock_d
     with pytest.raises(RuntimeError, match="boom"), sklearn_fast_tanh():
         raise RuntimeError("boom")
-    assert _base.ACTIVATIONS["tanh"] is stock
+    assert _base.ACTIVATIONS["tanh"] is stock and _base.DERIVATIVES["tanh"] is stock_d
 
 
 def test_predict_after_the_fit_uses_numpys_tanh_like_the_device():
@@ -91,20 +92,14 @@ def test_nested_or_foreign_entries_are_left_alone(monkeypatch):
 _stock_derivative = _base.DERIVATIVES["tanh"]
 
 
-def test_the_derivative_is_scikit_learns_to_the_bit_and_is_swapped_and_restored():
+def test_the_derivative_is_scikit_learns_to_the_bit():
+    # Its swap and restoring: test_the_swap_is_used_by_fit_and_undone_on_exit_and_on_error.
     rng = np.random.default_rng(3)
     Z = np.tanh(rng.standard_normal((300, 17)) * 3)
     delta = rng.standard_normal(Z.shape)
     ref, mine = delta.copy(), delta.copy()
-    stock = _stock_derivative
-    stock(Z, ref)
+    _stock_derivative(Z, ref)
     assert tanh_derivative_inplace(Z, mine) is None and np.array_equal(mine, ref)
-    with sklearn_fast_tanh():
-        assert _base.DERIVATIVES["tanh"] is tanh_derivative_inplace
-    assert _base.DERIVATIVES["tanh"] is stock
-    with pytest.raises(RuntimeError, match="boom"), sklearn_fast_tanh():
-        raise RuntimeError("boom")
-    assert _base.DERIVATIVES["tanh"] is stock
 
 
 def test_a_fit_with_the_swapped_derivative_is_the_same_fit_to_the_bit():
