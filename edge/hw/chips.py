@@ -52,6 +52,13 @@ __all__ = [
     "THERMOCOUPLE",
     "FLUX",
     "ROLES",
+    "THERMOCOUPLE_C",
+    "THERMOCOUPLE_EMF_V",
+    "THERMOCOUPLE_OPEN",
+    "COLD_JUNCTION_C",
+    "FLUX_V",
+    "SIGNALS",
+    "ROLE_SIGNALS",
     "TYPE_K_SEEBECK_V_per_K",
     "ADS122C04_STEP_V",
     "Setting",
@@ -72,6 +79,22 @@ THERMOCOUPLE = "thermocouple"
 #: Role: the heat-flux sensor, read as a voltage (V).
 FLUX = "flux"
 ROLES = (THERMOCOUPLE, FLUX)
+
+# What the probe board connects to a chip's inputs (:attr:`Chip.wiring`); the simulator's thermal
+# worlds offer each as a signal of the same name (firmware_sim.world_protocol.World).
+#: The thermocouple's hot-junction temperature (°C), for a chip that converts the EMF itself.
+THERMOCOUPLE_C = "thermocouple_C"
+#: The thermocouple's differential EMF (V).
+THERMOCOUPLE_EMF_V = "thermocouple_emf_V"
+#: Whether the thermocouple is disconnected (a status the chip detects).
+THERMOCOUPLE_OPEN = "thermocouple_open"
+#: The board's temperature (°C): the cold junction, the chip's die.
+COLD_JUNCTION_C = "cold_junction_C"
+#: The heat-flux sensor's voltage (V).
+FLUX_V = "flux_voltage_V"
+SIGNALS = (THERMOCOUPLE_C, THERMOCOUPLE_EMF_V, THERMOCOUPLE_OPEN, COLD_JUNCTION_C, FLUX_V)
+#: The signal a role is read from, per kind of input: a temperature input or a voltage input.
+ROLE_SIGNALS = {THERMOCOUPLE: (THERMOCOUPLE_C, THERMOCOUPLE_EMF_V), FLUX: (FLUX_V,)}
 
 #: Type K sensitivity near room temperature (V/K): turns an EMF step into a temperature step.
 TYPE_K_SEEBECK_V_per_K = float(seebeck_uV_per_K(25.0)) * 1e-6
@@ -149,6 +172,10 @@ class Chip:
     roles : mapping role -> str
         The roles it can play and the input it plays each on (a multiplexer
         label such as ``"AIN0_AIN1"``, or ``"hot_junction"``).
+    wiring : mapping input -> signal
+        What the probe board connects to each of its inputs (one of
+        :data:`SIGNALS`); every role's input is wired to a signal of
+        :data:`ROLE_SIGNALS`. Unwired inputs see 0 V (tied to ground).
     settings : tuple of Setting
         Its ``[sensors]`` keys besides the address.
     models : mapping role -> NoiseModel
@@ -171,6 +198,7 @@ class Chip:
     regmap: ModuleType
     driver: type
     roles: Mapping[str, str]
+    wiring: Mapping[str, str]
     settings: tuple[Setting, ...]
     models: Mapping[str, NoiseModel]
     open: Callable[..., Any]
@@ -185,6 +213,12 @@ class Chip:
                 raise ValueError(f"{self.name}: unknown role {role!r}; roles: {ROLES}")
             if role not in self.readers or role not in self.models:
                 raise ValueError(f"{self.name}: role {role!r} needs a reader and a noise model")
+            if self.wiring.get(self.roles[role]) not in ROLE_SIGNALS[role]:
+                raise ValueError(f"{self.name}: the {role} input {self.roles[role]!r} is not wired to "
+                                 f"one of {ROLE_SIGNALS[role]}")
+        for pin, signal in self.wiring.items():
+            if signal not in SIGNALS:
+                raise ValueError(f"{self.name}: input {pin!r} wired to unknown signal {signal!r}")
         if THERMOCOUPLE in self.roles and (self.resolution_K is None or self.sample_rate_limit_Hz is None):
             raise ValueError(f"{self.name}: a thermocouple chip needs resolution_K and sample_rate_limit_Hz")
 
@@ -289,6 +323,7 @@ CHIPS: Mapping[str, Chip] = _registry(
     Chip(
         name="mcp9600", part="MCP9600", regmap=mcp9600_map, driver=MCP9600,
         roles={THERMOCOUPLE: "hot_junction"},
+        wiring={"hot_junction": THERMOCOUPLE_C, "cold_junction": COLD_JUNCTION_C, "open_circuit": THERMOCOUPLE_OPEN},
         settings=(Setting("adc_bits", "int", 16, "MCP9600 ADC resolution (18: 320 ms, 16: 80 ms per conversion)",
                           {"choices": (12, 14, 16, 18)}),),
         # The instrument model runs it at 16 bit (80-ms conversions, 12.5 Hz): its ADC resolves 8 uV of
@@ -304,6 +339,7 @@ CHIPS: Mapping[str, Chip] = _registry(
     Chip(
         name="ads1115", part="ADS1115", regmap=ads1115_map, driver=ADS1115,
         roles={FLUX: _ADS1115_FLUX_INPUT},
+        wiring={_ADS1115_FLUX_INPUT: FLUX_V},   # AIN2, AIN3 tied to GND
         settings=(Setting("fsr_V", "float", 0.256, "ADS1115 full-scale range, V",
                           {"choices": (0.256, 0.512, 1.024, 2.048, 4.096, 6.144)}),
                   Setting("data_rate_sps", "int", 860, "ADS1115 data rate, samples/s",
@@ -317,6 +353,8 @@ CHIPS: Mapping[str, Chip] = _registry(
     Chip(
         name="ads122c04", part="ADS122C04", regmap=ads122c04_map, driver=ADS122C04,
         roles=dict(_ADS122C04_INPUTS),
+        wiring={_ADS122C04_INPUTS[THERMOCOUPLE]: THERMOCOUPLE_EMF_V, _ADS122C04_INPUTS[FLUX]: FLUX_V,
+                "temperature": COLD_JUNCTION_C},   # its internal sensor is the cold junction
         settings=(Setting("gain", "int", 128, "ADS122C04 PGA gain", {"choices": (1, 2, 4, 8, 16, 32, 64, 128)}),
                   Setting("data_rate_sps", "int", 1000, "ADS122C04 data rate (normal mode), samples/s",
                           {"choices": (20, 45, 90, 175, 330, 600, 1000)})),
