@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-from edge.hw.regmaps import ads1115, ads122c04, mcp9600
+from edge.hw.chips import CHIPS
 from edge.physics.probe import FLUX_SENSITIVITY_V_per_W_m2, STACKS, ProbeStack, heater_power_W
 from edge.physics.solids import Solid
 
@@ -47,12 +47,8 @@ BACKS = ("fixed", "insulated", "infinite")
 #: solution of the estimator's own idealisation) and ``"faithful"`` (firmware_sim.rz.probe_world.
 #: FaithfulWorld, the axisymmetric finite-volume probe with its as-built deviations).
 WORLDS = ("ideal", "faithful")
-#: Valid 7-bit addresses of each chip a board may carry (from the chips' register maps).
-CHIP_ADDRESSES: dict[str, tuple[int, ...]] = {
-    "mcp9600": mcp9600.ADDRESSES,
-    "ads1115": ads1115.ADDRESSES,
-    "ads122c04": ads122c04.ADDRESSES,
-}
+#: Valid 7-bit addresses of each chip a board may carry (the chip registry's, from their register maps).
+CHIP_ADDRESSES: dict[str, tuple[int, ...]] = {name: spec.addresses for name, spec in CHIPS.items()}
 #: Default voltage a saturated flux channel shows: above the ADS1115's ±0.256 V
 #: range and the ADS122C04's ±16 mV (gain 128), so either reports full scale.
 FLUX_SATURATION_V = 0.3
@@ -116,6 +112,9 @@ class HeaterSpec:
 class BoardSpec:
     """Fitted chips (7-bit addresses, None = absent), probe stack name, thermal world and probe geometry.
 
+    One address field per chip of the registry (:data:`edge.hw.chips.CHIPS`; the scene file's
+    ``[board]`` keys; ``tests/firmware_sim/test_scene.py`` checks they match).
+
     ``probe`` names an :data:`edge.physics.geometry.PROBES` entry; only the
     faithful world resolves a heater smaller than the object (the ideal world is 1-D).
     """
@@ -133,7 +132,7 @@ class BoardSpec:
         return STACKS[self.stack_name]
 
     def address_of(self, chip: str) -> int | None:
-        """Address of ``chip`` ("mcp9600", "ads1115", "ads122c04"), or None."""
+        """Address of ``chip`` (a name in :data:`edge.hw.chips.CHIPS`), or None."""
         if chip not in CHIP_ADDRESSES:
             raise ValueError(f"chip must be one of {sorted(CHIP_ADDRESSES)}, got {chip!r}")
         return getattr(self, chip)
