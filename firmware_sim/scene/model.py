@@ -7,7 +7,7 @@ scene check raises, :class:`SceneError`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, make_dataclass
 from typing import Any, Mapping
 
 from edge.hw.chips import CHIPS
@@ -108,23 +108,8 @@ class HeaterSpec:
         return heater_power_W(1.0, self.supply_voltage_V, self.resistance_ohm)
 
 
-@dataclass(frozen=True)
-class BoardSpec:
-    """Fitted chips (7-bit addresses, None = absent), probe stack name, thermal world and probe geometry.
-
-    One address field per chip of the registry (:data:`edge.hw.chips.CHIPS`; the scene file's
-    ``[board]`` keys; ``tests/firmware_sim/test_scene.py`` checks they match).
-
-    ``probe`` names an :data:`edge.physics.geometry.PROBES` entry; only the
-    faithful world resolves a heater smaller than the object (the ideal world is 1-D).
-    """
-
-    mcp9600: int | None = None
-    ads1115: int | None = None
-    ads122c04: int | None = None
-    stack_name: str = "0.42"
-    world: str = "ideal"
-    probe: str = "paper"
+class _Board:
+    """The methods of :class:`BoardSpec` (its fields come from the chip registry)."""
 
     @property
     def stack(self) -> ProbeStack:
@@ -138,16 +123,33 @@ class BoardSpec:
         return getattr(self, chip)
 
 
-@dataclass(frozen=True)
-class SensorSpec:
-    """Sensor characteristics and noise (SI)."""
+def _frozen(name: str, fields: list, doc: str, bases: tuple = ()) -> type:
+    cls = make_dataclass(name, fields, bases=bases, frozen=True)
+    cls.__module__, cls.__doc__ = __name__, doc
+    return cls
 
-    thermocouple_time_constant_s: float = 0.0
-    flux_sensitivity_V_per_W_m2: float = FLUX_SENSITIVITY_V_per_W_m2
-    flux_range_W_m2: float = 10_000.0
-    mcp9600_emf_noise_rms_V: float = 0.0
-    ads1115_noise_rms_V: float = 0.0
-    ads122c04_noise_rms_V: float = 0.0
+
+#: Fitted chips (7-bit addresses, None = absent: one field per chip of :data:`edge.hw.chips.CHIPS`,
+#: the scene file's ``[board]`` keys), probe stack name, thermal world and probe geometry (``probe``
+#: names an :data:`edge.physics.geometry.PROBES` entry; only the faithful world resolves a heater
+#: smaller than the object, the ideal world is 1-D).
+BoardSpec = _frozen("BoardSpec", [
+    *((name, "int | None", field(default=None)) for name in CHIPS),
+    ("stack_name", str, field(default="0.42")),
+    ("world", str, field(default="ideal")),
+    ("probe", str, field(default="paper")),
+], "Fitted chips by registry name (addresses, None = absent), probe stack name, thermal world, probe geometry.",
+    (_Board,))
+
+#: Sensor characteristics and noise (SI): each registry chip's input noise is
+#: ``<chip>_<key>`` of its :attr:`edge.hw.chips.Chip.input_noise` (V rms, default 0).
+SensorSpec = _frozen("SensorSpec", [
+    ("thermocouple_time_constant_s", float, field(default=0.0)),
+    ("flux_sensitivity_V_per_W_m2", float, field(default=FLUX_SENSITIVITY_V_per_W_m2)),
+    ("flux_range_W_m2", float, field(default=10_000.0)),
+    *((spec.setting_key(spec.input_noise.key), float, field(default=spec.input_noise.default))
+      for spec in CHIPS.values()),
+], "Sensor characteristics and noise (SI; one input noise per registry chip).")
 
 
 @dataclass(frozen=True)
