@@ -24,6 +24,7 @@ import numpy as np
 
 from edge.physics.probe import heater_power_W
 from edge.measure.sequence import MeasurementParams
+from edge.measure.signal import min_contact_time_s
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.service.config import RUNTIME_KEYS, Config
 
@@ -93,7 +94,8 @@ def measure_params(config: Config, max_power_W: float, *, power_W: float | None 
     ------
     CommandError
         BAD_ARGUMENT for a voltage above the supply, a power above the
-        heater's maximum, or a contact time not below ``heater.max_on_time_s``.
+        heater's maximum, or a contact time not below ``heater.max_on_time_s`` or
+        below :func:`edge.measure.signal.min_contact_time_s`.
     """
     h, m = config.heater, config.measurement
     if voltage_V is not None:
@@ -112,6 +114,11 @@ def measure_params(config: Config, max_power_W: float, *, power_W: float | None 
     rate = m.sample_rate_Hz
     if sample_rate_Hz is not None:
         rate = min(float(sample_rate_Hz), max_sample_rate_Hz(config.sensors))
+    shortest = min_contact_time_s(rate)
+    if contact < shortest:
+        # Refused before heating: too short to estimate, and too short to judge the heater by.
+        raise CommandError(ErrorCode.BAD_ARGUMENT, f"contact_time_s={contact} is too short: a touch at "
+                           f"{rate:g} Hz needs at least {shortest:g} s of heating", "contact_time_s")
     return MeasurementParams(power_W=power, contact_time_s=contact, baseline_s=m.baseline_s,
                              sample_rate_Hz=rate, cooldown_s=m.cooldown_s,
                              method=config.estimation.method, until_decided=bool(until_decided),
