@@ -146,13 +146,21 @@ def fit_record(record: dict, max_payload: int) -> dict:
 def history_page(offset: int, total: int, items: list[dict], max_payload: int) -> dict[str, Any]:
     """The HISTORY reply: as many of ``items`` (each fitted) as fit in one reply.
 
-    The host continues at ``offset + len(items)``.
+    The host continues at ``offset + len(items)``. Each item is fitted and encoded once and the
+    page grows while the encoded sizes fit: linear in the items asked for (ISSUE #35 §8: popping
+    one item and re-encoding the whole page each time made a 20-item request cost 20 encodings of
+    up to 20 items, and a 1100-record export took minutes).
     """
-    items = [fit_record(r, max_payload) for r in items]
-    while items and len(json.dumps({"offset": offset, "total": total, "items": items})) + REPLY_MARGIN \
-            > max_payload:
-        items.pop()
-    return {"offset": offset, "total": total, "items": items}
+    budget = max_payload - REPLY_MARGIN - len(json.dumps({"offset": offset, "total": total, "items": []}))
+    page: list[dict] = []
+    for r in items:
+        r = fit_record(r, max_payload)
+        size = len(json.dumps(r)) + (2 if page else 0)  # ", " before every item but the first
+        if size > budget:
+            break
+        budget -= size
+        page.append(r)
+    return {"offset": offset, "total": total, "items": page}
 
 
 def series_page(record: Mapping[str, Any], measurement_id: int, which: str, offset: int, limit: int | None,
