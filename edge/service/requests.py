@@ -41,22 +41,11 @@ SERIES_COLUMNS = {"raw": (("t_s", "raw_t_s"), ("T_C", "raw_T_C"), ("q_W_m2", "ra
 def max_sample_rate_Hz(sensors: Any) -> float:
     """Fastest sampling whose every temperature reading is a new conversion, Hz (``[sensors]`` section).
 
-    From the converters' conversion times (edge/hw/regmaps): the MCP9600
-    converts continuously, 320 / 80 / 20 / 5 ms at 18 / 16 / 14 / 12 bit,
-    so faster reads only repeat a value (12.5 Hz at the default 16 bit); the
-    ADS122C04 reads the thermocouple and then the flux in single shots, two
-    conversions per sample (1000 SPS: ~1.1 ms each) plus the I2C traffic,
-    so it can sample at the protocol's 200 Hz ceiling; the ADS1115 (flux
-    only, 860 SPS: 1.2 ms) never limits.
+    The thermocouple chip's limit in the chip registry (:func:`edge.hw.chips.max_sample_rate_Hz`).
     """
-    from edge.hw.regmaps.ads122c04 import DATA_RATES_NORMAL_SPS, conversion_time_s  # noqa: PLC0415
-    from edge.hw.regmaps.mcp9600 import CONVERSION_TIME_s  # noqa: PLC0415
+    from edge.hw.chips import max_sample_rate_Hz as chip_limit_Hz  # noqa: PLC0415
 
-    if sensors.thermocouple == "mcp9600":
-        return 1.0 / CONVERSION_TIME_s[int(sensors.mcp9600_adc_bits)]
-    dr = DATA_RATES_NORMAL_SPS.index(int(sensors.ads122c04_data_rate_sps))
-    per_sample = 2 * conversion_time_s(dr, False, True) + 2e-3  # two single shots + I2C reads
-    return min(200.0, 1.0 / per_sample)
+    return chip_limit_Hz(sensors)
 
 
 def measure_params(config: Config, max_power_W: float, *, power_W: float | None = None,
