@@ -31,7 +31,7 @@ from __future__ import annotations
 import _common  # noqa: F401  (this checkout's edge/ first on sys.path, one BLAS thread)
 import numpy as np
 
-from edge.estimation.objects import KnownObject
+from edge.recognition import KnownObject
 
 SPREAD = 0.05
 P = KnownObject.from_properties

@@ -1,6 +1,6 @@
 """Recognition figures the tactile and decision benches share: ceilings, separations, scores of a set's answers.
 
-Each takes an :class:`edge.estimation.objects.ObjectSet` and simulated touches
+Each takes an :class:`edge.recognition.ObjectSet` and simulated touches
 (host.recognition) and returns plain numbers; the held-out groups are those
 of :mod:`_objects`.
 """
@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from _objects import HELD_OUT, HELD_OUT_FAR, HELD_OUT_NEAR, IN_SET
-from edge.estimation.objects import UNKNOWN, ObjectSet
+from edge.recognition import UNKNOWN, ObjectSet
 from host.recognition import reliability
 
 

@@ -30,7 +30,7 @@ import time
 import numpy as np
 
 from _common import write_block, write_json
-from edge.estimation.objects import ObjectSet
+from edge.recognition import ObjectSet
 from edge.estimation.running import SequentialDecision
 from edge.measure.instrument import INSTRUMENTS
 from host.evaluate import TouchSimulator

@@ -31,7 +31,7 @@ import numpy as np
 from _common import interleaved, write_block, write_json
 from edge.physics.forward import simulate
 from edge.physics.solids import Solid
-from edge.estimation.objects import KnownObject, ObjectSet
+from edge.recognition import KnownObject, ObjectSet
 
 GLASS = Solid(1.097, 2458.4, 809.0)
 Q_V = 7.7e7

@@ -27,7 +27,7 @@ set without e-overlaps; until-decided against fixed 1.5-s touches
 table (binned confidence vs accuracy, in-set touches, all contact times) and
 the confusion matrix at 2 s; an ablation (the mixture's likelihood-ratio rule
 instead of the z test); and the library set's calibration fit
-(edge.estimation.objects.LIBRARY_CALIBRATION) with its reliability.
+(edge.recognition.LIBRARY_CALIBRATION) with its reliability.
 
 Run:  python bench/tactile_bench.py [--touches 100] [--cal-touches 30] [--update-readme]
 Writes bench/results/tactile.json; --update-readme rewrites the block between
@@ -50,7 +50,7 @@ from decision_bench import run as decision_run
 from _objects import DISTINGUISHABLE, HELD_OUT, IN_SET, ISSUE_12_OBJECTS, SPREAD
 from _recognition import (bayes_ceiling, confusion_matrix, evaluate, in_set_reliability, non_overlapping,
                           separations, thermal_ceiling)
-from edge.estimation.objects import DEFAULT_ALPHA_U_GROWTH, DEFAULT_Z_CRIT, LIBRARY_CALIBRATION, ObjectSet
+from edge.recognition import DEFAULT_ALPHA_U_GROWTH, DEFAULT_Z_CRIT, LIBRARY_CALIBRATION, ObjectSet
 from edge.measure.instrument import INSTRUMENTS
 from edge.physics.materials import load_materials
 from host.recognition import (CONTACT_TIMES_S, IN_SET_ACCEPTANCE_GOAL, calibrate, classify_touches,
@@ -65,7 +65,7 @@ def library_calibration(touches: int, seed: int) -> dict:
     """Fit the library set's temperature and z_crit on precision-board touches of every library material.
 
     The fit (``calibrate`` on ``touches`` specimens per material, all contact
-    times) is what :data:`edge.estimation.objects.LIBRARY_CALIBRATION` stores;
+    times) is what :data:`edge.recognition.LIBRARY_CALIBRATION` stores;
     a second, separately seeded draw checks the reliability of the set as
     shipped (``ObjectSet.from_library()``) against the uncalibrated one.
     """
@@ -298,7 +298,7 @@ def report(res: dict, cmd: str) -> list[str]:
     L.append(f"**The default (library) set**: temperature {lc['fit']['temperature']:.3g}, z_crit "
              f"{lc['fit']['z_crit']:.3g}, fitted on {lc['fit']['touches']} precision-board touches of all "
              f"{lc['materials']} library materials ({lc['touches_per_material']} specimens each, all contact times) "
-             f"and stored as `LIBRARY_CALIBRATION` in `edge/estimation/objects.py` (now "
+             f"and stored as `LIBRARY_CALIBRATION` in `edge/recognition/object_set.py` (now "
              f"{lc['stored']['temperature']:.3g} / {lc['stored']['z_crit']:.3g}); reliability on a second draw:")
     L.append("")
     L += reliability_table(lc["uncalibrated"], lc["shipped"], "uncalibrated", "as shipped")
@@ -340,7 +340,7 @@ def report(res: dict, cmd: str) -> list[str]:
                  f"device's `AxiEstimator`; the set calibrated per board on {sh['cal_touches_per_object']} separately "
                  f"seeded specimens per object. In brackets the same touches recognised on e alone (α dropped, "
                  f"its own calibration). 'α used': in-set touches whose fit pinned α to better than a factor e "
-                 f"(`edge.estimation.objects.measured_alpha`), its u widened as u (1 + a u) with a fitted per board "
+                 f"(`edge.recognition.measured_alpha`), its u widened as u (1 + a u) with a fitted per board "
                  f"on the calibration touches (`host.recognition.fit_alpha_u_growth`: "
                  + ", ".join(f"{inst} a = {b['e_alpha']['alpha_u_growth']:.2f}" for inst, b in sh["boards"].items()
                              if "alpha_u_growth" in b.get("e_alpha", {}))
