@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-from _common import interleaved, update_readme, write_json
+from _common import interleaved, write_block, write_json
 from edge.physics.forward import simulate
 from edge.physics.solids import Solid
 from edge.recognition import KnownObject, ObjectSet
@@ -154,7 +154,7 @@ def main() -> None:
         + (f" --touches {args.touches}" if args.touches != 400 else "")
     print(f"\nwrote {write_json('scaling', res)}")
     if args.update_readme:
-        update_readme("scaling-bench", text)
+        write_block("scaling-bench", text)
 
 
 if __name__ == "__main__":

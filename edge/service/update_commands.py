@@ -59,7 +59,7 @@ class ModelCommands:
     """
 
     def _cmd_model_begin(self, args: dict) -> dict:
-        out = self.upload.begin(args["size"], args["sha256"], args.get("version"), bool(args.get("force", False)))
+        out = self.upload.begin(args["size"], args["sha256"], args.get("version"), args.get("downgrade"))
         return {**out, "session": self.upload.session}
 
     def _cmd_model_chunk(self, args: dict) -> dict:
