@@ -107,6 +107,7 @@ from edge.service.upload import MAX_UPLOAD_BYTES, ModelUpload
 from edge.service.worker import MeasurementWorker
 from edge.status import Flag, Reason, Status
 from edge.storage.history import History, HistoryError
+from edge.storage.identity import IdentityError, load_or_create_device_id
 
 __all__ = ["FIRMWARE_VERSION", "ANSWERED_WHILE_MEASURING", "FAULT_RECHECK_s", "MAX_UNSAVED_RECORDS",
            "MIN_FREE_BYTES", "ABORT_WAIT_s", "State", "Daemon"]
@@ -228,6 +229,8 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
             self._measure_t0: float | None = None
             self._object_set_hook = object_set
             self.objects = ObjectSets(self._object_sets_root(), policy=self._update_policy())
+            #: This device's identity (INFO; every measurement carries it): None if it cannot be read.
+            self.device_id = self._load_device_id()
             #: Idle readings of the probe for STATUS ``ready`` (settled probe temperature).
             self.readiness = Readiness()
             #: The link being served (set by :meth:`serve`; its ``replies_dropped`` counts replies a
@@ -246,6 +249,15 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
         p = self.config.paths
         # '' = beside the model store, so a configuration that predates object sets keeps them on the device.
         return Path(p.object_sets) if p.object_sets else Path(p.model_store).parent / "objects"
+
+    def _load_device_id(self) -> str | None:
+        path = Path(self.config.paths.model_store).parent / "device_id"
+        try:
+            return load_or_create_device_id(path)
+        except (IdentityError, OSError) as e:  # a device without its name still measures; INFO says so
+            log.error("device identity unavailable: %s", e)
+            self._set_fault("identity", f"device identity unavailable: {e}")
+            return None
 
     def _calibration_root(self) -> Path:
         p = self.config.paths

@@ -160,6 +160,10 @@ class FaultKeeping:
         if isinstance(self.store, _UnavailableStore) and self._own_store:
             self.store = self._open_store()
             self._model_est.store = self.upload.store = self.store
+        if getattr(self, "device_id", "") is None:  # a card that was read-only at start may be writable now
+            self.device_id = self._load_device_id()
+            if self.device_id is not None:
+                self._clear_fault("identity")
         self._check_storage()
         self._store_unsaved()
         self._check_objects()

@@ -46,7 +46,8 @@ class StatusCommands:
         st = self.store.status()
         return {"protocol_version": PROTOCOL_VERSION, "firmware_version": FIRMWARE_VERSION,
                 "model_version": st.get("model_version"), "model_sha256": st.get("sha256"),
-                "model_source": st.get("source"), "board": self.board.name, "faults": self.fault_list(),
+                "model_source": st.get("source"), "board": self.board.name, "device_id": self.device_id,
+                "faults": self.fault_list(),
                 "object_set": self._named_object_set()[0], **self.calibration.info()}
 
     def _cmd_status(self, args: dict) -> dict:
