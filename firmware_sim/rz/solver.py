@@ -348,6 +348,26 @@ def axis_value(grid: Grid, values: np.ndarray) -> float | np.ndarray:
     return c0 * v[..., 0] + c1 * v[..., 1]
 
 
+def _thermocouple_weights(grid: Grid, r_tc_m: float) -> list[tuple[int, float]]:
+    """(column, weight) pairs that read a radial profile at the thermocouple's radius ``r_tc_m``.
+
+    On the axis: the even extrapolation of :func:`_axis_weights`.  Off it: linear in r^2 between the
+    two columns whose mean r^2 brackets r_tc^2 (the same even profile T = a + b r^2 locally; the first
+    pair extrapolates inside the first cell's mean r^2).
+    """
+    if r_tc_m <= 0.0:
+        c0, c1 = _axis_weights(grid)
+        return [(0, c0), (1, c1)]
+    r = grid.r_faces_m
+    rho = 0.5 * (r[1:] ** 2 + r[:-1] ** 2)
+    x = r_tc_m * r_tc_m
+    if x > rho[-1]:
+        raise ValueError(f"thermocouple radius {r_tc_m} m lies outside the grid")
+    i = int(min(max(np.searchsorted(rho, x) - 1, 0), rho.size - 2))
+    f = (x - rho[i]) / (rho[i + 1] - rho[i])
+    return [(i, 1.0 - f), (i + 1, f)]
+
+
 def _probes(grid: Grid) -> Probes:
     """Weights of the three outputs (see :class:`Probes`) for a probe grid."""
     meta = grid.meta
@@ -374,9 +394,8 @@ def _probes(grid: Grid) -> Probes:
     # Thermocouple: probe-side face temperature T_c - q dz/(2k) in the first two columns,
     # then the even extrapolation to the axis, T(r) = a + b r^2, through the cells' mean r^2
     # (see _axis_weights).
-    c0, c1 = _axis_weights(grid)
     tc_i, tc_w, tc_gi, tc_gw = [], [], [], []
-    for i, c in ((0, c0), (1, c1)):
+    for i, c in _thermocouple_weights(grid, float(meta.get("thermocouple_r_m", 0.0))):
         fi, fw, gi, gw = bottom_flux(i)
         tc_i += [flat(j_s, i)] + fi
         tc_w += [c] + [-c * w * 0.5 * dz[j_s] / k_s for w in fw]
@@ -385,7 +404,13 @@ def _probes(grid: Grid) -> Probes:
 
     # Flux sensor: trapezoid in z over the face fluxes of its depth range, area mean over its disk.
     n_s = grid.r_index_below(meta["sensor_radius_m"])
-    A_s = math.pi * grid.r_faces_m[n_s] ** 2
+    # Area weights of the rings the sensor covers: its real footprint's (the sensitivity-weighted
+    # area in each ring, firmware_sim.rz.footprint) when the grid carries them, else its disk's.
+    ring_w = meta.get("sensor_ring_weights")
+    if ring_w is None:
+        ring_w = area[:n_s] / (math.pi * grid.r_faces_m[n_s] ** 2)
+    else:
+        ring_w = np.asarray(ring_w, dtype=float)[:n_s] / float(np.sum(ring_w))
     z0, z1 = meta["sensor_z_m"]
     f0, f1 = grid.z_index_of(z0), grid.z_index_of(z1)
     qs_i, qs_w = [], []
@@ -393,7 +418,7 @@ def _probes(grid: Grid) -> Probes:
     for f in range(f0, f1 + 1):  # faces f between rows f-1 and f
         wz = (0.5 * (dz[f - 1] if f > f0 else 0.0) + 0.5 * (dz[f] if f < f1 else 0.0)) / (z1 - z0)
         for i in range(n_s):
-            wa = area[i] / A_s
+            wa = ring_w[i]
             if f == nz:  # no object: the sensor's bottom is the probe's outer surface
                 fi, fw, gi, gw = bottom_flux(i)
                 qs_i += fi
@@ -407,7 +432,7 @@ def _probes(grid: Grid) -> Probes:
 
     qf_i, qf_w, qf_gi, qf_gw = [], [], [], []
     for i in range(n_s):
-        wa = area[i] / A_s
+        wa = ring_w[i]
         fi, fw, gi, gw = bottom_flux(i)
         qf_i += fi
         qf_w += [wa * w for w in fw]
