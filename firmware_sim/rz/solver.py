@@ -314,8 +314,10 @@ class Probes:
     ``T_tc``: thermocouple on the axis at the bottom of the sensing layer
     (probe side of any contact resistance), ``q_sensor``: flux sensor,
     ``q_face``: flux into the object's face (or out of the sensing layer's
-    bottom surface when there is no object), both over the sensor disk,
-    positive downwards (probe to object).
+    bottom surface when there is no object), both over the sensor's footprint
+    (its disk, or the grid's ``sensor_ring_weights``: the real square's share
+    of each ring, :mod:`firmware_sim.rz.footprint`), positive downwards (probe
+    to object).  The thermocouple reads at ``meta["thermocouple_r_m"]`` when given.
     """
 
     idx: tuple[np.ndarray, ...]
