@@ -128,6 +128,7 @@ def test_lookahead_is_dropped_when_the_drive_changes():
     assert 0 < s.n and s.t[s.n - 1] < 1.3
 
 
+@pytest.mark.slow  # a long session of touches
 def test_a_long_session_costs_the_same_per_touch_and_retains_bounded_state():
     sc = read_scene("pmma_15V")
     clock, drive = VirtualClock(), ManualDrive()
