@@ -79,6 +79,7 @@ def _session(world, clock, drive, mcp, ads, n_touch, *, no_contact=False):
         t0 = clock.now() + 1.0
 
 
+@pytest.mark.slow  # sessions of touches, evaluated batched and one value at a time
 @pytest.mark.parametrize("name, tau, no_contact", [("glass_15V", 0.0, False), ("pmma_20V", 0.05, True),
                                                    ("alu_25V", 0.0, False)])
 def test_batched_evaluation_equals_one_inversion_per_value(name, tau, no_contact):
