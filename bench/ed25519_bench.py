@@ -1,4 +1,4 @@
-"""Cost of the pure-Python Ed25519 on the device's update path: import, verify, sign.
+"""Cost of Ed25519 (cryptography, edge/security/ed25519.py) on the device's update path: import, verify, sign.
 
 What a signed update costs the probe: importing ``edge.security.ed25519``
 (and the policy module that uses it) in a fresh interpreter, and one

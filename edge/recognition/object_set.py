@@ -64,6 +64,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections import Counter
 from dataclasses import dataclass, field
 from typing import Iterable, Mapping
 
@@ -178,7 +179,8 @@ class ObjectSet:
         if not objs:
             raise ValueError("an object set needs at least one object")
         names = [o.name for o in objs]
-        dup = sorted({n for n in names if names.count(n) > 1})
+        # Counted once (a 15 000-row set with list.count took seconds: ISSUE #35 §7).
+        dup = sorted(n for n, c in Counter(names).items() if c > 1)
         if dup:
             raise ValueError(f"duplicate object names: {', '.join(dup)}")
         if UNKNOWN in names:

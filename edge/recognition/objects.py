@@ -166,7 +166,11 @@ def parse_csv(text: str, label: str) -> tuple[list[KnownObject], dict]:
             continue
         if not stripped or stripped.startswith("#"):
             continue
-        fields = [f.strip() for f in next(csv.reader([raw]))]
+        try:
+            fields = [f.strip() for f in next(csv.reader([raw]))]
+        except csv.Error as exc:  # e.g. a field over the csv module's 131 072-character limit
+            issues.append(Issue(lineno, "<line>", f"not a CSV row: {exc}"))
+            break
         if header is None:
             header, header_line = fields, lineno
             try:
