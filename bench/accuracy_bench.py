@@ -112,7 +112,7 @@ def table() -> str:
     for r in rows:
         L.append(f"| {r['probe']} | {r['board']} | {r['touch']} | {r['answered']} | {_fmt(r['e'])} | {_fmt(r['k'])} "
                  f"| {_fmt(r['alpha'])} | {r['kalpha']} | `bench/{r['source']}` |")
-    L += ["", "|relative error| of the answered touches, median [90th percentile]; \"prior\": k and α from the "
+    L += ["", "Cells: the |relative error| of the answered touches, median [90th percentile]; \"prior\": k and α from the "
           "library prior given e (as in the ideal-contact rows). Built from `bench/results/*.json` by "
           "`python bench/accuracy_bench.py --update-readme`; the full tables are in docs/results.md."]
     return "\n".join(L)
