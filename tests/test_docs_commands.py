@@ -45,19 +45,19 @@ def _rel(path: Path) -> str:
 
 # --- extraction -------------------------------------------------------------------------------
 
-def _shell_commands(line: str) -> list[str]:
-    """The ``thermotouch`` commands of one shell line (comments dropped, ``&&`` / ``;`` chains split)."""
+def _shell_commands(line: str, program: str = "thermotouch") -> list[str]:
+    """The ``program`` commands of one shell line (comments dropped, ``&&`` / ``;`` chains split, ``sudo`` off)."""
     line = re.sub(r"(^|\s)#.*$", "", line)
     out = []
     for seg in re.split(r"&&|;", line):
-        seg = seg.strip()
-        if seg.startswith("thermotouch "):
+        seg = seg.strip().removeprefix("sudo ").strip()
+        if seg.startswith(program + " "):
             out.append(seg)
     return out
 
 
-def commands_in(path: Path) -> list[tuple[str, str]]:
-    """``(where, command)`` for every ``thermotouch`` command shown in ``path``."""
+def commands_in(path: Path, program: str = "thermotouch") -> list[tuple[str, str]]:
+    """``(where, command)`` for every ``program`` command shown in ``path``."""
     found: list[tuple[str, str]] = []
     lines = _doc_text(path).splitlines()
     in_fence = False
@@ -76,15 +76,16 @@ def commands_in(path: Path) -> list[tuple[str, str]]:
                 pending = text[:-1].rstrip() + " "
                 continue
             pending = ""
-            found += [(f"{_rel(path)}:{n}", c) for c in _shell_commands(text.removeprefix("$ "))]
+            found += [(f"{_rel(path)}:{n}", c) for c in _shell_commands(text.removeprefix("$ "), program)]
             continue
         for span in re.findall(r"`([^`]+)`", line):
-            if span.startswith("thermotouch "):
+            if span.startswith(program + " "):
                 found.append((f"{_rel(path)}:{n}", span))
     return found
 
 
 ALL_COMMANDS = [c for p in DOCS for c in commands_in(p)]
+EDGE_COMMANDS = [c for p in DOCS for c in commands_in(p, "thermotouch-edge")]
 
 
 # --- synopsis expansion -----------------------------------------------------------------------
@@ -313,3 +314,40 @@ def test_readme_is_a_front_door():
         assert mark in text
     for doc in ("user-guide.md", "science.md", "operations.md", "results.md", "contributing.md"):
         assert f"docs/{doc}" in text, f"README.md does not link docs/{doc}"
+
+
+@pytest.mark.parametrize(("where", "cmd"), EDGE_COMMANDS, ids=[w for w, _ in EDGE_COMMANDS])
+def test_daemon_command_parses(where, cmd):
+    from edge.service.main import _parse_args
+
+    for words in _variants(cmd):
+        argv = ["x" if _PLACEHOLDER.match(w) else w for w in words[1:]]
+        try:
+            _parse_args(argv)
+        except SystemExit as exc:
+            pytest.fail(f"{where}: `{cmd}` does not parse (exit {exc.code})")
+
+
+#: ``[section] key`` or ``section.key`` in code spans, for the daemon's configuration sections.
+_CONFIG_REF = re.compile(r"`\[(\w+)\] (\w+)|`(\w+)\.(\w+)`")
+
+
+def test_configuration_keys_named_exist():
+    import tomllib
+
+    example = tomllib.loads((ROOT / "edge" / "service" / "thermotouch-edge.example.toml").read_text())
+    # A scene's [board] (world, probe) is named in the same notation: its keys count as known too.
+    for scene in (ROOT / "firmware_sim" / "scene" / "shipped").glob("*.toml"):
+        for section, keys in tomllib.loads(scene.read_text()).items():
+            if isinstance(keys, dict) and section in example:
+                example[section] = {**keys, **example[section]}
+    named = 0
+    for path in DOCS:
+        for n, line in enumerate(_doc_text(path).splitlines(), 1):
+            for m in _CONFIG_REF.finditer(line):
+                section, key = (m.group(1), m.group(2)) if m.group(1) else (m.group(3), m.group(4))
+                if section not in example:
+                    continue  # a module path such as `edge.recognition`, not a configuration key
+                named += 1
+                assert key in example[section], f"{_rel(path)}:{n}: [{section}] has no key {key!r}"
+    assert named >= 8
