@@ -351,3 +351,25 @@ def test_configuration_keys_named_exist():
                 named += 1
                 assert key in example[section], f"{_rel(path)}:{n}: [{section}] has no key {key!r}"
     assert named >= 8
+
+
+def _slug(heading: str) -> str:
+    """GitHub's anchor of a Markdown heading."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+_LINK = re.compile(r"\]\(([^)\s]+)\)")
+
+
+@pytest.mark.parametrize("path", DOCS, ids=[_rel(p) for p in DOCS])
+def test_links_between_the_docs_resolve(path):
+    for n, line in enumerate(_doc_text(path).splitlines(), 1):
+        for target in _LINK.findall(line):
+            if re.match(r"\w+://", target):
+                continue
+            file_part, _, anchor = target.partition("#")
+            dest = (path.parent / file_part).resolve() if file_part else path
+            assert dest.exists(), f"{_rel(path)}:{n}: link to {target}: no such file"
+            if anchor and dest.suffix == ".md":
+                slugs = {_slug(h) for h in re.findall(r"^#+ (.+)$", _doc_text(dest), re.M)}
+                assert anchor in slugs, f"{_rel(path)}:{n}: link to {target}: no such heading"
