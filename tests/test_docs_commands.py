@@ -373,3 +373,27 @@ def test_links_between_the_docs_resolve(path):
             if anchor and dest.suffix == ".md":
                 slugs = {_slug(h) for h in re.findall(r"^#+ (.+)$", _doc_text(dest), re.M)}
                 assert anchor in slugs, f"{_rel(path)}:{n}: link to {target}: no such heading"
+
+
+_PATH_REF = re.compile(r"`((?:edge|host|firmware_sim|tests|bench|models)/[\w/.\-]*[\w/])`")
+_DOTTED_REF = re.compile(r"`((?:edge|host|firmware_sim)(?:\.\w+)+)`")
+
+
+def _dotted_exists(ref: str) -> bool:
+    """``edge.a.b.Name``: the longest module prefix exists, and the first name after it is in its source."""
+    parts = ref.split(".")
+    for i in range(len(parts), 0, -1):
+        base = ROOT.joinpath(*parts[:i])
+        src = base.with_suffix(".py") if base.with_suffix(".py").is_file() else base / "__init__.py"
+        if src.is_file():
+            rest = parts[i:]
+            return not rest or re.search(rf"\b{re.escape(rest[0])}\b", src.read_text(encoding="utf-8")) is not None
+    return False
+
+
+@pytest.mark.parametrize("path", DOCS, ids=[_rel(p) for p in DOCS])
+def test_code_the_docs_name_exists(path):
+    text = _doc_text(path)
+    missing = sorted({m for m in _PATH_REF.findall(text) if not (ROOT / m.rstrip("/")).exists()}
+                     | {m for m in _DOTTED_REF.findall(text) if not _dotted_exists(m)})
+    assert not missing, f"{_rel(path)} names files or modules that do not exist: {missing}"
