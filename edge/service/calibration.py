@@ -21,7 +21,7 @@ import logging
 import math
 from typing import Any, Callable
 
-from edge.calibration.model import ProbeCalibration
+from edge.calibration.model import MAX_BYTES, ProbeCalibration
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.storage.calibration_store import CalibrationStore, CalibrationStoreError
 
@@ -56,7 +56,8 @@ class ProbeCalibrations:
         self.probe = probe
         self._error: str | None = None
         try:
-            self.store: CalibrationStore | None = CalibrationStore(root, probe, policy)
+            self.store: CalibrationStore | None = CalibrationStore(
+                root, probe, policy, parse=ProbeCalibration.from_json, max_bytes=MAX_BYTES)
         except OSError as e:
             self.store, self._error = None, f"cannot open {root}: {e}"
 
