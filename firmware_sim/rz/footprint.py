@@ -33,7 +33,7 @@ import numpy as np
 
 from edge.physics.geometry import SENSOR_SIDE_m
 
-__all__ = ["SquareSensor", "centred_square_weight", "centred_square_area_in_disk"]
+__all__ = ["SquareSensor", "centred_square_weight", "centred_square_area_in_disk", "off_axis_weights"]
 
 
 def centred_square_weight(r_m: np.ndarray, side_m: float) -> np.ndarray:
@@ -193,3 +193,19 @@ class SquareSensor:
             if x0 <= xm <= x1 and y0 <= ym <= y1:
                 w += r * (c0 * (b - a) + cx * r * (math.sin(b) - math.sin(a)) - cy * r * (math.cos(b) - math.cos(a)))
         return w
+
+
+def off_axis_weights(r_faces_m: np.ndarray, r_m: float) -> list[tuple[int, float]]:
+    """(column, weight) pairs that read a cell-centred radial profile at radius ``r_m`` > 0 (the thermocouple).
+
+    Linear in r^2 between the two columns whose mean r^2 brackets r^2 (the even profile T = a + b r^2
+    locally; the first pair extrapolates inside the first cell's mean r^2, as the axis read-out does).
+    """
+    r = np.asarray(r_faces_m, dtype=float)
+    rho = 0.5 * (r[1:] ** 2 + r[:-1] ** 2)
+    x = float(r_m) ** 2
+    if not 0.0 < x <= rho[-1]:
+        raise ValueError(f"radius {r_m} m must be > 0 and inside the grid")
+    i = int(min(max(np.searchsorted(rho, x) - 1, 0), rho.size - 2))
+    f = (x - rho[i]) / (rho[i + 1] - rho[i])
+    return [(i, 1.0 - f), (i + 1, f)]

@@ -43,6 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from firmware_sim.rz.footprint import off_axis_weights
 from firmware_sim.rz.grid import Grid
 
 __all__ = ["BlockTridiagonal", "clear_factor_cache", "Probes", "Record", "Solver", "steady_state", "axis_value", "SCHEMES"]
@@ -350,26 +351,6 @@ def axis_value(grid: Grid, values: np.ndarray) -> float | np.ndarray:
     return c0 * v[..., 0] + c1 * v[..., 1]
 
 
-def _thermocouple_weights(grid: Grid, r_tc_m: float) -> list[tuple[int, float]]:
-    """(column, weight) pairs that read a radial profile at the thermocouple's radius ``r_tc_m``.
-
-    On the axis: the even extrapolation of :func:`_axis_weights`.  Off it: linear in r^2 between the
-    two columns whose mean r^2 brackets r_tc^2 (the same even profile T = a + b r^2 locally; the first
-    pair extrapolates inside the first cell's mean r^2).
-    """
-    if r_tc_m <= 0.0:
-        c0, c1 = _axis_weights(grid)
-        return [(0, c0), (1, c1)]
-    r = grid.r_faces_m
-    rho = 0.5 * (r[1:] ** 2 + r[:-1] ** 2)
-    x = r_tc_m * r_tc_m
-    if x > rho[-1]:
-        raise ValueError(f"thermocouple radius {r_tc_m} m lies outside the grid")
-    i = int(min(max(np.searchsorted(rho, x) - 1, 0), rho.size - 2))
-    f = (x - rho[i]) / (rho[i + 1] - rho[i])
-    return [(i, 1.0 - f), (i + 1, f)]
-
-
 def _probes(grid: Grid) -> Probes:
     """Weights of the three outputs (see :class:`Probes`) for a probe grid."""
     meta = grid.meta
@@ -397,7 +378,8 @@ def _probes(grid: Grid) -> Probes:
     # then the even extrapolation to the axis, T(r) = a + b r^2, through the cells' mean r^2
     # (see _axis_weights).
     tc_i, tc_w, tc_gi, tc_gw = [], [], [], []
-    for i, c in _thermocouple_weights(grid, float(meta.get("thermocouple_r_m", 0.0))):
+    r_tc = float(meta.get("thermocouple_r_m", 0.0))
+    for i, c in (zip((0, 1), _axis_weights(grid)) if r_tc <= 0.0 else off_axis_weights(grid.r_faces_m, r_tc)):
         fi, fw, gi, gw = bottom_flux(i)
         tc_i += [flat(j_s, i)] + fi
         tc_w += [c] + [-c * w * 0.5 * dz[j_s] / k_s for w in fw]

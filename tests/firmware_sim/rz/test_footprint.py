@@ -96,3 +96,19 @@ def test_bad_sensors_are_refused():
         SquareSensor(gradient_x=1.5, gradient_y=0.6)
     with pytest.raises(ValueError):
         SquareSensor(offset_x_m=math.inf)
+
+
+def test_the_thermocouple_off_the_axis_reads_an_even_profile_exactly():
+    from firmware_sim.rz.footprint import off_axis_weights
+
+    faces = np.array([0.0, 1e-3, 1.8e-3, 2.5e-3, 3.3e-3])
+    rho = 0.5 * (faces[1:] ** 2 + faces[:-1] ** 2)   # each annulus's mean r^2
+    T = 3.0 + 2e5 * rho                               # T = a + b r^2: its annulus means
+    for r in (0.3e-3, 0.9e-3, 1.7e-3, 2.9e-3):
+        pairs = off_axis_weights(faces, r)
+        assert sum(w for _, w in pairs) == pytest.approx(1.0)
+        assert sum(w * T[i] for i, w in pairs) == pytest.approx(3.0 + 2e5 * r * r, rel=1e-12)
+    with pytest.raises(ValueError):
+        off_axis_weights(faces, 0.0)
+    with pytest.raises(ValueError):
+        off_axis_weights(faces, 5e-3)
