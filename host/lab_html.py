@@ -48,10 +48,10 @@ def fmt(v: float | None, digits: int = 4, scale: float = 1.0) -> str:
 
 
 def pm(v: float | None, u: float | None, scale: float = 1.0) -> str:
-    """``v ± u`` rounded to two significant digits of ``u`` (the CLI's rule, :func:`host.cli.report.pm`)."""
-    from host.cli.report import pm as text_pm  # noqa: PLC0415
+    """``v ± u`` rounded to two significant digits of ``u`` (the plots' rule, :func:`host.plots._pm`)."""
+    from host.plots import _pm  # noqa: PLC0415 - one rounding rule for plots and reports
 
-    return text_pm(v, u, "", scale).strip()
+    return _pm(v, u, scale)
 
 
 def table(header: Sequence[str], rows: Iterable[Sequence[Any]], *, numeric: Sequence[int] = (),

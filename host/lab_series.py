@@ -24,7 +24,8 @@ from host.lab_metadata import check_metadata
 from host.lab_stats import QUANTITIES, summarize
 
 __all__ = ["FORMAT", "SCHEMA_VERSION", "MAX_TOUCHES", "SeriesFileError", "measure_once", "touch_entry",
-           "run_series", "summarize_touches", "series_document", "load_series", "source_of", "utc_now"]
+           "run_series", "summarize_touches", "series_document", "load_series", "source_of", "utc_now",
+           "software_version", "answered_values"]
 
 FORMAT = "thermotouch-series"
 SCHEMA_VERSION = 1
@@ -40,6 +41,20 @@ class SeriesFileError(ValueError):
     """A series file that cannot be read; the message names what is wrong."""
 
 
+def software_version() -> str:
+    """The installed ``thermotouch`` distribution's version (what ``thermotouch --version`` prints).
+
+    Looked up here rather than imported from :mod:`host.cli.main`, which imports the verbs that
+    call this (an import cycle).
+    """
+    from importlib.metadata import PackageNotFoundError, version  # noqa: PLC0415
+
+    try:
+        return version("thermotouch")
+    except PackageNotFoundError:  # pragma: no cover - a checkout without an install
+        return "unknown"
+
+
 def utc_now() -> str:
     """Now, UTC, ISO 8601 with milliseconds (the device's record format)."""
     return datetime.now(timezone.utc).isoformat(timespec="milliseconds")
@@ -50,17 +65,18 @@ def measure_once(session: Any, **kw: Any) -> dict:
     return session.client.measure(**{k: v for k, v in kw.items() if v is not None})
 
 
-def touch_entry(index: int, rec: dict) -> dict:
+def touch_entry(index: int, rec: dict, answer_of: Callable[[dict], dict] | None = None) -> dict:
     """A series' entry for touch ``index`` (1-based) from the device's MEASURE record.
 
-    ``answered`` is True when the touch gave an effusivity; otherwise
-    ``no_answer`` says why (the device's status and reason, or its flags).
+    ``answer`` is ``answer_of(rec)`` (the CLI passes ``measure --json``'s
+    form, :func:`host.cli.report.measure_json`; default: a copy of the
+    record's ``result``), None when the record has no result.  ``answered``
+    is True when the touch gave an effusivity; otherwise ``no_answer`` says
+    why (the device's status and reason, or its flags).
     """
-    from host.cli.report import measure_json  # noqa: PLC0415
-
-    answer = measure_json(rec) if rec.get("result") else None
-    if answer is not None and rec.get("result", {}).get("decision") is not None:
-        answer["decision"] = rec["result"]["decision"]
+    answer = None
+    if rec.get("result"):
+        answer = answer_of(rec) if answer_of is not None else dict(rec["result"])
     flags = list(dict.fromkeys(list(rec.get("flags") or []) + list((answer or {}).get("flags") or [])))
     answered = answer is not None and rec.get("status") == "ok" and answer.get("effusivity_W_s05_m2K") is not None
     why = None
@@ -84,6 +100,7 @@ def touch_entry(index: int, rec: dict) -> dict:
 
 def run_series(session: Any, n: int, *, voltage_V: float | None = None, power_W: float | None = None,
                contact_time_s: float | None = None, cooldown_s: float = 0.0,
+               answer_of: Callable[[dict], dict] | None = None,
                on_touch: Callable[[dict], None] | None = None) -> list[dict]:
     """``n`` touches on ``session``; each touch's entry (:func:`touch_entry`) in order.
 
@@ -91,7 +108,8 @@ def run_series(session: Any, n: int, *, voltage_V: float | None = None, power_W:
     host waits that long (lift the probe, let it cool, put it back); on a
     simulated probe its simulated clock moves on by that much (its time moves
     only while it works, so a wait on the host would change nothing).
-    ``on_touch`` sees each entry as soon as it is made (printing).
+    ``answer_of`` makes each touch's answer (:func:`touch_entry`); ``on_touch`` sees each entry as
+    soon as it is made (printing).
     """
     entries = []
     for i in range(1, n + 1):
@@ -101,7 +119,7 @@ def run_series(session: Any, n: int, *, voltage_V: float | None = None, power_W:
             else:
                 time.sleep(cooldown_s)
         rec = measure_once(session, voltage_V=voltage_V, power_W=power_W, contact_time_s=contact_time_s)
-        entry = touch_entry(i, rec)
+        entry = touch_entry(i, rec, answer_of)
         entries.append(entry)
         if on_touch is not None:
             on_touch(entry)

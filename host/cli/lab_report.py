@@ -53,12 +53,11 @@ def _read_calibration(path):
 
 def run(args) -> int:
     from host.atomic import write_text_atomic  # noqa: PLC0415
-    from host.cli.main import version  # noqa: PLC0415
-    from host.lab_series import SeriesFileError, load_series, utc_now  # noqa: PLC0415
+    from host.lab_series import SeriesFileError, load_series, software_version, utc_now  # noqa: PLC0415
 
     if (args.series is None) == (args.calibration is None):
         raise CliError("give a series file (SERIES.json) or --calibration CAL.json, not both")
-    now, ver = utc_now(), version()
+    now, ver = utc_now(), software_version()
     if args.calibration is not None:
         from host.lab_certificate import certificate_html  # noqa: PLC0415
 

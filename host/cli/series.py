@@ -23,7 +23,7 @@ import argparse
 from host.cli.args import add_device_args, add_output, bounded_float, measure_bound
 from host.cli.common import device_call, device_session
 from host.cli.errors import EXIT_RUNTIME, CliError
-from host.cli.report import dumps, pm
+from host.cli.report import dumps, measure_json, pm
 from host.lab_metadata import add_metadata_args, metadata_of
 from host.lab_series import MAX_TOUCHES
 from host.lab_stats import QUANTITIES, verdict_text
@@ -102,10 +102,17 @@ def summary_lines(summary: dict) -> list[str]:
     return lines
 
 
+def _answer(rec: dict) -> dict:
+    """A touch's answer as ``measure --json`` prints it (its running decision included)."""
+    d = measure_json(rec)
+    if rec["result"].get("decision") is not None:
+        d["decision"] = rec["result"]["decision"]
+    return d
+
+
 def run(args) -> int:
-    from host.cli.main import version  # noqa: PLC0415
     from host.atomic import write_text_atomic  # noqa: PLC0415
-    from host.lab_series import run_series, series_document, utc_now  # noqa: PLC0415
+    from host.lab_series import run_series, series_document, software_version, utc_now  # noqa: PLC0415
 
     metadata = metadata_of(args)
     started = utc_now()
@@ -121,11 +128,11 @@ def run(args) -> int:
                   "scene": session.simulator.scene.name if session.simulated else None,
                   "port": None if session.simulated else session.port, **info}
         touches = run_series(session, n, voltage_V=args.voltage, power_W=args.power, contact_time_s=args.time,
-                             cooldown_s=args.cooldown, on_touch=show)
+                             cooldown_s=args.cooldown, answer_of=_answer, on_touch=show)
     settings = {"repeat": n, "voltage_V": args.voltage, "power_W": args.power, "contact_time_s": args.time,
                 "cooldown_s": args.cooldown}
     doc = series_document(touches, metadata=metadata, device=device, settings=settings, started_utc=started,
-                          software_version=version())
+                          software_version=software_version())
     text = dumps(doc)
     if args.json:
         print(text, flush=True)
