@@ -33,6 +33,9 @@ SCHEMA_VERSION = 1
 MAX_TOUCHES = 1000
 #: Largest series file read, bytes (1000 touches of a few kB each).
 MAX_BYTES = 64 * 1024 * 1024
+#: Device refusals of one touch that the series records (a touch without an answer) and goes on after;
+#: any other (a bad argument, a protocol error) stops the series.
+TOUCH_ERRORS = ("BUSY", "SENSOR_FAULT", "INTERNAL")
 #: Short names of the quantities in an answer's ``determined_by`` (edge.estimation.result.QUANTITIES).
 _SHORT = {"effusivity_W_s05_m2K": "e", "k_W_mK": "k", "alpha_m2_s": "alpha"}
 
@@ -104,13 +107,17 @@ def run_series(session: Any, n: int, *, voltage_V: float | None = None, power_W:
                on_touch: Callable[[dict], None] | None = None) -> list[dict]:
     """``n`` touches on ``session``; each touch's entry (:func:`touch_entry`) in order.
 
-    Between touches the probe rests ``cooldown_s``: on a probe on a port the
+    A touch the device refuses for a reason of that touch (:data:`TOUCH_ERRORS`: busy, a sensor
+    fault, an internal error) is recorded with status ``refused`` and counts as a touch without an
+    answer; any other refusal is raised.  Between touches the probe rests ``cooldown_s``: on a probe on a port the
     host waits that long (lift the probe, let it cool, put it back); on a
     simulated probe its simulated clock moves on by that much (its time moves
     only while it works, so a wait on the host would change nothing).
     ``answer_of`` makes each touch's answer (:func:`touch_entry`); ``on_touch`` sees each entry as
     soon as it is made (printing).
     """
+    from host.client import DeviceError  # noqa: PLC0415
+
     entries = []
     for i in range(1, n + 1):
         if i > 1 and cooldown_s > 0:
@@ -118,7 +125,13 @@ def run_series(session: Any, n: int, *, voltage_V: float | None = None, power_W:
                 session.simulator.advance(cooldown_s)
             else:
                 time.sleep(cooldown_s)
-        rec = measure_once(session, voltage_V=voltage_V, power_W=power_W, contact_time_s=contact_time_s)
+        try:
+            rec = measure_once(session, voltage_V=voltage_V, power_W=power_W, contact_time_s=contact_time_s)
+        except DeviceError as exc:
+            if exc.code.name not in TOUCH_ERRORS:  # the request itself is wrong: every touch would fail
+                raise
+            rec = {"measurement_id": None, "status": "refused", "reason": exc.code.name.lower(),
+                   "error": exc.message, "flags": [], "result": None}
         entry = touch_entry(i, rec, answer_of)
         entries.append(entry)
         if on_touch is not None:

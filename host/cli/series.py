@@ -19,6 +19,7 @@ did (the file is still written: it records what happened).
 from __future__ import annotations
 
 import argparse
+import contextlib
 
 from host.cli.args import add_device_args, add_output, bounded_float, measure_bound
 from host.cli.common import device_call, device_session
@@ -118,21 +119,39 @@ def run(args) -> int:
     started = utc_now()
     n = args.repeat
 
+    entries: list[dict] = []
+    device: dict = {}
+    settings = {"repeat": n, "voltage_V": args.voltage, "power_W": args.power, "contact_time_s": args.time,
+                "cooldown_s": args.cooldown}
+
     def show(entry: dict) -> None:
+        entries.append(entry)
         if not args.json:
             print(touch_line(entry, n), flush=True)
 
-    with device_session(args) as session:
-        info = device_call(session.client.info)
-        device = {"source": "sim" if session.simulated else "port",
-                  "scene": session.simulator.scene.name if session.simulated else None,
-                  "port": None if session.simulated else session.port, **info}
-        touches = run_series(session, n, voltage_V=args.voltage, power_W=args.power, contact_time_s=args.time,
-                             cooldown_s=args.cooldown, answer_of=_answer, on_touch=show)
-    settings = {"repeat": n, "voltage_V": args.voltage, "power_W": args.power, "contact_time_s": args.time,
-                "cooldown_s": args.cooldown}
-    doc = series_document(touches, metadata=metadata, device=device, settings=settings, started_utc=started,
-                          software_version=software_version())
+    def document() -> dict:
+        return series_document(entries, metadata=metadata, device=device, settings=settings, started_utc=started,
+                               software_version=software_version())
+
+    try:
+        with device_session(args) as session:
+            device.update(source="sim" if session.simulated else "port",
+                          scene=session.simulator.scene.name if session.simulated else None,
+                          port=None if session.simulated else session.port)
+            device.update(device_call(session.client.info))
+            run_series(session, n, voltage_V=args.voltage, power_W=args.power, contact_time_s=args.time,
+                       cooldown_s=args.cooldown, answer_of=_answer, on_touch=show)
+    except BaseException as exc:
+        # Ctrl-C or a lost probe after some touches: keep what was measured (the error is still reported).
+        if entries:
+            settings["stopped_after"] = len(entries)
+            settings["stopped_because"] = type(exc).__name__ if not str(exc) else str(exc)
+            with contextlib.suppress(OSError):
+                write_text_atomic(args.out, dumps(document()) + "\n")
+                if not args.json:
+                    print(f"stopped after {len(entries)} of {n} touches; what was measured: {args.out}", flush=True)
+        raise
+    doc = document()
     text = dumps(doc)
     if args.json:
         print(text, flush=True)

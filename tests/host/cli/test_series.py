@@ -206,3 +206,49 @@ def test_summarize_verdicts_on_known_spreads():
     no_u = summarize(x, [1.0, None, 1.0, 1.0, 1.0])
     assert no_u["chi2"] is None and no_u["verdict"] == "too_few" and no_u["mean"] == pytest.approx(100.0)
     assert summarize([], [])["n"] == 0
+
+
+def test_a_touch_the_device_refuses_is_recorded_and_a_bad_request_stops_the_series(monkeypatch):
+    from edge.protocol.errors import ErrorCode
+    from host.client import DeviceError
+
+    calls = []
+
+    def measure_once(session, **kw):
+        calls.append(kw)
+        if len(calls) == 2:
+            raise DeviceError(ErrorCode.BUSY, "measurement in progress")
+        return {"status": "ok", "measurement_id": len(calls), "flags": [],
+                "result": {"effusivity_W_s05_m2K": 600.0, "effusivity_W_s05_m2K_u": 30.0, "flags": []}}
+
+    monkeypatch.setattr(lab_series, "measure_once", measure_once)
+    entries = lab_series.run_series(SimpleNamespace(simulated=False), 3)
+    assert [e["answered"] for e in entries] == [True, False, True]
+    assert entries[1]["status"] == "refused" and entries[1]["no_answer"] == "refused: busy"
+    assert lab_series.summarize_touches(entries)["n_unanswered"] == 1
+
+    def bad(session, **kw):
+        raise DeviceError(ErrorCode.BAD_ARGUMENT, "power_W out of range")
+
+    monkeypatch.setattr(lab_series, "measure_once", bad)
+    with pytest.raises(DeviceError):
+        lab_series.run_series(SimpleNamespace(simulated=False), 3)
+
+
+def test_an_interrupted_series_keeps_the_touches_it_made(capsys, tmp_path, monkeypatch):
+    out = tmp_path / "cut.json"
+    real, calls = lab_series.measure_once, []
+
+    def measure_once(session, **kw):
+        calls.append(kw)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(session, **kw)
+
+    monkeypatch.setattr(lab_series, "measure_once", measure_once)
+    code, stdout, err = run(capsys, "series", "--sim", "glass_15V", "--repeat", "5", "--out", str(out))
+    assert code == 130 and "interrupted" in one_line_error(err)
+    assert f"stopped after 2 of 5 touches; what was measured: {out}" in stdout
+    doc = json.loads(out.read_text())
+    assert len(doc["touches"]) == 2 and doc["settings"]["stopped_after"] == 2
+    assert doc["summary"]["n_answered"] == 2
