@@ -61,11 +61,15 @@ def _converter(field: str) -> Callable[[str], str]:
     return conv
 
 
-def add_metadata_args(p: argparse.ArgumentParser, fields=tuple(FIELDS)) -> None:
-    """``--sample``, ``--lot``, ``--operator``, ``--notes`` (checked by :func:`check_text` when parsed)."""
+def add_metadata_args(p: argparse.ArgumentParser, fields=tuple(FIELDS), helps: Mapping[str, str] | None = None) -> None:
+    """``--sample``, ``--lot``, ``--operator``, ``--notes`` (checked by :func:`check_text` when parsed).
+
+    ``helps`` replaces a field's help where the verb means something narrower (a certificate's issuer).
+    """
     for field in fields:
+        what = (helps or {}).get(field, FIELDS[field])
         p.add_argument(f"--{field}", type=_converter(field), default=None, metavar="TEXT",
-                       help=f"{FIELDS[field]} (printable, at most {MAX_CHARS[field]} characters)")
+                       help=f"{what} (printable, at most {MAX_CHARS[field]} characters)")
 
 
 def metadata_of(args: argparse.Namespace) -> dict[str, str | None]:

@@ -29,7 +29,7 @@ SOURCES = {
 
 
 def series_plot_png(doc: dict) -> bytes:
-    """Each touch's e (and k when given) with its u (k = 1), the mean and the ±sd band; touches without answer marked."""
+    """Each touch's e (and k) with its u (k = 1), the mean and the ±sd band; touches without an answer marked."""
     plt = pyplot()
     touches = doc["touches"]
     keys = [q for q in QUANTITIES[:2] if answered_values(touches, q[0])]

@@ -29,7 +29,9 @@ def add_parser(sub, parents):
                    help="series file written by thermotouch series --out")
     p.add_argument("--calibration", type=existing_file, default=None, metavar="CAL.json",
                    help="write the calibration certificate of this calibration file (thermotouch calibrate --out)")
-    add_metadata_args(p, fields=("operator", "notes"))
+    add_metadata_args(p, fields=("operator", "notes"),
+                      helps={"operator": "with --calibration: who issues the certificate",
+                             "notes": "with --calibration: notes printed on the certificate"})
     add_output(p, "--out", suffixes=(".html", ".htm"), metavar="REPORT.html", required=True,
                help="HTML file to write")
     p.set_defaults(func=run)

@@ -127,7 +127,8 @@ def test_the_statistics_agree_with_a_recomputation(series_run):
 
 def test_the_summary_is_printed_with_mean_rsd_u_and_the_verdict(series_run, printed):
     e = series_run.doc["summary"]["quantities"]["effusivity_W_s05_m2K"]
-    assert f"effusivity e: mean {e['mean']:.4g} W s^0.5/(m^2 K), sd {e['sd']:.4g}, RSD {e['rsd'] * 100:.2f} %" in printed
+    assert (f"effusivity e: mean {e['mean']:.4g} W s^0.5/(m^2 K), sd {e['sd']:.4g}, "
+            f"RSD {e['rsd'] * 100:.2f} %") in printed
     assert f"mean stated u (k = 1) {e['u_mean']:.4g}" in printed
     assert f"chi2/dof {e['chi2_dof']:.2f} (dof {e['dof']}, p {e['p_value']:.3f})" in printed
 
