@@ -104,6 +104,7 @@ def touch_entry(index: int, rec: dict, answer_of: Callable[[dict], dict] | None 
 def run_series(session: Any, n: int, *, voltage_V: float | None = None, power_W: float | None = None,
                contact_time_s: float | None = None, cooldown_s: float = 0.0,
                answer_of: Callable[[dict], dict] | None = None,
+               before_touch: Callable[[int], None] | None = None,
                on_touch: Callable[[dict], None] | None = None) -> list[dict]:
     """``n`` touches on ``session``; each touch's entry (:func:`touch_entry`) in order.
 
@@ -113,8 +114,9 @@ def run_series(session: Any, n: int, *, voltage_V: float | None = None, power_W:
     host waits that long (lift the probe, let it cool, put it back); on a
     simulated probe its simulated clock moves on by that much (its time moves
     only while it works, so a wait on the host would change nothing).
-    ``answer_of`` makes each touch's answer (:func:`touch_entry`); ``on_touch`` sees each entry as
-    soon as it is made (printing).
+    ``answer_of`` makes each touch's answer (:func:`touch_entry`); ``before_touch(i)`` runs after the
+    rest, just before touch ``i`` (a prompt to place the probe); ``on_touch`` sees each entry as soon
+    as it is made (printing).
     """
     from host.client import DeviceError  # noqa: PLC0415
 
@@ -125,6 +127,8 @@ def run_series(session: Any, n: int, *, voltage_V: float | None = None, power_W:
                 session.simulator.advance(cooldown_s)
             else:
                 time.sleep(cooldown_s)
+        if before_touch is not None:
+            before_touch(i)
         try:
             rec = measure_once(session, voltage_V=voltage_V, power_W=power_W, contact_time_s=contact_time_s)
         except DeviceError as exc:

@@ -9,7 +9,9 @@ prints every touch as it comes, then per quantity (e, k, alpha) the mean, the
 sample standard deviation, the RSD, the mean stated u (k = 1) and whether the
 spread agrees with it (:mod:`host.lab_stats`: chi-square of the touches about
 their u-weighted mean, two-sided at 95 %, and sd / rms(u) with its accepted
-band).  Touches without an answer are counted and named.  ``--out`` gets the
+band).  Touches without an answer are counted and named.  On a port, with a
+terminal on stdin, each touch waits for Enter (put the probe on the sample
+first); ``--cooldown`` rests the probe between touches.  ``--out`` gets the
 self-describing series file (:mod:`host.lab_series`) that ``thermotouch
 report`` turns into a measurement report; an existing file is replaced only
 with ``--overwrite``.  Exit 0 when at least one touch answered, 1 when none
@@ -20,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import sys
 
 from host.cli.args import add_device_args, add_output, bounded_float, measure_bound
 from host.cli.common import device_call, device_session
@@ -129,6 +132,13 @@ def run(args) -> int:
         if not args.json:
             print(touch_line(entry, n), flush=True)
 
+    def prompt(i: int) -> None:
+        # A person holds a probe on a port: each touch waits for them (as calibrate's walk-through does).
+        try:
+            input(f"touch {i}/{n}: put the probe on the sample and press Enter ... ")
+        except EOFError:
+            raise CliError(f"stopped before touch {i}: no Enter (end of input)", EXIT_RUNTIME) from None
+
     def document() -> dict:
         return series_document(entries, metadata=metadata, device=device, settings=settings, started_utc=started,
                                software_version=software_version())
@@ -139,8 +149,10 @@ def run(args) -> int:
                           scene=session.simulator.scene.name if session.simulated else None,
                           port=None if session.simulated else session.port)
             device.update(device_call(session.client.info))
+            interactive = not session.simulated and not args.json and sys.stdin.isatty()
             run_series(session, n, voltage_V=args.voltage, power_W=args.power, contact_time_s=args.time,
-                       cooldown_s=args.cooldown, answer_of=_answer, on_touch=show)
+                       cooldown_s=args.cooldown, answer_of=_answer, before_touch=prompt if interactive else None,
+                       on_touch=show)
     except BaseException as exc:
         # Ctrl-C or a lost probe after some touches: keep what was measured (the error is still reported).
         if entries:

@@ -194,7 +194,9 @@ def test_cooldown_moves_a_simulated_clock_and_waits_on_a_port(monkeypatch):
     monkeypatch.setattr(lab_series, "measure_once", lambda session, **kw: dict(rec))
     monkeypatch.setattr(lab_series.time, "sleep", slept.append)
     assert len(lab_series.run_series(sim, 3, cooldown_s=20.0)) == 3 and advanced == [20.0, 20.0] and not slept
-    assert len(lab_series.run_series(port, 2, cooldown_s=5.0)) == 2 and slept == [5.0]
+    asked = []
+    assert len(lab_series.run_series(port, 2, cooldown_s=5.0, before_touch=asked.append)) == 2 and slept == [5.0]
+    assert asked == [1, 2]  # the prompt comes after the rest, before each touch
 
 
 def test_summarize_verdicts_on_known_spreads():
@@ -253,3 +255,25 @@ def test_an_interrupted_series_keeps_the_touches_it_made(capsys, tmp_path, monke
     doc = json.loads(out.read_text())
     assert len(doc["touches"]) == 2 and doc["settings"]["stopped_after"] == 2
     assert doc["summary"]["n_answered"] == 2
+
+
+class _Terminal(io.StringIO):
+    """stdin as a person at a terminal: lines typed in advance."""
+
+    def isatty(self) -> bool:
+        return True
+
+
+def test_on_a_port_each_touch_waits_for_enter_and_end_of_input_stops_keeping_the_touches(capsys, tmp_path,
+                                                                                         monkeypatch):
+    from host.device import simulated_probe
+
+    out = tmp_path / "port.json"
+    with simulated_probe("glass_15V") as (port, _daemon, _sim):
+        monkeypatch.setattr("sys.stdin", _Terminal("\n"))  # Enter once: touch 1 runs, touch 2 finds no input
+        code, stdout, err = run(capsys, "series", "--port", port, "--repeat", "2", "--out", str(out))
+    assert code == 1 and one_line_error(err) == "thermotouch series: stopped before touch 2: no Enter (end of input)"
+    assert "touch 1/2: put the probe on the sample and press Enter" in stdout
+    doc = json.loads(out.read_text())
+    assert doc["device"]["source"] == "port" and doc["device"]["port"] == port
+    assert [t["answered"] for t in doc["touches"]] == [True] and doc["settings"]["stopped_after"] == 1
