@@ -20,22 +20,24 @@ from host.lab_html import esc, figure_png, fmt, kv_table, page, pm, png_img, pyp
 
 __all__ = ["certificate_html", "residual_plot_png", "PARAMETER_LABELS"]
 
-#: How each calibrated parameter is shown: label, unit, display scale, whether theta holds its logarithm.
+#: How each calibrated parameter is shown (the words of ``thermotouch calibrate``): label, unit, display
+#: scale, and how theta maps to the shown value: "exp" (theta is its logarithm), "inv_exp" (theta is the
+#: logarithm of its inverse: the flux scale is nominal / true sensitivity), "lin".
 PARAMETER_LABELS = {
-    "ln_flux_scale": ("thermopile flux scale (nominal / true sensitivity)", "1", 1.0, True),
-    "ln_sensing_thickness_m": ("sensing layer effective depth", "µm", 1e6, True),
-    "tc_tau_s": ("thermocouple bead lag", "s", 1.0, False),
-    "ln_sensing_k_W_mK": ("sensing layer conductivity", "W/(m K)", 1.0, True),
+    "ln_flux_scale": ("flux sensor sensitivity, × nominal (1 / flux_scale)", "×", 1.0, "inv_exp"),
+    "ln_sensing_thickness_m": ("sensing depth", "mm", 1e3, "exp"),
+    "tc_tau_s": ("thermocouple lag", "ms", 1e3, "lin"),
+    "ln_sensing_k_W_mK": ("sensing layer k", "W/(m K)", 1.0, "exp"),
 }
 
 
 def _value_u(name: str, theta: float, u_theta: float) -> tuple[float, float]:
-    """A parameter's value and standard uncertainty in its own unit (log parameters: u = value × u(ln))."""
-    _, _, _, is_log = PARAMETER_LABELS[name]
-    if is_log:
-        v = math.exp(theta)
-        return v, v * u_theta
-    return theta, u_theta
+    """A parameter's value and standard uncertainty in its own unit (a logarithm's u is relative)."""
+    how = PARAMETER_LABELS[name][3]
+    if how == "lin":
+        return theta, u_theta
+    v = math.exp(-theta if how == "inv_exp" else theta)
+    return v, v * u_theta
 
 
 def residual_plot_png(cal) -> bytes:
@@ -75,7 +77,7 @@ def certificate_html(cal, *, source_name: str, generated_utc: str, software_vers
     title = f"Calibration certificate: probe {cal.probe}"
     par_rows = []
     for i, name in enumerate(PARAMETERS):
-        label, unit, scale, is_log = PARAMETER_LABELS[name]
+        label, unit, scale, _ = PARAMETER_LABELS[name]
         v, u = _value_u(name, float(theta[i]), float(u_theta[i]))
         rel = f"{u / abs(v) * 100:.2f} %" if v else "–"
         par_rows.append([label, name, pm(v, u, scale) if u > 0 else fmt(v, 5, scale), unit, rel])
@@ -84,10 +86,15 @@ def certificate_html(cal, *, source_name: str, generated_utc: str, software_vers
     ref_rows = []
     for r in cal.references:
         errs = np.asarray(r.rel_errors, dtype=float)
+        # a re-measured touch further than 2 u from the certified value (u: the reference's and the floor)
+        u2 = 2.0 * math.hypot(r.u_rel_e, cal.u_rel_floor)
+        outside = int(np.sum(np.abs(errs) > u2))
         ref_rows.append([r.name, fmt(r.e_W_s05_m2K, 5), f"{r.u_rel_e * 100:.2f} %", str(r.n_touches),
                          ", ".join(f"{x * 100:+.2f}" for x in errs) or "–",
                          f"{errs.mean() * 100:+.2f} %" if errs.size else "–",
-                         f"{math.sqrt(float(np.mean(errs ** 2))) * 100:.2f} %" if errs.size else "–"])
+                         f"{math.sqrt(float(np.mean(errs ** 2))) * 100:.2f} %" if errs.size else "–",
+                         f"{outside} of {errs.size} outside ±{u2 * 100:.1f} %" if outside else
+                         f"all within ±{u2 * 100:.1f} %"])
     chain = cal.chain
     body = [
         f"<h1>{esc(title)}</h1>",
@@ -99,7 +106,8 @@ def certificate_html(cal, *, source_name: str, generated_utc: str, software_vers
         "<code>calibration_sha256</code>. ± values are standard uncertainties (coverage factor k = 1).</p>",
         "<h2>Reference materials</h2>",
         table(["reference", "certified e (W s^0.5/(m² K))", "u (k = 1)", "touches",
-               "re-measured after calibration: e / certified − 1 (%)", "mean", "rms"], ref_rows,
+               "re-measured after calibration: e / certified − 1 (%)", "mean", "rms",
+               "against 2 u (reference and floor, k = 2)"], ref_rows,
               numeric=(1, 2, 3, 5, 6)) if ref_rows else "<p>No references recorded.</p>",
         png_img(residual_plot_png(cal), "relative error of each reference touch after calibration")
         if cal.references else "",

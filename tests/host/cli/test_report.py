@@ -120,10 +120,10 @@ def test_a_report_from_a_simulated_series(capsys, tmp_path):
 
 
 def _calibration(tmp_path, **kw):
+    kw.setdefault("references", (ReferenceFit("pmma <lot&7>", 570.0, 0.03, 3, (0.011, -0.02, 0.004)),
+                                 ReferenceFit("pyroceram", 2100.0, 0.025, 2, (0.013, -0.006))))
     cal = replace(ProbeCalibration.nominal(), calibrated=True, created_utc="2026-11-20T09:00:00+00:00",
-                  u_rel_floor=0.021,
-                  references=(ReferenceFit("pmma <lot&7>", 570.0, 0.03, 3, (0.011, -0.02, 0.004)),
-                              ReferenceFit("pyroceram", 2100.0, 0.025, 2, (0.013, -0.006))), **kw)
+                  u_rel_floor=0.021, **kw)
     p = tmp_path / "cal.json"
     p.write_text(cal.to_json())
     return p, cal
@@ -144,9 +144,20 @@ def test_the_certificate_has_references_residuals_parameters_and_the_issuer(caps
     assert "<td class=\"num\">570</td><td class=\"num\">3.00 %</td><td class=\"num\">3</td>" in html
     assert "+1.10, -2.00, +0.40" in html and "+1.30, -0.60" in html  # each re-measured touch, %
     assert "2.10 %" in html  # the residual floor
-    assert "400 ± 20" in html  # sensing depth, µm, with its u (the nominal 5 %)
+    # pmma: 2 u = 2 hypot(3 %, 2.1 %) = 7.3 %, every touch within; a reference read 11 % off would be named
+    assert "all within ±7.3 %" in html
+    assert "0.400 ± 0.020" in html  # sensing depth, mm, with its u (the nominal 5 %)
+    assert "1.000 ± 0.050" in html  # flux sensor sensitivity, × nominal
     for name in ("ln_flux_scale", "ln_sensing_thickness_m", "tc_tau_s", "ln_sensing_k_W_mK"):
         assert name in html
+
+
+def test_a_reference_re_measured_outside_its_u_is_pointed_out(capsys, tmp_path):
+    path, cal = _calibration(tmp_path, references=(ReferenceFit("aisi_304", 7493.0, 0.02, 2, (0.114, 0.01)),))
+    out = tmp_path / "cert.html"
+    code, _, err = run(capsys, "report", "--calibration", str(path), "--out", str(out))
+    assert code == 0, err
+    assert "1 of 2 outside ±5.8 %" in out.read_text()  # 2 hypot(2 %, 2.1 %)
 
 
 @pytest.mark.parametrize("content, words", [
