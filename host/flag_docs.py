@@ -19,7 +19,7 @@ import io
 import tokenize
 from dataclasses import dataclass
 
-__all__ = ["FlagDoc", "flag_docs", "describe_flag"]
+__all__ = ["FlagDoc", "flag_docs", "parse_flag_docs", "describe_flag"]
 
 
 @dataclass(frozen=True)
@@ -54,6 +54,11 @@ def flag_docs() -> tuple[FlagDoc, ...]:
         source = inspect.getsource(status)
     except (OSError, TypeError):
         return tuple(FlagDoc(v, k, "", "") for k, v in members.items())
+    return parse_flag_docs(source, members)
+
+
+def parse_flag_docs(source: str, members: dict[str, str]) -> tuple[FlagDoc, ...]:
+    """The :class:`FlagDoc` of each member (``{name: word}``) of ``class Flag`` in ``source``."""
     comments = _comments_by_line(source)
     lines = source.splitlines()
     cls = next(n for n in ast.parse(source).body if isinstance(n, ast.ClassDef) and n.name == "Flag")

@@ -69,3 +69,32 @@ def test_an_unknown_word_is_one_line_and_exit_2(capsys, word):
 
 def test_describe_flag_of_a_word_this_software_does_not_know():
     assert "not a flag" in describe_flag("from_the_future")
+
+
+def test_the_parser_reads_groups_multi_line_comments_and_a_member_without_one():
+    from host.flag_docs import parse_flag_docs
+
+    src = '''
+class Reason:
+    #: not this one
+    A = "a"
+
+
+class Flag:
+    """Flags."""
+
+    # -- from the first stage
+    #: First line,
+    #: second line.  Do this.
+    A = "a"
+    B = "b"  # an ordinary comment is not an explanation
+    # -- from the second stage
+    #: Third.
+    C = "c"
+'''
+    docs = parse_flag_docs(src, {"A": "a", "B": "b", "C": "c"})
+    assert [(d.word, d.group, d.text) for d in docs] == [
+        ("a", "from the first stage", "First line, second line.  Do this."),
+        ("b", "from the first stage", ""),
+        ("c", "from the second stage", "Third."),
+    ]
