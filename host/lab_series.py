@@ -36,6 +36,9 @@ MAX_BYTES = 64 * 1024 * 1024
 #: Device refusals of one touch that the series records (a touch without an answer) and goes on after;
 #: any other (a bad argument, a protocol error) stops the series.
 TOUCH_ERRORS = ("BUSY", "SENSOR_FAULT", "INTERNAL")
+#: Largest magnitude of a number in a series file read back (in SI units no answer comes near it; it keeps
+#: the statistics' squares finite on a hand-edited file).
+MAX_MAGNITUDE = 1e12
 #: Short names of the quantities in an answer's ``determined_by`` (edge.estimation.result.QUANTITIES).
 _SHORT = {"effusivity_W_s05_m2K": "e", "k_W_mK": "k", "alpha_m2_s": "alpha"}
 
@@ -208,6 +211,8 @@ def _finite_or_none(v: Any, where: str) -> None:
         return
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
         raise SeriesFileError(f"{where}: must be a finite number or null, got {v!r}")
+    if abs(v) > MAX_MAGNITUDE:
+        raise SeriesFileError(f"{where}: {v!r} is beyond any measurement (|x| <= {MAX_MAGNITUDE:g})")
 
 
 def _check_touch(i: int, t: Any) -> dict:
@@ -217,19 +222,44 @@ def _check_touch(i: int, t: Any) -> dict:
     for k in ("index", "answered", "answer", "flags"):
         if k not in t:
             raise SeriesFileError(f"{where}: no {k!r}")
+    if isinstance(t["index"], bool) or not isinstance(t["index"], int) or t["index"] < 1:
+        raise SeriesFileError(f"{where}.index: must be a whole number >= 1")
     if not isinstance(t["answered"], bool):
         raise SeriesFileError(f"{where}.answered: must be true or false")
     if not isinstance(t["flags"], list) or not all(isinstance(f, str) for f in t["flags"]):
         raise SeriesFileError(f"{where}.flags: must be a list of words")
+    for k in ("measurement_id",):
+        v = t.get(k)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int)):
+            raise SeriesFileError(f"{where}.{k}: must be a whole number or null")
+    for k in ("power_W", "contact_time_s", "heater_on_s", "T0_C"):
+        _finite_or_none(t.get(k), f"{where}.{k}")
+    for k in ("status", "reason", "started_utc", "created_utc", "model_sha256", "calibration_sha256", "no_answer"):
+        if t.get(k) is not None and not isinstance(t[k], str):
+            raise SeriesFileError(f"{where}.{k}: must be text or null")
     a = t["answer"]
     if a is not None and not isinstance(a, dict):
         raise SeriesFileError(f"{where}.answer: must be a table or null")
+    if a is not None:
+        for k in ("determined_by",):
+            v = a.get(k)
+            if v is not None and not (isinstance(v, dict) and all(isinstance(x, str) for x in v.values())):
+                raise SeriesFileError(f"{where}.answer.{k}: must be a table of words")
+        for k in ("determined", "from_prior", "flags"):
+            v = a.get(k)
+            if v is not None and not (isinstance(v, list) and all(isinstance(x, str) for x in v)):
+                raise SeriesFileError(f"{where}.answer.{k}: must be a list of words")
+        for k in ("probe", "method", "object", "material"):
+            if a.get(k) is not None and not isinstance(a[k], str):
+                raise SeriesFileError(f"{where}.answer.{k}: must be text or null")
     if t["answered"]:
         if a is None or a.get("effusivity_W_s05_m2K") is None:
             raise SeriesFileError(f"{where}: answered but no effusivity")
         for key, ukey, *_ in QUANTITIES:
             _finite_or_none(a.get(key), f"{where}.answer.{key}")
             _finite_or_none(a.get(ukey), f"{where}.answer.{ukey}")
+            if a.get(ukey) is not None and a[ukey] < 0:
+                raise SeriesFileError(f"{where}.answer.{ukey}: an uncertainty must be >= 0, got {a[ukey]!r}")
     t.setdefault("no_answer", None if t["answered"] else "not stated")
     for k in ("measurement_id", "status", "started_utc", "model_sha256", "calibration_sha256"):
         t.setdefault(k, None)

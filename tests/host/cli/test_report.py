@@ -226,3 +226,51 @@ def test_out_must_be_html(capsys, tmp_path, series_file):
     path, _ = series_file
     code, _, err = run(capsys, "report", str(path), "--out", str(tmp_path / "r.pdf"))
     assert code == 2 and ".html" in one_line_error(err)
+
+
+WEIRD = ("x", [], {"e": 1}, -1, True, None, float("nan"))
+NUMBERS = (-1.0, 0.0, None, float("nan"), 1e300)
+
+
+def _mutations(doc, where, values):
+    for value in values:
+        bad = json.loads(json.dumps(doc))
+        node = bad
+        for k in where[:-1]:
+            node = node[k]
+        node[where[-1]] = value
+        yield value, bad
+
+
+def _report_or_refuse(capsys, path, out, bad, what):
+    path.write_text(json.dumps(bad))
+    code, _, err = run(capsys, "report", str(path), "--out", str(out), "--overwrite")
+    assert code in (0, 2), (what, err)
+    if code == 2:
+        assert "internal error" not in one_line_error(err), (what, err)
+    return code
+
+
+def test_a_hand_edited_series_file_is_reported_or_refused_in_one_line_never_a_crash(capsys, tmp_path, series_file,
+                                                                                    monkeypatch):
+    import host.lab_report
+
+    # every field, every kind of wrong value; the plot is drawn by the next test (it costs 0.1 s a page)
+    monkeypatch.setattr(host.lab_report, "series_plot_png", lambda doc: b"\x89PNG\r\n\x1a\n")
+    path, doc = series_file
+    paths = [("touches", 0, k) for k in doc["touches"][0] if k != "answer"]
+    paths += [("touches", 0, "answer", k) for k in doc["touches"][0]["answer"]]
+    paths += [(k,) for k in ("metadata", "device", "settings", "software", "started_utc")]
+    paths += [("device", k) for k in doc["device"]] + [("settings", "cooldown_s"), ("software", "version")]
+    seen = set()
+    for where in paths:
+        for value, bad in _mutations(doc, where, WEIRD):
+            seen.add(_report_or_refuse(capsys, path, tmp_path / "r.html", bad, (where, value)))
+    assert seen == {0, 2}
+
+
+@pytest.mark.parametrize("key", ["effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u"])
+def test_odd_numbers_in_an_answer_are_plotted_or_refused(capsys, tmp_path, series_file, key):
+    path, doc = series_file
+    for value, bad in _mutations(doc, ("touches", 0, "answer", key), NUMBERS):
+        _report_or_refuse(capsys, path, tmp_path / "r.html", bad, (key, value))
