@@ -86,13 +86,15 @@ def certificate_html(cal, *, source_name: str, generated_utc: str, software_vers
     ref_rows = []
     for r in cal.references:
         errs = np.asarray(r.rel_errors, dtype=float)
+        with np.errstate(over="ignore"):  # a file's absurd error is shown as inf, not warned about on stderr
+            rms = math.sqrt(float(np.mean(errs ** 2))) if errs.size else None
         # a re-measured touch further than 2 u from the certified value (u: the reference's and the floor)
         u2 = 2.0 * math.hypot(r.u_rel_e, cal.u_rel_floor)
         outside = int(np.sum(np.abs(errs) > u2))
         ref_rows.append([r.name, fmt(r.e_W_s05_m2K, 5), f"{r.u_rel_e * 100:.2f} %", str(r.n_touches),
                          ", ".join(f"{x * 100:+.2f}" for x in errs) or "–",
                          f"{errs.mean() * 100:+.2f} %" if errs.size else "–",
-                         f"{math.sqrt(float(np.mean(errs ** 2))) * 100:.2f} %" if errs.size else "–",
+                         f"{rms * 100:.2f} %" if rms is not None else "–",
                          f"{outside} of {errs.size} outside ±{u2 * 100:.1f} %" if outside else
                          f"all within ±{u2 * 100:.1f} %"])
     chain = cal.chain

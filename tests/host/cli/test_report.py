@@ -158,6 +158,9 @@ def test_a_reference_re_measured_outside_its_u_is_pointed_out(capsys, tmp_path):
     code, _, err = run(capsys, "report", "--calibration", str(path), "--out", str(out))
     assert code == 0, err
     assert "1 of 2 outside ±5.8 %" in out.read_text()  # 2 hypot(2 %, 2.1 %)
+    path, _ = _calibration(tmp_path, references=(ReferenceFit("absurd", 7493.0, 0.02, 1, (1e300,)),))
+    code, _, err = run(capsys, "report", "--calibration", str(path), "--out", str(out), "--overwrite")
+    assert code == 0 and err == ""  # shown as it is, no warning on stderr
 
 
 @pytest.mark.parametrize("content, words", [
