@@ -113,13 +113,12 @@ def run_series(session: Any, n: int, *, voltage_V: float | None = None, power_W:
 
     A touch the device refuses for a reason of that touch (:data:`TOUCH_ERRORS`: busy, a sensor
     fault, an internal error) is recorded with status ``refused`` and counts as a touch without an
-    answer; any other refusal is raised.  Between touches the probe rests ``cooldown_s``: on a probe on a port the
-    host waits that long (lift the probe, let it cool, put it back); on a
-    simulated probe its simulated clock moves on by that much (its time moves
-    only while it works, so a wait on the host would change nothing).
-    ``answer_of`` makes each touch's answer (:func:`touch_entry`); ``before_touch(i)`` runs after the
-    rest, just before touch ``i`` (a prompt to place the probe); ``on_touch`` sees each entry as soon
-    as it is made (printing).
+    answer; any other refusal is raised.  Between touches the probe rests ``cooldown_s``: on a
+    probe on a port the host waits that long (lift the probe, let it cool, put it back); on a
+    simulated probe its simulated clock moves on by that much (its time moves only while it works,
+    so a wait on the host would change nothing).  ``answer_of`` makes each touch's answer
+    (:func:`touch_entry`); ``before_touch(i)`` runs after the rest, just before touch ``i`` (a
+    prompt to place the probe); ``on_touch`` sees each entry as soon as it is made (printing).
     """
     from host.client import DeviceError  # noqa: PLC0415
 
