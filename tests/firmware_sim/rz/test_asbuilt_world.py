@@ -83,3 +83,26 @@ def test_a_denser_more_conducting_foam_takes_more_of_the_small_heaters_heat(smal
     _, thin = run("glass_15V_small", "small-heater", AsBuilt(substrate_thickness_m=0.029))
     # 1 mm less foam changes nothing a 2-s touch sees (the heat does not reach its top).
     np.testing.assert_allclose(thin["q_sensor"], small["q_sensor"], rtol=1e-4)
+
+
+#: The paper probe's shipped as-built scenes before the as-built world (commit 2f8bbf6, same march):
+#: thermocouple (y), thermopile flux and heater power at 1.0, 2.0, 3.5 s; heating 1.5-3.5 s.
+BEFORE = {
+    "glass_15V_faithful": ([23.99705290247362, 24.022119476910593, 24.563587355364998],
+                           [348.29945369804045, 796.2921742560575, 1076.616023264185], 4.4114909950903956),
+    "alu_20V_faithful": ([23.174181762410804, 23.191950160722023, 23.41603548293803],
+                         [649.2596554899355, 1584.933718358865, 2278.4327772631077], 8.162464131197348),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BEFORE))
+def test_the_paper_probes_shipped_scenes_are_unchanged(name):
+    """Scenes that ask for nothing new (the paper probe reads its disk, no new keys) march as before."""
+    clk = VirtualClock()
+    clk.advance(4.0)
+    w = FaithfulWorld.for_scene(read_scene(name), clk, ScheduleDrive([1.5, 3.5], [1.0, 0.0]), dt_s=0.04)
+    s = w.series(np.array([1.0, 2.0, 3.5]))
+    y, q, p = BEFORE[name]
+    np.testing.assert_allclose(s["y"], y, rtol=1e-12)
+    np.testing.assert_allclose(s["q_sensor"], q, rtol=1e-12)
+    assert w.heater_power_W(2.0) == pytest.approx(p, rel=1e-12)
