@@ -57,8 +57,11 @@ Approximations that remain in the world
   3e-13 (PMMA, glass) and 1.5e-6 (copper); off-centre by 0.5 mm with a 5 %
   gradient 2.5e-6 (same command, ``paper_square_vs_disk``).  Drawn paper probes
   read their square anyway.
-* The thermocouple sits at the bottom of the sensing layer (its depth is not
-  drawn); the thermopile spans the whole sensing layer's depth.
+* The thermocouple's height above the sensing layer's bottom face is modelled
+  (``AsBuilt.thermocouple_height_m``, ``[as_built] thermocouple_height_m``) but
+  not drawn: no datasheet states it, and at ``q h / k`` (0.6 K for 50 um under
+  2.4 kW/m^2) a guessed range would swamp every other unknown; drawn probes put
+  the junction on the face.  The thermopile spans the whole sensing layer's depth.
 """
 
 from __future__ import annotations
@@ -221,4 +224,5 @@ def as_built_for_scene(scene: Scene) -> AsBuilt:
         substrate_thickness_m=None if sub is None or a.substrate_thickness_factor == 1.0
         else p.substrate_thickness_m * a.substrate_thickness_factor,
         sensor=SquareSensor(offset_x_m=a.sensor_offset_x_m, offset_y_m=a.sensor_offset_y_m) if wants_square else None,
-        thermocouple_r_m=a.thermocouple_r_m if a.thermocouple_r_m > 0 else None)
+        thermocouple_r_m=a.thermocouple_r_m if a.thermocouple_r_m > 0 else None,
+        thermocouple_height_m=a.thermocouple_height_m if a.thermocouple_height_m > 0 else None)

@@ -65,6 +65,8 @@ class AsBuilt:
         probe's equal-area disk).
     thermocouple_r_m : float or None
         The thermocouple's distance from the heater's axis (default the geometry's, 0).
+    thermocouple_height_m : float or None
+        The junction's height above the sensing layer's bottom face (default the geometry's, 0).
     """
 
     sensing_thickness_m: float | None = None
@@ -80,6 +82,7 @@ class AsBuilt:
     substrate_thickness_m: float | None = None
     sensor: SquareSensor | None = None
     thermocouple_r_m: float | None = None
+    thermocouple_height_m: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("sensing_thickness_m", "sensing_k_W_mK", "flux_sensitivity_V_per_W_m2",
@@ -92,7 +95,7 @@ class AsBuilt:
             raise ValueError(f"thermocouple_time_constant_s must be finite and >= 0, got {tau!r}")
         if not math.isfinite(self.heater_tcr_per_K):
             raise ValueError("heater_tcr_per_K must be finite")
-        for name in ("heater_lead_resistance_ohm", "thermocouple_r_m"):
+        for name in ("heater_lead_resistance_ohm", "thermocouple_r_m", "thermocouple_height_m"):
             v = getattr(self, name)
             if v is not None and not (v >= 0 and math.isfinite(v)):
                 raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
@@ -111,6 +114,8 @@ class AsBuilt:
             geo = replace(geo, sensor_square=self.sensor)
         if self.thermocouple_r_m is not None:
             geo = replace(geo, thermocouple_r_m=self.thermocouple_r_m)
+        if self.thermocouple_height_m is not None:
+            geo = replace(geo, thermocouple_height_m=self.thermocouple_height_m)
         return geo
 
 
@@ -138,6 +143,7 @@ class Geometry:
     #: only what the estimator assumes).
     sensor_square: SquareSensor | None = None
     thermocouple_r_m: float = 0.0            # the thermocouple's distance from the axis
+    thermocouple_height_m: float = 0.0       # its height above the sensing layer's bottom face
 
     def __post_init__(self) -> None:
         if not self.h_air_W_m2K >= 0 or math.isinf(self.h_air_W_m2K):
@@ -146,8 +152,9 @@ class Geometry:
             v = getattr(self, name)
             if v is not None and not (v > 0 and math.isfinite(v)):
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")
-        if not (self.thermocouple_r_m >= 0 and math.isfinite(self.thermocouple_r_m)):
-            raise ValueError("thermocouple_r_m must be finite and >= 0")
+        for name in ("thermocouple_r_m", "thermocouple_height_m"):
+            if not (getattr(self, name) >= 0 and math.isfinite(getattr(self, name))):
+                raise ValueError(f"{name} must be finite and >= 0")
 
 
 def geometry_for_probe(probe: ProbeGeometry | str, **overrides) -> Geometry:
@@ -265,6 +272,10 @@ def build_config(key: tuple, scene: Scene, geometry: Geometry, stack, sensing_ma
         g.meta["sensor_ring_weights"] = sq.ring_weights(g.r_faces_m[: g.r_index_below(r_s) + 1])
     if geo.thermocouple_r_m > 0:
         g.meta["thermocouple_r_m"] = geo.thermocouple_r_m
+    if geo.thermocouple_height_m > 0:
+        if geo.thermocouple_height_m >= stack.sensing_thickness_m:
+            raise ValueError("the thermocouple must lie inside the sensing layer")
+        g.meta["thermocouple_height_m"] = geo.thermocouple_height_m
     n_probe_rows = int(np.sum(g.layer_of_row < n_probe_layers))
     # Heater film mean temperature (for the TCR): volume weights over the heated disk.
     w = g.volume_source_W("heater", a_h, 1.0)

@@ -33,7 +33,7 @@ import numpy as np
 
 from edge.physics.geometry import SENSOR_SIDE_m
 
-__all__ = ["SquareSensor", "centred_square_weight", "centred_square_area_in_disk", "off_axis_weights"]
+__all__ = ["SquareSensor", "centred_square_weight", "centred_square_area_in_disk", "off_axis_weights", "depth_weights"]
 
 
 def centred_square_weight(r_m: np.ndarray, side_m: float) -> np.ndarray:
@@ -209,3 +209,12 @@ def off_axis_weights(r_faces_m: np.ndarray, r_m: float) -> list[tuple[int, float
     i = int(min(max(np.searchsorted(rho, x) - 1, 0), rho.size - 2))
     f = (x - rho[i]) / (rho[i + 1] - rho[i])
     return [(i, 1.0 - f), (i + 1, f)]
+
+
+def depth_weights(z_centres_m: np.ndarray, z_m: float) -> tuple[int, float]:
+    """``(j, f)``: a value at depth ``z_m`` is ``(1 - f) v[j] + f v[j + 1]`` between cell centres (clamped)."""
+    z = np.asarray(z_centres_m, dtype=float)
+    if z.size < 2:
+        raise ValueError("the sensing layer needs two rows to place the thermocouple inside it")
+    j = int(min(max(np.searchsorted(z, z_m) - 1, 0), z.size - 2))
+    return j, float(min(max((z_m - z[j]) / (z[j + 1] - z[j]), 0.0), 1.0))

@@ -181,6 +181,7 @@ class AsBuiltSpec:
     sensor_offset_x_m: float = 0.0
     sensor_offset_y_m: float = 0.0
     thermocouple_r_m: float = 0.0
+    thermocouple_height_m: float = 0.0
     draw_seed: int | None = None
 
 

@@ -73,6 +73,7 @@ nominal values)::
                                    float  the square's centre off the heater's axis (default 0;
                                           needs the square)
     thermocouple_r_m?              float  >= 0, thermocouple's distance from the axis (default 0)
+    thermocouple_height_m?         float  >= 0, junction above the sensing layer's bottom face (default 0)
     draw_seed?                     int    >= 0: draw every deviation per probe from
                                           firmware_sim.asbuilt's tolerances (alone in the table)
 
@@ -236,6 +237,8 @@ AS_BUILT_FIELDS: Mapping[str, Field] = {
     "sensor_offset_x_m": Field("float", 0.0, "square's centre off the heater's axis along x", lo=-0.005, hi=0.005),
     "sensor_offset_y_m": Field("float", 0.0, "square's centre off the heater's axis along y", lo=-0.005, hi=0.005),
     "thermocouple_r_m": Field("float", 0.0, "thermocouple's distance from the axis", lo=0.0, hi=0.005),
+    "thermocouple_height_m": Field("float", 0.0, "junction's height above the sensing layer's bottom face",
+                                   lo=0.0, hi=0.001),
     "draw_seed": Field("int", None, "draw every deviation from firmware_sim.asbuilt's tolerances", lo=0),
 }
 

@@ -95,14 +95,14 @@ def test_a_scene_asks_for_a_drawn_probe(name):
 
 def test_explicit_as_built_keys_reach_the_world():
     sc = parse_scene(_with_as_built("glass_15V_faithful", "sensor_square = true\nsensor_offset_x_m = 0.3e-3\n"
-                                    "substrate_k_factor = 1.2\nthermocouple_r_m = 0.4e-3\n"
+                                    "substrate_k_factor = 1.2\nthermocouple_r_m = 0.4e-3\nthermocouple_height_m = 2e-5\n"
                                     "heater_lead_resistance_ohm = 0.2"))
     ab = as_built_for_scene(sc)
     assert ab.sensor == SquareSensor(offset_x_m=0.3e-3)
     assert ab.substrate_k_W_mK == pytest.approx(PROBES["paper"].substrate.k_W_mK * 1.2)
     assert ab.substrate_rho_c_J_m3K is None and ab.substrate_thickness_m is None
     geo = ab.apply_to(geometry_for_probe("paper"))
-    assert geo.sensor_square == ab.sensor and geo.thermocouple_r_m == 0.4e-3
+    assert geo.sensor_square == ab.sensor and geo.thermocouple_r_m == 0.4e-3 and geo.thermocouple_height_m == 2e-5
     assert geo.substrate.k_W_mK == pytest.approx(0.036) and geo.substrate.rho_kg_m3 * geo.substrate.c_J_kgK == \
         pytest.approx(40.0 * 1400.0)
     with pytest.raises(SceneError, match="sensor_square"):

@@ -106,3 +106,19 @@ def test_the_paper_probes_shipped_scenes_are_unchanged(name):
     np.testing.assert_allclose(s["y"], y, rtol=1e-12)
     np.testing.assert_allclose(s["q_sensor"], q, rtol=1e-12)
     assert w.heater_power_W(2.0) == pytest.approx(p, rel=1e-12)
+
+
+def test_a_junction_above_the_face_reads_the_layers_gradient():
+    from edge.physics.probe import PROBE_MATERIAL
+    _, face = run("glass_15V", "paper")
+    k = PROBE_MATERIAL.k_W_mK
+    for h, lo, hi in ((5e-6, 1 - 1e-9, 1 + 1e-9), (100e-6, 1.0, 1.25)):
+        _, up = run("glass_15V", "paper", AsBuilt(thermocouple_height_m=h))
+        ratio = (up["T_tc"] - face["T_tc"]) / (face["q_face"] * h / k)
+        # Inside the last cell: exactly the face's gradient q / k.  Higher up: steeper while the layer
+        # still stores heat (the flux grows towards the heater), relaxing to q / k as it settles.
+        assert np.all((ratio >= lo) & (ratio <= hi)), (h, ratio)
+        if h > 50e-6:
+            assert np.all(np.diff(ratio) < 0), ratio
+    with pytest.raises(ValueError, match="inside the sensing layer"):
+        run("glass_15V", "paper", AsBuilt(thermocouple_height_m=0.5e-3))
