@@ -8,8 +8,8 @@ outlives the process:
 * ``file``: every ``os.open(O_CREAT)``, ``os.write``, ``os.fsync``, ``os.replace``,
   ``os.rename``, ``os.mkdir``, ``os.unlink`` and ``os.rmdir`` made from
   :mod:`edge.storage.durable`, :mod:`edge.model.store`, the bundle modules of :mod:`edge.model`,
-  :mod:`edge.service.config` or the calibration and object-set stores (found by the caller's stack, so ``shutil.rmtree`` and
-  ``Path.unlink`` inside ``durable.remove_tree`` count, step by step);
+  :mod:`edge.service.config` or the calibration and object-set stores (found by the caller's
+  stack, so ``shutil.rmtree`` and ``Path.unlink`` inside ``durable.remove_tree`` count, step by step);
 * ``sqlite``: every writing statement the history issues (``BEGIN``, ``INSERT``, ``COMMIT``; at
   start-up ``PRAGMA journal_mode``, ``CREATE TABLE``, ``PRAGMA user_version``); SQLite's own page
   writes (and its WAL recovery) happen inside one C call and cannot be split from Python;

@@ -173,7 +173,8 @@ def test_object_set_upload_survives_kill_at_every_step(root, server, name):
     op = K.objects_operation(root, name)
     trace, results = _all_points(op, root, server, lambda t: [_objects_restart(t)])
     assert Counter(s.split("\t")[0] for s in trace)["host"] == len(op.requests) >= 4  # BEGIN, >= 2 CHUNKs, COMMIT
-    assert "file\treplace .pending.tmp# -> pending" in trace and f"file\treplace .{name}.csv.tmp# -> {name}.csv" in trace
+    assert "file\treplace .pending.tmp# -> pending" in trace
+    assert f"file\treplace .{name}.csv.tmp# -> {name}.csv" in trace
     n = _objects_restart(trace)
     assert results[n - 1].confirmed == len(op.requests) - 1  # every chunk was acknowledged, the commit not
     _restart_is_clean(root / f"{op.name}-k{n}" / "state")
