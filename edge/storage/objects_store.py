@@ -407,7 +407,8 @@ class ObjectSetStore:
         UploadRefused
             The set fails verification, or the name is unusable.
         ObjectStoreError
-            The store is full or a write failed (the previous state stays).
+            The store is full or a write failed: the previous state stays, unless the set's bytes were
+            already in place (then the install is finished here, or at the next opening of the store).
         """
         try:
             check_name(name)
@@ -438,6 +439,8 @@ class ObjectSetStore:
                 os.unlink(self.root / self.PENDING)
                 durable.fsync_dir(self.root)
             except OSError as e:
+                self._finish_pending()  # past the commit point: finish now if the disk lets us
+                self._loaded = False
                 raise ObjectStoreError(f"cannot store object set {name!r}: {e}") from None
             self._loaded = False  # the active set (or its content) may have changed
             stored = StoredSet(name, hashlib.sha256(blob).hexdigest(), len(blob), objs)
