@@ -26,6 +26,7 @@ from edge.physics.probe import heater_power_W
 from edge.measure.sequence import MeasurementParams
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.service.config import RUNTIME_KEYS, Config
+from edge.storage.history import touch_header
 
 __all__ = ["REPLY_MARGIN", "SERIES_COLUMNS", "max_sample_rate_Hz", "measure_params", "fit_record", "history_page", "series_page",
            "config_reply"]
@@ -33,7 +34,8 @@ __all__ = ["REPLY_MARGIN", "SERIES_COLUMNS", "max_sample_rate_Hz", "measure_para
 #: Bytes kept free in a reply for the frame's JSON envelope.
 REPLY_MARGIN = 256
 #: SERIES reply names and History columns, per ``which``.
-SERIES_COLUMNS = {"raw": (("t_s", "raw_t_s"), ("T_C", "raw_T_C"), ("q_W_m2", "raw_q_W_m2")),
+SERIES_COLUMNS = {"raw": (("t_s", "raw_t_s"), ("T_C", "raw_T_C"), ("q_W_m2", "raw_q_W_m2"),
+                           ("T_dt_s", "raw_T_dt_s"), ("q_dt_s", "raw_q_dt_s")),
                   "grid": (("t_s", "grid_t_s"), ("dT_K", "grid_dT_K"), ("q_W_m2", "grid_q_W_m2"))}
 
 
@@ -171,13 +173,20 @@ def series_page(record: Mapping[str, Any], measurement_id: int, which: str, offs
         BAD_ARGUMENT for an offset past the end; INTERNAL if not even one
         sample fits.
     """
-    cols = [(name, record.get(col)) for name, col in SERIES_COLUMNS[which]]
+    # The read-time columns travel only when stored (records before them, and boards that do not time
+    # their reads, have none); the touch's header rides on the raw series' first page.
+    cols = [(name, record.get(col)) for i, (name, col) in enumerate(SERIES_COLUMNS[which])
+            if i < 3 or record.get(col) is not None]
     total = 0 if cols[0][1] is None else int(len(cols[0][1]))
     if offset > total:
         raise CommandError(ErrorCode.BAD_ARGUMENT, f"offset {offset} is past the end of the {which} series "
                            f"({total} samples)", "offset")
     end = total if limit is None else min(total, offset + limit)
     body: dict[str, Any] = {"measurement_id": measurement_id, "which": which, "offset": offset, "total": total}
+    if which == "raw" and offset == 0 and total:
+        header = touch_header(record)
+        if header is not None:
+            body["header"] = header
     body.update((name, []) for name, _ in cols)
     # JSON has no NaN: a non-finite sample travels as null.
     values = [[x if math.isfinite(x) else None for x in np.asarray(a[offset:end], float).tolist()]
