@@ -54,7 +54,8 @@ READ_TIME_COLUMNS = ("T_dt_s", "q_dt_s")
 _ZERO_C_K = 273.15
 
 
-_META = re.compile(r"^#\s*([A-Za-z_][A-Za-z0-9_]*)\s*:\s*(.*?)\s*$")
+# Keys may be dotted (``measurement.noise_T_K``: a device setting the touch was judged by).
+_META = re.compile(r"^#\s*([A-Za-z_][A-Za-z0-9_.]*)\s*:\s*(.*?)\s*$")
 
 
 def read_record_metadata(path: str | Path) -> dict[str, str]:

@@ -26,7 +26,7 @@ from edge.physics.probe import heater_power_W
 from edge.measure.sequence import MeasurementParams
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.service.config import RUNTIME_KEYS, Config
-from edge.storage.history import touch_header
+from edge.storage.history import series_header
 
 __all__ = ["REPLY_MARGIN", "SERIES_COLUMNS", "max_sample_rate_Hz", "measure_params", "fit_record", "history_page", "series_page",
            "config_reply"]
@@ -184,7 +184,7 @@ def series_page(record: Mapping[str, Any], measurement_id: int, which: str, offs
     end = total if limit is None else min(total, offset + limit)
     body: dict[str, Any] = {"measurement_id": measurement_id, "which": which, "offset": offset, "total": total}
     if which == "raw" and offset == 0 and total:
-        header = touch_header(record)
+        header = series_header(record)
         if header is not None:
             body["header"] = header
     body.update((name, []) for name, _ in cols)

@@ -60,7 +60,7 @@ import numpy as np
 
 from edge.status import Status
 
-__all__ = ["HistoryError", "History", "SCHEMA_VERSION", "touch_header", "utc_now"]
+__all__ = ["HistoryError", "History", "SCHEMA_VERSION", "series_header", "touch_header", "utc_now"]
 
 SCHEMA_VERSION = 2
 _SERIES = ("raw_t_s", "raw_T_C", "raw_q_W_m2", "grid_t_s", "grid_dT_K", "grid_q_W_m2", "raw_T_dt_s", "raw_q_dt_s")
@@ -179,6 +179,20 @@ def touch_header(record: Mapping[str, Any]) -> dict[str, Any] | None:
         "saturated": "saturated" in (record.get("flags") or []),
         "header_rebuilt": True,
     }
+
+
+def series_header(record: Mapping[str, Any]) -> dict[str, Any] | None:
+    """What an exported series states before its columns: :func:`touch_header` and the settings of
+    the row's ``[measurement]`` snapshot (``measurement.noise_T_K`` ...: the thresholds its quality
+    flags were judged by), so that the touch can be estimated offline as the device estimated it.
+    None when the row has no header to give."""
+    header = touch_header(record)
+    if header is None:
+        return None
+    settings = (record.get("config") or {}).get("measurement") or {}
+    header.update((f"measurement.{k}", v) for k, v in sorted(settings.items())
+                  if isinstance(v, (bool, int, float, str)))
+    return header
 
 
 class History:
