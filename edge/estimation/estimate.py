@@ -42,6 +42,7 @@ from edge.estimation.mlp import MLP
 from edge.estimation.spline import resample
 from edge.model.bundle import Bundle, max_relative_error
 from edge.physics.fluxmodel import duhamel_apply, surface_temperature, surface_temperature_scan
+from edge.physics.probe import volumetric_heat_W_m3
 from edge.physics.solids import Solid
 from edge.status import Flag
 
@@ -231,7 +232,7 @@ class Estimator:
     # -- entry point ------------------------------------------------------------
     def estimate(self, t_s, dT_K, q_W_m2, *, t_q_s=None, method: str = "default", thickness_m: float | None = None,
                  back: str = "infinite", q_v_W_m3: float | None = None, n_raw: int | None = None,
-                 T_resolution_K: float = 0.0) -> Estimate:
+                 T_resolution_K: float = 0.0, power_W: float | None = None) -> Estimate:
         """Estimate from a record that starts at heater-on.
 
         Parameters
@@ -244,10 +245,14 @@ class Estimator:
             ``"fixed"`` back) lets the default method separate k and alpha.
         q_v_W_m3 : heater power density, only used to flag powers outside
             the paper network's training range.
+        power_W : the heater's power (W): the same flag, through the paper heater's
+            volume (the network's training convention; ``q_v_W_m3`` wins when both are given).
         T_resolution_K : the thermometer's resolution (ADC step in K); its
             rounding error enters the uncertainty of e (0: none known).
         """
         one_of("method", method, METHODS)
+        if q_v_W_m3 is None and power_W is not None:
+            q_v_W_m3 = volumetric_heat_W_m3(power_W)
         tT = finite_array("t_s", t_s, min_len=4)
         strictly_increasing("t_s", tT)
         T = finite_array("dT_K", dT_K)
@@ -316,14 +321,9 @@ class Estimator:
         chain's, :func:`edge.service.calibration.promote_chain`).
         """
         flags = [] if flags is None else flags
-        ln_rc, u_ln_rc, outside = self.library.prior_rho_c(e, u_ln_e)
+        k, u_ln_k, alpha, u_ln_alpha, outside = self.library.k_alpha_given_e(e, u_ln_e)
         if outside:
             flags.append(Flag.OUTSIDE_TRAINING_RANGE)
-        rc = math.exp(ln_rc)
-        k = e * e / rc
-        alpha = k / rc
-        u_ln_k = math.hypot(2 * u_ln_e, u_ln_rc)
-        u_ln_alpha = math.hypot(2 * u_ln_e, 2 * u_ln_rc)
         return self._finish(e, u_ln_e, k, u_ln_k, alpha, u_ln_alpha, method, flags, fit, grid)
 
     def _default_finite(self, grid, Tg, qg, n_eff, flags, thickness_m, back, lsb_K) -> Estimate:
