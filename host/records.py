@@ -280,23 +280,46 @@ def read_touch(path: str | Path, probe: str | None = None):
     canonical = {f.lower(): f for f in HEADER_FIELDS}
     header = {canonical.get(k.lower(), k): v for k, v in meta.items()}
     recorded = header.get("probe")
-    if probe is not None and recorded is not None and recorded != probe:
-        raise RecordError(f"{path} was taken with probe {recorded!r}, not --probe {probe}")
+    exported = any(f in header for f in HEADER_FIELDS if f != "probe")
+    # An export names its probe; an older CSV is the paper probe's unless --probe or its probe line says.
+    name = probe or recorded if exported else probe or "paper"
+    if recorded is not None and recorded != name:
+        raise RecordError(f"{path} was taken with probe {recorded!r}, not --probe {name}")
     try:
-        if any(f in header for f in HEADER_FIELDS if f != "probe"):
+        if exported:
             # A device's export: every field as the device had it.
             return TouchRecord.from_header(header, t, T_C, q, s.get("T_dt_s"), s.get("q_dt_s"))
-        name = recorded or probe or "paper"
-        if name not in PROBES:
-            raise RecordError(f"{path}: unknown probe {name!r}; shipped: {', '.join(PROBES)}")
-        geometry = PROBES[name]
-        heating = t > 0
-        power_W = geometry.nominal_power_W
-        if "heater_W_m2" in s and heating.any():
-            power_W = float(np.mean(s["heater_W_m2"][heating])) * geometry.heater_area_m2
-        return TouchRecord(probe=name, t_s=t, T_C=T_C, q_W_m2=q, power_W=power_W,
-                           heater_on_s=max(float(t[-1]), 0.0), sample_rate_Hz=1.0 / float(np.median(np.diff(t))),
-                           baseline_s=max(-float(t[0]), 0.0), T_dt_s=s.get("T_dt_s"), q_dt_s=s.get("q_dt_s"),
-                           meta={k: v for k, v in header.items() if k != "probe"} | {"header": "none (older CSV)"})
+        return _older_record(path, name, s, T_C, {k: v for k, v in header.items() if k != "probe"})
     except BadRecord as exc:
         raise RecordError(f"{path}: {exc}") from None
+
+
+def _older_record(path: Path, name: str, s: dict, T_C: np.ndarray, meta: dict):
+    """A record without a device's header, as ``estimate`` always read one (see :func:`read_touch`).
+
+    Its baseline is what the file says it is: the samples before heater-on, or -- when it starts at
+    heater-on -- the excess's zero (``dT_K``) or the first reading (``T_K``, ``T_C``), with no flux
+    offset; one sample before heater-on carries that baseline, so the record goes through the one
+    estimate path like any other.
+    """
+    from edge.estimation.record import TouchRecord  # noqa: PLC0415
+    from edge.physics.geometry import PROBES  # noqa: PLC0415
+
+    if name not in PROBES:
+        raise RecordError(f"{path}: unknown probe {name!r}; shipped: {', '.join(PROBES)}")
+    geometry = PROBES[name]
+    t, q = s["t_s"], s["q_W_m2"]
+    dt = float(np.median(np.diff(t)))
+    dts = [s.get(c) for c in READ_TIME_COLUMNS]
+    if t[0] >= 0:
+        T_base = 0.0 if s["T_column"] == "dT_K" else float(T_C[0])
+        t, T_C, q = (np.concatenate(([min(t[0] - dt, -dt)], t)), np.concatenate(([T_base], T_C)),
+                     np.concatenate(([0.0], q)))
+        dts = [None if a is None else np.concatenate(([0.0], a)) for a in dts]
+    heating = s["t_s"] > 0
+    power_W = geometry.nominal_power_W
+    if "heater_W_m2" in s and heating.any():
+        power_W = float(np.mean(s["heater_W_m2"][heating])) * geometry.heater_area_m2
+    return TouchRecord(probe=name, t_s=t, T_C=T_C, q_W_m2=q, power_W=power_W, heater_on_s=max(float(t[-1]), 0.0),
+                       sample_rate_Hz=1.0 / dt, baseline_s=-float(t[0]), T_dt_s=dts[0], q_dt_s=dts[1],
+                       meta=meta | {"header": "none (older CSV)"})

@@ -184,7 +184,8 @@ def resample(t_s, series, t_new_s) -> np.ndarray:
     For fixed knots and targets resampling is a linear operator W.  A pair
     of time bases seen a second time (the daemon's grid, an instrument's
     fixed sample times) gets its W cached, if it has at most
-    :data:`_OPERATOR_MAX` entries, and is then resampled as ``W @ y``.
+    :data:`_OPERATOR_MAX` entries; every series within that bound is resampled as ``W @ y``
+    (the same arithmetic whether W was cached or not).
     """
     x = np.asarray(t_s, dtype=np.float64)
     xi = np.asarray(t_new_s, dtype=np.float64)
@@ -202,15 +203,16 @@ def resample(t_s, series, t_new_s) -> np.ndarray:
             _seen[key] = True
             while len(_seen) > _SEEN_KEPT:
                 _seen.popitem(last=False)
-    if W is None and not again:
-        return CubicSpline(x, y)(xi)
+    # Always W @ y, cached or not: the direct spline rounds differently in the last bits, and a record
+    # must give the same answer bit for bit in a warm daemon and a fresh `thermotouch estimate`.
     if W is None:
         W = resampling_operator(x, xi)  # validates x
         W.flags.writeable = False
-        with _cache_lock:
-            _operators[key] = W
-            while len(_operators) > _OPERATORS_KEPT:
-                _operators.popitem(last=False)
+        if again:
+            with _cache_lock:
+                _operators[key] = W
+                while len(_operators) > _OPERATORS_KEPT:
+                    _operators.popitem(last=False)
     if y.shape[0] != x.size:
         raise ValueError(f"y has {y.shape[0]} rows but x has {x.size} points")
     if not np.all(np.isfinite(y)):
