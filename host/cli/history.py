@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import os
 from pathlib import Path
 
@@ -71,10 +72,15 @@ def _export_series(args) -> int:
     if t is None or len(t) == 0:
         raise CliError(f"--export-series {mid}: the device stored no raw record for it", EXIT_RUNTIME)
     touch = _touch(mid, header, s)
+    result = rec.get("result") or {}
     identity = {"measurement_id": mid, "started_utc": rec.get("started_utc"),
-                "calibration_sha256": (rec.get("result") or {}).get("calibration_sha256"),
-                "model_sha256": rec.get("model_sha256") or (rec.get("result") or {}).get("model_sha256"),
-                "software": info.get("firmware_version"), "board": info.get("board")}
+                "calibration_sha256": result.get("calibration_sha256"),
+                "model_sha256": rec.get("model_sha256") or result.get("model_sha256"),
+                "object_set": result.get("object_set"), "software": info.get("firmware_version"),
+                "board": info.get("board"),
+                # The running decision the device judged the answer against (one line of JSON).
+                "decision": None if not isinstance(result.get("decision"), dict)
+                else json.dumps(result["decision"], separators=(",", ":"), sort_keys=True)}
     try:
         write_touch(path, touch, identity)
     except OSError as exc:
