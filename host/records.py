@@ -285,6 +285,8 @@ def read_touch(path: str | Path, probe: str | None = None):
     name = probe or recorded if exported else probe or "paper"
     if recorded is not None and recorded != name:
         raise RecordError(f"{path} was taken with probe {recorded!r}, not --probe {name}")
+    if name not in PROBES:
+        raise RecordError(f"{path}: unknown probe {name!r}; shipped: {', '.join(PROBES)}")
     try:
         if exported:
             # A device's export: every field as the device had it.
@@ -305,8 +307,6 @@ def _older_record(path: Path, name: str, s: dict, T_C: np.ndarray, meta: dict):
     from edge.estimation.record import TouchRecord  # noqa: PLC0415
     from edge.physics.geometry import PROBES  # noqa: PLC0415
 
-    if name not in PROBES:
-        raise RecordError(f"{path}: unknown probe {name!r}; shipped: {', '.join(PROBES)}")
     geometry = PROBES[name]
     t, q = s["t_s"], s["q_W_m2"]
     dt = float(np.median(np.diff(t)))

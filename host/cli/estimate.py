@@ -7,7 +7,7 @@ import argparse
 from host.cli.args import existing_file, positive_float
 from host.cli.calibrate import calibration_file
 from host.cli.common import load_estimator, load_object_set
-from host.cli.errors import CliError
+from host.cli.errors import EXIT_RUNTIME, CliError
 from host.cli.report import dumps, print_result
 
 
@@ -134,6 +134,13 @@ def run(args) -> int:
     except RecordError as exc:
         raise CliError(f"--csv {exc}") from None
     _check_method(record.probe, args)
+    status = record.meta.get("status")
+    if status is not None and status != "ok":
+        # The device estimates only a touch that ended well; an export of one that failed or was cut
+        # short has no device answer to reproduce, and an estimate of its partial record would be a guess.
+        why = record.meta.get("reason")
+        raise CliError(f"--csv {args.csv}: measurement {record.meta.get('measurement_id', '?')} ended {status}"
+                       f"{f' ({why})' if why else ''} on the device: no estimate", EXIT_RUNTIME)
     if args.method is not None and args.method != record.method:
         try:
             record = replace(record, method=args.method)

@@ -73,7 +73,8 @@ def _export_series(args) -> int:
         raise CliError(f"--export-series {mid}: the device stored no raw record for it", EXIT_RUNTIME)
     touch = _touch(mid, header, s)
     result = rec.get("result") or {}
-    identity = {"measurement_id": mid, "started_utc": rec.get("started_utc"),
+    identity = {"measurement_id": mid, "started_utc": rec.get("started_utc"), "status": rec.get("status"),
+                "reason": rec.get("reason"),
                 "calibration_sha256": result.get("calibration_sha256"),
                 "model_sha256": rec.get("model_sha256") or result.get("model_sha256"),
                 "object_set": result.get("object_set"), "software": info.get("firmware_version"),

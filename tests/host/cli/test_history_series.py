@@ -40,3 +40,39 @@ def test_unknown_measurement_and_bad_id_are_one_line(capsys, tmp_path):
     code, _, err = run(capsys, "history", "--sim", "glass_15V", "--export-series", 5, tmp_path / "a.csv")
     assert code == 1 and "5" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "a.csv").exists()
+
+
+def test_export_carries_the_stored_touch_bit_for_bit(capsys, tmp_path):
+    """A stored touch (header, raw columns and read times) comes back from the file exactly as stored."""
+    import numpy as np
+
+    from edge.estimation.record import HEADER_FIELDS
+    from edge.storage.history import History
+    from host.records import read_touch
+
+    w = tmp_path / "w"
+    rng = np.random.default_rng(7)
+    n = 700  # more than one SERIES page
+    t = np.sort(rng.uniform(-3.0, 4.0, n))
+    header = {"probe": "small-heater", "power_W": 0.0467, "heater_on_s": 3.9, "sample_rate_Hz": 100.0,
+              "baseline_s": 0.5, "method": "default", "T_age_s": 1.0 / 3.0, "T_resolution_K": 0.0625,
+              "saturated": False, "arm_s": 30.0, "contact_detected_s": 1.234567890123}
+    rec = {"status": "ok", "flags": ["uncalibrated"], "result": {"calibration_sha256": None, "object_set": "library"},
+           "config": {"measurement": {"noise_T_K": 0.123, "baseline_s": 0.5}}, "power_W": 0.0467,
+           "heater_on_s": 3.9, "sample_rate_Hz": 100.0, "model_sha256": "c" * 64, "started_utc": "2026-11-27T12:00:00Z",
+           "raw_t_s": t, "raw_T_C": 25 + rng.normal(size=n) / 3, "raw_q_W_m2": rng.normal(size=n) * 1e3 / 7,
+           "raw_T_dt_s": rng.uniform(0, 2e-3, n), "raw_q_dt_s": rng.uniform(0, 2e-3, n), "touch_header": header}
+    with History(w / "history.sqlite3") as h:
+        mid = h.add(rec)
+    f = tmp_path / "touch.csv"
+    code, out, err = run(capsys, "history", "--sim", "glass_15V", "--workdir", w, "--export-series", mid, f)
+    assert code == 0 and f"{n} samples" in out, err
+    touch = read_touch(f)
+    for name, col in (("t_s", "raw_t_s"), ("T_C", "raw_T_C"), ("q_W_m2", "raw_q_W_m2"), ("T_dt_s", "raw_T_dt_s"),
+                      ("q_dt_s", "raw_q_dt_s")):
+        assert np.array_equal(getattr(touch, name), rec[col]), name
+    assert {k: getattr(touch, k) for k in HEADER_FIELDS} == header
+    assert touch.meta["measurement_id"] == str(mid) and touch.meta["model_sha256"] == "c" * 64
+    assert touch.meta["measurement.noise_T_K"] == "0.123" and touch.meta["status"] == "ok"
+    assert touch.meta["started_utc"] == "2026-11-27T12:00:00Z" and touch.meta["software"]
+    assert "calibration_sha256" not in touch.meta  # uncalibrated: no line rather than a 'none'
