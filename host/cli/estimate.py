@@ -114,7 +114,7 @@ def _decision(meta: dict) -> dict | None:
 def run(args) -> int:
     from dataclasses import replace  # noqa: PLC0415
 
-    from edge.estimation.objects import LIBRARY_SET, ObjectSet  # noqa: PLC0415
+    from edge.recognition import LIBRARY_SET, ObjectSet  # noqa: PLC0415
     from edge.estimation.record import RecordError as BadRecord  # noqa: PLC0415
     from edge.estimation.seam import SeamContext, estimate_touch  # noqa: PLC0415
     from host.records import RecordError, read_touch  # noqa: PLC0415
