@@ -174,6 +174,9 @@ class History:
         ``config`` (JSON-able dict), the scalar columns and the series
         columns (1-D float arrays) of the schema. Unknown keys are refused.
         """
+        # SEAM branch only: the sequence's record carries the touch header and the read times, which the
+        # ROUNDTRIP branch's history (schema v2) stores; until it lands they are not stored here.
+        record = {k: v for k, v in record.items() if k not in ("touch_header", "raw_T_dt_s", "raw_q_dt_s")}
         known = set(_SERIES) | set(_SCALARS) | {"flags", "result", "config"}
         unknown = set(record) - known
         if unknown:
