@@ -112,11 +112,36 @@ def write_json(name: str, payload: dict) -> Path:
     return path
 
 
-def update_readme(tag: str, text: str) -> None:
-    """Replace the block between <!-- tag:begin --> and <!-- tag:end --> in README.md."""
-    readme = ROOT / "README.md"
-    src = readme.read_text()
-    pat = re.compile(rf"(<!-- {tag}:begin -->\n).*?(<!-- {tag}:end -->)", re.S)
+README = ROOT / "README.md"
+#: Where the benches' generated tables live (docs/results.md); the README keeps the suite, demo and accuracy blocks.
+RESULTS_MD = ROOT / "docs" / "results.md"
+
+
+def write_block(tag: str, text: str, path: Path = RESULTS_MD) -> Path:
+    """Replace the text between ``<!-- tag:begin -->`` and ``<!-- tag:end -->`` in ``path``; the one writer.
+
+    Parameters
+    ----------
+    tag : str
+        The marker's name, e.g. ``"forward-bench"``.
+    text : str
+        The block's new content (Markdown); a trailing newline is added.
+    path : Path
+        The Markdown file holding the markers (default docs/results.md).
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    src = path.read_text()
+    pat = re.compile(rf"(<!-- {re.escape(tag)}:begin -->\n).*?(<!-- {re.escape(tag)}:end -->)", re.S)
     if not pat.search(src):
-        raise SystemExit(f"README.md has no <!-- {tag}:begin --> ... <!-- {tag}:end --> block")
-    readme.write_text(pat.sub(lambda m: m.group(1) + text.rstrip() + "\n" + m.group(2), src))
+        raise SystemExit(f"{path.relative_to(ROOT)} has no <!-- {tag}:begin --> ... <!-- {tag}:end --> block")
+    path.write_text(pat.sub(lambda m: m.group(1) + text.rstrip() + "\n" + m.group(2), src))
+    return path
+
+
+def update_readme(tag: str, text: str) -> Path:
+    """:func:`write_block` into README.md (the blocks the front page keeps: suite, demo time, accuracy)."""
+    return write_block(tag, text, README)

@@ -30,7 +30,7 @@ import statistics
 import sys
 import time
 
-from _common import ROOT, update_readme, write_json
+from _common import ROOT, write_block, write_json
 
 sys.path.insert(0, str(ROOT))
 
@@ -125,7 +125,7 @@ def main() -> None:
         "overall": overall, "cases": out})
     print(f"wrote {path}")
     if args.update_readme:
-        update_readme("axifit-speed-bench", _readme_text(overall, out, len(all_ms), args.repeat, load_before))
+        write_block("axifit-speed-bench", _readme_text(overall, out, len(all_ms), args.repeat, load_before))
 
 
 def _readme_text(overall: dict, out: dict, n: int, repeat: int, load: float) -> str:

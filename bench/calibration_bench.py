@@ -39,44 +39,16 @@ import json
 import math
 import time
 
-from _common import RESULTS, update_readme
+from _common import RESULTS, write_block
+from _objects import PROBES, REFERENCES, SOLIDS, as_built
 
 import numpy as np
 
-REFERENCES = (("pmma", 0.0, -1.0), ("pmma", 1e-5, 1.0), ("pyroceram", 0.0, 1.0), ("pyroceram", 1e-5, -1.0),
-              ("aisi_304", 0.0, 1.0), ("aisi_304", 1e-5, -1.0))
-SOLIDS = ("polystyrene_extruded_foam", "cork_board", "balsa", "oak_cross_grain", "ptfe", "hdpe", "natural_rubber_soft",
-          "epdm", "n_bk7", "borofloat_33", "soda_lime_plate_glass", "macor", "zirconia_3y", "granite", "marble",
-          "ti_6al_4v", "inconel_x750", "cartridge_brass", "aluminium", "copper")
-def _draw_probes(n: int) -> tuple:
-    """As-built probes: (flux sensitivity factor, sensing thickness factor, sensing k factor, bead lag s),
-    drawn once (seeded) from the as-delivered spreads the uncalibrated device states for itself
-    (edge.physics.probe): so the datasheet chain's stated u can be judged on probes that really are
-    that uncertain."""
-    from edge.physics.probe import (FLUX_SENSITIVITY_U_REL, SENSING_K_U_REL, SENSING_THICKNESS_U_REL,
-                                    THERMOCOUPLE_TAU_U_s)
-    rng = np.random.default_rng(20261124)
-    return tuple((round(1.0 + FLUX_SENSITIVITY_U_REL * float(rng.standard_normal()), 4),
-                  round(1.0 + SENSING_THICKNESS_U_REL * float(rng.standard_normal()), 4),
-                  round(1.0 + SENSING_K_U_REL * float(rng.standard_normal()), 4),
-                  round(abs(THERMOCOUPLE_TAU_U_s * float(rng.standard_normal())), 4)) for _ in range(n))
-
-
-PROBES = _draw_probes(8)
 RC_SPLIT = 3e-5
 
 
 def _pct(x) -> str:
     return "-" if x is None else f"{x:.0%}"
-
-
-def _as_built(p):
-    from edge.physics.probe import DEFAULT_STACK, FLUX_SENSITIVITY_V_per_W_m2
-    from firmware_sim.rz.probe_world import AsBuilt
-    s, L, k, tau = p
-    return AsBuilt(sensing_thickness_m=DEFAULT_STACK.sensing_thickness_m * L,
-                   sensing_k_W_mK=DEFAULT_STACK.material.k_W_mK * k,
-                   flux_sensitivity_V_per_W_m2=FLUX_SENSITIVITY_V_per_W_m2 * s, thermocouple_time_constant_s=tau)
 
 
 def main() -> None:
@@ -122,7 +94,7 @@ def main() -> None:
         # The estimator is told the geometry: the world's 1-D limit is an infinite disk.
         radius = math.inf if geo_name == "1d" else None
         for pi, p in enumerate(PROBES[:args.probes]):
-            ab = _as_built(p)
+            ab = as_built(p)
             refs = []
             # This probe's reference specimens: real blocks of pmma, pyroceram, AISI 304 differ from the
             # library's value by about the uncertainty the calibration is told (REFERENCE_U_REL); the
@@ -214,7 +186,7 @@ def main() -> None:
     (RESULTS / f"calibration{suffix}.json").write_text(json.dumps(out, indent=1, default=float))
     if args.update_readme:
         cmd = "python bench/calibration_bench.py" + ("" if args.board == "precision" else f" --board {args.board}")
-        update_readme(f"calibration-bench{suffix.replace('_', '-')}",
+        write_block(f"calibration-bench{suffix.replace('_', '-')}",
                       f"{args.board.capitalize()} board: {args.probes} as-built probes x {args.solids} solids, "
                       f"{args.heat:g}-s heating, {out['wall_s']:.0f} s wall (`{cmd} --update-readme`).\n\n" + table)
 

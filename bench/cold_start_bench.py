@@ -29,7 +29,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from _common import ROOT, interleaved, update_readme, write_json
+from _common import ROOT, interleaved, write_block, write_json
 
 _CHILD = r"""
 import time
@@ -85,7 +85,7 @@ def main() -> None:
     print(f"wrote {write_json('cold_start', res)}")
     if args.update_readme:
         c = res["cases"]
-        update_readme("cold-start", f"{c['source only']['process_wall_s']['median_s'] * 1e3:.0f} ms (source only) and "
+        write_block("cold-start", f"{c['source only']['process_wall_s']['median_s'] * 1e3:.0f} ms (source only) and "
                       f"{c['compiled']['process_wall_s']['median_s'] * 1e3:.0f} ms (compiled) from process start to "
                       "a loaded estimator")
 

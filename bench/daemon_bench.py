@@ -176,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
     if a.n < 20:
         ap.error("--n must be >= 20")
 
-    from _common import update_readme, write_json
+    from _common import write_block, write_json
     from host.client import DeviceClient
 
     with tempfile.TemporaryDirectory(prefix="daemon-bench-") as workdir:
@@ -257,7 +257,7 @@ def main(argv: list[str] | None = None) -> int:
     print(json.dumps(show, indent=1))
     print(f"wrote {path}", file=sys.stderr)
     if a.update_readme:
-        update_readme("daemon-bench", readme_text(result))
+        write_block("daemon-bench", readme_text(result))
     return 0
 
 

@@ -1,6 +1,6 @@
 """Sequential decision: how long must a touch heat before the answer is decided, at what accuracy?
 
-The robot's 14-object set of bench/tactile_bench.py (5 % specimen spread),
+The robot's 14-object set (bench/_objects.py, shared with bench/tactile_bench.py; 5 % specimen spread),
 each object touched as ``--touches`` specimens (ln e and ln α drawn with the
 spread, host/recognition's specimen model), on the precision board
 (ads122c04 instrument model: 90 Hz, 24-bit), q_v = 7.7e7 W/m^3, 20-mm
@@ -29,13 +29,13 @@ import time
 
 import numpy as np
 
-from _common import update_readme, write_json
-from edge.estimation.objects import ObjectSet
+from _common import write_block, write_json
+from edge.recognition import ObjectSet
 from edge.estimation.running import SequentialDecision
 from edge.measure.instrument import INSTRUMENTS
 from host.evaluate import TouchSimulator
 from host.recognition import _specimen, _specimens, library_estimator
-from tactile_bench import IN_SET
+from _objects import IN_SET
 
 FIXED_S = 1.5
 Q_V = 7.7e7
@@ -101,7 +101,7 @@ def run(touches: int, threshold: float, min_s: float, seed: int, objects=IN_SET,
 def run_faithful(touches: int, threshold: float, min_s: float, seed: int, objects=IN_SET, probe: int = 0) -> dict:
     """Until-decided on the faithful (r, z) world: the raw thick-body decision against the calibrated chain's.
 
-    One as-built probe (``bench/calibration_bench.PROBES[probe]``: sensitivity, sensing layer and bead
+    One as-built probe (``bench/_objects.PROBES[probe]``: sensitivity, sensing layer and bead
     lag off the datasheet, never told to the device) is calibrated on the calibration bench's six
     reference touches (library values), then touches ``touches`` specimens of every object: contact
     1 s before heater-on, R_c drawn in [0, 3e-5] m^2K/W, object -2..+2 K off the probe, 1.5 s of
@@ -111,8 +111,8 @@ def run_faithful(touches: int, threshold: float, min_s: float, seed: int, object
     a touch not decided by 1.5 s takes the fixed answer of its own kind (the default estimate of the
     whole record, or the chain's).
     """
-    from calibration_bench import PROBES, REFERENCES, _as_built
-    from tactile_bench import bayes_ceiling
+    from _objects import PROBES, REFERENCES, as_built
+    from _recognition import bayes_ceiling
 
     from edge.calibration.fit import ReferenceTouch, fit_calibration
     from edge.estimation.chain_decision import ChainDecision
@@ -123,7 +123,7 @@ def run_faithful(touches: int, threshold: float, min_s: float, seed: int, object
     from host.recognition import CONTACT_TIMES_S
 
     lib = load_materials()
-    ab = _as_built(PROBES[probe])
+    ab = as_built(PROBES[probe])
     refs = []
     for j, (name, rc, off) in enumerate(REFERENCES):
         r = record_touch(ContactTouch(lib.get(name).solid, rc, off, lead_s=1.0, heat_s=FIXED_S), as_built=ab,
@@ -381,7 +381,7 @@ def main() -> None:
         print(table)
         write_json("decision_faithful_small" + ("_rc" if a.fit_contact else ""), res)
         if a.update_readme and not a.fit_contact:
-            update_readme("decision-faithful-small-bench", table)
+            write_block("decision-faithful-small-bench", table)
         return
     if a.world == "faithful":
         w = time.perf_counter()
@@ -391,7 +391,7 @@ def main() -> None:
         print(table)
         write_json("decision_faithful", res)
         if a.update_readme:
-            update_readme("decision-faithful-bench", table)
+            write_block("decision-faithful-bench", table)
         return
     w = time.perf_counter()
     res = run(a.touches, a.threshold, a.min_s, a.seed)

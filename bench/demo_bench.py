@@ -21,7 +21,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from _common import ROOT, interleaved, update_readme, write_json
+from _common import ROOT, interleaved, update_readme, write_block, write_json
 
 
 def _demo() -> str:
@@ -55,7 +55,7 @@ def main() -> None:
     print(f"wrote {write_json('demo', {'wall': tm, 'command': 'python bench/demo_bench.py', 'target_s': 4.0})}")
     if args.update_readme:
         update_readme("demo-bench", text)
-        update_readme("demo-output", report)
+        write_block("demo-output", report)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Cost of the pure-Python Ed25519 on the device's update path: import, verify, sign.
+"""Cost of Ed25519 (cryptography, edge/security/ed25519.py) on the device's update path: import, verify, sign.
 
 What a signed update costs the probe: importing ``edge.security.ed25519``
 (and the policy module that uses it) in a fresh interpreter, and one
@@ -26,7 +26,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from _common import ROOT, update_readme, write_json
+from _common import ROOT, write_block, write_json
 
 from edge.security import ed25519  # noqa: E402
 from edge.security.keys import SecretKey, signature_document  # noqa: E402
@@ -100,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  import {mod:40} median {s['median_ms']:7.2f} ms  (range {s['min_ms']:.2f}-{s['max_ms']:.2f})")
     print(f"wrote {path}")
     if args.update_readme:
-        update_readme("ed25519-bench", readme_table(result))
+        write_block("ed25519-bench", readme_table(result))
         print("README.md table updated")
     return 0
 

@@ -33,7 +33,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from _common import ROOT, update_readme, write_json
+from _common import ROOT, write_block, write_json
 
 import numpy as np  # noqa: E402  (after _common: one BLAS thread)
 
@@ -174,7 +174,7 @@ def main():
     if args.update_readme:
         if args.cases:
             raise SystemExit("--update-readme needs every case (no --cases)")
-        update_readme("estimate-scaling-bench", markdown(res))
+        write_block("estimate-scaling-bench", markdown(res))
 
 
 #: The issue's targets (ms, MB) for the README table.

@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from _common import interleaved, update_readme, write_json
+from _common import interleaved, write_block, write_json
 from edge.model.bundle import load_bundle
 from edge.estimation.estimate import Estimator, pipeline_golden_check
 from host.evaluate import (SAMPLES, TouchSimulator, contact_time_trade, identification, leave_one_out_default,
@@ -134,7 +134,7 @@ def main():
     print(text)
     print(f"\nwrote {write_json('estimation', res)}")
     if args.update_readme:
-        update_readme("estimation-bench", text)
+        write_block("estimation-bench", text)
 
 
 if __name__ == "__main__":

@@ -20,7 +20,7 @@ import time
 
 import numpy as np
 
-from _common import fmt_ms, interleaved, rel_err, update_readme, write_json
+from _common import fmt_ms, interleaved, rel_err, write_block, write_json
 from edge.physics.forward import scale_levels, simulate, step_response
 from edge.physics.probe import STACK_040, STACK_042
 from edge.physics.solids import Solid
@@ -187,7 +187,7 @@ def main():
                                        convergence_orders=orders, equal_accuracy_speedup=ratios))
     print(f"\nwrote {path}")
     if args.update_readme:
-        update_readme("forward-bench", text)
+        write_block("forward-bench", text)
 
 
 if __name__ == "__main__":

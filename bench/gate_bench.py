@@ -87,7 +87,7 @@ def main(argv=None) -> int:
             if inst == "mcp9600":
                 reference += report
     if args.update_readme:
-        _common.update_readme("gate-bench", "```\n" + "\n".join(reference) + "\n```")
+        _common.write_block("gate-bench", "```\n" + "\n".join(reference) + "\n```")
     return 0
 
 

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from _common import update_readme, write_json
+from _common import write_block, write_json
 
 
 def _pct(x, fmt: str) -> str:
@@ -85,7 +85,7 @@ def main() -> None:
     write_json("real_probe", {"seeds": a.seeds, "calibration_sha256": cal.sha256, "scenes": scenes_out,
                               "all_nine_within_3pct": int(all_within.sum()), "draws": draws, "wall_s": wall})
     if a.update_readme:
-        update_readme("real-probe-bench", table)
+        write_block("real-probe-bench", table)
 
 
 if __name__ == "__main__":

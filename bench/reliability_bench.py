@@ -38,7 +38,7 @@ import time
 from collections import Counter
 from pathlib import Path
 
-from _common import ROOT, interleaved, update_readme, write_json
+from _common import ROOT, interleaved, write_block, write_json
 
 STATES = ("idle", "measuring", "uploading", "blocked_writer")
 
@@ -229,7 +229,7 @@ def main(argv: list[str] | None = None) -> int:
     print(text)
     print(f"wrote {path.relative_to(ROOT)}")
     if args.update_readme:
-        update_readme("reliability-bench", text)
+        write_block("reliability-bench", text)
         print("README.md updated")
     broken = sum(r["lost_or_half_written"] for r in res["kill_points"].values())
     return 1 if broken or not all(v["ok"] for v in res["signals"].values()) else 0

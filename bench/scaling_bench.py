@@ -28,10 +28,10 @@ import time
 
 import numpy as np
 
-from _common import interleaved, update_readme, write_json
+from _common import interleaved, write_block, write_json
 from edge.physics.forward import simulate
 from edge.physics.solids import Solid
-from edge.estimation.objects import KnownObject, ObjectSet
+from edge.recognition import KnownObject, ObjectSet
 
 GLASS = Solid(1.097, 2458.4, 809.0)
 Q_V = 7.7e7
@@ -154,7 +154,7 @@ def main() -> None:
         + (f" --touches {args.touches}" if args.touches != 400 else "")
     print(f"\nwrote {write_json('scaling', res)}")
     if args.update_readme:
-        update_readme("scaling-bench", text)
+        write_block("scaling-bench", text)
 
 
 if __name__ == "__main__":

@@ -36,6 +36,7 @@ from firmware_sim.chips.ads1115 import ADS1115Emulator as ADS1115Model  # noqa: 
 from firmware_sim.chips.mcp9600 import MCP9600Emulator as MCP9600Model  # noqa: E402
 from firmware_sim.clock import VirtualClock  # noqa: E402
 from firmware_sim.scene.files import read_scene  # noqa: E402
+from firmware_sim.wiring import connect  # noqa: E402
 from firmware_sim.world import ManualDrive, ThermalWorld  # noqa: E402
 
 TOUCH_S, HEAT_S, AIR_S, READ_DT_S = 2.5, 2.0, 5.0, 0.01
@@ -62,7 +63,7 @@ def run(n: int, scene_name: str) -> dict:
     seeds = np.random.SeedSequence(sc.seed).spawn(2)
     mcp = MCP9600Model(clock, world.thermocouple_C, world.cold_junction_C, rng=np.random.default_rng(seeds[0]),
                        emf_noise_rms_V=sc.sensors.mcp9600_emf_noise_rms_V, open_circuit=world.thermocouple_open)
-    ads = ADS1115Model(clock, world.ads1115_input_V, noise_rms_V=sc.sensors.ads1115_noise_rms_V,
+    ads = ADS1115Model(clock, connect(world, "ads1115").mux, noise_rms_V=sc.sensors.ads1115_noise_rms_V,
                        rng=np.random.default_rng(seeds[1]))
     ads.i2c_write(bytes([0x01, 0x0A, 0xE3]))   # AIN0-AIN1, +-0.256 V, continuous, 860 SPS, comparator off
     ads.i2c_write(bytes([0x00]))               # pointer: conversion register

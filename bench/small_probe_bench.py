@@ -59,7 +59,7 @@ import sys
 import tempfile
 import time
 
-from _common import ROOT, update_readme, write_json
+from _common import ROOT, write_block, write_json
 
 sys.path.insert(0, str(ROOT))
 
@@ -265,7 +265,7 @@ def main() -> None:
                 f"off nominal by a draw from the 2 % calibration spread (the device is not told), through the "
                 f"simulator and the device's sequence and estimator; {res['wall_s']:.0f} s wall "
                 f"(`python bench/small_probe_bench.py{extra} --update-readme`, `bench/results/small_probe.json`).")
-        update_readme("small-probe-bench", txt + note + "\n")
+        write_block("small-probe-bench", txt + note + "\n")
 
 
 if __name__ == "__main__":

@@ -27,30 +27,14 @@ set without e-overlaps; until-decided against fixed 1.5-s touches
 table (binned confidence vs accuracy, in-set touches, all contact times) and
 the confusion matrix at 2 s; an ablation (the mixture's likelihood-ratio rule
 instead of the z test); and the library set's calibration fit
-(edge.estimation.objects.LIBRARY_CALIBRATION) with its reliability.
+(edge.recognition.LIBRARY_CALIBRATION) with its reliability.
 
 Run:  python bench/tactile_bench.py [--touches 100] [--cal-touches 30] [--update-readme]
-Writes bench/results/tactile.json; --update-readme rewrites the README block
-between ``<!-- tactile-bench:begin -->`` and ``<!-- tactile-bench:end -->``.
+Writes bench/results/tactile.json; --update-readme rewrites the block between
+``<!-- tactile-bench:begin -->`` and ``<!-- tactile-bench:end -->`` in docs/results.md.
 About 7 min on one core (the paper probe's part 1 min; --probe-touches 0 skips the
 small-heater probe's faithful-world touches).
-
-Property sources (values near 300 K; handbook ranges are wide, the values
-below are one representative point, not a measurement of a real specimen):
-  [ISO]  EN ISO 10456:2007, Building materials -- hygrothermal properties,
-         Table 3 (design values: λ, ρ, c_p) -- timber 500 / 700 kg/m³,
-         fibreboard incl. MDF 600 kg/m³, natural rubber, polypropylene,
-         soda-lime glass, ceramic/porcelain, crystalline rock (granite),
-         stainless steel, aluminium alloys, copper, cast iron, silicone,
-         gypsum plasterboard 900 kg/m³.
-         Held out: polyethylene (low / high density), PTFE, concrete (high
-         density), cast iron, gypsum plasterboard, silicone, PVC, marble,
-         lead, brass.
-  [ETB]  The Engineering ToolBox, "Thermal conductivity of selected
-         materials" / "Specific heat of solids" (flexible polyurethane foam,
-         expanded polystyrene, corrugated cardboard, ABS, Ti-6Al-4V).
-  ABS values are the middle of typical datasheet ranges (k 0.14-0.21 W/(m K),
-  ρ 1040-1060 kg/m³, c 1300-1500 J/(kg K)).
+The objects and their property sources are in bench/_objects.py.
 """
 
 from __future__ import annotations
@@ -61,233 +45,27 @@ import time
 
 import numpy as np
 
-from _common import write_json
-from edge.estimation.objects import (DEFAULT_ALPHA_U_GROWTH, DEFAULT_Z_CRIT, LIBRARY_CALIBRATION, UNKNOWN,
-                                     KnownObject, ObjectSet)
+from _common import write_block, write_json
+from decision_bench import run as decision_run
+from _objects import DISTINGUISHABLE, HELD_OUT, IN_SET, ISSUE_12_OBJECTS, SPREAD
+from _recognition import (bayes_ceiling, confusion_matrix, evaluate, in_set_reliability, non_overlapping,
+                          separations, thermal_ceiling)
+from edge.recognition import DEFAULT_ALPHA_U_GROWTH, DEFAULT_Z_CRIT, LIBRARY_CALIBRATION, ObjectSet
 from edge.measure.instrument import INSTRUMENTS
 from edge.physics.materials import load_materials
-from host.recognition import (CONTACT_TIMES_S, IN_SET_ACCEPTANCE_GOAL, calibrate, classify_touches, reliability,
+from host.recognition import (CONTACT_TIMES_S, IN_SET_ACCEPTANCE_GOAL, calibrate, classify_touches,
                               simulate_probe_touches, simulate_touches)
 
-SPREAD = 0.05
-P = KnownObject.from_properties
-#: The robot's object set (name, class, k W/(m K), ρ kg/m³, c J/(kg K), source).
-IN_SET = (
-    P("pu_foam_cushion", "foam", 0.035, 30, 1400, SPREAD, source="ETB flexible PU foam"),
-    P("corrugated_cardboard", "other", 0.065, 150, 1400, SPREAD, source="ETB corrugated board"),
-    P("pine_shelf", "wood", 0.13, 500, 1600, SPREAD, source="ISO timber 500 kg/m3"),
-    P("natural_rubber_mat", "rubber", 0.13, 910, 1100, SPREAD, source="ISO natural rubber"),
-    P("mdf_board", "wood", 0.14, 600, 1700, SPREAD, source="ISO fibreboard incl. MDF 600 kg/m3"),
-    P("oak_worktop", "wood", 0.18, 700, 1600, SPREAD, source="ISO timber 700 kg/m3"),
-    P("abs_toy_brick", "polymer", 0.17, 1050, 1400, SPREAD, source="ETB / datasheet ranges, ABS"),
-    P("polypropylene_box", "polymer", 0.22, 910, 1800, SPREAD, source="ISO polypropylene"),
-    P("soda_lime_bottle", "glass", 1.0, 2500, 750, SPREAD, source="ISO soda-lime glass"),
-    P("porcelain_mug", "ceramic", 1.3, 2300, 840, SPREAD, source="ISO ceramic/porcelain"),
-    P("granite_countertop", "stone", 2.8, 2800, 1000, SPREAD, source="ISO crystalline rock"),
-    P("stainless_304_pan", "alloy", 17.0, 7900, 500, SPREAD, source="ISO stainless steel"),
-    P("al_6061_laptop_case", "alloy", 160.0, 2800, 880, SPREAD, source="ISO aluminium alloys"),
-    P("copper_pipe", "metal", 380.0, 8900, 380, SPREAD, source="ISO copper"),
-)
-#: Touched but not in the set (the right answer is "unknown"), effusivity clear of every in-set object:
-#: an ideal e-only test accepting 95 % of in-set touches calls each "unknown" >= 90 % of the time
-#: (checked in :func:`separations`, precision board, 2 s).
-HELD_OUT_FAR = (
-    P("eps_foam_cup", "foam", 0.035, 50, 1300, SPREAD, source="ETB expanded polystyrene"),
-    P("ldpe_squeeze_bottle", "polymer", 0.33, 920, 2200, SPREAD, source="ISO polyethylene, low density"),
-    P("ptfe_pan_handle", "polymer", 0.25, 2200, 1000, SPREAD, source="ISO PTFE"),
-    P("hdpe_cutting_board", "polymer", 0.50, 980, 1800, SPREAD, source="ISO polyethylene, high density"),
-    P("concrete_step", "stone", 2.0, 2400, 1000, SPREAD, source="ISO concrete, high density"),
-    P("ti_bike_frame", "alloy", 6.7, 4430, 526, SPREAD, source="ETB / datasheet, Ti-6Al-4V"),
-    P("cast_iron_pan", "alloy", 50.0, 7500, 450, SPREAD, source="ISO cast iron"),
-)
-#: Touched but not in the set, adversarial: e inside (or at the edge of) an in-set object's spread,
-#: so e alone cannot call them "unknown" reliably -- reported, not hidden.
-HELD_OUT_NEAR = (
-    P("plasterboard_wall", "other", 0.25, 900, 1000, SPREAD, source="ISO gypsum plasterboard 900 kg/m3"),
-    P("silicone_rubber_mat", "rubber", 0.35, 1200, 1000, SPREAD, source="ISO silicone"),
-    P("pvc_pipe", "polymer", 0.17, 1390, 900, SPREAD, source="ISO PVC"),
-    P("marble_tile", "stone", 3.5, 2800, 1000, SPREAD, source="ISO marble"),
-    P("lead_fishing_weight", "metal", 35.0, 11300, 130, SPREAD, source="ISO lead"),
-    P("brass_door_knob", "metal", 120.0, 8400, 380, SPREAD, source="ISO brass"),
-)
-HELD_OUT = HELD_OUT_FAR + HELD_OUT_NEAR
-#: Issue #12's own twelve objects (its list: PU foam, cardboard, MDF, oak, ABS, natural rubber, soda-lime
-#: glass, porcelain tile, granite, AISI 304, Al 6061, copper): the set above without the pine shelf and
-#: the polypropylene box, the porcelain mug standing for the tile.
-ISSUE_12_OBJECTS = tuple(o for o in IN_SET if o.name not in ("pine_shelf", "polypropylene_box"))
-#: Design "unknown" rate that makes a held-out object distinguishable (issue #12's bar).
-DISTINGUISHABLE = 0.90
-#: The README block this bench writes with --update-readme.
-README_BEGIN, README_END = "<!-- tactile-bench:begin -->", "<!-- tactile-bench:end -->"
 PRECISION, REFERENCE = "ads122c04", "mcp9600"
 #: Critical distances of the open-set trade-off table (two-sided nominal acceptance 95, 97.5, 98.8, 99.5, 99.9 %).
 Z_SWEEP = (1.96, 2.24, 2.5, 2.81, 3.29)
-
-
-def ideal_set(objects=IN_SET) -> ObjectSet:
-    """The set with the ideal e-only test: variances as stated (T = 1), z_crit = 1.96 (95 % in-set acceptance)."""
-    return ObjectSet(objects, temperature=1.0, z_crit=1.96, label="ideal")
-
-
-def separations(u_ln_e: float) -> list[dict]:
-    """Each held-out object's distance to the nearest in-set object, and the ideal test's design "unknown" rate."""
-    ideal = ideal_set()
-    rows = []
-    for o in HELD_OUT:
-        d = math.log(o.e_W_s05_m2K) - ideal.ln_e
-        i = int(np.argmin(np.abs(d)))
-        sigma = math.hypot(float(ideal.spread[i]), u_ln_e)
-        sd = math.hypot(o.spread_rel, u_ln_e)
-        rows.append(dict(name=o.name, cls=o.cls, e=o.e_W_s05_m2K, nearest=ideal.names[i], d_ln_e=float(d[i]),
-                         in_spreads=abs(float(d[i])) / float(ideal.spread[i]), in_sigma=abs(float(d[i])) / sigma,
-                         design_unknown=1.0 - ideal.acceptance_probability(math.log(o.e_W_s05_m2K), sd, u_ln_e),
-                         group="distinguishable" if o in HELD_OUT_FAR else "near"))
-    return rows
-
-
-def non_overlapping(u_ln_e: float, objects=IN_SET) -> tuple:
-    """A subset of the set without e-overlaps: walking up in e, keep an object clear of the last one kept.
-
-    Clear: ``|Δ ln e| >= 2 sqrt(v_a + v_b)``, ``v = u² + spread²`` (not a
-    confusion pair of :meth:`ObjectSet.confusion_pairs`).
-    """
-    kept = []
-    for o in sorted(objects, key=lambda o: o.e_W_s05_m2K):
-        if kept:
-            last = kept[-1]
-            v = u_ln_e ** 2 * 2 + last.spread_rel ** 2 + o.spread_rel ** 2
-            if math.log(o.e_W_s05_m2K / last.e_W_s05_m2K) < 2.0 * math.sqrt(v):
-                continue
-        kept.append(o)
-    return tuple(kept)
-
-
-def design_unknown(oset: ObjectSet, objects, u_of: dict) -> float | None:
-    """Mean design "unknown" rate of ``objects`` under ``oset``'s fitted test, each at its own median u(e).
-
-    Each object's own u(e) (``u_of``: name -> median u of its touches), not
-    the set's median: on the reference board u(e) grows steeply with e (a
-    metal's rise is a few thermometer steps), which is what limits it.
-    """
-    rates = [1.0 - oset.acceptance_probability(math.log(o.e_W_s05_m2K), math.hypot(o.spread_rel, u_of[o.name]),
-                                               u_of[o.name]) for o in objects if o.name in u_of]
-    return float(np.mean(rates)) if rates else None
-
-
-def bayes_ceiling(oset: ObjectSet, u_of: dict, weight_of: dict) -> tuple[float, float]:
-    """Bayes-optimal object and class accuracy on e alone, each object at its own u(e) and share of touches.
-
-    ``∫ max_i w_i p_i(x) dx`` (class: ``∫ max_c Σ_{i∈c} w_i p_i``) on a grid
-    in ln e, ``p_i`` normal with variance ``u_i² + spread_i²``, over the
-    objects that gave estimates (``u_of``) weighted by their answered
-    touches. :meth:`ObjectSet.confusion_pairs` does the same with one u for
-    all; on the reference board u(e) grows with e, so one median u would
-    overstate the ceiling for stone and metal.
-    """
-    idx = [j for j, n in enumerate(oset.names) if n in u_of]
-    if not idx:
-        return math.nan, math.nan
-    mu = oset.ln_e[idx]
-    sd = np.sqrt(np.array([u_of[oset.names[j]] for j in idx]) ** 2 + oset.spread[idx] ** 2)
-    w = np.array([weight_of[oset.names[j]] for j in idx], float)
-    w = w / w.sum()
-    step = float(sd.min()) / 20.0
-    x = np.arange(float((mu - 8 * sd).min()), float((mu + 8 * sd).max()) + step, step)
-    dens = w * np.exp(-0.5 * ((x[:, None] - mu) / sd) ** 2) / (sd * math.sqrt(2 * math.pi))
-    cls = np.array([oset.class_names.index(oset.classes[j]) for j in idx])
-    by_class = np.zeros((x.size, len(oset.class_names)))
-    np.add.at(by_class.T, cls, dens.T)
-    return float(dens.max(axis=1).sum() * step), float(by_class.max(axis=1).sum() * step)
-
-
-def lr_accepts(rec) -> bool:
-    """The mixture's Bayes rule: accepted when an object's posterior beats the "unknown" background's."""
-    return rec.candidates[0][1] > rec.unknown_posterior
-
-
-def evaluate(oset: ObjectSet, touches, recs) -> dict:
-    """Accuracy, acceptance, unknown rates (measured and design) and the ceiling for one board and contact time."""
-    names = touches.names
-    in_set = np.array([names[i] in oset for i in touches.obj])
-    answered = touches.ok
-    truth = [names[i] for i in touches.obj]
-    cls_of = {o.name: o.recognition_class for o in oset.objects}
-    far = {o.name for o in HELD_OUT_FAR}
-    a_in = np.flatnonzero(in_set & answered)
-    a_far = np.array([i for i in np.flatnonzero(~in_set & answered) if truth[i] in far], int)
-    a_near = np.array([i for i in np.flatnonzero(~in_set & answered) if truth[i] not in far], int)
-    obj_ok = np.array([recs[i].object == truth[i] for i in a_in], bool)
-    # The closed-set answer (the top candidate, accepted or not): what the Bayes ceiling bounds.
-    top_ok = np.array([recs[i].candidates[0][0] == truth[i] for i in a_in], bool)
-    u_of = {}
-    for i in np.flatnonzero(answered):
-        u_of.setdefault(truth[i], []).append(float(touches.u_ln_e[i]))
-    n_of = {k: len(v) for k, v in u_of.items()}
-    u_of = {k: float(np.median(v)) for k, v in u_of.items()}
-    ceiling, class_ceiling = bayes_ceiling(oset, u_of, n_of)
-    cls_ok = np.array([recs[i].cls == cls_of[truth[i]] for i in a_in], bool)
-    accepted = np.array([recs[i].accepted for i in a_in], bool)
-    u_med = float(np.median(touches.u_ln_e[a_in])) if a_in.size else math.nan
-    conf = oset.confusion_pairs(u_med) if a_in.size else None
-    per_out = {}
-    for i in np.concatenate([a_far, a_near]):
-        per_out.setdefault(truth[i], []).append(not recs[i].accepted)
-    mean = lambda a: float(np.mean(a)) if len(a) else None  # noqa: E731
-    present_far = [o for o in HELD_OUT_FAR if o.name in names]
-    present_near = [o for o in HELD_OUT_NEAR if o.name in names]
-    return dict(
-        touches_in=int(in_set.sum()), touches_out=int((~in_set).sum()),
-        refused_in=int((in_set & ~answered).sum()), refused_out=int((~in_set & ~answered).sum()),
-        object_accuracy=mean(obj_ok), class_accuracy=mean(cls_ok), in_set_acceptance=mean(accepted),
-        unknown_far=mean([not recs[i].accepted for i in a_far]),
-        unknown_near=mean([not recs[i].accepted for i in a_near]),
-        closed_set_accuracy=mean(top_ok),
-        # Ablation: the mixture's Bayes rule (a likelihood-ratio test against the flat "unknown" density
-        # over ln e, prior prior_unknown) in place of the z test -- answer "unknown" when its posterior is
-        # the largest.
-        lr_in_set_acceptance=mean([lr_accepts(recs[i]) for i in a_in]),
-        lr_object_accuracy=mean([lr_accepts(recs[i]) and recs[i].candidates[0][0] == truth[i] for i in a_in]),
-        lr_unknown_far=mean([not lr_accepts(recs[i]) for i in a_far]),
-        lr_unknown_near=mean([not lr_accepts(recs[i]) for i in a_near]),
-        design_unknown_far=design_unknown(oset, present_far, u_of),
-        design_unknown_near=design_unknown(oset, present_near, u_of),
-        design_acceptance=float(np.mean([oset.acceptance_probability(float(oset.ln_e[j]), math.hypot(
-            float(oset.spread[j]), u_of[n]), u_of[n]) for j, n in enumerate(oset.names) if n in u_of]))
-        if a_in.size else None,
-        median_u_by_object=u_of,
-        unknown_rate_by_object={k: float(np.mean(v)) for k, v in per_out.items()},
-        median_u_ln_e=u_med,
-        bayes_object=ceiling if a_in.size else None, bayes_class=class_ceiling if a_in.size else None,
-        bayes_object_median_u=conf.bayes_accuracy if conf else None,
-        confusion_pairs=[[p.a, p.b] for p in conf.pairs] if conf else [],
-    )
-
-
-def in_set_reliability(oset: ObjectSet, touches, recs, *, of_class: bool = False) -> dict:
-    """Reliability of the answers to in-set touches (confidence: the answer's posterior; "unknown" is wrong)."""
-    names = touches.names
-    cls_of = {o.name: o.recognition_class for o in oset.objects}
-    idx = [i for i in range(len(recs)) if recs[i] is not None and names[touches.obj[i]] in oset]
-    if of_class:
-        return reliability([recs[i].class_posterior for i in idx],
-                           [recs[i].cls == cls_of[names[touches.obj[i]]] for i in idx])
-    return reliability([recs[i].object_posterior for i in idx], [recs[i].object == names[touches.obj[i]] for i in idx])
-
-
-def confusion_matrix(oset: ObjectSet, touches, recs) -> dict:
-    cols = list(oset.names) + [UNKNOWN, "(refused)"]
-    rows = list(touches.names)
-    m = np.zeros((len(rows), len(cols)), int)
-    for i, r in enumerate(recs):
-        m[touches.obj[i], cols.index(r.object if r else "(refused)")] += 1
-    return dict(rows=rows, cols=cols, counts=m.tolist())
 
 
 def library_calibration(touches: int, seed: int) -> dict:
     """Fit the library set's temperature and z_crit on precision-board touches of every library material.
 
     The fit (``calibrate`` on ``touches`` specimens per material, all contact
-    times) is what :data:`edge.estimation.objects.LIBRARY_CALIBRATION` stores;
+    times) is what :data:`edge.recognition.LIBRARY_CALIBRATION` stores;
     a second, separately seeded draw checks the reliability of the set as
     shipped (``ObjectSet.from_library()``) against the uncalibrated one.
     """
@@ -520,7 +298,7 @@ def report(res: dict, cmd: str) -> list[str]:
     L.append(f"**The default (library) set**: temperature {lc['fit']['temperature']:.3g}, z_crit "
              f"{lc['fit']['z_crit']:.3g}, fitted on {lc['fit']['touches']} precision-board touches of all "
              f"{lc['materials']} library materials ({lc['touches_per_material']} specimens each, all contact times) "
-             f"and stored as `LIBRARY_CALIBRATION` in `edge/estimation/objects.py` (now "
+             f"and stored as `LIBRARY_CALIBRATION` in `edge/recognition/object_set.py` (now "
              f"{lc['stored']['temperature']:.3g} / {lc['stored']['z_crit']:.3g}); reliability on a second draw:")
     L.append("")
     L += reliability_table(lc["uncalibrated"], lc["shipped"], "uncalibrated", "as shipped")
@@ -562,7 +340,7 @@ def report(res: dict, cmd: str) -> list[str]:
                  f"device's `AxiEstimator`; the set calibrated per board on {sh['cal_touches_per_object']} separately "
                  f"seeded specimens per object. In brackets the same touches recognised on e alone (α dropped, "
                  f"its own calibration). 'α used': in-set touches whose fit pinned α to better than a factor e "
-                 f"(`edge.estimation.objects.measured_alpha`), its u widened as u (1 + a u) with a fitted per board "
+                 f"(`edge.recognition.measured_alpha`), its u widened as u (1 + a u) with a fitted per board "
                  f"on the calibration touches (`host.recognition.fit_alpha_u_growth`: "
                  + ", ".join(f"{inst} a = {b['e_alpha']['alpha_u_growth']:.2f}" for inst, b in sh["boards"].items()
                              if "alpha_u_growth" in b.get("e_alpha", {}))
@@ -581,48 +359,8 @@ def report(res: dict, cmd: str) -> list[str]:
     return L
 
 
-def update_readme(block: list[str], path=None) -> str:
-    """Replace the text between the README markers with ``block``; returns the path written."""
-    from _common import ROOT
-    path = path or ROOT / "README.md"
-    text = path.read_text()
-    a, b = text.index(README_BEGIN) + len(README_BEGIN), text.index(README_END)
-    path.write_text(text[:a] + "\n" + "\n".join(block).rstrip() + "\n" + text[b:])
-    return str(path)
 
 
-def thermal_ceiling(objects=IN_SET, n: int = 20000, seed: int = 11) -> dict:
-    """What any thermal probe could do on this set: e and α measured *exactly*, only the specimens vary.
-
-    Monte Carlo (``n`` specimens per object, ln e and ln α each with the
-    object's spread, as the touches are drawn): the Bayes-optimal object and
-    class answers (largest density, largest class sum), and the pairs of
-    objects of different classes closer than two spreads in (ln e, ln α).
-    """
-    rng = np.random.default_rng(seed)
-    mu = np.array([[math.log(o.e_W_s05_m2K), math.log(o.alpha_m2_s)] for o in objects])
-    sd = np.array([o.spread_rel for o in objects])
-    classes = sorted({o.recognition_class for o in objects})
-    ci = np.array([classes.index(o.recognition_class) for o in objects])
-    hit = hit_c = 0
-    for i in range(len(objects)):
-        x = mu[i] + sd[i] * rng.standard_normal((n, 2))
-        d2 = ((x[:, None, :] - mu[None]) ** 2).sum(axis=2) / sd ** 2
-        dens = np.exp(-0.5 * d2) / sd ** 2
-        hit += int(np.sum(dens.argmax(axis=1) == i))
-        by_c = np.zeros((n, len(classes)))
-        np.add.at(by_c.T, ci, dens.T)
-        hit_c += int(np.sum(by_c.argmax(axis=1) == ci[i]))
-    pairs = []
-    for a in range(len(objects)):
-        for b in range(a + 1, len(objects)):
-            if objects[a].recognition_class == objects[b].recognition_class:
-                continue
-            dist = float(np.hypot(*(mu[a] - mu[b])) / math.hypot(sd[a], sd[b]))
-            if dist < 2.0:
-                pairs.append(dict(a=objects[a].name, b=objects[b].name, d_ln_e=float(mu[b, 0] - mu[a, 0]),
-                                  d_ln_alpha=float(mu[b, 1] - mu[a, 1]), spreads=dist))
-    return dict(object=hit / (n * len(objects)), cls=hit_c / (n * len(objects)), close_pairs=pairs, n=n)
 
 
 def small_heater_section(touches: int, cal_touches: int, seed: int) -> dict:
@@ -703,9 +441,8 @@ def main():
     ap.add_argument("--probe-cal-touches", type=int, default=5,
                     help="specimens per in-set object for the small-heater probe's calibration fit")
     ap.add_argument("--seed", type=int, default=7)
-    ap.add_argument("--update-readme", action="store_true", help="rewrite the README's tactile-bench block")
+    ap.add_argument("--update-readme", action="store_true", help="rewrite the tactile-bench block in docs/results.md")
     args = ap.parse_args()
-    from decision_bench import run as decision_run  # decision_bench imports this module: import late
 
     lib_names = set(load_materials().names)
     everyday = IN_SET + HELD_OUT
@@ -794,7 +531,7 @@ def main():
         print("\n".join(contact_table(res["boards"][inst]["sets"]["uncalibrated"])))
     print(f"\nwrote {write_json('tactile', res)}")
     if args.update_readme:
-        print(f"updated {update_readme(block)}")
+        print(f"updated {write_block('tactile-bench', chr(10).join(block))}")
 
 
 if __name__ == "__main__":

@@ -20,7 +20,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from _common import ROOT, interleaved, update_readme, write_json
+from _common import ROOT, interleaved, write_block, write_json
 
 
 def _train(quick: bool) -> dict:
@@ -54,7 +54,7 @@ def main() -> None:
     res["command"] = "python bench/train_bench.py" + (f" --repeats {args.repeats}" if args.repeats != 3 else "")
     print(f"wrote {write_json('train', res)}")
     if args.update_readme:
-        update_readme("train-bench", text)
+        write_block("train-bench", text)
 
 
 if __name__ == "__main__":

@@ -6,7 +6,12 @@ from typing import Sequence
 
 from firmware_sim.scene.model import Fault
 
-__all__ = ["active", "effective_duty", "supply_voltage"]
+__all__ = ["HEATER_FAULTS", "WORLD_FAULTS", "active", "effective_duty", "supply_voltage"]
+
+#: Fault kinds that change the heater's power.
+HEATER_FAULTS = ("heater_stuck_on", "heater_dead", "supply_sag")
+#: Fault kinds a thermal world plays (the bus faults live on the SimBus).
+WORLD_FAULTS = ("open_thermocouple", "flux_saturation", "no_contact") + HEATER_FAULTS
 
 
 def active(faults: Sequence[Fault], kind: str, t_s: float) -> list[Fault]:

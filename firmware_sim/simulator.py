@@ -29,9 +29,7 @@ from edge.hw.board import Board, register_board_factory
 
 from firmware_sim.board import SimBoardParts, make_sim_board
 from firmware_sim.bus import SimBus
-from firmware_sim.chips.ads1115 import ADS1115Emulator
-from firmware_sim.chips.ads122c04 import ADS122C04Emulator
-from firmware_sim.chips.mcp9600 import MCP9600Emulator
+from firmware_sim.chips.registry import EMULATORS, emulate
 from firmware_sim.clock import SimClock, check_clock_mode, make_clock
 from firmware_sim.gpiod.kernel import GpioSim
 from firmware_sim.pwm import SimPwmTree
@@ -39,14 +37,16 @@ from firmware_sim.scene.files import read_scene
 from firmware_sim.scene.model import Fault, Scene
 from firmware_sim.scene.parser import MaterialLookup, validate_fault
 from firmware_sim.rz.probe_world import FaithfulWorld
-from firmware_sim.world import BoardDrive, ThermalWorld, Truth, wire_chips
+from firmware_sim.wiring import connect, heater_drive
+from firmware_sim.world import ThermalWorld
+from firmware_sim.world_protocol import Truth, World
 
 __all__ = ["Simulator", "load_scene", "make_scene_board", "make_world", "register_scene_board", "SCENE_ENV"]
 
 _BUS_FAULTS = ("i2c_nack", "bus_stuck")
 
 
-def make_world(scene: Scene, clock, drive) -> ThermalWorld | FaithfulWorld:
+def make_world(scene: Scene, clock, drive) -> World:
     """The thermal world ``[board] world`` names: the exact 1-D ``ThermalWorld`` ("ideal") or the
     axisymmetric ``FaithfulWorld`` ("faithful", with the scene's probe geometry and ``[as_built]``)."""
     if scene.board.world == "faithful":
@@ -86,10 +86,11 @@ class Simulator:
         Simulated sysfs PWM tree.
     bus : SimBus
         smbus2-compatible bus with the fitted chips.
-    world : ThermalWorld or FaithfulWorld
-        Per ``[board] world`` (:func:`make_world`).
+    world : World
+        Per ``[board] world`` (:func:`make_world`): a ThermalWorld or a FaithfulWorld, wired to the
+        chips by :mod:`firmware_sim.wiring`.
     chips : dict
-        Chip models by name (``"mcp9600"``, ``"ads1115"``, ``"ads122c04"``), fitted ones only.
+        Chip emulators by registry name (:data:`edge.hw.chips.CHIPS`), fitted ones only.
     parts : SimBoardParts
         GPIO chip, PWM channel and line offsets of the board.
     """
@@ -104,32 +105,26 @@ class Simulator:
             bit_rate_Hz = None          # the bus clock counts wire time itself
         self.gpio = GpioSim(self.clock)
         self.pwm = SimPwmTree(self.clock)
-        seeds = np.random.SeedSequence(scene.seed).spawn(4)
+        seeds = np.random.SeedSequence(scene.seed).spawn(1 + len(EMULATORS))
         self.bus = SimBus(1, clock=self.clock, rng=np.random.default_rng(seeds[0]), bit_rate_Hz=bit_rate_Hz)
         self._board = make_sim_board(clock=self.clock, i2c=self.bus, gpio=self.gpio, pwm_tree=self.pwm)
         self._board.extras["simulator"] = self
         self.parts: SimBoardParts = self._board.extras["sim"]
-        self.world = make_world(scene, self.clock, BoardDrive(self.parts))
+        self.world = make_world(scene, self.clock, heater_drive(self.parts))
         self.chips: dict[str, Any] = {}
         self._injected: list[Fault] = []
         # The PWM tree lives in a temporary directory: remove it even if close() is never called.
         weakref.finalize(self, self.pwm.close)
-        b, s, w = scene.board, scene.sensors, self.world
-        if b.mcp9600 is not None:
-            self.chips["mcp9600"] = MCP9600Emulator(
-                self.clock, w.thermocouple_C, w.cold_junction_C, rng=np.random.default_rng(seeds[1]),
-                emf_noise_rms_V=s.mcp9600_emf_noise_rms_V, open_circuit=w.thermocouple_open)
-        if b.ads1115 is not None:
-            self.chips["ads1115"] = ADS1115Emulator(
-                self.clock, w.ads1115_input_V, noise_rms_V=s.ads1115_noise_rms_V,
-                rng=np.random.default_rng(seeds[2]))
-        if b.ads122c04 is not None:
-            self.chips["ads122c04"] = ADS122C04Emulator(
-                self.clock, w.ads122c04_input_V, temperature_C=w.cold_junction_C,
-                noise_rms_V=s.ads122c04_noise_rms_V, rng=np.random.default_rng(seeds[3]))
-        wire_chips(w, **self.chips)
-        for name, chip in self.chips.items():
-            self.bus.attach(b.address_of(name), chip)
+        # Each fitted chip: its emulator (registered against the chip registry) on its wired inputs,
+        # with the scene's noise and its own random stream (one per registry chip, after the bus's).
+        for (name, emu), seed in zip(EMULATORS.items(), seeds[1:]):
+            address = scene.board.address_of(name)
+            if address is None:
+                continue
+            chip = emulate(name, self.clock, connect(self.world, name),
+                           noise_rms_V=getattr(scene.sensors, emu.noise_setting), rng=np.random.default_rng(seed))
+            self.chips[name] = chip
+            self.bus.attach(address, chip)
         for f in scene.faults:
             if f.kind in _BUS_FAULTS:
                 self._apply_bus_fault(f)

@@ -79,185 +79,37 @@ import math
 from array import array
 from bisect import bisect_left, bisect_right
 from dataclasses import dataclass
-from typing import NamedTuple, Protocol, Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from edge.physics import laplace, typek
+from edge.physics import laplace
 from edge.physics.probe import heater_power_W
 from edge.physics.schedule import PowerSchedule
 from edge.physics.solids import Solid
 
-from firmware_sim.heater_faults import active, effective_duty, supply_voltage
-from firmware_sim.scene.model import FLUX_SATURATION_V, Fault, Scene
+from firmware_sim.drive import BoardDrive, HeaterDrive, ManualDrive, ScheduleDrive
+from firmware_sim.heater_faults import HEATER_FAULTS, WORLD_FAULTS, active, effective_duty, supply_voltage
+from firmware_sim.scene.model import Fault, Scene
+from firmware_sim.world_protocol import OPEN_TC_INPUT_V, REPEAT_RELEASE_S, SensorSignals, Truth, WorldState
 
+# The drives, the states and the constants are re-exported: their home was this module.
 __all__ = ["AIR", "HeaterDrive", "BoardDrive", "ScheduleDrive", "ManualDrive", "WorldState", "Truth",
-           "ThermalWorld", "wire_chips", "OPEN_TC_INPUT_V"]
+           "ThermalWorld", "OPEN_TC_INPUT_V", "REPEAT_RELEASE_S"]
 
 #: Still air near 300 K (Incropera 7e, Table A.4).
 AIR = Solid(k_W_mK=0.0263, rho_kg_m3=1.1614, c_J_kgK=1007.0)
-#: What an open thermocouple input shows the ADS122C04 (burn-out current
-#: sources pull it towards the rail): far above full scale at gain 128.
-OPEN_TC_INPUT_V = 1.65
-_HEATER_FAULTS = ("heater_stuck_on", "heater_dead", "supply_sag")
 #: Look-ahead of a batched evaluation on a caller's sampling grid (s) and its
 #: largest number of times; a query within _MATCH_TOL_S of a look-ahead time uses it.
 _LOOKAHEAD_S = 0.1
 _LOOKAHEAD_MAX = 128
 _MATCH_TOL_S = 1e-9
-#: A repeat touch ends this long after the heater's switch-off within it (s).
-REPEAT_RELEASE_S = 0.5
 #: Length given to an open repeat touch until a heating closes it (s).
 _OPEN_TOUCH_S = 1e6
 #: Past states kept for repeated queries (the cache is cleared when full).
 _CACHE_MAX = 8192
 #: Rows (times x terms) per Talbot call: bounds the temporary arrays (rows x 24 complex).
 _ROWS_PER_CALL = 2048
-
-
-class HeaterDrive(Protocol):
-    """Where the commanded heater duty comes from."""
-
-    def duty_at(self, t_s: float) -> float:
-        """Commanded effective duty (0..1) at ``t_s``, enable line included."""
-
-    def change_times(self) -> Sequence[float]:
-        """Every time the duty may have changed (s), any order."""
-
-
-class BoardDrive:
-    """Heater duty from a sim board's enable line and PWM channel.
-
-    The GPIO and PWM fakes record every change (append-only histories); this
-    drive mirrors them incrementally, so :meth:`duty_at` is a bisection and
-    :meth:`changes_since` returns only what is new -- neither grows with the
-    length of the session.
-    """
-
-    def __init__(self, parts) -> None:
-        self.parts = parts
-        self._en_t: list[float] = []
-        self._en_level: list[int] = []
-        self._pwm_t: list[float] = []
-        self._pwm_frac: list[float] = []
-
-    def _histories(self) -> tuple[Sequence, Sequence]:
-        # The fakes' live append-only lists: O(1) per call, however long the session.
-        p = self.parts
-        return p.chip.live_line_history(p.heater_enable_offset), p.pwm_tree.live_history(p.pwm_chip, p.pwm_channel)
-
-    def _sync(self) -> None:
-        en, pwm = self._histories()
-        if len(en) < len(self._en_t) or len(pwm) < len(self._pwm_t):   # not append-only: start over
-            self._en_t, self._en_level, self._pwm_t, self._pwm_frac = [], [], [], []
-        for t, level in en[len(self._en_t):]:
-            self._en_t.append(float(t))
-            self._en_level.append(level)
-        for h in pwm[len(self._pwm_t):]:
-            self._pwm_t.append(float(h.t_s))
-            self._pwm_frac.append(float(h.fraction))
-
-    def duty_at(self, t_s: float) -> float:
-        """``parts.heater_duty_at(t_s)`` from the mirrored histories."""
-        self._sync()
-        if not self._en_t:
-            return float(self.parts.heater_duty_at(t_s))
-        i = bisect_right(self._en_t, t_s) - 1
-        if self._en_level[max(i, 0)] != 1:
-            return 0.0
-        j = bisect_right(self._pwm_t, t_s) - 1
-        return self._pwm_frac[j] if j >= 0 else 0.0
-
-    def change_times(self) -> list[float]:
-        self._sync()
-        return self._en_t + self._pwm_t
-
-    def changes_since(self, revision) -> tuple[tuple[int, int], list[float]]:
-        """``(revision, times)``: the change times recorded since ``revision`` (None: all)."""
-        en, pwm = self._histories()
-        if revision is not None and revision == (len(en), len(pwm)) == (len(self._en_t), len(self._pwm_t)):
-            return revision, []
-        self._sync()
-        a, b = (0, 0) if revision is None else revision
-        return (len(self._en_t), len(self._pwm_t)), self._en_t[a:] + self._pwm_t[b:]
-
-
-class ScheduleDrive:
-    """A fixed duty schedule: ``duties[i]`` from ``times_s[i]`` on (0 before)."""
-
-    def __init__(self, times_s: Sequence[float], duties: Sequence[float]) -> None:
-        self.times = np.asarray(times_s, dtype=float)
-        self.duties = np.asarray(duties, dtype=float)
-        if self.times.shape != self.duties.shape or self.times.ndim != 1:
-            raise ValueError("times_s and duties must be 1-D sequences of the same length")
-        if np.any(np.diff(self.times) <= 0):
-            raise ValueError("times_s must be strictly increasing")
-        if np.any((self.duties < 0) | (self.duties > 1)):
-            raise ValueError("duties must lie in [0, 1]")
-
-    def duty_at(self, t_s: float) -> float:
-        i = int(np.searchsorted(self.times, t_s, side="right")) - 1
-        return float(self.duties[i]) if i >= 0 else 0.0
-
-    def change_times(self) -> list[float]:
-        return self.times.tolist()
-
-    def changes_since(self, revision) -> tuple[int, list[float]]:
-        """``(revision, times)``: all change times the first time, none after (the schedule is fixed)."""
-        return 1, ([] if revision == 1 else self.times.tolist())
-
-
-class ManualDrive:
-    """A duty set as time goes on (a session driven without a board): ``set(t_s, duty)``.
-
-    Times may not decrease; a later entry at the same time wins.
-    """
-
-    def __init__(self) -> None:
-        self._t: list[float] = []
-        self._d: list[float] = []
-
-    def set(self, t_s: float, duty: float) -> None:
-        t, d = float(t_s), float(duty)
-        if self._t and not t >= self._t[-1]:
-            raise ValueError(f"t_s={t_s} s is before the last setting ({self._t[-1]} s)")
-        if not 0.0 <= d <= 1.0:
-            raise ValueError(f"duty must lie in [0, 1], got {duty!r}")
-        self._t.append(t)
-        self._d.append(d)
-
-    def duty_at(self, t_s: float) -> float:
-        i = bisect_right(self._t, t_s) - 1
-        return self._d[i] if i >= 0 else 0.0
-
-    def change_times(self) -> list[float]:
-        return list(self._t)
-
-    def changes_since(self, revision) -> tuple[int, list[float]]:
-        """``(revision, times)``: the settings' times since ``revision`` (None: all)."""
-        return len(self._t), self._t[revision or 0:]
-
-
-class WorldState(NamedTuple):
-    """The world at one instant (temperatures in °C, flux in W/m^2)."""
-
-    t_s: float
-    surface_C: float       # T_f, bottom of the sensing layer (probe side of any contact resistance)
-    thermocouple_C: float  # surface_C through the thermocouple's lag
-    q_f_W_m2: float        # heat flux from the probe into what it touches
-    contact: bool
-
-
-@dataclass(frozen=True)
-class Truth:
-    """Exact series for checks: times (s), °C, W/m^2, contact flag, q_v (W/m^3)."""
-
-    t_s: np.ndarray
-    surface_C: np.ndarray
-    thermocouple_C: np.ndarray
-    q_f_W_m2: np.ndarray
-    contact: np.ndarray
-    q_v_W_m3: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -296,7 +148,7 @@ class _Stream:
         self.contact = False
 
 
-class ThermalWorld:
+class ThermalWorld(SensorSignals):
     """Exact thermal model of the probe on the scene's object.
 
     Parameters
@@ -315,7 +167,7 @@ class ThermalWorld:
         self.stack = scene.stack
         self._probe = self.stack.material
         self._L = self.stack.total_thickness_m
-        self._faults: list[Fault] = [f for f in scene.faults if f.kind in self._world_kinds()]
+        self._faults: list[Fault] = [f for f in scene.faults if f.kind in WORLD_FAULTS]
         # Touch windows, sorted and disjoint: starts and ends (bisection, 16 bytes a touch).
         self._touch_a = array("d", [scene.touch.start_s])
         self._touch_b = array("d", [scene.touch.end_s])
@@ -339,7 +191,7 @@ class ThermalWorld:
         self.stats = {"talbot_calls": 0, "talbot_rows": 0, "times": 0, "max_terms": 0,
                       "phase_ends": 0, "queries": 0, "lookahead_hits": 0}
         for f in self._faults:
-            if f.kind in _HEATER_FAULTS:
+            if f.kind in HEATER_FAULTS:
                 self._add_switches([f.at_s] + ([f.until_s] if f.until_s is not None else []))
         self._recut(0.0)
         if scene.touch.repeat:
@@ -350,10 +202,6 @@ class ThermalWorld:
         if self._repeat_open:
             return
         self._open_repeat(max(self._touch_b[-1], self.clock.now()))
-
-    @staticmethod
-    def _world_kinds() -> tuple[str, ...]:
-        return ("open_thermocouple", "flux_saturation", "no_contact") + _HEATER_FAULTS
 
     # ---- faults
 
@@ -369,14 +217,14 @@ class ThermalWorld:
         on a wall clock the clock has moved on by the time this runs, and
         states cached since ``fault.at_s`` are dropped.
         """
-        if fault.kind not in self._world_kinds():
+        if fault.kind not in WORLD_FAULTS:
             raise ValueError(f"fault kind {fault.kind!r} is not modelled by the thermal world")
         now = self.clock.now() if now_s is None else min(float(now_s), self.clock.now())
         if fault.at_s < now - 1e-12:
             raise ValueError(f"fault at_s={fault.at_s} s is in the past (now {now} s)")
         self._faults.append(fault)
         self._forget_from(fault.at_s)
-        if fault.kind in _HEATER_FAULTS:
+        if fault.kind in HEATER_FAULTS:
             self._add_switches([fault.at_s] + ([fault.until_s] if fault.until_s is not None else []))
         if fault.kind == "no_contact":
             self._recut(fault.at_s)
@@ -830,7 +678,7 @@ class ThermalWorld:
             np.array([self.q_v_at(x) for x in t]),
         )
 
-    # ---- what the chips see
+    # ---- signals (the World protocol; the EMF and the flux voltage come from SensorSignals)
 
     def thermocouple_C(self, t_s: float, *, stream: str = "thermocouple") -> float:
         """Hot-junction temperature (°C) the thermocouple reports at ``t_s``."""
@@ -840,52 +688,11 @@ class ThermalWorld:
         """Board (cold-junction, ADC die) temperature (°C)."""
         return self.scene.environment.ambient_temperature_C
 
-    def thermocouple_open(self, t_s: float) -> bool:
-        """Whether the thermocouple is disconnected at ``t_s``."""
-        return bool(self._active("open_thermocouple", t_s))
+    def sensed_flux_W_m2(self, t_s: float, *, stream: str = "flux") -> float:
+        """The flux the sensor sees (W/m^2): the probe's face flux, unclipped."""
+        return self._query(t_s, stream).q_f_W_m2
 
-    def thermocouple_emf_V(self, t_s: float, *, stream: str = "thermocouple_emf") -> float:
-        """Differential thermocouple EMF at the ADC pins (V); the rail when open."""
-        if self.thermocouple_open(t_s):
-            return OPEN_TC_INPUT_V
-        return (typek.emf_mV(self.thermocouple_C(t_s, stream=stream))
-                - typek.emf_mV(self.cold_junction_C(t_s))) * 1e-3
-
-    def flux_voltage_V(self, t_s: float, *, stream: str = "flux") -> float:
-        """Flux-sensor output (V): ``S * q_f`` clipped to the sensor range, or a saturation fault's level."""
-        sat = self._active("flux_saturation", t_s)
-        if sat:
-            return float(sat[-1].params.get("voltage_V", FLUX_SATURATION_V))
-        sens = self.scene.sensors
-        q = min(max(self._query(t_s, stream).q_f_W_m2, -sens.flux_range_W_m2), sens.flux_range_W_m2)
-        return sens.flux_sensitivity_V_per_W_m2 * q
-
-    def ads1115_input_V(self, mux: str, t_s: float) -> float:
-        """ADS1115 pins: flux sensor across AIN0-AIN1; AIN2, AIN3 tied to GND."""
-        if mux == "AIN0_AIN1":
-            return self.flux_voltage_V(t_s, stream="ads1115:flux")
-        return 0.0
-
-    def ads122c04_input_V(self, mux: str, t_s: float) -> float:
-        """ADS122C04 pins: thermocouple across AIN0-AIN1, flux sensor across AIN2-AIN3."""
-        if mux in ("AIN0_AIN1", "AIN1_AIN0"):
-            v = self.thermocouple_emf_V(t_s, stream="ads122c04:thermocouple")
-            return v if mux == "AIN0_AIN1" else -v
-        if mux in ("AIN2_AIN3", "AIN3_AIN2"):
-            v = self.flux_voltage_V(t_s, stream="ads122c04:flux")
-            return v if mux == "AIN2_AIN3" else -v
-        return 0.0
-
-
-def wire_chips(world: ThermalWorld, *, mcp9600=None, ads1115=None, ads122c04=None) -> None:
-    """Point chip models' analog inputs at ``world`` (adapter over their public attributes)."""
-    if mcp9600 is not None:
-        mcp9600.hot_junction_C = world.thermocouple_C
-        mcp9600.cold_junction_C = world.cold_junction_C
-        mcp9600.open_circuit = world.thermocouple_open
-    if ads1115 is not None:
-        ads1115.inputs = world.ads1115_input_V
-    if ads122c04 is not None:
-        ads122c04.inputs = world.ads122c04_input_V
-        ads122c04.temperature_C = world.cold_junction_C
-
+    @property
+    def flux_sensitivity_V_per_W_m2(self) -> float:
+        """The flux sensor's sensitivity (V per W/m^2): the scene's."""
+        return self.scene.sensors.flux_sensitivity_V_per_W_m2

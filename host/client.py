@@ -473,7 +473,7 @@ class DeviceClient:
 
     def upload_model(self, data: bytes, sha256: str | None = None, chunk_size: int | None = None,
                      progress: Callable[[int, int], None] | None = None, *,
-                     version: str | None = None, force: bool = False) -> dict[str, Any]:
+                     version: str | None = None, downgrade: bytes | str | None = None) -> dict[str, Any]:
         """Upload a model bundle in chunks and commit it.
 
         Parameters
@@ -488,9 +488,9 @@ class DeviceClient:
             Called as ``progress(bytes_sent, total_bytes)`` after each chunk.
         version : str, optional
             Model version label passed to MODEL_BEGIN.
-        force : bool
-            Ask the device to install a signed bundle that is not newer than its active one
-            (MODEL_BEGIN ``force``; sent only when true, so older devices are unaffected).
+        downgrade : bytes or str, optional
+            A signed downgrade authorisation (:func:`edge.security.keys.downgrade_document`) that lets the device
+            install a signed bundle not newer than its active one (MODEL_BEGIN ``downgrade``).
 
         Returns
         -------
@@ -517,8 +517,8 @@ class DeviceClient:
         begin = {"size": len(data), "sha256": digest}
         if version is not None:
             begin["version"] = version
-        if force:
-            begin["force"] = True
+        if downgrade is not None:
+            begin["downgrade"] = downgrade.decode("utf-8") if isinstance(downgrade, bytes) else downgrade
         self.upload_session = None
         self.request(Command.MODEL_BEGIN, begin)  # sets upload_session; later MODEL_* requests carry it
         if self.upload_session is not None:

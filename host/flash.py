@@ -68,7 +68,8 @@ def flash_bundle(session: DeviceSession, path: str | Path, *, progress: bool = T
         (the bundle directory is not changed). Without it the bundle's own
         ``signature.json`` is sent if it has one, else the upload is unsigned.
     force : bool
-        Ask the device to install a signed bundle that is not newer than its model.
+        A deliberate rollback: sign, with ``key`` (required), an authorisation to install this
+        bundle over the model the device runs now, and send it with the upload.
 
     Returns
     -------
@@ -96,8 +97,16 @@ def flash_bundle(session: DeviceSession, path: str | Path, *, progress: bool = T
         raise BundleRefused(f"bundle {path} refused: {exc}") from None
     c = session.client
     before = c.info().get("model_sha256")
+    downgrade = None
+    if force:
+        if key is None:
+            raise BundleRefused("--force needs --key: a rollback is authorised by a signature, not by a flag")
+        if before is not None:
+            from edge.security.keys import downgrade_document  # noqa: PLC0415
+
+            downgrade = downgrade_document(key, bundle.sha256, before)
     with ProgressBar("flashing", "B", enabled=progress, unit_scale=True) as bar:
-        c.upload_model(blob, progress=bar, version=bundle.model_version, force=force)
+        c.upload_model(blob, progress=bar, version=bundle.model_version, downgrade=downgrade)
     now = c.info().get("model_sha256")
     if now != bundle.sha256:
         raise DeviceUnavailable(f"device reports model {now} after flashing {path}, expected {bundle.sha256}")

@@ -130,7 +130,7 @@ def load_secret_key(path: str | os.PathLike) -> SecretKey:
 
 def sign_manifest(bundle_dir: str | os.PathLike, key: SecretKey) -> bytes:
     """``signature.json`` bytes for the bundle in ``bundle_dir``: a signature over its ``manifest.json`` bytes."""
-    from edge.model.bundle import DEFAULT_LIMITS, MANIFEST_FILE, _read_regular_file  # noqa: PLC0415
+    from edge.model.bundle import DEFAULT_LIMITS, MANIFEST_FILE, read_regular_file  # noqa: PLC0415
 
-    manifest = _read_regular_file(Path(bundle_dir) / MANIFEST_FILE, MANIFEST_FILE, DEFAULT_LIMITS.max_manifest_bytes)
+    manifest = read_regular_file(Path(bundle_dir) / MANIFEST_FILE, MANIFEST_FILE, DEFAULT_LIMITS.max_manifest_bytes)
     return signature_document(key, manifest)

@@ -31,8 +31,8 @@ from typing import Mapping, Optional, Sequence
 import numpy as np
 
 from edge.estimation.estimate import FLUX_CALIBRATION_U_REL, Estimator
-from edge.estimation.objects import (KnownObject, ObjectSet, Recognition, effective_u_ln_alpha, measured_alpha,
-                                     open_set_z)
+from edge.recognition import (KnownObject, ObjectSet, Recognition, effective_u_ln_alpha, measured_alpha,
+                              open_set_z)
 from edge.measure.instrument import INSTRUMENTS
 from edge.physics.materials import load_materials
 from edge.physics.solids import Solid
@@ -83,7 +83,7 @@ class Touches:
     """Simulated touches, one row each (``e``/``u_ln_e`` NaN where the estimator refused).
 
     ``alpha``, ``u_ln_alpha``, ``corr`` are what a probe that measures α reported
-    (:func:`edge.estimation.objects.measured_alpha`), NaN where it did not (every
+    (:func:`edge.recognition.measured_alpha`), NaN where it did not (every
     touch of the paper's probe).
     """
 
@@ -217,7 +217,7 @@ def simulate_probe_touches(objects: Sequence[KnownObject], *, probe: str = "smal
     quantisation (absolute temperature, a baseline of up to 10 pre-heating samples),
     each touch with its own flux-sensor calibration error; the device's
     :class:`edge.estimation.probe_estimate.AxiEstimator` estimates e and α with
-    their covariance (:func:`edge.estimation.objects.measured_alpha`). ``dt_s``: the world's
+    their covariance (:func:`edge.recognition.measured_alpha`). ``dt_s``: the world's
     time step (default: the world's own).
     """
     from edge.estimation.probe_estimate import AxiEstimator  # noqa: PLC0415
@@ -348,7 +348,7 @@ def fit_alpha_u_growth(object_set: ObjectSet, touches: Touches, true_index, *, h
     Over the touches that measured α of objects with k, ρ, c (each object's
     specimen spread included): ``mean((ln α - ln α_i)² / (u_eff(a)² + spread_i²)) = 1``, solved by
     bisection (it falls monotonically with a); 0 when the stated u already
-    covers the scatter. See :data:`edge.estimation.objects.DEFAULT_ALPHA_U_GROWTH`.
+    covers the scatter. See :data:`edge.recognition.DEFAULT_ALPHA_U_GROWTH`.
     """
     ti = np.asarray(true_index, int)
     m = np.isfinite(touches.alpha) & object_set.has_props[ti]
@@ -378,7 +378,7 @@ def fit_z_crit(object_set: ObjectSet, ln_e, u_ln_e, *, acceptance: float = 0.975
     """The open-set critical distance that accepts ``acceptance`` of these in-set touches (at least ``floor``).
 
     Aiming above the acceptance goal leaves margin for the sampling error of the quantile. The
-    statistic is the test's own (:func:`edge.estimation.objects.open_set_z`: a touch with α
+    statistic is the test's own (:func:`edge.recognition.open_set_z`: a touch with α
     has two degrees of freedom).
     """
     t = object_set.temperature if temperature is None else temperature
@@ -471,7 +471,7 @@ def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequen
 def recognise(object_set: ObjectSet, estimate: Mapping) -> Recognition | None:
     """Recognition from an ``Estimate.to_dict()`` (None when it has no effusivity).
 
-    e, and α where the probe measured it (:func:`edge.estimation.objects.measured_alpha`):
+    e, and α where the probe measured it (:func:`edge.recognition.measured_alpha`):
     the default method's k and α on a thick body come from the library prior
     given e and carry no independent information.
     """

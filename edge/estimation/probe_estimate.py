@@ -260,7 +260,7 @@ class AxiEstimator:
             out["corr_k_alpha"] = _num(max(-1.0, min(1.0, cov / (u_lk * u_la))))
         # What the record measured of (ln e, ln alpha), with the correlation of their errors, whatever is
         # reported below: object recognition uses it where the touch determined alpha
-        # (edge.estimation.objects.measured_alpha), jointly with e.
+        # (edge.recognition.measured_alpha), jointly with e.
         c_fit = u_rel["alpha"] * (f.corr_k_alpha * u_rel["k"] - 0.5 * u_rel["alpha"])
         c_ea = c_fit + sens["effusivity"] * sens["alpha"] * u_flux ** 2
         if f.converged and u_la > 0 and math.isfinite(u_la) and math.isfinite(c_ea) and u_le > 0:

@@ -21,7 +21,7 @@ rounding (few independent samples per step crossed) and the flux
 calibration.
 
 :class:`SequentialDecision` feeds each running estimate into an
-:class:`~edge.estimation.objects.ObjectSet` and says when the answer is
+:class:`~edge.recognition.ObjectSet` and says when the answer is
 decided: the top answer's posterior (an object, or "unknown") at least
 ``threshold`` after at least ``min_time_s`` of heating. The full estimate
 at the end of the touch is still made from the whole record.

@@ -43,6 +43,7 @@ from edge.estimation.conditioning import baseline_mask, contact_effusivity, qual
 from edge.estimation.record import TouchRecord
 from edge.estimation.result import QUANTITIES, Estimate, unknown_recognition
 from edge.physics.geometry import get_probe
+from edge.recognition import recognition_fields
 from edge.status import Flag
 
 __all__ = ["SeamContext", "TouchEstimator", "Conditioned", "TooFewSamples", "BLOCKERS", "condition", "estimate_touch",
@@ -93,7 +94,7 @@ class SeamContext:
         and names the material, its ``sha256`` the model.  None only with :attr:`method` given.
     calibration : edge.calibration.model.ProbeCalibration or None
         The installed calibration; one made for another probe head is not applied (``uncalibrated``).
-    object_set : edge.estimation.objects.ObjectSet or None
+    object_set : edge.recognition.ObjectSet or None
         The objects the answer is named among (None: no naming, ``object = "unknown"``).
     object_set_name : str or None
         Its name as reported (``object_set``; default the set's label).
@@ -316,8 +317,6 @@ def _recognise(est: Estimate, context: SeamContext) -> Estimate:
     name = context.object_set_name
     if objs is None or not len(objs):
         return replace(est, **_recognition_kw(unknown_recognition(name)))
-    from edge.estimation.objects import recognition_fields  # noqa: PLC0415 - recognition knows no estimator
-
     try:
         r = recognition_fields(objs, est.to_dict(), set_name=name)
     except Exception as e:  # naming the object must never lose the measurement

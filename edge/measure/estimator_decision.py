@@ -8,7 +8,7 @@ result will come from -- the device's, with the installed flux calibration --
 on the record so far, resampled as the result will be
 (:func:`edge.measure.signal.resample_uniform`), every ``every_s`` of heating,
 and names the object from that estimate with e and, where the touch measured
-it, alpha (:meth:`edge.estimation.objects.ObjectSet.classify_estimate`).
+it, alpha (:meth:`edge.recognition.ObjectSet.classify_estimate`).
 The running answer and the result are then one estimate at two lengths.
 
 Cost.  When heating starts the estimator builds its model for the touch's

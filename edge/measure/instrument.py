@@ -1,18 +1,17 @@
 """What the sensors do to the signals: sampling, noise and ADC quantisation.
 
 Used to make simulated measurements and training-set augmentation match the
-simulated hardware (firmware_sim) and the reference board:
+simulated hardware (firmware_sim) and the boards. One :class:`Instrument` per
+board, named after its thermocouple chip and built from the noise models of
+the chip registry (:data:`edge.hw.chips.CHIPS`): the thermocouple chip's model
+for the temperature, its :attr:`~edge.hw.chips.Chip.flux_partner`'s for the
+flux. Today that gives
 
-* ``"mcp9600"`` - MCP9600 in its 16-bit mode (80-ms conversions, 12.5 Hz):
-  its ADC resolves 8 uV of thermocouple EMF, i.e. 0.197 K steps (the
-  0.0625 K register LSB only pays off at 18 bit, 320 ms per conversion),
-  and the FHF05 flux sensor (0.56 uV per W/m^2) on an ADS1115 at +-0.256 V
-  (7.8125 uV LSB = 14 W/m^2) at 128 SPS.
-* ``"ads122c04"`` - the precision option: thermocouple EMF and flux on a
+* ``"mcp9600"`` -- the reference board: MCP9600 in its 16-bit mode (12.5 Hz,
+  0.197 K steps) and the flux sensor on an ADS1115 at +-0.256 V (14 W/m^2
+  steps) at 128 SPS;
+* ``"ads122c04"`` -- the precision board: thermocouple EMF and flux on a
   24-bit ADS122C04 at gain 128 (0.12 uV LSB), 90 SPS.
-
-Noise figures are input-referred RMS values typical of the datasheets plus
-pick-up on a short cable.
 """
 
 from __future__ import annotations
@@ -21,13 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from edge.hw.regmaps.mcp9600 import adc_step_V
-from edge.physics.probe import FLUX_SENSITIVITY_V_per_W_m2
-from edge.physics.typek import seebeck_uV_per_K
+from edge.hw.chips import ADS122C04_STEP_V, CHIPS, FLUX, THERMOCOUPLE, TYPE_K_SEEBECK_V_per_K, Chip
 
-TYPE_K_SEEBECK_V_per_K = float(seebeck_uV_per_K(25.0)) * 1e-6
-#: ADS122C04 step at gain 128 with the internal 2.048 V reference (24-bit two's complement).
-ADS122C04_STEP_V = 2.048 / 128 / 2 ** 23
+__all__ = ["Instrument", "INSTRUMENTS", "instrument_for", "TYPE_K_SEEBECK_V_per_K", "ADS122C04_STEP_V"]
 
 
 @dataclass(frozen=True)
@@ -69,14 +64,13 @@ class Instrument:
         return np.clip(np.round(q / self.q_lsb_W_m2) * self.q_lsb_W_m2, -self.q_range_W_m2, self.q_range_W_m2)
 
 
-INSTRUMENTS = {
-    "mcp9600": Instrument(
-        name="mcp9600", T_rate_Hz=12.5, T_lsb_K=adc_step_V(16) / TYPE_K_SEEBECK_V_per_K, T_noise_K=0.02,
-        q_rate_Hz=128.0, q_lsb_W_m2=7.8125e-6 / FLUX_SENSITIVITY_V_per_W_m2, q_noise_W_m2=3.0,
-    ),
-    "ads122c04": Instrument(
-        name="ads122c04", T_rate_Hz=90.0, T_lsb_K=ADS122C04_STEP_V / TYPE_K_SEEBECK_V_per_K,
-        T_noise_K=0.004, q_rate_Hz=90.0, q_lsb_W_m2=ADS122C04_STEP_V / FLUX_SENSITIVITY_V_per_W_m2,
-        q_noise_W_m2=1.0,
-    ),
-}
+def instrument_for(thermocouple: Chip, flux: Chip) -> Instrument:
+    """The sampling and noise model of a board with these two chips (their registry noise models)."""
+    T, q = thermocouple.models[THERMOCOUPLE], flux.models[FLUX]
+    return Instrument(name=thermocouple.name, T_rate_Hz=T.rate_Hz, T_lsb_K=T.lsb, T_noise_K=T.noise,
+                      q_rate_Hz=q.rate_Hz, q_lsb_W_m2=q.lsb, q_noise_W_m2=q.noise)
+
+
+#: Instrument models by name: one per thermocouple chip of the registry, with its flux partner.
+INSTRUMENTS = {spec.name: instrument_for(spec, CHIPS[spec.flux_partner])
+               for spec in CHIPS.values() if THERMOCOUPLE in spec.roles and spec.flux_partner}

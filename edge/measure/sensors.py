@@ -3,10 +3,12 @@
 :func:`make_sensors` builds :class:`ProbeSensors` from the ``[sensors]``
 configuration section: it probes and configures the converter chips through
 the board's I2C bus and wraps them in two read functions.
-:func:`thermocouple_resolution_K` gives the temperature step of the same
-configured converter, which the estimator carries into its uncertainty.
+:func:`thermocouple_resolution_K` (from :mod:`edge.hw.chips`) gives the
+temperature step of the same configured converter, which the estimator
+carries into its uncertainty.
 
-Nothing here imports the simulator; the chips are reached through the board.
+Nothing here names a chip: the chips are described in :mod:`edge.hw.chips`
+and reached through the board; nothing here imports the simulator.
 """
 
 from __future__ import annotations
@@ -14,12 +16,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from edge.hw.drivers.ads1115 import ADS1115
-from edge.hw.drivers.ads122c04 import ADS122C04
-from edge.hw.drivers.mcp9600 import MCP9600
-from edge.hw.regmaps.mcp9600 import adc_step_V
+from edge.hw import chips
+from edge.hw.chips import RoleReader, thermocouple_resolution_K
 from edge.hw.faults import SensorFault
-from edge.measure.instrument import ADS122C04_STEP_V, TYPE_K_SEEBECK_V_per_K
 
 __all__ = ["Reading", "ProbeSensors", "make_sensors", "thermocouple_resolution_K"]
 
@@ -111,7 +110,11 @@ class ProbeSensors:
 def make_sensors(board: Any, sensors_cfg: Any) -> ProbeSensors:
     """Build :class:`ProbeSensors` for the chips named in the ``[sensors]`` config section.
 
-    Probes and configures each chip (SensorFault if one does not answer).
+    The section names a chip for each role (``thermocouple``, ``flux_adc``);
+    each is opened (probed and configured) once through its entry in
+    :data:`edge.hw.chips.CHIPS`, even when one chip plays both roles, and
+    read through the entry's role readers. SensorFault if a chip does not
+    answer.
 
     Parameters
     ----------
@@ -128,73 +131,20 @@ def make_sensors(board: Any, sensors_cfg: Any) -> ProbeSensors:
     bus, sleep = board.i2c, board.clock.sleep
     if bus is None:
         raise SensorFault("i2c", "not_found", "the board has no I2C bus")
-    kw = dict(attempts=s.i2c_attempts, sleep=sleep)
-    ads122 = None
+    devices: dict[str, Any] = {}
 
-    def get_ads122() -> Any:
-        # One ADS122C04 can read both sensors: build (and reset) it once.
-        nonlocal ads122
-        if ads122 is None:
-            ads122 = ADS122C04(bus, s.ads122c04_address, on_saturation="flag", **kw)
-            ads122.reset()
-            ads122.configure(gain=s.ads122c04_gain, data_rate_sps=s.ads122c04_data_rate_sps)
-        return ads122
+    def reader(role: str, name: str) -> RoleReader:
+        spec = chips.chip(name)
+        if role not in spec.roles:
+            raise ValueError(f"{spec.part} cannot read the {role}; chips that can: {chips.names_for(role)}")
+        st = chips.chip_settings(spec, s)
+        if name not in devices:     # one chip may play both roles: open (and reset) it once
+            devices[name] = spec.open(bus, st, attempts=s.i2c_attempts, sleep=sleep)
+        return spec.readers[role](devices[name], st)
 
-    if s.thermocouple == "mcp9600":
-        mcp = MCP9600(bus, s.mcp9600_address, **kw)
-        mcp.probe()
-        mcp.configure(adc_resolution_bits=s.mcp9600_adc_bits)
-
-        def read_T() -> tuple[float, bool]:
-            return mcp.read_hot_junction_C(), False
-        T_age_s = mcp.conversion_time_s
-        T_lag_s = 0.0  # converts continuously: T_age_s is its reading's age
-    else:
-        T_age_s = 0.0  # single-shot conversions, read when done
-        adc = get_ads122()
-        T_lag_s = 0.5 * adc.conversion_time_s
-
-        def read_T() -> tuple[float, bool]:
-            t = adc.read_thermocouple_C("AIN0_AIN1", s.ads122c04_gain)
-            return t, adc.saturated
-
-    if s.flux_adc == "ads1115":
-        ads = ADS1115(bus, s.ads1115_address, on_saturation="flag", **kw)
-        ads.configure(mux="AIN0_AIN1", fsr_V=s.ads1115_fsr_V, data_rate_sps=s.ads1115_data_rate_sps)
-
-        def read_q() -> tuple[float, bool]:
-            v = ads.read_single_shot_V()
-            return v, ads.saturated
-        q_lag_s = 0.5 / s.ads1115_data_rate_sps   # a conversion lasts 1 / DR
-    else:
-        adc2 = get_ads122()
-
-        def read_q() -> tuple[float, bool]:
-            v = adc2.read_flux_voltage_V("AIN2_AIN3", s.ads122c04_gain)
-            return v, adc2.saturated
-        q_lag_s = 0.5 * adc2.conversion_time_s
-
-    return ProbeSensors(read_T, read_q, s.flux_sensitivity_V_per_W_m2, T_age_s=T_age_s,
+    T = reader(chips.THERMOCOUPLE, s.thermocouple)
+    q = reader(chips.FLUX, s.flux_adc)
+    return ProbeSensors(T.read, q.read, s.flux_sensitivity_V_per_W_m2, T_age_s=T.age_s,
                         T_resolution_K=thermocouple_resolution_K(s), clock=board.clock.monotonic,
-                        T_lag_s=T_lag_s, q_lag_s=q_lag_s,
+                        T_lag_s=T.lag_s, q_lag_s=q.lag_s,
                         description=f"thermocouple={s.thermocouple} flux={s.flux_adc}")
-
-
-def thermocouple_resolution_K(sensors_cfg: Any) -> float:
-    """Temperature step (K) of the configured thermocouple converter near room temperature.
-
-    Parameters
-    ----------
-    sensors_cfg : namespace
-        The ``[sensors]`` section (the same one :func:`make_sensors` reads).
-
-    Returns
-    -------
-    float
-        One ADC step of thermocouple EMF divided by the type-K Seebeck
-        coefficient at 25 °C.
-    """
-    s = sensors_cfg
-    if s.thermocouple == "mcp9600":
-        return adc_step_V(int(s.mcp9600_adc_bits)) / TYPE_K_SEEBECK_V_per_K
-    return ADS122C04_STEP_V * 128 / s.ads122c04_gain / TYPE_K_SEEBECK_V_per_K

@@ -263,6 +263,8 @@ class MeasurementSequence:
         self.answer: Any = None
         self.state = Phase.IDLE
         self._last_off: float | None = None
+        #: The slowest sensor read of the touch in progress (s): measured per touch, so one slow read
+        #: (a bus that hung once, then recovered) does not stop every later touch (ISSUE #35 §4).
         self._max_read_s = 0.0
 
     def _set_state(self, s: Phase) -> None:
@@ -366,6 +368,7 @@ class MeasurementSequence:
         dts: list[tuple[float, float]] = []
         on_before = self.heater.on_time_s
         t_on = t_off = None
+        self._max_read_s = 0.0
         try:
             try:
                 if self.abort_event.is_set():
@@ -395,6 +398,11 @@ class MeasurementSequence:
                 n_ref = max(1, int(round(params.baseline_s * params.sample_rate_Hz)))
                 T0_run, q0_run = float(np.mean(Ts[-n_ref:])), float(np.mean(qs[-n_ref:]))
                 decided = False
+                if self._max_read_s >= self.limits.max_on_time_s - self.watchdog.guard_s:
+                    # Reads this slow could not stop the heater in time: say so before it goes on, not
+                    # after a pulse of a few milliseconds.
+                    raise _Stop(Reason.MAX_ON_TIME, f"sensor reads too slow ({self._max_read_s:.3g} s) to stay "
+                                f"within max_on_time_s={self.limits.max_on_time_s} s; the heater stayed off")
                 # ---- heating
                 self._set_state(Phase.HEATING)
                 self.watchdog.arm()

@@ -16,7 +16,7 @@ import numpy as np
 from edge.estimation.conditioning import contact_effusivity, quality_flags, resample_uniform
 from edge.physics.probe import HEATER_AREA_m2
 
-__all__ = ["resample_uniform", "quality_flags", "contact_effusivity", "temperature_rise_K", "heat_while_off",
+__all__ = ["MIN_HEAT_s", "MIN_HEAT_SAMPLES", "min_contact_time_s", "resample_uniform", "quality_flags", "contact_effusivity", "temperature_rise_K", "heat_while_off",
            "no_heat_while_on", "AIR_EFFUSIVITY_W_s05_m2K"]
 
 #: Still air near 300 K: sqrt(0.0263 W/(m K) * 1.16 kg/m^3 * 1007 J/(kg K)) (Incropera 7e, Table A.4).
@@ -70,6 +70,20 @@ def heat_while_off(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, limits:
         return (f"heat with the heater off: the temperature rose {rise:.2f} K (> {limits.fault_rise_K:g}) "
                 f"in {span:.2f} s with {q_mean:.0f} W/m^2 leaving the probe (> -{inflow_W_m2:g})")
     return None
+
+
+#: The shortest heating a touch may ask for, s, and the fewest samples it must give. Shorter, the
+#: flux has not crossed the sensor's own layer and converter (the simulated paper probe shows
+#: 19-65 W/m^2 of a 1500-W/m^2 step at 0.26-0.3 s), so "no heat while on" would be judged on a
+#: sensor that has not answered yet and latch a heater fault on a healthy heater (ISSUE #35 §3),
+#: and the estimators need at least 4 grid points after heater-on.
+MIN_HEAT_s = 0.5
+MIN_HEAT_SAMPLES = 5
+
+
+def min_contact_time_s(sample_rate_Hz: float) -> float:
+    """The shortest contact (heating) time a touch at ``sample_rate_Hz`` may ask for, s."""
+    return max(MIN_HEAT_s, MIN_HEAT_SAMPLES / float(sample_rate_Hz))
 
 
 def no_heat_while_on(heat_T_C: np.ndarray, heat_q_W_m2: np.ndarray, T0_C: float, power_W: float,

@@ -17,7 +17,7 @@ Authenticity: an upload is installed only if the store's
 :class:`~edge.security.policy.UpdatePolicy` accepts it -- a signature over the
 manifest by a trusted key (or no signature where the policy allows unsigned
 updates) and, for a signed update, a ``created_utc`` newer than the active
-model's unless the upload is forced. A store without a policy refuses every
+model's unless the upload carries a signed downgrade authorisation. A store without a policy refuses every
 upload. Bundles already in the store (and the factory bundle, trusted by being
 on the read-only install) are not re-authenticated at boot: only what comes
 over the link is.
@@ -86,6 +86,8 @@ class ModelStore:
 
     CURRENT = "current"
     PREVIOUS = "previous"
+    #: The downgrade authorisations used on this store (their SHA-256s, one a line): each works once.
+    SPENT_DOWNGRADES = "downgrades.spent"
 
     def __init__(
         self,
@@ -235,7 +237,7 @@ class ModelStore:
     # ---------------------------------------------------------------- install
 
     def install(self, blob: bytes, expected_sha256: str, expected_size: int | None = None, *,
-                force: bool = False) -> Bundle:
+                downgrade: bytes | str | None = None) -> Bundle:
         """Verify and activate a bundle received as a transport blob.
 
         Steps: check size and sha256 of the blob; unpack into ``tmp/``; fsync; load with the
@@ -251,9 +253,10 @@ class ModelStore:
             SHA-256 (hex) of ``blob`` as announced by the sender.
         expected_size : int, optional
             Announced length of ``blob`` in bytes.
-        force : bool
-            Install a signed bundle even if it is not newer than the active one (a deliberate
-            rollback); authentication is never skipped.
+        downgrade : bytes or str, optional
+            A downgrade authorisation (:func:`edge.security.keys.downgrade_document`) that lets a
+            signed bundle not newer than the active one be installed (a deliberate rollback);
+            authentication is never skipped.
 
         Returns
         -------
@@ -268,7 +271,7 @@ class ModelStore:
         with self._lock:
             staging = self.tmp_dir / f"upload-{secrets.token_hex(6)}"
             try:
-                return self._install(blob, expected_sha256, expected_size, staging, force)
+                return self._install(blob, expected_sha256, expected_size, staging, downgrade)
             except InstallError:
                 raise
             except UpdateRefused as e:
@@ -279,7 +282,7 @@ class ModelStore:
                 durable.remove_tree(staging)
 
     def _install(self, blob: bytes, expected_sha256: str, expected_size: int | None, staging: Path,
-                 force: bool) -> Bundle:
+                 downgrade: bytes | str | None) -> Bundle:
         if self.policy is None:
             raise InstallError("install refused: this model store has no update policy (it only loads models)")
         if not isinstance(expected_sha256, str) or not _HEX64.match(expected_sha256.lower()):
@@ -307,8 +310,16 @@ class ModelStore:
         if hashlib.sha256(manifest_bytes).hexdigest() != new.sha256:
             raise InstallError("manifest changed while installing")
         auth = self.policy.authenticate(manifest_bytes, read_signature(staging))
-        self.policy.check_newer(new.manifest, new.sha256, None if active is None else active.manifest,
-                                None if active is None else active.sha256, auth=auth, force=force)
+        used = self.policy.check_newer(new.manifest, new.sha256, None if active is None else active.manifest,
+                                       None if active is None else active.sha256, auth=auth, downgrade=downgrade)
+        spent = None
+        if used is not None:
+            # An authorisation names one (new, active) pair; a model can run again later (v3 -> v2
+            # -> v3), so the pair alone would let a replay repeat the rollback: each is used once.
+            spent = hashlib.sha256(downgrade.encode("utf-8") if isinstance(downgrade, str) else downgrade).hexdigest()
+            if spent in self._spent_downgrades():
+                raise InstallError("install refused, active model unchanged: this downgrade authorisation "
+                                   "was used before (sign a new one)")
         self.last_authentication = auth
         self._check_semantics(new)
         target = self._bundle_path(new.sha256)
@@ -326,6 +337,11 @@ class ModelStore:
             durable.rename_dir(staging, target)
         durable.fsync_dir(self.bundles_dir)
 
+        if spent is not None:
+            # Spent before the switch: an install killed in between leaves it spent and the old model
+            # running (the operator signs another), never a reusable authorisation.
+            durable.atomic_write_file(self.root / self.SPENT_DOWNGRADES,
+                                      "".join(f"{h}\n" for h in sorted(self._spent_downgrades() | {spent})).encode())
         if active is not None and active_source in (self.CURRENT, self.PREVIOUS) and active.sha256 != new.sha256:
             self._write_pointer(self.PREVIOUS, active.sha256)
         self._write_pointer(self.CURRENT, new.sha256)
@@ -333,6 +349,14 @@ class ModelStore:
         self._active, self.source, self.boot_errors = self._load_verified(target, new.sha256), self.CURRENT, []
         self._collect_garbage()
         return self._active
+
+    def _spent_downgrades(self) -> set[str]:
+        """SHA-256s of the downgrade authorisations already used on this store."""
+        try:
+            text = (self.root / self.SPENT_DOWNGRADES).read_text("ascii")
+        except FileNotFoundError:
+            return set()
+        return {line for line in text.split() if _HEX64.match(line)}
 
     def _check_semantics(self, bundle: Bundle) -> None:
         # Before the bundle is stored or named by a pointer: a refusal leaves the store as it was.

@@ -197,7 +197,9 @@ COMMANDS: dict[Command, CommandSpec] = {spec.command: spec for spec in (
         args=(arg("size", "int", required=True, lo=1, hi=MAX_MODEL_SIZE, doc="bundle size, bytes"),
               arg("sha256", "sha256", required=True, doc="hex digest of the whole bundle"),
               arg("version", "str", hi=_STR_MAX),
-              arg("force", "bool", doc="install a signed bundle even if it is not newer than the active one")),
+              arg("downgrade", "str", hi=1024,
+                  doc="a signed downgrade authorisation (JSON) that lets a signed bundle not newer than the "
+                      "active one be installed over exactly that model")),
         reply=(arg("size", "int", required=True),
                arg("session", "int", lo=1, hi=MAX_SESSION_ID,
                    doc="upload session id; MODEL_CHUNK/COMMIT/ABORT must carry it")),

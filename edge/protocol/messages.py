@@ -91,6 +91,13 @@ def _json_loads(payload: bytes, request_id: int | None) -> dict[str, Any]:
                             ErrorCode.BAD_FRAME, request_id) from None
     if not isinstance(obj, dict):
         raise ProtocolError("payload must be a JSON object", "payload", ErrorCode.BAD_FRAME, request_id)
+    try:
+        # JSON's \\u escapes can spell a lone UTF-16 surrogate, which is no text: refused here, not
+        # met later as an internal error when a reply echoes it (ISSUE #35 §11).
+        json.dumps(obj, ensure_ascii=False).encode("utf-8")
+    except UnicodeEncodeError:
+        raise ProtocolError("payload holds a lone UTF-16 surrogate (\\ud800-\\udfff), which is not text",
+                            "payload", ErrorCode.BAD_FRAME, request_id) from None
     return obj
 
 

@@ -43,12 +43,18 @@ __all__ = [
     "load_trusted_keys",
     "signature_document",
     "parse_signature",
+    "DOWNGRADE_KIND",
+    "downgrade_message",
+    "downgrade_document",
+    "parse_downgrade",
 ]
 
 PUBLIC_KIND = "thermotouch-ed25519-public"
 SECRET_KIND = "thermotouch-ed25519-secret"
 #: Name of the detached signature inside a bundle directory and a transport blob.
 SIGNATURE_FILE = "signature.json"
+#: ``kind`` of a downgrade authorisation (see :func:`downgrade_document`).
+DOWNGRADE_KIND = "thermotouch-downgrade"
 #: Longest key or signature file read (bytes): a few hundred suffice.
 MAX_KEY_FILE_BYTES = 4096
 
@@ -213,3 +219,41 @@ def parse_signature(data: bytes, where: str = SIGNATURE_FILE) -> tuple[str, byte
     kid = _hex_field(doc, "key_id", _HEX16, where)
     sig = bytes.fromhex(_hex_field(doc, "signature_hex", _HEX128, where))
     return kid, sig
+
+
+def downgrade_message(to_sha256: str, from_sha256: str) -> bytes:
+    """The bytes a downgrade authorisation signs: the kind and the two model identities it joins.
+
+    Binding both identities addresses the authorisation to one device state: it installs
+    ``to_sha256`` only over ``from_sha256``, so once anything else runs (the next update, or the
+    rollback itself) a replay of it authorises nothing.
+    """
+    return f"{DOWNGRADE_KIND}\nto {to_sha256}\nfrom {from_sha256}\n".encode("ascii")
+
+
+def downgrade_document(key: SecretKey, to_sha256: str, from_sha256: str) -> bytes:
+    """A signed authorisation to install model ``to_sha256`` over the active ``from_sha256`` (JSON bytes)."""
+    for name, v in (("to_sha256", to_sha256), ("from_sha256", from_sha256)):
+        if not isinstance(v, str) or not _HEX64.match(v):
+            raise KeyFileError(f"downgrade: {name!r} must be 64 lowercase hex digits")
+    doc = {"kind": DOWNGRADE_KIND, "to_sha256": to_sha256, "from_sha256": from_sha256, "key_id": key.key_id,
+           "signature_hex": key.sign(downgrade_message(to_sha256, from_sha256)).hex()}
+    return (json.dumps(doc, sort_keys=True) + "\n").encode("utf-8")
+
+
+def parse_downgrade(data: bytes | str, where: str = "downgrade") -> tuple[str, str, str, bytes]:
+    """``(key_id, to_sha256, from_sha256, signature)`` of a downgrade authorisation.
+
+    Raises
+    ------
+    KeyFileError
+        Malformed document (the signature itself is checked by the update policy).
+    """
+    doc = _load_json(data, where)
+    if doc.get("kind") != DOWNGRADE_KIND:
+        raise KeyFileError(f"{where}: 'kind' must be {DOWNGRADE_KIND!r}, got {doc.get('kind')!r}")
+    kid = _hex_field(doc, "key_id", _HEX16, where)
+    to = _hex_field(doc, "to_sha256", _HEX64, where)
+    frm = _hex_field(doc, "from_sha256", _HEX64, where)
+    sig = bytes.fromhex(_hex_field(doc, "signature_hex", _HEX128, where))
+    return kid, to, frm, sig

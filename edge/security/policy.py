@@ -15,10 +15,14 @@ Version ordering (downgrade protection)
 Updates are ordered by the manifest's ``created_utc`` (ISO 8601,
 ``YYYY-MM-DDTHH:MM:SSZ``; every bundle has it, ``thermotouch train`` writes
 it when it builds the bundle). A signed update that is not strictly newer than
-the active model is refused unless the upload was begun with ``force`` (an
-operator's deliberate rollback); re-sending the active bundle itself is not a
-version change and is accepted. This stops a replay of an old, legitimately
-signed bundle with a known flaw.
+the active model is refused unless the upload carries a downgrade
+authorisation (:func:`edge.security.keys.downgrade_document`): a document
+signed by a trusted key that names the bundle to install and the model it may
+replace. Re-sending the active bundle itself is not a version change and is
+accepted. This stops a replay of an old, legitimately signed bundle with a
+known flaw: nobody on the link can ask for the downgrade by a flag (an
+unauthenticated ``force`` once did exactly that), and an authorisation, being
+addressed to one active model, is spent as soon as another model runs.
 
 The floor is applied to authenticated updates only: for an unsigned upload
 (allowed on a development device) ``created_utc`` is whatever the sender
@@ -37,7 +41,8 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from edge.security import ed25519
-from edge.security.keys import KeyFileError, PublicKey, load_trusted_keys, parse_signature
+from edge.security.keys import (KeyFileError, PublicKey, downgrade_message, load_trusted_keys, parse_downgrade,
+                                 parse_signature)
 
 __all__ = ["UpdateRefused", "UpdatePolicy", "Authentication", "release_time"]
 
@@ -131,38 +136,77 @@ class UpdatePolicy:
             kid, sig = parse_signature(signature_doc)
         except KeyFileError as e:
             raise UpdateRefused(f"signature refused: {e}") from None
+        self._verify(kid, manifest_bytes, sig, "signature", "manifest changed after signing?")
+        return Authentication(kid)
+
+    def _verify(self, kid: str, message: bytes, sig: bytes, what: str, hint: str) -> None:
         keys = self.trusted_keys()
         key = keys.get(kid)
         if key is None:
             where = self.trusted_keys_dir or "(no trusted_keys_dir configured)"
-            raise UpdateRefused(f"signature by untrusted key {kid} refused: not among the {len(keys)} trusted "
+            raise UpdateRefused(f"{what} by untrusted key {kid} refused: not among the {len(keys)} trusted "
                                 f"key(s) in {where}")
         try:
-            ed25519.check_signature(key.public, manifest_bytes, sig)
+            ed25519.check_signature(key.public, message, sig)
         except ed25519.SignatureError as e:
-            raise UpdateRefused(f"bad signature by key {kid}: {e} (manifest changed after signing?)") from None
-        return Authentication(kid)
+            raise UpdateRefused(f"bad {what} by key {kid}: {e} ({hint})") from None
 
-    @staticmethod
-    def check_newer(new_manifest: Mapping[str, Any], new_sha256: str, active_manifest: Mapping[str, Any] | None,
-                    active_sha256: str | None, *, auth: Authentication, force: bool) -> None:
-        """Refuse a signed update that is not newer than the active model (unless ``force``).
-
-        See the module docstring for the rule and why unsigned updates skip it.
+    def authorise_downgrade(self, document: bytes | str, new_sha256: str, active_sha256: str) -> str:
+        """Check a downgrade authorisation for installing ``new_sha256`` over ``active_sha256``; its key id.
 
         Raises
         ------
         UpdateRefused
-            Not newer, or a ``created_utc`` that cannot be ordered.
+            Malformed, for another pair of models, by an untrusted key, or not verifying.
         """
-        if force or not auth.signed or active_manifest is None or new_sha256 == active_sha256:
-            return
+        try:
+            kid, to, frm, sig = parse_downgrade(document)
+        except KeyFileError as e:
+            raise UpdateRefused(f"downgrade authorisation refused: {e}") from None
+        if to != new_sha256 or frm != active_sha256:
+            raise UpdateRefused(f"downgrade authorisation refused: it allows {to[:12]}... over {frm[:12]}..., "
+                                f"not {new_sha256[:12]}... over the active {active_sha256[:12]}...")
+        self._verify(kid, downgrade_message(to, frm), sig, "downgrade authorisation",
+                     "signed for other models?")
+        return kid
+
+    def check_newer(self, new_manifest: Mapping[str, Any], new_sha256: str,
+                    active_manifest: Mapping[str, Any] | None, active_sha256: str | None, *,
+                    auth: Authentication, downgrade: bytes | str | None = None) -> str | None:
+        """Refuse a signed update that is not newer than the active model, unless a downgrade is authorised.
+
+        See the module docstring for the rule and why unsigned updates skip it.
+
+        Parameters
+        ----------
+        downgrade : bytes or str, optional
+            A downgrade authorisation (:func:`edge.security.keys.downgrade_document`); checked
+            only when the update is not newer.
+
+        Returns
+        -------
+        str or None
+            The key id of the downgrade authorisation this install needed and used (None: none
+            was needed). The caller keeps it from being used twice (the model store does).
+
+        Raises
+        ------
+        UpdateRefused
+            Not newer and not authorised, or a ``created_utc`` that cannot be ordered.
+        """
+        if not auth.signed or active_manifest is None or new_sha256 == active_sha256:
+            return None
         new_t = release_time(new_manifest, "update")
         old_t = release_time(active_manifest, "active model")
         if new_t <= old_t:
+            if downgrade is not None:
+                kid = self.authorise_downgrade(downgrade, new_sha256, str(active_sha256))
+                log.warning("downgrade to %s authorised by key %s", new_sha256[:12], kid)
+                return kid
             raise UpdateRefused(
                 f"downgrade refused: update {new_manifest.get('model_version')!r} created "
                 f"{new_t.strftime(_TIME_FORMAT)} is not newer than the active "
                 f"{active_manifest.get('model_version')!r} created {old_t.strftime(_TIME_FORMAT)} "
-                "(thermotouch flash --force to install it anyway)")
+                "(a rollback needs a signed authorisation: thermotouch flash --force --key FILE)")
+        return None
 

@@ -16,9 +16,10 @@ board
     root/chip/channel).
 sensors
     Which chips are fitted, their addresses and settings: the thermocouple
-    converter (``thermocouple``: ``"mcp9600"`` or ``"ads122c04"``) and the
-    heat-flux ADC (``flux_adc``: ``"ads1115"`` or ``"ads122c04"``), the flux
-    sensor's sensitivity, the I2C retry bound.
+    converter (``thermocouple``) and the heat-flux ADC (``flux_adc``), each a
+    chip of :data:`edge.hw.chips.CHIPS` that can play that role, every chip's
+    ``<chip>_<key>`` settings (from the same registry), the flux sensor's
+    sensitivity, the I2C retry bound.
 heater
     Supply voltage and film resistance (the power model ``P = d V^2/R``), the
     default power, and the two safety limits: ``max_on_time_s`` and
@@ -64,12 +65,13 @@ import json
 import logging
 import os
 import tomllib
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, make_dataclass
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Iterable, Mapping
 
 from edge.estimation.estimate import METHODS
+from edge.hw.chips import CHIPS, DEFAULT_CHIPS, FLUX, THERMOCOUPLE, names_for
 from edge.schema import Field, SchemaError, check_value, type_name
 from edge.storage import durable
 from edge.physics.geometry import PROBES
@@ -142,32 +144,31 @@ class BoardConfig:
     pwm_channel: int = setting("int", 0, "PWM channel number", lo=0, hi=64)
 
 
-@dataclass(frozen=True)
-class SensorsConfig:
-    """The ``[sensors]`` section."""
+def _chip_fields() -> list[tuple[str, type, Any]]:
+    """The ``[sensors]`` keys of every registry chip: its address, then its own settings."""
+    out: list[tuple[str, type, Any]] = []
+    for spec in CHIPS.values():
+        out.append((spec.setting_key("address"), int,
+                    setting("int", spec.default_address, f"{spec.part} I2C address",
+                            lo=min(spec.addresses), hi=max(spec.addresses))))
+        for st in spec.settings:
+            out.append((spec.setting_key(st.key), Any, setting(st.kind, st.default, st.doc, **st.bounds)))
+    return out
 
-    thermocouple: str = setting("str", "mcp9600", "thermocouple converter", choices=("mcp9600", "ads122c04"))
-    flux_adc: str = setting("str", "ads1115", "heat-flux sensor ADC", choices=("ads1115", "ads122c04"))
-    mcp9600_address: int = setting("int", 0x60, "MCP9600 I2C address", lo=0x60, hi=0x67)
-    mcp9600_adc_bits: int = setting(
-        "int", 16, "MCP9600 ADC resolution (18: 320 ms, 16: 80 ms per conversion)", choices=(12, 14, 16, 18)
-    )
-    ads1115_address: int = setting("int", 0x48, "ADS1115 I2C address", lo=0x48, hi=0x4B)
-    ads1115_fsr_V: float = setting(
-        "float", 0.256, "ADS1115 full-scale range, V", choices=(0.256, 0.512, 1.024, 2.048, 4.096, 6.144)
-    )
-    ads1115_data_rate_sps: int = setting(
-        "int", 860, "ADS1115 data rate, samples/s", choices=(8, 16, 32, 64, 128, 250, 475, 860)
-    )
-    ads122c04_address: int = setting("int", 0x40, "ADS122C04 I2C address", lo=0x40, hi=0x4F)
-    ads122c04_gain: int = setting("int", 128, "ADS122C04 PGA gain", choices=(1, 2, 4, 8, 16, 32, 64, 128))
-    ads122c04_data_rate_sps: int = setting(
-        "int", 1000, "ADS122C04 data rate (normal mode), samples/s", choices=(20, 45, 90, 175, 330, 600, 1000)
-    )
-    flux_sensitivity_V_per_W_m2: float = setting(
-        "float", FLUX_SENSITIVITY_V_per_W_m2, "heat-flux sensor sensitivity, V per W/m^2", lo=1e-9, hi=1e-3
-    )
-    i2c_attempts: int = setting("int", 4, "tries per I2C transaction before a sensor fault", lo=1, hi=20)
+
+#: The ``[sensors]`` section: which registry chip plays each role, every chip's settings
+#: (:data:`edge.hw.chips.CHIPS`), the flux sensor's sensitivity and the I2C retry bound.
+SensorsConfig = make_dataclass("SensorsConfig", [
+    ("thermocouple", str, setting("str", DEFAULT_CHIPS[THERMOCOUPLE], "thermocouple converter",
+                                  choices=names_for(THERMOCOUPLE))),
+    ("flux_adc", str, setting("str", DEFAULT_CHIPS[FLUX], "heat-flux sensor ADC", choices=names_for(FLUX))),
+    *_chip_fields(),
+    ("flux_sensitivity_V_per_W_m2", float, setting(
+        "float", FLUX_SENSITIVITY_V_per_W_m2, "heat-flux sensor sensitivity, V per W/m^2", lo=1e-9, hi=1e-3)),
+    ("i2c_attempts", int, setting("int", 4, "tries per I2C transaction before a sensor fault", lo=1, hi=20)),
+], frozen=True)
+SensorsConfig.__module__ = __name__
+SensorsConfig.__doc__ = "The ``[sensors]`` section (its chip keys come from :data:`edge.hw.chips.CHIPS`)."
 
 
 @dataclass(frozen=True)

@@ -226,7 +226,7 @@ class Daemon:
         measurement's start. Default: the active set of the object-set
         store (``paths.object_sets``; OBJECTS_* requests), else every
         material of the library
-        (:meth:`edge.estimation.objects.ObjectSet.from_library`).
+        (:meth:`edge.recognition.ObjectSet.from_library`).
     """
 
     def __init__(self, config: Config, board: Board, *, estimator: Callable[..., Any] | None = None,
@@ -855,7 +855,7 @@ class Daemon:
         return self.calibration.get()
 
     def _cmd_model_begin(self, args: dict) -> dict:
-        out = self.upload.begin(args["size"], args["sha256"], args.get("version"), bool(args.get("force", False)))
+        out = self.upload.begin(args["size"], args["sha256"], args.get("version"), args.get("downgrade"))
         return {**out, "session": self.upload.session}
 
     def _cmd_model_chunk(self, args: dict) -> dict:

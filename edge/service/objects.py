@@ -2,7 +2,7 @@
 
 :class:`ObjectSets` joins the store (:mod:`edge.storage.objects_store`,
 which knows files, not objects) and the recognition
-(:mod:`edge.estimation.objects`, which knows objects, not files), as
+(:mod:`edge.recognition`, which knows objects, not files), as
 :mod:`edge.service.estimator` joins the model store and the estimator.
 
 Upload (a CSV is small, but a frame is 4 kB)::
@@ -29,7 +29,7 @@ import secrets
 from pathlib import Path
 from typing import Any, Mapping
 
-from edge.estimation.objects import LIBRARY_SET, ObjectSet, recognition_fields
+from edge.recognition import LIBRARY_SET, ObjectSet, recognition_fields
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.storage.objects_store import MAX_SET_BYTES, ObjectSetStore, ObjectStoreError, UploadRefused, check_name
 from edge.service.upload import append_chunk
@@ -112,7 +112,7 @@ class ObjectSets:
         return s.name, s.objects
 
     def name_object(self, result: Mapping[str, Any]) -> dict:
-        """The object fields of a measurement result (:func:`edge.estimation.objects.recognition_fields`)."""
+        """The object fields of a measurement result (:func:`edge.recognition.recognition_fields`)."""
         name, objs = self.active()
         return recognition_fields(objs, result, set_name=name)
 

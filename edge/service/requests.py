@@ -24,6 +24,7 @@ import numpy as np
 
 from edge.physics.probe import heater_power_W
 from edge.measure.sequence import MeasurementParams
+from edge.measure.signal import min_contact_time_s
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.service.config import RUNTIME_KEYS, Config
 
@@ -40,22 +41,11 @@ SERIES_COLUMNS = {"raw": (("t_s", "raw_t_s"), ("T_C", "raw_T_C"), ("q_W_m2", "ra
 def max_sample_rate_Hz(sensors: Any) -> float:
     """Fastest sampling whose every temperature reading is a new conversion, Hz (``[sensors]`` section).
 
-    From the converters' conversion times (edge/hw/regmaps): the MCP9600
-    converts continuously, 320 / 80 / 20 / 5 ms at 18 / 16 / 14 / 12 bit,
-    so faster reads only repeat a value (12.5 Hz at the default 16 bit); the
-    ADS122C04 reads the thermocouple and then the flux in single shots, two
-    conversions per sample (1000 SPS: ~1.1 ms each) plus the I2C traffic,
-    so it can sample at the protocol's 200 Hz ceiling; the ADS1115 (flux
-    only, 860 SPS: 1.2 ms) never limits.
+    The thermocouple chip's limit in the chip registry (:func:`edge.hw.chips.max_sample_rate_Hz`).
     """
-    from edge.hw.regmaps.ads122c04 import DATA_RATES_NORMAL_SPS, conversion_time_s  # noqa: PLC0415
-    from edge.hw.regmaps.mcp9600 import CONVERSION_TIME_s  # noqa: PLC0415
+    from edge.hw.chips import max_sample_rate_Hz as chip_limit_Hz  # noqa: PLC0415
 
-    if sensors.thermocouple == "mcp9600":
-        return 1.0 / CONVERSION_TIME_s[int(sensors.mcp9600_adc_bits)]
-    dr = DATA_RATES_NORMAL_SPS.index(int(sensors.ads122c04_data_rate_sps))
-    per_sample = 2 * conversion_time_s(dr, False, True) + 2e-3  # two single shots + I2C reads
-    return min(200.0, 1.0 / per_sample)
+    return chip_limit_Hz(sensors)
 
 
 def measure_params(config: Config, max_power_W: float, *, power_W: float | None = None,
@@ -93,7 +83,8 @@ def measure_params(config: Config, max_power_W: float, *, power_W: float | None 
     ------
     CommandError
         BAD_ARGUMENT for a voltage above the supply, a power above the
-        heater's maximum, or a contact time not below ``heater.max_on_time_s``.
+        heater's maximum, or a contact time not below ``heater.max_on_time_s`` or
+        below :func:`edge.measure.signal.min_contact_time_s`.
     """
     h, m = config.heater, config.measurement
     if voltage_V is not None:
@@ -112,6 +103,11 @@ def measure_params(config: Config, max_power_W: float, *, power_W: float | None 
     rate = m.sample_rate_Hz
     if sample_rate_Hz is not None:
         rate = min(float(sample_rate_Hz), max_sample_rate_Hz(config.sensors))
+    shortest = min_contact_time_s(rate)
+    if contact < shortest:
+        # Refused before heating: too short to estimate, and too short to judge the heater by.
+        raise CommandError(ErrorCode.BAD_ARGUMENT, f"contact_time_s={contact} is too short: a touch at "
+                           f"{rate:g} Hz needs at least {shortest:g} s of heating", "contact_time_s")
     return MeasurementParams(power_W=power, contact_time_s=contact, baseline_s=m.baseline_s,
                              sample_rate_Hz=rate, cooldown_s=m.cooldown_s,
                              method=config.estimation.method, until_decided=bool(until_decided),
@@ -139,13 +135,21 @@ def fit_record(record: dict, max_payload: int) -> dict:
 def history_page(offset: int, total: int, items: list[dict], max_payload: int) -> dict[str, Any]:
     """The HISTORY reply: as many of ``items`` (each fitted) as fit in one reply.
 
-    The host continues at ``offset + len(items)``.
+    The host continues at ``offset + len(items)``. Each item is fitted and encoded once and the
+    page grows while the encoded sizes fit: linear in the items asked for (ISSUE #35 §8: popping
+    one item and re-encoding the whole page each time made a 20-item request cost 20 encodings of
+    up to 20 items, and a 1100-record export took minutes).
     """
-    items = [fit_record(r, max_payload) for r in items]
-    while items and len(json.dumps({"offset": offset, "total": total, "items": items})) + REPLY_MARGIN \
-            > max_payload:
-        items.pop()
-    return {"offset": offset, "total": total, "items": items}
+    budget = max_payload - REPLY_MARGIN - len(json.dumps({"offset": offset, "total": total, "items": []}))
+    page: list[dict] = []
+    for r in items:
+        r = fit_record(r, max_payload)
+        size = len(json.dumps(r)) + (2 if page else 0)  # ", " before every item but the first
+        if size > budget:
+            break
+        budget -= size
+        page.append(r)
+    return {"offset": offset, "total": total, "items": page}
 
 
 def series_page(record: Mapping[str, Any], measurement_id: int, which: str, offset: int, limit: int | None,

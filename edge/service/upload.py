@@ -65,9 +65,10 @@ def append_chunk(held: bytearray, size: int, offset: int, data: bytes) -> int:
 class _Pending:
     """What MODEL_BEGIN announced and the bytes received so far."""
 
-    def __init__(self, size: int, sha256: str, version: str | None, session: int, force: bool = False) -> None:
+    def __init__(self, size: int, sha256: str, version: str | None, session: int,
+                 downgrade: str | None = None) -> None:
         self.session = session
-        self.force = force
+        self.downgrade = downgrade
         self.size = size
         self.sha256 = sha256
         self.version = version
@@ -128,11 +129,13 @@ class ModelUpload:
         up = self._pending
         return None if up is None else {"received": len(up.data), "size": up.size}
 
-    def begin(self, size: int, sha256: str, version: str | None = None, force: bool = False) -> dict[str, Any]:
+    def begin(self, size: int, sha256: str, version: str | None = None,
+              downgrade: str | None = None) -> dict[str, Any]:
         """Start an upload of ``size`` bytes with digest ``sha256`` (drops one in progress).
 
-        ``force`` lets a signed bundle that is not newer than the active one be installed
-        (see :mod:`edge.security.policy`); the signature is checked all the same.
+        ``downgrade`` is a signed authorisation that lets a signed bundle that is not newer than
+        the active one be installed (see :mod:`edge.security.policy`); the signature is checked
+        all the same.
 
         Returns
         -------
@@ -150,9 +153,9 @@ class ModelUpload:
                                "size")
         if self._pending is not None:
             log.info("model upload session %d superseded by a new MODEL_BEGIN", self._pending.session)
-        self._pending = _Pending(size, sha256, version, self._new_session(), bool(force))
+        self._pending = _Pending(size, sha256, version, self._new_session(), downgrade)
         log.info("model upload session %d started: %d B, sha256 %s%s", self._pending.session, size, sha256[:12],
-                 " (forced)" if force else "")
+                 " (downgrade authorisation attached)" if downgrade else "")
         return {"size": size}
 
     def chunk(self, offset: int, data: bytes, session: int | None = None, *,
@@ -200,7 +203,7 @@ class ModelUpload:
             raise CommandError(ErrorCode.BAD_STATE, f"upload incomplete: {len(up.data)} of {up.size} B")
         self._pending = None
         try:
-            bundle = self.store.install(bytes(up.data), up.sha256, up.size, force=up.force)
+            bundle = self.store.install(bytes(up.data), up.sha256, up.size, downgrade=up.downgrade)
         except InstallError as e:
             detail = str(e)  # InstallError's message already carries the cause
             log.warning("model upload refused: %s", detail)

@@ -14,7 +14,7 @@ anything is written: a bad one changes nothing.
 
 What an object set *is* (the CSV format) is not known here: the parser is
 injected (``parse``; the daemon passes
-:meth:`edge.estimation.objects.ObjectSet.from_csv_text`), as the model store
+:meth:`edge.recognition.ObjectSet.from_csv_text`), as the model store
 takes its golden check -- storage stays below estimation.
 """
 

@@ -1,11 +1,8 @@
 """A faithful thermal world: the chips' view of the probe, computed on the (r, z) model.
 
 :class:`FaithfulWorld` is a drop-in for :class:`firmware_sim.world.ThermalWorld`
-as the chips and the simulator see it (``state``, ``truth``,
-``thermocouple_C``, ``cold_junction_C``, ``thermocouple_open``,
-``thermocouple_emf_V``, ``flux_voltage_V``, ``ads1115_input_V``,
-``ads122c04_input_V``, ``add_touch``, ``contact_at``, ``add_fault``,
-``heater_power_W``, ``power_schedule``, the :class:`HeaterDrive` protocol),
+as the chips and the simulator see it (the :class:`firmware_sim.world_protocol.World`
+protocol; the wiring table :mod:`firmware_sim.wiring` connects its signals to the chips),
 but where ThermalWorld is the estimator's own idealisation (exact 1-D
 Laplace solution of a uniform stack), this one time-steps the axisymmetric
 finite-volume model of :mod:`firmware_sim.rz`:
@@ -34,7 +31,7 @@ finite-volume model of :mod:`firmware_sim.rz`:
   *true* time constant;
 * the heater film's resistance with a temperature coefficient at constant
   voltage, ``P = d V^2 / (R_0 (1 + alpha_R (T_heater - T_ref)))``;
-* as-built deviations (:class:`AsBuilt`: sensing-layer thickness and
+* as-built deviations (:class:`AsBuilt`, :mod:`firmware_sim.rz.configs`: sensing-layer thickness and
   conductivity, flux sensitivity, thermocouple lag, heater R and TCR) that
   the device is never told.
 
@@ -90,141 +87,28 @@ from typing import Sequence
 
 import numpy as np
 
-from edge.physics import typek
-from edge.physics.geometry import PROBES, ProbeGeometry
-from edge.physics.probe import heater_power_W
-from edge.physics.schedule import PowerSchedule
 from edge.physics.solids import Solid
-from firmware_sim.heater_faults import active, effective_duty, supply_voltage
-from firmware_sim.rz.grid import ADIABATIC, PU_FOAM, SENSOR_AREA_m2, Boundary, Grid, Layer, Mesh
-from firmware_sim.rz.solver import Solver, axis_value
-from firmware_sim.scene.model import FLUX_SATURATION_V, Fault, Scene
-from firmware_sim.world import OPEN_TC_INPUT_V, REPEAT_RELEASE_S, HeaterDrive, Truth, WorldState
+from firmware_sim.drive import HeaterDrive
+from firmware_sim.heater_faults import WORLD_FAULTS, active
+from firmware_sim.rz.heater import FilmHeater
+from firmware_sim.rz.configs import AsBuilt, Geometry, GridConfig, as_built_for_scene, build_config, geometry_for_probe
+from firmware_sim.rz.solver import axis_value
+from firmware_sim.scene.model import Fault, Scene
+from firmware_sim.world_protocol import REPEAT_RELEASE_S, SensorSignals, Truth, WorldState
 
+# AsBuilt, Geometry and their constructors are re-exported: their home was this module.
 __all__ = ["AsBuilt", "Geometry", "FaithfulWorld", "Touch", "SNAPSHOTS", "geometry_for_probe", "as_built_for_scene"]
 
 #: Steps kept as roll-back snapshots (each one field copy).
 SNAPSHOTS = 48
 #: Backward-Euler sub-steps (fractions of dt) that start every phase after a switch.
 _STARTUP = (1 / 16, 1 / 16, 1 / 8, 1 / 4, 1 / 2)
-_HEATER_FAULTS = ("heater_stuck_on", "heater_dead", "supply_sag")
-_WORLD_KINDS = ("open_thermocouple", "flux_saturation", "no_contact") + _HEATER_FAULTS
 _EPS_T = 1e-12
 #: Length given to an open repeat touch until a heating closes it (s).
 _OPEN_TOUCH_S = 1e6
 _start = attrgetter("start_s")   # bisection keys: touches and phases by start, steps by t_a
 _first = itemgetter(0)
 _second = itemgetter(1)
-
-
-@dataclass(frozen=True)
-class AsBuilt:
-    """How this probe was really built; the device is never told.
-
-    ``None`` means "as the scene/stack says" (nominal).  Defaults are the
-    ideal probe.
-
-    Attributes
-    ----------
-    sensing_thickness_m, sensing_k_W_mK : float or None
-        Sensing layer thickness and conductivity (rho c as the stack's).
-    flux_sensitivity_V_per_W_m2 : float or None
-        True thermopile sensitivity (default the scene's nominal value).
-    thermocouple_time_constant_s : float or None
-        True bead lag (default the scene's).
-    heater_resistance_ohm : float or None
-        Film resistance at ``heater_reference_C`` (default the scene's).
-    heater_tcr_per_K : float
-        Temperature coefficient of the film's resistance (1/K).
-    heater_reference_C : float
-        Temperature at which the film has ``heater_resistance_ohm``.
-    """
-
-    sensing_thickness_m: float | None = None
-    sensing_k_W_mK: float | None = None
-    flux_sensitivity_V_per_W_m2: float | None = None
-    thermocouple_time_constant_s: float | None = None
-    heater_resistance_ohm: float | None = None
-    heater_tcr_per_K: float = 0.0
-    heater_reference_C: float = 25.0
-
-    def __post_init__(self) -> None:
-        for name in ("sensing_thickness_m", "sensing_k_W_mK", "flux_sensitivity_V_per_W_m2",
-                     "heater_resistance_ohm"):
-            v = getattr(self, name)
-            if v is not None and not (v > 0 and math.isfinite(v)):
-                raise ValueError(f"{name} must be finite and > 0, got {v!r}")
-        tau = self.thermocouple_time_constant_s
-        if tau is not None and not (tau >= 0 and math.isfinite(tau)):
-            raise ValueError(f"thermocouple_time_constant_s must be finite and >= 0, got {tau!r}")
-        if not math.isfinite(self.heater_tcr_per_K):
-            raise ValueError("heater_tcr_per_K must be finite")
-
-
-@dataclass(frozen=True)
-class Geometry:
-    """The probe's and object's real geometry and surroundings (not as-built deviations).
-
-    ``substrate=None`` with ``h_air_W_m2K=0`` and a large ``heater_radius_m``
-    is the 1-D limit (the estimator's insulated-top stack).
-    """
-
-    substrate: Solid | None = PU_FOAM
-    substrate_thickness_m: float = 0.030
-    heater_radius_m: float | None = None     # default: equal-area disk of the heater
-    probe_radius_m: float | None = None      # default: the heater radius
-    object_radius_m: float = 0.05
-    infinite_thickness_m: float = 0.10       # object thickness for back = "infinite"
-    h_air_W_m2K: float = 5.0                 # natural convection on every exposed face
-    mesh: Mesh = field(default_factory=Mesh)
-    #: The film's real area, which turns electrical power into q_v (default: the stack's, 55 x 60 mm).
-    #: A heater disk wider than this (the 1-D limit) is a larger film at the same power density.
-    heater_area_m2: float | None = None
-    sensor_radius_m: float | None = None     # default: the 10 x 10 mm thermopile's equal-area disk
-
-    def __post_init__(self) -> None:
-        if not self.h_air_W_m2K >= 0 or math.isinf(self.h_air_W_m2K):
-            raise ValueError("h_air_W_m2K must be finite and >= 0")
-        for name in ("heater_area_m2", "sensor_radius_m"):
-            v = getattr(self, name)
-            if v is not None and not (v > 0 and math.isfinite(v)):
-                raise ValueError(f"{name} must be finite and > 0, got {v!r}")
-
-
-def geometry_for_probe(probe: ProbeGeometry | str, **overrides) -> Geometry:
-    """The world's :class:`Geometry` for a probe of :data:`edge.physics.geometry.PROBES` (or its name).
-
-    Only the probe's dimensions are taken (heater disk and its area, probe
-    radius, substrate, flux-sensor disk): the layer stack (heater film and
-    sensing layer) stays the scene's, as built. ``overrides`` replace any
-    other :class:`Geometry` field (object radius, convection, mesh, ...).
-    """
-    p = PROBES[probe] if isinstance(probe, str) else probe
-    kw = dict(substrate=p.substrate, substrate_thickness_m=p.substrate_thickness_m,
-              heater_radius_m=p.heater_radius_m, probe_radius_m=p.probe_radius_m,
-              heater_area_m2=p.heater_area_m2, sensor_radius_m=p.sensor_radius_m)
-    kw.update(overrides)
-    return Geometry(**kw)
-
-
-def as_built_for_scene(scene: Scene) -> AsBuilt:
-    """The :class:`AsBuilt` a scene's ``[as_built]`` table describes (nominal when it has none).
-
-    Factors multiply the scene's nominal values: the stack's sensing layer,
-    the ``[sensors]`` flux sensitivity and the ``[heater]`` resistance.
-    """
-    a = scene.as_built
-    if a is None:
-        return AsBuilt()
-    st, sens = scene.stack, scene.sensors
-    return AsBuilt(
-        sensing_thickness_m=st.sensing_thickness_m * a.sensing_thickness_factor,
-        sensing_k_W_mK=st.material.k_W_mK * a.sensing_k_factor,
-        flux_sensitivity_V_per_W_m2=sens.flux_sensitivity_V_per_W_m2 * a.flux_sensitivity_factor,
-        thermocouple_time_constant_s=a.thermocouple_time_constant_s,
-        heater_resistance_ohm=scene.heater.resistance_ohm * a.heater_resistance_factor,
-        heater_tcr_per_K=a.heater_tcr_per_K,
-        heater_reference_C=a.heater_reference_C)
 
 
 @dataclass(frozen=True)
@@ -270,38 +154,7 @@ class _State:
         return replace(self, T=self.T.copy())
 
 
-class _Config:
-    """One grid configuration: its grid, step solvers and read-out weights."""
-
-    def __init__(self, grid: Grid, n_probe_rows: int, tcr_weights: np.ndarray) -> None:
-        self.grid = grid
-        self.n_probe_rows = n_probe_rows
-        self.solvers: dict[float, Solver] = {}
-        self.main_dt = None
-        self.src = None
-        self.heater_w = tcr_weights
-        self.has_object = grid.nz > n_probe_rows
-        if self.has_object:
-            self.obj_rows = slice(n_probe_rows, grid.nz)
-            self.k_obj = float(grid.k_cell_W_mK[n_probe_rows, 0])
-
-    def solver(self, dt: float, scheme: str = "trbdf2") -> Solver:
-        key = (round(dt, 12), scheme)
-        s = self.solvers.get(key)
-        if s is None:
-            if len(self.solvers) >= 8:  # the main step, the start-up sub-steps and a few partial ones
-                self.solvers.pop(next(k for k in self.solvers if k != (self.main_dt, "trbdf2")))
-            s = Solver(self.grid, dt, scheme)
-            self.solvers[key] = s
-            if self.src is None:
-                # Per watt of electrical power: the film's power density q_v = P / (A L) over the heated
-                # disk (the equal-area disk by default: exactly 1 W; a larger disk, e.g. for the 1-D
-                # limit, is a larger film at the same power density).
-                self.src = self.grid.volume_source_W("heater", self.grid.meta["heater_radius_m"], self.q_v_per_W)
-        return s
-
-
-class FaithfulWorld:
+class FaithfulWorld(SensorSignals, FilmHeater):
     """The probe on the scene's object(s), time-stepped on the (r, z) model.
 
     Parameters
@@ -344,7 +197,7 @@ class FaithfulWorld:
         self.R0 = scene.heater.resistance_ohm if as_built.heater_resistance_ohm is None \
             else as_built.heater_resistance_ohm
         self.T_amb = scene.environment.ambient_temperature_C
-        self._faults: list[Fault] = [f for f in scene.faults if f.kind in _WORLD_KINDS]
+        self._faults: list[Fault] = [f for f in scene.faults if f.kind in WORLD_FAULTS]
         # Switch times, kept up to date from the drive's new changes (see _switch_times).
         self._drive_rev = None
         self._drive_times: set[float] = set()
@@ -354,7 +207,7 @@ class FaithfulWorld:
                                             scene.touch_contact_resistance_m2K_W, scene.object_temperature_C)]
         #: Whether the last touch is an open repeat touch (``[touch] repeat``, :meth:`repeat_touches`).
         self._repeat_open = False
-        self._configs: dict[tuple, _Config] = {}
+        self._configs: dict[tuple, GridConfig] = {}
         self._phases: list[_Phase] | None = None
         # History: one record per step end, plus one more at each switch (its right-hand side).
         self._cap = 0
@@ -378,62 +231,12 @@ class FaithfulWorld:
 
     # ------------------------------------------------------------------ configuration
 
-    def _grid(self, key: tuple) -> _Config:
+    def _grid(self, key: tuple) -> GridConfig:
         cfg = self._configs.get(key)
-        if cfg is not None:
-            return cfg
-        geo, stack = self.geometry, self.stack
-        a_h = math.sqrt(stack.heater_area_m2 / math.pi) if geo.heater_radius_m is None else geo.heater_radius_m
-        r_p = a_h if geo.probe_radius_m is None else geo.probe_radius_m
-        if r_p < a_h:
-            raise ValueError("the probe must be at least as wide as its heater")
-        air = Boundary(geo.h_air_W_m2K, self.T_amb)
-        layers = []
-        if geo.substrate is not None:
-            layers.append(Layer("substrate", geo.substrate_thickness_m, geo.substrate, r_p, fine_m=5e-6,
-                                fine_top_m=geo.mesh.max_dz_m))
-        layers.append(Layer("heater", stack.heater_thickness_m, stack.material, r_p, fine_m=5e-6))
-        n_probe_layers = len(layers) + 1
-        if key[0] == "air":
-            layers.append(Layer("sensing", stack.sensing_thickness_m, self.sensing_material, r_p, fine_m=10e-6))
-            bottom = air
-        else:
-            _, rc, T_obj = key
-            o = self.scene.object
-            thick = geo.infinite_thickness_m if o.back == "infinite" else o.thickness_m
-            layers.append(Layer("sensing", stack.sensing_thickness_m, self.sensing_material, r_p, fine_m=10e-6,
-                                contact_below_m2K_W=rc))
-            layers.append(Layer("object", thick, o.solid, geo.object_radius_m, fine_m=10e-6, fine_bottom_m=1e-3))
-            bottom = Boundary(math.inf, T_obj) if o.back == "fixed" else ADIABATIC
-        mesh = geo.mesh
-        R = max(r_p, geo.object_radius_m)   # the same radial faces in every configuration
-        r_s = math.sqrt(SENSOR_AREA_m2 / math.pi) if geo.sensor_radius_m is None else geo.sensor_radius_m
-        # The heater's edge wins where it coincides with another feature (it is the sharp 2-D corner).
-        feats = {0.0: mesh.axis_dr_m, r_s: mesh.feature_dr_m, r_p: mesh.edge_dr_m,
-                 geo.object_radius_m: mesh.feature_dr_m, R: mesh.feature_dr_m, a_h: mesh.edge_dr_m}
-        # A sensor wider than the heater (the small-heater probe) reads the heater's edge and beyond.
-        if r_s > r_p:
-            raise ValueError("the flux sensor must lie within the probe")
-        r_breaks = sorted(feats)
-        z_sens = sum(l.thickness_m for l in layers[:n_probe_layers - 1])
-        g = Grid.build(layers, r_breaks_m=r_breaks, r_fine_m=[feats[r] for r in r_breaks], mesh=mesh,
-                       top=air, side=air, bottom=bottom)
-        g.meta.update(heater_radius_m=a_h, probe_radius_m=r_p, sensor_radius_m=r_s,
-                      sensor_z_m=(z_sens, z_sens + stack.sensing_thickness_m),
-                      interface_z_m=z_sens + stack.sensing_thickness_m,
-                      heater_volume_m3=float(np.pi * a_h ** 2 * stack.heater_thickness_m))
-        n_probe_rows = int(np.sum(g.layer_of_row < n_probe_layers))
-        # Heater film mean temperature (for the TCR): volume weights over the heated disk.
-        w = g.volume_source_W("heater", a_h, 1.0)
-        w = w / w.sum()
-        cfg = _Config(g, n_probe_rows, w)
-        cfg.main_dt = round(self.dt, 12)
-        cfg.q_v_per_W = self.stack.q_v_from_power(1.0)
-        ref = next(iter(self._configs.values()), None)
-        if ref is not None and not (np.array_equal(ref.grid.r_faces_m, g.r_faces_m) and np.array_equal(
-                ref.grid.z_faces_m[: n_probe_rows + 1], g.z_faces_m[: n_probe_rows + 1])):
-            raise AssertionError("configurations must share the probe's cells")
-        self._configs[key] = cfg
+        if cfg is None:
+            cfg = build_config(key, self.scene, self.geometry, self.stack, self.sensing_material, self.T_amb,
+                               self.dt, next(iter(self._configs.values()), None))
+            self._configs[key] = cfg
         return cfg
 
     def _key(self, phase: _Phase) -> tuple:
@@ -451,7 +254,7 @@ class FaithfulWorld:
 
     def add_fault(self, fault: Fault, *, now_s: float | None = None) -> None:
         """Add a fault; it may not start before the current virtual time (see ThermalWorld.add_fault)."""
-        if fault.kind not in _WORLD_KINDS:
+        if fault.kind not in WORLD_FAULTS:
             raise ValueError(f"fault kind {fault.kind!r} is not modelled by the thermal world")
         now = self.clock.now() if now_s is None else min(float(now_s), self.clock.now())
         if fault.at_s < now - 1e-12:
@@ -462,87 +265,6 @@ class FaithfulWorld:
 
     def _active(self, kind: str, t_s: float) -> list[Fault]:
         return active(self._faults, kind, t_s)
-
-    # ------------------------------------------------------------------ heater
-
-    def duty_at(self, t_s: float) -> float:
-        """Effective duty at ``t_s``: commanded, unless a heater fault overrides it."""
-        return effective_duty(self._faults, t_s, self.drive.duty_at(t_s) if self.drive is not None else 0.0)
-
-    def supply_voltage_at(self, t_s: float) -> float:
-        """Heater supply voltage (V) at ``t_s``, with any sag."""
-        return supply_voltage(self._faults, t_s, self.scene.heater.supply_voltage_V)
-
-    def _switch_times(self) -> np.ndarray:
-        """Every time the duty or supply may change (drive and heater faults), sorted.
-
-        Every query asks; a drive that reports its changes incrementally
-        (``changes_since``: the board's, ScheduleDrive, ManualDrive) is read
-        only for what is new, so a long session costs no more per query.
-        """
-        d = self.drive
-        since = getattr(d, "changes_since", None) if d is not None else None
-        n_faults = len(self._faults)
-        if since is not None:
-            rev, new = since(self._drive_rev)
-            if rev == self._drive_rev and not new and n_faults == self._sw_faults and self._sw is not None:
-                return self._sw
-            self._drive_rev = rev
-            self._drive_times.update(float(x) for x in new)
-            times = set(self._drive_times)
-        else:
-            times = set(d.change_times()) if d is not None else set()
-        for f in self._faults:
-            if f.kind in _HEATER_FAULTS:
-                times.add(f.at_s)
-                if f.until_s is not None:
-                    times.add(f.until_s)
-        self._sw = np.array(sorted(times), dtype=float)
-        self._sw_faults = n_faults
-        return self._sw
-
-    def _dv2(self, t: float) -> float:
-        """duty * V^2 at ``t`` (W ohm)."""
-        return heater_power_W(self.duty_at(t), self.supply_voltage_at(t), 1.0)
-
-    def _nominal_energy(self, t_a: float, t_b: float, switches: np.ndarray) -> float:
-        """Integral of duty * V^2 over [t_a, t_b) (J ohm), exact over the switching instants."""
-        i0, i1 = np.searchsorted(switches, [t_a, t_b], side="right")
-        edges = [t_a] + [float(x) for x in switches[i0:i1] if t_a < x < t_b] + [t_b]
-        return sum(self._dv2(a) * (b - a) for a, b in zip(edges[:-1], edges[1:]))
-
-    def resistance_ohm(self, T_heater_C: float) -> float:
-        """Film resistance (ohm) at ``T_heater_C``."""
-        r = self.R0 * (1.0 + self.as_built.heater_tcr_per_K * (T_heater_C - self.as_built.heater_reference_C))
-        if not r > 0:
-            raise ValueError(f"heater resistance {r} ohm at {T_heater_C} degC: TCR out of range")
-        return r
-
-    def heater_power_W(self, t_s: float) -> float:
-        """Electrical power in the film at ``t_s`` (W), ``d V^2 / R(T_heater)``."""
-        dv2 = self._dv2(float(t_s))
-        if dv2 == 0.0:
-            return 0.0
-        if self.as_built.heater_tcr_per_K == 0.0:
-            return dv2 / self.R0
-        return dv2 / self._resistance_in_step(float(t_s))
-
-    def q_v_at(self, t_s: float) -> float:
-        """Heater power density at ``t_s`` (W/m^3) over the nominal film."""
-        return self.stack.q_v_from_power(self.heater_power_W(t_s))
-
-    def power_schedule(self, t_end_s: float | None = None) -> PowerSchedule:
-        """q_v(t) from 0 to ``t_end_s`` (default now): switching instants, and with a TCR every step start."""
-        t_end = self.clock.now() if t_end_s is None else float(t_end_s)
-        sw = self._switch_times()
-        times = {0.0} | {float(x) for x in sw if 0.0 < x <= t_end + 1e-12}
-        if self.as_built.heater_tcr_per_K != 0.0 and t_end > 0:
-            self._advance_to(t_end)
-            times |= {s[0] for s in self._steps if 0.0 < s[0] <= t_end}
-        ts = sorted(times)
-        q = [self.q_v_at(t) for t in ts]
-        keep = [0] + [i for i in range(1, len(q)) if q[i] != q[i - 1]]
-        return PowerSchedule(np.array([ts[i] for i in keep]), np.array([q[i] for i in keep]))
 
     # ------------------------------------------------------------------ touches and phases
 
@@ -697,7 +419,7 @@ class FaithfulWorld:
             self._enter_object(cfg, ph.touch)
         self._record(cfg, power=0.0)
 
-    def _enter_object(self, cfg: _Config, touch: Touch) -> None:
+    def _enter_object(self, cfg: GridConfig, touch: Touch) -> None:
         st = self._state
         stored = st.objects.get(touch)
         T_o = touch.object_temperature_C
@@ -708,11 +430,11 @@ class FaithfulWorld:
         st.T *= cfg.grid.active
         st.e_obj0 = self._object_heat(cfg, st.T, T_o)
 
-    def _object_heat(self, cfg: _Config, T: np.ndarray, T_o: float) -> float:
+    def _object_heat(self, cfg: GridConfig, T: np.ndarray, T_o: float) -> float:
         C = cfg.grid.cap_J_K[cfg.obj_rows]
         return float(np.sum(C * (T[cfg.obj_rows] - T_o)))
 
-    def _probe_heat(self, cfg: _Config, T: np.ndarray) -> float:
+    def _probe_heat(self, cfg: GridConfig, T: np.ndarray) -> float:
         C = cfg.grid.cap_J_K[: cfg.n_probe_rows]
         return float(np.sum(C * (T[: cfg.n_probe_rows] - self.T_amb)))
 
@@ -726,7 +448,7 @@ class FaithfulWorld:
             self._h[name] = new
         self._cap = cap
 
-    def _record(self, cfg: _Config, power: float, y: float | None = None, read: np.ndarray | None = None) -> None:
+    def _record(self, cfg: GridConfig, power: float, y: float | None = None, read: np.ndarray | None = None) -> None:
         """Append the state's history row; ``read``: the probes' values of this field, if already read."""
         st = self._state
         if st.n_hist >= self._cap:
@@ -812,7 +534,7 @@ class FaithfulWorld:
         if self._p0 == st.n_steps - 1 and t_b <= now:
             self._p0 = st.n_steps
 
-    def _switch(self, old: _Config) -> None:
+    def _switch(self, old: GridConfig) -> None:
         """Change configuration at the current time (a phase boundary)."""
         st = self._state
         ph = self._phase_at(st.t)
@@ -942,46 +664,24 @@ class FaithfulWorld:
         e["residual"] = e["e_in"] - e["e_lost"] - e["e_stored"]
         return e
 
-    # ------------------------------------------------------------------ what the chips see
+    # ------------------------------------------------------------------ signals (the World protocol)
 
-    def thermocouple_C(self, t_s: float) -> float:
-        """Hot-junction temperature (°C) the thermocouple reports at ``t_s`` (true bead lag)."""
+    def thermocouple_C(self, t_s: float, *, stream: str = "") -> float:
+        """Hot-junction temperature (°C) the thermocouple reports at ``t_s`` (true bead lag).
+
+        ``stream`` is ignored: the world marches in time and has no per-caller look-ahead.
+        """
         return float(self._interp(np.array([float(t_s)]), ())["y"][0])
 
     def cold_junction_C(self, t_s: float) -> float:
         """Board (cold-junction, ADC die) temperature (°C)."""
         return self.T_amb
 
-    def thermocouple_open(self, t_s: float) -> bool:
-        return bool(self._active("open_thermocouple", t_s))
+    def sensed_flux_W_m2(self, t_s: float, *, stream: str = "") -> float:
+        """What the thermopile integrates (W/m^2; ``stream`` is ignored): :meth:`thermopile_W_m2`."""
+        return self.thermopile_W_m2(t_s)
 
-    def thermocouple_emf_V(self, t_s: float) -> float:
-        """Differential thermocouple EMF at the ADC pins (V); the rail when open."""
-        if self.thermocouple_open(t_s):
-            return OPEN_TC_INPUT_V
-        return (typek.emf_mV(self.thermocouple_C(t_s)) - typek.emf_mV(self.cold_junction_C(t_s))) * 1e-3
-
-    def flux_voltage_V(self, t_s: float) -> float:
-        """Thermopile output (V): true sensitivity times its depth- and area-averaged flux, clipped to range."""
-        sat = self._active("flux_saturation", t_s)
-        if sat:
-            return float(sat[-1].params.get("voltage_V", FLUX_SATURATION_V))
-        rng = self.scene.sensors.flux_range_W_m2
-        q = min(max(self.thermopile_W_m2(t_s), -rng), rng)
-        return self.flux_sensitivity * q
-
-    def ads1115_input_V(self, mux: str, t_s: float) -> float:
-        """ADS1115 pins: flux sensor across AIN0-AIN1; AIN2, AIN3 tied to GND."""
-        if mux == "AIN0_AIN1":
-            return self.flux_voltage_V(t_s)
-        return 0.0
-
-    def ads122c04_input_V(self, mux: str, t_s: float) -> float:
-        """ADS122C04 pins: thermocouple across AIN0-AIN1, flux sensor across AIN2-AIN3."""
-        if mux in ("AIN0_AIN1", "AIN1_AIN0"):
-            v = self.thermocouple_emf_V(t_s)
-            return v if mux == "AIN0_AIN1" else -v
-        if mux in ("AIN2_AIN3", "AIN3_AIN2"):
-            v = self.flux_voltage_V(t_s)
-            return v if mux == "AIN2_AIN3" else -v
-        return 0.0
+    @property
+    def flux_sensitivity_V_per_W_m2(self) -> float:
+        """The thermopile's true sensitivity (V per W/m^2; as built, the device is never told)."""
+        return self.flux_sensitivity

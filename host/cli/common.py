@@ -62,7 +62,7 @@ def load_estimator(path, method: str = "default"):
 def load_object_set(path) -> tuple[Any, bytes]:
     """``(ObjectSet, raw bytes)`` of an object-set CSV, parsed by the device's own parser.
 
-    :meth:`edge.estimation.objects.ObjectSet.from_csv_text` is the one
+    :meth:`edge.recognition.ObjectSet.from_csv_text` is the one
     definition of the format; the host checks a file with it before using or
     uploading it.
 
@@ -72,7 +72,7 @@ def load_object_set(path) -> tuple[Any, bytes]:
         One line naming the file, and for a malformed row its line and column
         (the first problem; the count of the others).
     """
-    from edge.estimation.objects import ObjectSet, ObjectSetError  # noqa: PLC0415
+    from edge.recognition import ObjectSet, ObjectSetError  # noqa: PLC0415
 
     try:
         raw = open(path, "rb").read()

@@ -47,7 +47,7 @@ def add_parser(sub, parents):
 
 
 def run(args) -> int:
-    from edge.estimation.objects import LIBRARY_SET, ObjectSet, recognition_fields  # noqa: PLC0415
+    from edge.recognition import LIBRARY_SET, ObjectSet, recognition_fields  # noqa: PLC0415
     from host.records import RecordError, read_record, read_record_metadata  # noqa: PLC0415
 
     if args.back is not None and args.thickness is None:
@@ -107,7 +107,7 @@ def run(args) -> int:
 def _run_chain(args, objects, set_name) -> int:
     """``--calibration``: the sensor-chain estimate from contact (:mod:`edge.estimation.chain_estimate`)."""
     from edge.estimation.chain_estimate import estimate_from_contact  # noqa: PLC0415
-    from edge.estimation.objects import recognition_fields  # noqa: PLC0415
+    from edge.recognition import recognition_fields  # noqa: PLC0415
     from host.records import RecordError, read_series, uniform_series  # noqa: PLC0415
 
     try:

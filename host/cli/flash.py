@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from host.cli.args import add_device_args
 from host.cli.common import device_session
+from host.cli.errors import CliError
 
 
 def add_parser(sub, parents):
@@ -14,13 +15,16 @@ def add_parser(sub, parents):
                    help="secret key file (thermotouch keys new) to sign the bundle's manifest with; "
                         "without it the upload is unsigned (a real probe refuses it)")
     p.add_argument("--force", action="store_true",
-                   help="install even if the bundle is not newer than the probe's model (a deliberate rollback)")
+                   help="a deliberate rollback: install even if the bundle is not newer than the probe's model, "
+                        "with an authorisation signed by --key for exactly this bundle over the model it runs")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from host.flash import flash_bundle, load_signing_key, load_verified  # noqa: PLC0415
 
+    if args.force and args.key is None:
+        raise CliError("--force needs --key: a rollback is authorised by a signature, not by a flag")
     load_verified(args.bundle)  # refuse a bad bundle before touching the device (exit 2)
     key = load_signing_key(args.key)  # and a bad key
     with device_session(args) as session:

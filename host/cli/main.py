@@ -165,6 +165,10 @@ def main(argv: list[str] | None = None) -> int:
     """Console script ``thermotouch``; returns the exit status."""
     # One BLAS thread (host/blas.py): on two shared cores OpenBLAS's own threads made training 5x slower.
     limit_blas_threads()
+    from host.cli.terminal import NeutralStream, neutralise  # noqa: PLC0415
+
+    real_stdout = sys.stdout
+    sys.stdout = NeutralStream(real_stdout)  # for this verb only: an in-process caller gets its own back
     try:
         code, _ = _run(argv)
         return code
@@ -184,7 +188,9 @@ def main(argv: list[str] | None = None) -> int:
         line, code = _one_line(exc, getattr(exc, "__thermotouch_prog__", "thermotouch"))
         if " internal error: " in line and os.environ.get("THERMOTOUCH_DEBUG"):
             raise
-    print(line.replace("\n", " "), file=sys.stderr)
+    finally:
+        sys.stdout = real_stdout
+    print(neutralise(line.replace("\n", " ")), file=sys.stderr)
     return code
 
 

@@ -67,11 +67,11 @@ def measure_json(rec: dict) -> dict:
     """The device's MEASURE record as the user's result: estimate, flags (device's and estimator's), id, power.
 
     It carries the object fields ``estimate --json`` gives (object, class,
-    posteriors, candidates: :data:`edge.estimation.objects.RESULT_KEYS`) as
+    posteriors, candidates: :data:`edge.recognition.RESULT_KEYS`) as
     the device named them among its active object set; a device whose
     records lack them (older firmware) gives None and no candidates.
     """
-    from edge.estimation.objects import RESULT_KEYS  # noqa: PLC0415
+    from edge.recognition import RESULT_KEYS  # noqa: PLC0415
 
     out = dict(rec["result"])
     for key in RESULT_KEYS:

@@ -80,7 +80,13 @@ def test_pimoroni_ads1015_detects_ads1115_on_wall_clock(sim_factory):
     chip = sim.chips["ads1115"]
     n0 = chip.conversions
     assert adc.detect_chip_type() == ads1015.DEVICE_ADS1115
-    assert chip.conversions - n0 == 10
+    # The driver times ten conversions it starts itself, each on a chip found idle: ten at least.
+    # Before them it sets single-shot mode by a read-modify-write of CONFIG that writes back the OS
+    # bit it read, 1 on an idle chip: as on the real ADS1115, that starts one conversion more. On a
+    # quiet machine it is still running when the timed loop starts and stands in for the loop's
+    # first (10 in all); if the driver's thread is held up for a conversion time (7.8 ms of wall
+    # time) before the loop, the chip has finished it and converts 11.
+    assert chip.conversions - n0 in (10, 11)
 
 
 def test_pimoroni_ads1015_detects_ads1115_on_bus_clock(sim_factory):

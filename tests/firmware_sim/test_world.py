@@ -13,6 +13,7 @@ from edge.physics.solids import Solid
 from firmware_sim.clock import VirtualClock
 from firmware_sim.scene.files import read_scene
 from firmware_sim.scene.model import Fault
+from firmware_sim.wiring import pin_value
 from firmware_sim.world import AIR, OPEN_TC_INPUT_V, ScheduleDrive, ThermalWorld
 
 
@@ -196,7 +197,7 @@ def test_flux_sensor_clips_to_its_range_and_saturation_fault():
     w = world(sat, touch_step(sat))
     assert w.flux_voltage_V(1.1) == 0.3
     assert w.flux_voltage_V(1.3) == pytest.approx(0.56e-6 * w.state(1.3).q_f_W_m2)
-    assert w.ads1115_input_V("AIN0_AIN1", 1.1) == 0.3 and w.ads1115_input_V("AIN2_GND", 1.1) == 0.0
+    assert pin_value(w, "ads1115", "AIN0_AIN1", 1.1) == 0.3 and pin_value(w, "ads1115", "AIN2_GND", 1.1) == 0.0
 
 
 def test_thermocouple_emf_and_open_circuit():
@@ -207,8 +208,8 @@ def test_thermocouple_emf_and_open_circuit():
     T = w.thermocouple_C(t)
     emf = (typek.emf_mV(T) - typek.emf_mV(25.0)) * 1e-3
     assert w.thermocouple_emf_V(t) == pytest.approx(emf, rel=1e-12)
-    assert w.ads122c04_input_V("AIN1_AIN0", t) == pytest.approx(-emf, rel=1e-12)
-    assert w.ads122c04_input_V("AIN2_AIN3", t) == pytest.approx(w.flux_voltage_V(t))
+    assert pin_value(w, "ads122c04", "AIN1_AIN0", t) == pytest.approx(-emf, rel=1e-12)
+    assert pin_value(w, "ads122c04", "AIN2_AIN3", t) == pytest.approx(w.flux_voltage_V(t))
     assert w.thermocouple_open(1.2) and not w.thermocouple_open(1.5)
     assert w.thermocouple_emf_V(1.2) == OPEN_TC_INPUT_V
 

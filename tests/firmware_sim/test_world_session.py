@@ -14,12 +14,13 @@ from firmware_sim.chips.mcp9600 import MCP9600Emulator
 from firmware_sim.clock import VirtualClock
 from firmware_sim.scene.model import Fault
 from firmware_sim.scene.files import read_scene
+from firmware_sim.wiring import connect
 from firmware_sim.world import BoardDrive, ManualDrive, ThermalWorld
 
 
 def _chips(world, clock):
     mcp = MCP9600Emulator(clock, world.thermocouple_C, world.cold_junction_C, open_circuit=world.thermocouple_open)
-    ads = ADS1115Emulator(clock, world.ads1115_input_V)
+    ads = ADS1115Emulator(clock, connect(world, "ads1115").mux)
     ads.i2c_write(bytes([0x01, 0x0A, 0xE3]))   # AIN0-AIN1, +-0.256 V, continuous, 860 SPS
     ads.i2c_write(bytes([0x00]))
     return mcp, ads

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from edge.estimation.objects import KnownObject, ObjectSet
+from edge.recognition import KnownObject, ObjectSet
 from host.recognition import calibrate, fit_temperature, fit_z_crit, recognise, reliability, simulate_touches
 
 

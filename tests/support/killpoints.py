@@ -6,7 +6,7 @@ outlives the process:
 
 * ``file``: every ``os.open(O_CREAT)``, ``os.write``, ``os.fsync``, ``os.replace``,
   ``os.rename``, ``os.mkdir``, ``os.unlink`` and ``os.rmdir`` made from
-  :mod:`edge.storage.durable`, :mod:`edge.model.store`, :mod:`edge.model.bundle` or
+  :mod:`edge.storage.durable`, :mod:`edge.model.store`, the bundle modules of :mod:`edge.model` or
   :mod:`edge.service.config` (found by the caller's stack, so ``shutil.rmtree`` and
   ``Path.unlink`` inside ``durable.remove_tree`` count, step by step);
 * ``sqlite``: every writing statement the history issues (``BEGIN``, ``INSERT``, ``COMMIT``; at
@@ -72,6 +72,7 @@ __all__ = ["Steps", "Operation", "PointResult", "warm_up", "dry_run", "kill_at",
 
 #: Modules whose file-system calls are steps (the durable layer and everything that writes state through it).
 WATCHED_MODULES = frozenset({"edge.storage.durable", "edge.storage.history", "edge.model.store", "edge.model.bundle",
+                             "edge.model.container", "edge.model.loader", "edge.model.transport",
                              "edge.service.config"})
 #: The os calls that change the file system (``open`` only with O_CREAT: opening to read, or to fsync a
 #: directory, changes nothing).

@@ -13,7 +13,7 @@ import pytest
 
 from edge.calibration.model import ProbeCalibration
 from edge.estimation.chain_decision import CHAIN_EVERY_s, ChainDecision
-from edge.estimation.objects import KnownObject, ObjectSet
+from edge.recognition import KnownObject, ObjectSet
 from edge.estimation.running import SequentialDecision
 from edge.physics.materials import load_materials
 from firmware_sim.rigs.contact_record import ContactTouch, record_touch

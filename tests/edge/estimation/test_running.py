@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from edge.estimation.objects import KnownObject, ObjectSet
+from edge.recognition import KnownObject, ObjectSet
 from edge.estimation.running import RunningEffusivity, SequentialDecision, duhamel_m
 from edge.measure.instrument import INSTRUMENTS
 from edge.physics.solids import Solid

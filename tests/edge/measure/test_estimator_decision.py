@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from edge.estimation.objects import KnownObject, ObjectSet
+from edge.recognition import KnownObject, ObjectSet
 from edge.measure.estimator_decision import EstimatorDecision
 
 P = KnownObject.from_properties

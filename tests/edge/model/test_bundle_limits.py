@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import edge.model.bundle as B
+from edge.model.container import parse_npz
 from edge.service.config import Config
 from tests.support.bundles import make_arrays, write_raw_bundle
 
@@ -64,7 +65,7 @@ def test_zip_bomb_is_refused_from_its_declared_size_without_inflating(monkeypatc
     assert len(data) < 1 << 20 and (64 << 20) >= 2 * B.DEFAULT_LIMITS.max_array_bytes
     inflated = Inflated(monkeypatch)
     with pytest.raises(B.SizeLimitError, match="x_mean"):
-        B._parse_npz(data, "arrays.npz", RAM_LIMITS)
+        parse_npz(data, "arrays.npz", RAM_LIMITS)
     assert inflated.n == 0
 
 
@@ -73,7 +74,7 @@ def test_a_header_claiming_a_huge_array_is_refused_having_inflated_only_the_head
     data = _bomb(1 << 20, declared_shape=(10 ** 9,))
     inflated = Inflated(monkeypatch)
     with pytest.raises(B.SizeLimitError, match="x_mean"):
-        B._parse_npz(data, "arrays.npz", RAM_LIMITS)
+        parse_npz(data, "arrays.npz", RAM_LIMITS)
     assert inflated.n < 1024
 
 
@@ -104,7 +105,7 @@ def test_valid_but_heavy_bundle_is_refused_before_inflating(heavy_bundle, monkey
     assert total > 56e6 and (path / "arrays.npz").stat().st_size < 1e6
     # Under the generic bounds every array passes the size stage; the device's RAM says no.
     assert total < B.DEFAULT_LIMITS.max_total_array_bytes
-    B._parse_npz((path / "arrays.npz").read_bytes(), "arrays.npz", B.DEFAULT_LIMITS)
+    parse_npz((path / "arrays.npz").read_bytes(), "arrays.npz", B.DEFAULT_LIMITS)
     inflated = Inflated(monkeypatch)
     with pytest.raises(B.SizeLimitError):
         B.load_bundle(path, None, limits=RAM_LIMITS)

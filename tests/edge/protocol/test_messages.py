@@ -341,6 +341,16 @@ def test_decode_unknown_command_bad_json_and_version():
     assert ei.value.code == ErrorCode.BAD_FRAME and ei.value.field == "version"
 
 
+def test_decode_rejects_a_lone_surrogate_as_a_bad_frame():
+    """ISSUE #35 §11: PING echo with a lone surrogate answered INTERNAL when the reply was encoded."""
+    for payload in (b'{"echo":"\\ud800"}', b'{"echo":["ok","\\udfff"]}', b'{"\\udc00":1}'):
+        with pytest.raises(ProtocolError) as ei:
+            decode_request(Frame(Command.PING, 6, payload))
+        assert ei.value.code == ErrorCode.BAD_FRAME and "surrogate" in str(ei.value)
+    # A surrogate pair is one character and fine.
+    assert decode_request(Frame(Command.PING, 7, b'{"echo":"\\ud83d\\ude00"}')).args["echo"] == "\U0001F600"
+
+
 def test_decode_rejects_nan():
     with pytest.raises(ProtocolError) as ei:
         decode_request(Frame(Command.MEASURE, 1, b'{"power_W":NaN}'))

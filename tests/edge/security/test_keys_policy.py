@@ -7,7 +7,7 @@ import json
 import pytest
 
 from edge.security.keys import (
-    KeyFileError, PublicKey, SecretKey, load_trusted_keys, parse_key, parse_signature, signature_document,
+    KeyFileError, PublicKey, SecretKey, downgrade_document, load_trusted_keys, parse_key, parse_signature, signature_document,
 )
 from edge.security.policy import Authentication, UpdatePolicy, UpdateRefused
 
@@ -71,16 +71,44 @@ def test_policy_decisions(tmp_path, key):
         UpdatePolicy(None).authenticate(m, signature_document(key, m))
 
 
-def test_version_floor(key):
+def test_version_floor(key, tmp_path):
+    (tmp_path / "k.public.json").write_text(json.dumps(key.public_key().document()))
+    policy = UpdatePolicy(str(tmp_path))
     signed, unsigned = Authentication(key.key_id), Authentication(None)
     old, new = {"created_utc": "2024-01-01T00:00:00Z"}, {"created_utc": "2025-01-01T00:00:00Z"}
-    UpdatePolicy.check_newer(new, "n", old, "o", auth=signed, force=False)
+    n, o = "a" * 64, "b" * 64
+    policy.check_newer(new, n, old, o, auth=signed)
     for same_time in (old, dict(old)):
         with pytest.raises(UpdateRefused, match="downgrade refused"):
-            UpdatePolicy.check_newer(same_time, "n", old, "o", auth=signed, force=False)
-    UpdatePolicy.check_newer(old, "n", new, "o", auth=signed, force=True)
-    UpdatePolicy.check_newer(old, "same", new, "same", auth=signed, force=False)  # the running bundle again
-    UpdatePolicy.check_newer(old, "n", new, "o", auth=unsigned, force=False)  # no authentication, no floor
-    UpdatePolicy.check_newer(old, "n", None, None, auth=signed, force=False)  # nothing active
+            policy.check_newer(same_time, n, old, o, auth=signed)
+    policy.check_newer(old, n, new, o, auth=signed, downgrade=downgrade_document(key, n, o))
+    policy.check_newer(old, o, new, o, auth=signed)  # the running bundle again
+    policy.check_newer(old, n, new, o, auth=unsigned)  # no authentication, no floor
+    policy.check_newer(old, n, None, None, auth=signed)  # nothing active
     with pytest.raises(UpdateRefused, match="not YYYY-MM-DDTHH:MM:SSZ"):
-        UpdatePolicy.check_newer({"created_utc": "yesterday"}, "n", old, "o", auth=signed, force=False)
+        policy.check_newer({"created_utc": "yesterday"}, n, old, o, auth=signed)
+
+
+def test_a_downgrade_needs_an_authorisation_for_exactly_this_pair_by_a_trusted_key(key, tmp_path):
+    """ISSUE #35 §1: nobody on the link can ask for a rollback; a signed one is spent once another model runs."""
+    (tmp_path / "k.public.json").write_text(json.dumps(key.public_key().document()))
+    policy = UpdatePolicy(str(tmp_path))
+    signed = Authentication(key.key_id)
+    old, new = {"created_utc": "2024-01-01T00:00:00Z"}, {"created_utc": "2025-01-01T00:00:00Z"}
+    n, o, other = "a" * 64, "b" * 64, "c" * 64
+    with pytest.raises(UpdateRefused, match="downgrade refused"):
+        policy.check_newer(old, n, new, o, auth=signed)
+    with pytest.raises(UpdateRefused, match="it allows aaaaaaaaaaaa... over cccccccccccc..., not .* over the active bbb"):
+        policy.check_newer(old, n, new, o, auth=signed, downgrade=downgrade_document(key, n, other))
+    with pytest.raises(UpdateRefused, match="allows cccccccccccc"):
+        policy.check_newer(old, n, new, o, auth=signed, downgrade=downgrade_document(key, other, o))
+    stranger = SecretKey.generate()
+    with pytest.raises(UpdateRefused, match=f"downgrade authorisation by untrusted key {stranger.key_id} refused"):
+        policy.check_newer(old, n, new, o, auth=signed, downgrade=downgrade_document(stranger, n, o))
+    doc = json.loads(downgrade_document(key, n, o))
+    doc["from_sha256"] = other  # re-addressed by hand: the signature no longer covers it
+    with pytest.raises(UpdateRefused, match="bad downgrade authorisation"):
+        policy.check_newer(old, n, new, other, auth=signed, downgrade=json.dumps(doc))
+    for junk in (b"{}", b"[1]", b"not json", json.dumps({**doc, "kind": "thermotouch-ed25519-public"})):
+        with pytest.raises(UpdateRefused, match="downgrade authorisation refused"):
+            policy.check_newer(old, n, new, o, auth=signed, downgrade=junk)

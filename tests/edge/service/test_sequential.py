@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from edge.estimation.objects import KnownObject, ObjectSet
+from edge.recognition import KnownObject, ObjectSet
 from edge.service.config import Config
 from edge.service.daemon import Daemon
 from edge.service.requests import max_sample_rate_Hz, measure_params

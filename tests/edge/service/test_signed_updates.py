@@ -4,7 +4,8 @@ A probe configured like a real one (``security.allow_unsigned = false``)
 installs a bundle signed by a key in its ``trusted_keys_dir`` and refuses an
 unsigned one, one signed by another key, one whose manifest was changed after
 signing, and a signed one that is not newer than its model unless the upload
-is forced; every refusal is one line and leaves the old model serving.
+carries a signed authorisation for exactly that rollback; every refusal is one
+line and leaves the old model serving.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import pytest
 from edge.estimation.estimate import mlp_golden_check
 from edge.model import bundle as B
 from edge.protocol.errors import ErrorCode
-from edge.security.keys import SecretKey, signature_document
+from edge.security.keys import SecretKey, downgrade_document, signature_document
 from host.client import DeviceError
 from host.device import describe_error
 from tests.support.bundles import make_arrays, make_golden, manifest_extra
@@ -98,17 +99,33 @@ def test_unsigned_untrusted_and_tampered_are_refused_and_the_old_model_serves(tm
         assert c.measure(contact_time_s=0.5)["status"] == "ok"  # still measuring with the old model
 
 
-def test_older_signed_version_is_refused_unless_forced(tmp_path, bundles):
+def test_older_signed_version_is_refused_unless_a_signed_authorisation_names_it(tmp_path, bundles):
     with _strict(tmp_path, bundles) as (c, key):
         c.upload_model(_signed_blob(bundles["v3"], key))
         line = _refused(c, _signed_blob(bundles["v2b"], key))
         assert ("downgrade refused: update 'v2b' created 2024-12-01T00:00:00Z is not newer than the active 'v3' "
-                "created 2025-06-01T00:00:00Z (thermotouch flash --force to install it anyway)") in line
+                "created 2025-06-01T00:00:00Z (a rollback needs a signed authorisation: "
+                "thermotouch flash --force --key FILE)") in line
         assert c.info()["model_sha256"] == bundles["v3"].sha256
         # Re-sending the model that runs is not a downgrade.
         assert c.upload_model(_signed_blob(bundles["v3"], key))["bundle_sha256"] == bundles["v3"].sha256
-        # Forced: the operator's deliberate rollback, still authenticated.
-        res = c.upload_model(_signed_blob(bundles["v2b"], key), force=True)
-        assert res["bundle_sha256"] == bundles["v2b"].sha256
-        assert c.info()["model_sha256"] == bundles["v2b"].sha256
-        _refused(c, B.bundle_to_bytes(bundles["v3"].path), force=True)  # force never skips the signature
+        # ISSUE #35 §1: a rollback asked for by anyone on the link (a stranger's authorisation, or one
+        # for another pair of models) is refused; the model that runs stays.
+        v2b, v3 = bundles["v2b"].sha256, bundles["v3"].sha256
+        line = _refused(c, _signed_blob(bundles["v2b"], key),
+                        downgrade=downgrade_document(SecretKey.generate(), v2b, v3))
+        assert "downgrade authorisation by untrusted key" in line
+        _refused(c, _signed_blob(bundles["v2b"], key), downgrade=downgrade_document(key, v2b, bundles["v2"].sha256))
+        assert c.info()["model_sha256"] == v3
+        # The operator's deliberate rollback: signed, for exactly this bundle over exactly this model.
+        auth = downgrade_document(key, v2b, v3)
+        res = c.upload_model(_signed_blob(bundles["v2b"], key), downgrade=auth)
+        assert res["bundle_sha256"] == v2b and c.info()["model_sha256"] == v2b
+        # Spent: after v3 runs again, the same authorisation does not roll it back a second time ...
+        c.upload_model(_signed_blob(bundles["v3"], key))
+        assert c.info()["model_sha256"] == v3
+        assert "this downgrade authorisation was used before" in _refused(
+            c, _signed_blob(bundles["v2b"], key), downgrade=auth)
+        assert c.info()["model_sha256"] == v3
+        # ... and an authorisation never skips the bundle's own signature.
+        _refused(c, B.bundle_to_bytes(bundles["v2b"].path), downgrade=auth)

@@ -17,7 +17,7 @@ class FakeStore:
         self.limits = SimpleNamespace(max_blob_bytes=max_blob_bytes)
         self.installed = []
 
-    def install(self, blob, sha256, size, *, force=False):
+    def install(self, blob, sha256, size, *, downgrade=None):
         if hashlib.sha256(blob).hexdigest() != sha256:
             raise InstallError("sha256 mismatch")
         self.installed.append(blob)

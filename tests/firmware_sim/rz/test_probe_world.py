@@ -21,6 +21,7 @@ from firmware_sim.rz.grid import PU_FOAM, Mesh
 from firmware_sim.rz.probe_world import AsBuilt, FaithfulWorld, Geometry
 from firmware_sim.scene.model import Fault
 from firmware_sim.scene.files import read_scene
+from firmware_sim.wiring import pin_value
 from firmware_sim.world import ManualDrive, ScheduleDrive, ThermalWorld
 
 pytestmark = pytest.mark.slow
@@ -134,7 +135,7 @@ def test_thermopile_reads_more_than_the_face_flux(name, lo, hi, heated):
     ab = AsBuilt(flux_sensitivity_V_per_W_m2=0.5e-6)
     w2 = FaithfulWorld(sc, clock_at(), heat(ts), as_built=ab)
     assert w2.flux_voltage_V(ts + 1.5) == pytest.approx(0.5e-6 * w.thermopile_W_m2(ts + 1.5), rel=1e-12)
-    assert w2.ads1115_input_V("AIN0_AIN1", ts + 1.5) == w2.flux_voltage_V(ts + 1.5)
+    assert pin_value(w2, "ads1115", "AIN0_AIN1", ts + 1.5) == w2.flux_voltage_V(ts + 1.5)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -347,8 +348,8 @@ def test_drop_in_surface_matches_thermal_world():
                                          Fault("open_thermocouple", 2.0, 2.1, {})))
     w = FaithfulWorld(sat, clock_at(), heat(0.5))
     assert w.flux_voltage_V(1.1) == 0.3 and w.thermocouple_open(2.05) and not w.thermocouple_open(2.2)
-    assert w.ads122c04_input_V("AIN1_AIN0", 2.05) == -1.65
-    assert w.ads122c04_input_V("AIN3_AIN2", 1.5) == -w.flux_voltage_V(1.5)
+    assert pin_value(w, "ads122c04", "AIN1_AIN0", 2.05) == -1.65
+    assert pin_value(w, "ads122c04", "AIN3_AIN2", 1.5) == -w.flux_voltage_V(1.5)
     assert w.cold_junction_C(1.0) == 25.0 and w.state(1.0).contact and not w.state(3.0).contact
     with pytest.raises(ValueError, match="t_s"):
         w.state(-1.0)

@@ -124,7 +124,9 @@ def test_flash_of_an_older_signed_release_needs_force(capsys, tmp_path):
     assert code == 2
     line = one_line_error(err)
     assert "downgrade refused: update 'old-release' created 2020-01-01T00:00:00Z is not newer" in line
-    assert "--force" in line
+    assert "--force --key" in line
+    code, out, err = run(capsys, "flash", str(old), *sim, "--force")
+    assert code == 2 and "--force needs --key" in one_line_error(err)
     code, out, err = run(capsys, "flash", str(old), *sim, "--key", secret, "--force")
     assert code == 0, err
     assert "device runs old-release" in out and f"signed by key {kid}" in out

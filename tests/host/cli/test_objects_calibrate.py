@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from edge.estimation.objects import ObjectSet
+from edge.recognition import ObjectSet
 from host.cli.main import main
 
 pytestmark = pytest.mark.slow

@@ -1,12 +1,12 @@
-"""The user's object set: CSV parsing, open-set recognition, confusion pairs (edge.estimation.objects)."""
+"""The user's object set: CSV parsing, open-set recognition, confusion pairs (edge.recognition)."""
 
 import math
 
 import numpy as np
 import pytest
 
-from edge.estimation.objects import (DEFAULT_SPREAD_REL, UNKNOWN, KnownObject, ObjectSet, ObjectSetError, chi2_sf,
-                                     measured_alpha, open_set_z, p_crit_of, recognition_fields)
+from edge.recognition import (DEFAULT_SPREAD_REL, UNKNOWN, KnownObject, ObjectSet, ObjectSetError, chi2_sf,
+                              measured_alpha, open_set_z, p_crit_of, recognition_fields)
 
 GOOD = """\
 # my kitchen
@@ -242,7 +242,7 @@ def test_default_set_is_the_library_and_calibration_is_kept():
 
 
 def test_recognition_fields_are_the_result_keys_of_every_output():
-    from edge.estimation.objects import RESULT_KEYS, recognition_fields
+    from edge.recognition import RESULT_KEYS, recognition_fields
 
     s = _set(("pmma", "polymer", 560, 0.05), ("glass", "glass", 1400, 0.05), ("steel", "alloy", 8000, 0.05))
     d = recognition_fields(s, {"effusivity_W_s05_m2K": 1450.0, "effusivity_W_s05_m2K_u": 29.0}, set_name="mine")
@@ -298,14 +298,14 @@ def test_false_accept_of_outside_draws_matches_the_design_rate():
 
 
 def test_the_library_set_carries_its_fitted_calibration():
-    from edge.estimation.objects import LIBRARY_CALIBRATION
+    from edge.recognition import LIBRARY_CALIBRATION
     lib = ObjectSet.from_library()
     assert (lib.temperature, lib.z_crit) == (LIBRARY_CALIBRATION["temperature"], LIBRARY_CALIBRATION["z_crit"])
     assert ObjectSet.from_library(temperature=2.0).temperature == 2.0  # an explicit value wins
 
 
 def test_a_measured_alphas_uncertainty_grows_with_itself_and_round_trips_as_a_directive():
-    from edge.estimation.objects import effective_u_ln_alpha
+    from edge.recognition import effective_u_ln_alpha
     np.testing.assert_allclose(effective_u_ln_alpha([0.1, 0.5], 2.0), [0.12, 1.0])
     o = KnownObject.from_properties("pmma", "polymer", 0.19, 1180, 1430, 0.02)
     tight, loose = ObjectSet([o], alpha_u_growth=0.0), ObjectSet([o], alpha_u_growth=3.0)

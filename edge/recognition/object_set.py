@@ -1,10 +1,9 @@
-"""The user's own objects, and recognising which one a touch was (open set, calibrated).
+"""An object set and recognising which of its objects a touch was (open set, calibrated).
 
 A robot touches a handful of known things; :class:`ObjectSet` holds them
-(name, class, and either k, ρ, c or the effusivity e alone, plus the
-specimen-to-specimen spread of the object's properties) and answers "which
-of them, or none?" for a measured e with its uncertainty -- and, when a
-small-heater probe also measures k and α, with all three.
+(:class:`~edge.recognition.objects.KnownObject`) and answers "which of them,
+or none?" for a measured e with its uncertainty -- and, when a small-heater
+probe also measures k and α, with all three.
 
 Model
 -----
@@ -58,18 +57,6 @@ The built-in library set (:meth:`ObjectSet.from_library`) carries
 :data:`LIBRARY_CALIBRATION`, fitted the same way on simulated touches of every
 library material (bench/tactile_bench.py), so its posteriors are calibrated
 too; a user set carries its own fit as ``#@`` directives.
-
-CSV format
-----------
-Lines whose first non-blank character is ``#`` and blank lines are comments,
-except *directives* ``#@ key = value`` (``temperature``, ``z_crit``,
-``calibration_ln``, ``prior_unknown``, ``alpha_u_growth``: the calibration stored with the set). The first
-other line is the header: ``name``, ``class``, and either ``k_W_mK``,
-``rho_kg_m3``, ``c_J_kgK`` or ``e_W_s05_m2K`` (both groups may be present;
-each row fills exactly one of them), and optionally ``spread_rel``,
-``source``, ``note``. Values are validated by :mod:`edge.schema`; every
-problem is reported with its 1-based line and its column
-(:class:`ObjectSetError`).
 """
 
 from __future__ import annotations
@@ -77,233 +64,26 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections import Counter
 from dataclasses import dataclass, field
 from typing import Iterable, Mapping
 
 import numpy as np
 
-from edge.physics.materials import (C_RANGE_J_KGK, CLASSES, K_RANGE_W_MK, RECOGNITION_CLASS, RHO_C_RANGE_J_M3K,
-                                    RHO_RANGE_kg_m3, load_materials)
-from edge.schema import Field, SchemaError, check_keys, check_value
+from edge.physics.materials import load_materials
+from edge.recognition.objects import (DEFAULT_PRIOR_UNKNOWN, DEFAULT_SPREAD_REL, DEFAULT_Z_CRIT, DIRECTIVES, UNKNOWN,
+                                      UNKNOWN_LN_E_SPAN, KnownObject, parse_csv)
+from edge.recognition.stats import p_crit_of, tail_p, z_of_p
+from edge.recognition.touch import BROAD_LN, DEFAULT_ALPHA_U_GROWTH, effective_u_ln_alpha, measured_alpha
+from edge.schema import check_keys, check_value
 
-__all__ = [
-    "UNKNOWN",
-    "DEFAULT_SPREAD_REL",
-    "DEFAULT_Z_CRIT",
-    "DEFAULT_PRIOR_UNKNOWN",
-    "UNKNOWN_LN_E_SPAN",
-    "BROAD_LN",
-    "LIBRARY_CALIBRATION",
-    "COLUMNS",
-    "DIRECTIVES",
-    "ObjectSetError",
-    "Issue",
-    "KnownObject",
-    "Recognition",
-    "ConfusionPair",
-    "Confusion",
-    "ObjectSet",
-    "chi2_sf",
-    "p_crit_of",
-    "RESULT_KEYS",
-    "LIBRARY_SET",
-    "recognition_fields",
-    "measured_alpha",
-    "effective_u_ln_alpha",
-    "DEFAULT_ALPHA_U_GROWTH",
-    "open_set_z",
-    "tail_p",
-    "z_of_p",
-]
+__all__ = ["LIBRARY_CALIBRATION", "Recognition", "ConfusionPair", "Confusion", "ObjectSet"]
 
-#: The answer when the touched object is none of the set's.
-UNKNOWN = "unknown"
-#: Specimen-to-specimen spread of an object's e (and α), relative (lognormal sd).
-DEFAULT_SPREAD_REL = 0.05
-#: Critical standardised distance of the open-set test before a calibration is fitted
-#: (nominal in-set acceptance 98.8 % for one property).
-DEFAULT_Z_CRIT = 2.5
-#: Standard deviation (ln units) of the term an object without α gets for a measured α.
-BROAD_LN = 1.0
-#: Largest stated u(ln α) a measured α is used with: a record that pins α no better than a factor e
-#: says less than an object without α is granted (BROAD_LN).
-ALPHA_INFORMATIVE_U_LN = BROAD_LN
-#: Growth a of a measured α's uncertainty, ``u (1 + a u)``, for a set without its own fit: the
-#: small-heater fit's linearised u is honest where α is well determined and understates the scatter
-#: more the less it is (the likelihood is far from Gaussian in ln α). Fitted by
-#: ``python bench/tactile_bench.py`` (host.recognition.fit_alpha_u_growth on the precision board's
-#: small-heater calibration touches: 2.23; 5.1 on the reference board) and reported there.
-DEFAULT_ALPHA_U_GROWTH = 2.2
-
-
-def effective_u_ln_alpha(u_ln_alpha, growth: float):
-    """The uncertainty a measured α is used with: ``u (1 + growth u)`` (see :data:`DEFAULT_ALPHA_U_GROWTH`)."""
-    u = np.asarray(u_ln_alpha, float)
-    return u * (1.0 + growth * u)
-
-_E_RANGE = (math.sqrt(K_RANGE_W_MK[0] * RHO_C_RANGE_J_M3K[0]), math.sqrt(K_RANGE_W_MK[1] * RHO_C_RANGE_J_M3K[1]))
-#: Width in ln e of the flat density of the "unknown" hypothesis (the plausible range of e).
-UNKNOWN_LN_E_SPAN = math.log(_E_RANGE[1] / _E_RANGE[0])
 #: Calibration of the built-in library set (:meth:`ObjectSet.from_library`): fitted by
 #: ``python bench/tactile_bench.py`` (host.recognition.calibrate on simulated precision-board touches
 #: of every library material, 0.5-2 s contacts, 5 % spread); reported there with its reliability table.
 LIBRARY_CALIBRATION = {"temperature": 1.03, "z_crit": 1.96}
-#: Prior probability that a touched object is outside the set, before the user says otherwise.
-DEFAULT_PRIOR_UNKNOWN = 0.05
 _LN_SQRT_2PI = 0.5 * math.log(2 * math.pi)
-_PROPS = ("k_W_mK", "rho_kg_m3", "c_J_kgK")
-
-#: The CSV columns and their schema (values arrive as text and are converted first).
-COLUMNS: dict[str, Field] = {
-    "name": Field("str", doc="unique name of the object (not 'unknown')", lo=1, hi=64),
-    "class": Field("str", doc="material class", choices=CLASSES),
-    "k_W_mK": Field("float", None, "thermal conductivity, W/(m K)", lo=K_RANGE_W_MK[0], hi=K_RANGE_W_MK[1]),
-    "rho_kg_m3": Field("float", None, "density, kg/m^3", lo=RHO_RANGE_kg_m3[0], hi=RHO_RANGE_kg_m3[1]),
-    "c_J_kgK": Field("float", None, "specific heat, J/(kg K)", lo=C_RANGE_J_KGK[0], hi=C_RANGE_J_KGK[1]),
-    "e_W_s05_m2K": Field("float", None, "effusivity, W s^0.5/(m^2 K)", lo=_E_RANGE[0], hi=_E_RANGE[1]),
-    "spread_rel": Field("float", DEFAULT_SPREAD_REL, "specimen spread of e (relative sd)", lo=0.0, hi=1.0),
-    "source": Field("str", "", "where the values come from", hi=256),
-    "note": Field("str", "", "free text", hi=256),
-}
-_NUMERIC_COLUMNS = ("k_W_mK", "rho_kg_m3", "c_J_kgK", "e_W_s05_m2K", "spread_rel")
-
-#: ``#@ key = value`` directives: the calibration stored with the set.
-DIRECTIVES: dict[str, Field] = {
-    "temperature": Field("float", 1.0, "scale on every variance (fitted on held-out touches)", lo=0.0, lo_open=True,
-                         hi=1e4),
-    "z_crit": Field("float", DEFAULT_Z_CRIT, "critical standardised distance of the open-set test", lo=0.5, hi=20.0),
-    "calibration_ln": Field("float", 0.0, "extra systematic sd of ln e (probe calibration)", lo=0.0, hi=1.0),
-    "prior_unknown": Field("float", DEFAULT_PRIOR_UNKNOWN, "prior probability of touching an object outside the set",
-                           lo=0.0, hi=1.0, lo_open=True, hi_open=True),
-    "alpha_u_growth": Field("float", DEFAULT_ALPHA_U_GROWTH, "growth a of a measured alpha's uncertainty, "
-                            "u (1 + a u) (fitted on held-out touches)", lo=0.0, hi=100.0),
-}
-
-
-# -- small statistics (NumPy has no erf) ------------------------------------------------
-_ERFC = np.frompyfunc(math.erfc, 1, 1)
-
-
-def tail_p(d2, dof) -> np.ndarray:
-    """P(χ²_dof > d2), element-wise, for dof 1, 2 or 3 (arrays broadcast)."""
-    d2 = np.maximum(np.asarray(d2, float), 0.0)
-    dof = np.broadcast_to(np.asarray(dof, int), d2.shape)
-    if np.any((dof < 1) | (dof > 3)):
-        raise ValueError(f"dof must be 1, 2 or 3, got {np.unique(dof).tolist()}")
-    p1 = np.asarray(_ERFC(np.sqrt(d2 / 2.0)), float)
-    p3 = p1 + np.sqrt(2.0 * d2 / math.pi) * np.exp(-d2 / 2.0)
-    return np.where(dof == 1, p1, np.where(dof == 2, np.exp(-d2 / 2.0), p3))
-
-
-def chi2_sf(x: float, dof: int) -> float:
-    """P(χ²_dof > x) for dof 1, 2 or 3 (the scalar :func:`tail_p`)."""
-    return float(tail_p(x, dof))
-
-
-def z_of_p(p) -> np.ndarray:
-    """Element-wise |z| of a standard normal with two-sided tail probability ``p`` (bisection, to 1e-12)."""
-    p = np.asarray(p, float)
-    if p.ndim == 0:
-        # One touch (classify): the same bisection on Python floats, the same values to the bit --
-        # 60 rounds of NumPy calls on 0-d arrays were most of a classification's time.
-        pv, lo_s, hi_s, r2 = float(p), 0.0, 40.0, math.sqrt(2.0)
-        for _ in range(60):
-            mid = 0.5 * (lo_s + hi_s)
-            if math.erfc(mid / r2) > pv:
-                lo_s = mid
-            else:
-                hi_s = mid
-        return np.float64(0.5 * (lo_s + hi_s))
-    lo, hi = np.zeros(p.shape), np.full(p.shape, 40.0)
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        above = np.asarray(_ERFC(mid / math.sqrt(2.0)), float) > p
-        lo, hi = np.where(above, mid, lo), np.where(above, hi, mid)
-    return 0.5 * (lo + hi)
-
-
-def open_set_z(d2, dof) -> np.ndarray:
-    """The open-set test's statistic per touch: the 1-dof-equivalent |z| of the best-fitting object.
-
-    ``d2`` (..., n) tempered squared distances and ``dof`` (..., n) from
-    :meth:`ObjectSet.log_terms`: the largest chi-square p-value over the
-    objects, as the |z| with that two-sided tail (``sqrt(d2)`` when the best
-    object has e alone). One definition for the test (:meth:`ObjectSet.classify`)
-    and for fitting ``z_crit`` on the host (a touch with α has two degrees of
-    freedom: its distance is not compared with the 1-dof critical value).
-    """
-    p = tail_p(d2, dof).max(axis=-1)
-    return z_of_p(p)
-
-
-def p_crit_of(z_crit: float) -> float:
-    """Two-sided tail probability of a standard normal beyond ``z_crit``."""
-    return math.erfc(z_crit / math.sqrt(2.0))
-
-
-# -- errors ----------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Issue:
-    """One problem in an object-set CSV: 1-based ``line`` (0: the file), ``column`` and ``message``."""
-
-    line: int
-    column: str
-    message: str
-
-    def __str__(self) -> str:
-        where = f"line {self.line}" if self.line else "file"
-        if self.column:
-            where += f", column '{self.column}'"
-        return f"{where}: {self.message}"
-
-
-class ObjectSetError(ValueError):
-    """An object-set CSV is malformed; ``issues`` lists every problem with its line and column."""
-
-    def __init__(self, issues: Iterable[Issue], label: str = "") -> None:
-        self.issues = tuple(issues)
-        self.label = label
-        n = len(self.issues)
-        head = f"invalid object set{' ' + label if label else ''} ({n} problem{'s' if n != 1 else ''}):"
-        super().__init__("\n".join([head] + ["  " + str(i) for i in self.issues]))
-
-
-# -- the objects -----------------------------------------------------------------------
-@dataclass(frozen=True)
-class KnownObject:
-    """One object of a set: either (k, ρ, c) or e alone, and its specimen spread."""
-
-    name: str
-    cls: str
-    e_W_s05_m2K: float
-    k_W_mK: float | None = None
-    rho_kg_m3: float | None = None
-    c_J_kgK: float | None = None
-    spread_rel: float = DEFAULT_SPREAD_REL
-    source: str = ""
-    note: str = ""
-
-    @classmethod
-    def from_properties(cls, name: str, cls_: str, k_W_mK: float, rho_kg_m3: float, c_J_kgK: float,
-                        spread_rel: float = DEFAULT_SPREAD_REL, **kw) -> "KnownObject":
-        """An object given by k, ρ, c (e derived)."""
-        e = math.sqrt(k_W_mK * rho_kg_m3 * c_J_kgK)
-        return cls(name, cls_, e, k_W_mK, rho_kg_m3, c_J_kgK, spread_rel, **kw)
-
-    @property
-    def recognition_class(self) -> str:
-        """The class results name (:data:`edge.physics.materials.RECOGNITION_CLASS` of ``cls``)."""
-        return RECOGNITION_CLASS[self.cls]
-
-    @property
-    def has_properties(self) -> bool:
-        """True when k, ρ and c are known (so k and α can be compared too)."""
-        return self.k_W_mK is not None
-
-    @property
-    def alpha_m2_s(self) -> float | None:
-        """Thermal diffusivity, or None for an object given by e alone."""
-        return None if self.k_W_mK is None else self.k_W_mK / (self.rho_kg_m3 * self.c_J_kgK)
 
 
 @dataclass
@@ -399,7 +179,8 @@ class ObjectSet:
         if not objs:
             raise ValueError("an object set needs at least one object")
         names = [o.name for o in objs]
-        dup = sorted({n for n in names if names.count(n) > 1})
+        # Counted once (a 15 000-row set with list.count took seconds: ISSUE #35 §7).
+        dup = sorted(n for n, c in Counter(names).items() if c > 1)
         if dup:
             raise ValueError(f"duplicate object names: {', '.join(dup)}")
         if UNKNOWN in names:
@@ -439,7 +220,7 @@ class ObjectSet:
     @classmethod
     def from_csv_text(cls, text: str, label: str = "<text>") -> "ObjectSet":
         """Parse and validate a CSV (module docstring); :class:`ObjectSetError` names line and column."""
-        objs, directives = _parse_csv(text, label)
+        objs, directives = parse_csv(text, label)
         return cls(objs, label=label, **directives)
 
     @property
@@ -696,194 +477,3 @@ class ObjectSet:
             np.add.at(by_class.T, self._class_index, dens.T)
             cls_acc += float(by_class.max(axis=1).sum())
         return Confusion(float(u_ln_e), tuple(pairs), min(1.0, acc * step), min(1.0, cls_acc * step))
-
-
-#: Keys :func:`recognition_fields` adds to a result (``estimate --json``, the device's records).
-RESULT_KEYS = ("object_set", "object", "object_posterior", "class", "class_posterior", "unknown_posterior",
-               "candidates")
-#: Name of the built-in object set (every library material), the default when no set is chosen.
-LIBRARY_SET = "library"
-
-
-def recognition_fields(object_set: ObjectSet, estimate: Mapping, *, set_name: str | None = None,
-                       top: int = 3) -> dict:
-    """Which object of ``object_set`` an estimate names, as the result fields every output shares.
-
-    One definition for ``thermotouch estimate --json`` and the device's
-    measurement records (so ``measure --json`` carries the same keys).
-
-    Parameters
-    ----------
-    object_set : ObjectSet
-    estimate : mapping
-        An ``Estimate.to_dict()``: ``effusivity_W_s05_m2K`` and its standard
-        uncertainty ``effusivity_W_s05_m2K_u`` are used (only e: the default
-        method's k and α are functions of e and add nothing). A missing
-        uncertainty counts as 0 -- the objects' spreads still set the widths.
-    set_name : str, optional
-        Name reported as ``object_set`` (default: the set's label).
-    top : int
-        Number of candidates.
-
-    Returns
-    -------
-    dict
-        ``object_set``, ``object`` (a name of the set or ``"unknown"``),
-        ``object_posterior``, ``class``, ``class_posterior``,
-        ``unknown_posterior`` and ``candidates`` (the ``top`` objects by
-        posterior, each ``{"name", "posterior"}``). Without an effusivity
-        (no estimate) the names and posteriors are None and ``candidates`` empty.
-    """
-    out: dict = {"object_set": object_set.label if set_name is None else set_name, "object": None,
-                 "object_posterior": None, "class": None, "class_posterior": None, "unknown_posterior": None,
-                 "candidates": []}
-    r = object_set.classify_estimate(estimate, top=top)
-    if r is None:
-        return out
-    out.update({"object": r.object, "object_posterior": float(r.object_posterior), "class": r.cls,
-                "class_posterior": float(r.class_posterior), "unknown_posterior": float(r.unknown_posterior),
-                "candidates": [{"name": n, "posterior": float(p)} for n, p in r.candidates]})
-    return out
-
-
-def measured_alpha(estimate: Mapping) -> tuple[float, float, float] | None:
-    """``(alpha, u_ln_alpha, corr_e_alpha)`` a touch measured, or None.
-
-    Only a probe that sees a length scale measures α (the small-heater probe,
-    :class:`edge.estimation.probe_estimate.AxiEstimator`). Its fit reports its
-    own α with the total uncertainty (fit and flux calibration) and the
-    correlation of the ln e and ln α errors in ``fit`` -- whether or not α was
-    precise enough to be called determined (below 30 %): a 60 % α still tells
-    objects of equal e apart. Where α is that uncertain the linearised u
-    understates its scatter; the set widens it (``alpha_u_growth``,
-    :func:`effective_u_ln_alpha`). None when the record pins α no better than
-    :data:`ALPHA_INFORMATIVE_U_LN`, and for the default method, whose α is the
-    library prior given e.
-    """
-    fit = estimate.get("fit")
-    if estimate.get("method") != "axisym" or not isinstance(fit, Mapping):
-        return None
-    try:
-        alpha, u, r = (float(fit[key]) for key in ("alpha_m2_s", "u_ln_alpha", "corr_e_alpha"))
-    except (KeyError, TypeError, ValueError):
-        return None
-    if not (alpha > 0 and math.isfinite(alpha) and 0 < u <= ALPHA_INFORMATIVE_U_LN and abs(r) < 1):
-        return None
-    return alpha, u, r
-
-
-# -- CSV parsing -------------------------------------------------------------------------
-def _parse_csv(text: str, label: str) -> tuple[list[KnownObject], dict]:
-    issues: list[Issue] = []
-    header: list[str] | None = None
-    header_line = 0
-    objs: list[KnownObject] = []
-    first_line: dict[str, int] = {}
-    directives: dict[str, float] = {}
-
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        stripped = raw.strip()
-        if stripped.startswith("#@"):
-            key, sep, value = stripped[2:].partition("=")
-            key = key.strip()
-            try:
-                if not sep:
-                    raise SchemaError("", "directive must read '#@ key = value'")
-                check_keys({key: None}, DIRECTIVES)
-                directives[key] = check_value(DIRECTIVES[key], _number(value.strip(), key), key)
-            except SchemaError as exc:
-                issues.append(Issue(lineno, exc.path or "#@", exc.message))
-            continue
-        if not stripped or stripped.startswith("#"):
-            continue
-        fields = [f.strip() for f in next(csv.reader([raw]))]
-        if header is None:
-            header, header_line = fields, lineno
-            try:
-                check_keys(dict.fromkeys(fields), COLUMNS)
-            except SchemaError as exc:
-                issues.append(Issue(lineno, exc.path or "<empty>", exc.message))
-            for col in sorted({c for c in fields if fields.count(c) > 1}):
-                issues.append(Issue(lineno, col, "column appears more than once in the header"))
-            for col in ("name", "class"):
-                if col not in fields:
-                    issues.append(Issue(lineno, col, "required column is missing from the header"))
-            has_props = all(c in fields for c in _PROPS)
-            if not has_props and "e_W_s05_m2K" not in fields:
-                missing = [c for c in _PROPS if c not in fields]
-                issues.append(Issue(lineno, missing[0], "the header needs k_W_mK, rho_kg_m3 and c_J_kgK, "
-                                                        "or e_W_s05_m2K"))
-            if issues:
-                break  # rows cannot be read against a broken header
-            continue
-        if len(fields) != len(header):
-            col = header[len(fields)] if len(fields) < len(header) else f"<extra field {len(header) + 1}>"
-            issues.append(Issue(lineno, col, f"row has {len(fields)} fields but the header (line {header_line}) "
-                                             f"has {len(header)}"))
-            continue
-        obj = _parse_row(dict(zip(header, fields)), lineno, issues)
-        if obj is None:
-            continue
-        if obj.name in first_line:
-            issues.append(Issue(lineno, "name", f"duplicate name {obj.name!r}: lines {first_line[obj.name]} "
-                                                f"and {lineno}"))
-            continue
-        first_line[obj.name] = lineno
-        objs.append(obj)
-
-    if header is None and not issues:
-        issues.append(Issue(0, "", "no header line (empty or only comments)"))
-    elif not issues and not objs:
-        issues.append(Issue(0, "", "header present but no object rows"))
-    if issues:
-        raise ObjectSetError(issues, label)
-    return objs, directives
-
-
-def _number(text: str, path: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        raise SchemaError(path, f"must be a number, got {text!r}") from None
-
-
-def _parse_row(row: dict[str, str], lineno: int, issues: list[Issue]) -> KnownObject | None:
-    vals: dict = {}
-    ok = True
-    for col, text in row.items():
-        f = COLUMNS[col]
-        if text == "":
-            if f.required:
-                issues.append(Issue(lineno, col, "required field is empty"))
-                ok = False
-            continue
-        try:
-            vals[col] = check_value(f, _number(text, col) if col in _NUMERIC_COLUMNS else text, col)
-        except SchemaError as exc:
-            issues.append(Issue(lineno, col, exc.message))
-            ok = False
-    if not ok:
-        return None
-    if vals["name"] == UNKNOWN:
-        issues.append(Issue(lineno, "name", f"{UNKNOWN!r} is reserved for objects outside the set"))
-        return None
-    given = [c for c in _PROPS if c in vals]
-    if "e_W_s05_m2K" in vals and given:
-        issues.append(Issue(lineno, "e_W_s05_m2K", "give either e_W_s05_m2K or k_W_mK, rho_kg_m3, c_J_kgK, not both"))
-        return None
-    if "e_W_s05_m2K" not in vals and len(given) < 3:
-        missing = [c for c in _PROPS if c not in vals]
-        issues.append(Issue(lineno, missing[0], "required field is empty (give k_W_mK, rho_kg_m3 and c_J_kgK, "
-                                                "or e_W_s05_m2K)"))
-        return None
-    extra = dict(spread_rel=vals.get("spread_rel", DEFAULT_SPREAD_REL), source=vals.get("source", ""),
-                 note=vals.get("note", ""))
-    if given:
-        rc = vals["rho_kg_m3"] * vals["c_J_kgK"]
-        if not RHO_C_RANGE_J_M3K[0] <= rc <= RHO_C_RANGE_J_M3K[1]:
-            issues.append(Issue(lineno, "rho_kg_m3*c_J_kgK", f"volumetric heat capacity {rc:.4g} J/(m^3 K) is outside "
-                                                             f"[{RHO_C_RANGE_J_M3K[0]:g}, {RHO_C_RANGE_J_M3K[1]:g}]"))
-            return None
-        return KnownObject.from_properties(vals["name"], vals["class"], vals["k_W_mK"], vals["rho_kg_m3"],
-                                           vals["c_J_kgK"], **extra)
-    return KnownObject(vals["name"], vals["class"], vals["e_W_s05_m2K"], **extra)

@@ -1,0 +1,209 @@
+"""Recognition figures the tactile and decision benches share: ceilings, separations, scores of a set's answers.
+
+Each takes an :class:`edge.recognition.ObjectSet` and simulated touches
+(host.recognition) and returns plain numbers; the held-out groups are those
+of :mod:`_objects`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from _objects import HELD_OUT, HELD_OUT_FAR, HELD_OUT_NEAR, IN_SET
+from edge.recognition import UNKNOWN, ObjectSet
+from host.recognition import reliability
+
+
+def ideal_set(objects=IN_SET) -> ObjectSet:
+    """The set with the ideal e-only test: variances as stated (T = 1), z_crit = 1.96 (95 % in-set acceptance)."""
+    return ObjectSet(objects, temperature=1.0, z_crit=1.96, label="ideal")
+
+
+def separations(u_ln_e: float) -> list[dict]:
+    """Each held-out object's distance to the nearest in-set object, and the ideal test's design "unknown" rate."""
+    ideal = ideal_set()
+    rows = []
+    for o in HELD_OUT:
+        d = math.log(o.e_W_s05_m2K) - ideal.ln_e
+        i = int(np.argmin(np.abs(d)))
+        sigma = math.hypot(float(ideal.spread[i]), u_ln_e)
+        sd = math.hypot(o.spread_rel, u_ln_e)
+        rows.append(dict(name=o.name, cls=o.cls, e=o.e_W_s05_m2K, nearest=ideal.names[i], d_ln_e=float(d[i]),
+                         in_spreads=abs(float(d[i])) / float(ideal.spread[i]), in_sigma=abs(float(d[i])) / sigma,
+                         design_unknown=1.0 - ideal.acceptance_probability(math.log(o.e_W_s05_m2K), sd, u_ln_e),
+                         group="distinguishable" if o in HELD_OUT_FAR else "near"))
+    return rows
+
+
+def non_overlapping(u_ln_e: float, objects=IN_SET) -> tuple:
+    """A subset of the set without e-overlaps: walking up in e, keep an object clear of the last one kept.
+
+    Clear: ``|Δ ln e| >= 2 sqrt(v_a + v_b)``, ``v = u² + spread²`` (not a
+    confusion pair of :meth:`ObjectSet.confusion_pairs`).
+    """
+    kept = []
+    for o in sorted(objects, key=lambda o: o.e_W_s05_m2K):
+        if kept:
+            last = kept[-1]
+            v = u_ln_e ** 2 * 2 + last.spread_rel ** 2 + o.spread_rel ** 2
+            if math.log(o.e_W_s05_m2K / last.e_W_s05_m2K) < 2.0 * math.sqrt(v):
+                continue
+        kept.append(o)
+    return tuple(kept)
+
+
+def design_unknown(oset: ObjectSet, objects, u_of: dict) -> float | None:
+    """Mean design "unknown" rate of ``objects`` under ``oset``'s fitted test, each at its own median u(e).
+
+    Each object's own u(e) (``u_of``: name -> median u of its touches), not
+    the set's median: on the reference board u(e) grows steeply with e (a
+    metal's rise is a few thermometer steps), which is what limits it.
+    """
+    rates = [1.0 - oset.acceptance_probability(math.log(o.e_W_s05_m2K), math.hypot(o.spread_rel, u_of[o.name]),
+                                               u_of[o.name]) for o in objects if o.name in u_of]
+    return float(np.mean(rates)) if rates else None
+
+
+def bayes_ceiling(oset: ObjectSet, u_of: dict, weight_of: dict) -> tuple[float, float]:
+    """Bayes-optimal object and class accuracy on e alone, each object at its own u(e) and share of touches.
+
+    ``∫ max_i w_i p_i(x) dx`` (class: ``∫ max_c Σ_{i∈c} w_i p_i``) on a grid
+    in ln e, ``p_i`` normal with variance ``u_i² + spread_i²``, over the
+    objects that gave estimates (``u_of``) weighted by their answered
+    touches. :meth:`ObjectSet.confusion_pairs` does the same with one u for
+    all; on the reference board u(e) grows with e, so one median u would
+    overstate the ceiling for stone and metal.
+    """
+    idx = [j for j, n in enumerate(oset.names) if n in u_of]
+    if not idx:
+        return math.nan, math.nan
+    mu = oset.ln_e[idx]
+    sd = np.sqrt(np.array([u_of[oset.names[j]] for j in idx]) ** 2 + oset.spread[idx] ** 2)
+    w = np.array([weight_of[oset.names[j]] for j in idx], float)
+    w = w / w.sum()
+    step = float(sd.min()) / 20.0
+    x = np.arange(float((mu - 8 * sd).min()), float((mu + 8 * sd).max()) + step, step)
+    dens = w * np.exp(-0.5 * ((x[:, None] - mu) / sd) ** 2) / (sd * math.sqrt(2 * math.pi))
+    cls = np.array([oset.class_names.index(oset.classes[j]) for j in idx])
+    by_class = np.zeros((x.size, len(oset.class_names)))
+    np.add.at(by_class.T, cls, dens.T)
+    return float(dens.max(axis=1).sum() * step), float(by_class.max(axis=1).sum() * step)
+
+
+def lr_accepts(rec) -> bool:
+    """The mixture's Bayes rule: accepted when an object's posterior beats the "unknown" background's."""
+    return rec.candidates[0][1] > rec.unknown_posterior
+
+
+def evaluate(oset: ObjectSet, touches, recs) -> dict:
+    """Accuracy, acceptance, unknown rates (measured and design) and the ceiling for one board and contact time."""
+    names = touches.names
+    in_set = np.array([names[i] in oset for i in touches.obj])
+    answered = touches.ok
+    truth = [names[i] for i in touches.obj]
+    cls_of = {o.name: o.recognition_class for o in oset.objects}
+    far = {o.name for o in HELD_OUT_FAR}
+    a_in = np.flatnonzero(in_set & answered)
+    a_far = np.array([i for i in np.flatnonzero(~in_set & answered) if truth[i] in far], int)
+    a_near = np.array([i for i in np.flatnonzero(~in_set & answered) if truth[i] not in far], int)
+    obj_ok = np.array([recs[i].object == truth[i] for i in a_in], bool)
+    # The closed-set answer (the top candidate, accepted or not): what the Bayes ceiling bounds.
+    top_ok = np.array([recs[i].candidates[0][0] == truth[i] for i in a_in], bool)
+    u_of = {}
+    for i in np.flatnonzero(answered):
+        u_of.setdefault(truth[i], []).append(float(touches.u_ln_e[i]))
+    n_of = {k: len(v) for k, v in u_of.items()}
+    u_of = {k: float(np.median(v)) for k, v in u_of.items()}
+    ceiling, class_ceiling = bayes_ceiling(oset, u_of, n_of)
+    cls_ok = np.array([recs[i].cls == cls_of[truth[i]] for i in a_in], bool)
+    accepted = np.array([recs[i].accepted for i in a_in], bool)
+    u_med = float(np.median(touches.u_ln_e[a_in])) if a_in.size else math.nan
+    conf = oset.confusion_pairs(u_med) if a_in.size else None
+    per_out = {}
+    for i in np.concatenate([a_far, a_near]):
+        per_out.setdefault(truth[i], []).append(not recs[i].accepted)
+    mean = lambda a: float(np.mean(a)) if len(a) else None  # noqa: E731
+    present_far = [o for o in HELD_OUT_FAR if o.name in names]
+    present_near = [o for o in HELD_OUT_NEAR if o.name in names]
+    return dict(
+        touches_in=int(in_set.sum()), touches_out=int((~in_set).sum()),
+        refused_in=int((in_set & ~answered).sum()), refused_out=int((~in_set & ~answered).sum()),
+        object_accuracy=mean(obj_ok), class_accuracy=mean(cls_ok), in_set_acceptance=mean(accepted),
+        unknown_far=mean([not recs[i].accepted for i in a_far]),
+        unknown_near=mean([not recs[i].accepted for i in a_near]),
+        closed_set_accuracy=mean(top_ok),
+        # Ablation: the mixture's Bayes rule (a likelihood-ratio test against the flat "unknown" density
+        # over ln e, prior prior_unknown) in place of the z test -- answer "unknown" when its posterior is
+        # the largest.
+        lr_in_set_acceptance=mean([lr_accepts(recs[i]) for i in a_in]),
+        lr_object_accuracy=mean([lr_accepts(recs[i]) and recs[i].candidates[0][0] == truth[i] for i in a_in]),
+        lr_unknown_far=mean([not lr_accepts(recs[i]) for i in a_far]),
+        lr_unknown_near=mean([not lr_accepts(recs[i]) for i in a_near]),
+        design_unknown_far=design_unknown(oset, present_far, u_of),
+        design_unknown_near=design_unknown(oset, present_near, u_of),
+        design_acceptance=float(np.mean([oset.acceptance_probability(float(oset.ln_e[j]), math.hypot(
+            float(oset.spread[j]), u_of[n]), u_of[n]) for j, n in enumerate(oset.names) if n in u_of]))
+        if a_in.size else None,
+        median_u_by_object=u_of,
+        unknown_rate_by_object={k: float(np.mean(v)) for k, v in per_out.items()},
+        median_u_ln_e=u_med,
+        bayes_object=ceiling if a_in.size else None, bayes_class=class_ceiling if a_in.size else None,
+        bayes_object_median_u=conf.bayes_accuracy if conf else None,
+        confusion_pairs=[[p.a, p.b] for p in conf.pairs] if conf else [],
+    )
+
+
+def in_set_reliability(oset: ObjectSet, touches, recs, *, of_class: bool = False) -> dict:
+    """Reliability of the answers to in-set touches (confidence: the answer's posterior; "unknown" is wrong)."""
+    names = touches.names
+    cls_of = {o.name: o.recognition_class for o in oset.objects}
+    idx = [i for i in range(len(recs)) if recs[i] is not None and names[touches.obj[i]] in oset]
+    if of_class:
+        return reliability([recs[i].class_posterior for i in idx],
+                           [recs[i].cls == cls_of[names[touches.obj[i]]] for i in idx])
+    return reliability([recs[i].object_posterior for i in idx], [recs[i].object == names[touches.obj[i]] for i in idx])
+
+
+def confusion_matrix(oset: ObjectSet, touches, recs) -> dict:
+    cols = list(oset.names) + [UNKNOWN, "(refused)"]
+    rows = list(touches.names)
+    m = np.zeros((len(rows), len(cols)), int)
+    for i, r in enumerate(recs):
+        m[touches.obj[i], cols.index(r.object if r else "(refused)")] += 1
+    return dict(rows=rows, cols=cols, counts=m.tolist())
+
+
+def thermal_ceiling(objects=IN_SET, n: int = 20000, seed: int = 11) -> dict:
+    """What any thermal probe could do on this set: e and α measured *exactly*, only the specimens vary.
+
+    Monte Carlo (``n`` specimens per object, ln e and ln α each with the
+    object's spread, as the touches are drawn): the Bayes-optimal object and
+    class answers (largest density, largest class sum), and the pairs of
+    objects of different classes closer than two spreads in (ln e, ln α).
+    """
+    rng = np.random.default_rng(seed)
+    mu = np.array([[math.log(o.e_W_s05_m2K), math.log(o.alpha_m2_s)] for o in objects])
+    sd = np.array([o.spread_rel for o in objects])
+    classes = sorted({o.recognition_class for o in objects})
+    ci = np.array([classes.index(o.recognition_class) for o in objects])
+    hit = hit_c = 0
+    for i in range(len(objects)):
+        x = mu[i] + sd[i] * rng.standard_normal((n, 2))
+        d2 = ((x[:, None, :] - mu[None]) ** 2).sum(axis=2) / sd ** 2
+        dens = np.exp(-0.5 * d2) / sd ** 2
+        hit += int(np.sum(dens.argmax(axis=1) == i))
+        by_c = np.zeros((n, len(classes)))
+        np.add.at(by_c.T, ci, dens.T)
+        hit_c += int(np.sum(by_c.argmax(axis=1) == ci[i]))
+    pairs = []
+    for a in range(len(objects)):
+        for b in range(a + 1, len(objects)):
+            if objects[a].recognition_class == objects[b].recognition_class:
+                continue
+            dist = float(np.hypot(*(mu[a] - mu[b])) / math.hypot(sd[a], sd[b]))
+            if dist < 2.0:
+                pairs.append(dict(a=objects[a].name, b=objects[b].name, d_ln_e=float(mu[b, 0] - mu[a, 0]),
+                                  d_ln_alpha=float(mu[b, 1] - mu[a, 1]), spreads=dist))
+    return dict(object=hit / (n * len(objects)), cls=hit_c / (n * len(objects)), close_pairs=pairs, n=n)

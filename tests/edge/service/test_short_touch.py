@@ -1,0 +1,42 @@
+"""No ordinary request latches the device (ISSUE #35 §3): a touch too short to judge is refused before heating."""
+
+import pytest
+
+from edge.measure.signal import min_contact_time_s
+from edge.protocol.errors import CommandError, ErrorCode
+from edge.service.daemon import Daemon
+from edge.service.requests import measure_params
+from firmware_sim import load_scene
+from firmware_sim.run import config_for_scene
+from tests.support.daemons import FakeEstimator
+
+pytestmark = pytest.mark.hil
+
+
+def test_the_shortest_touch_follows_the_sample_rate():
+    assert min_contact_time_s(10.0) == 0.5 and min_contact_time_s(12.5) == 0.5
+    assert min_contact_time_s(4.0) == pytest.approx(1.25)  # five samples at 4 Hz
+
+
+@pytest.mark.parametrize("scene", ["glass_15V", "pmma_15V", "alu_20V"])
+def test_a_too_short_touch_is_a_bad_argument_and_the_device_measures_after_it(tmp_path, scene):
+    sim = load_scene(scene)
+    cfg = config_for_scene(sim.scene, tmp_path, {"measurement": {"trigger_button": False}})
+    d = Daemon(cfg, sim.board(), estimator=FakeEstimator())
+    sim.advance_to(0.6)  # the scene's touch has begun
+    try:
+        for t in (0.1, 0.26, 0.49):
+            with pytest.raises(CommandError) as ei:
+                d.measure(contact_time_s=t)
+            assert ei.value.code == ErrorCode.BAD_ARGUMENT and ei.value.field == "contact_time_s"
+            assert "too short" in str(ei.value)
+            st = d._cmd_status({})
+            assert st["heater_fault"] is False and st["state"] != "fault" and st["can_measure"] is True
+        assert d.history.count() == 0  # refused before anything heated
+        assert sim.parts.chip.level(sim.parts.heater_enable_offset) == 0
+        res = d.measure(contact_time_s=min_contact_time_s(measure_params(d.config, d.heater.max_power_W)
+                                                          .sample_rate_Hz))
+        assert res["status"] == "ok", res
+        assert d._cmd_status({})["heater_fault"] is False
+    finally:
+        d.close()
