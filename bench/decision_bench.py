@@ -115,7 +115,8 @@ def run_faithful(touches: int, threshold: float, min_s: float, seed: int, object
     from _recognition import bayes_ceiling
 
     from edge.calibration.fit import ReferenceTouch, fit_calibration
-    from edge.estimation.chain_decision import CHAIN_BLOCKERS, ChainDecision
+    from edge.estimation.chain_decision import ChainDecision
+    from edge.estimation.seam import BLOCKERS as CHAIN_BLOCKERS
     from edge.estimation.chain_estimate import estimate_from_contact
     from edge.physics.materials import load_materials
     from firmware_sim.rigs.contact_record import ContactTouch, record_touch

@@ -5,7 +5,7 @@ model to the raw thermopile reading: right for the flux at the object's
 face, wrong for a thermopile inside its sensing layer, which for the first
 second or two reads heat still warming the layer (on the faithful world a
 PMMA touch read as glass).  With a calibration installed the device's
-answer is the calibrated chain's (:func:`edge.service.calibration.promote_chain`);
+answer is the calibrated chain's (:func:`edge.estimation.seam.chain_answer`);
 :class:`ChainDecision` makes the running answer the same estimate, on the
 record so far: :func:`edge.estimation.chain_estimate.estimate_from_contact`
 from the contact on (object temperature and contact resistance free), every
@@ -25,15 +25,13 @@ import numpy as np
 
 from edge.estimation.chain_estimate import estimate_from_contact
 from edge.estimation.running import RefitDecision, RunningAnswer
+from edge.estimation.seam import BLOCKERS
 
-__all__ = ["ChainDecision", "CHAIN_EVERY_s", "CHAIN_BLOCKERS"]
+__all__ = ["ChainDecision", "CHAIN_EVERY_s"]
 
 #: Heating time between two chain fits: about 6 ms each on this machine (bench/daemon_bench.py), so a
 #: fit per 0.1 s keeps the sampling loop's budget on a Pi-class CPU.
 CHAIN_EVERY_s = 0.1
-#: Chain flags under which a running answer would not describe the record (as PROMOTE_BLOCKERS, plus
-#: not_converged: a fit on a short prefix that did not converge says nothing yet).
-CHAIN_BLOCKERS = frozenset({"poor_fit", "contact_lost", "no_contact", "no_fit", "not_converged"})
 
 
 class ChainDecision(RefitDecision):
@@ -76,6 +74,6 @@ class ChainDecision(RefitDecision):
         except ValueError:  # a prefix the chain cannot fit yet (too few samples since contact)
             return self.answer
         u_ln_e = self.u_ln_e(d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u"))
-        if u_ln_e is None or CHAIN_BLOCKERS & set(d.get("flags") or ()):
+        if u_ln_e is None or BLOCKERS & set(d.get("flags") or ()):   # the one blocker table
             return self.answer
         return self._answer(t_s, float(d["effusivity_W_s05_m2K"]), u_ln_e, n)

@@ -318,7 +318,7 @@ class Estimator:
         from the library (:meth:`Library.prior_rho_c`), the material named by
         :meth:`Library.identify`. The default method's last step, and the one
         definition the device uses for an e measured another way (the sensor
-        chain's, :func:`edge.service.calibration.promote_chain`).
+        chain's, :func:`edge.estimation.seam.chain_answer`).
         """
         flags = [] if flags is None else flags
         k, u_ln_k, alpha, u_ln_alpha, outside = self.library.k_alpha_given_e(e, u_ln_e)

@@ -231,7 +231,6 @@ class Estimate:
             "determined_by": dict(self.determined_by), "prior_reason": self.prior_reason,
             "corr_k_alpha": self.corr_ln.get("k_alpha"), "corr_e_alpha": self.corr_ln.get("e_alpha"),
             "normalised_residual": self.normalised_residual, "u_e_parts": dict(self.u_e_parts),
-            "material_candidates": [[n, c] for n, c in self.material_candidates[:3]],
             **self.recognition(),
         }
         for k, v in self.details.items():

@@ -38,13 +38,15 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from edge.estimation.methods import method_class
 from edge.estimation.conditioning import baseline_mask, contact_effusivity, quality_flags, resample_uniform
 from edge.estimation.record import TouchRecord
 from edge.estimation.result import QUANTITIES, Estimate, unknown_recognition
 from edge.physics.geometry import get_probe
+from edge.recognition import recognition_fields
 from edge.status import Flag
 
-__all__ = ["SeamContext", "Conditioned", "TooFewSamples", "BLOCKERS", "condition", "estimate_touch",
+__all__ = ["SeamContext", "TouchEstimator", "Conditioned", "TooFewSamples", "BLOCKERS", "condition", "estimate_touch",
            "chain_answer", "MethodFn", "CHAIN_KEEP"]
 
 log = logging.getLogger(__name__)
@@ -67,6 +69,16 @@ DEFAULT_METHOD_KEYS = ("effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK
                        "alpha_m2_s_u", "material", "material_confidence", "method")
 
 
+class TouchEstimator:
+    """The sequence's estimator hook on one context: ``(record, decision) -> Estimate``."""
+
+    def __init__(self, context: "SeamContext") -> None:
+        self.context = context
+
+    def __call__(self, record: TouchRecord, decision: Mapping[str, Any] | None = None) -> Estimate:
+        return estimate_touch(record, self.context, decision=decision)
+
+
 class TooFewSamples(ValueError):
     """The heating phase has too few samples to resample (the record's reason ``too_few_samples``)."""
 
@@ -82,7 +94,7 @@ class SeamContext:
         and names the material, its ``sha256`` the model.  None only with :attr:`method` given.
     calibration : edge.calibration.model.ProbeCalibration or None
         The installed calibration; one made for another probe head is not applied (``uncalibrated``).
-    object_set : edge.estimation.objects.ObjectSet or None
+    object_set : edge.recognition.ObjectSet or None
         The objects the answer is named among (None: no naming, ``object = "unknown"``).
     object_set_name : str or None
         Its name as reported (``object_set``; default the set's label).
@@ -132,17 +144,15 @@ class SeamContext:
 
     def method_for(self, probe: str, T_resolution_K: float = 0.0) -> Any:
         """The probe head's estimator (its kind's class from the registry), built once per model and grid."""
-        from edge.estimation.methods import method_class  # noqa: PLC0415 - methods imports the estimators
-
         if self.estimator is None:
             raise ValueError("no model: the context needs the bundle's estimator (or a method)")
         geo = get_probe(probe)
-        key = (geo.name, id(self.estimator), float(T_resolution_K))
+        if any(m.estimator is not self.estimator for m in self.methods.values()):
+            self.methods.clear()  # one model at a time: a new bundle drops the old one's estimators
+        key = (geo.name, float(T_resolution_K))
         m = self.methods.get(key)
-        if m is None or m.estimator is not self.estimator:
-            m = method_class(geo)(self.estimator, geo, T_resolution_K=T_resolution_K)
-            self.methods.clear()  # one model at a time: a new bundle drops the old one's models
-            self.methods[key] = m
+        if m is None:
+            m = self.methods[key] = method_class(geo)(self.estimator, geo, T_resolution_K=T_resolution_K)
         return m
 
 
@@ -307,8 +317,6 @@ def _recognise(est: Estimate, context: SeamContext) -> Estimate:
     name = context.object_set_name
     if objs is None or not len(objs):
         return replace(est, **_recognition_kw(unknown_recognition(name)))
-    from edge.estimation.objects import recognition_fields  # noqa: PLC0415 - recognition knows no estimator
-
     try:
         r = recognition_fields(objs, est.to_dict(), set_name=name)
     except Exception as e:  # naming the object must never lose the measurement
@@ -358,19 +366,17 @@ def estimate_touch(record: TouchRecord, context: SeamContext, *,
     cal = context.calibration_for(record.probe)
     T_res = record.T_resolution_K if context.T_resolution_K is None else context.T_resolution_K
     thickness = context.thickness_m is not None and context.back != "infinite"
+    kind = method_class(record.probe)
     if context.method is not None:
-        fn = context.method
-        d = fn(g_t, g_dT, g_q, record.power_W, record.method)
-        sensor_chain = getattr(fn, "sensor_chain", True)
+        d = context.method(g_t, g_dT, g_q, record.power_W, record.method)
     else:
         m = context.method_for(record.probe, T_res)
         d = m(g_t, g_dT, g_q, record.power_W, record.method, calibration=cal, thickness_m=context.thickness_m,
               back=context.back)
-        sensor_chain = m.sensor_chain
     model_sha = getattr(context.estimator, "sha256", None)
     est = _from_method(d, record.probe, model_sha, thickness)
     est = replace(est, flags=tuple(seq_flags) + est.flags + (() if cal is not None else (Flag.UNCALIBRATED,)))
-    if sensor_chain and record.heater_on_t_s is not None:
+    if kind.sensor_chain and record.heater_on_t_s is not None:
         chain = _chain(record, cal, context.estimator)
         extra = (Flag.CONTACT_LOST,) if Flag.CONTACT_LOST in (chain.get("flags") or ()) else ()
         est = replace(est, calibration_sha256=chain["calibration_sha256"], flags=est.flags + extra,

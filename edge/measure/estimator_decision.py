@@ -27,18 +27,16 @@ from typing import Any, Callable
 
 import numpy as np
 
+from edge.estimation.conditioning import resample_uniform
 from edge.estimation.running import RefitDecision, RunningAnswer
-from edge.measure.signal import resample_uniform
-from edge.physics.probe import volumetric_heat_W_m3
+from edge.estimation.seam import BLOCKERS
 
-__all__ = ["EstimatorDecision", "ESTIMATOR_EVERY_s", "ESTIMATOR_BLOCKERS"]
+__all__ = ["EstimatorDecision", "ESTIMATOR_EVERY_s"]
 
 #: Heating time between two refits.  A small-heater fit on a prepared model takes ~12 ms on this
 #: machine and a few times that on a Pi-class CPU: one per 0.25 s keeps the sampling loop's budget
 #: (its samples are 20 ms apart) and answers within a quarter second of when the record allows.
 ESTIMATOR_EVERY_s = 0.25
-#: Flags under which a running estimate says nothing about the object yet.
-ESTIMATOR_BLOCKERS = frozenset({"no_contact", "insufficient_signal", "not_converged", "saturated", "no_fit"})
 
 
 class EstimatorDecision(RefitDecision):
@@ -49,7 +47,7 @@ class EstimatorDecision(RefitDecision):
     object_set, threshold, min_time_s
         As for :class:`~edge.estimation.running.SequentialDecision`.
     estimate_fn : callable
-        The device's estimator, ``(t_s, dT_K, q_W_m2, q_v_W_m3, method) -> dict`` on a uniform
+        The device's estimator, ``(t_s, dT_K, q_W_m2, power_W, method) -> dict`` on a uniform
         grid from heater-on (:class:`edge.service.estimator.ModelEstimator`); its optional
         ``prepare(t_s)`` is called with the touch's whole grid when heating starts.
     rate_Hz : float
@@ -81,7 +79,7 @@ class EstimatorDecision(RefitDecision):
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")
         self.estimate_fn = estimate_fn
         self.rate_Hz, self.heat_s = float(rate_Hz), float(heat_s)
-        self.q_v_W_m3 = volumetric_heat_W_m3(power_W)
+        self.power_W = float(power_W)
         self.method = method
         self.T_age_s = float(T_age_s)
 
@@ -113,10 +111,10 @@ class EstimatorDecision(RefitDecision):
                                               q_dt_s=None if skew is None else skew[:, 1])
             if g_t.size < 4:
                 return self.answer
-            d = self.estimate_fn(g_t, g_dT, g_q, self.q_v_W_m3, self.method)
+            d = self.estimate_fn(g_t, g_dT, g_q, self.power_W, self.method)
         except ValueError:   # a prefix the estimator cannot fit yet
             return self.answer
-        if ESTIMATOR_BLOCKERS & set(d.get("flags") or ()):
+        if BLOCKERS & set(d.get("flags") or ()):   # the one blocker table (edge.estimation.seam)
             return self.answer
         u_ln_e = self.u_ln_e(d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u"))
         rec = self.objects.classify_estimate(d) if u_ln_e is not None else None
