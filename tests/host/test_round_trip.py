@@ -83,22 +83,26 @@ def _assert_same_answer(capsys, device: dict, path: Path, *extra) -> None:
 def test_exported_touch_re_estimated_gives_the_devices_answer(capsys, tmp_path, scene):
     workdir = tmp_path / "probe"
     with simulated_probe(scene, workdir) as (port, _daemon, _sim):
-        device = _measure_and_export(capsys, port, tmp_path / "plain.csv")
+        plain = _measure_and_export(capsys, port, tmp_path / "plain.csv")
         cal = tmp_path / "cal.json"
         cal.write_text(sample_calibration(probe=read_touch(tmp_path / "plain.csv").probe).to_json())
         code, _, err = run(capsys, "calibrate", "--port", port, "--install", cal)
         assert code == 0, err
-    assert "uncalibrated" in device["flags"] or device.get("effusivity_W_s05_m2K") is None \
-        or device.get("status", "ok") != "ok"
-    _assert_same_answer(capsys, device, tmp_path / "plain.csv")
     # The installed calibration stays in the probe's directory: the next session's touch is calibrated.
+    # (A new session, not the scene's next touch: the simulated seconds between the scene's touches cost more CPU
+    # on the faithful world than a daemon's start.)
     with simulated_probe(scene, workdir) as (port, _daemon, _sim):
-        device = _measure_and_export(capsys, port, tmp_path / "calibrated.csv")
-    assert "uncalibrated" not in device["flags"] or device.get("status", "ok") != "ok"
-    _assert_same_answer(capsys, device, tmp_path / "calibrated.csv", "--calibration", cal)
+        calibrated = _measure_and_export(capsys, port, tmp_path / "calibrated.csv")
+    ok = plain.get("status", "ok") == "ok"
+    assert not ok or "uncalibrated" in plain["flags"] or plain.get("effusivity_W_s05_m2K") is None
+    _assert_same_answer(capsys, plain, tmp_path / "plain.csv")
+    ok = calibrated.get("status", "ok") == "ok"
+    assert not ok or "uncalibrated" not in calibrated["flags"]
+    _assert_same_answer(capsys, calibrated, tmp_path / "calibrated.csv", "--calibration", cal)
     header = (tmp_path / "calibrated.csv").read_text().split("\nt_s,")[0]
-    for key in ("probe", "power_W", "sample_rate_Hz", "heater_on_s", "calibration_sha256", "model_sha256",
-                "software", "measurement_id"):
+    # (a touch the device did not finish has no answer, so no calibration or model id: its header says why)
+    named = ("calibration_sha256", "model_sha256") if ok else ("status", "reason")
+    for key in ("probe", "power_W", "sample_rate_Hz", "heater_on_s", "software", "measurement_id") + named:
         assert f"# {key}: " in header, key
 
 
