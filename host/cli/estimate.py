@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from host.cli.args import existing_file, positive_float
 from host.cli.calibrate import calibration_file
@@ -111,6 +112,26 @@ def _decision(meta: dict) -> dict | None:
     return d if isinstance(d, dict) else None
 
 
+def _differences(meta: dict, model_sha256: str | None, calibration) -> list[str]:
+    """Where this estimate's context differs from the device's (an export names its model and calibration):
+    the answer is then not the device's, and the user should know why."""
+    if "measurement_id" not in meta:
+        return []  # not a device's export: nothing to compare with
+    out = []
+    device_model = meta.get("model_sha256")
+    if device_model and model_sha256 and device_model != model_sha256:
+        out.append(f"the device used model {device_model[:12]}, this estimate model {model_sha256[:12]} "
+                   "(--bundle): the answer differs from the device's")
+    device_cal = meta.get("calibration_sha256")
+    mine = None if calibration is None else calibration.sha256
+    if device_cal != mine and meta.get("status", "ok") == "ok":
+        said = "no calibration" if device_cal is None else f"calibration {device_cal[:12]}"
+        given = "none" if mine is None else mine[:12]
+        out.append(f"the device used {said}, this estimate --calibration {given}: the answer differs from the "
+                   "device's")
+    return out
+
+
 def run(args) -> int:
     from dataclasses import replace  # noqa: PLC0415
 
@@ -150,6 +171,8 @@ def run(args) -> int:
     context = SeamContext(estimator=est, calibration=args.calibration, object_set=objects, object_set_name=set_name,
                           thresholds=_thresholds(dict(record.meta)), thickness_m=args.thickness,
                           back="infinite" if args.thickness is None else (args.back or "insulated"))
+    for note in _differences(record.meta, getattr(est, "sha256", None), args.calibration):
+        print(f"note: {note}", file=sys.stderr)
     try:
         answer = estimate_touch(record, context, decision=_decision(dict(record.meta)))
     except ValueError as exc:

@@ -235,3 +235,14 @@ def test_export_names_its_probe_and_a_failed_touch_has_no_estimate(capsys, tmp_p
     code, out, err = run(capsys, "estimate", "--csv", failed)
     assert code == 1 and out == "" and "measurement 3 ended failed (open_thermocouple)" in err
     assert len(err.strip().splitlines()) == 1
+
+
+def test_an_estimate_in_another_context_than_the_devices_says_so(capsys, tmp_path):
+    p = _export(tmp_path, _EXPORT_HEAD + "# calibration_sha256: " + "d" * 64 + "\n# model_sha256: " + "e" * 64 + "\n")
+    code, out, err = run(capsys, "estimate", "--csv", p, "--json")
+    notes = [ln for ln in err.splitlines() if ln.startswith("note: ")]
+    assert code == 0 and json.loads(out)["effusivity_W_s05_m2K"] > 0
+    assert len(notes) == 2 and "model eeeeeeeeeeee" in notes[0] and "calibration dddddddddddd" in notes[1]
+    plain = _export(tmp_path)   # the device was uncalibrated, and so is this estimate: nothing to say
+    code, out, err = run(capsys, "estimate", "--csv", plain, "--json")
+    assert code == 0 and err == ""
