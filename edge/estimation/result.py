@@ -47,6 +47,17 @@ def _num(x: Any) -> float | None:
     return x if math.isfinite(x) else None
 
 
+#: Significant digits of a probability in :meth:`Estimate.to_dict` (a record must fit one 4-kB reply with
+#: room for another; a posterior is not known to better than its inputs' few percent anyway).
+P_DIGITS = 4
+
+
+def _p(x: Any) -> float | None:
+    """A probability as stored: finite, to P_DIGITS significant digits (None stays None)."""
+    x = _num(x)
+    return None if x is None else float(f"{x:.{P_DIGITS}g}")
+
+
 def _plain(v: Any) -> Any:
     """JSON-safe copy of a details value: mappings, sequences, numbers (non-finite -> None), strings."""
     if isinstance(v, Mapping):
@@ -205,10 +216,12 @@ class Estimate:
         return self.effusivity_W_s05_m2K is not None
 
     def recognition(self) -> dict[str, Any]:
-        """The recognition fields as in :meth:`to_dict`."""
-        return {"object_set": self.object_set, "object": self.object, "object_posterior": self.object_posterior,
-                "class": self.cls, "class_posterior": self.class_posterior,
-                "unknown_posterior": self.unknown_posterior, "candidates": [dict(c) for c in self.candidates]}
+        """The recognition fields as in :meth:`to_dict` (probabilities to :data:`P_DIGITS` significant digits)."""
+        return {"object_set": self.object_set, "object": self.object, "object_posterior": _p(self.object_posterior),
+                "class": self.cls, "class_posterior": _p(self.class_posterior),
+                "unknown_posterior": _p(self.unknown_posterior),
+                "candidates": [{**c, "posterior": _p(c.get("posterior"))} if "posterior" in c else dict(c)
+                               for c in self.candidates]}
 
     def with_flags(self, *flags: Flag) -> "Estimate":
         """A copy with ``flags`` added (those already there are not repeated)."""
@@ -223,7 +236,7 @@ class Estimate:
             "effusivity_W_s05_m2K_u": self.effusivity_W_s05_m2K_u,
             "k_W_mK": self.k_W_mK, "k_W_mK_u": self.k_W_mK_u,
             "alpha_m2_s": self.alpha_m2_s, "alpha_m2_s_u": self.alpha_m2_s_u,
-            "material": self.material, "material_confidence": self.material_confidence,
+            "material": self.material, "material_confidence": _p(self.material_confidence),
             "method": self.method, "probe": self.probe,
             "model_sha256": self.model_sha256, "calibration_sha256": self.calibration_sha256,
             "flags": [str(f) for f in self.flags],

@@ -273,7 +273,7 @@ def _chain(record: TouchRecord, calibration: Any, estimator: Any) -> dict[str, A
     library = getattr(estimator, "library", None)
     try:
         d = estimate_from_contact(record.t_s, record.T_C, record.q_W_m2, calibration, library=library)
-        chain = {k: _plain(d.get(k)) for k in CHAIN_KEEP}
+        chain = {k: _plain(d[k]) for k in CHAIN_KEEP if d.get(k) is not None}   # absent: not given
         chain["flags"] = [str(f) for f in d.get("flags") or ()]
     except Exception as e:  # the chain's estimate must never lose the measurement
         log.warning("sensor-chain estimate failed: %s", e)
