@@ -185,4 +185,20 @@ def run(args) -> int:
     else:
         # An object the set cannot name has no posteriors to print.
         print_result(d if d.get("object_posterior") is not None else dict(d, object=None))
+        chain = d.get("sensor_chain")
+        if isinstance(chain, dict) and chain.get("effusivity_W_s05_m2K") is not None:
+            print(_chain_line(chain))
     return 0 if d.get("effusivity_W_s05_m2K") is not None else 1
+
+
+def _chain_line(c: dict) -> str:
+    """The calibrated sensor chain's own fit: its e, the contact resistance, the object's temperature, the contact."""
+    def num(key: str, fmt: str) -> str:
+        v = c.get(key)
+        return "n/a" if v is None else format(v, fmt)
+
+    return (f"sensor chain e {num('effusivity_W_s05_m2K', '.1f')} +- {num('effusivity_W_s05_m2K_u', '.1f')}, "
+            f"R_c {num('contact_resistance_m2K_W', '.2e')} +- {num('contact_resistance_m2K_W_u', '.1e')} m^2 K/W, "
+            f"T_obj0 {num('object_temperature0', '.3f')} +- {num('object_temperature0_u', '.3f')}, "
+            f"contact at t = {num('contact_t_s', '.3f')} s, normalised residual {num('normalised_residual', '.2f')}, "
+            f"flags {', '.join(c.get('flags') or []) or '-'}")

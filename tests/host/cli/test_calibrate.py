@@ -90,6 +90,8 @@ def test_fit_then_estimate_with_the_calibration_beats_the_datasheet(capsys, reco
     chain = d["sensor_chain"]
     assert "contact_not_recorded" not in chain["flags"] and chain["contact_t_s"] == pytest.approx(-1.0, abs=0.06)
     assert d["object"] is not None and d["candidates"]
+    code, out, err = run(capsys, "estimate", "--csv", str(glass), "--calibration", str(cal))
+    assert code == 0 and "method sensor_chain" in out and "sensor chain e " in out and "R_c " in out, err
     # The datasheet chain, through the same command without the calibration's file: flagged.
     code, out, err = run(capsys, "estimate", "--csv", str(glass), "--json")
     assert code == 0 and "uncalibrated" in json.loads(out)["flags"]
