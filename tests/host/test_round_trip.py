@@ -126,3 +126,14 @@ def test_walk_through_refitted_offline_from_its_exports_is_the_installed_calibra
     for d in (installed, refit):  # when it was made, and the identity that includes it
         d.pop("created_utc"), d.pop("sha256")
     assert refit == installed
+    # The issue's own example: an armed touch on the calibrated probe, exported and re-estimated.
+    code, out, err = run(capsys, "measure", "--sim", "glass_15V_faithful", "--workdir", workdir, "--arm", 30,
+                         "--settle", 1, "--json")
+    assert code in (0, 1), err
+    device = json.loads(out)
+    assert device["calibration_sha256"] == json.loads(cal.read_text())["sha256"]
+    f = tmp_path / "armed.csv"
+    code, _, err = run(capsys, "history", "--sim", "glass_15V_faithful", "--workdir", workdir, "--export-series",
+                       device["measurement_id"], f)
+    assert code == 0 and "# arm_s: 30.0" in f.read_text(), err
+    _assert_same_answer(capsys, device, f, "--calibration", cal)
