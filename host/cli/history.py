@@ -78,7 +78,8 @@ def _export_series(args) -> int:
                 "calibration_sha256": result.get("calibration_sha256"),
                 "model_sha256": rec.get("model_sha256") or result.get("model_sha256"),
                 "object_set": result.get("object_set"), "software": info.get("firmware_version"),
-                "board": info.get("board"),
+                # The device that holds the history took the touch (its serial, where it has one).
+                "board": info.get("board"), "device_id": info.get("device_id"),
                 # The running decision the device judged the answer against (one line of JSON).
                 "decision": None if not isinstance(result.get("decision"), dict)
                 else json.dumps(result["decision"], separators=(",", ":"), sort_keys=True)}
