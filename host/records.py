@@ -282,7 +282,9 @@ def read_touch(path: str | Path, probe: str | None = None):
     recorded = header.get("probe")
     exported = any(f in header for f in HEADER_FIELDS if f != "probe")
     # An export names its probe; an older CSV is the paper probe's unless --probe or its probe line says.
-    name = probe or recorded if exported else probe or "paper"
+    name = (probe or recorded) if exported else (probe or "paper")
+    if name is None:
+        raise RecordError(f"{path}: header lacks probe (or give --probe)")
     if recorded is not None and recorded != name:
         raise RecordError(f"{path} was taken with probe {recorded!r}, not --probe {name}")
     if name not in PROBES:

@@ -218,6 +218,7 @@ def _export(tmp_path, head=_EXPORT_HEAD, cols="t_s,T_C,q_W_m2"):
     (_EXPORT_HEAD + "# saturated: maybe\n", "header saturated: expected true or false"),
     (_EXPORT_HEAD + "# measurement.noise_T_K: loud\n", "measurement.noise_T_K: expected a number"),
     (_EXPORT_HEAD.replace("paper", "tiny"), "tiny"),
+    (_EXPORT_HEAD.replace("# probe: paper\n", ""), "header lacks probe"),
 ])
 def test_bad_export_header_is_one_line(capsys, tmp_path, head, needle):
     code, out, err = run(capsys, "estimate", "--csv", _export(tmp_path, head), "--json")
