@@ -228,7 +228,6 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
     from edge.estimation.probe_estimate import AxiEstimator
     from edge.measure.estimator_decision import EstimatorDecision
     from edge.measure.signal import resample_uniform
-    from edge.physics.probe import HEATER_VOLUME_m3, volumetric_heat_W_m3
     from firmware_sim.rigs.contact_record import ContactTouch, record_touch
     from firmware_sim.rz.probe_world import geometry_for_probe
     from firmware_sim.scene.files import read_scene
@@ -239,8 +238,8 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
     axi = AxiEstimator(library_estimator(), "small-heater", fit_contact=fit_contact)
     fit_s: list[float] = []
 
-    def estimate_fn(t, dT, q, q_v, method):   # the device's call (edge.service.estimator.ModelEstimator)
-        return axi.estimate(t, dT, q, power_W=q_v * HEATER_VOLUME_m3)
+    def estimate_fn(t, dT, q, power_W, method):   # the device's call (edge.service.estimator.ModelEstimator)
+        return axi.estimate(t, dT, q, power_W=power_W)
 
     def refit(*args):                          # the decision's refits, timed
         w = time.perf_counter()
@@ -248,7 +247,6 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
         fit_s.append(time.perf_counter() - w)
         return d
     refit.prepare = axi.prepare
-    q_v = volumetric_heat_W_m3(power_W)
 
     rng = np.random.default_rng(seed)
     oset = ObjectSet(objects, label="tactile_bench IN_SET")
@@ -263,7 +261,7 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
         base = (t > -0.5) & (t <= 0)
         T0, q0 = float(T[base].mean()), float(q[base].mean())
         g = resample_uniform(t, T, q, T0, q0, SMALL_RATE_Hz, SMALL_HEAT_S)
-        fixed_d = estimate_fn(*g, q_v, "default")
+        fixed_d = estimate_fn(*g, power_W, "default")
         rec = oset.classify_estimate(fixed_d)    # None where the estimate refused (no e)
         fixed = rec.object if rec is not None else None
         dec = EstimatorDecision(oset, threshold, min_s, estimate_fn=refit, rate_Hz=SMALL_RATE_Hz,
@@ -281,7 +279,7 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
         if early:   # the result of a touch stopped there: the estimate of the record so far
             g_e = resample_uniform(np.array(ts), np.array(Ts), np.array(qs), T0, q0, SMALL_RATE_Hz,
                                    dec.decided.elapsed_s)
-            early_d = estimate_fn(*g_e, q_v, "default")
+            early_d = estimate_fn(*g_e, power_W, "default")
         rows.append(dict(object=obj.name, fixed=fixed, answer=dec.decided.object if early else fixed,
                          early=early, t=dec.decided.elapsed_s if early else SMALL_HEAT_S,
                          alpha_fixed="alpha" in (fixed_d.get("determined") or ()),

@@ -14,15 +14,20 @@ estimators do):
   heater-on (:func:`edge.estimation.conditioning.resample_uniform`): the keys
   of an estimate (``effusivity_W_s05_m2K`` and its ``_u``, k, α, ``flags``,
   ``method``, ``model_sha256``, ``material``...) plus ``determined`` and
-  ``from_prior`` (lists of ``"e"``, ``"k"``, ``"alpha"``) and, when it applied
-  one, ``calibration_sha256``.
+  ``from_prior`` (lists of ``"e"``, ``"k"``, ``"alpha"``), when it applied
+  one ``calibration_sha256``, and optionally ``series`` (arrays: ``t_model_s``,
+  ``fit_T_K``, the model on its grid; not part of the JSON).
 
 Class attributes say what else the seam does for the kind:
 
 * ``sensor_chain`` -- the calibrated sensor chain (:mod:`edge.estimation.chain_estimate`)
   runs on the raw record and its e becomes the answer when calibrated and trusted;
 * ``running`` -- the running decision it takes: ``"thick_body"`` (the 1-D early-time
-  model, or the chain once calibrated) or ``"refit"`` (this estimator on the record so far).
+  model, or the chain once calibrated) or ``"refit"`` (this estimator on the record so far);
+* ``measures_alpha`` -- whether a touch can measure α (a heater small against the heat's reach):
+  object sets are then calibrated on touches that carry it;
+* ``kind`` -- its key in :data:`KINDS`; a 1-D (``"thick_body"``) probe head is the one the
+  simulator's ideal 1-D world can model.
 
 Adding a probe head with a new estimator: write the class, add it here, name
 its kind in the probe head.  Nothing else dispatches on probe names.
@@ -46,6 +51,7 @@ class ThickBodyMethod:
     kind = "thick_body"
     sensor_chain = True
     running = "thick_body"
+    measures_alpha = False
 
     def __init__(self, estimator: Estimator, geometry: ProbeGeometry, *, T_resolution_K: float = 0.0) -> None:
         self.estimator = estimator
@@ -61,6 +67,9 @@ class ThickBodyMethod:
                                     power_W=power_W, T_resolution_K=self.T_resolution_K)
         d = r.to_dict()
         d["probe"] = self.geometry.name
+        if r.fit_T_K is not None:
+            # The model on its own grid (arrays: not part of the JSON; the seam keeps them in Estimate.series).
+            d["series"] = {"t_model_s": r.t_model_s, "fit_T_K": r.fit_T_K}
         if r.effusivity_W_s05_m2K is None:
             d["determined"], d["from_prior"] = [], []
         elif method == "paper":
@@ -80,6 +89,7 @@ class AxiMethod:
     kind = "axisym"
     sensor_chain = False
     running = "refit"
+    measures_alpha = True
 
     def __init__(self, estimator: Estimator, geometry: ProbeGeometry, *, T_resolution_K: float = 0.0) -> None:
         from edge.estimation.probe_estimate import AxiEstimator  # noqa: PLC0415 - the 1-D device never needs it

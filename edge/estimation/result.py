@@ -159,7 +159,7 @@ class Estimate:
     candidates: tuple[Mapping[str, Any], ...] = ()
     details: Mapping[str, Any] = field(default_factory=dict)
     #: The arrays behind it, not part of the JSON: ``grid_t_s``, ``grid_dT_K``, ``grid_q_W_m2`` (the
-    #: conditioned heating phase) and, where the method has one, ``fit_T_K`` (its model on the grid).
+    #: conditioned heating phase) and, where the method has one, ``t_model_s``, ``fit_T_K`` (its model).
     series: Mapping[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -209,6 +209,16 @@ class Estimate:
     def from_prior(self) -> tuple[str, ...]:
         """The quantities that came from the library prior given e."""
         return tuple(q for q in QUANTITIES if self.determined_by.get(q) == "prior")
+
+    @property
+    def fit_T_K(self) -> Any:
+        """The method's model temperature on :attr:`t_model_s` (None: the method has none)."""
+        return self.series.get("fit_T_K")
+
+    @property
+    def t_model_s(self) -> Any:
+        """The grid of :attr:`fit_T_K`."""
+        return self.series.get("t_model_s")
 
     @property
     def ok(self) -> bool:

@@ -47,7 +47,7 @@ from edge.recognition import recognition_fields
 from edge.status import Flag
 
 __all__ = ["SeamContext", "TouchEstimator", "Conditioned", "TooFewSamples", "BLOCKERS", "condition", "estimate_touch",
-           "chain_answer", "MethodFn", "CHAIN_KEEP"]
+           "chain_answer", "method_estimate", "MethodFn", "CHAIN_KEEP"]
 
 log = logging.getLogger(__name__)
 
@@ -227,7 +227,12 @@ def _sources(d: Mapping[str, Any], thickness: bool) -> dict[str, str]:
     return out
 
 
-def _from_method(d: Mapping[str, Any], probe: str, model_sha: str | None, thickness: bool) -> Estimate:
+def method_estimate(d: Mapping[str, Any], probe: str, model_sha: str | None, thickness: bool) -> Estimate:
+    """A probe head's estimator's dict as a typed :class:`Estimate` (before the chain, the flags and the naming).
+
+    ``thickness``: the touch had a stated thickness (quantities the method resolved through it are
+    ``"thickness"``-determined).  A flag that is not a :class:`Flag` word raises ValueError.
+    """
     fit = d.get("fit") if isinstance(d.get("fit"), Mapping) else None
     corr = {"k_alpha": d.get("corr_k_alpha")}
     if fit is not None:
@@ -374,7 +379,7 @@ def estimate_touch(record: TouchRecord, context: SeamContext, *,
         d = m(g_t, g_dT, g_q, record.power_W, record.method, calibration=cal, thickness_m=context.thickness_m,
               back=context.back)
     model_sha = getattr(context.estimator, "sha256", None)
-    est = _from_method(d, record.probe, model_sha, thickness)
+    est = method_estimate(d, record.probe, model_sha, thickness)
     est = replace(est, flags=tuple(seq_flags) + est.flags + (() if cal is not None else (Flag.UNCALIBRATED,)))
     if kind.sensor_chain and record.heater_on_t_s is not None:
         chain = _chain(record, cal, context.estimator)
@@ -391,5 +396,5 @@ def estimate_touch(record: TouchRecord, context: SeamContext, *,
             # Heating stopped on a running answer the full estimate names differently: the result is the
             # answer, the decision is kept and flagged.
             est = est.with_flags(Flag.DECISION_DISAGREES)
-    return replace(est, series={"grid_t_s": g_t, "grid_dT_K": g_dT, "grid_q_W_m2": g_q,
-                                **({"fit_T_K": d["fit_T_K"]} if d.get("fit_T_K") is not None else {})})
+    extra = d.get("series") if isinstance(d.get("series"), Mapping) else {}
+    return replace(est, series={"grid_t_s": g_t, "grid_dT_K": g_dT, "grid_q_W_m2": g_q, **extra})

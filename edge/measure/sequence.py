@@ -645,6 +645,7 @@ class MeasurementSequence:
         out.estimate = est
         out.result = est.to_dict()
         out.model_sha256 = est.model_sha256 or out.model_sha256
-        out.flags = list(est.flags)
+        # The estimate's flags begin with the same conditioning flags; whatever it adds follows.
+        out.flags = list(dict.fromkeys(out.flags + list(est.flags)))
         g = est.series
         out.grid_t_s, out.grid_dT_K, out.grid_q_W_m2 = g.get("grid_t_s"), g.get("grid_dT_K"), g.get("grid_q_W_m2")

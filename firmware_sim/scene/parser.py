@@ -13,6 +13,7 @@ import tomllib
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+from edge.physics.geometry import get_probe
 from edge.physics.materials import load_materials
 from edge.physics.solids import Solid
 from edge.schema import Field, SchemaError, check_table, check_value
@@ -114,7 +115,7 @@ def _board(data: Any) -> BoardSpec:
         raise SchemaError("board.mcp9600", "missing: fit a thermocouple reader (board.mcp9600 or board.ads122c04)")
     if b.get("ads1115") is None and b.get("ads122c04") is None:
         raise SchemaError("board.ads1115", "missing: fit a flux-sensor reader (board.ads1115 or board.ads122c04)")
-    if b["probe"] != "paper" and b["world"] != "faithful":
+    if get_probe(b["probe"]).estimator != "thick_body" and b["world"] != "faithful":
         raise SchemaError("board.probe", f'probe {b["probe"]!r} needs world = "faithful" '
                           "(the ideal world is 1-D: it knows no heater smaller than the object)")
     return BoardSpec(b.get("mcp9600"), b.get("ads1115"), b.get("ads122c04"), b["stack"], b["world"], b["probe"])

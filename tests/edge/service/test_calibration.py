@@ -102,11 +102,11 @@ def shipped_estimator():
 def _answer(est, chain_e=620.0, **chain):
     """The default method's answer on e = 560 and a calibrated chain's estimate of e = 620 (with ``chain``)."""
     from edge.estimation.result import Estimate
-    from edge.estimation.seam import _from_method
+    from edge.estimation.seam import method_estimate
 
     base = est.from_effusivity(560.0, 0.02).to_dict()
     base.update(determined=["e"], from_prior=["k", "alpha"], flags=[])
-    answer = _from_method(base, "paper", est.sha256, False)
+    answer = method_estimate(base, "paper", est.sha256, False)
     assert isinstance(answer, Estimate)
     c = {"effusivity_W_s05_m2K": chain_e, "effusivity_W_s05_m2K_u": 0.015 * chain_e,
          "calibration_sha256": "ab" * 32, "flags": [], **chain}

@@ -42,7 +42,7 @@ def test_paper_probe_takes_the_unchanged_1d_path(store):
     want = Estimator.from_bundle(store.bundle).estimate(r.t_s, r.T_f_K, r.q_f_W_m2, q_v_W_m3=7.7e7).to_dict()
     # Same keys and values (to rounding: two runs of the same path may differ in the last bit), plus what
     # every probe head's estimator says (edge.estimation.methods): the probe and what the touch determined.
-    assert set(got) - set(want) == {"probe", "determined", "from_prior"}
+    assert set(got) - set(want) == {"probe", "determined", "from_prior", "series"}   # series: the fit's arrays
     assert got["determined"] == ["e"] and got["from_prior"] == ["k", "alpha"] and got["probe"] == "paper"
     for key, v in want.items():
         assert got[key] == _approx(v), key
