@@ -7,7 +7,7 @@ import sys
 
 from host.cli.args import existing_file, positive_float
 from host.cli.calibrate import calibration_file
-from host.cli.common import load_estimator, load_object_set
+from host.cli.common import load_object_set, seam_context
 from host.cli.errors import EXIT_RUNTIME, CliError
 from host.cli.report import dumps, print_result
 
@@ -72,7 +72,7 @@ def _check_method(probe: str, args) -> type:
 
 def _thresholds(meta: dict):
     """The ``[measurement]`` settings the device judged the touch by (``measurement.*`` header lines),
-    over the shipped defaults; None for a record without a device's header (no quality flags)."""
+    over the shipped defaults; None when the record names none (the context then takes the defaults)."""
     from edge.service.config import Config, ConfigError  # noqa: PLC0415
 
     given = {k: v for k, v in meta.items() if k.startswith("measurement.")}
@@ -137,7 +137,7 @@ def run(args) -> int:
 
     from edge.recognition import LIBRARY_SET, ObjectSet  # noqa: PLC0415
     from edge.estimation.record import RecordError as BadRecord  # noqa: PLC0415
-    from edge.estimation.seam import SeamContext, estimate_touch  # noqa: PLC0415
+    from edge.estimation.seam import estimate_touch  # noqa: PLC0415
     from host.records import RecordError, read_touch  # noqa: PLC0415
 
     if args.back is not None and args.thickness is None:
@@ -167,11 +167,13 @@ def run(args) -> int:
             record = replace(record, method=args.method)
         except BadRecord as exc:
             raise CliError(f"--csv {args.csv}: {exc}") from None
-    est, _ = load_estimator(args.bundle, record.method)
-    context = SeamContext(estimator=est, calibration=args.calibration, object_set=objects, object_set_name=set_name,
-                          thresholds=_thresholds(dict(record.meta)), thickness_m=args.thickness,
-                          back="infinite" if args.thickness is None else (args.back or "insulated"))
-    for note in _differences(record.meta, getattr(est, "sha256", None), args.calibration):
+    # The device's context: its model (the bundle), calibration, object set and the [measurement]
+    # thresholds its export names (an older CSV: the defaults a device runs with).
+    context = seam_context(args.bundle, calibration=args.calibration, object_set=objects, object_set_name=set_name,
+                           thresholds=_thresholds(dict(record.meta)), method=record.method,
+                           thickness_m=args.thickness,
+                           back="infinite" if args.thickness is None else (args.back or "insulated"))
+    for note in _differences(record.meta, getattr(context.estimator, "sha256", None), args.calibration):
         print(f"note: {note}", file=sys.stderr)
     try:
         answer = estimate_touch(record, context, decision=_decision(dict(record.meta)))
