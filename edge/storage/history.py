@@ -154,8 +154,9 @@ def touch_header(record: Mapping[str, Any]) -> dict[str, Any] | None:
     The stored header when the row has one. A row stored before schema version 2 has none: its
     header is rebuilt from what the row holds -- the probe, baseline and method of its
     configuration snapshot, its power, heater on-time and sample clock, ``saturated`` from its
-    flags -- and says so (``header_rebuilt: true``); what version 1 never stored (the
-    converter's lag and resolution, an armed run's times) is absent and takes the record's
+    flags, an armed run from a record that starts well before its baseline -- and says so
+    (``header_rebuilt: true``); what version 1 never stored (the converter's lag and
+    resolution, when an armed run found the contact) is absent and takes the record's
     defaults. None for a row without a raw series (nothing was sampled).
     """
     stored = record.get("touch_header")
@@ -169,7 +170,7 @@ def touch_header(record: Mapping[str, Any]) -> dict[str, Any] | None:
         value = (cfg.get(section) or {}).get(key)
         return default if value is None else value
 
-    return {
+    header = {
         "probe": conf("board", "probe", "paper"),
         "power_W": record.get("power_W"),
         "heater_on_s": record.get("heater_on_s") or 0.0,
@@ -179,6 +180,12 @@ def touch_header(record: Mapping[str, Any]) -> dict[str, Any] | None:
         "saturated": "saturated" in (record.get("flags") or []),
         "header_rebuilt": True,
     }
+    # An armed run sampled the air before its baseline: a record that starts well before its baseline
+    # was armed (its arming time at least that long), and only its last baseline_s is the baseline.
+    rate, lead_s = record.get("sample_rate_Hz"), -float(record["raw_t_s"][0])
+    if header["heater_on_s"] > 0 and rate and lead_s > header["baseline_s"] + 1.5 / rate:
+        header["arm_s"] = lead_s
+    return header
 
 
 def series_header(record: Mapping[str, Any]) -> dict[str, Any] | None:

@@ -175,6 +175,9 @@ def test_version_1_database_is_migrated_and_loses_nothing(tmp_path):
                                      "sample_rate_Hz": 12.5, "baseline_s": 0.7, "method": "paper",
                                      "saturated": True, "header_rebuilt": True}
         assert touch_header(h.get(2, series=True)) is None  # nothing was sampled
+        # A record that starts well before its baseline was armed: only its last baseline_s is the baseline.
+        armed = dict(old, raw_t_s=np.linspace(-5.0, 2.0, 26))
+        assert touch_header(armed)["arm_s"] == 5.0 and "arm_s" not in touch_header(old)
         # New rows take the new columns; ids go on.
         assert h.add(_rec(0, touch_header={"probe": "paper"})) == 3
         assert h.get(3, series=True)["touch_header"] == {"probe": "paper"}
