@@ -18,13 +18,18 @@ names above)::
 
     clock.py       VirtualClock, WallClock, BusClock
     bus.py         SimBus: smbus2-compatible I2C adapter with fault injection
-    chips/         register-level chip emulators (MCP9600Emulator, ADS1115Emulator, ADS122C04Emulator)
+    chips/         register-level chip emulators, one module per chip; chips/registry.py EMULATORS,
+                   registered against the chip registry's entries (edge.hw.chips.CHIPS)
     gpiod/         python-gpiod 2.x fake: device-side API modules + simulated lines, chips, kernel
     pwm.py         SimPwmTree: sysfs PWM tree fake
     board.py       make_sim_board: an edge Board on the GPIO/PWM fakes
     scene/         scene model, schema (edge.schema Fields), parser, files; shipped/ scenes
+    world_protocol.py  World: the protocol every thermal world implements (signals, truth, touches, faults)
+    wiring.py      WIRING: the one table from chip pins (and the heater's lines) to world signals
+    drive.py       HeaterDrive: the heater duty a world reads (BoardDrive, ScheduleDrive, ManualDrive)
     world.py       ThermalWorld: exact 1-D thermal model behind the chips ([board] world = "ideal")
-    rz/            axisymmetric finite-volume probe model; rz/probe_world.py FaithfulWorld ("faithful")
+    rz/            axisymmetric finite-volume probe model; rz/probe_world.py FaithfulWorld ("faithful"),
+                   rz/configs.py its as-built probe and grid configurations, rz/heater.py its heater film
     simulator.py   Simulator, load_scene: one object per scene
     ptylink.py     NullModem: virtual serial cable
     run.py         ``thermotouch sim``: the daemon on a scene behind a NullModem

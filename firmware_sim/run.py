@@ -26,6 +26,7 @@ from typing import Any, Callable, Mapping
 import serial
 
 from edge.estimation.seam import MethodFn
+from edge.hw.chips import CHIPS, FLUX, ROLES, THERMOCOUPLE, names_for
 from edge.measure.profiles import probe_profile, probe_settings
 from edge.service.config import Config
 from edge.service.main import install_signal_handlers, run_daemon
@@ -35,6 +36,18 @@ from firmware_sim.simulator import load_scene
 __all__ = ["config_for_scene", "run_sim", "main"]
 
 log = logging.getLogger("thermotouch.sim")
+
+
+def _reader_for(role: str, fitted: Mapping[str, int]) -> str:
+    """The fitted chip that reads ``role``: one that reads both sensors wins whenever fitted.
+
+    That is the 24-bit ADS122C04: a metal rises ~0.1 K in 2 s, below what the MCP9600 resolves (an
+    MCP9600 fitted beside it is only a cold-junction alternative), and its flux reading has 24 bits
+    against the ADS1115's 14 W/m^2 steps, a few per cent of the small heater's flux.
+    """
+    able = [name for name in names_for(role) if name in fitted]
+    both = [name for name in able if set(ROLES) <= set(CHIPS[name].roles)]
+    return (both or able)[0]
 
 
 def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Mapping[str, Any]] | None = None
@@ -57,22 +70,11 @@ def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Ma
     w = Path(workdir)
     b, s, t = scene.board, scene.sensors, scene.touch
     sensors: dict[str, Any] = {"flux_sensitivity_V_per_W_m2": s.flux_sensitivity_V_per_W_m2}
-    # The 24-bit ADS122C04 reads the thermocouple whenever it is fitted (a metal rises ~0.1 K in 2 s,
-    # below what the MCP9600 resolves); an MCP9600 fitted beside it is only a cold-junction alternative.
-    if b.ads122c04 is not None or b.mcp9600 is None:
-        sensors.update(thermocouple="ads122c04")
-    else:
-        sensors.update(thermocouple="mcp9600")
-    if b.mcp9600 is not None:
-        sensors["mcp9600_address"] = b.mcp9600
-    # The flux too goes to the ADS122C04 when it is fitted (24 bit against the ADS1115's 14 W/m^2 steps,
-    # which are a few per cent of the small heater's flux); the ADS1115 otherwise.
-    if b.ads1115 is not None and b.ads122c04 is None:
-        sensors.update(flux_adc="ads1115", ads1115_address=b.ads1115)
-    else:
-        sensors.update(flux_adc="ads122c04")
-    if b.ads122c04 is not None:
-        sensors["ads122c04_address"] = b.ads122c04
+    # The chips the scene fits, at their addresses; each role read by a fitted chip that can play it.
+    fitted = {name: b.address_of(name) for name in CHIPS if b.address_of(name) is not None}
+    sensors["thermocouple"] = _reader_for(THERMOCOUPLE, fitted)
+    sensors["flux_adc"] = _reader_for(FLUX, fitted)
+    sensors.update({CHIPS[name].setting_key("address"): address for name, address in fitted.items()})
     # Heating begins [touch] contact_lead_s after the touch does (0: as it does) and ends before the lift.
     on = t.heater_on_s
     baseline = min(on, 10.0) if on >= 0.2 else 0.5

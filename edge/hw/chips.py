@@ -66,6 +66,7 @@ __all__ = [
     "RoleReader",
     "Chip",
     "CHIPS",
+    "BOARDS",
     "DEFAULT_CHIPS",
     "chip",
     "names_for",
@@ -188,9 +189,9 @@ class Chip:
         The thermometer's step (K) at ``settings`` (thermocouple role).
     sample_rate_limit_Hz : callable settings -> float, optional
         Fastest sampling whose every temperature reading is a new conversion.
-    flux_partner : str, optional
-        The flux chip of the instrument model named after this thermocouple
-        chip (the board it is fitted on).
+    input_noise : Setting
+        Its input-referred noise per conversion (V rms) as a simulated scene's
+        ``[sensors]`` key ``<chip>_<key>`` sets it (default 0: noiseless).
     """
 
     name: str
@@ -205,7 +206,7 @@ class Chip:
     readers: Mapping[str, Callable[[Any, Mapping[str, Any]], RoleReader]]
     resolution_K: Callable[[Mapping[str, Any]], float] | None = None
     sample_rate_limit_Hz: Callable[[Mapping[str, Any]], float] | None = None
-    flux_partner: str | None = None
+    input_noise: Setting = Setting("noise_rms_V", "float", 0.0, "input noise", {"lo": 0.0, "hi": 1e-3})
 
     def __post_init__(self) -> None:
         for role in self.roles:
@@ -334,7 +335,7 @@ CHIPS: Mapping[str, Chip] = _registry(
         readers={THERMOCOUPLE: _mcp9600_thermocouple},
         resolution_K=lambda st: mcp9600_map.adc_step_V(int(st["adc_bits"])) / TYPE_K_SEEBECK_V_per_K,
         sample_rate_limit_Hz=lambda st: 1.0 / mcp9600_map.CONVERSION_TIME_s[int(st["adc_bits"])],
-        flux_partner="ads1115",
+        input_noise=Setting("emf_noise_rms_V", "float", 0.0, "MCP9600 input noise", {"lo": 0.0, "hi": 1e-3}),
     ),
     Chip(
         name="ads1115", part="ADS1115", regmap=ads1115_map, driver=ADS1115,
@@ -349,6 +350,7 @@ CHIPS: Mapping[str, Chip] = _registry(
                                  noise=3.0)},
         open=_ads1115_open,
         readers={FLUX: _ads1115_flux},
+        input_noise=Setting("noise_rms_V", "float", 0.0, "ADS1115 input noise", {"lo": 0.0, "hi": 1e-2}),
     ),
     Chip(
         name="ads122c04", part="ADS122C04", regmap=ads122c04_map, driver=ADS122C04,
@@ -365,13 +367,20 @@ CHIPS: Mapping[str, Chip] = _registry(
         readers={THERMOCOUPLE: _ads122c04_thermocouple, FLUX: _ads122c04_flux},
         resolution_K=lambda st: ADS122C04_STEP_V * 128 / st["gain"] / TYPE_K_SEEBECK_V_per_K,
         sample_rate_limit_Hz=_ads122c04_sample_rate_Hz,
-        flux_partner="ads122c04",
+        input_noise=Setting("noise_rms_V", "float", 0.0, "ADS122C04 input noise", {"lo": 0.0, "hi": 1e-3}),
     ),
 )
 
 
+#: The boards the probe is built as: the chip that plays each role. The reference board (the
+#: ``[sensors]`` defaults) converts the thermocouple on an MCP9600 and the flux on an ADS1115; the
+#: precision board reads both on one 24-bit ADS122C04.
+BOARDS: Mapping[str, Mapping[str, str]] = MappingProxyType({
+    "reference": MappingProxyType({THERMOCOUPLE: "mcp9600", FLUX: "ads1115"}),
+    "precision": MappingProxyType({THERMOCOUPLE: "ads122c04", FLUX: "ads122c04"}),
+})
 #: The reference board's chip per role: the ``[sensors]`` defaults.
-DEFAULT_CHIPS: Mapping[str, str] = MappingProxyType({THERMOCOUPLE: "mcp9600", FLUX: "ads1115"})
+DEFAULT_CHIPS: Mapping[str, str] = BOARDS["reference"]
 
 
 def chip(name: str) -> Chip:

@@ -2,10 +2,10 @@
 
 Used to make simulated measurements and training-set augmentation match the
 simulated hardware (firmware_sim) and the boards. One :class:`Instrument` per
-board, named after its thermocouple chip and built from the noise models of
-the chip registry (:data:`edge.hw.chips.CHIPS`): the thermocouple chip's model
-for the temperature, its :attr:`~edge.hw.chips.Chip.flux_partner`'s for the
-flux. Today that gives
+board of the chip registry (:data:`edge.hw.chips.BOARDS`), named after its
+thermocouple chip and built from the registry's noise models
+(:attr:`edge.hw.chips.Chip.models`) of the chip that plays each role. Today
+that gives
 
 * ``"mcp9600"`` -- the reference board: MCP9600 in its 16-bit mode (12.5 Hz,
   0.197 K steps) and the flux sensor on an ADS1115 at +-0.256 V (14 W/m^2
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from edge.hw.chips import ADS122C04_STEP_V, CHIPS, FLUX, THERMOCOUPLE, TYPE_K_SEEBECK_V_per_K, Chip
+from edge.hw.chips import ADS122C04_STEP_V, BOARDS, CHIPS, FLUX, THERMOCOUPLE, TYPE_K_SEEBECK_V_per_K, Chip
 
 __all__ = ["Instrument", "INSTRUMENTS", "instrument_for", "TYPE_K_SEEBECK_V_per_K", "ADS122C04_STEP_V"]
 
@@ -71,6 +71,6 @@ def instrument_for(thermocouple: Chip, flux: Chip) -> Instrument:
                       q_rate_Hz=q.rate_Hz, q_lsb_W_m2=q.lsb, q_noise_W_m2=q.noise)
 
 
-#: Instrument models by name: one per thermocouple chip of the registry, with its flux partner.
-INSTRUMENTS = {spec.name: instrument_for(spec, CHIPS[spec.flux_partner])
-               for spec in CHIPS.values() if THERMOCOUPLE in spec.roles and spec.flux_partner}
+#: Instrument models by name (the board's thermocouple chip): one per board of the registry.
+INSTRUMENTS = {board[THERMOCOUPLE]: instrument_for(CHIPS[board[THERMOCOUPLE]], CHIPS[board[FLUX]])
+               for board in BOARDS.values()}

@@ -13,6 +13,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from edge.hw.chips import max_sample_rate_Hz
+
 
 @dataclass(frozen=True)
 class Profile:
@@ -20,7 +22,7 @@ class Profile:
     contact_time_s: float
     summary: str
     #: Sampling rate the profile asks for (Hz); the device caps it at what its converters deliver
-    #: (edge.service.requests.max_sample_rate_Hz): the precision board (ADS122C04, two single-shot
+    #: (edge.hw.chips.max_sample_rate_Hz): the precision board (ADS122C04, two single-shot
     #: conversions of ~1 ms at 1000 SPS per sample) samples the quick profile at 50 Hz, 25 samples in
     #: 0.5 s; the reference board's MCP9600 converts every 80 ms at 16 bit, so it stays at 12.5 Hz.
     sample_rate_Hz: float = 10.0
@@ -67,7 +69,7 @@ def probe_settings(probe: str, sensors: Any, longest_contact_s: float | None = N
         The probe head (``[board] probe``).
     sensors : namespace
         The ``[sensors]`` section; the rate is capped at what its converters deliver
-        (:func:`edge.service.requests.max_sample_rate_Hz`), since faster reads would only
+        (:func:`edge.hw.chips.max_sample_rate_Hz`), since faster reads would only
         repeat a conversion.
     longest_contact_s : float, optional
         The longest heating the touch allows (e.g. a simulated scene's contact); the profile's
@@ -81,7 +83,5 @@ def probe_settings(probe: str, sensors: Any, longest_contact_s: float | None = N
     prof = probe_profile(probe)
     if prof is None:
         return None
-    from edge.service.requests import max_sample_rate_Hz  # noqa: PLC0415 - the service layer imports this module
-
     contact = prof.contact_time_s if longest_contact_s is None else min(prof.contact_time_s, longest_contact_s)
     return {"contact_time_s": contact, "sample_rate_Hz": min(prof.sample_rate_Hz, max_sample_rate_Hz(sensors))}

@@ -116,8 +116,10 @@ COMMANDS: dict[Command, CommandSpec] = {spec.command: spec for spec in (
                arg("firmware_version", "str", required=True),
                arg("model_version", "str", required=True, nullable=True),
                arg("model_sha256", "str", required=True, nullable=True),
-               arg("board", "str", required=True)),
-        doc="Firmware and model versions, model sha256, board name."),
+               arg("board", "str", required=True),
+               arg("device_id", "str", nullable=True, hi=_STR_MAX,
+                   doc="the device's identity, generated at its first start (null: unreadable)")),
+        doc="Firmware and model versions, model sha256, board name, device identity."),
     CommandSpec(
         Command.STATUS,
         reply=(arg("state", "str", required=True, doc="idle, measuring, fault, ..."),),

@@ -12,7 +12,7 @@ from __future__ import annotations
 import logging
 from typing import Any
 
-from edge.calibration.model import ProbeCalibration
+from edge.calibration.model import MAX_BYTES, ProbeCalibration
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.status import Flag
 from edge.storage.calibration_store import CalibrationStore, CalibrationStoreError
@@ -39,7 +39,8 @@ class ProbeCalibrations:
         self.probe = probe
         self._error: str | None = None
         try:
-            self.store: CalibrationStore | None = CalibrationStore(root, probe, policy)
+            self.store: CalibrationStore | None = CalibrationStore(
+                root, probe, policy, parse=ProbeCalibration.from_json, max_bytes=MAX_BYTES)
         except OSError as e:
             self.store, self._error = None, f"cannot open {root}: {e}"
 

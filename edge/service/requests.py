@@ -22,6 +22,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from edge.hw.chips import max_sample_rate_Hz  # the MEASURE rate cap, re-exported for callers
 from edge.physics.probe import heater_power_W
 from edge.measure.sequence import MeasurementParams
 from edge.measure.signal import min_contact_time_s
@@ -38,16 +39,6 @@ REPLY_MARGIN = 256
 SERIES_COLUMNS = {"raw": (("t_s", "raw_t_s"), ("T_C", "raw_T_C"), ("q_W_m2", "raw_q_W_m2"),
                            ("T_dt_s", "raw_T_dt_s"), ("q_dt_s", "raw_q_dt_s")),
                   "grid": (("t_s", "grid_t_s"), ("dT_K", "grid_dT_K"), ("q_W_m2", "grid_q_W_m2"))}
-
-
-def max_sample_rate_Hz(sensors: Any) -> float:
-    """Fastest sampling whose every temperature reading is a new conversion, Hz (``[sensors]`` section).
-
-    The thermocouple chip's limit in the chip registry (:func:`edge.hw.chips.max_sample_rate_Hz`).
-    """
-    from edge.hw.chips import max_sample_rate_Hz as chip_limit_Hz  # noqa: PLC0415
-
-    return chip_limit_Hz(sensors)
 
 
 def measure_params(config: Config, max_power_W: float, *, power_W: float | None = None,

@@ -14,18 +14,21 @@ leaves the old calibration beside the new signature: ``signed_by`` is then
 wrong until the next install, the calibration in use is still whole).
 Reading back re-checks the fields and the checksum (a damaged file is
 named, never used).
+
+The store knows files, not what a calibration means: the caller gives it the
+parser (``ProbeCalibration.from_json`` on the device, :mod:`edge.service.calibration`)
+and the size bound, so storage does not import the calibration model above it.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, Protocol
 
-from edge.calibration.model import MAX_BYTES, CalibrationError, ProbeCalibration
 from edge.security.policy import UpdateRefused
 from edge.storage import durable
 
-__all__ = ["CalibrationStore", "CalibrationStoreError"]
+__all__ = ["CalibrationStore", "CalibrationStoreError", "StoredCalibration"]
 
 FILE = "calibration.json"
 SIGNATURE = "calibration.sig"
@@ -33,6 +36,15 @@ SIGNATURE = "calibration.sig"
 
 class CalibrationStoreError(ValueError):
     """A calibration refused on install, or a stored one that cannot be read; the message says why."""
+
+
+class StoredCalibration(Protocol):
+    """What the store reads of a parsed calibration (:class:`edge.calibration.model.ProbeCalibration` has it)."""
+
+    #: The probe head it was made for.
+    probe: str
+    #: False for the uncalibrated datasheet chain (never installed).
+    calibrated: bool
 
 
 class CalibrationStore:
@@ -46,19 +58,27 @@ class CalibrationStore:
         The device's probe head; a calibration made for another is refused.
     policy : edge.security.policy.UpdatePolicy, optional
         Who may install (None: nobody).
+    parse : callable (bytes) -> StoredCalibration
+        Parses and checks a calibration file's bytes, raising ``ValueError`` naming the problem
+        (``edge.calibration.model.ProbeCalibration.from_json``).
+    max_bytes : int
+        Largest calibration file accepted, bytes (``edge.calibration.model.MAX_BYTES``).
     """
 
-    def __init__(self, root, probe: str, policy: Any = None) -> None:
+    def __init__(self, root, probe: str, policy: Any = None, *, parse: Callable[[bytes], StoredCalibration],
+                 max_bytes: int) -> None:
         self.root = Path(root)
         self.probe = probe
         self.policy = policy
+        self.parse = parse
+        self.max_bytes = max_bytes
         if not self.root.is_dir():
             self.root.parent.mkdir(parents=True, exist_ok=True)
             durable.make_dir(self.root)
         for name in (FILE, SIGNATURE):
             durable.remove_stray_temporaries(self.root / name)
 
-    def current(self) -> ProbeCalibration | None:
+    def current(self) -> StoredCalibration | None:
         """The installed calibration, or None when there is none.
 
         Raises
@@ -74,14 +94,14 @@ class CalibrationStore:
         except OSError as e:
             raise CalibrationStoreError(f"cannot read {path}: {e.strerror}") from None
         try:
-            cal = ProbeCalibration.from_json(data)
-        except CalibrationError as e:
+            cal = self.parse(data)
+        except ValueError as e:
             raise CalibrationStoreError(f"stored calibration {path} is damaged: {e}") from None
         if cal.probe != self.probe:
             raise CalibrationStoreError(f"stored calibration is for probe {cal.probe!r}, this device is {self.probe!r}")
         return cal
 
-    def install(self, blob: bytes, signature: bytes | None = None) -> ProbeCalibration:
+    def install(self, blob: bytes, signature: bytes | None = None) -> StoredCalibration:
         """Verify ``blob`` (a calibration file) and make it the one in use.
 
         Raises
@@ -89,11 +109,11 @@ class CalibrationStore:
         CalibrationStoreError
             Naming the first check that failed; nothing on disk changes.
         """
-        if len(blob) > MAX_BYTES:
-            raise CalibrationStoreError(f"calibration is {len(blob)} B, above the limit of {MAX_BYTES} B")
+        if len(blob) > self.max_bytes:
+            raise CalibrationStoreError(f"calibration is {len(blob)} B, above the limit of {self.max_bytes} B")
         try:
-            cal = ProbeCalibration.from_json(blob)
-        except CalibrationError as e:
+            cal = self.parse(blob)
+        except ValueError as e:
             raise CalibrationStoreError(f"calibration refused: {e}") from None
         if cal.probe != self.probe:
             raise CalibrationStoreError(f"calibration refused: made for probe {cal.probe!r}, this device is "

@@ -3,6 +3,7 @@
 Layout under ``root``::
 
     sets/<name>.csv   one verified object-set CSV per name (the bytes as uploaded)
+    sets/<name>.<sha256 of the bytes>.sig   the signature those bytes came with, if any
     active            pointer file: "<name>\\n" of the active set; absent = the built-in library
 
 Every write goes through :mod:`edge.storage.durable`: a set file is written
@@ -46,6 +47,8 @@ NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
 #: Names that are not stored sets: the built-in library (the default set).
 RESERVED_NAMES = frozenset({"library"})
 
+#: What follows "<name>." in a signature's file name.
+_SIG_RE = re.compile(r"^[0-9a-f]{64}\.sig$")
 #: ``parse(text, label) -> object set`` (raises ValueError for a malformed set).
 Parser = Callable[[str, str], Any]
 
@@ -179,23 +182,62 @@ class ObjectSetStore:
                 d.mkdir(parents=True, exist_ok=True)
                 durable.fsync_dir(d.parent)
         self._clean_temporaries()
+        self._migrate_signatures()
+
+    def _migrate_signatures(self) -> None:
+        """Earlier stores kept ``<name>.sig`` whatever bytes it signed: keep one only if it verifies over them."""
+        for name in self.names():
+            old = self.sets_dir / f"{name}.sig"
+            if not os.path.lexists(old):
+                continue
+            try:
+                blob, sig = self._set_path(name).read_bytes(), old.read_bytes()
+                ok = self.policy is not None and self.policy.authenticate(blob, sig).signed
+            except (OSError, UpdateRefused):
+                ok = False
+            try:
+                if ok:
+                    durable.replace(old, self._signature_path(name, hashlib.sha256(blob).hexdigest()))
+                else:
+                    log.warning("object set %r: its signature file does not verify over its bytes; dropped", name)
+                    os.unlink(old)
+                durable.fsync_dir(self.sets_dir)
+            except OSError as e:
+                log.error("object set %r: cannot migrate its signature file: %s", name, e)
 
     # -- paths -----------------------------------------------------------------------
     def _set_path(self, name: str) -> Path:
         return self.sets_dir / f"{name}.csv"
 
-    def _signature_path(self, name: str) -> Path:
-        # Beside the set, not a set itself (names() lists *.csv only).
-        return self.sets_dir / f"{name}.sig"
+    def _signature_path(self, name: str, sha256: str) -> Path:
+        # Beside the set, not a set itself (names() lists *.csv only), and named by the bytes it
+        # signed: a crash between writing a set and its signature can leave an orphan signature, never
+        # one that names the wrong signer of the bytes stored (ISSUE #35 §9).
+        return self.sets_dir / f"{name}.{sha256}.sig"
+
+    def _signatures(self, name: str) -> list[Path]:
+        return [self.sets_dir / e for e in os.listdir(self.sets_dir)
+                if e.startswith(name + ".") and e.endswith(".sig") and _SIG_RE.match(e[len(name) + 1:])]
 
     def signed_by(self, name: str) -> str | None:
-        """Key id that signed the stored set ``name`` (None: uploaded unsigned, or unreadable)."""
+        """Key id that signed the stored bytes of set ``name`` (None: uploaded unsigned, or unreadable)."""
         from edge.security.keys import KeyFileError, parse_signature  # noqa: PLC0415
 
         try:
-            return parse_signature(self._signature_path(name).read_bytes())[0]
+            sha = hashlib.sha256(self._set_path(name).read_bytes()).hexdigest()
+            return parse_signature(self._signature_path(name, sha).read_bytes())[0]
         except (OSError, KeyFileError):
             return None
+
+    def _drop_signatures(self, name: str, keep: Path | None = None) -> None:
+        """Remove ``name``'s signatures of other bytes (and every one when ``keep`` is None)."""
+        gone = False
+        for p in self._signatures(name):
+            if p != keep:
+                os.unlink(p)
+                gone = True
+        if gone:
+            durable.fsync_dir(self.sets_dir)
 
     def _clean_temporaries(self) -> None:
         # Leftovers of a write cut by a crash are never named by anything.
@@ -306,14 +348,15 @@ class ObjectSetStore:
                 raise ObjectStoreError(f"{len(existing)} object sets stored, the most this device keeps; "
                                        "remove one first")
             try:
-                durable.atomic_write_file(self._set_path(name), bytes(blob))
-                # Who signed it, for listings (the set itself was verified above, before any write).
-                sig = self._signature_path(name)
+                # Who signed it, for listings (the set itself was verified above, before any write):
+                # the signature first, under the bytes' own hash, then the bytes, then the old
+                # signatures go.
+                sig = None
                 if signature is not None:
+                    sig = self._signature_path(name, hashlib.sha256(blob).hexdigest())
                     durable.atomic_write_file(sig, bytes(signature))
-                elif os.path.lexists(sig):
-                    os.unlink(sig)
-                    durable.fsync_dir(self.sets_dir)
+                durable.atomic_write_file(self._set_path(name), bytes(blob))
+                self._drop_signatures(name, keep=sig)
                 if activate:
                     durable.atomic_write_file(self.root / self.ACTIVE, (name + "\n").encode("ascii"))
             except OSError as e:
@@ -383,9 +426,7 @@ class ObjectSetStore:
                 self._clear_pointer()
             try:
                 os.unlink(p)
-                sig = self._signature_path(name)
-                if os.path.lexists(sig):
-                    os.unlink(sig)
+                self._drop_signatures(name)
                 durable.fsync_dir(self.sets_dir)
             except OSError as e:
                 raise ObjectStoreError(f"cannot remove object set {name!r}: {e}") from None

@@ -32,20 +32,18 @@ class Emulator:
         Its registry entry.
     cls : type
         The emulator class (register-level, on a SimBus).
-    noise_key : str
-        Its input noise in a scene's ``[sensors]``: ``<chip>_<noise_key>`` (V rms).
     build : callable (clock, pins, noise_rms_V, rng) -> emulator
+        The noise is the scene's (:attr:`noise_setting`).
     """
 
     chip: Chip
     cls: type
-    noise_key: str
     build: Callable[[Any, Pins, float, Any], Any]
 
     @property
     def noise_setting(self) -> str:
-        """The scene's ``[sensors]`` key of its noise, e.g. ``"mcp9600_emf_noise_rms_V"``."""
-        return self.chip.setting_key(self.noise_key)
+        """The scene's ``[sensors]`` key of its input noise (the registry's :attr:`Chip.input_noise`)."""
+        return self.chip.setting_key(self.chip.input_noise.key)
 
 
 def _by_class(cls: type) -> Chip:
@@ -60,13 +58,13 @@ def _registry(*emulators: Emulator) -> Mapping[str, Emulator]:
 
 #: Emulators by chip name.
 EMULATORS: Mapping[str, Emulator] = _registry(
-    Emulator(_by_class(MCP9600Emulator), MCP9600Emulator, "emf_noise_rms_V",
+    Emulator(_by_class(MCP9600Emulator), MCP9600Emulator,
              lambda clock, pins, noise, rng: MCP9600Emulator(
                  clock, pins["hot_junction"], pins["cold_junction"], rng=rng, emf_noise_rms_V=noise,
                  open_circuit=pins["open_circuit"])),
-    Emulator(_by_class(ADS1115Emulator), ADS1115Emulator, "noise_rms_V",
+    Emulator(_by_class(ADS1115Emulator), ADS1115Emulator,
              lambda clock, pins, noise, rng: ADS1115Emulator(clock, pins.mux, noise_rms_V=noise, rng=rng)),
-    Emulator(_by_class(ADS122C04Emulator), ADS122C04Emulator, "noise_rms_V",
+    Emulator(_by_class(ADS122C04Emulator), ADS122C04Emulator,
              lambda clock, pins, noise, rng: ADS122C04Emulator(
                  clock, pins.mux, temperature_C=pins["temperature"], noise_rms_V=noise, rng=rng)),
 )

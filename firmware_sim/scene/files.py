@@ -6,6 +6,7 @@ import tomllib
 from pathlib import Path
 from typing import Any, Mapping
 
+from edge.hw.chips import BOARDS, CHIPS
 from firmware_sim.scene.model import Scene, SceneError
 from firmware_sim.scene.parser import MaterialLookup, parse_scene
 
@@ -101,5 +102,7 @@ def scene_variant(path_or_name: str | Path, dest_dir: str | Path, *, suffix: str
     return dest
 
 
-#: The precision board: thermocouple EMF and flux on the 24-bit ADS122C04.
-PRECISION_BOARD = {"ads122c04": 0x40, "stack": "0.42"}
+#: The precision board (:data:`edge.hw.chips.BOARDS`): thermocouple EMF and flux on the 24-bit
+#: ADS122C04, at its default address, as a scene's ``[board]`` table.
+PRECISION_BOARD = {**{name: CHIPS[name].default_address for name in dict.fromkeys(BOARDS["precision"].values())},
+                   "stack": "0.42"}

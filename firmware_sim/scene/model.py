@@ -7,10 +7,10 @@ scene check raises, :class:`SceneError`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, make_dataclass
 from typing import Any, Mapping
 
-from edge.hw.regmaps import ads1115, ads122c04, mcp9600
+from edge.hw.chips import CHIPS
 from edge.physics.probe import FLUX_SENSITIVITY_V_per_W_m2, STACKS, ProbeStack, heater_power_W
 from edge.physics.solids import Solid
 
@@ -47,12 +47,8 @@ BACKS = ("fixed", "insulated", "infinite")
 #: solution of the estimator's own idealisation) and ``"faithful"`` (firmware_sim.rz.probe_world.
 #: FaithfulWorld, the axisymmetric finite-volume probe with its as-built deviations).
 WORLDS = ("ideal", "faithful")
-#: Valid 7-bit addresses of each chip a board may carry (from the chips' register maps).
-CHIP_ADDRESSES: dict[str, tuple[int, ...]] = {
-    "mcp9600": mcp9600.ADDRESSES,
-    "ads1115": ads1115.ADDRESSES,
-    "ads122c04": ads122c04.ADDRESSES,
-}
+#: Valid 7-bit addresses of each chip a board may carry (the chip registry's, from their register maps).
+CHIP_ADDRESSES: dict[str, tuple[int, ...]] = {name: spec.addresses for name, spec in CHIPS.items()}
 #: Default voltage a saturated flux channel shows: above the ADS1115's ±0.256 V
 #: range and the ADS122C04's ±16 mV (gain 128), so either reports full scale.
 FLUX_SATURATION_V = 0.3
@@ -112,20 +108,8 @@ class HeaterSpec:
         return heater_power_W(1.0, self.supply_voltage_V, self.resistance_ohm)
 
 
-@dataclass(frozen=True)
-class BoardSpec:
-    """Fitted chips (7-bit addresses, None = absent), probe stack name, thermal world and probe geometry.
-
-    ``probe`` names an :data:`edge.physics.geometry.PROBES` entry; only the
-    faithful world resolves a heater smaller than the object (the ideal world is 1-D).
-    """
-
-    mcp9600: int | None = None
-    ads1115: int | None = None
-    ads122c04: int | None = None
-    stack_name: str = "0.42"
-    world: str = "ideal"
-    probe: str = "paper"
+class _Board:
+    """The methods of :class:`BoardSpec` (its fields come from the chip registry)."""
 
     @property
     def stack(self) -> ProbeStack:
@@ -133,22 +117,39 @@ class BoardSpec:
         return STACKS[self.stack_name]
 
     def address_of(self, chip: str) -> int | None:
-        """Address of ``chip`` ("mcp9600", "ads1115", "ads122c04"), or None."""
+        """Address of ``chip`` (a name in :data:`edge.hw.chips.CHIPS`), or None."""
         if chip not in CHIP_ADDRESSES:
             raise ValueError(f"chip must be one of {sorted(CHIP_ADDRESSES)}, got {chip!r}")
         return getattr(self, chip)
 
 
-@dataclass(frozen=True)
-class SensorSpec:
-    """Sensor characteristics and noise (SI)."""
+def _frozen(name: str, fields: list, doc: str, bases: tuple = ()) -> type:
+    cls = make_dataclass(name, fields, bases=bases, frozen=True)
+    cls.__module__, cls.__doc__ = __name__, doc
+    return cls
 
-    thermocouple_time_constant_s: float = 0.0
-    flux_sensitivity_V_per_W_m2: float = FLUX_SENSITIVITY_V_per_W_m2
-    flux_range_W_m2: float = 10_000.0
-    mcp9600_emf_noise_rms_V: float = 0.0
-    ads1115_noise_rms_V: float = 0.0
-    ads122c04_noise_rms_V: float = 0.0
+
+#: Fitted chips (7-bit addresses, None = absent: one field per chip of :data:`edge.hw.chips.CHIPS`,
+#: the scene file's ``[board]`` keys), probe stack name, thermal world and probe geometry (``probe``
+#: names an :data:`edge.physics.geometry.PROBES` entry; only the faithful world resolves a heater
+#: smaller than the object, the ideal world is 1-D).
+BoardSpec = _frozen("BoardSpec", [
+    *((name, "int | None", field(default=None)) for name in CHIPS),
+    ("stack_name", str, field(default="0.42")),
+    ("world", str, field(default="ideal")),
+    ("probe", str, field(default="paper")),
+], "Fitted chips by registry name (addresses, None = absent), probe stack name, thermal world, probe geometry.",
+    (_Board,))
+
+#: Sensor characteristics and noise (SI): each registry chip's input noise is
+#: ``<chip>_<key>`` of its :attr:`edge.hw.chips.Chip.input_noise` (V rms, default 0).
+SensorSpec = _frozen("SensorSpec", [
+    ("thermocouple_time_constant_s", float, field(default=0.0)),
+    ("flux_sensitivity_V_per_W_m2", float, field(default=FLUX_SENSITIVITY_V_per_W_m2)),
+    ("flux_range_W_m2", float, field(default=10_000.0)),
+    *((spec.setting_key(spec.input_noise.key), float, field(default=spec.input_noise.default))
+      for spec in CHIPS.values()),
+], "Sensor characteristics and noise (SI; one input noise per registry chip).")
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ import tomllib
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+from edge.hw.chips import FLUX, THERMOCOUPLE, names_for
 from edge.physics.geometry import get_probe
 from edge.physics.materials import load_materials
 from edge.physics.solids import Solid
@@ -111,14 +112,16 @@ def _board(data: Any) -> BoardSpec:
         if a in seen:
             raise SchemaError(f"board.{chip}", f"address 0x{a:02x} is already used by {seen[a]}")
         seen[a] = chip
-    if b.get("mcp9600") is None and b.get("ads122c04") is None:
-        raise SchemaError("board.mcp9600", "missing: fit a thermocouple reader (board.mcp9600 or board.ads122c04)")
-    if b.get("ads1115") is None and b.get("ads122c04") is None:
-        raise SchemaError("board.ads1115", "missing: fit a flux-sensor reader (board.ads1115 or board.ads122c04)")
+    for role, what in ((THERMOCOUPLE, "thermocouple"), (FLUX, "flux-sensor")):
+        able = names_for(role)
+        if all(b.get(chip) is None for chip in able):
+            raise SchemaError(f"board.{able[0]}", f"missing: fit a {what} reader ("
+                              + " or ".join(f"board.{chip}" for chip in able) + ")")
     if get_probe(b["probe"]).estimator != "thick_body" and b["world"] != "faithful":
         raise SchemaError("board.probe", f'probe {b["probe"]!r} needs world = "faithful" '
                           "(the ideal world is 1-D: it knows no heater smaller than the object)")
-    return BoardSpec(b.get("mcp9600"), b.get("ads1115"), b.get("ads122c04"), b["stack"], b["world"], b["probe"])
+    return BoardSpec(**{chip: b.get(chip) for chip in CHIP_ADDRESSES}, stack_name=b["stack"], world=b["world"],
+                     probe=b["probe"])
 
 
 def _touch(data: Any, env: Mapping[str, Any]) -> TouchSpec:

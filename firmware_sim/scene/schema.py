@@ -121,6 +121,7 @@ from __future__ import annotations
 
 from typing import Mapping
 
+from edge.hw.chips import CHIPS
 from edge.physics.geometry import PROBES
 from edge.physics.probe import STACKS
 from edge.schema import Field
@@ -225,9 +226,10 @@ SENSOR_FIELDS: Mapping[str, Field] = {
     "flux_sensitivity_V_per_W_m2": Field("float", _DEFAULT_SENSORS.flux_sensitivity_V_per_W_m2,
                                          "flux sensor output per flux", lo=0.0, lo_open=True, hi=1e-3),
     "flux_range_W_m2": Field("float", _DEFAULT_SENSORS.flux_range_W_m2, "output clips at +-range", **_POSITIVE),
-    "mcp9600_emf_noise_rms_V": Field("float", 0.0, "MCP9600 input noise", lo=0.0, hi=1e-3),
-    "ads1115_noise_rms_V": Field("float", 0.0, "ADS1115 input noise", lo=0.0, hi=1e-2),
-    "ads122c04_noise_rms_V": Field("float", 0.0, "ADS122C04 input noise", lo=0.0, hi=1e-3),
+    # Each registry chip's input noise (edge.hw.chips.Chip.input_noise).
+    **{spec.setting_key(spec.input_noise.key): Field(spec.input_noise.kind, spec.input_noise.default,
+                                                     spec.input_noise.doc, **spec.input_noise.bounds)
+       for spec in CHIPS.values()},
 }
 
 TOUCH_FIELDS: Mapping[str, Field] = {

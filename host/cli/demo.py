@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 from host.cli.args import add_output
 from host.cli.common import say
 
@@ -14,14 +17,33 @@ def add_parser(sub, parents):
                    help="instead: an as-built probe on the faithful world (precision board) is calibrated on three "
                         "reference specimens, then measures the paper's glass, PMMA and aluminium with contact "
                         "resistance and a temperature difference, before and after calibration (about a minute)")
-    add_output(p, "--out", kind="dir", default="thermotouch-demo",
-               help="output directory to create (default ./thermotouch-demo; an existing one needs --overwrite)")
+    add_output(p, "--out", kind="dir", default=None,
+               help=f"output directory to create (default ./{DEFAULT_OUT}, or ./{DEFAULT_OUT}-2, -3 ... when that "
+                    "exists: a rerun never replaces an earlier one); an existing --out needs --overwrite")
     p.set_defaults(func=run)
+
+
+#: The demo's default output directory (numbered siblings when it exists).
+DEFAULT_OUT = "thermotouch-demo"
+
+
+def default_out(cwd: Path | None = None) -> Path:
+    """The first of ``thermotouch-demo``, ``thermotouch-demo-2``, ... that does not exist in ``cwd``."""
+    base = Path.cwd() if cwd is None else Path(cwd)
+    n = 1
+    while True:
+        p = base / (DEFAULT_OUT if n == 1 else f"{DEFAULT_OUT}-{n}")
+        if not os.path.lexists(p):
+            return Path(os.path.relpath(p)) if cwd is None else p
+        n += 1
 
 
 def run(args) -> int:
     from host.demo import run_demo  # noqa: PLC0415
 
+    if args.out is None:
+        # The README's main command runs twice in a row: the second run writes beside the first.
+        args.out = default_out()
     if args.real_probe:
         return _run_real_probe(args)
 

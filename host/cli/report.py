@@ -127,6 +127,7 @@ def evaluate_lines(rows: list[dict], ident: dict, sha256: str, instrument: str) 
 def info_lines(port: str, info: dict, status: dict) -> list[str]:
     return [
         f"port       {port}",
+    ] + ([f"device     {info['device_id']}"] if "device_id" in info else []) + [
         f"board      {info['board']}, firmware {info['firmware_version']}, protocol {info['protocol_version']}",
         f"model      {info.get('model_version')} (sha256 {info.get('model_sha256')}, "
         f"{info.get('model_source') or 'unknown source'})",

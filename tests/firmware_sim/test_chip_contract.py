@@ -1,10 +1,13 @@
 """One contract for every driver/emulator pair: the edge driver and the simulator's chip agree.
 
-Each pair is described once (:class:`Pair`): the driver class, its shared
-register map in :mod:`edge.hw.regmaps`, how to build the emulator with a known
-input, and how the driver performs one conversion. Every test below then runs
-on (MCP9600, MCP9600Emulator), (ADS1115, ADS1115Emulator) and (ADS122C04,
-ADS122C04Emulator). Chip-specific behaviour stays in ``tests/test_chip_*.py``.
+The pairs come from the chip registry (:data:`edge.hw.chips.CHIPS`: driver
+class and shared register map) and the emulator registry
+(:data:`firmware_sim.chips.registry.EMULATORS`); what the contract needs beyond
+them -- how to identify the chip, how the driver performs one conversion, known
+inputs -- is described once per chip (:class:`Pair`). Every test below then runs
+on every registry chip; a chip added to the registry without its pair fails
+:func:`test_every_registry_chip_has_an_emulator_and_a_contract_pair`.
+Chip-specific behaviour stays in ``tests/firmware_sim/chips/test_*.py``.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from typing import Any, Callable
 
 import pytest
 
+from edge.hw.chips import CHIPS, FLUX, ROLE_SIGNALS, ROLES, THERMOCOUPLE, names_for
 from edge.hw.drivers.ads1115 import ADS1115
 from edge.hw.drivers.ads122c04 import ADS122C04
 from edge.hw.drivers.mcp9600 import MCP9600
@@ -29,7 +33,9 @@ from firmware_sim.bus import SimBus
 from firmware_sim.chips.ads1115 import ADS1115Emulator
 from firmware_sim.chips.ads122c04 import ADS122C04Emulator
 from firmware_sim.chips.mcp9600 import MCP9600Emulator
+from firmware_sim.chips.registry import EMULATORS
 from firmware_sim.clock import VirtualClock
+from firmware_sim.wiring import WIRING
 
 
 @dataclass(frozen=True)
@@ -146,7 +152,9 @@ ADS122C04_PAIR = Pair(
     lsb_V=lambda drv: ads122c04_map.code_to_volts(1, drv.gain),
 )
 
-PAIRS = [MCP, ADS1115_PAIR, ADS122C04_PAIR]
+_DESCRIBED = {p.name: p for p in (MCP, ADS1115_PAIR, ADS122C04_PAIR)}
+#: One pair per registry chip, in registry order (a chip without a described pair has none: see the test below).
+PAIRS = [_DESCRIBED[name] for name in CHIPS if name in _DESCRIBED]
 pairs = pytest.mark.parametrize("pair", PAIRS, ids=[p.name for p in PAIRS])
 
 
@@ -168,6 +176,29 @@ def plain_registers(pair: Pair, *, writable: bool) -> list[Register]:
     """Registers whose value is only what was written or reset (no results, flags or control)."""
     return [r for r in pair.regmap.REGISTERS
             if not r.volatile and not (writable and (r.read_only or r.name in pair.control))]
+
+
+# ---- the registries
+
+
+def test_every_registry_chip_has_an_emulator_and_a_contract_pair():
+    assert set(CHIPS) == set(EMULATORS) == set(_DESCRIBED)
+    for name, spec in CHIPS.items():
+        pair, emu = _DESCRIBED[name], EMULATORS[name]
+        # The pair's driver and register map are the registry's; the emulator reads that same map.
+        assert (pair.driver, pair.regmap) == (spec.driver, spec.regmap), name
+        assert emu.chip is spec and isinstance(pair.emulator(VirtualClock(), pair.cases[1][0]), emu.cls), name
+        assert spec.driver.CHIP == name and spec.addresses == tuple(spec.regmap.ADDRESSES)
+
+
+def test_every_role_has_a_chip_and_every_role_input_is_wired_to_its_signal():
+    for role in ROLES:
+        assert names_for(role), role
+        for name in names_for(role):
+            spec = CHIPS[name]
+            wires = [w for w in WIRING if w.part == name and w.pin == spec.roles[role]]
+            assert len(wires) == 1 and wires[0].signal in ROLE_SIGNALS[role], (name, role)
+    assert set(names_for(THERMOCOUPLE)) | set(names_for(FLUX)) == set(CHIPS)
 
 
 # ---- identity and addressing
@@ -262,3 +293,14 @@ def test_bus_faults_surface_as_sensor_faults(pair, fault, reason):
     assert isinstance(ei.value.__cause__, OSError)
     bus.clear_faults()
     pair.identify(drv)                              # the chip answers again once the bus recovers
+
+
+def test_the_scene_format_fits_every_registry_chip_and_its_noise():
+    import dataclasses
+
+    from firmware_sim.scene.model import BoardSpec, SensorSpec
+    from firmware_sim.scene.schema import BOARD_FIELDS, SENSOR_FIELDS
+
+    assert set(CHIPS) <= {f.name for f in dataclasses.fields(BoardSpec)} and set(CHIPS) <= set(BOARD_FIELDS)
+    for emu in EMULATORS.values():
+        assert emu.noise_setting in SENSOR_FIELDS and getattr(SensorSpec(), emu.noise_setting) == 0.0

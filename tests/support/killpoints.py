@@ -40,546 +40,31 @@ process itself (no server) inherit whatever the test monkeypatched, which the ha
 "is it vacuous" tests need.
 SIGKILL does not drop the page cache, so tmpfs and a disk behave the same for these kills
 (power cuts are :mod:`tests.edge.model.test_store`'s business).
+
+Modules: :mod:`tests.support.killpoint_steps` (steps and the child's instrumentation),
+:mod:`tests.support.killpoint_runner` (operations, children, restarts); this module holds the
+four operations (MEASURE, a model flash, CONFIG_SETs, start-up) and re-exports the harness.
 """
 
 from __future__ import annotations
 
-import gc
 import hashlib
 import json
 import os
-import re
-import select
 import shutil
 import signal
-import sqlite3
-import sys
 import tempfile
-import time
-import traceback
-from contextlib import contextmanager
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Collection, Iterator
+from typing import Any, Callable
 
 from edge.protocol.commands import Command
-from edge.protocol.errors import CommandError
-from edge.protocol.messages import Request
+from tests.support.killpoint_runner import (EXIT_CRASHED, Operation, PointResult, child_daemon, dry_run, full_restart,
+                                            heater_line, kill_at, open_model_store, run_all, warm_up, work_root)
+from tests.support.killpoint_steps import WATCHED_MODULES, Steps
 
 __all__ = ["Steps", "Operation", "PointResult", "warm_up", "dry_run", "kill_at", "run_all", "work_root",
            "child_daemon", "full_restart", "measure_operation", "flash_operation", "config_operation",
-           "startup_operation", "CONFIG_KEYS", "CONFIG_VALUES"]
-
-#: Modules whose file-system calls are steps (the durable layer and everything that writes state through it).
-WATCHED_MODULES = frozenset({"edge.storage.durable", "edge.storage.history", "edge.model.store", "edge.model.bundle",
-                             "edge.model.container", "edge.model.loader", "edge.model.transport",
-                             "edge.service.config"})
-#: The os calls that change the file system (``open`` only with O_CREAT: opening to read, or to fsync a
-#: directory, changes nothing).
-MUTATING_OS_CALLS = ("open", "write", "fsync", "replace", "rename", "mkdir", "unlink", "rmdir")
-#: Longest a child may take (a fork that inherited a held lock would hang; fail instead).
-CHILD_TIMEOUT_s = 30.0
-_EXIT_CRASHED = 70
-
-
-class Steps:
-    """Child side: numbers the steps and kills the process at the chosen one.
-
-    Parameters
-    ----------
-    kill_at : int or None
-        1-based step before which the process dies; None: run to the end (dry run).
-    trace_fd : int
-        Pipe to the parent: the dry run sends every step, a kill run the one it dies at
-        (the parent checks it is the dry run's, i.e. the operation is deterministic).
-    """
-
-    def __init__(self, kill_at: int | None, trace_fd: int) -> None:
-        self.kill_at = kill_at
-        self.fd = trace_fd
-        self.n = 0
-        self.done = False
-
-    def step(self, kind: str, what: str) -> None:
-        """Count one step; die before it if it is the chosen one."""
-        if self.done:
-            return  # the daemon's shutdown after the last reply is not part of the operation
-        self.n += 1
-        if self.kill_at is None or self.n == self.kill_at:
-            _write_all(self.fd, f"{kind}\t{_normal(what)}\n".encode())
-        if self.n == self.kill_at:
-            os.kill(os.getpid(), signal.SIGKILL)
-
-    def end(self) -> None:
-        """The point after the last reply, then stop counting."""
-        self.step("end", "after the last reply")
-        self.done = True
-
-
-_os_write = os.write  # the real one: the child's os.write is instrumented, and its own pipes are no steps
-
-
-def _write_all(fd: int, data: bytes) -> None:
-    view = memoryview(data)
-    while view:
-        view = view[_os_write(fd, view):]
-
-
-_NOISE = re.compile(r"[0-9a-f]{8,}|\d+")
-
-
-def _normal(text: str) -> str:
-    # Staging names carry pids and random tokens: the same step has the same label in every run.
-    return _NOISE.sub("#", text)
-
-
-def _watched_caller() -> str | None:
-    f = sys._getframe(2)
-    while f is not None:
-        name = f.f_globals.get("__name__")
-        if name in WATCHED_MODULES:
-            return name
-        f = f.f_back
-    return None
-
-
-def _describe(name: str, args: tuple) -> str:
-    if name in ("write", "fsync"):
-        return f"{name} fd"
-    shown = [os.path.basename(str(a)) for a in args[:2] if isinstance(a, (str, os.PathLike))]
-    return f"{name} {' -> '.join(shown)}".strip()
-
-
-def instrument_files(steps: Steps) -> None:
-    """Make every mutating os call from the watched modules a step (child only: never restored)."""
-    for name in MUTATING_OS_CALLS:
-        real = getattr(os, name)
-
-        def wrapper(*args: Any, _real: Callable = real, _name: str = name, **kw: Any) -> Any:
-            if _name == "open" and not (args[1] if len(args) > 1 else kw.get("flags", 0)) & os.O_CREAT:
-                return _real(*args, **kw)
-            if _watched_caller() is not None:
-                steps.step("file", _describe(_name, args))
-            return _real(*args, **kw)
-
-        setattr(os, name, wrapper)
-
-
-#: Statements that write the database file (reads and per-connection settings are no steps).
-_SQL_WRITES = frozenset({"BEGIN", "COMMIT", "INSERT", "UPDATE", "DELETE", "CREATE", "DROP", "ALTER"})
-_SQL_WRITING_PRAGMAS = ("PRAGMA JOURNAL_MODE", "PRAGMA USER_VERSION=")
-
-
-class _CountingConnection:
-    """Stands in for the history's sqlite3 connection: every writing statement is a step."""
-
-    def __init__(self, conn: sqlite3.Connection, steps: Steps) -> None:
-        self._conn = conn
-        self._steps = steps
-
-    def execute(self, sql: str, *args: Any) -> Any:
-        words = " ".join(sql.split()).upper()
-        if words.split(" ", 1)[0] in _SQL_WRITES or words.startswith(_SQL_WRITING_PRAGMAS):
-            self._steps.step("sqlite", " ".join(words.split(" ", 2)[:2]) if words.startswith(("CREATE", "PRAGMA"))
-                             else words.split(" ", 1)[0])
-        return self._conn.execute(sql, *args)
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._conn, name)
-
-
-def instrument_sqlite_connect(steps: Steps) -> None:
-    """Count the writing statements of every connection opened from now on (a history opened at start-up)."""
-    real = sqlite3.connect
-
-    def connect(*args: Any, **kw: Any) -> Any:
-        return _CountingConnection(real(*args, **kw), steps)
-
-    sqlite3.connect = connect
-
-
-def instrument_history(daemon: Any, steps: Steps) -> None:
-    """Count the history's writing statements (the daemon's own connection, wrapped)."""
-    daemon.history._db = _CountingConnection(daemon.history._db, steps)
-
-
-class _CountingSensors:
-    def __init__(self, inner: Any, heater: Any, steps: Steps) -> None:
-        self.inner, self.heater, self.steps, self.n = inner, heater, steps, 0
-
-    def read(self) -> Any:
-        self.n += 1
-        self.steps.step("sample", f"read {self.n} heater {'on' if self.heater.is_on else 'off'}")
-        return self.inner.read()
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self.inner, name)
-
-
-def instrument_heater(daemon: Any, steps: Steps) -> None:
-    """Count every write to the heater's hardware and every sensor read of the touch."""
-    heater = daemon.heater
-    pwm_write, set_value = heater._pwm._write, heater._req.set_value
-
-    def write(path: Any, value: Any) -> None:
-        steps.step("heater", f"pwm {Path(path).name}={value}")
-        pwm_write(path, value)
-
-    def set_line(offset: int, value: Any) -> None:
-        steps.step("heater", f"enable line {getattr(value, 'name', value)}")
-        set_value(offset, value)
-
-    heater._pwm._write = write
-    heater._req.set_value = set_line
-    daemon.sensors = _CountingSensors(daemon.sensors, heater, steps)
-
-
-# ---------------------------------------------------------------------------------------------- operations
-
-@dataclass
-class Operation:
-    """One operation: how to prepare its state, what the child sends, what must hold after a restart.
-
-    Attributes
-    ----------
-    name : str
-    template : Path
-        The state before the operation (copied afresh for every point).
-    requests : list of (Command, dict)
-        Sent in order; each reply is sent to the host (the parent) as it comes.
-    instrument : list of str
-        What else counts besides files: ``"sqlite"``, ``"heater"``.
-    check : callable (point_dir, confirmed replies) -> list of str
-        The cheap restart check: what is wrong (empty: survived). None on the fork server's side.
-    store_root : Path or None
-        None: each child's daemon opens its model store, as at start-up. A directory: operations
-        that leave the model alone share one store, verified once (in the process the children
-        are forked from) under this directory, which saves a third of a child's start.
-    """
-
-    name: str
-    template: Path
-    requests: list[tuple[Command, dict]]
-    check: Callable[[Path, list[dict]], list[str]] | None
-    store_root: Path | None = None
-    instrument: tuple[str, ...] = ()
-    #: The daemon's start-up is the operation: instrument first, then build the daemon.
-    startup: bool = False
-    _store: Any = field(default=None, init=False, repr=False, compare=False)
-    #: Where :meth:`spec` wrote the child side (set by :func:`dry_run` on a fork server).
-    spec_path: Path | None = field(default=None, init=False, repr=False, compare=False)
-
-    def make_daemon(self, point_dir: Path) -> Any:
-        """The daemon of the child, as ``thermotouch-edge`` starts it on ``point_dir``."""
-        if self.store_root is None:
-            return child_daemon(point_dir)
-        if self._store is None:
-            self._store = _open_store(Path(tempfile.mkdtemp(prefix="shared-store-", dir=self.store_root)))
-            self._store.current()
-        return child_daemon(point_dir, model_store=self._store)
-
-    def spec(self) -> Path:
-        """Write what a child needs (everything but ``check``) as JSON beside the template; return its path.
-
-        Request arguments that are bytes (model chunks) are written as ``{"bytes_hex": ...}``.
-        """
-        path = self.template.with_name(self.template.name + ".spec.json")
-        doc = {"name": self.name, "template": str(self.template),
-               "requests": [[c.name, {k: {"bytes_hex": v.hex()} if isinstance(v, bytes) else v for k, v in a.items()}]
-                            for c, a in self.requests],
-               "store_root": None if self.store_root is None else str(self.store_root),
-               "instrument": list(self.instrument), "startup": self.startup}
-        path.write_text(json.dumps(doc))
-        return path
-
-    @classmethod
-    def from_spec(cls, path: Path) -> "Operation":
-        """The child side of the operation :meth:`spec` wrote (no ``check``: that runs in the test process)."""
-        doc = json.loads(Path(path).read_text())
-        requests = [(Command[c], {k: bytes.fromhex(v["bytes_hex"]) if isinstance(v, dict) and "bytes_hex" in v else v
-                                  for k, v in a.items()}) for c, a in doc["requests"]]
-        return cls(doc["name"], Path(doc["template"]), requests, None,
-                   None if doc["store_root"] is None else Path(doc["store_root"]), tuple(doc["instrument"]),
-                   doc["startup"])
-
-
-@dataclass
-class PointResult:
-    """What one kill point gave: the step it died before, the replies the host had, what broke."""
-
-    n: int
-    step: str
-    confirmed: int
-    problems: list[str] = field(default_factory=list)
-    seconds: float = 0.0
-
-
-def _child(op: Operation, point_dir: Path, n: int | None, trace_fd: int, host_fd: int) -> None:
-    steps = Steps(n, trace_fd)
-    if op.startup:
-        instrument_files(steps)
-        instrument_sqlite_connect(steps)
-        daemon = op.make_daemon(point_dir)
-    else:
-        daemon = op.make_daemon(point_dir)
-        instrument_files(steps)
-    if "sqlite" in op.instrument:
-        instrument_history(daemon, steps)
-    if "heater" in op.instrument:
-        instrument_heater(daemon, steps)
-    session = None
-    for i, (command, args) in enumerate(op.requests):
-        if session is not None and command in (Command.MODEL_CHUNK, Command.MODEL_COMMIT):
-            args = {**args, "session": session}
-        try:
-            body = daemon.handle(Request(command, i + 1, dict(args)))
-        except CommandError as e:
-            body = {"error": str(e.code), "message": e.message}
-        if command == Command.MODEL_BEGIN and body and "session" in body:
-            session = body["session"]
-        steps.step("host", f"reply {command.name}")
-        _write_all(host_fd, (json.dumps({"command": command.name, "body": body}, default=str) + "\n").encode())
-    steps.end()
-    daemon.close()
-
-
-def _child_process(op: Operation, point_dir: Path, n: int | None, trace_w: int, host_w: int, err_w: int) -> None:
-    """The forked child's whole life: the operation, then ``os._exit`` (or the SIGKILL at step ``n``)."""
-    status = _EXIT_CRASHED
-    try:
-        _child(op, point_dir, n, trace_w, host_w)
-        status = 0
-    except BaseException:
-        # sys.stderr may be the test runner's capture object: write to the pipe itself.
-        _write_all(err_w, traceback.format_exc().encode())
-    finally:
-        os._exit(status)
-
-
-#: The fork server's operations, by the path of their spec (filled in the server by :func:`_prepare_in_server`).
-_SERVER_OPS: dict[str, Operation] = {}
-
-
-def _prepare_in_server(spec: str) -> None:
-    """Fork-server side of :func:`dry_run`: rebuild the operation and warm it up there, once."""
-    op = Operation.from_spec(Path(spec))
-    warm_up(op, op.template.parent)  # every builder makes its template in the operation's root
-    _SERVER_OPS[spec] = op
-
-
-def _point_in_server(arg: dict, fds: list[int]) -> None:  # pragma: no cover - runs in the server's child
-    trace_w, host_w, err_w = fds
-    _child_process(_SERVER_OPS[arg["spec"]], Path(arg["point"]), arg["n"], trace_w, host_w, err_w)
-
-
-def _run_child(op: Operation, point_dir: Path, n: int | None, server: Any = None
-               ) -> tuple[int, list[str], list[dict], str]:
-    """Fork, run the operation (dying before step ``n``), return (exit code, trace, replies, stderr tail).
-
-    The exit code is :attr:`subprocess.Popen.returncode`'s: ``-SIGKILL`` for the kill. ``server``: a
-    :class:`~tests.support.daemon_proc.ForkServer` the operation was prepared on (:func:`dry_run`);
-    None: fork this process.
-    """
-    if server is not None and op.spec_path is None:
-        raise ValueError(f"{op.name}: not prepared on this fork server (run dry_run with it first)")
-    trace_r, trace_w = os.pipe()
-    host_r, host_w = os.pipe()
-    err_r, err_w = os.pipe()
-    child = None
-    if server is None:
-        pid = os.fork()
-        if pid == 0:  # pragma: no cover - the child never returns into the test runner
-            # No cyclic collections in the child: one would walk (and so copy-on-write) the whole
-            # test process's heap, a large one in a worker that collected the suite. The child
-            # lives for one operation.
-            gc.disable()
-            for fd in (trace_r, host_r, err_r):
-                os.close(fd)
-            _child_process(op, point_dir, n, trace_w, host_w, err_w)
-    else:
-        try:
-            child = server.start_call("tests.support.killpoints:_point_in_server",
-                                      {"spec": str(op.spec_path), "point": str(point_dir), "n": n},
-                                      [trace_w, host_w, err_w])
-        except BaseException:
-            for fd in (trace_r, host_r, err_r, trace_w, host_w, err_w):
-                os.close(fd)
-            raise
-        pid = child.pid
-    for fd in (trace_w, host_w, err_w):
-        os.close(fd)
-    bufs: dict[int, bytearray] = {trace_r: bytearray(), host_r: bytearray(), err_r: bytearray()}
-    open_fds = set(bufs)
-    deadline = time.monotonic() + CHILD_TIMEOUT_s
-    try:
-        while open_fds:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                os.kill(pid, signal.SIGKILL)  # our own child, hung: fail the point instead of the suite
-                raise TimeoutError(f"{op.name}: child for point {n} did not finish in {CHILD_TIMEOUT_s} s")
-            ready, _, _ = select.select(list(open_fds), [], [], left)
-            for fd in ready:
-                chunk = os.read(fd, 65536)
-                if chunk:
-                    bufs[fd] += chunk
-                else:
-                    open_fds.discard(fd)
-    finally:
-        for fd in bufs:
-            os.close(fd)
-        if child is None:
-            code = os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
-        else:
-            code = child.wait()
-    trace = bufs[trace_r].decode().splitlines()
-    replies = [json.loads(line) for line in bufs[host_r].decode().splitlines()]
-    return code, trace, replies, bufs[err_r].decode()[-3000:]
-
-
-def _fresh_point(op: Operation, root: Path, tag: str) -> Path:
-    # The same base name at every point: step labels name it (``mkdir state``), and the dry run's must match.
-    point = root / f"{op.name}-{tag}" / "state"
-    if point.parent.exists():
-        shutil.rmtree(point.parent)
-    shutil.copytree(op.template, point)
-    return point
-
-
-def warm_up(op: Operation, root: Path) -> None:
-    """Run the operation once in this process, uninstrumented, on a scratch copy of its state.
-
-    Whatever the daemon and the operation import lazily (the daemon's modules, NumPy's random
-    generators, the object set of the running answer) is then inherited by every child instead
-    of being compiled again in each (~60 ms a point, more than the point itself).
-    """
-    point = _fresh_point(op, root, "warm")
-    daemon = op.make_daemon(point)
-    try:
-        session = None
-        for i, (command, args) in enumerate(op.requests):
-            if session is not None and command in (Command.MODEL_CHUNK, Command.MODEL_COMMIT):
-                args = {**args, "session": session}
-            body = daemon.handle(Request(command, i + 1, dict(args)))
-            if command == Command.MODEL_BEGIN:
-                session = body["session"]
-    finally:
-        daemon.close()
-    shutil.rmtree(point.parent)
-
-
-def dry_run(op: Operation, root: Path, server: Any = None) -> tuple[list[str], list[dict]]:
-    """Run the operation to the end in a child (after :func:`warm_up`); return its steps and replies.
-
-    ``server``: a :class:`~tests.support.daemon_proc.ForkServer` to fork this operation's children
-    from (the operation is rebuilt and warmed up there); None: this process.
-    """
-    if server is None:
-        warm_up(op, root)
-    else:
-        op.spec_path = op.spec()
-        server.prepare("tests.support.killpoints:_prepare_in_server", str(op.spec_path))
-    point = _fresh_point(op, root, "dry")
-    code, trace, replies, err = _run_child(op, point, None, server)
-    if code != 0:
-        raise AssertionError(f"{op.name}: the dry run failed (exit code {code}):\n{err}")
-    problems = op.check(point, replies)
-    if problems:
-        raise AssertionError(f"{op.name}: the operation run to its end breaks its own invariants: {problems}")
-    shutil.rmtree(point.parent)
-    return trace, replies
-
-
-def kill_at(op: Operation, root: Path, n: int, expected_step: str, *, keep: bool = False,
-            server: Any = None) -> PointResult:
-    """Kill the operation right before step ``n``, restart, check; the point's directory
-    (``root/<op>-k<n>/state``) is removed unless ``keep``. ``server``: as for :func:`dry_run`, which
-    must have run on it first."""
-    t0 = time.perf_counter()
-    point = _fresh_point(op, root, f"k{n}")
-    code, trace, replies, err = _run_child(op, point, n, server)
-    res = PointResult(n, expected_step, len(replies))
-    if code != -signal.SIGKILL:
-        res.problems.append(f"child was not killed at step {n} (exit code {code}): {err}")
-    elif trace != [expected_step]:
-        res.problems.append(f"child died at {trace}, the dry run had {expected_step!r} (not deterministic)")
-    else:
-        res.problems += op.check(point, replies)
-    if not keep:
-        shutil.rmtree(point.parent)
-    res.seconds = time.perf_counter() - t0
-    return res
-
-
-def run_all(op: Operation, root: Path, *, keep: Callable[[list[str]], Collection[int]] | None = None,
-            server: Any = None) -> tuple[list[str], list[PointResult]]:
-    """Dry run, then a kill before every step; returns (steps, results).
-
-    ``keep(steps)``: the points whose directories stay for a later look (a full restart), so that
-    they need not be killed a second time. ``server``: as for :func:`dry_run`.
-    """
-    trace, _ = dry_run(op, root, server)
-    kept = set(keep(trace)) if keep is not None else set()
-    return trace, [kill_at(op, root, i + 1, step, keep=i + 1 in kept, server=server) for i, step in enumerate(trace)]
-
-
-@contextmanager
-def work_root(fallback: Path | None = None) -> Iterator[Path]:
-    """A scratch directory on tmpfs when there is one (fsync is free there), removed afterwards."""
-    base = "/dev/shm" if os.path.isdir("/dev/shm") and os.access("/dev/shm", os.W_OK) else None
-    root = Path(tempfile.mkdtemp(prefix="thermotouch-killpts-", dir=base or fallback))
-    try:
-        yield root
-    finally:
-        shutil.rmtree(root, ignore_errors=True)
-
-
-# ---------------------------------------------------------------------------------------------- daemons
-
-def child_daemon(point_dir: Path, model_store: Any = None, **sections: Any) -> Any:
-    """The daemon as ``thermotouch-edge`` starts it, on a sim rig whose GPIO and PWM state live in files.
-
-    ``model_store``: an already verified store to hand it (operations that do not touch the model
-    save the golden check, a third of a child's start); None: the daemon opens its own.
-    """
-    from firmware_sim.rigs.daemon_rig import make_rig
-    from edge.service.daemon import Daemon
-    from tests.support.daemons import FakeEstimator, sim_config
-
-    rig = make_rig(gpio_state_dir=point_dir / "gpio", pwm_root=point_dir / "pwm")
-    return Daemon(sim_config(point_dir, **sections), rig.board, estimator=FakeEstimator(), model_store=model_store)
-
-
-def heater_line(point_dir: Path, which: str = "gpio") -> dict | None:
-    """The enable line as the kernel shows it after the child died (a dead holder's request released)."""
-    from firmware_sim.gpiod.state import read_line
-
-    return read_line(point_dir / which, "gpiochip0", 17)
-
-
-def full_restart(point_dir: Path, *, measure: bool = True, **sections: Any) -> dict:
-    """Start a daemon on the killed child's state, as after a reboot; return what it reports.
-
-    The simulated PWM tree cannot be adopted from a dead process, so the restarted rig gets its
-    own (``pwm-restart``); the GPIO line files are the child's.
-    """
-    from firmware_sim.rigs.daemon_rig import make_rig
-    from edge.service.daemon import Daemon
-    from tests.support.daemons import FakeEstimator, sim_config
-
-    rig = make_rig(gpio_state_dir=point_dir / "gpio", pwm_root=point_dir / "pwm-restart")
-    cfg = sim_config(point_dir, **sections)
-    with Daemon(cfg, rig.board, estimator=FakeEstimator()) as d:
-        st = d.handle(Request(Command.STATUS, 1, {}))
-        info = d.handle(Request(Command.INFO, 2, {}))
-        out = {"status": st, "info": info, "heater_level": rig.parts.chip.level(rig.parts.heater_enable_offset),
-               "pwm_duty": rig.parts.pwm_tree.history(rig.parts.pwm_chip, rig.parts.pwm_channel)[-1].fraction,
-               "config": d.config.runtime()}
-        if measure:
-            out["measure"] = d.measure()  # the touch the (possibly just changed) configuration asks for
-        out["heater_on_after"] = d.heater.is_on
-    out["line_after_close"] = heater_line(point_dir)
-    return out
-
+           "startup_operation", "CONFIG_KEYS", "CONFIG_VALUES", "WATCHED_MODULES"]
 
 # ---------------------------------------------------------------------------------------------- the three operations
 
@@ -688,18 +173,6 @@ def _variant_blobs(tags: tuple[str, ...]) -> dict[str, bytes]:
     return out
 
 
-def _open_store(point: Path) -> Any:
-    from edge.estimation.estimate import pipeline_golden_check
-    from edge.model.bundle import limits_for_ram
-    from edge.model.store import ModelStore
-    from edge.service.config import Config
-    from thermotouch_models import DEFAULT_BUNDLE
-
-    from edge.security.policy import UpdatePolicy
-
-    # A development policy, as the simulated daemon's: these kill points are about durability, not signatures.
-    return ModelStore(point / "models", DEFAULT_BUNDLE, golden_check=pipeline_golden_check,
-                      limits=limits_for_ram(Config().limits.ram_bytes), policy=UpdatePolicy(allow_unsigned=True))
 
 
 def flash_operation(root: Path, chunk_bytes: int = 48 * 1024) -> Operation:
@@ -713,7 +186,7 @@ def flash_operation(root: Path, chunk_bytes: int = 48 * 1024) -> Operation:
     template = Path(tempfile.mkdtemp(prefix="flash-template-", dir=root))
     History(template / "history.db").close()
     blobs = _variant_blobs(("A", "B", "C"))
-    store = _open_store(template)
+    store = open_model_store(template)
     sha = {tag: store.install(blobs[tag], hashlib.sha256(blobs[tag]).hexdigest(), len(blobs[tag])).sha256
            for tag in ("A", "B")}
     blob = blobs["C"]
@@ -734,7 +207,7 @@ def flash_operation(root: Path, chunk_bytes: int = 48 * 1024) -> Operation:
         if committed and states is None:
             c = committed[0]["bundle_sha256"]
             states = {(sha["B"], sha["A"]): "old", (sha["B"], sha["B"]): "old", (c, sha["B"]): "new"}
-        st = _open_store(point)  # start-up cleaning happens here, as in the daemon
+        st = open_model_store(point)  # start-up cleaning happens here, as in the daemon
         try:
             active = st.current()
         except Exception as e:  # noqa: BLE001 - any failure to serve a model is what we look for
@@ -833,7 +306,7 @@ def _die_after(fn: Callable[[], None]) -> None:
             fn()
             os.kill(os.getpid(), signal.SIGKILL)
         finally:
-            os._exit(_EXIT_CRASHED)
+            os._exit(EXIT_CRASHED)
     _, status = os.waitpid(pid, 0)
     assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL, status
 
@@ -850,7 +323,7 @@ def startup_operation(root: Path, *, after_crash: bool) -> Operation:
     sha: dict[str, str] = {}
     prior: dict[int, str] = {}
     if after_crash:
-        store = _open_store(template)
+        store = open_model_store(template)
         sha = {tag: store.install(blobs[tag], hashlib.sha256(blobs[tag]).hexdigest(), len(blobs[tag])).sha256
                for tag in ("A", "B")}
         (template / "runtime.json").write_text(json.dumps({"heater.power_W": 2.0}))
@@ -879,7 +352,7 @@ def startup_operation(root: Path, *, after_crash: bool) -> Operation:
         problems, rows = _history_rows(point / "history.db") if (point / "history.db").exists() else ([], {})
         if set(rows) != set(prior) or any(_row_digest(rows[m]) != d for m, d in prior.items()):
             problems.append(f"history records changed across the start-up: {sorted(rows)} vs {sorted(prior)}")
-        st = _open_store(point)
+        st = open_model_store(point)
         try:
             active = st.current()
             if after_crash and (st.source, active.sha256) != ("current", sha["B"]):

@@ -204,7 +204,7 @@ def test_a_failed_preparation_on_the_fork_server_is_reported_and_the_server_stil
     keeps serving (a later operation's children are forked from it as usual)."""
     missing = root / "no-such-operation.spec.json"
     with pytest.raises(RuntimeError, match=r"(?s)_prepare_in_server failed in the fork server.*no-such-operation"):
-        server.prepare("tests.support.killpoints:_prepare_in_server", str(missing))
+        server.prepare("tests.support.killpoint_runner:_prepare_in_server", str(missing))
     op = K.config_operation(root, keys=("heater.power_W",))
     trace, results = K.run_all(op, root, server=server)
     assert len(results) == len(trace) > 0 and not [r.problems for r in results if r.problems]

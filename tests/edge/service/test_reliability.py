@@ -13,7 +13,8 @@ from contextlib import contextmanager
 import pytest
 import serial
 
-import edge.service.daemon as daemon_mod
+import edge.service.faults as faults_mod
+import edge.service.serving as serving_mod
 from edge.protocol.commands import Command
 from edge.protocol.endpoint import SerialEndpoint
 from edge.protocol.errors import CommandError, ErrorCode
@@ -239,7 +240,7 @@ def test_stop_is_prompt_in_every_state(tmp_path, monkeypatch, state):
         # (endpoint.close), the reply being written finishes its own. What the limit below excludes is a
         # stop that waits for the queue, ~290 replies of one timeout each; that holds at a shorter
         # timeout too, set through the endpoint's own parameter.
-        monkeypatch.setattr(daemon_mod, "SerialEndpoint",
+        monkeypatch.setattr(serving_mod, "SerialEndpoint",
                             functools.partial(SerialEndpoint, write_timeout_s=BLOCKED_WRITE_TIMEOUT_s))
     with daemon_in_state(tmp_path, state) as (dt, rig):
         latency = _stop_latency(dt)
@@ -353,7 +354,7 @@ def test_an_unstorable_result_is_stored_without_it(tmp_path):
 
 
 def test_a_failing_history_write_keeps_the_record_and_stores_it_later(tmp_path, monkeypatch):
-    monkeypatch.setattr(daemon_mod, "FAULT_RECHECK_s", 0.0)
+    monkeypatch.setattr(faults_mod, "FAULT_RECHECK_s", 0.0)
     rig = make_rig()
     with Daemon(sim_config(tmp_path), rig.board, estimator=FakeEstimator()) as d:
         real_add = d.history.add
@@ -465,7 +466,7 @@ def test_full_disk_starts_degraded_and_recovers(tmp_path, monkeypatch):
 
 def test_unusable_model_directory_starts_degraded_and_recovers(tmp_path, monkeypatch):
     pytest.importorskip("thermotouch_models")
-    monkeypatch.setattr(daemon_mod, "FAULT_RECHECK_s", 0.0)
+    monkeypatch.setattr(faults_mod, "FAULT_RECHECK_s", 0.0)
     blocker = tmp_path / "state"
     blocker.write_text("a file where the model directory's parent should be")
     cfg = sim_config(tmp_path, paths={"model_store": str(blocker / "models")})

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from edge.calibration.model import ProbeCalibration
+from edge.calibration.model import MAX_BYTES, ProbeCalibration
 from edge.security.keys import signature_document
 from edge.security.policy import UpdatePolicy
 from edge.storage import durable
@@ -13,10 +13,12 @@ from host.keys import new_key
 from tests.support.calibrations import sample_calibration
 
 OPEN = UpdatePolicy(allow_unsigned=True)
+#: The device's parser and bound (edge.service.calibration gives the store the same).
+PARSER = {"parse": ProbeCalibration.from_json, "max_bytes": MAX_BYTES}
 
 
 def test_empty_store_has_no_calibration_and_install_round_trips(tmp_path):
-    st = CalibrationStore(tmp_path / "cal", "paper", OPEN)
+    st = CalibrationStore(tmp_path / "cal", "paper", OPEN, **PARSER)
     assert st.current() is None
     cal = sample_calibration()
     got = st.install(cal.to_json_compact().encode())
@@ -35,7 +37,7 @@ def test_empty_store_has_no_calibration_and_install_round_trips(tmp_path):
     (lambda c: "x" * 70000, "limit"),
 ])
 def test_bad_calibrations_are_refused_and_the_old_one_stays(tmp_path, mutate, needle):
-    st = CalibrationStore(tmp_path / "cal", "paper", OPEN)
+    st = CalibrationStore(tmp_path / "cal", "paper", OPEN, **PARSER)
     cal = sample_calibration()
     st.install(cal.to_json().encode())
     with pytest.raises(CalibrationStoreError, match=needle) as ei:
@@ -48,12 +50,12 @@ def test_policy_decides_who_may_install(tmp_path):
     keys = tmp_path / "keys"
     key = new_key(keys, "lab")
     strict = UpdatePolicy(trusted_keys_dir=str(keys), allow_unsigned=False)
-    st = CalibrationStore(tmp_path / "cal", "paper", strict)
+    st = CalibrationStore(tmp_path / "cal", "paper", strict, **PARSER)
     blob = sample_calibration().to_json_compact().encode()
     with pytest.raises(CalibrationStoreError, match="unsigned"):
         st.install(blob)
     with pytest.raises(CalibrationStoreError, match="no update policy"):
-        CalibrationStore(tmp_path / "c2", "paper", None).install(blob)
+        CalibrationStore(tmp_path / "c2", "paper", None, **PARSER).install(blob)
     # A signature over other bytes does not verify.
     with pytest.raises(CalibrationStoreError, match="refused"):
         st.install(blob, signature_document(key, blob + b" "))
@@ -63,7 +65,7 @@ def test_policy_decides_who_may_install(tmp_path):
 
 
 def test_a_damaged_stored_file_is_named_not_used(tmp_path):
-    st = CalibrationStore(tmp_path / "cal", "paper", OPEN)
+    st = CalibrationStore(tmp_path / "cal", "paper", OPEN, **PARSER)
     st.install(sample_calibration().to_json().encode())
     (tmp_path / "cal" / "calibration.json").write_text('{"format": "thermotouch-calibration"')
     with pytest.raises(CalibrationStoreError, match="damaged"):
@@ -71,7 +73,7 @@ def test_a_damaged_stored_file_is_named_not_used(tmp_path):
 
 
 def test_a_crash_while_writing_leaves_the_old_calibration(tmp_path, monkeypatch):
-    st = CalibrationStore(tmp_path / "cal", "paper", OPEN)
+    st = CalibrationStore(tmp_path / "cal", "paper", OPEN, **PARSER)
     old = sample_calibration()
     st.install(old.to_json().encode())
 
@@ -83,6 +85,6 @@ def test_a_crash_while_writing_leaves_the_old_calibration(tmp_path, monkeypatch)
         st.install(sample_calibration(flux_scale=0.9).to_json().encode())
     monkeypatch.undo()
     # A restart sweeps the temporary and reads the old file whole.
-    st2 = CalibrationStore(tmp_path / "cal", "paper", OPEN)
+    st2 = CalibrationStore(tmp_path / "cal", "paper", OPEN, **PARSER)
     assert st2.current() == old
     assert [p.name for p in (tmp_path / "cal").iterdir()] == ["calibration.json"]
