@@ -2,8 +2,9 @@
 
 On every shipped scene, uncalibrated and with a calibration installed: MEASURE on the simulated
 device, ``history --export-series`` that measurement, ``thermotouch estimate`` the file with the
-same calibration -- e, u, flags and object equal to the last printed digit (and bit for bit). And the walk-through's
-calibration, refitted offline from its own exported touches, is the installed one.
+same calibration -- e, u, flags and object equal to the last printed digit (and bit for bit). And
+the walk-through's calibration, refitted offline from its own exported touches, is the installed
+one; an armed touch on that calibrated probe (the issue's example) round-trips too.
 
 Every command runs through ``host.cli.main`` against a simulated probe on a pseudo-terminal
 (:func:`host.device.simulated_probe`), as a user's would.
