@@ -76,3 +76,33 @@ def test_export_carries_the_stored_touch_bit_for_bit(capsys, tmp_path):
     assert touch.meta["measurement.noise_T_K"] == "0.123" and touch.meta["status"] == "ok"
     assert touch.meta["started_utc"] == "2026-11-27T12:00:00Z" and touch.meta["software"]
     assert "calibration_sha256" not in touch.meta  # uncalibrated: no line rather than a 'none'
+
+
+def test_a_touch_stored_before_the_touch_header_exports_with_a_rebuilt_one(capsys, tmp_path):
+    """A history written by the software before schema 2: migrated when the device opens it, nothing lost."""
+    import sqlite3
+
+    import numpy as np
+
+    from host.records import read_touch
+    from tests.edge.storage.test_history import _V1_DDL
+
+    w = tmp_path / "w"
+    w.mkdir()
+    t = np.arange(-5, 21) * 0.1
+    db = sqlite3.connect(w / "history.sqlite3")
+    db.execute(_V1_DDL)
+    db.execute("INSERT INTO measurements (created_utc, status, flags, result, power_W, heater_on_s, sample_rate_Hz, "
+               "config, n_samples, raw_t_s, raw_T_C, raw_q_W_m2) VALUES ('2026-01-01', 'ok', '[]', '{}', 4.5, 2.0, "
+               "10.0, ?, 26, ?, ?, ?)",
+               (json.dumps({"measurement": {"baseline_s": 0.5, "noise_T_K": 0.1}}), t.astype("<f8").tobytes(),
+                (25 + np.clip(t, 0, None)).astype("<f8").tobytes(), np.where(t > 0, 3000.0, 0.0).tobytes()))
+    db.execute("PRAGMA user_version=1")
+    db.commit()
+    db.close()
+    f = tmp_path / "old.csv"
+    code, out, err = run(capsys, "history", "--sim", "glass_15V", "--workdir", w, "--export-series", 1, f)
+    assert code == 0, err
+    touch = read_touch(f)
+    assert np.array_equal(touch.t_s, t) and touch.power_W == 4.5 and touch.baseline_s == 0.5
+    assert touch.meta["header_rebuilt"] == "true" and touch.meta["measurement.noise_T_K"] == "0.1"
