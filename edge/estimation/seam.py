@@ -41,7 +41,7 @@ import numpy as np
 from edge.estimation.methods import method_class
 from edge.estimation.conditioning import baseline_mask, contact_effusivity, quality_flags, resample_uniform
 from edge.estimation.record import TouchRecord
-from edge.estimation.result import QUANTITIES, Estimate, unknown_recognition
+from edge.estimation.result import BLOCKERS, QUANTITIES, Estimate, unknown_recognition
 from edge.physics.geometry import get_probe
 from edge.recognition import recognition_fields
 from edge.status import Flag
@@ -55,10 +55,6 @@ log = logging.getLogger(__name__)
 #: (:mod:`edge.estimation.methods`); a test or a bench may put its own in :attr:`SeamContext.method`.
 MethodFn = Callable[..., Mapping[str, Any]]
 
-#: The one blocker table: flags under which an estimate does not describe the record.  An e flagged so is
-#: not taken as the answer (the calibrated chain's) nor as a running answer (every running decision).
-BLOCKERS = frozenset({Flag.POOR_FIT, Flag.CONTACT_LOST, Flag.NO_CONTACT, Flag.NO_FIT, Flag.NOT_CONVERGED,
-                      Flag.INSUFFICIENT_SIGNAL, Flag.SATURATED})
 #: Fields of the chain's estimate kept in the answer's ``sensor_chain``: the answer and what judges it (the
 #: rest -- u's parts, the fit window -- is recomputable from the raw record; a HISTORY page is one frame).
 CHAIN_KEEP = ("contact_lost_t_s", "effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "contact_resistance_m2K_W",
