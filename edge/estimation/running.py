@@ -333,6 +333,8 @@ class ChainDecision(RefitDecision):
         As for :class:`~edge.estimation.running.SequentialDecision`.
     calibration : ProbeCalibration
         The installed calibration (the chain's parameters and their u).
+    library : Library, optional
+        The prior on alpha given e: the model bundle's, as for the answer (default: the CSV's).
     every_s : float
         Heating time between fits (:data:`CHAIN_EVERY_s`), stretched where a fit takes more than its
         share (:class:`~edge.estimation.running.RefitCadence`).
@@ -343,9 +345,11 @@ class ChainDecision(RefitDecision):
     source = "sensor_chain"
 
     def __init__(self, object_set: Any, threshold: float, min_time_s: float, *, calibration: Any,
-                 every_s: float = CHAIN_EVERY_s, timer: Callable[[], float] = time.perf_counter) -> None:
+                 library: Any = None, every_s: float = CHAIN_EVERY_s,
+                 timer: Callable[[], float] = time.perf_counter) -> None:
         super().__init__(object_set, threshold, min_time_s, every_s=every_s, timer=timer)
         self.calibration = calibration
+        self.library = library
 
     def attach_record(self, t_s: list, T_C: list, q_W_m2: list, t_on_s: float, **_baseline: Any) -> None:
         """The sequence's record lists (appended in place; absolute clock times) and the heater-on time.
@@ -360,7 +364,7 @@ class ChainDecision(RefitDecision):
         n = min(len(ts), len(Ts), len(qs))
         try:
             d = estimate_from_contact(np.asarray(ts[:n], float) - t_on, np.asarray(Ts[:n], float),
-                                      np.asarray(qs[:n], float), self.calibration)
+                                      np.asarray(qs[:n], float), self.calibration, library=self.library)
         except ValueError:  # a prefix the chain cannot fit yet (too few samples since contact)
             return self.answer
         u_ln_e = self.u_ln_e(d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u"))
@@ -463,12 +467,13 @@ class EstimatorDecision(RefitDecision):
 
 def decision_for(kind: Any, object_set: Any, threshold: float, min_time_s: float, *, calibration: Any = None,
                  estimate_fn: Callable[..., dict] | None = None, params: Any = None, T_age_s: float = 0.0,
-                 T_resolution_K: float = 0.0) -> SequentialDecision:
+                 T_resolution_K: float = 0.0, library: Any = None) -> SequentialDecision:
     """The running decision of a probe head whose estimator class is ``kind`` (:mod:`edge.estimation.methods`).
 
     ``kind.running == "refit"``: :class:`EstimatorDecision` on ``estimate_fn`` (``params``: the run's
     MeasurementParams); otherwise :class:`ChainDecision` when ``calibration`` (already checked to be this
-    probe head's) is given and the kind carries a sensor chain, else :class:`SequentialDecision`.
+    probe head's) is given and the kind carries a sensor chain (``library``: the model bundle's prior),
+    else :class:`SequentialDecision`.
     """
     if kind.running == "refit":
         return EstimatorDecision(object_set, threshold, min_time_s, estimate_fn=estimate_fn,
@@ -476,5 +481,5 @@ def decision_for(kind: Any, object_set: Any, threshold: float, min_time_s: float
                                  power_W=params.power_W, method=params.method, T_age_s=T_age_s)
     if calibration is not None and kind.sensor_chain:
         # Calibrated: the running answer is the same estimate the result will be (seam.chain_answer).
-        return ChainDecision(object_set, threshold, min_time_s, calibration=calibration)
+        return ChainDecision(object_set, threshold, min_time_s, calibration=calibration, library=library)
     return SequentialDecision(object_set, threshold, min_time_s, T_age_s=T_age_s, T_resolution_K=T_resolution_K)

@@ -326,8 +326,12 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
         probe = self.config.board.probe
         store = getattr(self, "calibration", None)
         cal = store.current() if store is not None else None
+        try:   # the answer's prior (the model bundle's library), for the calibrated chain's running answer
+            library = self._model_est.estimator().library
+        except (ModelStoreError, ValueError):
+            library = None
         # The probe head's estimator kind decides (edge.estimation.running.decision_for).
-        return decision_for(method_class(probe), objs, m.decide_posterior, m.decide_min_s,
+        return decision_for(method_class(probe), objs, m.decide_posterior, m.decide_min_s, library=library,
                             calibration=cal if cal is not None and cal.probe == probe else None,
                             estimate_fn=self.estimator, params=params,
                             T_age_s=getattr(self.sensors, "T_age_s", 0.0),
