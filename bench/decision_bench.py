@@ -227,7 +227,7 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
     """
     from edge.estimation.probe_estimate import AxiEstimator
     from edge.estimation.running import EstimatorDecision
-    from edge.measure.signal import resample_uniform
+    from edge.estimation.conditioning import resample_uniform
     from firmware_sim.rigs.contact_record import ContactTouch, record_touch
     from firmware_sim.rz.probe_world import geometry_for_probe
     from firmware_sim.scene.files import read_scene
