@@ -107,7 +107,7 @@ def run_faithful(touches: int, threshold: float, min_s: float, seed: int, object
     1 s before heater-on, R_c drawn in [0, 3e-5] m^2K/W, object -2..+2 K off the probe, 1.5 s of
     heating, precision board.  Each record is fed sample by sample to
     :class:`edge.estimation.running.SequentialDecision` (raw reading, as an uncalibrated device) and
-    :class:`edge.estimation.chain_decision.ChainDecision` (the calibration, as a calibrated device);
+    :class:`edge.estimation.running.ChainDecision` (the calibration, as a calibrated device);
     a touch not decided by 1.5 s takes the fixed answer of its own kind (the default estimate of the
     whole record, or the chain's).
     """
@@ -115,8 +115,8 @@ def run_faithful(touches: int, threshold: float, min_s: float, seed: int, object
     from _recognition import bayes_ceiling
 
     from edge.calibration.fit import ReferenceTouch, fit_calibration
-    from edge.estimation.chain_decision import ChainDecision
-    from edge.estimation.seam import BLOCKERS as CHAIN_BLOCKERS
+    from edge.estimation.running import ChainDecision
+    from edge.estimation.result import BLOCKERS as CHAIN_BLOCKERS
     from edge.estimation.chain_estimate import estimate_from_contact
     from edge.physics.materials import load_materials
     from firmware_sim.rigs.contact_record import ContactTouch, record_touch
@@ -220,14 +220,14 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
     [0, 3e-5] m^2K/W, the object at the probe's temperature, 2 s of heating at 50 Hz, precision-board
     noise.  Each record is answered by the device's own estimator (:class:`AxiEstimator` on the record
     resampled as the device does) on the whole profile (fixed) and by
-    :class:`edge.measure.estimator_decision.EstimatorDecision` fed sample by sample (until decided; a
+    :class:`edge.estimation.running.EstimatorDecision` fed sample by sample (until decided; a
     touch not decided by 2 s takes the fixed answer).  Objects are named with e and, where the touch
     measured it, alpha.  Also reported: the refits' wall time, and how often the answer determined
     k and alpha (what stopping early gives up).  ``fit_contact``: the estimator fits R_c too.
     """
     from edge.estimation.probe_estimate import AxiEstimator
-    from edge.measure.estimator_decision import EstimatorDecision
-    from edge.measure.signal import resample_uniform
+    from edge.estimation.running import EstimatorDecision
+    from edge.estimation.conditioning import resample_uniform
     from firmware_sim.rigs.contact_record import ContactTouch, record_touch
     from firmware_sim.rz.probe_world import geometry_for_probe
     from firmware_sim.scene.files import read_scene

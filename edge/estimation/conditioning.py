@@ -21,7 +21,34 @@ import numpy as np
 from edge.estimation.spline import resample
 from edge.status import Flag
 
-__all__ = ["baseline_mask", "resample_uniform", "quality_flags", "contact_effusivity"]
+__all__ = ["baseline_mask", "resample_uniform", "quality_flags", "contact_effusivity", "duhamel_m"]
+
+_TWO_OVER_SQRT_PI = 2.0 / math.sqrt(math.pi)
+
+
+def duhamel_m(t_eval: float, t_q: np.ndarray, q: np.ndarray) -> float:
+    """``m(t_eval)`` for a flux that is 0 before t = 0 and piecewise constant between its samples.
+
+    Over ``(t_q[j-1], t_q[j]]`` the flux is the mean of the two samples (the
+    first interval, from heater-on at 0, takes ``q[0]``: the flux jumps at
+    switch-on); past the last sample it holds ``q[-1]``. Samples after
+    ``t_eval`` are ignored and the interval that contains it is cut there.
+    """
+    if t_eval <= 0 or t_q.size == 0:
+        return 0.0
+    b = np.asarray(t_q, float)
+    q = np.asarray(q, float)
+    q_last = q[-1]
+    q = np.concatenate((q[:1], 0.5 * (q[1:] + q[:-1])))
+    a = np.concatenate(([0.0], b[:-1]))
+    a = np.minimum(a, t_eval)
+    b = np.minimum(b, t_eval)
+    # The last sample's value also holds up to t_eval when t_eval is past it.
+    if t_eval > b[-1]:
+        a = np.append(a, b[-1])
+        b = np.append(b, t_eval)
+        q = np.append(q, q_last)
+    return float(_TWO_OVER_SQRT_PI * np.sum(q * (np.sqrt(t_eval - a) - np.sqrt(t_eval - b))))
 
 
 def baseline_mask(t_s: np.ndarray, heated: bool, arm_s: float, baseline_s: float) -> np.ndarray:
@@ -105,7 +132,7 @@ def contact_effusivity(t_s: np.ndarray, dT_K: np.ndarray, q_W_m2: np.ndarray, T_
     Whatever lies under the sensor -- a solid, or air -- obeys Duhamel's
     relation between the flux into it and its surface temperature rise,
     ``m(t) = e dT(t)`` with ``m`` the flux's half-integral
-    (:func:`edge.estimation.running.duhamel_m`). So ``e`` of the contact is
+    (:func:`duhamel_m`). So ``e`` of the contact is
     the least-squares slope of m on dT (through the origin: both are zero at
     heater-on). In air almost all the heater's power stays in the probe: the
     temperature climbs fastest and the flux is near zero, so this gives
@@ -123,8 +150,6 @@ def contact_effusivity(t_s: np.ndarray, dT_K: np.ndarray, q_W_m2: np.ndarray, T_
     heat capacity), so a probe in air with an unresolved rise would not be
     told from a metal by any record.
     """
-    from edge.estimation.running import duhamel_m  # noqa: PLC0415 - running imports estimation's peers
-
     t = np.asarray(t_s, float)
     dT, q = np.asarray(dT_K, float), np.asarray(q_W_m2, float)
     keep = t > 0

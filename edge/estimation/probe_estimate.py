@@ -177,7 +177,7 @@ class AxiEstimator:
         Returns
         -------
         dict
-            The keys of :meth:`edge.estimation.estimate.Estimate.to_dict` plus ``probe``,
+            The keys of :meth:`edge.estimation.estimate.MethodEstimate.to_dict` plus ``probe``,
             ``determined``, ``from_prior``, ``prior_reason``, ``corr_k_alpha`` and ``fit``
             (the fit's own k, alpha, their relative u, chi^2/dof, iterations, power scale).
         """

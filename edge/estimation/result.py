@@ -28,12 +28,17 @@ from typing import Any, Mapping
 
 from edge.status import Flag
 
-__all__ = ["Estimate", "QUANTITIES", "SOURCES", "RESULT_KEYS", "unknown_recognition"]
+__all__ = ["Estimate", "QUANTITIES", "SOURCES", "RESULT_KEYS", "BLOCKERS", "unknown_recognition"]
 
 #: The quantities an estimate reports, in order (keys of ``determined_by``).
 QUANTITIES = ("e", "k", "alpha")
 #: Where a quantity came from.
 SOURCES = ("data", "prior", "calibration", "thickness")
+#: The one blocker table: flags under which an estimate does not describe the record.  An e flagged so is
+#: not taken as the answer (the calibrated chain's, :func:`edge.estimation.seam.chain_answer`) nor as a
+#: running answer (every decision of :mod:`edge.estimation.running`).
+BLOCKERS = frozenset({Flag.POOR_FIT, Flag.CONTACT_LOST, Flag.NO_CONTACT, Flag.NO_FIT, Flag.NOT_CONVERGED,
+                      Flag.INSUFFICIENT_SIGNAL, Flag.SATURATED})
 #: The recognition keys every answer carries (``class`` is :attr:`Estimate.cls`).
 RECOGNITION_KEYS = ("object_set", "object", "object_posterior", "class", "class_posterior", "unknown_posterior",
                     "candidates")

@@ -38,10 +38,11 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from edge.estimation.methods import method_class
 from edge.estimation.conditioning import baseline_mask, contact_effusivity, quality_flags, resample_uniform
+from edge.estimation.estimate import FLUX_CALIBRATION_U_REL
+from edge.estimation.methods import method_class
 from edge.estimation.record import TouchRecord
-from edge.estimation.result import QUANTITIES, Estimate, unknown_recognition
+from edge.estimation.result import BLOCKERS, QUANTITIES, Estimate, unknown_recognition
 from edge.physics.geometry import get_probe
 from edge.recognition import recognition_fields
 from edge.status import Flag
@@ -55,10 +56,6 @@ log = logging.getLogger(__name__)
 #: (:mod:`edge.estimation.methods`); a test or a bench may put its own in :attr:`SeamContext.method`.
 MethodFn = Callable[..., Mapping[str, Any]]
 
-#: The one blocker table: flags under which an estimate does not describe the record.  An e flagged so is
-#: not taken as the answer (the calibrated chain's) nor as a running answer (every running decision).
-BLOCKERS = frozenset({Flag.POOR_FIT, Flag.CONTACT_LOST, Flag.NO_CONTACT, Flag.NO_FIT, Flag.NOT_CONVERGED,
-                      Flag.INSUFFICIENT_SIGNAL, Flag.SATURATED})
 #: Fields of the chain's estimate kept in the answer's ``sensor_chain``: the answer and what judges it (the
 #: rest -- u's parts, the fit window -- is recomputable from the raw record; a HISTORY page is one frame).
 CHAIN_KEEP = ("contact_lost_t_s", "effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "contact_resistance_m2K_W",
@@ -227,6 +224,27 @@ def _sources(d: Mapping[str, Any], thickness: bool) -> dict[str, str]:
     return out
 
 
+def _u_parts(d: Mapping[str, Any], fit: Mapping[str, Any] | None) -> dict[str, float]:
+    """The relative parts of u(e) a method's answer carries: its fit's and the flux sensor's calibration."""
+    e, u = _num(d.get("effusivity_W_s05_m2K")), _num(d.get("effusivity_W_s05_m2K_u"))
+    if e is None or u is None or not e > 0:
+        return {}
+    if fit is not None:     # the small heater's fit: the flux scale's part through its sensitivity
+        u_fit = _num(fit.get("u_rel_effusivity"))
+        sens = _num((fit.get("flux_scale_sensitivity") or {}).get("effusivity"))
+        u_flux = _num(fit.get("flux_u_rel"))
+        parts = {"fit": u_fit}
+        if sens is not None and u_flux is not None:
+            parts["flux_calibration"] = abs(sens) * u_flux
+        return {k: v for k, v in parts.items() if v is not None}
+    if d.get("method") in ("default", "paper"):
+        # The 1-D methods add the flux sensor's datasheet calibration to the fit's part in quadrature.
+        u_rel = u / e
+        return {"fit": math.sqrt(max(u_rel ** 2 - FLUX_CALIBRATION_U_REL ** 2, 0.0)),
+                "flux_calibration": FLUX_CALIBRATION_U_REL}
+    return {}
+
+
 def method_estimate(d: Mapping[str, Any], probe: str, model_sha: str | None, thickness: bool) -> Estimate:
     """A probe head's estimator's dict as a typed :class:`Estimate` (before the chain, the flags and the naming).
 
@@ -240,9 +258,7 @@ def method_estimate(d: Mapping[str, Any], probe: str, model_sha: str | None, thi
     details = {"fit": d["fit"]} if fit is not None else {}
     cands = d.get("candidates") or ()
     lib = [(c[0], c[1]) for c in cands if isinstance(c, (list, tuple)) and len(c) == 2]
-    u_parts = {}
-    if fit is not None and fit.get("u_rel_effusivity") is not None:
-        u_parts["fit"] = fit["u_rel_effusivity"]
+    u_parts = _u_parts(d, fit)
     return Estimate(
         probe=probe, method=str(d.get("method") or "none"),
         effusivity_W_s05_m2K=_num(d.get("effusivity_W_s05_m2K")),
@@ -271,23 +287,25 @@ def _plain(v: Any) -> Any:
     return v
 
 
-def _chain(record: TouchRecord, calibration: Any, estimator: Any) -> dict[str, Any]:
-    """The sensor chain's estimate of the raw record, as kept in the answer (its error if it fails)."""
+def _chain(record: TouchRecord, calibration: Any, estimator: Any) -> tuple[dict[str, Any], dict[str, float]]:
+    """The sensor chain's estimate of the raw record as kept in the answer (its error if it fails), and its u parts."""
     from edge.estimation.chain_estimate import estimate_from_contact  # noqa: PLC0415 - only kinds with a chain
 
     library = getattr(estimator, "library", None)
     try:
         d = estimate_from_contact(record.t_s, record.T_C, record.q_W_m2, calibration, library=library)
         chain = {k: _plain(d[k]) for k in CHAIN_KEEP if d.get(k) is not None}   # absent: not given
+        parts = dict(d.get("u_e_parts") or {})
         chain["flags"] = [str(f) for f in d.get("flags") or ()]
     except Exception as e:  # the chain's estimate must never lose the measurement
         log.warning("sensor-chain estimate failed: %s", e)
-        chain = {"error": f"{type(e).__name__}: {e}"}
+        chain, parts = {"error": f"{type(e).__name__}: {e}"}, {}
     chain["calibration_sha256"] = None if calibration is None else calibration.sha256
-    return chain
+    return chain, parts
 
 
-def chain_answer(est: Estimate, chain: Mapping[str, Any], estimator: Any) -> Estimate | None:
+def chain_answer(est: Estimate, chain: Mapping[str, Any], estimator: Any,
+                 u_e_parts: Mapping[str, float] | None = None) -> Estimate | None:
     """The answer with the calibrated chain's e, k and α from the prior given it; None when it does not qualify.
 
     On a real probe the 1-D methods invert the ideal model -- no contact
@@ -295,7 +313,8 @@ def chain_answer(est: Estimate, chain: Mapping[str, Any], estimator: Any) -> Est
     and are biased by tens of percent (ISSUE #10); the chain models all of it.
     Its e is the answer when a calibration was applied, the chain gave a finite
     e and u, and it raised none of :data:`BLOCKERS`; the method's own answer is
-    kept in ``default_method``.
+    kept in ``default_method``; ``u_e_parts`` are the chain's parts of u(e) (fit, calibration, floor,
+    contact, lateral).
     """
     if est.method not in ("default", "paper") or chain.get("calibration_sha256") is None or "error" in chain:
         return None
@@ -313,6 +332,7 @@ def chain_answer(est: Estimate, chain: Mapping[str, Any], estimator: Any) -> Est
                    k_W_mK=k, k_W_mK_u=k * u_lk, alpha_m2_s=alpha, alpha_m2_s_u=alpha * u_la,
                    determined_by={"e": "calibration", "k": "prior", "alpha": "prior"}, prior_reason=None,
                    corr_ln={}, normalised_residual=chain.get("normalised_residual"),
+                   u_e_parts=dict(u_e_parts or {}),
                    material=cands[0][0], material_confidence=cands[0][1], material_candidates=tuple(cands),
                    flags=flags, details={**est.details, "default_method": {k_: old[k_] for k_ in DEFAULT_METHOD_KEYS}})
 
@@ -382,11 +402,11 @@ def estimate_touch(record: TouchRecord, context: SeamContext, *,
     est = method_estimate(d, record.probe, model_sha, thickness)
     est = replace(est, flags=tuple(seq_flags) + est.flags + (() if cal is not None else (Flag.UNCALIBRATED,)))
     if kind.sensor_chain and record.heater_on_t_s is not None:
-        chain = _chain(record, cal, context.estimator)
+        chain, chain_parts = _chain(record, cal, context.estimator)
         extra = (Flag.CONTACT_LOST,) if Flag.CONTACT_LOST in (chain.get("flags") or ()) else ()
         est = replace(est, calibration_sha256=chain["calibration_sha256"], flags=est.flags + extra,
                       details={**est.details, "sensor_chain": chain})
-        promoted = chain_answer(est, chain, context.estimator)
+        promoted = chain_answer(est, chain, context.estimator, chain_parts)
         if promoted is not None:
             est = promoted
     est = _recognise(est, context)

@@ -2,7 +2,7 @@
 
 One touch runs::
 
-    idle -> [cooldown] -> baseline -> heating -> (heater off) -> resampling -> estimating -> idle
+    idle -> [cooldown] -> baseline -> heating -> (heater off) -> estimating -> idle
 
 * **cooldown** (``cooldown_s`` since the last heating, on the board clock).
 * **baseline** (``baseline_s``, heater off): T0 is the mean thermocouple
@@ -96,6 +96,7 @@ class Phase(StrEnum):
     COOLDOWN = "cooldown"
     BASELINE = "baseline"
     HEATING = "heating"
+    #: Not entered any more (resampling is part of the estimate path); kept as a word of the protocol.
     RESAMPLING = "resampling"
     ESTIMATING = "estimating"
 
@@ -531,7 +532,7 @@ class MeasurementSequence:
                 self._finish(out, params, t_arr, T_arr, q_arr, any(sat), t_on, t_off,
                              np.array(dts, float).reshape(-1, 2) if len(dts) == t_arr.size else None)
             except Exception as e:
-                # Whatever breaks after the heating (a bug in resampling or flagging), the touch
+                # Whatever breaks after the heating (a bug in the record or the baseline), the touch
                 # heated and its raw data is returned for the record.
                 out.status, out.reason = Status.FAILED, Reason.INTERNAL
                 out.error, out.exception = f"{type(e).__name__}: {e}", e

@@ -82,9 +82,7 @@ from edge.hw.drivers.button import Button
 from edge.hw.drivers.heater import Heater, HeaterError, HeaterOffError
 from edge.hw.faults import SensorFault
 from edge.measure.sensors import make_sensors, thermocouple_resolution_K
-from edge.estimation.chain_decision import ChainDecision
-from edge.estimation.running import SequentialDecision
-from edge.measure.estimator_decision import EstimatorDecision
+from edge.estimation.running import SequentialDecision, decision_for
 from edge.measure.ready import Readiness
 from edge.measure.sequence import MeasurementParams, MeasurementSequence, Phase
 from edge.measure.watchdog import HeaterWatchdog, Limits
@@ -327,22 +325,18 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
         if objs is None or not len(objs):
             return None
         probe = self.config.board.probe
-        kind = method_class(probe)
-        if kind.running == "refit":
-            # A probe head with no early-time model (the small heater's sensor sees its heater's edge from
-            # the first samples): the running answer is the device's own estimator on the record so far.
-            return EstimatorDecision(objs, m.decide_posterior, m.decide_min_s, estimate_fn=self.estimator,
-                                     rate_Hz=params.sample_rate_Hz, heat_s=params.contact_time_s,
-                                     power_W=params.power_W, method=params.method,
-                                     T_age_s=getattr(self.sensors, "T_age_s", 0.0))
         store = getattr(self, "calibration", None)
         cal = store.current() if store is not None else None
-        if cal is not None and cal.probe == probe and kind.sensor_chain:
-            # Calibrated: the running answer is the same estimate the result will be (seam.chain_answer).
-            return ChainDecision(objs, m.decide_posterior, m.decide_min_s, calibration=cal)
-        return SequentialDecision(objs, m.decide_posterior, m.decide_min_s,
-                                  T_age_s=getattr(self.sensors, "T_age_s", 0.0),
-                                  T_resolution_K=getattr(self.sensors, "T_resolution_K", 0.0))
+        try:   # the answer's prior (the model bundle's library), for the calibrated chain's running answer
+            library = self._model_est.estimator().library
+        except (ModelStoreError, ValueError):
+            library = None
+        # The probe head's estimator kind decides (edge.estimation.running.decision_for).
+        return decision_for(method_class(probe), objs, m.decide_posterior, m.decide_min_s, library=library,
+                            calibration=cal if cal is not None and cal.probe == probe else None,
+                            estimate_fn=self.estimator, params=params,
+                            T_age_s=getattr(self.sensors, "T_age_s", 0.0),
+                            T_resolution_K=getattr(self.sensors, "T_resolution_K", 0.0))
 
     def _poll_readiness(self) -> None:
         """One idle reading of the probe for STATUS ``ready`` (at most one per sample period, board clock).

@@ -12,7 +12,7 @@ model is built once per time grid), and hands them out two ways:
 * calling it -- the probe head's estimator on a uniform grid,
   ``(t_s, dT_K, q_W_m2, power_W, method) -> dict`` with the installed calibration,
   for the running decision that refits the record so far
-  (:class:`edge.measure.estimator_decision.EstimatorDecision`).
+  (:class:`edge.estimation.running.EstimatorDecision`).
 
 Which estimator a probe head takes is data: its ``estimator`` kind
 (:data:`edge.estimation.methods.KINDS`), not its name.

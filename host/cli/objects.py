@@ -59,7 +59,7 @@ def add_parser(sub, parents):
     cal.add_argument("--touches", type=positive_int, default=None,
                      help="specimens per object, each touched at 0.5 / 1 / 1.5 / 2 s (default 30 for the paper "
                           "probe: z_crit is a tail quantile of the touches; 10 for the slower small-heater probe)")
-    cal.add_argument("--probe", choices=("paper", "small-heater"), default="paper",
+    cal.add_argument("--probe", choices=tuple(CALIBRATION_TOUCHES), default="paper",
                      help="probe head of the simulated touches: the paper's (e alone, exact 1-D model) or the "
                           "small-heater probe (e and alpha, on the faithful (r, z) world: about 1 s per specimen)")
     cal.add_argument("--seed", type=non_negative_int, default=0)
