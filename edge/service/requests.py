@@ -189,19 +189,29 @@ def series_page(record: Mapping[str, Any], measurement_id: int, which: str, offs
     # JSON has no NaN: a non-finite sample travels as null.
     values = [[x if math.isfinite(x) else None for x in np.asarray(a[offset:end], float).tolist()]
               if end > offset else [] for _, a in cols]
-    budget = max_payload - len(json.dumps(body, separators=(",", ":")))
-    n = used = 0
-    for i in range(end - offset):
-        cost = sum(len(json.dumps(v[i])) + 1 for v in values)  # the value and its comma
-        if used + cost > budget:
-            break
-        used += cost
-        n += 1
+    n = _samples_that_fit(body, values, end - offset, max_payload)
+    if n == 0 and end > offset and body.pop("header", None) is not None:
+        # A frame too small for the header and a sample: the samples first (the host then rebuilds the
+        # header from the measurement's record).
+        n = _samples_that_fit(body, values, end - offset, max_payload)
     if n == 0 and end > offset:
         raise CommandError(ErrorCode.INTERNAL, f"max_payload {max_payload} B is too small for one sample")
     for (name, _), v in zip(cols, values):
         body[name] = v[:n]
     return body
+
+
+def _samples_that_fit(body: dict[str, Any], values: list[list], n_max: int, max_payload: int) -> int:
+    """How many of the ``values``' samples fit in one reply beside ``body``."""
+    budget = max_payload - len(json.dumps(body, separators=(",", ":")))
+    n = used = 0
+    for i in range(n_max):
+        cost = sum(len(json.dumps(v[i])) + 1 for v in values)  # the value and its comma
+        if used + cost > budget:
+            break
+        used += cost
+        n += 1
+    return n
 
 
 def config_reply(values: dict[str, Any], max_payload: int) -> dict[str, Any]:

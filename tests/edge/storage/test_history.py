@@ -183,3 +183,15 @@ def test_version_1_database_is_migrated_and_loses_nothing(tmp_path):
         assert h.get(3, series=True)["touch_header"] == {"probe": "paper"}
     with History(path) as h:  # opening a migrated database again changes nothing
         assert h.count() == 3 and h.get(1, series=True)["power_W"] == 4.5
+
+
+def test_series_page_carries_the_header_first_and_gives_way_to_a_sample_in_a_small_frame():
+    """SERIES (edge.service.requests.series_page) sends the stored header on the raw series' first page."""
+    from edge.service.requests import series_page
+
+    rec = _rec(0, touch_header={"probe": "paper", "power_W": 5.0, "note": "x" * 300})
+    page = series_page(rec, 1, "raw", 0, None, 4096)
+    assert page["header"]["note"] == "x" * 300 and page["header"]["power_W"] == 5.0 and len(page["t_s"]) == 26
+    assert "header" not in series_page(rec, 1, "raw", 5, None, 4096)   # the first page only
+    small = series_page(rec, 1, "raw", 0, None, 300)   # no room for the header and a sample
+    assert "header" not in small and len(small["t_s"]) >= 1
