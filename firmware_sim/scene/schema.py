@@ -48,7 +48,7 @@ Top level::
     world?      str  "ideal" (default: exact 1-D, the estimator's idealisation) or "faithful"
                      (axisymmetric finite volumes: foam, finite heater, convection, as-built deviations)
     probe?      str  a name in edge.physics.geometry.PROBES: "paper" (default) or "small-heater";
-                     anything but "paper" needs world = "faithful"
+                     a probe head whose estimator is not 1-D ("thick_body") needs world = "faithful"
 
 At least one thermocouple reader (mcp9600 or ads122c04) and one flux reader
 (ads1115 or ads122c04) must be fitted; addresses must differ.

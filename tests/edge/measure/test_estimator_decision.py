@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from edge.recognition import KnownObject, ObjectSet
-from edge.measure.estimator_decision import EstimatorDecision
+from edge.estimation.running import EstimatorDecision
 
 P = KnownObject.from_properties
 SET = ObjectSet([P("pmma", "polymer", 0.185, 1178.35, 1429), P("glass", "glass", 1.0, 2500, 750),
