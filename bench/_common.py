@@ -137,7 +137,8 @@ def write_block(tag: str, text: str, path: Path = RESULTS_MD) -> Path:
     src = path.read_text()
     pat = re.compile(rf"(<!-- {re.escape(tag)}:begin -->\n).*?(<!-- {re.escape(tag)}:end -->)", re.S)
     if not pat.search(src):
-        raise SystemExit(f"{path.relative_to(ROOT)} has no <!-- {tag}:begin --> ... <!-- {tag}:end --> block")
+        name = path.relative_to(ROOT) if path.is_relative_to(ROOT) else path
+        raise SystemExit(f"{name} has no <!-- {tag}:begin --> ... <!-- {tag}:end --> block")
     path.write_text(pat.sub(lambda m: m.group(1) + text.rstrip() + "\n" + m.group(2), src))
     return path
 

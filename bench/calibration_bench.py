@@ -69,13 +69,13 @@ def main() -> None:
         if args.noise_bias_draws < 0:
             ap.error("--noise-bias-draws must be >= 0")
         if args.update_readme:
-            ap.error("--noise-bias-draws is for comparison; the README shows the shipped value")
+            ap.error("--noise-bias-draws is for comparison; docs/results.md shows the shipped value")
     if args.cal_smooth_growth is not None:
         import edge.calibration.fit as cal_fit
         if args.cal_smooth_growth < 1:
             ap.error("--cal-smooth-growth must be >= 1")
         if args.update_readme:
-            ap.error("--cal-smooth-growth is for comparison; the README shows the shipped value")
+            ap.error("--cal-smooth-growth is for comparison; docs/results.md shows the shipped value")
         cal_fit.CAL_SMOOTH_GROWTH = args.cal_smooth_growth
     from edge.calibration.fit import REFERENCE_U_REL, ReferenceTouch, fit_calibration
     from edge.estimation.chain_estimate import estimate_from_contact

@@ -169,7 +169,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=1000, help="measurements in the soak (default 1000)")
     ap.add_argument("--child", metavar="WORKDIR", help=argparse.SUPPRESS)
-    ap.add_argument("--update-readme", action="store_true", help="rewrite the README's daemon-bench block")
+    ap.add_argument("--update-readme", action="store_true", help="rewrite the daemon-bench block in docs/results.md")
     a = ap.parse_args(argv)
     if a.child:
         return child(a.child)
@@ -262,7 +262,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def readme_text(r: dict) -> str:
-    """The README's daemon figures, from one run's results."""
+    """The daemon figures of docs/results.md, from one run's results."""
     growth = r["object_growth_10_to_end"]
     edge_grew = {k: v for k, v in growth.items() if k.startswith("edge") and v > 0}
     c, ch, cc, inv = r["compute_ms"], r["chain_ms"], r["compute_and_commit_ms"], r["heater_invariant"]

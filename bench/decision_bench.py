@@ -302,7 +302,7 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
 
 
 def faithful_small_table(res: dict) -> str:
-    """The README block of :func:`run_faithful_small`."""
+    """The docs/results.md block of :func:`run_faithful_small`."""
     pct = lambda x: "-" if x is None else f"{x * 100:.0f} %"  # noqa: E731
     f = res["refit_ms"]
     per_object = {}
@@ -332,7 +332,7 @@ def faithful_small_table(res: dict) -> str:
 
 
 def faithful_table(res: dict) -> str:
-    """The README block of :func:`run_faithful`."""
+    """The docs/results.md block of :func:`run_faithful`."""
     pct = lambda x: "-" if x is None else f"{x * 100:.0f} %"  # noqa: E731
     L = [f"{res['n']} touches ({res['touches_per_object']} specimens of each of the {res['objects']} tactile "
          f"objects) by one as-built probe on the faithful world, precision board, threshold {res['threshold']:g} "
@@ -369,7 +369,7 @@ def main() -> None:
                    help="with --world faithful: the probe (small-heater: its own estimator's running answer)")
     p.add_argument("--fit-contact", action="store_true",
                    help="with --probe small-heater: its estimator fits the contact resistance too (not the default)")
-    p.add_argument("--update-readme", action="store_true", help="with --world faithful: rewrite its README block")
+    p.add_argument("--update-readme", action="store_true", help="with --world faithful: rewrite its block in docs/results.md")
     a = p.parse_args()
     if a.world == "faithful" and a.probe == "small-heater":
         w = time.perf_counter()

@@ -6,7 +6,7 @@ machine). Median [min-max] of ``--repeats`` runs.
 
 With ``--update-readme`` it also writes the demo's report (the per-touch and per-sample
 tables of both boards, from the last timed run: the scenes are seeded, so every run prints the same)
-into the README's ``demo-output`` block.
+into docs/results.md's ``demo-output`` block (the time into README.md's ``demo-bench``).
 
 Run:  python bench/demo_bench.py [--repeats 5] [--update-readme]
 Writes bench/results/demo.json.

@@ -12,7 +12,7 @@ timed inside fresh subprocesses (``python -c``), interleaved the same way;
 is reported alone to show how much of the import is its.
 
 Run:  python bench/ed25519_bench.py [--rounds 9] [--batch 20] [--update-readme]
-Writes bench/results/ed25519.json (and the README table between the ed25519-bench markers).
+Writes bench/results/ed25519.json (and the table between the ed25519-bench markers in docs/results.md).
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rounds", type=int, default=9)
     ap.add_argument("--batch", type=int, default=20)
-    ap.add_argument("--update-readme", action="store_true", help="rewrite the README table")
+    ap.add_argument("--update-readme", action="store_true", help="rewrite its table in docs/results.md")
     args = ap.parse_args(argv)
 
     from thermotouch_models import DEFAULT_BUNDLE  # noqa: PLC0415
@@ -101,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"wrote {path}")
     if args.update_readme:
         write_block("ed25519-bench", readme_table(result))
-        print("README.md table updated")
+        print("docs/results.md table updated")
     return 0
 
 
@@ -119,7 +119,7 @@ _README_ROWS = (
 
 
 def readme_table(result: dict) -> str:
-    """The README's table of the figures in ``result``."""
+    """The docs/results.md table of the figures in ``result``."""
     lines = ["| step | median | range |", "|---|---|---|"]
     for group, name, label in _README_ROWS:
         s = result[group][name]

@@ -177,7 +177,7 @@ def main():
         write_block("estimate-scaling-bench", markdown(res))
 
 
-#: The issue's targets (ms, MB) for the README table.
+#: The issue's targets (ms, MB) for its table in docs/results.md.
 TARGETS = {"touch_2s": "≤ 0.5 ms", "record_60s_100Hz": "≤ 20 ms, ≤ 80 MB", "record_10s_1kHz": "≤ 50 ms",
            "known_thickness_4s": "≤ 20 ms"}
 

@@ -179,7 +179,7 @@ def host_stops_reading(tmp: Path, silent_s: float = 60.0) -> dict:
 
 
 def table(res: dict) -> str:
-    """The README block."""
+    """The docs/results.md block."""
     kp = res["kill_points"]
     lines = ["| operation | kill points (by kind) | survived | lost / half-written | full restarts clean "
              "| ms per point |", "|---|---|---|---|---|---|"]
@@ -211,7 +211,7 @@ def table(res: dict) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--update-readme", action="store_true", help="write the table into README.md")
+    ap.add_argument("--update-readme", action="store_true", help="write the table into docs/results.md")
     ap.add_argument("--silent-s", type=float, default=60.0, help="how long the host stops reading (default 60 s)")
     args = ap.parse_args(argv)
     logging.disable(logging.WARNING)  # the daemons' own warnings (stray temporaries removed...) are expected
@@ -230,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"wrote {path.relative_to(ROOT)}")
     if args.update_readme:
         write_block("reliability-bench", text)
-        print("README.md updated")
+        print("docs/results.md updated")
     broken = sum(r["lost_or_half_written"] for r in res["kill_points"].values())
     return 1 if broken or not all(v["ok"] for v in res["signals"].values()) else 0
 

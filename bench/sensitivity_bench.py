@@ -1,4 +1,4 @@
-"""Two diagnoses behind the README's calibration notes, reproducible.
+"""Two diagnoses behind the calibration notes of docs/science.md, reproducible.
 
 1. The small-heater probe's response to its flux sensor's scale: for PMMA, tempered glass,
    AISI 304 and aluminium, a noise-free 5-s record of the axisymmetric model at 50 Hz, the

@@ -22,7 +22,7 @@ sensor.  Board: the
 precision option (ADS122C04 reading the thermocouple and the flux, 24 bit,
 0.15 uV rms) by default, ``--board reference`` for the MCP9600 (16 bit,
 0.2 K steps, 12.5 Hz) + ADS1115 (14 W/m^2 steps) board, on which the small
-heater's 0.7-1.6 K rise and ~900 W/m^2 are a few steps (see README).
+heater's 0.7-1.6 K rise and ~900 W/m^2 are a few steps (see docs/science.md).
 
 Solids: ``--solids`` synthetic solids NOT in the training library, k spread
 evenly in ln k from PMMA's (0.185) to aluminium's (237 W/m K), rho c from a
@@ -242,7 +242,7 @@ def main() -> None:
     ap.add_argument("--board", choices=("precision", "reference"), default="precision")
     ap.add_argument("--probes", default="small-heater,paper")
     ap.add_argument("--contact", choices=("ideal", "hand"), default="ideal",
-                    help="ideal (the README table) or the *_faithful scenes' touch (R_c, object off, lead)")
+                    help="ideal (the docs/results.md table) or the *_faithful scenes' touch (R_c, object off, lead)")
     ap.add_argument("--as-built", choices=("calibrated", "nominal"), default="calibrated",
                     help="calibrated: each touch's probe has a flux sensitivity off nominal by a draw from the "
                          "2 %% calibration spread the device's u carries; nominal: exactly the nominal sensor")

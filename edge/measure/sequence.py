@@ -264,6 +264,8 @@ class MeasurementSequence:
         self.answer: Any = None
         self.state = Phase.IDLE
         self._last_off: float | None = None
+        #: (on, off) board-clock times of this sequence's heatings within the duty window.
+        self._on_log: list[tuple[float, float]] = []
         #: The slowest sensor read of the touch in progress (s): measured per touch, so one slow read
         #: (a bus that hung once, then recovered) does not stop every later touch (ISSUE #35 §4).
         self._max_read_s = 0.0
@@ -346,6 +348,34 @@ class MeasurementSequence:
         self._wait(until)
         self._check_heat_off(ts, Ts, qs, "cool-down")
 
+    def duty_wait_s(self, heat_s: float, now: float | None = None) -> float:
+        """How long to wait before a heating of ``heat_s`` so no window of ``limits.duty_window_s`` holds
+        more than ``limits.max_duty`` of heater-on time (0: it may start now).
+
+        The on-time already in the window ending when this heating would end only falls as the start
+        moves later, so the earliest admissible start is found by bisection within one window.
+        """
+        now = self.clock.monotonic() if now is None else now
+        w, cap = self.limits.duty_window_s, self.limits.max_duty * self.limits.duty_window_s
+
+        def fits(start: float) -> bool:
+            lo = start + heat_s - w
+            past = sum(max(0.0, min(off, start) - max(on, lo)) for on, off in self._on_log)
+            return past + heat_s <= cap + 1e-9
+
+        if fits(now):
+            return 0.0
+        a, b = now, now + w  # at now + w every logged heating has left the window
+        for _ in range(40):
+            mid = 0.5 * (a + b)
+            a, b = (a, mid) if fits(mid) else (mid, b)
+        return b - now
+
+    def _log_heating(self, t_on: float, t_off: float) -> None:
+        self._on_log.append((t_on, t_off))
+        horizon = t_off - self.limits.duty_window_s
+        self._on_log = [(a, b) for a, b in self._on_log if b > horizon]
+
     # -- the run ---------------------------------------------------------------------
     def run(self, params: MeasurementParams) -> Outcome:
         """Run one measurement; never returns with the heater on.
@@ -376,9 +406,18 @@ class MeasurementSequence:
                     raise _Stop(Reason.STOPPED, "measurement stopped before it started")
                 if self.heater.disabled is not None:
                     raise _Stop(Reason.HEATER_FAULT, f"heater disabled: {self.heater.disabled}")
+                if heat_s > self.limits.max_duty * self.limits.duty_window_s:
+                    raise _Stop(Reason.MAX_ON_TIME, f"contact_time_s={heat_s:g} s exceeds the duty limit "
+                                f"{self.limits.max_duty:g} x {self.limits.duty_window_s:g} s; the heater stayed off")
                 if self._last_off is not None and params.cooldown_s > 0:
                     self._set_state(Phase.COOLDOWN)
                     self._cool_down(self._last_off + params.cooldown_s, period)
+                wait = self.duty_wait_s(heat_s)
+                if wait > 0:
+                    # The duty limit (ISSUE #35 §6): rest as in a cool-down until this touch fits.
+                    log.info("duty limit: %.2f s of rest before heating", wait)
+                    self._set_state(Phase.COOLDOWN)
+                    self._cool_down(self.clock.monotonic() + wait, period)
                 # ---- baseline
                 self._set_state(Phase.BASELINE)
                 if params.arm_s > 0:
@@ -472,6 +511,7 @@ class MeasurementSequence:
                         self._last_off = self.clock.monotonic()
                         if t_off is None:
                             t_off = self._last_off
+                        self._log_heating(t_on, self._last_off)
         except HeaterOffError as e:
             out.status, out.reason = Status.FAILED, Reason.HEATER_FAULT
             out.error, out.exception = str(e), e

@@ -24,13 +24,16 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class Limits:
-    """Safety limits: ``max_on_time_s`` (s), ``over_temperature_C`` (°C), and the heater-fault
-    thresholds ``fault_flux_W_m2`` (W/m^2) and ``fault_rise_K`` (K) (see ``[heater]`` in the config)."""
+    """Safety limits: ``max_on_time_s`` (s), ``over_temperature_C`` (°C), the heater-fault
+    thresholds ``fault_flux_W_m2`` (W/m^2) and ``fault_rise_K`` (K), and the duty limit: at most
+    ``max_duty`` of any ``duty_window_s`` with the heater on (see ``[heater]`` in the config)."""
 
     max_on_time_s: float
     over_temperature_C: float
     fault_flux_W_m2: float = 150.0
     fault_rise_K: float = 0.5
+    max_duty: float = 0.5
+    duty_window_s: float = 60.0
 
 
 class Trip(StrEnum):

@@ -217,6 +217,15 @@ class HeaterConfig:
         "float", 0.5, "SAFETY: temperature rise (K) that, with fault_flux_W_m2, marks heat (see there)",
         lo=0.0, hi=50.0, lo_open=True
     )
+    # The duty limit beside the per-touch limit: runtime settings (cooldown_s = 0, a tiny baseline)
+    # reached 99.8 % duty for 36 s, until the over-temperature cut (ISSUE #35 §6). Not a runtime key.
+    max_duty: float = setting(
+        "float", 0.5, "SAFETY: largest share of any duty_window_s the heater may be on (the sequence "
+        "waits before a touch that would exceed it)", lo=0.0, hi=1.0, lo_open=True
+    )
+    duty_window_s: float = setting(
+        "float", 60.0, "SAFETY: the sliding window of max_duty, s (>= max_on_time_s)", lo=1.0, hi=3600.0
+    )
 
 
 @dataclass(frozen=True)
@@ -459,6 +468,12 @@ def _check_consistency(v: Mapping[str, Mapping[str, Any]]) -> None:
             "measurement.contact_time_s",
             f"{m['contact_time_s']} s must be below heater.max_on_time_s = {h['max_on_time_s']} s",
         )
+    if h["duty_window_s"] < h["max_on_time_s"]:
+        raise ConfigError("heater.duty_window_s",
+                          f"{h['duty_window_s']} s must be at least heater.max_on_time_s = {h['max_on_time_s']} s")
+    if m["contact_time_s"] > h["max_duty"] * h["duty_window_s"]:
+        raise ConfigError("measurement.contact_time_s", f"{m['contact_time_s']} s is more heating than "
+                          f"heater.max_duty x duty_window_s = {h['max_duty'] * h['duty_window_s']:g} s allows")
     b = v["board"]
     if b["heater_enable_offset"] == b["trigger_offset"] and b["kind"] == "rpi":
         raise ConfigError("board.trigger_offset", "must differ from board.heater_enable_offset")

@@ -301,7 +301,8 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
         else:
             self.sequence = MeasurementSequence(
                 self.heater, self.sensors, self.board.clock,
-                Limits(h.max_on_time_s, h.over_temperature_C, h.fault_flux_W_m2, h.fault_rise_K),
+                Limits(h.max_on_time_s, h.over_temperature_C, h.fault_flux_W_m2, h.fault_rise_K, h.max_duty,
+                       h.duty_window_s),
                 self._estimate, self.config.measurement, watchdog=self.watchdog, abort_event=self.stop_event,
                 model_sha256=self._model_sha256, on_state=self._on_state, cancel_event=self._cancel,
                 beats=self.notifier, decision=self._make_decision, probe=self.config.board.probe)

@@ -91,6 +91,9 @@ def measure_params(config: Config, max_power_W: float, *, power_W: float | None 
     if contact >= h.max_on_time_s:
         raise CommandError(ErrorCode.BAD_ARGUMENT, f"contact_time_s={contact} must be below "
                            f"heater.max_on_time_s={h.max_on_time_s}", "contact_time_s")
+    if contact > h.max_duty * h.duty_window_s:
+        raise CommandError(ErrorCode.BAD_ARGUMENT, f"contact_time_s={contact} exceeds the duty limit "
+                           f"heater.max_duty x duty_window_s = {h.max_duty * h.duty_window_s:g} s", "contact_time_s")
     rate = m.sample_rate_Hz
     if sample_rate_Hz is not None:
         rate = min(float(sample_rate_Hz), max_sample_rate_Hz(config.sensors))

@@ -28,7 +28,7 @@ def add_parser(sub, parents):
     timing.add_argument("--time", type=conv, help=f"contact (heating) time, s ({rng})")
     timing.add_argument("--profile", choices=("quick", "standard", "precise"),
                         help="contact time of a measurement profile: quick 0.5 s, standard 2 s, precise 4 s "
-                             "(accuracy per profile: README, estimation tables)")
+                             "(accuracy per profile: docs/results.md, estimation tables)")
     p.add_argument("--until-decided", action="store_true",
                    help="stop heating as soon as the running answer's posterior reaches the device's "
                         "measurement.decide_posterior (at most the contact time); prints the answer and when")

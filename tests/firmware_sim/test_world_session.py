@@ -79,6 +79,7 @@ def _session(world, clock, drive, mcp, ads, n_touch, *, no_contact=False):
         t0 = clock.now() + 1.0
 
 
+@pytest.mark.slow  # sessions of touches, evaluated batched and one value at a time
 @pytest.mark.parametrize("name, tau, no_contact", [("glass_15V", 0.0, False), ("pmma_20V", 0.05, True),
                                                    ("alu_25V", 0.0, False)])
 def test_batched_evaluation_equals_one_inversion_per_value(name, tau, no_contact):
@@ -129,6 +130,7 @@ def test_lookahead_is_dropped_when_the_drive_changes():
     assert 0 < s.n and s.t[s.n - 1] < 1.3
 
 
+@pytest.mark.slow  # a long session of touches
 def test_a_long_session_costs_the_same_per_touch_and_retains_bounded_state():
     sc = read_scene("pmma_15V")
     clock, drive = VirtualClock(), ManualDrive()

@@ -143,6 +143,7 @@ def test_calibration_with_alpha_fits_the_joint_scatter_and_accepts_the_target_sh
     assert np.mean([r.candidates[0][0] == s.names[i] for r, i, m in zip(e_only, ti, tile) if m]) < 0.75
 
 
+@pytest.mark.slow  # touches simulated on the faithful world
 def test_small_heater_touches_on_the_faithful_world_measure_alpha_with_honest_uncertainty():
     from host.recognition import simulate_probe_touches
     glass = KnownObject.from_properties("glass", "glass", 1.0, 2500, 750, 0.0)

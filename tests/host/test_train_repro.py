@@ -10,6 +10,7 @@ NAMES = ("pmma", "tempered_glass", "aisi_304", "cork_board", "granite", "oak_cro
          "platinum", "plywood", "fused_silica")
 
 
+@pytest.mark.slow  # two retrains
 @pytest.mark.filterwarnings("ignore:lbfgs failed to converge")
 def test_same_seed_same_arrays_even_with_the_training_set_regenerated(tmp_path, monkeypatch):
     lib = load_materials()

@@ -48,6 +48,7 @@ def _feed(material: str, truth: str, offset_K: float, R_c: float):
     return raw, chain
 
 
+@pytest.mark.slow  # a touch on the faithful (r, z) world per case
 @pytest.mark.parametrize("material, truth, offset_K, R_c", [
     ("pmma", "acrylic_sheet", 2.0, 3e-5),
     ("soda_lime_plate_glass", "window", -1.5, 1e-5),

@@ -67,6 +67,7 @@ def _faithful_record(name: str):
     return t - 1.0, s["y"], s["q_sensor"], sc.object.solid.effusivity_W_s05_m2K, env.ambient_temperature_C
 
 
+@pytest.mark.slow  # twelve seconds of the faithful world per scene
 @pytest.mark.parametrize("name", ["glass_15V", "pmma_15V"])
 def test_faithful_world_contact_resistance_cold_object_and_depth_average(name):
     t, T, q, e_true, T_amb = _faithful_record(name)

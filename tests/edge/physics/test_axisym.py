@@ -99,6 +99,7 @@ def test_small_heater_matches_rz_reference(small, name, solid):
         assert err < spread, (name, key, err, spread)
 
 
+@pytest.mark.slow  # today's rz solve of every stored reference
 def test_stored_rz_reference_is_todays_rz():
     # Re-run the coarse rz case for glass and compare with the stored one.  The rz solver is a
     # time march with a fixed step (a run of n steps is the first n + 1 samples of a longer

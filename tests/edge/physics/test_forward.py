@@ -67,6 +67,7 @@ def _orders(errs):
     return np.log2(errs[:-1] / errs[1:])
 
 
+@pytest.mark.slow  # four grid refinements of three schemes
 def test_observed_convergence_orders():
     ref = simulate(GLASS, 1.0, 1.95, scheme="exact")
     paper, explicit, default = [], [], []

@@ -13,6 +13,7 @@ def test_default_out_is_the_first_free_numbered_sibling(tmp_path):
     assert default_out(tmp_path) == tmp_path / "thermotouch-demo-3"
 
 
+@pytest.mark.slow  # the whole demo, nine scenes and their plots
 @pytest.mark.hil
 def test_a_second_demo_writes_beside_the_first(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)

@@ -72,6 +72,7 @@ def test_corrupt_bundle_refused_one_line(capsys, glass_record, tmp_path):
     assert code == 2 and len(err.strip().splitlines()) == 1 and "refused" in err and "arrays.npz" in err
 
 
+@pytest.mark.slow  # the paper's cases and the identification evaluated in full
 def test_evaluate_json(capsys):
     code, out, err = run(capsys, "evaluate", "--json")
     assert code == 0, err
@@ -80,6 +81,7 @@ def test_evaluate_json(capsys):
     assert d["identification"]["top1_resolvable"] >= 0.97
 
 
+@pytest.mark.slow  # a retrain
 def test_train_quick_writes_a_loadable_bundle_and_refuses_overwrite(capsys, tmp_path, monkeypatch):
     from edge.model.bundle import load_bundle
     from edge.estimation.estimate import pipeline_golden_check

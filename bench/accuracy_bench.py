@@ -1,0 +1,132 @@
+"""What accuracy to expect, per probe head and board: the README's one table, from results already measured.
+
+Nothing is simulated here: every row is read from a bench's results file in bench/results/ (the long
+benches are not rerun), so the table changes exactly when one of them is rerun.
+
+* paper probe, ideal contact (``estimation.json``, ``lomo_default``): every library material touched
+  once for 2 s (q_v 7.7e7 W/m^3) on the exact model, with that material left out of the prior;
+* paper probe, a real contact (``calibration.json``, ``calibration_reference.json``): 8 as-built
+  probes x 20 library solids on the faithful world, R_c up to 1e-4 m^2K/W, the object -3..+3 K off
+  the probe, 10-s heating; the datasheet sensor chain (uncalibrated) and the calibrated one; results
+  flagged ``poor_fit`` are refused (not answered); k and α then come from the library prior given e;
+* small-heater probe (``small_probe.json``, ``small_probe_reference.json``): 20 synthetic solids off
+  the library, ideal contact, a calibrated thermopile (2 % spread); e from each touch's fitted k and α.
+
+Errors are |relative error| of the answered touches: median [90th percentile].
+
+Run:  python bench/accuracy_bench.py [--update-readme]
+Prints the table; --update-readme writes it between ``<!-- accuracy:begin -->`` and
+``<!-- accuracy:end -->`` in README.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+
+import numpy as np
+
+from _common import RESULTS, update_readme
+
+BOARDS = {"ads122c04": "precision (ADS122C04)", "mcp9600": "reference (MCP9600 + ADS1115)",
+          "precision": "precision (ADS122C04)", "reference": "reference (MCP9600 + ADS1115)"}
+
+
+def _load(name: str) -> dict:
+    return json.loads((RESULTS / f"{name}.json").read_text())
+
+
+def _stats(errs) -> tuple[float, float] | None:
+    """Median and 90th percentile of |relative error|, or None without answers."""
+    a = np.abs(np.asarray([e for e in errs if e is not None and math.isfinite(e)], float))
+    return (float(np.median(a)), float(np.percentile(a, 90))) if a.size else None
+
+
+def _fmt(s) -> str:
+    if s is None:
+        return "-"
+    if isinstance(s, str):
+        return s
+    med, p90 = s
+    return f"{_pct(med)} [{_pct(p90)}]"
+
+
+def _pct(x: float) -> str:
+    x *= 100
+    return f"{x:.2f} %" if x < 1 else f"{x:.1f} %" if x < 10 else f"{x:.0f} %"
+
+
+def paper_ideal_rows(est: dict) -> list[dict]:
+    """Paper probe, ideal contact, default method, each library material left out of the prior."""
+    n_total = int(est["manifest_metrics"]["n_materials"])
+    rows = []
+    for inst in ("ads122c04", "mcp9600"):
+        s = est["lomo_default"][inst]
+        rows.append(dict(probe="paper", board=BOARDS[inst], touch="ideal contact, 2 s, uncalibrated",
+                         answered=f"{s['e']['n']}/{n_total}",
+                         e=(s["e"]["median"], s["e"]["p90"]), k=(s["k"]["median"], s["k"]["p90"]),
+                         alpha=(s["alpha"]["median"], s["alpha"]["p90"]), kalpha="prior given e",
+                         source="estimation_bench.py"))
+    return rows
+
+
+def paper_real_rows(cal: dict, board: str, chains=("datasheet", "calibrated")) -> list[dict]:
+    """Paper probe (its 55 x 60 mm heater on foam) on the faithful world, per sensor chain."""
+    rows = []
+    for chain in chains:
+        sel = [r for r in cal["rows"] if r["geometry"] == "paper" and r["chain"] == chain]
+        ok = [r for r in sel if "poor_fit" not in r["flags"] and r.get("e") is not None]
+        label = "uncalibrated (datasheet chain)" if chain == "datasheet" else "calibrated chain"
+        rows.append(dict(probe="paper", board=BOARDS[board],
+                         touch=f"real contact, {cal['heat_s']:g} s, {label}", answered=f"{len(ok)}/{len(sel)}",
+                         e=_stats([r["e"] / r["e_true"] - 1.0 for r in ok]), k="prior", alpha="prior",
+                         kalpha="prior given e", source="calibration_bench.py"))
+    return rows
+
+
+def small_heater_rows(sp: dict, contacts=("2s", "5s")) -> list[dict]:
+    """Small-heater probe, ideal contact: k and α fitted; e from them."""
+    rows = []
+    for c in contacts:
+        ct = float(c.rstrip("s"))
+        sel = [r for r in sp["rows"] if r["probe"] == "small-heater" and r["contact_time_s"] == ct]
+        ok = [r for r in sel if r.get("err_k") is not None and r.get("err_alpha") is not None]
+        summ = sp["summary"]["small-heater"][c]
+        e_err = [(1.0 + r["err_k"]) / math.sqrt(1.0 + r["err_alpha"]) - 1.0 for r in ok]
+        rows.append(dict(probe="small-heater", board=BOARDS[sp["board"]], touch=f"ideal contact, {ct:g} s, calibrated",
+                         answered=f"{len(ok)}/{len(sel)}", e=_stats(e_err), k=_stats([r["err_k"] for r in ok]),
+                         alpha=_stats([r["err_alpha"] for r in ok]),
+                         kalpha=f"measured on {summ['determined_pct']:.0f} %", source="small_probe_bench.py"))
+    return rows
+
+
+def table() -> str:
+    """The README's accuracy table (Markdown) with the line that says where it comes from."""
+    rows = paper_ideal_rows(_load("estimation"))
+    rows += paper_real_rows(_load("calibration"), "precision")
+    rows += paper_real_rows(_load("calibration_reference"), "reference", chains=("calibrated",))
+    rows += small_heater_rows(_load("small_probe"))
+    rows += small_heater_rows(_load("small_probe_reference"), contacts=("5s",))
+    L = ["| probe | board | touch | answered | e | k | α | k and α | from |", "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        L.append(f"| {r['probe']} | {r['board']} | {r['touch']} | {r['answered']} | {_fmt(r['e'])} | {_fmt(r['k'])} "
+                 f"| {_fmt(r['alpha'])} | {r['kalpha']} | `bench/{r['source']}` |")
+    L += ["", "Cells: the |relative error| of the answered touches, median [90th percentile]; \"prior\": k and α from the "
+          "library prior given e (as in the ideal-contact rows). Built from `bench/results/*.json` by "
+          "`python bench/accuracy_bench.py --update-readme`; the full tables are in docs/results.md."]
+    return "\n".join(L)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--update-readme", action="store_true", help="write the table into README.md's accuracy block")
+    args = ap.parse_args()
+    text = table()
+    print(text)
+    if args.update_readme:
+        print(f"updated {update_readme('accuracy', text)}")
+
+
+if __name__ == "__main__":
+    main()
