@@ -57,7 +57,8 @@ log = logging.getLogger(__name__)
 MethodFn = Callable[..., Mapping[str, Any]]
 
 #: Fields of the chain's estimate kept in the answer's ``sensor_chain``: the answer and what judges it (the
-#: rest -- u's parts, the fit window -- is recomputable from the raw record; a HISTORY page is one frame).
+#: rest -- the fit window, ... -- is recomputable from the raw record; a HISTORY page is one frame; the
+#: chain's parts of u(e) become the answer's ``u_e_parts`` when its e is the answer).
 CHAIN_KEEP = ("contact_lost_t_s", "effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "contact_resistance_m2K_W",
               "contact_resistance_m2K_W_u", "object_temperature0", "object_temperature0_u", "contact_t_s",
               "normalised_residual", "flags", "determined", "alpha_m2_s", "alpha_m2_s_u", "k_W_mK", "k_W_mK_u")
@@ -103,6 +104,9 @@ class SeamContext:
     method : MethodFn or None
         Replaces the probe head's registered estimator (tests, benches); called with
         ``(t_s, dT_K, q_W_m2, power_W, method)``.
+    T_resolution_K : float or None
+        The thermometer's resolution the estimator carries into u(e); None: the record's (what the
+        device's converter had).
     methods : dict
         Built estimators per (probe, model): shared by the contexts of one device so the small
         heater's model is built once per grid (:meth:`with_` keeps it).
