@@ -114,3 +114,27 @@ class Flag(StrEnum):
     #: The iterative fit stopped before it converged.  Touch again; if it persists, keep the record
     #: (``thermotouch history --export``) for a report.
     NOT_CONVERGED = "not_converged"
+    # -- from the calibrated sensor chain and the seam (edge.estimation.seam)
+    #: No calibration for this probe head is installed: the answer uses the datasheet's sensor chain,
+    #: whose flux sensitivity, sensing depth and bead lag are off by tens of percent on a real probe.
+    #: Calibrate the probe on reference materials (``thermotouch calibrate``) and install the result.
+    UNCALIBRATED = "uncalibrated"
+    #: The sensor chain's fit leaves a residual well above the noise measured in air (normalised residual
+    #: above ``chain_estimate.POOR_FIT``): the chain does not describe this record (a moving probe, a
+    #: contact that changed, a record cut short).  Its e is not the answer; touch again, holding still.
+    POOR_FIT = "poor_fit"
+    #: The sensor chain could not be fitted at all (no positive effusivity fits the record): the answer,
+    #: if any, is the method's own.  Touch again; if it persists check the flux sensor's wiring.
+    NO_FIT = "no_fit"
+    #: The probe left the object while the heater was on (the face flux collapsed): every answer of this
+    #: record is suspect and the chain gives none.  Touch again and keep the probe on the object until
+    #: the measurement ends.
+    CONTACT_LOST = "contact_lost"
+    #: The finite heater's sideways loss moved e by more than 10 % (``chain_estimate.LATERAL_FLAG``): the
+    #: answer rests on the object's alpha and on the object being much larger than the heater.  Prefer a
+    #: larger object, or check the answer against one of known size.
+    LATERAL_SPREAD = "lateral_spread"
+    #: The record has no samples of the probe in air before the contact: the contact instant and the
+    #: probe's initial state are guessed, and u(e) carries the change of e with the fit's start.  Arm
+    #: the measurement (``--arm``) and touch after it starts, so the contact is recorded.
+    CONTACT_NOT_RECORDED = "contact_not_recorded"
