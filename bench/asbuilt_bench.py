@@ -196,8 +196,9 @@ def _f(x, fmt="+.1f") -> str:
 
 
 def table(summary: dict) -> str:
-    lines = ["| head | solid | e: nominal probe | e: drawn, median abs (min … max) | k: drawn median abs (min … max) "
-             "| α: drawn median abs (min … max) | k, α determined |", "|---|---|---|---|---|---|---|"]
+    lines = ["| head | solid | e: nominal probe | e: drawn, median abs (min … max) "
+             "| k: drawn median abs (min … max) | α: drawn median abs (min … max) | k, α determined |",
+             "|---|---|---|---|---|---|---|"]
     for head, per in summary.items():
         for name, s in per.items():
             e, k, a = s["effusivity_W_s05_m2K"], s["k_W_mK"], s["alpha_m2_s"]
@@ -231,9 +232,10 @@ def run(n_probes: int) -> dict:
                 r = row_of(head, probe, name, touch(sc, store, workdir))
                 r["wall_s"] = time.perf_counter() - t1
                 rows.append(r)
-                print(f"{head:12s} {probe:8s} {name:15s} e {_f(None if r['err_effusivity_W_s05_m2K'] is None else 100 * r['err_effusivity_W_s05_m2K'])} % "
-                      f"k {_f(None if r['err_k_W_mK'] is None else 100 * r['err_k_W_mK'])} % "
-                      f"alpha {_f(None if r['err_alpha_m2_s'] is None else 100 * r['err_alpha_m2_s'])} % "
+                pct = {q: None if r[f"err_{q}"] is None else 100 * r[f"err_{q}"]
+                       for q in ("effusivity_W_s05_m2K", "k_W_mK", "alpha_m2_s")}
+                print(f"{head:12s} {probe:8s} {name:15s} e {_f(pct['effusivity_W_s05_m2K'])} % "
+                      f"k {_f(pct['k_W_mK'])} % alpha {_f(pct['alpha_m2_s'])} % "
                       f"det={r['determined']} {r['flags']} {r['wall_s']:.1f} s", flush=True)
     return {"heads": list(BASE_SCENES), "base_scenes": BASE_SCENES, "solids": list(SOLIDS), "heat_s": HEAT_S,
             "probes_per_head": n_probes, "calibration": "none (uncalibrated device)",
@@ -258,7 +260,8 @@ def one_at_a_time(head: str, seed: int, name: str) -> dict:
     sc = scene_for(head, name, seed, 4000)
     full = draw_as_built(head, seed, sc)
     groups = {"all": tuple(f.name for f in dataclasses.fields(AsBuilt)), "none": (),
-              "sensing layer": ("sensing_thickness_m", "sensing_k_W_mK"), "flux sensitivity": ("flux_sensitivity_V_per_W_m2",),
+              "sensing layer": ("sensing_thickness_m", "sensing_k_W_mK"),
+              "flux sensitivity": ("flux_sensitivity_V_per_W_m2",),
               "thermocouple lag": ("thermocouple_time_constant_s",), "thermocouple radius": ("thermocouple_r_m",),
               "heater R": ("heater_resistance_ohm",), "heater TCR": ("heater_tcr_per_K",),
               "leads": ("heater_lead_resistance_ohm",), "sensor footprint": ("sensor",),

@@ -95,7 +95,8 @@ def test_a_scene_asks_for_a_drawn_probe(name):
 
 def test_explicit_as_built_keys_reach_the_world():
     sc = parse_scene(_with_as_built("glass_15V_faithful", "sensor_square = true\nsensor_offset_x_m = 0.3e-3\n"
-                                    "substrate_k_factor = 1.2\nthermocouple_r_m = 0.4e-3\nthermocouple_height_m = 2e-5\n"
+                                    "substrate_k_factor = 1.2\nthermocouple_r_m = 0.4e-3\n"
+                                    "thermocouple_height_m = 2e-5\n"
                                     "heater_lead_resistance_ohm = 0.2"))
     ab = as_built_for_scene(sc)
     assert ab.sensor == SquareSensor(offset_x_m=0.3e-3)

@@ -78,7 +78,8 @@ def test_lead_resistance_takes_its_share_of_the_supply():
 
 
 def test_a_denser_more_conducting_foam_takes_more_of_the_small_heaters_heat(small):
-    _, foam = run("glass_15V_small", "small-heater", AsBuilt(substrate_k_W_mK=0.036, substrate_rho_c_J_m3K=40 * 1400 * 1.15))
+    denser = AsBuilt(substrate_k_W_mK=0.036, substrate_rho_c_J_m3K=40 * 1400 * 1.15)
+    _, foam = run("glass_15V_small", "small-heater", denser)
     assert np.all(foam["q_sensor"] < 0.995 * small["q_sensor"])
     _, thin = run("glass_15V_small", "small-heater", AsBuilt(substrate_thickness_m=0.029))
     # 1 mm less foam changes nothing a 2-s touch sees (the heat does not reach its top).
