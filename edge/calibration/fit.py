@@ -157,6 +157,7 @@ def _solve(arrays, idx, prior, th0, u_th0, ln_e0, u_ln_e, p: np.ndarray) -> tupl
     """Levenberg-Marquardt from ``p``: the solution and its Jacobian (forward differences)."""
     residuals = _residual_fn(arrays, idx, prior, th0, u_th0, ln_e0, u_ln_e)
     steps = np.array(list(_STEPS) + [1e-4] * (p.size - NP))
+    centre, width = np.concatenate([th0, ln_e0]), np.concatenate([u_th0, u_ln_e])
     p = np.array(p, dtype=np.float64)
     r = residuals(p)
     cost = float(r @ r)
@@ -179,8 +180,12 @@ def _solve(arrays, idx, prior, th0, u_th0, ln_e0, u_ln_e, p: np.ndarray) -> tupl
             delta = np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), -g)
             p_new = p + delta
             p_new[2] = max(p_new[2], 0.0)   # a bead cannot lead its junction
-            r_new = residuals(p_new)
-            c_new = float(r_new @ r_new)
+            # A trial step that leaves the model's domain is a step too long, not an error: on touches
+            # whose contact the record cannot place (an object at the probe's own temperature) the
+            # normal equations are nearly singular, and an undamped step once sent ln flux_scale
+            # past exp's range ("OverflowError: math range error", ISSUE #34).
+            c_new, r_new = (_trial_cost(residuals, p_new) if np.all(np.abs(p_new - centre) <= _MAX_PRIOR_SIGMAS * width)
+                            else (math.inf, None))
             if c_new < cost:
                 improved = True
                 break
@@ -194,6 +199,21 @@ def _solve(arrays, idx, prior, th0, u_th0, ln_e0, u_ln_e, p: np.ndarray) -> tupl
         if done:
             break
     return p, J
+
+
+#: A trial step further than this many prior standard deviations from the prior is not evaluated (a step
+#: too long: the plausibility bounds refuse far less, and the chain's design turns NaN out there).
+_MAX_PRIOR_SIGMAS = 30.0
+
+
+def _trial_cost(residuals, p: np.ndarray) -> tuple[float, np.ndarray | None]:
+    """Sum of squares at ``p`` and the residuals; infinite (None) where the model cannot be evaluated."""
+    try:
+        r = residuals(p)
+    except (OverflowError, ValueError, np.linalg.LinAlgError):
+        return math.inf, None
+    c = float(r @ r)
+    return (c, r) if math.isfinite(c) else (math.inf, None)
 
 
 def _noise_bias(arrays, idx, noise, prior, th0, u_th0, ln_e0, u_ln_e, p: np.ndarray,
