@@ -49,21 +49,42 @@ def read_calibration(client: Any) -> tuple[ProbeCalibration | None, dict[str, An
 def check_record(record: dict[str, Any], reference_e: float, reference_u_rel: float) -> dict[str, Any]:
     """Does a touch of a reference agree with its value within the stated uncertainties (95 %)?
 
-    ``record``: a MEASURE reply; its ``result.sensor_chain`` is judged.  Returns ``holds`` (bool or
-    None when the chain gave no answer), the relative deviation and the z-score against the combined
-    uncertainty of the touch and the reference.
+    ``record``: a MEASURE reply; its answer -- what the device's one estimate path
+    (:func:`edge.estimation.seam.estimate_touch`) answered with the installed calibration -- is judged.
+    Returns ``holds`` (bool, or None when there is nothing to judge: no answer, an answer flagged
+    ``no_signal``/``no_contact``, or one that did not go through a calibration), the relative
+    deviation and the z-score against the combined uncertainty of the touch and the reference.  A
+    touch far outside what any calibration of this probe could move (the swapped-reference bound of
+    :func:`edge.calibration.fit.check_reference`) is not judged either: it is not that reference
+    (``wrong_object``), and recalibrating on it would be wrong.
     """
-    chain = (record.get("result") or {}).get("sensor_chain") or {}
-    e, u = chain.get("effusivity_W_s05_m2K"), chain.get("effusivity_W_s05_m2K_u")
+    from edge.calibration.fit import check_reference  # noqa: PLC0415
+    from edge.calibration.model import CalibrationError  # noqa: PLC0415
+
+    res = record.get("result") or {}
+    flags = list(res.get("flags") or record.get("flags") or [])
+    e, u = res.get("effusivity_W_s05_m2K"), res.get("effusivity_W_s05_m2K_u")
+    base = {"flags": flags, "calibration_sha256": res.get("calibration_sha256"), "method": res.get("method")}
+    blocked = [f for f in ("no_signal", "no_contact") if f in flags]
+    if blocked:
+        return {"holds": None, "why": f"the touch was flagged {', '.join(blocked)}", **base}
     if e is None or u is None or not (e > 0 and u > 0):
-        return {"holds": None, "why": chain.get("error") or "the touch gave no sensor-chain estimate",
-                "flags": chain.get("flags")}
+        chain = res.get("sensor_chain") or {}
+        return {"holds": None, "why": chain.get("error") or "the touch gave no answer", **base}
+    if "uncalibrated" in flags or res.get("calibration_sha256") is None:
+        return {"holds": None, "why": "the answer did not go through a calibration (uncalibrated)", **base}
+    try:
+        check_reference("touched", reference_e, e, u)
+    except CalibrationError:
+        return {"holds": None, "wrong_object": True, "e_W_s05_m2K": e, "u_e_W_s05_m2K": u,
+                "reference_e_W_s05_m2K": reference_e, "deviation_rel": e / reference_e - 1.0,
+                "why": f"the touch reads e {e:.0f}, {e / reference_e:.2g} x the reference's {reference_e:.0f}: "
+                       "not that reference (touch it, then check again)", **base}
     u_comb = math.hypot(u / e, reference_u_rel)
     dev = math.log(e / reference_e)
     z = dev / u_comb
     return {"holds": abs(z) <= 1.96, "e_W_s05_m2K": e, "u_e_W_s05_m2K": u, "reference_e_W_s05_m2K": reference_e,
-            "deviation_rel": math.expm1(dev), "z": z, "flags": chain.get("flags"),
-            "calibration_sha256": chain.get("calibration_sha256")}
+            "deviation_rel": math.expm1(dev), "z": z, **base}
 
 
 def touch_reference(client: Any, name: str, e_ref: float, *, heat_s: float = HEAT_s, arm_s: float = 30.0,
