@@ -432,9 +432,15 @@ def _checked(args, fit, touches, refs, records, device_id):
 
 
 def _contexts(records):
-    """Each reference record's estimate context, as ``thermotouch estimate`` builds it for that record."""
+    """Each reference record's estimate context: the shipped bundle, its method, the default thresholds.
+
+    The ``[measurement]`` thresholds are the defaults a device runs with.  ``thermotouch estimate``
+    reads an export's ``measurement.*`` header lines over them (``host.cli.estimate._thresholds``);
+    importing it here would close an import cycle (estimate imports this module's
+    ``calibration_file``), so an export from a device with other thresholds may be judged
+    differently here: they set the quality flags (which can withhold an answer), not the fit.
+    """
     from host.cli.common import seam_context  # noqa: PLC0415
-    from host.cli.estimate import _thresholds  # noqa: PLC0415 - the one reading of an export's settings
 
     cache = {}
     out = []
@@ -442,11 +448,9 @@ def _contexts(records):
         if rec is None:
             out.append(None)
             continue
-        meta = dict(rec.meta)
-        key = (rec.method, tuple(sorted((k, v) for k, v in meta.items() if k.startswith("measurement."))))
-        if key not in cache:
-            cache[key] = seam_context(None, thresholds=_thresholds(meta), method=rec.method)
-        out.append(cache[key])
+        if rec.method not in cache:
+            cache[rec.method] = seam_context(None, method=rec.method)
+        out.append(cache[rec.method])
     return out
 
 
