@@ -322,9 +322,7 @@ def chain_answer(est: Estimate, chain: Mapping[str, Any], estimator: Any,
     """
     if est.method not in ("default", "paper") or chain.get("calibration_sha256") is None or "error" in chain:
         return None
-    if BLOCKERS & set(chain.get("flags") or ()) or {Flag.NO_SIGNAL, Flag.NO_CONTACT} & set(est.flags):
-        # A touch the device judged empty (no signal, no contact) gets no answer: a calibrated chain's
-        # e is never promoted over that verdict (ISSUE #34: 14 020 +- 910 on a touch flagged no_signal).
+    if BLOCKERS & set(chain.get("flags") or ()):
         return None
     e, u = _num(chain.get("effusivity_W_s05_m2K")), _num(chain.get("effusivity_W_s05_m2K_u"))
     if e is None or u is None or not (e > 0 and u > 0) or estimator is None:

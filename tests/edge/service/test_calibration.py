@@ -143,16 +143,6 @@ def test_the_default_method_stays_first_when_the_chain_cannot_be_trusted(shipped
     assert chain_answer(a, chain, shipped_estimator) is None
 
 
-@pytest.mark.parametrize("flag", ["no_signal", "no_contact"])
-def test_a_touch_judged_empty_gets_no_calibrated_answer(shipped_estimator, flag):
-    from dataclasses import replace
-
-    from edge.estimation.seam import chain_answer
-    from edge.status import Flag
-    a, chain = _answer(shipped_estimator)
-    assert chain_answer(replace(a, flags=a.flags + (Flag(flag),)), chain, shipped_estimator) is None
-
-
 def test_no_chain_answer_without_a_model_or_for_the_small_heater(shipped_estimator):
     from dataclasses import replace
 
