@@ -195,6 +195,11 @@ class ProbeCalibration:
                        tc_tau_s=float(max(th[2], 0.0)), k_W_mK=k, alpha_m2_s=k / rho_c)
 
     @property
+    def created_time(self) -> datetime:
+        """:attr:`created_utc` as an aware UTC datetime (the order of calibrations; CalibrationError if none)."""
+        return parse_created_utc(self.created_utc)
+
+    @property
     def u_theta(self) -> np.ndarray:
         """Standard uncertainties of theta."""
         return np.sqrt(np.diag(self.covariance))
@@ -306,11 +311,21 @@ class ProbeCalibration:
 
 
 def parse_created_utc(text: str) -> datetime:
-    """``created_utc`` as an aware datetime. Raises :class:`CalibrationError` when it is not YYYY-MM-DDTHH:MM:SSZ."""
+    """``created_utc`` as an aware datetime: YYYY-MM-DDTHH:MM:SSZ (what calibrate writes) or ISO 8601 at UTC.
+
+    Raises :class:`CalibrationError` for anything else (a calibration must be ordered against another).
+    """
     try:
         return datetime.strptime(str(text), TIME_FORMAT).replace(tzinfo=timezone.utc)
     except ValueError:
-        raise CalibrationError(f"created_utc: {text!r} is not YYYY-MM-DDTHH:MM:SSZ (cannot order it)") from None
+        pass
+    try:
+        t = datetime.fromisoformat(str(text))
+    except ValueError:
+        t = None
+    if t is None or t.utcoffset() is None or t.utcoffset().total_seconds() != 0:
+        raise CalibrationError(f"created_utc: {text!r} is not YYYY-MM-DDTHH:MM:SSZ (cannot order it)")
+    return t.astimezone(timezone.utc)
 
 
 def check_plausible(cal: ProbeCalibration) -> None:

@@ -43,7 +43,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Protocol
 
-from edge.security.policy import UpdateRefused, release_time
+from edge.security.policy import UpdateRefused
 from edge.storage import durable
 
 __all__ = ["CalibrationStore", "CalibrationStoreError", "StoredCalibration"]
@@ -75,8 +75,10 @@ class StoredCalibration(Protocol):
     probe: str
     #: False for the uncalibrated datasheet chain (never installed).
     calibrated: bool
-    #: YYYY-MM-DDTHH:MM:SSZ: the order of calibrations.
+    #: As written in the file.
     created_utc: str
+    #: created_utc as an aware UTC datetime (raises ValueError when it cannot be ordered).
+    created_time: datetime
     #: The device it was made for (None: not bound).
     device_id: str | None
 
@@ -212,8 +214,8 @@ class CalibrationStore:
                                         "only calibrations made for it (thermotouch calibrate on it, or records "
                                         "exported from it)")
         try:
-            new_t = release_time({"created_utc": cal.created_utc}, "calibration")
-        except UpdateRefused as e:
+            new_t = cal.created_time
+        except ValueError as e:
             raise CalibrationStoreError(f"calibration refused: {e}") from None
         now = self.now()
         if (new_t - now).total_seconds() > FUTURE_SLACK_s:
@@ -226,8 +228,8 @@ class CalibrationStore:
         if old is None or self._stored_sha256() == hashlib.sha256(blob).hexdigest():
             return
         try:
-            old_t = release_time({"created_utc": old.created_utc}, "installed calibration")
-        except UpdateRefused:
+            old_t = old.created_time
+        except ValueError:
             return       # an installed file from before created_utc was checked cannot be ordered
         if new_t <= old_t and getattr(old, "sha256", None) != getattr(cal, "sha256", object()):
             raise CalibrationStoreError(f"calibration refused: created {cal.created_utc}, not newer than the "
