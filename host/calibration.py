@@ -121,7 +121,11 @@ def touch_reference(client: Any, name: str, e_ref: float, *, heat_s: float = HEA
                         "lift it, then touch again")
     from host.touch import touch_record  # noqa: PLC0415
 
-    return ReferenceTouch(name, e_ref, t, T, q), rec, touch_record(rec, s, arm_s=arm_s)
+    # The SERIES reply carries the device's record header as ``header`` (what history --export-series
+    # writes); host.touch.touch_record reads ``touch_header``: without it the record would be rebuilt
+    # from defaults, and the self-check would re-measure another record than the export's.
+    series = dict(s, touch_header=s.get("touch_header") or s.get("header"))
+    return ReferenceTouch(name, e_ref, t, T, q), rec, touch_record(rec, series, arm_s=arm_s)
 
 
 def reference_scene(scene: str, name: str, dest_dir: Any, *, heat_s: float = HEAT_s, settle_s: float = 1.0):
