@@ -11,6 +11,18 @@ JSON (atomically; an existing file only with ``--overwrite``).  ``thermotouch es
 --calibration CAL.json`` uses it.  Records should start with the probe in air, before contact (see
 ``host/records.py``).
 
+Every fit checks itself (ISSUE #34): each reference is re-measured -- through the one estimate
+path, :func:`edge.estimation.seam.estimate_touch` -- by the calibration fitted without it, and the
+misses must pass a chi^2 test at p = 0.99 (:mod:`edge.calibration.selfcheck`); otherwise the
+calibration is refused (exit 2, one line naming the reference and its miss) unless ``--force``,
+which writes it flagged ``forced`` with a model-form floor (``u_rel_floor``) covering the misses.
+The references' ``rel_errors`` are what ``thermotouch estimate`` answers on the same record with
+the written file.  Refused before fitting: records of another probe head (their ``# probe:``
+line), records without the samples in air before contact, a touch whose datasheet e is outside
+x 2 (+ 3 u) of its declared reference (swapped names), records of two devices.  The file names the
+device it is for: the walk-through's INFO ``device_id``, or the exports' ``# device_id:`` header
+(none: a file only a device that allows unsigned updates takes).
+
 On the probe (``--port PORT`` or ``--sim SCENE``)::
 
     thermotouch calibrate --install CAL.json [--key SECRET.json]   # verified, signed, stored atomically
