@@ -17,7 +17,7 @@ from edge.calibration.model import ProbeCalibration
 from edge.protocol.commands import Command
 
 __all__ = ["install_calibration", "read_calibration", "check_record", "touch_reference", "reference_scene",
-           "WalkError", "HEAT_s"]
+           "WalkError", "HEAT_s", "CalibrationRefused", "seam_remeasure", "checked_calibration"]
 
 #: Heating time of a reference touch (s): long enough for a metal's rise to stand well out of the
 #: thermometer's noise (the chain's fit weighs the whole record).
@@ -49,28 +49,50 @@ def read_calibration(client: Any) -> tuple[ProbeCalibration | None, dict[str, An
 def check_record(record: dict[str, Any], reference_e: float, reference_u_rel: float) -> dict[str, Any]:
     """Does a touch of a reference agree with its value within the stated uncertainties (95 %)?
 
-    ``record``: a MEASURE reply; its ``result.sensor_chain`` is judged.  Returns ``holds`` (bool or
-    None when the chain gave no answer), the relative deviation and the z-score against the combined
-    uncertainty of the touch and the reference.
+    ``record``: a MEASURE reply; its answer -- what the device's one estimate path
+    (:func:`edge.estimation.seam.estimate_touch`) answered with the installed calibration -- is judged.
+    Returns ``holds`` (bool, or None when there is nothing to judge: no answer, an answer flagged
+    ``no_signal``/``no_contact``, or one that did not go through a calibration), the relative
+    deviation and the z-score against the combined uncertainty of the touch and the reference.  A
+    touch far outside what any calibration of this probe could move (the swapped-reference bound of
+    :func:`edge.calibration.fit.check_reference`) is not judged either: it is not that reference
+    (``wrong_object``), and recalibrating on it would be wrong.
     """
-    chain = (record.get("result") or {}).get("sensor_chain") or {}
-    e, u = chain.get("effusivity_W_s05_m2K"), chain.get("effusivity_W_s05_m2K_u")
+    from edge.calibration.fit import check_reference  # noqa: PLC0415
+    from edge.calibration.model import CalibrationError  # noqa: PLC0415
+
+    res = record.get("result") or {}
+    flags = list(res.get("flags") or record.get("flags") or [])
+    e, u = res.get("effusivity_W_s05_m2K"), res.get("effusivity_W_s05_m2K_u")
+    base = {"flags": flags, "calibration_sha256": res.get("calibration_sha256"), "method": res.get("method")}
+    blocked = [f for f in ("no_signal", "no_contact") if f in flags]
+    if blocked:
+        return {"holds": None, "why": f"the touch was flagged {', '.join(blocked)}", **base}
     if e is None or u is None or not (e > 0 and u > 0):
-        return {"holds": None, "why": chain.get("error") or "the touch gave no sensor-chain estimate",
-                "flags": chain.get("flags")}
+        chain = res.get("sensor_chain") or {}
+        return {"holds": None, "why": chain.get("error") or "the touch gave no answer", **base}
+    if "uncalibrated" in flags or res.get("calibration_sha256") is None:
+        return {"holds": None, "why": "the answer did not go through a calibration (uncalibrated)", **base}
+    try:
+        check_reference("touched", reference_e, e, u)
+    except CalibrationError:
+        return {"holds": None, "wrong_object": True, "e_W_s05_m2K": e, "u_e_W_s05_m2K": u,
+                "reference_e_W_s05_m2K": reference_e, "deviation_rel": e / reference_e - 1.0,
+                "why": f"the touch reads e {e:.0f}, {e / reference_e:.2g} x the reference's {reference_e:.0f}: "
+                       "not that reference (touch it, then check again)", **base}
     u_comb = math.hypot(u / e, reference_u_rel)
     dev = math.log(e / reference_e)
     z = dev / u_comb
     return {"holds": abs(z) <= 1.96, "e_W_s05_m2K": e, "u_e_W_s05_m2K": u, "reference_e_W_s05_m2K": reference_e,
-            "deviation_rel": math.expm1(dev), "z": z, "flags": chain.get("flags"),
-            "calibration_sha256": chain.get("calibration_sha256")}
+            "deviation_rel": math.expm1(dev), "z": z, **base}
 
 
 def touch_reference(client: Any, name: str, e_ref: float, *, heat_s: float = HEAT_s, arm_s: float = 30.0,
                     settle_s: float = 1.0):
     """One armed touch of reference ``name`` and its raw record as a fit input.
 
-    Returns ``(ReferenceTouch, record)``.  Raises :class:`WalkError` when the touch cannot be used:
+    Returns ``(ReferenceTouch, record, TouchRecord or None)``: the fit's input, the MEASURE reply and the
+    touch as the estimate path takes it (:func:`host.touch.touch_record`; the self-check re-measures it).  Raises :class:`WalkError` when the touch cannot be used:
     it did not come within ``arm_s`` (``no_contact``), it was aborted or refused, or the chain found
     no contact in the record (the probe was already on the reference when it was armed).
     """
@@ -97,7 +119,13 @@ def touch_reference(client: Any, name: str, e_ref: float, *, heat_s: float = HEA
     if "contact_not_recorded" in (chain.get("flags") or []):
         raise WalkError(f"{name}: the record starts in contact (the probe was on the reference when armed); "
                         "lift it, then touch again")
-    return ReferenceTouch(name, e_ref, t, T, q), rec
+    from host.touch import touch_record  # noqa: PLC0415
+
+    # The SERIES reply carries the device's record header as ``header`` (what history --export-series
+    # writes); host.touch.touch_record reads ``touch_header``: without it the record would be rebuilt
+    # from defaults, and the self-check would re-measure another record than the export's.
+    series = dict(s, touch_header=s.get("touch_header") or s.get("header"))
+    return ReferenceTouch(name, e_ref, t, T, q), rec, touch_record(rec, series, arm_s=arm_s)
 
 
 def reference_scene(scene: str, name: str, dest_dir: Any, *, heat_s: float = HEAT_s, settle_s: float = 1.0):
@@ -120,3 +148,93 @@ def reference_scene(scene: str, name: str, dest_dir: Any, *, heat_s: float = HEA
     return scene_variant(scene, dest_dir, suffix=f"_ref_{name}",
                          object={"material": name, "thickness_m": 0.05, "back": "insulated"}, touch=touch)
 
+
+
+class CalibrationRefused(ValueError):
+    """A calibration its own self-check refuses (one line naming the reference and its miss)."""
+
+
+def seam_remeasure(records, contexts):
+    """``remeasure(cal, j)``: touch ``j``'s answer with ``cal`` through the one estimate path, as the device answers.
+
+    ``records``: the references' :class:`~edge.estimation.record.TouchRecord` (None: the touch has no
+    record the path can take); ``contexts``: their :class:`~edge.estimation.seam.SeamContext` without a
+    calibration.  An answer that did not go through ``cal`` (the calibrated path refused it) is no answer.
+    """
+    from dataclasses import replace  # noqa: PLC0415
+
+    from edge.estimation.seam import estimate_touch  # noqa: PLC0415
+
+    def remeasure(cal, j):
+        if records[j] is None:
+            return None
+        try:
+            d = estimate_touch(records[j], replace(contexts[j], calibration=cal)).to_dict()
+        except (ValueError, ArithmeticError):
+            return None
+        if d.get("calibration_sha256") != cal.sha256 or "uncalibrated" in (d.get("flags") or []):
+            return None
+        e, u = d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u")
+        return None if e is None or u is None else (float(e), float(u))
+    return remeasure
+
+
+def checked_calibration(fit, touches, names, e_refs, u_refs, remeasure, *, force: bool = False,
+                        device_id: str | None = None):
+    """Fit, check by leave-one-reference-out, set the model-form floor, re-measure through the estimate path.
+
+    Parameters
+    ----------
+    fit : callable (touches, min_references) -> ProbeCalibration
+        The probe head's fit (:func:`edge.calibration.fit.fit_calibration` or
+        :func:`edge.calibration.axi.fit_flux_scale`).
+    touches : list
+        The fit's reference touches; ``names``, ``e_refs``, ``u_refs`` per touch.
+    remeasure : callable (cal, j) -> (e, u_e) or None
+        :func:`seam_remeasure`.
+    force : bool
+        Write a calibration whose self-check failed, flagged ``forced`` with a floor that covers its misses.
+    device_id : str, optional
+        The device it is for (written into the file; the device refuses another's).
+
+    Returns
+    -------
+    (ProbeCalibration, edge.calibration.selfcheck.SelfCheck)
+
+    Raises
+    ------
+    edge.calibration.model.CalibrationError
+        The fit refused its inputs, or the result is implausible.
+    CalibrationRefused
+        The self-check failed and ``force`` is not set.
+    """
+    from dataclasses import replace  # noqa: PLC0415
+
+    from edge.calibration.model import ReferenceFit, check_plausible  # noqa: PLC0415
+    from edge.calibration.selfcheck import leave_one_out  # noqa: PLC0415
+
+    cal0 = fit(touches, 2)
+    check = leave_one_out(names, e_refs, u_refs, lambda name: fit([t for t, n in zip(touches, names) if n != name], 1),
+                          remeasure)
+    if not check.passed and not force:
+        raise CalibrationRefused(f"calibration refused: {check.line()} (--force writes it flagged, with a "
+                                 f"model-form floor of {check.floor:.1%})")
+    # The model-form floor: what the held-out references show the model does not describe, or the fit's
+    # own transfer floor where that is larger.
+    floor = max(float(cal0.u_rel_floor), check.floor)
+    cal = replace(cal0, u_rel_floor=floor, device_id=device_id, forced=not check.passed,
+                  self_check=check.to_dict())
+    # What the calibration reports for its references is what the device will answer: each touch
+    # through the estimate path with this calibration (its e does not depend on the references' entries).
+    per: dict[str, list[float]] = {}
+    for j, n in enumerate(names):
+        got = remeasure(cal, j)
+        per.setdefault(n, [])
+        if got is not None:
+            per[n].append(got[0] / e_refs[j] - 1.0)
+    first = {n: j for j, n in reversed(list(enumerate(names)))}
+    refs = tuple(ReferenceFit(n, float(e_refs[first[n]]), float(u_refs[first[n]]), len(v), tuple(v))
+                 for n, v in sorted(per.items()) if v)
+    cal = replace(cal, references=refs)
+    check_plausible(cal)
+    return cal, check

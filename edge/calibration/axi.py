@@ -29,6 +29,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 
+from edge.calibration.fit import check_reference
 from edge.calibration.model import CalibrationError, ProbeCalibration, ReferenceFit
 from edge.physics.probe import FLUX_SENSITIVITY_U_REL
 
@@ -71,7 +72,7 @@ def _touch_rows(estimator, touch: AxiReferenceTouch, scale: float) -> tuple[list
     return rows, res, d
 
 
-def fit_flux_scale(estimator, touches: list[AxiReferenceTouch]) -> ProbeCalibration:
+def fit_flux_scale(estimator, touches: list[AxiReferenceTouch], *, min_references: int = 2) -> ProbeCalibration:
     """Fit the small-heater probe's flux scale to reference touches (see the module docstring).
 
     Parameters
@@ -81,19 +82,29 @@ def fit_flux_scale(estimator, touches: list[AxiReferenceTouch]) -> ProbeCalibrat
     touches : list of AxiReferenceTouch
         At least two different references.
 
+    ``min_references``: fewest different references (the leave-one-out self-check fits on one less).
+    The model-form floor (``u_rel_floor``) is 0 here: it is the self-check's, from the references
+    re-measured without themselves (:mod:`edge.calibration.selfcheck`).
+
     Raises
     ------
     CalibrationError
-        Fewer than two references, or none of the touches determined k and alpha.
+        Fewer than two references, a touch whose e contradicts its reference
+        (:func:`edge.calibration.fit.check_reference`), or none of the touches determined k and alpha.
     """
-    if len({t.name for t in touches}) < 2:
+    if len({t.name for t in touches}) < min_references:
         raise CalibrationError("calibration needs touches of at least two different references")
     x = 0.0
-    for _ in range(ITERATIONS):
+    for it in range(ITERATIONS):
         J, r = [1.0 / FLUX_SENSITIVITY_U_REL], [x / FLUX_SENSITIVITY_U_REL]
         used = 0
         for tc in touches:
-            rows, res, _ = _touch_rows(estimator, tc, math.exp(x))
+            rows, res, d = _touch_rows(estimator, tc, math.exp(x))
+            if it == 0:
+                # The datasheet scale's e against the declared reference: swapped names are refused
+                # before they are fitted (the same bound as the paper probe's).
+                check_reference(tc.name, tc.k_W_mK / math.sqrt(tc.alpha_m2_s), d.get("effusivity_W_s05_m2K"),
+                                d.get("effusivity_W_s05_m2K_u"))
             J += rows
             r += res
             used += bool(rows)

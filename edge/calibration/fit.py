@@ -50,7 +50,7 @@ from edge.calibration.model import N_PARAMETERS as NP, CalibrationError, ProbeCa
 from edge.estimation.contact import find_contact
 from edge.estimation.sensor_chain import chain_design, fit_sensor_chain, simulate_chain
 
-__all__ = ["DEFAULT_REFERENCES", "REFERENCE_U_REL", "ReferenceTouch", "fit_calibration"]
+__all__ = ["DEFAULT_REFERENCES", "REFERENCE_U_REL", "ReferenceTouch", "check_reference", "fit_calibration"]
 
 #: The references a user is walked through by default (one polymer, one ceramic, one metal).
 DEFAULT_REFERENCES = ("pmma", "pyroceram", "aisi_304")
@@ -59,6 +59,10 @@ DEFAULT_REFERENCES = ("pmma", "pyroceram", "aisi_304")
 #: grades differ by a few per cent.  Any other library material: a handbook value (5 %).
 REFERENCE_U_REL = {"pmma": 0.03, "pyroceram": 0.02, "aisi_304": 0.02}
 OTHER_REFERENCE_U_REL = 0.05
+#: Swapped-reference bound (:func:`check_reference`): the datasheet probe's e within this factor of the
+#: reference's, widened by SWAP_SIGMAS of the touch's own stated u.
+SWAP_RATIO = 2.0
+SWAP_SIGMAS = 3.0
 FIT_START_s = 0.3
 #: How fast the storage term's smoothing widens after contact and heater-on in the calibration's fit
 #: (samples per sample of half-width; the estimator's is sensor_chain.SMOOTH_GROWTH = 6).  The
@@ -105,9 +109,20 @@ class ReferenceTouch:
 
 def _from_contact(touch: ReferenceTouch):
     """(t from contact, T, q, breaks, noise_T, noise_q): the record from its contact on, where the heater
-    switched on, and the noise of T and q measured in air before contact."""
+    switched on, and the noise of T and q measured in air before contact.
+
+    Raises :class:`CalibrationError` for a record that does not start in air: the chain's fit starts
+    at contact, and a record without its pre-contact phase (an export cut at heater-on, another probe
+    head's record) has no contact to start from.
+    """
     t, T, q = (np.asarray(x, dtype=np.float64) for x in (touch.t_s, touch.T_C, touch.q_W_m2))
-    c = find_contact(t, T, q)
+    try:
+        c = find_contact(t, T, q)
+    except ValueError as exc:
+        raise CalibrationError(f"reference {touch.name}: {exc}") from None
+    if not c.recorded_in_air:
+        raise CalibrationError(f"reference {touch.name}: the record does not start in air before contact (the "
+                               "chain's fit needs the pre-contact phase: record from before the touch)")
     i = c.index
     return (t[i:] - t[i], T[i:], q[i:], ((-float(t[i]),) if t[i] < 0 else ()),
             _measured(c.noise_T_K, NOISE_FLOOR_T_K), _measured(c.noise_q_W_m2, NOISE_FLOOR_q_W_m2))
@@ -157,6 +172,7 @@ def _solve(arrays, idx, prior, th0, u_th0, ln_e0, u_ln_e, p: np.ndarray) -> tupl
     """Levenberg-Marquardt from ``p``: the solution and its Jacobian (forward differences)."""
     residuals = _residual_fn(arrays, idx, prior, th0, u_th0, ln_e0, u_ln_e)
     steps = np.array(list(_STEPS) + [1e-4] * (p.size - NP))
+    centre, width = np.concatenate([th0, ln_e0]), np.concatenate([u_th0, u_ln_e])
     p = np.array(p, dtype=np.float64)
     r = residuals(p)
     cost = float(r @ r)
@@ -179,8 +195,12 @@ def _solve(arrays, idx, prior, th0, u_th0, ln_e0, u_ln_e, p: np.ndarray) -> tupl
             delta = np.linalg.solve(A + lam * np.diag(np.diag(A) + 1e-12), -g)
             p_new = p + delta
             p_new[2] = max(p_new[2], 0.0)   # a bead cannot lead its junction
-            r_new = residuals(p_new)
-            c_new = float(r_new @ r_new)
+            # A trial step that leaves the model's domain is a step too long, not an error: on touches
+            # whose contact the record cannot place (an object at the probe's own temperature) the
+            # normal equations are nearly singular, and an undamped step once sent ln flux_scale
+            # past exp's range ("OverflowError: math range error", ISSUE #34).
+            c_new, r_new = (_trial_cost(residuals, p_new) if np.all(np.abs(p_new - centre) <= _MAX_PRIOR_SIGMAS * width)
+                            else (math.inf, None))
             if c_new < cost:
                 improved = True
                 break
@@ -194,6 +214,21 @@ def _solve(arrays, idx, prior, th0, u_th0, ln_e0, u_ln_e, p: np.ndarray) -> tupl
         if done:
             break
     return p, J
+
+
+#: A trial step further than this many prior standard deviations from the prior is not evaluated (a step
+#: too long: the plausibility bounds refuse far less, and the chain's design turns NaN out there).
+_MAX_PRIOR_SIGMAS = 30.0
+
+
+def _trial_cost(residuals, p: np.ndarray) -> tuple[float, np.ndarray | None]:
+    """Sum of squares at ``p`` and the residuals; infinite (None) where the model cannot be evaluated."""
+    try:
+        r = residuals(p)
+    except (OverflowError, ValueError, np.linalg.LinAlgError):
+        return math.inf, None
+    c = float(r @ r)
+    return (c, r) if math.isfinite(c) else (math.inf, None)
 
 
 def _noise_bias(arrays, idx, noise, prior, th0, u_th0, ln_e0, u_ln_e, p: np.ndarray,
@@ -247,11 +282,42 @@ def _noise_bias(arrays, idx, noise, prior, th0, u_th0, ln_e0, u_ln_e, p: np.ndar
     return shifts.mean(axis=0), np.atleast_2d(cov)
 
 
+def check_reference(name: str, e_ref: float, e_W_s05_m2K: float | None, u_e_W_s05_m2K: float | None) -> None:
+    """Refuse a reference touch whose datasheet-probe e contradicts its declared reference (swapped names).
+
+    Bound: ``|ln(e / e_ref)| <= ln SWAP_RATIO + SWAP_SIGMAS * u_rel(e)``.  With the sensor chain's
+    datasheet tolerances pushed to 2 sigma (sensitivity +-10 %, sensing layer +-15 %) and hand touches
+    (R_c 0-1e-4, object -3/+2 K) the datasheet probe read pmma, pyroceram and aisi_304 at 0.74-1.31 x
+    their value (``firmware_sim.rigs.contact_record.record_touch``, those draws, seed 1, 4-s heating); a factor 2 leaves margin.  Where
+    the datasheet probe cannot resolve e (a metal: copper read 2.4-6.3 x with a stated u of 16-82 %) the
+    touch's own stated u widens it.  Swapping pmma (558) and aisi_304 (7493) is a factor 13, pmma and
+    pyroceram (2892) 5: both refused.  Closer swaps are the self-check's to find.
+
+    Raises
+    ------
+    CalibrationError
+        One line naming the reference, the e read and the bound.
+    """
+    if e_W_s05_m2K is None or not (e_W_s05_m2K > 0 and math.isfinite(e_W_s05_m2K)):
+        return   # nothing read, nothing contradicted: whether the touch can be fitted is the fit's to say
+    u_rel = (u_e_W_s05_m2K / e_W_s05_m2K) if u_e_W_s05_m2K is not None and math.isfinite(u_e_W_s05_m2K) else 0.0
+    bound = math.log(SWAP_RATIO) + SWAP_SIGMAS * u_rel
+    if abs(math.log(e_W_s05_m2K / e_ref)) > bound:
+        raise CalibrationError(f"reference {name}: the touch reads e {e_W_s05_m2K:.0f} with the datasheet probe, "
+                               f"{e_W_s05_m2K / e_ref:.2g} x {name}'s {e_ref:.0f} (at most x {math.exp(bound):.2g} "
+                               "from the probe's tolerances): wrong reference name, swapped records, or another "
+                               "probe head's record")
+
+
 def fit_calibration(touches: list[ReferenceTouch], *, probe: str = "paper",
-                    created_utc: str | None = None, noise_bias_draws: int = NOISE_BIAS_DRAWS) -> ProbeCalibration:
+                    created_utc: str | None = None, noise_bias_draws: int = NOISE_BIAS_DRAWS,
+                    min_references: int = 2) -> ProbeCalibration:
     """Fit the probe's chain to reference touches; see the module docstring.
 
     ``noise_bias_draws``: antithetic noise pairs of the bias correction (0: none; see :func:`_noise_bias`).
+    ``min_references``: fewest different references (the leave-one-out self-check fits on one less).
+    Inputs that cannot be a calibration are refused before fitting: a record without its pre-contact
+    phase, a touch whose datasheet e contradicts its reference (:func:`check_reference`).
 
     Raises
     ------
@@ -261,8 +327,13 @@ def fit_calibration(touches: list[ReferenceTouch], *, probe: str = "paper",
     if isinstance(noise_bias_draws, bool) or not (isinstance(noise_bias_draws, int) and noise_bias_draws >= 0):
         raise ValueError(f"noise_bias_draws must be an int >= 0, got {noise_bias_draws!r}")
     names = sorted({tc.name for tc in touches})
-    if len(names) < 2:
+    if len(names) < min_references:
         raise CalibrationError(f"need touches of at least two reference materials, got {names or 'none'}")
+    e_lib = {}
+    for tc in touches:
+        e_lib.setdefault(tc.name, tc.e_W_s05_m2K)
+        if not math.isclose(e_lib[tc.name], tc.e_W_s05_m2K, rel_tol=1e-12):
+            raise CalibrationError(f"reference {tc.name}: touches disagree on its effusivity")
     prior = ProbeCalibration.nominal(probe)
     th0 = prior.theta
     u_th0 = prior.u_theta
@@ -272,6 +343,7 @@ def fit_calibration(touches: list[ReferenceTouch], *, probe: str = "paper",
         if tt.size < 16:
             raise CalibrationError(f"reference {tc.name}: record too short after contact ({tt.size} samples)")
         r = fit_sensor_chain(tt, TT, qq, calibration=prior.chain, fit_start_s=FIT_START_s, breaks_s=br)
+        check_reference(tc.name, tc.e_W_s05_m2K, r.e_W_s05_m2K, r.u_e_W_s05_m2K)
         X, y = chain_design(tt, TT, qq, prior.chain, fit_start_s=FIT_START_s, breaks_s=br)
         res = y - X @ np.linalg.lstsq(X, y, rcond=None)[0]
         rho = float(np.clip((res[1:] @ res[:-1]) / max(float(res @ res), 1e-300), 0.0, 0.95))
@@ -279,11 +351,6 @@ def fit_calibration(touches: list[ReferenceTouch], *, probe: str = "paper",
         segs.append((tc, tt, TT, qq, w, br))
         noise.append((c_T, c_q))
     m_index = {n: i for i, n in enumerate(names)}
-    e_lib = {}
-    for tc in touches:
-        e_lib.setdefault(tc.name, tc.e_W_s05_m2K)
-        if not math.isclose(e_lib[tc.name], tc.e_W_s05_m2K, rel_tol=1e-12):
-            raise CalibrationError(f"reference {tc.name}: touches disagree on its effusivity")
     ln_e0 = np.array([math.log(e_lib[n]) for n in names])
     u_ln_e = np.array([next(tc.u_rel_e for tc in touches if tc.name == n) for n in names])
     idx = [m_index[tc.name] for tc, *_ in segs]

@@ -30,6 +30,7 @@ import hashlib
 import json
 import math
 from dataclasses import dataclass, field, replace
+from datetime import datetime, timezone
 from typing import Any
 
 import numpy as np
@@ -39,7 +40,8 @@ from edge.estimation.sensor_chain import SensorChainCalibration
 from edge.physics.geometry import PROBES
 from edge.schema import Field, SchemaError, check_table
 
-__all__ = ["CalibrationError", "PARAMETERS", "ProbeCalibration", "ReferenceFit", "FORMAT", "SCHEMA_VERSION"]
+__all__ = ["CalibrationError", "PARAMETERS", "ProbeCalibration", "ReferenceFit", "FORMAT", "SCHEMA_VERSION",
+           "FLUX_SCALE_BOUNDS", "COVARIANCE_PRIOR_FACTOR", "check_plausible", "parse_created_utc"]
 
 FORMAT = "thermotouch-calibration"
 SCHEMA_VERSION = 1
@@ -48,6 +50,19 @@ PARAMETERS = ("ln_flux_scale", "ln_sensing_thickness_m", "tc_tau_s", "ln_sensing
 N_PARAMETERS = len(PARAMETERS)
 #: Largest calibration file accepted (bytes): a calibration is a few kB.
 MAX_BYTES = 65536
+#: Plausible flux scale (true flux per unit of the datasheet reading).  The thermopile's datasheet
+#: gives its sensitivity within +-5 % (1 sigma, edge.physics.probe.FLUX_SENSITIVITY_U_REL); 0.8-1.25
+#: is more than 4 sigma either way (symmetric in ln: 1/0.8 = 1.25).  A calibration outside it does not
+#: describe this sensor but a wrong reference, a wrong head or a hand-edited file (ISSUE #35 §2: a
+#: x2 "calibration" turned glass into bismuth).
+FLUX_SCALE_BOUNDS = (0.8, 1.25)
+#: A calibration's covariance may be no wider than its prior (the datasheet spreads of
+#: ProbeCalibration.nominal): the references can only narrow what the datasheet says.  The factor
+#: allows the noise-bias correction's own sampling scatter, added to the fit's covariance (a few per
+#: cent of a variance), and rounding.
+COVARIANCE_PRIOR_FACTOR = 1.5
+#: created_utc's format (as model manifests: the order of updates).
+TIME_FORMAT = "%Y-%m-%dT%H:%M:%SZ"
 
 
 class CalibrationError(ValueError):
@@ -94,7 +109,12 @@ _FIELDS = {
     "covariance": Field("list"),
     "u_rel_floor": Field("float", lo=0.0, hi=1.0),
     "references": Field("list", hi=64),
+    # Required, checked after the fields (so a bad field is named first): see from_json.
     "sha256": Field("sha256", default=None),
+    # Optional (absent in files that predate them, so their sha256 is unchanged):
+    "device_id": Field("str", default=None, lo=1, hi=64, doc="the device it was fitted for (INFO device_id)"),
+    "forced": Field("bool", default=None, doc="written with --force although its self-check failed"),
+    "self_check": Field("table", default=None, doc="leave-one-reference-out check of the fit"),
 }
 
 
@@ -125,6 +145,12 @@ class ProbeCalibration:
     calibrated: bool = False
     created_utc: str = ""
     references: tuple[ReferenceFit, ...] = field(default_factory=tuple)
+    #: The device it was fitted for (its INFO ``device_id``; None: not bound to one).
+    device_id: str | None = None
+    #: Written although its leave-one-out self-check failed (``calibrate --force``).
+    forced: bool = False
+    #: The leave-one-reference-out check (:mod:`edge.calibration.selfcheck`), as a JSON table.
+    self_check: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
         if self.probe not in PROBES:
@@ -169,6 +195,11 @@ class ProbeCalibration:
                        tc_tau_s=float(max(th[2], 0.0)), k_W_mK=k, alpha_m2_s=k / rho_c)
 
     @property
+    def created_time(self) -> datetime:
+        """:attr:`created_utc` as an aware UTC datetime (the order of calibrations; CalibrationError if none)."""
+        return parse_created_utc(self.created_utc)
+
+    @property
     def u_theta(self) -> np.ndarray:
         """Standard uncertainties of theta."""
         return np.sqrt(np.diag(self.covariance))
@@ -203,7 +234,9 @@ class ProbeCalibration:
             "covariance": [[float(x) for x in row] for row in self.covariance],
             "u_rel_floor": float(self.u_rel_floor),
             "references": [r.to_dict() for r in self.references],
-        }
+        } | ({} if self.device_id is None else {"device_id": self.device_id}) \
+          | ({"forced": True} if self.forced else {}) \
+          | ({} if self.self_check is None else {"self_check": self.self_check})
 
     @property
     def sha256(self) -> str:
@@ -231,6 +264,8 @@ class ProbeCalibration:
             raise CalibrationError(f"too large ({len(data)} bytes; a calibration is at most {MAX_BYTES})")
         try:
             d = json.loads(data.decode("utf-8-sig"))
+        except RecursionError:
+            raise CalibrationError("not a calibration (nested too deeply)") from None
         except UnicodeDecodeError as exc:
             raise CalibrationError(f"not UTF-8 text (byte {exc.start})") from None
         except json.JSONDecodeError as exc:
@@ -257,14 +292,61 @@ class ProbeCalibration:
         try:
             cal = cls(probe=top["probe"], chain=SensorChainCalibration(**chain), covariance=np.array(cov, float),
                       u_rel_floor=top["u_rel_floor"], calibrated=top["calibrated"],
-                      created_utc=top["created_utc"], references=tuple(refs))
+                      created_utc=top["created_utc"], references=tuple(refs), device_id=top.get("device_id"),
+                      forced=bool(top.get("forced")), self_check=top.get("self_check"))
         except CalibrationError:
             raise
         except ValueError as exc:
             raise CalibrationError(f"chain: {exc}") from None
-        if top.get("sha256") is not None and top["sha256"] != cal.sha256:
+        if top.get("sha256") is None:
+            # A file is only trusted with its checksum (ISSUE #34: one whose sha256 line was deleted by
+            # hand installed); a caller that builds one in memory has the object, not a file.
+            raise CalibrationError("sha256: missing (a calibration file carries the SHA-256 of its content; "
+                                   "the file was edited or is not a calibration)")
+        if top["sha256"] != cal.sha256:
             raise CalibrationError("sha256: does not match the content (the file was changed or damaged)")
+        if cal.calibrated:
+            check_plausible(cal)
         return cal
+
+
+def parse_created_utc(text: str) -> datetime:
+    """``created_utc`` as an aware datetime: YYYY-MM-DDTHH:MM:SSZ (what calibrate writes) or ISO 8601 at UTC.
+
+    Raises :class:`CalibrationError` for anything else (a calibration must be ordered against another).
+    """
+    try:
+        return datetime.strptime(str(text), TIME_FORMAT).replace(tzinfo=timezone.utc)
+    except ValueError:
+        pass
+    try:
+        t = datetime.fromisoformat(str(text))
+    except ValueError:
+        t = None
+    if t is None or t.utcoffset() is None or t.utcoffset().total_seconds() != 0:
+        raise CalibrationError(f"created_utc: {text!r} is not YYYY-MM-DDTHH:MM:SSZ (cannot order it)")
+    return t.astimezone(timezone.utc)
+
+
+def check_plausible(cal: ProbeCalibration) -> None:
+    """Refuse a calibration the probe's physics cannot have produced (ISSUE #35 §2); the message says why.
+
+    Checked: the flux scale within :data:`FLUX_SCALE_BOUNDS` (the sensor's datasheet tolerance),
+    every variance of theta no wider than the datasheet prior's (x :data:`COVARIANCE_PRIOR_FACTOR`),
+    the floor finite in [0, 1] (the constructor), and ``created_utc`` a time that can be ordered.
+    """
+    lo, hi = FLUX_SCALE_BOUNDS
+    f = cal.flux_scale
+    if not (lo <= f <= hi):
+        raise CalibrationError(f"chain.flux_scale: {f:g} is outside the sensor's datasheet tolerance "
+                               f"[{lo:g}, {hi:g}]; not a calibration of this sensor")
+    prior = np.diag(ProbeCalibration.nominal(cal.probe).covariance)
+    var = np.diag(cal.covariance)
+    for name, v, v0 in zip(PARAMETERS, var, prior):
+        if v > COVARIANCE_PRIOR_FACTOR * v0 + 1e-300:
+            raise CalibrationError(f"covariance: {name}'s variance {v:.3g} is wider than its datasheet prior "
+                                   f"{v0:.3g}; a calibration can only narrow it")
+    parse_created_utc(cal.created_utc)
 
 
 def _canonical(d: dict[str, Any]) -> bytes:

@@ -55,6 +55,9 @@ __all__ = ["estimate_from_contact", "uniform_record", "alpha_prior", "lateral_pr
 POOR_FIT = 5.0
 #: Samples this long after contact are modelled but not weighted (the contact's first instants).
 FIT_START_s = 0.3
+#: A calibration whose model-form floor (relative) reaches this determines no e: the small heater's fit
+#: calls a quantity identified below the same 30 % (edge.estimation.axifit's identifiable_u_rel).
+E_DETERMINED_U_REL = 0.30
 #: A contact resistance whose standard uncertainty exceeds this (m^2K/W) was not determined by the
 #: touch: it spans the whole range of a dry contact.  Typical of low-effusivity objects, where R_c q is
 #: far below the noise and R_c only soaks up what the chain does not describe.
@@ -502,7 +505,11 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
     u_Rc = math.sqrt(r.u_R_c_m2K_W**2 + float(var_cal[1]) + u_Rc_method**2)
     if r.normalised_residual > POOR_FIT:
         flags.append(Flag.POOR_FIT)
-    determined = ["e", "T_obj0"] + (["R_c"] if u_Rc <= R_C_RESOLVED_m2K_W else [])
+    # e counts as determined only when it survives the calibration's model-form floor (ISSUE #34): a
+    # forced calibration whose references missed by tens of per cent determines nothing, however
+    # well the touch itself fitted.  (What the touch's own u does to "determined" is unchanged.)
+    e_determined = cal.u_rel_floor < E_DETERMINED_U_REL
+    determined = (["e"] if e_determined else []) + ["T_obj0"] + (["R_c"] if u_Rc <= R_C_RESOLVED_m2K_W else [])
     lateral: dict[str, Any] = {}
     if lat is not None:
         # ln k = ln e + ln(alpha) / 2 along the profile: alpha's part enters with slope + 1/2, the
@@ -512,7 +519,7 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
         k = e * math.sqrt(alpha)
         lateral = {"alpha_m2_s": alpha, "alpha_m2_s_u": alpha * lat.u_ln_alpha, "k_W_mK": k, "k_W_mK_u": k * u_ln_k,
                    "alpha_prior_ln": list(lat.prior)}
-        if lat.profiled and lat.u_ln_alpha < ALPHA_DETERMINED * lat.prior[1]:
+        if e_determined and lat.profiled and lat.u_ln_alpha < ALPHA_DETERMINED * lat.prior[1]:
             determined += ["alpha", "k"]
     return {
         "effusivity_W_s05_m2K": e,

@@ -107,7 +107,8 @@ class AxiMethod:
                  calibration: Any = None, thickness_m: float | None = None, back: str = "infinite") -> dict:
         # The installed calibration of this probe head replaces the datasheet's flux scale and its u.
         cal = calibration if calibration is not None and calibration.probe == self.geometry.name else None
-        flux = {} if cal is None else {"flux_scale": cal.flux_scale, "flux_u_rel": cal.flux_u_rel}
+        flux = {} if cal is None else {"flux_scale": cal.flux_scale, "flux_u_rel": cal.flux_u_rel,
+                                       "u_rel_floor": cal.u_rel_floor}
         d = self.axi.estimate(t_s, dT_K, q_W_m2, power_W=power_W, thickness_m=thickness_m, back=back,
                               T_resolution_K=self.T_resolution_K, **flux)
         if cal is not None:

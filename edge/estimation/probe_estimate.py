@@ -157,7 +157,7 @@ class AxiEstimator:
 
     def estimate(self, t_s, dT_K, q_W_m2, *, power_W: float | None = None, thickness_m: float | None = None,
                  back: str = "infinite", T_resolution_K: float = 0.0, flux_scale: float = 1.0,
-                 flux_u_rel: float | None = None) -> dict:
+                 flux_u_rel: float | None = None, u_rel_floor: float = 0.0) -> dict:
         """Estimate from one record (times from heater-on; thermocouple rise, flux-sensor reading).
 
         Parameters
@@ -170,6 +170,9 @@ class AxiEstimator:
             fitted as a free scale, so only its order matters.
         thickness_m, back : a known finite object (``"insulated"``/``"fixed"`` back).
         T_resolution_K : the thermometer's step, added to its noise (rounding).
+        u_rel_floor : the calibration's model-form floor (relative; what its references re-measured
+            without themselves missed by, :mod:`edge.calibration.selfcheck`), added to u(e), u(k) and
+            u(alpha) -- a quantity is determined only when it survives it.
         flux_scale, flux_u_rel : the flux sensor's calibration -- true flux per unit of the reading
             and its relative standard uncertainty (:func:`edge.calibration.axi.fit_flux_scale`);
             default the datasheet sensor, known to FLUX_CALIBRATION_U_REL.
@@ -192,6 +195,9 @@ class AxiEstimator:
         u_flux = FLUX_CALIBRATION_U_REL if flux_u_rel is None else float(flux_u_rel)
         if not (math.isfinite(u_flux) and u_flux >= 0):
             raise ValueError(f"flux_u_rel must be finite and >= 0, got {flux_u_rel!r}")
+        floor = float(u_rel_floor)
+        if not (math.isfinite(floor) and 0.0 <= floor <= 1.0):
+            raise ValueError(f"u_rel_floor must be in [0, 1], got {u_rel_floor!r}")
         keep = (t > 0) & (t >= t[-1] / MAX_TIME_SPAN)
         t, T, q = t[keep], T[keep], q[keep] * flux_scale
         est = self.estimator
@@ -255,6 +261,9 @@ class AxiEstimator:
         u_le = math.hypot(u_le_fit, sens["effusivity"] * u_flux)
         u_lk = math.hypot(u_rel["k"], sens["k"] * u_flux)
         u_la = math.hypot(u_rel["alpha"], sens["alpha"] * u_flux)
+        # The calibration's model-form floor: independent of the fit and of the flux scale, so it adds in
+        # quadrature (and, shared by nothing, leaves the k-alpha covariance as it is).
+        u_le, u_lk, u_la = (math.hypot(u, floor) for u in (u_le, u_lk, u_la))
         if out["corr_k_alpha"] is not None and u_lk * u_la > 0:
             cov = out["corr_k_alpha"] * u_rel["k"] * u_rel["alpha"] + sens["k"] * sens["alpha"] * u_flux ** 2
             out["corr_k_alpha"] = _num(max(-1.0, min(1.0, cov / (u_lk * u_la))))
@@ -268,6 +277,7 @@ class AxiEstimator:
             out["fit"]["corr_e_alpha"] = _num(max(-0.999, min(0.999, c_ea / (u_le * u_la))))
         out["fit"]["flux_scale_sensitivity"] = {q: _num(v) for q, v in sens.items()}
         out["fit"]["flux_scale"], out["fit"]["flux_u_rel"] = float(flux_scale), u_flux
+        out["fit"]["u_rel_floor"] = floor
         thr = self.identifiable_u_rel
         determined = ["e"] if u_le < thr else []
         k, alpha = f.fit_k_W_mK, f.fit_alpha_m2_s

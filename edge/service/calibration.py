@@ -33,14 +33,16 @@ class ProbeCalibrations:
         The device's probe head (``board.probe``).
     policy : edge.security.policy.UpdatePolicy
         Who may install a calibration (as for models and object sets).
+    device_id : callable () -> str or None, optional
+        This device's identity (the daemon's ``device_id``): a calibration naming another is refused.
     """
 
-    def __init__(self, root, probe: str, policy: Any) -> None:
+    def __init__(self, root, probe: str, policy: Any, device_id: Any = None) -> None:
         self.probe = probe
         self._error: str | None = None
         try:
             self.store: CalibrationStore | None = CalibrationStore(
-                root, probe, policy, parse=ProbeCalibration.from_json, max_bytes=MAX_BYTES)
+                root, probe, policy, parse=ProbeCalibration.from_json, max_bytes=MAX_BYTES, device_id=device_id)
         except OSError as e:
             self.store, self._error = None, f"cannot open {root}: {e}"
 

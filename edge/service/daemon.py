@@ -198,7 +198,8 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
                 log.error("no usable model yet: %s", e)
             # Before the estimator: the probe head's estimator applies the installed calibration.
             self.calibration = ProbeCalibrations(self._calibration_root(), self.config.board.probe,
-                                                 self._update_policy())
+                                                 self._update_policy(),
+                                                 device_id=lambda: getattr(self, "device_id", None))
             self._model_est = ModelEstimator(self.store, thermocouple_resolution_K(self.config.sensors),
                                            probe=self.config.board.probe, calibration=self.calibration.current)
             self.estimator = estimator if estimator is not None else self._model_est

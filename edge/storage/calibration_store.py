@@ -14,6 +14,15 @@ bytes are dropped.  The signature in use is always the one named by the hash
 of the calibration in use, so after a kill at any step the calibration and its
 ``signed_by`` agree (ISSUE #35 §9: with one ``calibration.sig`` written before
 the bytes, a kill in between named the new signer beside the old bytes).
+After the signature, an install is checked against what is installed and against this device
+(ISSUE #35 §2): a calibration dated more than :data:`FUTURE_SLACK_s` after the device's clock is
+refused (it would stay "newest" for years and block every real one); one not newer than the
+installed calibration (``created_utc`` order, as models) is refused unless it is the same bytes'
+calibration (a repeated install changes nothing); one naming another device (``device_id``) is
+refused, and one naming none is accepted only where the policy allows unsigned updates (a strict
+device takes only calibrations bound to it).  Reading back refuses a calibration naming another
+device than this one.
+
 Opening the store removes stray temporaries and signatures of other bytes, and
 migrates an old ``calibration.sig`` (kept only if it verifies over the stored
 bytes).  Reading back re-checks the fields and the checksum (a damaged file is
@@ -30,6 +39,7 @@ import hashlib
 import logging
 import os
 import re
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Protocol
 
@@ -45,6 +55,13 @@ FILE = "calibration.json"
 LEGACY_SIGNATURE = "calibration.sig"
 #: A signature's file name: ``calibration.<sha256 of the bytes it signed>.sig``.
 _SIG_RE = re.compile(r"^calibration\.([0-9a-f]{64})\.sig$")
+#: How far a calibration's created_utc may lie after the device's clock (s): a day covers time
+#: zones and a device whose clock has not been set by NTP yet, not a file dated years ahead.
+FUTURE_SLACK_s = 86400.0
+
+
+def _utc_now() -> datetime:
+    return datetime.now(timezone.utc)
 
 
 class CalibrationStoreError(ValueError):
@@ -58,6 +75,12 @@ class StoredCalibration(Protocol):
     probe: str
     #: False for the uncalibrated datasheet chain (never installed).
     calibrated: bool
+    #: As written in the file.
+    created_utc: str
+    #: created_utc as an aware UTC datetime (raises ValueError when it cannot be ordered).
+    created_time: datetime
+    #: The device it was made for (None: not bound).
+    device_id: str | None
 
 
 class CalibrationStore:
@@ -76,10 +99,17 @@ class CalibrationStore:
         (``edge.calibration.model.ProbeCalibration.from_json``).
     max_bytes : int
         Largest calibration file accepted, bytes (``edge.calibration.model.MAX_BYTES``).
+    device_id : callable () -> str or None, optional
+        This device's identity (the daemon's ``device_id``; None while it is unknown).
+    now : callable () -> datetime, optional
+        The device's clock (aware UTC datetime); default the system's.
     """
 
     def __init__(self, root, probe: str, policy: Any = None, *, parse: Callable[[bytes], StoredCalibration],
-                 max_bytes: int) -> None:
+                 max_bytes: int, device_id: Callable[[], str | None] | None = None,
+                 now: Callable[[], datetime] = _utc_now) -> None:
+        self.device_id = device_id if device_id is not None else (lambda: None)
+        self.now = now
         self.root = Path(root)
         self.probe = probe
         self.policy = policy
@@ -164,7 +194,47 @@ class CalibrationStore:
             raise CalibrationStoreError(f"stored calibration {path} is damaged: {e}") from None
         if cal.probe != self.probe:
             raise CalibrationStoreError(f"stored calibration is for probe {cal.probe!r}, this device is {self.probe!r}")
+        me = self.device_id()
+        if cal.device_id is not None and me is not None and cal.device_id != me:
+            raise CalibrationStoreError(f"stored calibration was made for device {cal.device_id}, this device is {me}")
         return cal
+
+    def _check_against_installed(self, cal: StoredCalibration, blob: bytes) -> None:
+        """Device binding, the clock and the order of calibrations (see the module docstring)."""
+        me = self.device_id()
+        if cal.device_id is not None:
+            if me is None:
+                raise CalibrationStoreError(f"calibration refused: it names device {cal.device_id} and this "
+                                            "device's identity is unavailable")
+            if cal.device_id != me:
+                raise CalibrationStoreError(f"calibration refused: made for device {cal.device_id}, this device is "
+                                            f"{me}")
+        elif not getattr(self.policy, "allow_unsigned", False):
+            raise CalibrationStoreError("calibration refused: it names no device (device_id); this device takes "
+                                        "only calibrations made for it (thermotouch calibrate on it, or records "
+                                        "exported from it)")
+        try:
+            new_t = cal.created_time
+        except ValueError as e:
+            raise CalibrationStoreError(f"calibration refused: {e}") from None
+        now = self.now()
+        if (new_t - now).total_seconds() > FUTURE_SLACK_s:
+            raise CalibrationStoreError(f"calibration refused: created_utc {cal.created_utc} is in the future "
+                                        f"(device clock {now.strftime('%Y-%m-%dT%H:%M:%SZ')})")
+        try:
+            old = self.current()
+        except CalibrationStoreError:
+            old = None   # a damaged or foreign stored file orders nothing: a good one replaces it
+        if old is None or self._stored_sha256() == hashlib.sha256(blob).hexdigest():
+            return
+        try:
+            old_t = old.created_time
+        except ValueError:
+            return       # an installed file from before created_utc was checked cannot be ordered
+        if new_t <= old_t and getattr(old, "sha256", None) != getattr(cal, "sha256", object()):
+            raise CalibrationStoreError(f"calibration refused: created {cal.created_utc}, not newer than the "
+                                        f"installed one ({old.created_utc}); an older calibration is not "
+                                        "re-installed")
 
     def install(self, blob: bytes, signature: bytes | None = None) -> StoredCalibration:
         """Verify ``blob`` (a calibration file) and make it the one in use.
@@ -192,6 +262,7 @@ class CalibrationStore:
         except UpdateRefused as e:
             raise CalibrationStoreError(f"calibration refused: {e}".replace("flash --key FILE",
                                                                             "calibrate --key FILE")) from None
+        self._check_against_installed(cal, blob)
         # The signature first, under the hash of the bytes it signs (never read beside other bytes),
         # then the bytes in one rename (the install's one durable step), then the other signatures.
         keep = None

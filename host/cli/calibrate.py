@@ -11,6 +11,18 @@ JSON (atomically; an existing file only with ``--overwrite``).  ``thermotouch es
 --calibration CAL.json`` uses it.  Records should start with the probe in air, before contact (see
 ``host/records.py``).
 
+Every fit checks itself (ISSUE #34): each reference is re-measured -- through the one estimate
+path, :func:`edge.estimation.seam.estimate_touch` -- by the calibration fitted without it, and the
+misses must pass a chi^2 test at p = 0.99 (:mod:`edge.calibration.selfcheck`); otherwise the
+calibration is refused (exit 2, one line naming the reference and its miss) unless ``--force``,
+which writes it flagged ``forced`` with a model-form floor (``u_rel_floor``) covering the misses.
+The references' ``rel_errors`` are what ``thermotouch estimate`` answers on the same record with
+the written file.  Refused before fitting: records of another probe head (their ``# probe:``
+line), records without the samples in air before contact, a touch whose datasheet e is outside
+x 2 (+ 3 u) of its declared reference (swapped names), records of two devices.  The file names the
+device it is for: the walk-through's INFO ``device_id``, or the exports' ``# device_id:`` header
+(none: a file only a device that allows unsigned updates takes).
+
 On the probe (``--port PORT`` or ``--sim SCENE``)::
 
     thermotouch calibrate --install CAL.json [--key SECRET.json]   # verified, signed, stored atomically
@@ -72,6 +84,9 @@ def add_parser(sub, parents):
     conv, rng = measure_bound("settle_s")
     p.add_argument("--settle", type=conv, default=1.0, metavar="S",
                    help=f"walk-through: contact to heater-on ({rng}; default 1 s)")
+    p.add_argument("--force", action="store_true",
+                   help="write (and install) a calibration whose leave-one-reference-out self-check failed: "
+                        "flagged 'forced', with a model-form floor that covers its misses")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     add_device_args(p, sim_help="start a simulated probe on SCENE (shipped name or .toml) for --install/--show/"
                                 "--check (keep it with --workdir)")
@@ -122,7 +137,6 @@ def _run_walk(args) -> int:
     import tempfile  # noqa: PLC0415
 
     from edge.calibration.fit import DEFAULT_REFERENCES, fit_calibration  # noqa: PLC0415
-    from edge.calibration.model import CalibrationError  # noqa: PLC0415
     from edge.physics.materials import load_materials  # noqa: PLC0415
     from host.atomic import write_text_atomic  # noqa: PLC0415
     from host.calibration import HEAT_s, WalkError, install_calibration, reference_scene, touch_reference  # noqa: PLC0415
@@ -172,7 +186,7 @@ def _run_walk(args) -> int:
                 raise CliError(f"--sim {args.sim}: {exc}") from None
             return open_device(None, str(path), workdir=workdir, timeout_s=args.timeout)
 
-        touches = []
+        touches, records = [], []
         for i, name in enumerate(names, 1):
             e_ref = refs[name].solid.effusivity_W_s05_m2K
             say(f"reference {i}/{len(names)}: {name} (e {e_ref:.0f}). Hold the probe in the air, then put it on "
@@ -181,21 +195,22 @@ def _run_walk(args) -> int:
                 input("press Enter when the probe is in the air ... ")
             with session_for(name) as session:
                 try:
-                    touch, rec = device_call(touch_reference, session.client, name, e_ref, heat_s=heat,
-                                             arm_s=args.arm, settle_s=args.settle)
+                    touch, rec, record = device_call(touch_reference, session.client, name, e_ref, heat_s=heat,
+                                                     arm_s=args.arm, settle_s=args.settle)
                 except WalkError as exc:
                     raise CliError(str(exc)) from None
                 chain = (rec.get("result") or {}).get("sensor_chain") or {}
                 say(f"  measurement {rec['measurement_id']}: {touch.t_s.size} samples, contact at "
                     f"{chain.get('contact_t_s', float('nan')):+.2f} s from heater-on")
                 touches.append(touch)
+                records.append(record)
                 if i < len(names):
                     continue
-                # The last touch's session fits, keeps the file on the host and installs.
-                try:
-                    cal = fit_calibration(touches, probe=args.probe)
-                except (CalibrationError, ValueError) as exc:
-                    raise CliError(f"calibration: {exc}") from None
+                # The last touch's session fits, checks itself, keeps the file on the host and installs;
+                # the calibration names this device (which refuses another's).
+                device_id = device_call(session.client.info).get("device_id")
+                cal = _checked(args, lambda tt, k: fit_calibration(tt, probe=args.probe, min_references=k), touches,
+                               [(n, refs[n]) for n in (t.name for t in touches)], records, device_id)
                 write_text_atomic(args.out, cal.to_json())
                 rep = device_call(install_calibration, session.client, cal, key=key)
     if args.json:
@@ -293,10 +308,23 @@ def _print_calibration(cal) -> None:
     print(f"  sensing depth            {c.sensing_thickness_m * 1e3:.4f} mm  (u {u('ln_sensing_thickness_m'):.1%})")
     print(f"  sensing layer k          {c.k_W_mK:.4f} W/m/K  (u {u('ln_sensing_k_W_mK'):.1%})")
     print(f"  thermocouple lag         {c.tc_tau_s * 1e3:.1f} ms  (u {u('tc_tau_s') * 1e3:.1f} ms)")
-    print(f"  transfer floor on e      {cal.u_rel_floor:.1%}")
+    print(f"  model-form floor on e    {cal.u_rel_floor:.1%}")
+    check = cal.self_check or {}
+    if check:
+        verdict = "passed" if check.get("passed") else "FAILED (written with --force: flagged 'forced')"
+        chi2 = check.get("chi2")
+        print(f"  self-check               leave-one-reference-out {verdict}: chi^2 "
+              f"{'inf' if chi2 is None else format(chi2, '.1f')} over {check.get('touches')} touches "
+              f"(limit {check.get('limit', float('nan')):.1f})")
+    if cal.device_id:
+        print(f"  for device               {cal.device_id}")
     for r in cal.references:
         errs = ", ".join(f"{x:+.1%}" for x in r.rel_errors)
         print(f"  {r.name:<12} e {r.e_W_s05_m2K:.0f}: re-measured {errs}")
+    for m in (cal.self_check or {}).get("misses", []):
+        z = m.get("z")
+        miss = "no answer" if m.get("rel_miss") is None else f"{m['rel_miss']:+.1%} (z {z:+.1f})"
+        print(f"  {m['name']:<12} without itself: {miss}")
 
 
 def _fit(args):
@@ -332,11 +360,12 @@ def _reference_records(args, lib, read):
         m = _reference(lib, name)
         try:
             recorded = read_record_metadata(path).get("probe")
+            if recorded is not None and recorded != args.probe:
+                # Another head's records would calibrate the wrong sensors: refused before reading on.
+                raise CliError(f"--record {path} was taken with probe {recorded!r}, not --probe {args.probe}")
             data = read(path)
         except RecordError as exc:
             raise CliError(f"--record {exc}") from None
-        if recorded is not None and recorded != args.probe:
-            raise CliError(f"--record {path} was taken with probe {recorded!r}, not --probe {args.probe}")
         out.append((name, m, data))
     return out
 
@@ -344,38 +373,97 @@ def _reference_records(args, lib, read):
 def _fit_chain(args, lib):
     """The paper probe: its sensor chain from records that start in air, before contact."""
     from edge.calibration.fit import ReferenceTouch, fit_calibration  # noqa: PLC0415
-    from edge.calibration.model import CalibrationError  # noqa: PLC0415
-    from host.records import read_series, uniform_series  # noqa: PLC0415
+    from host.records import read_series, read_touch, uniform_series  # noqa: PLC0415
 
     def read(path):
         s = read_series(path)
-        return uniform_series(s["t_s"], s["T"], s["q_W_m2"], path=path)
+        return uniform_series(s["t_s"], s["T"], s["q_W_m2"], path=path), read_touch(path, probe=args.probe)
 
-    touches = [ReferenceTouch(name, m.solid.effusivity_W_s05_m2K, t, T, q)
-               for name, m, (t, T, q) in _reference_records(args, lib, read)]
-    try:
-        return fit_calibration(touches, probe=args.probe)
-    except (CalibrationError, ValueError) as exc:
-        raise CliError(f"calibration: {exc}") from None
+    got = _reference_records(args, lib, read)
+    touches = [ReferenceTouch(name, m.solid.effusivity_W_s05_m2K, t, T, q) for name, m, ((t, T, q), _) in got]
+    records = [rec for _, _, (_, rec) in got]
+    return _checked(args, lambda tt, k: fit_calibration(tt, probe=args.probe, min_references=k), touches,
+                    [(name, m) for name, m, _ in got], records, _records_device_id(args))
 
 
 def _fit_axi(args, lib):
     """The small-heater probe: its flux sensor's scale from records that start at heater-on (estimate's format)."""
     from edge.calibration.axi import AxiReferenceTouch, fit_flux_scale  # noqa: PLC0415
     from edge.calibration.fit import OTHER_REFERENCE_U_REL, REFERENCE_U_REL  # noqa: PLC0415
-    from edge.calibration.model import CalibrationError  # noqa: PLC0415
     from edge.estimation.probe_estimate import AxiEstimator  # noqa: PLC0415
     from host.cli.common import load_estimator  # noqa: PLC0415
-    from host.records import read_record  # noqa: PLC0415
+    from host.records import read_record, read_touch  # noqa: PLC0415
 
+    got = _reference_records(args, lib, lambda path: (read_record(path), read_touch(path, probe=args.probe)))
     touches = [AxiReferenceTouch(name, m.solid.k_W_mK, m.solid.alpha_m2_s,
                                  REFERENCE_U_REL.get(name, OTHER_REFERENCE_U_REL), t, dT, q)
-               for name, m, (t, dT, q) in _reference_records(args, lib, read_record)]
+               for name, m, ((t, dT, q), _) in got]
     est, _ = load_estimator(None)
+    axi = AxiEstimator(est, args.probe)
+    return _checked(args, lambda tt, k: fit_flux_scale(axi, tt, min_references=k), touches,
+                    [(name, m) for name, m, _ in got], [rec for _, _, (_, rec) in got], _records_device_id(args))
+
+
+def _records_device_id(args):
+    """The device the ``--record`` files were exported from (their ``device_id`` header), or None.
+
+    Records of two devices are two probes: refused (a calibration is one probe's)."""
+    from host.records import RecordError, read_record_metadata  # noqa: PLC0415
+
+    ids = set()
+    for path in args.record:
+        try:
+            ids.add(read_record_metadata(path).get("device_id"))
+        except RecordError as exc:
+            raise CliError(f"--record {exc}") from None
+    named = sorted(i for i in ids if i)
+    if len(named) > 1:
+        raise CliError(f"--record files come from {len(named)} devices ({', '.join(named)}): a calibration is one "
+                       "probe's; give the records of one")
+    return named[0] if named else None
+
+
+def _checked(args, fit, touches, refs, records, device_id):
+    """Fit, leave-one-reference-out self-check and re-measure through the estimate path (host.calibration)."""
+    from edge.calibration.fit import OTHER_REFERENCE_U_REL, REFERENCE_U_REL  # noqa: PLC0415
+    from edge.calibration.model import CalibrationError  # noqa: PLC0415
+    from host.calibration import CalibrationRefused, checked_calibration, seam_remeasure  # noqa: PLC0415
+
+    names = [n for n, _ in refs]
+    e_refs = [m.solid.effusivity_W_s05_m2K for _, m in refs]
+    u_refs = [REFERENCE_U_REL.get(n, OTHER_REFERENCE_U_REL) for n in names]
+    remeasure = seam_remeasure(records, _contexts(records))
     try:
-        return fit_flux_scale(AxiEstimator(est, args.probe), touches)
-    except (CalibrationError, ValueError) as exc:
-        raise CliError(f"calibration: {exc}") from None
+        cal, check = checked_calibration(fit, touches, names, e_refs, u_refs, remeasure,
+                                         force=getattr(args, "force", False), device_id=device_id)
+    except (CalibrationError, CalibrationRefused, ValueError) as exc:
+        msg = str(exc)
+        raise CliError(msg if msg.startswith("calibration") else f"calibration: {msg}") from None
+    args._self_check = check
+    return cal
+
+
+def _contexts(records):
+    """Each reference record's estimate context: the shipped bundle, its method, the default thresholds.
+
+    The ``[measurement]`` thresholds are the defaults a device runs with.  ``thermotouch estimate``
+    reads an export's ``measurement.*`` header lines over them (``host.cli.estimate._thresholds``);
+    importing it here would close an import cycle (estimate imports this module's
+    ``calibration_file``), so an export from a device with other thresholds may be judged
+    differently here: they set the quality flags (which can withhold an answer), not the fit.
+    """
+    from host.cli.common import seam_context  # noqa: PLC0415
+
+    cache = {}
+    out = []
+    for rec in records:
+        if rec is None:
+            out.append(None)
+            continue
+        if rec.method not in cache:
+            cache[rec.method] = seam_context(None, method=rec.method)
+        out.append(cache[rec.method])
+    return out
 
 
 def calibration_file(text: str):

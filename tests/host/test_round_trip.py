@@ -109,7 +109,13 @@ def test_exported_touch_re_estimated_gives_the_devices_answer(capsys, tmp_path, 
 def test_walk_through_refitted_offline_from_its_exports_is_the_installed_calibration(capsys, tmp_path):
     workdir = tmp_path / "probe"
     cal = tmp_path / "cal.json"
+    # --force: on this scene the self-check refuses the calibration (the chain's fit is flagged poor_fit
+    # on pyroceram and steel, whose answers fall back to the 1-D method: -22 %, -40 %); the round trip
+    # of what is written and installed is what this test is about.
     code, _, err = run(capsys, "calibrate", "--sim", "glass_15V_faithful", "--workdir", workdir, "--out", cal)
+    assert code == 2 and "self-check failed" in err and not cal.exists()
+    code, _, err = run(capsys, "calibrate", "--sim", "glass_15V_faithful", "--workdir", workdir, "--out", cal,
+                       "--force")
     assert code == 0, err
     installed = json.loads(cal.read_text())
     argv = []
@@ -120,7 +126,7 @@ def test_walk_through_refitted_offline_from_its_exports_is_the_installed_calibra
         assert code == 0, err
         argv += ["--record", f, "--reference", name]
     again = tmp_path / "again.json"
-    code, _, err = run(capsys, "calibrate", *argv, "--out", again)
+    code, _, err = run(capsys, "calibrate", *argv, "--out", again, "--force")
     assert code == 0, err
     refit = json.loads(again.read_text())
     for d in (installed, refit):  # when it was made, and the identity that includes it

@@ -73,7 +73,8 @@ def calibration_operation(root: Path) -> Operation:
     template = Path(tempfile.mkdtemp(prefix="calset-template-", dir=root))
     History(template / "history.db").close()
     k_old, k_new = _keys(template)
-    old, new = sample_calibration(flux_scale=0.97), sample_calibration(flux_scale=0.95)
+    # The new one is newer: a calibration not newer than the installed one is refused (ISSUE #35 §2).
+    old, new = sample_calibration(flux_scale=0.97), sample_calibration(flux_scale=0.95, created_utc="2026-11-24T00:00:00Z")
     old_b, new_b = old.to_json_compact().encode(), new.to_json_compact().encode()
 
     def store(point: Path) -> CalibrationStore:

@@ -75,3 +75,25 @@ def test_a_bad_scale_is_refused_by_the_estimate(axi, model):
     for bad in (0.0, -1.0, float("nan")):
         with pytest.raises(ValueError, match="flux_scale"):
             axi.estimate(g.t_s, g.dT_K, g.q_W_m2, flux_scale=bad)
+
+
+def test_the_model_form_floor_enters_every_u_and_what_does_not_survive_it_is_not_determined(axi, model):
+    g = touch(model, "pmma", np.random.default_rng(2))
+    base = axi.estimate(g.t_s, g.dT_K, g.q_W_m2, flux_scale=1 / READS_HIGH, flux_u_rel=0.005)
+    assert {"e", "k", "alpha"} <= set(base["determined"])
+    floored = axi.estimate(g.t_s, g.dT_K, g.q_W_m2, flux_scale=1 / READS_HIGH, flux_u_rel=0.005, u_rel_floor=0.4)
+    assert floored["effusivity_W_s05_m2K"] == base["effusivity_W_s05_m2K"]
+    for q in ("effusivity_W_s05_m2K", "k_W_mK", "alpha_m2_s"):
+        assert floored[f"{q}_u"] / floored[q] >= 0.4 * (1 - 1e-9)
+    assert not {"e", "k", "alpha"} & set(floored["determined"]) and floored["fit"]["u_rel_floor"] == 0.4
+    with pytest.raises(ValueError, match="u_rel_floor"):
+        axi.estimate(g.t_s, g.dT_K, g.q_W_m2, u_rel_floor=float("nan"))
+
+
+def test_swapped_small_heater_references_are_refused_before_fitting(axi, model):
+    rng = np.random.default_rng(13)
+    pmma, steel = touch(model, "pmma", rng), touch(model, "aisi_304", rng)
+    swapped = [AxiReferenceTouch("aisi_304", steel.k_W_mK, steel.alpha_m2_s, 0.02, pmma.t_s, pmma.dT_K, pmma.q_W_m2),
+               AxiReferenceTouch("pmma", pmma.k_W_mK, pmma.alpha_m2_s, 0.02, steel.t_s, steel.dT_K, steel.q_W_m2)]
+    with pytest.raises(CalibrationError, match="reference (aisi_304|pmma): the touch reads e"):
+        fit_flux_scale(axi, swapped)

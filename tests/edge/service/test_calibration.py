@@ -82,7 +82,7 @@ def test_a_strict_probe_takes_only_signed_calibrations(tmp_path):
     key = new_key(keys, "lab")
     (keys / "lab.secret.json").unlink()
     with probe(tmp_path, allow_unsigned=False, trusted_keys_dir=str(keys)) as c:
-        cal = sample_calibration()
+        cal = sample_calibration(device_id=c.info()["device_id"])   # a strict device takes only its own
         with pytest.raises(DeviceError, match="unsigned"):
             install_calibration(c, cal)
         assert c.info()["calibrated"] is False
@@ -180,3 +180,23 @@ def test_an_early_stop_the_result_does_not_confirm_is_flagged(shipped_estimator,
     assert (Flag.DECISION_DISAGREES in est.flags) is flagged
     assert (Flag.DECIDED in est.flags) is bool(decision and decision["stopped_early"])
     assert est.to_dict().get("decision") == decision   # kept as the device had it, beside the answer
+
+
+def test_replays_and_other_devices_calibrations_are_refused_by_the_daemon(tmp_path):
+    keys = tmp_path / "trusted_keys"
+    key = new_key(keys, "lab")
+    (keys / "lab.secret.json").unlink()
+    with probe(tmp_path, allow_unsigned=False, trusted_keys_dir=str(keys)) as c:
+        me = c.info()["device_id"]
+        old = sample_calibration(device_id=me)
+        new = sample_calibration(flux_scale=0.95, created_utc="2026-11-24T00:00:00Z", device_id=me)
+        install_calibration(c, old, key=key)
+        install_calibration(c, new, key=key)
+        for cal, needle in ((old, "not newer than the installed"),
+                            (sample_calibration(created_utc="2026-11-25T00:00:00Z", device_id="tt-00000000000000aa"),
+                             "made for device tt-00000000000000aa"),
+                            (sample_calibration(created_utc="2026-11-25T00:00:00Z"), "names no device")):
+            with pytest.raises(DeviceError, match=needle) as ei:
+                install_calibration(c, cal, key=key)   # signed: the signature alone does not make it ours
+            assert ei.value.code == ErrorCode.MODEL_REJECTED and "\n" not in str(ei.value)
+        assert c.info()["calibration_sha256"] == new.sha256

@@ -23,7 +23,7 @@ from edge.security.policy import UpdatePolicy
 from edge.service.objects import parse_object_set
 from edge.storage.calibration_store import CalibrationStore
 from edge.storage.objects_store import ObjectSetStore
-from tests.support.calibrations import sample_calibration
+from tests.support.calibrations import DEVICE_ID, sample_calibration
 
 A = b"name,class,e_W_s05_m2K\ncup,ceramic,1400\nsponge,foam,60\n"
 B = b"name,class,e_W_s05_m2K\ndesk,wood,400\n"
@@ -165,12 +165,16 @@ def test_a_pending_install_without_its_bytes_is_forgotten_with_its_signature(tmp
 # ---------------------------------------------------------------------------------------------- calibrations
 
 def _calibrations(root, policy):
-    return CalibrationStore(root / "cal", "paper", policy, parse=ProbeCalibration.from_json, max_bytes=MAX_BYTES)
+    return CalibrationStore(root / "cal", "paper", policy, parse=ProbeCalibration.from_json, max_bytes=MAX_BYTES,
+                            device_id=lambda: DEVICE_ID)
 
 
 def test_a_calibration_install_is_all_or_nothing_with_its_signature(tmp_path, keys, monkeypatch):
     k1, k2, policy = keys
-    old, new = sample_calibration(), sample_calibration(flux_scale=0.95)
+    # The replacement is newer (a calibration not newer than the installed one is refused) and both
+    # name this device (a strict device takes only calibrations bound to it).
+    old = sample_calibration(device_id=DEVICE_ID)
+    new = sample_calibration(flux_scale=0.95, created_utc="2026-11-24T00:00:00Z", device_id=DEVICE_ID)
     old_b, new_b = old.to_json().encode(), new.to_json().encode()
 
     def prepare(root):
