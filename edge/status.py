@@ -119,6 +119,12 @@ class Flag(StrEnum):
     #: whose flux sensitivity, sensing depth and bead lag are off by tens of percent on a real probe.
     #: Calibrate the probe on reference materials (``thermotouch calibrate``) and install the result.
     UNCALIBRATED = "uncalibrated"
+    #: A calibration is installed, but its sensor chain did not give this touch's answer (it raised one of
+    #: the blockers -- ``poor_fit``, ``contact_lost``, ``no_fit`` ... -- listed in the answer's
+    #: ``sensor_chain.flags``, or failed): the answer is the method's own on the datasheet chain, as
+    #: uncalibrated, and its u does not cover a real probe's bias.  Touch again; if it persists, the
+    #: calibration does not describe this probe or object (``thermotouch calibrate --check``).
+    CALIBRATION_REFUSED = "calibration_refused"
     #: The sensor chain's fit leaves a residual well above the noise measured in air (normalised residual
     #: above ``chain_estimate.POOR_FIT``): the chain does not describe this record (a moving probe, a
     #: contact that changed, a record cut short).  Its e is not the answer; touch again, holding still.

@@ -413,6 +413,10 @@ def estimate_touch(record: TouchRecord, context: SeamContext, *,
         promoted = chain_answer(est, chain, context.estimator, chain_parts)
         if promoted is not None:
             est = promoted
+        elif cal is not None:
+            # The installed calibration did not make this answer: say so (ISSUE #34, "answers that look
+            # calibrated but are not"); sensor_chain.flags say why.
+            est = est.with_flags(Flag.CALIBRATION_REFUSED)
     est = _recognise(est, context)
     if decision is not None:
         est = replace(est, details={**est.details, "decision": dict(decision)})
