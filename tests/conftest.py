@@ -53,13 +53,13 @@ def faithful_world_test_step():
 
 
 def _refits_cost_nothing() -> float:
-    """A refit timer under which every refit takes no time (see :func:`refits_at_their_quiet_pace`)."""
+    """A refit timer under which every refit takes no time (see :func:`refits_at_their_nominal_pace`)."""
     return 0.0
 
 
 @pytest.fixture(scope="session", autouse=True)
-def refits_at_their_quiet_pace():
-    """Running decisions refit every ``every_s`` of heating, as on a quiet machine.
+def refits_at_their_nominal_pace():
+    """Running decisions refit every ``every_s`` of heating, whatever the host's load.
 
     ``RefitCadence`` stretches the interval when the refits take more than their share of the
     time, timed on the wall clock (``time.perf_counter``). Right on a device, where a refit costs
