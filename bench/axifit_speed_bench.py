@@ -2,7 +2,7 @@
 
 What is timed: :class:`edge.service.estimator.ModelEstimator` configured with
 ``probe="small-heater"`` called exactly as the measurement sequence calls it
-(``(t_s, dT_K, q_W_m2, q_v_W_m3, method)``, resampled series from heater-on),
+(``(t_s, dT_K, q_W_m2, power_W, method)``, resampled series from heater-on),
 on the shipped bundle: input checks, the axisymmetric LM fit (k, alpha, power
 free), the prior fallback when needed, material naming, the result dict.
 The model's probe part is built on the first touch of a time grid and kept;
@@ -41,7 +41,6 @@ from edge.model.bundle import load_bundle  # noqa: E402
 from edge.physics.axisym import AxisymModel  # noqa: E402
 from edge.physics.geometry import PROBES  # noqa: E402
 from edge.physics.materials import load_materials  # noqa: E402
-from edge.physics.probe import volumetric_heat_W_m3  # noqa: E402
 from edge.service.estimator import ModelEstimator  # noqa: E402
 
 MATERIALS = ("pmma", "tempered_glass", "aisi_304", "aluminium")
@@ -70,7 +69,7 @@ def main() -> None:
     rng = np.random.default_rng(args.seed)
     store = _Store(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
     g = PROBES["small-heater"]
-    q_v = volumetric_heat_W_m3(g.nominal_power_W)
+    power_W = g.nominal_power_W
     lib = load_materials()
     cases = {}
     for gname, t_end, dt in GRIDS:
@@ -86,14 +85,14 @@ def main() -> None:
     cold = {}
     for key, (t, T, q, _) in cases.items():  # first touch of each grid builds its model
         t0 = time.perf_counter()
-        est(t, T, q, q_v, "default")
+        est(t, T, q, power_W, "default")
         cold[key] = 1e3 * (time.perf_counter() - t0)
     times = {k: [] for k in cases}
     results = {}
     for _ in range(args.repeat):
         for key, (t, T, q, _) in cases.items():
             t0 = time.perf_counter()
-            d = est(t, T, q, q_v, "default")
+            d = est(t, T, q, power_W, "default")
             times[key].append(1e3 * (time.perf_counter() - t0))
             results[key] = d
     out = {}

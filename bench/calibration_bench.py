@@ -114,7 +114,7 @@ def main() -> None:
                                                                {"noise_bias_draws": args.noise_bias_draws}))
             # The fitted sensing depth against the as-built one, in units of its stated u (ln depth).
             depth_err = math.log(cal.chain.sensing_thickness_m / ab.sensing_thickness_m)
-            cals[f"{geo_name}/{pi}"] = {"depth_err_rel": depth_err, "depth_z": depth_err / float(cal.u_theta[1]),
+            cals[f"{geo_name}/{pi}"] = {"depth_err_rel": depth_err, "depth_z": depth_err / cal.u_of("ln_sensing_thickness_m"),
                                         "chain": cal.to_dict()["chain"], "u_theta": cal.u_theta.tolist(),
                                         "u_rel_floor": cal.u_rel_floor,
                                         "references": [x.to_dict() for x in cal.references]}

@@ -91,9 +91,9 @@ def child(workdir: str) -> int:
 
         import numpy as np
 
-        def estimator(t, dT, q, q_v, method):
+        def estimator(t, dT, q, power_W, method):
             e = 2.0 * float(np.mean(q)) * math.sqrt(t[-1] / math.pi) / max(float(dT[-1]), 1e-9)
-            return {"effusivity_W_s05_m2K": e, "flags": []}
+            return {"effusivity_W_s05_m2K": e, "effusivity_W_s05_m2K_u": 0.05 * e, "flags": []}
 
         estimator_kind = f"stand-in ({type(e).__name__}: {e})"
     timings: list[dict] = []

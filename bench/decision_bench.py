@@ -107,7 +107,7 @@ def run_faithful(touches: int, threshold: float, min_s: float, seed: int, object
     1 s before heater-on, R_c drawn in [0, 3e-5] m^2K/W, object -2..+2 K off the probe, 1.5 s of
     heating, precision board.  Each record is fed sample by sample to
     :class:`edge.estimation.running.SequentialDecision` (raw reading, as an uncalibrated device) and
-    :class:`edge.estimation.chain_decision.ChainDecision` (the calibration, as a calibrated device);
+    :class:`edge.estimation.running.ChainDecision` (the calibration, as a calibrated device);
     a touch not decided by 1.5 s takes the fixed answer of its own kind (the default estimate of the
     whole record, or the chain's).
     """
@@ -115,7 +115,8 @@ def run_faithful(touches: int, threshold: float, min_s: float, seed: int, object
     from _recognition import bayes_ceiling
 
     from edge.calibration.fit import ReferenceTouch, fit_calibration
-    from edge.estimation.chain_decision import CHAIN_BLOCKERS, ChainDecision
+    from edge.estimation.running import ChainDecision
+    from edge.estimation.result import BLOCKERS as CHAIN_BLOCKERS
     from edge.estimation.chain_estimate import estimate_from_contact
     from edge.physics.materials import load_materials
     from firmware_sim.rigs.contact_record import ContactTouch, record_touch
@@ -219,15 +220,14 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
     [0, 3e-5] m^2K/W, the object at the probe's temperature, 2 s of heating at 50 Hz, precision-board
     noise.  Each record is answered by the device's own estimator (:class:`AxiEstimator` on the record
     resampled as the device does) on the whole profile (fixed) and by
-    :class:`edge.measure.estimator_decision.EstimatorDecision` fed sample by sample (until decided; a
+    :class:`edge.estimation.running.EstimatorDecision` fed sample by sample (until decided; a
     touch not decided by 2 s takes the fixed answer).  Objects are named with e and, where the touch
     measured it, alpha.  Also reported: the refits' wall time, and how often the answer determined
     k and alpha (what stopping early gives up).  ``fit_contact``: the estimator fits R_c too.
     """
     from edge.estimation.probe_estimate import AxiEstimator
-    from edge.measure.estimator_decision import EstimatorDecision
-    from edge.measure.signal import resample_uniform
-    from edge.physics.probe import HEATER_VOLUME_m3, volumetric_heat_W_m3
+    from edge.estimation.running import EstimatorDecision
+    from edge.estimation.conditioning import resample_uniform
     from firmware_sim.rigs.contact_record import ContactTouch, record_touch
     from firmware_sim.rz.probe_world import geometry_for_probe
     from firmware_sim.scene.files import read_scene
@@ -238,8 +238,8 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
     axi = AxiEstimator(library_estimator(), "small-heater", fit_contact=fit_contact)
     fit_s: list[float] = []
 
-    def estimate_fn(t, dT, q, q_v, method):   # the device's call (edge.service.estimator.ModelEstimator)
-        return axi.estimate(t, dT, q, power_W=q_v * HEATER_VOLUME_m3)
+    def estimate_fn(t, dT, q, power_W, method):   # the device's call (edge.service.estimator.ModelEstimator)
+        return axi.estimate(t, dT, q, power_W=power_W)
 
     def refit(*args):                          # the decision's refits, timed
         w = time.perf_counter()
@@ -247,7 +247,6 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
         fit_s.append(time.perf_counter() - w)
         return d
     refit.prepare = axi.prepare
-    q_v = volumetric_heat_W_m3(power_W)
 
     rng = np.random.default_rng(seed)
     oset = ObjectSet(objects, label="tactile_bench IN_SET")
@@ -262,7 +261,7 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
         base = (t > -0.5) & (t <= 0)
         T0, q0 = float(T[base].mean()), float(q[base].mean())
         g = resample_uniform(t, T, q, T0, q0, SMALL_RATE_Hz, SMALL_HEAT_S)
-        fixed_d = estimate_fn(*g, q_v, "default")
+        fixed_d = estimate_fn(*g, power_W, "default")
         rec = oset.classify_estimate(fixed_d)    # None where the estimate refused (no e)
         fixed = rec.object if rec is not None else None
         dec = EstimatorDecision(oset, threshold, min_s, estimate_fn=refit, rate_Hz=SMALL_RATE_Hz,
@@ -280,7 +279,7 @@ def run_faithful_small(touches: int, threshold: float, min_s: float, seed: int, 
         if early:   # the result of a touch stopped there: the estimate of the record so far
             g_e = resample_uniform(np.array(ts), np.array(Ts), np.array(qs), T0, q0, SMALL_RATE_Hz,
                                    dec.decided.elapsed_s)
-            early_d = estimate_fn(*g_e, q_v, "default")
+            early_d = estimate_fn(*g_e, power_W, "default")
         rows.append(dict(object=obj.name, fixed=fixed, answer=dec.decided.object if early else fixed,
                          early=early, t=dec.decided.elapsed_s if early else SMALL_HEAT_S,
                          alpha_fixed="alpha" in (fixed_d.get("determined") or ()),

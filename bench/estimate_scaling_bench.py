@@ -7,7 +7,7 @@ Cases (default method, one Estimator on the shipped bundle):
 * ``touch_2s_jittered``: the same with new sample-time jitter (+-10 % of
   the period) on every call, so no resampling operator is ever reused;
 * ``daemon_2s``: the same touch as the daemon hands it over, resampled on
-  the 10-Hz measurement grid (edge.measure.sequence.resample_uniform);
+  the 10-Hz measurement grid (edge.estimation.conditioning.resample_uniform);
 * ``record_60s_100Hz``: 60 s of glass sampled at 100 Hz;
 * ``record_10s_1kHz``: 10 s of glass sampled at 1 kHz;
 * ``known_thickness_4s``: 0.5 mm PMMA on an insulating back, 4 s at 100 Hz,
@@ -38,7 +38,7 @@ from _common import ROOT, write_block, write_json
 import numpy as np  # noqa: E402  (after _common: one BLAS thread)
 
 from edge.physics.forward import simulate  # noqa: E402
-from edge.measure.sequence import resample_uniform  # noqa: E402
+from edge.estimation.conditioning import resample_uniform  # noqa: E402
 from edge.physics.solids import Solid  # noqa: E402
 
 GLASS = Solid(1.097, 2458.4, 809.0)

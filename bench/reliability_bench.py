@@ -8,11 +8,16 @@ Run::
 What it measures (the same checks the tests make, counted instead of asserted):
 
 * kill points (tests/support/killpoints.py, tests/edge/service/test_kill_points.py): for a
-  MEASURE, a model flash through the upload path, six CONFIG_SETs and the daemon's start-up
-  (first boot, and on what a killed daemon left), a forked daemon dies by
-  SIGKILL before every step, and a restart checks that nothing was lost or half-written; per
-  operation: points found (by kind), survived, lost/half-written, median time per point, and
-  full daemon restarts (no fault, heater off, measures again) at a few points;
+  MEASURE, a model flash through the upload path, six CONFIG_SETs, the daemon's start-up
+  (first boot, and on what a killed daemon left), a signed CALIBRATION_SET and signed object-set
+  uploads with activation (a new set, and over the active one), a forked daemon dies by
+  SIGKILL before every step, and a restart checks that nothing was lost or half-written (for the
+  installs also: ``signed_by`` names the signer of exactly the bytes in use, and the install is
+  all or nothing); per operation: points found (by kind), survived, lost/half-written, median
+  time per point, and full daemon restarts (no fault, heater off, measures again) at a few points;
+* a frozen converter (tests/edge/hw/test_frozen_converter.py): each chip's conversions stop
+  mid-heating (the simulator's ``converter_frozen``): how long until the heater is off, what the
+  record says, whether the next touch measures;
 * signals (tests/edge/service/test_process_safety.py): a real daemon process gets each catchable
   signal mid-heating, and SIGKILL; the enable line must be low afterwards and, for a catchable
   signal, the touch stored as aborted;
@@ -21,8 +26,6 @@ What it measures (the same checks the tests make, counted instead of asserted):
 * a host that stops reading: 3000 PINGs nobody reads, then a reconnect: replies dropped, time to
   the first answer, whether the daemon is still idle and answering.
 
-The calibration store (CALIBRATION_SET) has no operation of its own yet: its start-up steps
-(directory, stray temporaries) are among the start-up points, its install is not killed step by step.
 """
 
 from __future__ import annotations
@@ -51,7 +54,8 @@ def kill_points() -> dict:
     with K.work_root() as root:
         builds = (K.measure_operation, K.flash_operation, K.config_operation,
                   lambda r: K.startup_operation(r, after_crash=False),
-                  lambda r: K.startup_operation(r, after_crash=True))
+                  lambda r: K.startup_operation(r, after_crash=True), K.calibration_operation,
+                  K.objects_operation, lambda r: K.objects_operation(r, "kitchen"))
         for build in builds:
             op = build(root)
             t0 = time.perf_counter()
@@ -74,6 +78,50 @@ def kill_points() -> dict:
                 "wall_s": wall, "full_restarts": len(restarts), "full_restarts_clean": sum(restarts)}
             print(f"{op.name}: {len(trace)} points {out[op.name]['by_kind']}, {len(bad)} broken, {wall:.2f} s",
                   flush=True)
+    return out
+
+
+#: (scene, chip frozen): the reference board's two converters and the precision board's one.
+FROZEN_CASES = (("glass_15V", "mcp9600"), ("glass_15V", "ads1115"), ("alu_20V_ads122c04", "ads122c04"))
+
+
+def frozen_converter(tmp: Path, into_heating_s: float = 1.0, frozen_s: float = 3.0) -> dict:
+    """A converter frozen ``into_heating_s`` into the heating of a second touch, for ``frozen_s``: seconds from
+    the freeze to the heater off (the board's virtual clock), the record, STATUS, and the next touch."""
+    from edge.protocol.errors import CommandError
+    from edge.service.daemon import Daemon
+    from firmware_sim import load_scene
+    from firmware_sim.run import config_for_scene
+    from tests.support.daemons import FakeEstimator
+
+    out = {}
+    for scene, chip in FROZEN_CASES:
+        sim = load_scene(scene)
+        cfg = config_for_scene(sim.scene, tmp / f"{scene}-{chip}",
+                               {"measurement": {"trigger_button": False, "cooldown_s": 2.0}})
+        with Daemon(cfg, sim.board(), estimator=FakeEstimator()) as d:
+            sim.advance_to(sim.scene.touch.start_s + 0.1)
+            first = d.measure()["status"]
+            t1 = sim.now()
+            sim.add_touch(t1, 6.0, press_trigger=False)
+            t_freeze = t1 + cfg.measurement.cooldown_s + cfg.measurement.baseline_s + into_heating_s
+            sim.inject("converter_frozen", at_s=t_freeze, until_s=t_freeze + frozen_s, chip=chip)
+            try:
+                d.measure()
+                error = None
+            except CommandError as e:
+                error = f"{e.code.name}: {e.message}"
+            rec = d.history.get(d.history.count())
+            on_a, on_b = sim.heater_intervals()[-1]
+            st = d._cmd_status({})
+            sim.advance_to(max(t_freeze + frozen_s, t1 + 6.0) + 0.01)  # thawed, the touch over
+            sim.add_touch(sim.now(), 6.0, press_trigger=False)
+            nxt = d.measure()["status"]
+        out[f"{scene}:{chip}"] = {
+            "first_touch": first, "heater_off_after_freeze_s": on_b - t_freeze if on_a < t_freeze else None,
+            "sample_period_s": 1.0 / cfg.measurement.sample_rate_Hz, "record": [rec["status"], rec["reason"]],
+            "error_names_chip": error is not None and chip in error, "can_measure": st["can_measure"],
+            "faults": list(st["faults"]), "next_touch": nxt}
     return out
 
 
@@ -193,9 +241,16 @@ def table(res: dict) -> str:
     sig = res["signals"]
     stop = res["stop_latency"]
     h = res["host_stops_reading"]
-    lines += ["", f"{survived} of {total} kill points survive ({core} of them in measure, flash and config). "
-              "The calibration store's start-up steps are among the start-up points; its install (CALIBRATION_SET) "
-              "is not yet killed step by step.", "",
+    installs = [k for k in kp if k == "calibration" or k.startswith("objects")]
+    fz = res["frozen_converter"]
+    lines += ["", f"{survived} of {total} kill points survive ({core} of them in measure, flash and config; "
+              f"{sum(kp[k]['points'] for k in installs)} in the signed installs, where the data in use, its "
+              "`signed_by` and the install's all-or-nothing are checked after each restart).", "",
+              "A converter frozen 1 s into the heating (`converter_frozen`): "
+              + "; ".join(f"{k} -> heater off {v['heater_off_after_freeze_s']:.2f} s later "
+                          f"({v['heater_off_after_freeze_s'] / v['sample_period_s']:.1f} sample periods), record "
+                          f"{'/'.join(v['record'])}, can_measure {str(v['can_measure']).lower()}, "
+                          f"next touch {v['next_touch']}" for k, v in fz.items()) + ".", "",
               f"Signals mid-heating with the heater off afterwards: {sum(v['ok'] for v in sig.values())} of "
               f"{len(sig)} ({', '.join(sig)}); the touch stored as aborted (`stopped`) after "
               f"{sum(v['records'] == [['aborted', 'stopped']] for v in sig.values())} "
@@ -222,7 +277,9 @@ def main(argv: list[str] | None = None) -> int:
         (tmp / "signals").mkdir()
         (tmp / "stop").mkdir()
         (tmp / "flood").mkdir()
-        res = {"kill_points": kill_points(), "signals": signals(tmp / "signals"),
+        (tmp / "frozen").mkdir()
+        res = {"kill_points": kill_points(), "frozen_converter": frozen_converter(tmp / "frozen"),
+               "signals": signals(tmp / "signals"),
                "stop_latency": stop_latency(tmp / "stop"), "host_stops_reading": host_stops_reading(tmp / "flood", args.silent_s)}
     path = write_json("reliability", res)
     text = table(res)
@@ -232,7 +289,9 @@ def main(argv: list[str] | None = None) -> int:
         write_block("reliability-bench", text)
         print("docs/results.md updated")
     broken = sum(r["lost_or_half_written"] for r in res["kill_points"].values())
-    return 1 if broken or not all(v["ok"] for v in res["signals"].values()) else 0
+    frozen_ok = all(v["record"] == ["failed", "sensor_fault"] and v["can_measure"] and v["next_touch"] == "ok"
+                    for v in res["frozen_converter"].values())
+    return 1 if broken or not frozen_ok or not all(v["ok"] for v in res["signals"].values()) else 0
 
 
 if __name__ == "__main__":

@@ -25,9 +25,9 @@ from typing import Any, Callable, Mapping
 
 import serial
 
+from edge.estimation.seam import MethodFn
 from edge.hw.chips import CHIPS, FLUX, ROLES, THERMOCOUPLE, names_for
-from edge.measure.profiles import probe_settings
-from edge.measure.sequence import EstimatorFn
+from edge.measure.profiles import probe_profile, probe_settings
 from edge.service.config import Config
 from edge.service.main import install_signal_handlers, run_daemon
 from firmware_sim.ptylink import NullModem
@@ -92,7 +92,7 @@ def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Ma
     }
     for section, table in (overrides or {}).items():
         values.setdefault(section, {}).update(table)
-    if b.probe != "paper":
+    if probe_profile(b.probe) is not None:
         # A probe head with its own profile (the small-heater probe: 5 s at 50 Hz to resolve k and
         # alpha) heats as long as the scene's touch allows, sampled as fast as its converters convert.
         # What the caller overrode stays.
@@ -106,7 +106,7 @@ def config_for_scene(scene: Any, workdir: str | Path, overrides: Mapping[str, Ma
 
 
 def run_sim(scene_path: str | Path, stop_event: threading.Event | None = None,
-            print_port: Callable[[str], None] = print, *, estimator: EstimatorFn | None = None,
+            print_port: Callable[[str], None] = print, *, estimator: MethodFn | None = None,
             workdir: str | Path | None = None, overrides: Mapping[str, Mapping[str, Any]] | None = None,
             on_ready: Callable[[Any, Any], None] | None = None) -> int:
     """Run the daemon on the scene's simulator behind a NullModem until stopped.
@@ -121,7 +121,8 @@ def run_sim(scene_path: str | Path, stop_event: threading.Event | None = None,
     print_port : callable
         Receives the host-side port path first (default: ``print``, flushed).
     estimator : callable, optional
-        Default: the model store's bundle through :mod:`edge.estimation.estimate`.
+        The probe head's estimator on the uniform grid (tests, benches); default: the model store's bundle
+        through the registry (:mod:`edge.estimation.methods`). The answer is always the seam's.
     workdir : path, optional
         Model store, history and runtime settings (default: a temporary
         directory removed at exit).

@@ -44,6 +44,8 @@ from firmware_sim.world_protocol import Truth, World
 __all__ = ["Simulator", "load_scene", "make_scene_board", "make_world", "register_scene_board", "SCENE_ENV"]
 
 _BUS_FAULTS = ("i2c_nack", "bus_stuck")
+#: Faults one chip emulator plays (firmware_sim.chips.freeze).
+_CHIP_FAULTS = ("converter_frozen",)
 
 
 def make_world(scene: Scene, clock, drive) -> World:
@@ -128,6 +130,8 @@ class Simulator:
         for f in scene.faults:
             if f.kind in _BUS_FAULTS:
                 self._apply_bus_fault(f)
+            elif f.kind in _CHIP_FAULTS:
+                self.chips[f.params["chip"]].freeze(f.at_s, f.until_s)
         if scene.touch.press_trigger:
             hold = min(scene.touch.trigger_hold_s, scene.touch.length_s)
             self.parts.chip.press(self.parts.trigger_offset, scene.touch.start_s, hold)
@@ -171,11 +175,13 @@ class Simulator:
         if at < now - 1e-12:
             raise ValueError(f"at_s={at} s is in the past (now {now} s)")
         fault = validate_fault(kind, at, until_s, params)
-        if fault.kind == "i2c_nack" and "chip" in fault.params \
+        if "chip" in fault.params \
                 and self.scene.board.address_of(fault.params["chip"]) is None:
             raise ValueError(f"params.chip: {fault.params['chip']} is not fitted on this board")
         if fault.kind in _BUS_FAULTS:
             self._apply_bus_fault(fault)
+        elif fault.kind in _CHIP_FAULTS:
+            self.chips[fault.params["chip"]].freeze(fault.at_s, fault.until_s)
         else:
             self.world.add_fault(fault, now_s=now)
         self._injected.append(fault)

@@ -420,9 +420,11 @@ class DeviceClient:
         -------
         dict
             The history's names: ``raw_t_s`` (s from heater on), ``raw_T_C``,
-            ``raw_q_W_m2`` and ``grid_t_s``, ``grid_dT_K``, ``grid_q_W_m2``
+            ``raw_q_W_m2``, ``raw_T_dt_s``, ``raw_q_dt_s`` (each converter's read
+            time against ``raw_t_s``) and ``grid_t_s``, ``grid_dT_K``, ``grid_q_W_m2``
             as float arrays (NaN for a sample the device sent as null); None
-            for a series the device did not store.
+            for a series the device did not store. With the raw series, ``header``:
+            the touch record's header the device sent (a dict), or None.
 
         Raises
         ------
@@ -437,10 +439,16 @@ class DeviceClient:
             if kind not in SERIES_KINDS:
                 raise ValueError(f"which must be one of {', '.join(SERIES_KINDS)}, got {kind!r}")
             names = ("t_s", "T_C", "q_W_m2") if kind == "raw" else ("t_s", "dT_K", "q_W_m2")
-            parts: dict[str, list] = {n: [] for n in names}
+            # Read times travel only when the device stored them (older devices and records: never).
+            optional = ("T_dt_s", "q_dt_s") if kind == "raw" else ()
+            parts: dict[str, list] = {n: [] for n in names + optional}
             offset, total = 0, None
             while total is None or offset < total:
                 page = self.series_page(measurement_id, kind, offset, limit)
+                if kind == "raw" and offset == 0:
+                    out["header"] = page.get("header")
+                if total is None:
+                    optional = tuple(n for n in optional if n in page)
                 if page["measurement_id"] != measurement_id or page["which"] != kind or page["offset"] != offset:
                     raise BadReply(f"SERIES page for {page['measurement_id']}/{page['which']} at "
                                    f"{page['offset']}, asked {measurement_id}/{kind} at {offset}")
@@ -452,12 +460,15 @@ class DeviceClient:
                     raise BadReply(f"SERIES page at {offset} of {total} is empty")
                 if offset + n > total:
                     raise BadReply(f"SERIES page at {offset} runs past total {total}")
-                for name in names:
+                for name in names + optional:
+                    if name not in page or len(page[name]) != n:
+                        raise BadReply(f"SERIES page at {offset}: column {name} does not match t_s")
                     parts[name].extend(page[name])
                 offset += n
-            for name in names:
+            for name in parts:
                 key = f"{kind}_{name}"
-                out[key] = np.array([np.nan if x is None else x for x in parts[name]], float) if total else None
+                out[key] = np.array([np.nan if x is None else x for x in parts[name]], float) \
+                    if total and (name in names or name in optional) else None
         return out
 
     def config_get(self, *keys: str) -> dict[str, Any]:

@@ -156,7 +156,7 @@ def plot_touch(path: str | Path, series: Mapping[str, Any], result: Mapping[str,
         ``grid_t_s``, ``grid_q_W_m2``, ``T0_C`` and ``q_offset_W_m2``.
     result : mapping
         The device's result dict (title).
-    fit : edge.estimation.estimate.Estimate
+    fit : edge.estimation.result.Estimate
         Host re-estimate on the same record (``t_model_s``, ``fit_T_K``).
     label : str
         Scene or sample name for the title.

@@ -3,12 +3,23 @@
 Schema: a header row, then one row per sample; columns (any order)
 
 * ``t_s`` - time since heater-on (s), strictly increasing;
-* ``T_K`` (absolute temperature, K) or ``dT_K`` (excess over the baseline, K);
-  with ``T_K`` the baseline is the mean of samples with t_s <= 0 if any, else
-  the first sample;
+* ``T_C`` (the thermocouple as the device recorded it, °C), ``T_K`` (absolute
+  temperature, K) or ``dT_K`` (excess over the baseline, K); with ``T_C`` or
+  ``T_K`` the baseline is the mean of samples with t_s <= 0 if any, else the
+  first sample;
 * ``q_W_m2`` - heat flux into the object (W/m^2): the flux sensor's voltage over its
   nominal sensitivity;
-* ``heater_W_m2`` (optional) - the heater's areal power.
+* ``heater_W_m2`` (optional) - the heater's areal power;
+* ``T_dt_s``, ``q_dt_s`` (optional) - each converter's read time against ``t_s``.
+
+A device's touch record (``history --export-series``, :func:`write_touch`)
+carries, before the column header, one ``# key: value`` line per field of
+:data:`edge.estimation.record.HEADER_FIELDS` and the measurement's identity
+(measurement id, started_utc, calibration and model sha256, software, board),
+then the columns exactly as recorded (``t_s``, ``T_C``, ``q_W_m2`` and the read
+times when recorded), every number written so that it reads back bit for bit;
+:func:`read_touch` turns it back into the
+:class:`~edge.estimation.record.TouchRecord` the device estimated.
 
 Samples before heater-on (``t_s`` < 0) are kept by :func:`read_series`, for the
 sensor-chain estimate, which fits from the moment of contact: a record that
@@ -36,7 +47,15 @@ class RecordError(ValueError):
     """A malformed record file; the message names the line and column."""
 
 
-_META = re.compile(r"^#\s*([A-Za-z_][A-Za-z0-9_]*)\s*:\s*(.*?)\s*$")
+#: Temperature columns a record may carry, the first found wins (the device's own first).
+T_COLUMNS = ("T_C", "dT_K", "T_K")
+#: Optional per-sample read times of the converters, s against ``t_s``.
+READ_TIME_COLUMNS = ("T_dt_s", "q_dt_s")
+_ZERO_C_K = 273.15
+
+
+# Keys may be dotted (``measurement.noise_T_K``: a device setting the touch was judged by).
+_META = re.compile(r"^#\s*([A-Za-z_][A-Za-z0-9_.]*)\s*:\s*(.*?)\s*$")
 
 
 def read_record_metadata(path: str | Path) -> dict[str, str]:
@@ -83,12 +102,14 @@ def read_series(path: str | Path) -> dict[str, np.ndarray | str]:
         raise RecordError(f"{path}: empty file")
     header_line, header = rows[0]
     cols = [c.strip() for c in next(csv.reader([header]))]
-    if "t_s" not in cols or "q_W_m2" not in cols or not ({"T_K", "dT_K"} & set(cols)):
-        raise RecordError(f"{path}, line {header_line}: header must have t_s, q_W_m2 and T_K or dT_K, got {cols}")
-    tcol = "dT_K" if "dT_K" in cols else "T_K"
+    if "t_s" not in cols or "q_W_m2" not in cols or not (set(T_COLUMNS) & set(cols)):
+        raise RecordError(f"{path}, line {header_line}: header must have t_s, q_W_m2 and T_C, T_K or dT_K, "
+                          f"got {cols}")
+    tcol = next(c for c in T_COLUMNS if c in cols)
     want = {"t_s": cols.index("t_s"), tcol: cols.index(tcol), "q_W_m2": cols.index("q_W_m2")}
-    if "heater_W_m2" in cols:
-        want["heater_W_m2"] = cols.index("heater_W_m2")
+    for extra in ("heater_W_m2",) + READ_TIME_COLUMNS:
+        if extra in cols:
+            want[extra] = cols.index(extra)
     data = {k: [] for k in want}
     for line_no, line in rows[1:]:
         fields = next(csv.reader([line]))
@@ -110,8 +131,9 @@ def read_series(path: str | Path) -> dict[str, np.ndarray | str]:
         raise RecordError(f"{path}, line {rows[1 + bad[0] + 1][0]}, column 't_s': times must increase")
     out: dict[str, np.ndarray | str] = {"t_s": t, "T": np.array(data[tcol]), "q_W_m2": np.array(data["q_W_m2"]),
                                         "T_column": tcol}
-    if "heater_W_m2" in data:
-        out["heater_W_m2"] = np.array(data["heater_W_m2"])
+    for extra in ("heater_W_m2",) + READ_TIME_COLUMNS:
+        if extra in data:
+            out[extra] = np.array(data[extra])
     return out
 
 
@@ -119,7 +141,7 @@ def read_record(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t_s, dT_K, q_W_m2) from a CSV file, samples with t_s >= 0 only."""
     s = read_series(path)
     t, T, q = s["t_s"], s["T"], s["q_W_m2"]
-    if s["T_column"] == "T_K":
+    if s["T_column"] != "dT_K":
         pre = t <= 0
         T = T - (T[pre].mean() if pre.any() else T[0])
     keep = t >= 0
@@ -161,3 +183,145 @@ def write_series(path: str | Path, t_s, T_K, q_W_m2, *, probe: str | None = None
     """Write a whole record (absolute ``T_K``, samples before heater-on included), atomically."""
     _write_csv(path, "ThermoTouch record: time since heater-on (negative before), thermocouple, flux-sensor reading",
                ("t_s", "T_K", "q_W_m2"), zip(t_s, T_K, q_W_m2), probe)
+
+
+def _text(value) -> str:
+    """A header value as one line that reads back as the same value."""
+    if value is None:
+        return "none"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return repr(float(value)) if not isinstance(value, (int, np.integer)) else str(int(value))
+    return " ".join(str(value).split())  # one line: a newline would end the header entry
+
+
+def _number(v) -> str:
+    # repr is the shortest text that parses back to the same float64: the export is bit-exact.
+    return repr(float(v))
+
+
+def write_touch(path: str | Path, record, identity=None) -> None:
+    """Write a device's touch record with its header, atomically (the schema in the module docstring).
+
+    Parameters
+    ----------
+    path : path-like
+    record : edge.estimation.record.TouchRecord
+    identity : mapping, optional
+        The measurement's identity written first (measurement_id, started_utc, calibration_sha256,
+        model_sha256, software, board ...); None values are left out. The record's own header
+        fields win over a key of the same name.
+    """
+    from host.atomic import atomic_path  # noqa: PLC0415
+
+    head = {k: v for k, v in dict(identity or {}).items() if v is not None}
+    head.update(record.header())
+    names = ["t_s", "T_C", "q_W_m2"]
+    columns = [record.t_s, record.T_C, record.q_W_m2]
+    for name in READ_TIME_COLUMNS:
+        if getattr(record, name) is not None:
+            names.append(name)
+            columns.append(getattr(record, name))
+    with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as f:
+        f.write("# ThermoTouch touch record: the device's raw samples (t_s from heater-on, negative before; "
+                "T_C thermocouple; q_W_m2 flux sensor) and what it knew\n")
+        for key, value in head.items():
+            if _META.match(f"# {key}: x") is None:
+                raise ValueError(f"header key {key!r} is not a name")
+            f.write(f"# {key}: {_text(value)}\n")
+        w = csv.writer(f)
+        w.writerow(names)
+        for row in zip(*columns):
+            w.writerow([_number(v) for v in row])
+
+
+def _header(path: Path) -> dict[str, str]:
+    """``# key: value`` lines before the column header, keys as written (the first wins)."""
+    meta: dict[str, str] = {}
+    for line in Path(path).read_bytes().decode("utf-8-sig").splitlines():
+        s = line.strip()
+        if not s:
+            continue
+        if not s.startswith("#"):
+            break
+        m = _META.match(s)
+        if m:
+            meta.setdefault(m.group(1), m.group(2))
+    return meta
+
+
+def read_touch(path: str | Path, probe: str | None = None):
+    """A record file as the :class:`~edge.estimation.record.TouchRecord` to estimate.
+
+    A device's export (its header names the touch: probe, power, heater on-time, sample clock,
+    baseline ...) reads back as the record the device estimated. An older CSV without that
+    header (``t_s``, ``T_K`` or ``dT_K``, ``q_W_m2``; ``# probe:`` optional) is read as before:
+    ``probe`` (``--probe``) names the head when the file does not, the heater is taken as on from
+    t_s = 0 to the last sample, the baseline is what comes before 0, the clock is the median
+    sample interval and the power is ``heater_W_m2`` times the heater's area, or the head's
+    nominal power when the file has no such column.
+
+    Raises
+    ------
+    RecordError
+        One line naming the file and what is wrong.
+    """
+    from edge.estimation.record import HEADER_FIELDS, TouchRecord  # noqa: PLC0415
+    from edge.estimation.record import RecordError as BadRecord  # noqa: PLC0415
+    from edge.physics.geometry import PROBES  # noqa: PLC0415
+
+    path = Path(path)
+    s = read_series(path)  # the file's own checks first: they name the line and column
+    meta = _header(path)
+    t, T, q = s["t_s"], s["T"], s["q_W_m2"]
+    T_C = T - _ZERO_C_K if s["T_column"] == "T_K" else T
+    # Header keys match the record's fields whatever their case (a spreadsheet may have changed it).
+    canonical = {f.lower(): f for f in HEADER_FIELDS}
+    header = {canonical.get(k.lower(), k): v for k, v in meta.items()}
+    recorded = header.get("probe")
+    exported = any(f in header for f in HEADER_FIELDS if f != "probe")
+    # An export names its probe; an older CSV is the paper probe's unless --probe or its probe line says.
+    name = (probe or recorded) if exported else (probe or "paper")
+    if name is None:
+        raise RecordError(f"{path}: header lacks probe (or give --probe)")
+    if recorded is not None and recorded != name:
+        raise RecordError(f"{path} was taken with probe {recorded!r}, not --probe {name}")
+    if name not in PROBES:
+        raise RecordError(f"{path}: unknown probe {name!r}; shipped: {', '.join(PROBES)}")
+    try:
+        if exported:
+            # A device's export: every field as the device had it.
+            return TouchRecord.from_header(header, t, T_C, q, s.get("T_dt_s"), s.get("q_dt_s"))
+        return _older_record(path, name, s, T_C, {k: v for k, v in header.items() if k != "probe"})
+    except BadRecord as exc:
+        raise RecordError(f"{path}: {exc}") from None
+
+
+def _older_record(path: Path, name: str, s: dict, T_C: np.ndarray, meta: dict):
+    """A record without a device's header, as ``estimate`` always read one (see :func:`read_touch`).
+
+    Its baseline is what the file says it is: the samples before heater-on, or -- when it starts at
+    heater-on -- the excess's zero (``dT_K``) or the first reading (``T_K``, ``T_C``), with no flux
+    offset; one sample before heater-on carries that baseline, so the record goes through the one
+    estimate path like any other.
+    """
+    from edge.estimation.record import TouchRecord  # noqa: PLC0415
+    from edge.physics.geometry import PROBES  # noqa: PLC0415
+
+    geometry = PROBES[name]
+    t, q = s["t_s"], s["q_W_m2"]
+    dt = float(np.median(np.diff(t)))
+    dts = [s.get(c) for c in READ_TIME_COLUMNS]
+    if t[0] >= 0:
+        T_base = 0.0 if s["T_column"] == "dT_K" else float(T_C[0])
+        t, T_C, q = (np.concatenate(([min(t[0] - dt, -dt)], t)), np.concatenate(([T_base], T_C)),
+                     np.concatenate(([0.0], q)))
+        dts = [None if a is None else np.concatenate(([0.0], a)) for a in dts]
+    heating = s["t_s"] > 0
+    power_W = geometry.nominal_power_W
+    if "heater_W_m2" in s and heating.any():
+        power_W = float(np.mean(s["heater_W_m2"][heating])) * geometry.heater_area_m2
+    return TouchRecord(probe=name, t_s=t, T_C=T_C, q_W_m2=q, power_W=power_W, heater_on_s=max(float(t[-1]), 0.0),
+                       sample_rate_Hz=1.0 / dt, baseline_s=-float(t[0]), T_dt_s=dts[0], q_dt_s=dts[1],
+                       meta=meta | {"header": "none (older CSV)"})

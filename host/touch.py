@@ -18,7 +18,7 @@ from typing import Any
 
 from host.device import DeviceSession, DeviceUnavailable
 
-__all__ = ["Touch", "touch", "reestimate", "host_bundle", "bundle_identity"]
+__all__ = ["Touch", "touch", "reestimate", "touch_record", "host_bundle", "bundle_identity"]
 
 #: Bundles loaded by :func:`host_bundle`, by (directory, sha256): a verified load takes a moment.
 _LOADED: dict[tuple[str, str], Any] = {}
@@ -35,8 +35,9 @@ class Touch:
     series : dict or None
         The stored record with its raw and resampled series (None unless asked for).
     fits : dict
-        ``{method: edge.estimation.estimate.Estimate}`` recomputed on the host from
-        ``series`` (empty without series or without the device's bundle).
+        ``{method: edge.estimation.result.Estimate}`` recomputed on the host from the raw
+        ``series`` through the device's own estimate path (empty without series or without
+        the device's bundle).
     fit_note : str or None
         Why ``fits`` is empty although series were read (e.g. the device's
         model is not on this host); None when there are fits or no series.
@@ -136,21 +137,91 @@ def host_bundle(model_sha256: str | None, *, bundle_dir: str | Path | None = Non
     return None, f"the device's model {sha[:12]} is not on this host (give --bundle DIR)"
 
 
-def reestimate(bundle: Any, series: dict, methods=("default", "paper")) -> dict:
-    """Estimates of ``series`` (a record with its grid series) by ``methods`` with ``bundle``."""
-    from edge.physics.probe import volumetric_heat_W_m3  # noqa: PLC0415
-    from edge.estimation.estimate import Estimator  # noqa: PLC0415
+def touch_record(record: dict, series: dict, *, arm_s: float | None = None) -> Any:
+    """The :class:`~edge.estimation.record.TouchRecord` of a stored measurement, None without raw samples.
 
-    if bundle is None or series.get("grid_t_s") is None:
+    The series' own header (``touch_header``, when the device sends it) is the record as the device
+    made it; otherwise it is rebuilt from the MEASURE reply: the probe the answer names, the power,
+    heating time and sample clock; the baseline's length from the record's configuration snapshot
+    (default: the configuration's default) and ``arm_s`` as the touch was asked for.
+    """
+    from edge.estimation.record import RecordError, TouchRecord  # noqa: PLC0415
+    from edge.service.config import Config  # noqa: PLC0415
+
+    cols = [series.get(k) for k in ("raw_t_s", "raw_T_C", "raw_q_W_m2")]
+    if any(c is None or len(c) < 4 for c in cols):
+        return None
+    try:
+        header = series.get("touch_header")
+        if header:
+            return TouchRecord.from_header(header, *cols, T_dt_s=series.get("raw_T_dt_s"),
+                                           q_dt_s=series.get("raw_q_dt_s"))
+        m = (record.get("config") or {}).get("measurement") or {}
+        return TouchRecord(
+            probe=(record.get("result") or {}).get("probe") or "paper", t_s=cols[0], T_C=cols[1], q_W_m2=cols[2],
+            power_W=float(record["power_W"]), heater_on_s=float(record.get("heater_on_s") or 0.0),
+            sample_rate_Hz=float(record["sample_rate_Hz"]),
+            baseline_s=float(m.get("baseline_s", Config().measurement.baseline_s)),
+            method=(record.get("result") or {}).get("method") or "default", arm_s=float(arm_s or 0.0))
+    except (RecordError, KeyError, TypeError, ValueError):
+        return None
+
+
+def reestimate(bundle: Any, series: dict, methods=("default", "paper"), *, record: dict | None = None,
+               arm_s: float | None = None) -> dict:
+    """Estimates of a stored touch by ``methods`` with ``bundle``, through the one estimate path.
+
+    The host holds neither the device's calibration nor its object set: these are the methods'
+    own answers (the plots' fitted curves, the other method's numbers), not the device's answer.
+    """
+    from dataclasses import replace  # noqa: PLC0415
+
+    from edge.estimation.estimate import Estimator  # noqa: PLC0415
+    from edge.estimation.seam import SeamContext, estimate_touch  # noqa: PLC0415
+
+    if bundle is None:
         return {}
     est = Estimator.from_bundle(bundle)
-    q_v = volumetric_heat_W_m3(series["power_W"]) if series.get("power_W") else None
+    if not series.get("touch_header") and series.get("grid_t_s") is not None:
+        # A record without the device's header: the host knows neither the converters' lag nor their
+        # resolution, so it re-runs the probe head's estimator on the grid the device conditioned
+        # (the seam's method step, the same class: edge.estimation.methods).
+        return _methods_on_grid(est, series, record or {}, methods)
+    rec = touch_record(record or series, series, arm_s=arm_s)
+    if rec is None:
+        return {}
+    ctx = SeamContext(estimator=est)
+    out = {}
+    for m in methods:
+        if m == "paper" and not ctx.estimator.has_paper:
+            continue
+        try:
+            out[m] = estimate_touch(replace(rec, method=m), ctx)
+        except ValueError:   # too few samples to resample, or a record the method refuses
+            continue
+    return out
+
+
+def _methods_on_grid(est: Any, series: dict, record: dict, methods) -> dict:
+    """The probe head's estimator on the device's stored grid, per method, as typed estimates."""
+    from edge.estimation.methods import method_class  # noqa: PLC0415
+    from edge.estimation.seam import method_estimate  # noqa: PLC0415
+    from edge.physics.geometry import get_probe  # noqa: PLC0415
+
+    probe = (record.get("result") or {}).get("probe") or "paper"
+    fn = method_class(probe)(est, get_probe(probe))
     out = {}
     for m in methods:
         if m == "paper" and not est.has_paper:
             continue
-        out[m] = est.estimate(series["grid_t_s"], series["grid_dT_K"], series["grid_q_W_m2"], method=m,
-                              q_v_W_m3=q_v)
+        try:
+            d = fn(series["grid_t_s"], series["grid_dT_K"], series["grid_q_W_m2"], record.get("power_W"), m)
+        except ValueError:
+            continue
+        from dataclasses import replace  # noqa: PLC0415
+
+        extra = d.get("series") or {}
+        out[m] = replace(method_estimate(d, probe, est.sha256, False), series=dict(extra))
     return out
 
 
@@ -194,7 +265,7 @@ def touch(session: DeviceSession, *, power_W: float | None = None, voltage_V: fl
     series = session.series(rec["measurement_id"])
     sha = rec.get("model_sha256") or (rec.get("result") or {}).get("model_sha256")
     bundle, note = host_bundle(sha, bundle_dir=bundle_dir, session=session)
-    fits = reestimate(bundle, series)
+    fits = reestimate(bundle, series, record=rec, arm_s=arm_s)
     if bundle is not None and not fits:
-        note = "no resampled series stored"
+        note = "no raw series stored"
     return Touch(rec, series, fits, None if fits else note)

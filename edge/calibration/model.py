@@ -34,10 +34,9 @@ from typing import Any
 
 import numpy as np
 
+from edge.estimation.chain_estimate import DatasheetChain
 from edge.estimation.sensor_chain import SensorChainCalibration
 from edge.physics.geometry import PROBES
-from edge.physics.probe import (FLUX_SENSITIVITY_U_REL, SENSING_K_U_REL, SENSING_THICKNESS_U_REL,
-                               THERMOCOUPLE_TAU_U_s)
 from edge.schema import Field, SchemaError, check_table
 
 __all__ = ["CalibrationError", "PARAMETERS", "ProbeCalibration", "ReferenceFit", "FORMAT", "SCHEMA_VERSION"]
@@ -152,9 +151,8 @@ class ProbeCalibration:
     @classmethod
     def nominal(cls, probe: str = "paper") -> "ProbeCalibration":
         """The uncalibrated probe: datasheet values, as-delivered spreads as covariance."""
-        cov = np.diag([FLUX_SENSITIVITY_U_REL**2, SENSING_THICKNESS_U_REL**2, THERMOCOUPLE_TAU_U_s**2,
-                       SENSING_K_U_REL**2])
-        return cls(probe=probe, chain=SensorChainCalibration(), covariance=cov, calibrated=False)
+        d = DatasheetChain(probe=probe)
+        return cls(probe=probe, chain=d.chain, covariance=d.covariance, calibrated=False)
 
     @property
     def theta(self) -> np.ndarray:
@@ -174,6 +172,24 @@ class ProbeCalibration:
     def u_theta(self) -> np.ndarray:
         """Standard uncertainties of theta."""
         return np.sqrt(np.diag(self.covariance))
+
+    def u_of(self, parameter: str) -> float:
+        """Standard uncertainty of one parameter of theta, by its name in :data:`PARAMETERS`."""
+        try:
+            i = PARAMETERS.index(parameter)
+        except ValueError:
+            raise KeyError(f"unknown parameter {parameter!r}; known: {', '.join(PARAMETERS)}") from None
+        return float(math.sqrt(max(float(self.covariance[i, i]), 0.0)))
+
+    @property
+    def flux_scale(self) -> float:
+        """True flux per unit of the flux sensor's datasheet reading."""
+        return float(self.chain.flux_scale)
+
+    @property
+    def flux_u_rel(self) -> float:
+        """Relative standard uncertainty of :attr:`flux_scale` (u of ``ln_flux_scale``)."""
+        return self.u_of("ln_flux_scale")
 
     # -- storage ---------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:

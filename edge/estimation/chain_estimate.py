@@ -35,19 +35,21 @@ Flags: ``uncalibrated`` (the datasheet chain), ``contact_not_recorded``,
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Any, Callable
 
 import numpy as np
 
-from edge.calibration.model import ProbeCalibration
 from edge.estimation.contact import find_contact
-from edge.estimation.sensor_chain import DiskFitter, face_flux, fit_sensor_chain
+from edge.estimation.sensor_chain import DiskFitter, SensorChainCalibration, face_flux, fit_sensor_chain
 from edge.physics.geometry import PROBES
+from edge.physics.probe import (FLUX_SENSITIVITY_U_REL, SENSING_K_U_REL, SENSING_THICKNESS_U_REL,
+                               THERMOCOUPLE_TAU_U_s)
+from edge.status import Flag
 
 __all__ = ["estimate_from_contact", "uniform_record", "alpha_prior", "lateral_profile", "LateralProfile", "POOR_FIT",
-           "FIT_START_s"]
+           "FIT_START_s", "DatasheetChain"]
 
 #: Normalised residual (rms residual / noise measured in air) above which the chain does not describe the record.
 POOR_FIT = 5.0
@@ -99,9 +101,49 @@ LOSS_NOISE_FACTOR = 8.0
 LATERAL_WINDOWS_s = (1.0, 2.0, 4.0, 8.0, math.inf)
 
 
+@dataclass(frozen=True)
+class DatasheetChain:
+    """The uncalibrated probe's chain: datasheet values, the as-delivered spreads as covariance.
+
+    What :meth:`edge.calibration.model.ProbeCalibration.nominal` stores, without the calibration
+    file's machinery (this package sits below :mod:`edge.calibration`): the attributes the chain
+    estimate reads.  ``sha256`` is None -- no calibration was applied.
+    """
+
+    probe: str = "paper"
+    chain: SensorChainCalibration = SensorChainCalibration()
+    u_rel_floor: float = 0.0
+    calibrated: bool = False
+    sha256: None = None
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """Covariance of theta = (ln flux_scale, ln sensing_thickness_m, tc_tau_s, ln sensing_k_W_mK)."""
+        return np.diag([FLUX_SENSITIVITY_U_REL**2, SENSING_THICKNESS_U_REL**2, THERMOCOUPLE_TAU_U_s**2,
+                        SENSING_K_U_REL**2])
+
+    @property
+    def theta(self) -> np.ndarray:
+        """(ln flux_scale, ln sensing_thickness_m, tc_tau_s, ln sensing_k_W_mK)."""
+        c = self.chain
+        return np.array([math.log(c.flux_scale), math.log(c.sensing_thickness_m), c.tc_tau_s, math.log(c.k_W_mK)])
+
+    def chain_at(self, theta) -> SensorChainCalibration:
+        """The chain with parameters ``theta`` (as :meth:`ProbeCalibration.chain_at`)."""
+        th = np.asarray(theta, dtype=np.float64)
+        k = float(math.exp(th[3]))
+        rho_c = self.chain.k_W_mK / self.chain.alpha_m2_s
+        return replace(self.chain, flux_scale=float(math.exp(th[0])), sensing_thickness_m=float(math.exp(th[1])),
+                       tc_tau_s=float(max(th[2], 0.0)), k_W_mK=k, alpha_m2_s=k / rho_c)
+
+
 @lru_cache(maxsize=1)
 def _library():
-    """The material library as a prior on rho c given e (the same prior the default estimator uses)."""
+    """The material library from its CSV: the prior for callers that have no model bundle.
+
+    The device and every path through :func:`edge.estimation.seam.estimate_touch` pass the bundle's
+    library instead (``library=``), the one prior the default method uses.
+    """
     from edge.estimation.estimate import DEFAULT_PRIOR_COEF  # noqa: PLC0415
     from edge.estimation.identification import Library  # noqa: PLC0415
     from edge.physics.materials import load_materials  # noqa: PLC0415
@@ -113,9 +155,12 @@ def _library():
                    rho_c_intrinsic_ln=DEFAULT_PRIOR_COEF[1], material_spread_ln=DEFAULT_PRIOR_COEF[2])
 
 
-def alpha_prior(e: float, u_ln_e: float = 0.02) -> tuple[float, float]:
-    """ln(alpha) mean and standard deviation of an object of effusivity e (alpha = (e / rho c)^2)."""
-    m, sd, _ = _library().prior_rho_c(e, u_ln_e)
+def alpha_prior(e: float, u_ln_e: float = 0.02, library=None) -> tuple[float, float]:
+    """ln(alpha) mean and standard deviation of an object of effusivity e (alpha = (e / rho c)^2).
+
+    ``library``: the prior's :class:`~edge.estimation.identification.Library` (default: the CSV's).
+    """
+    m, sd, _ = (library if library is not None else _library()).prior_rho_c(e, u_ln_e)
     return 2.0 * math.log(e) - 2.0 * m, 2.0 * sd
 
 
@@ -144,7 +189,7 @@ class LateralProfile:
 
 
 def lateral_profile(fit_disk: Callable[[float], Any], e_1d: float, noise_T_K: float,
-                    point: Callable[[float], Any] | None = None) -> LateralProfile | None:
+                    point: Callable[[float], Any] | None = None, library=None) -> LateralProfile | None:
     """Profile the chain's disk fit over ln(alpha), with the library's prior on alpha given e.
 
     The heated disk loses heat sideways into the object at a rate set by its alpha, which the
@@ -167,6 +212,8 @@ def lateral_profile(fit_disk: Callable[[float], Any], e_1d: float, noise_T_K: fl
     point : callable, optional
         alpha -> e and the residual only (:meth:`edge.estimation.sensor_chain.DiskFitter.point`),
         for the profile's inner loop; ``fit_disk`` then makes only the answer's full fit.
+    library : Library, optional
+        The prior's library (default: the CSV's; the seam passes the model bundle's).
 
     Returns
     -------
@@ -177,7 +224,7 @@ def lateral_profile(fit_disk: Callable[[float], Any], e_1d: float, noise_T_K: fl
         return math.isfinite(r.e_W_s05_m2K) and r.e_W_s05_m2K > 0 and r.n_fitted > 3
 
     lo_b, hi_b = (math.log(x) for x in ALPHA_BOUNDS_m2_s)
-    m0, sd0 = alpha_prior(e_1d)
+    m0, sd0 = alpha_prior(e_1d, library=library)
     lo, hi = max(lo_b, m0 - ALPHA_SPAN_SD * sd0), min(hi_b, m0 + ALPHA_SPAN_SD * sd0)
     if not lo < hi:
         lo, hi = lo_b, hi_b
@@ -196,7 +243,7 @@ def lateral_profile(fit_disk: Callable[[float], Any], e_1d: float, noise_T_K: fl
     if not (ok(r_hi) and ok(r_m)):
         return None
     if abs(math.log(r_m.e_W_s05_m2K / e_1d)) < LATERAL_PROFILE_MIN:
-        m, sd = alpha_prior(r_m.e_W_s05_m2K)
+        m, sd = alpha_prior(r_m.e_W_s05_m2K, library=library)
         slope = math.log(r_hi.e_W_s05_m2K / r_m.e_W_s05_m2K) / (min(hi, m0 + 2.0 * sd0) - m0)
         full = r_m if point is None else fit_disk(math.exp(m0))
         return LateralProfile(full, m0, sd, slope, (m, sd), profiled=False) if ok(full) else None
@@ -219,7 +266,7 @@ def lateral_profile(fit_disk: Callable[[float], Any], e_1d: float, noise_T_K: fl
         r = at(la)
         if not ok(r):
             return math.inf
-        m, sd = alpha_prior(r.e_W_s05_m2K)
+        m, sd = alpha_prior(r.e_W_s05_m2K, library=library)
         return D(la) + ((la - m) / sd) ** 2
 
     j = int(np.argmin([J(x) for x in grid]))
@@ -237,7 +284,7 @@ def lateral_profile(fit_disk: Callable[[float], Any], e_1d: float, noise_T_K: fl
     r = fit_disk(math.exp(la)) if point is not None else at(la)
     if not ok(r):
         return None
-    m, sd = alpha_prior(r.e_W_s05_m2K)
+    m, sd = alpha_prior(r.e_W_s05_m2K, library=library)
     h = ALPHA_STEP_LN
     rp, rm = at(la + h), at(la - h)
     slope = (math.log(rp.e_W_s05_m2K / rm.e_W_s05_m2K) / (2.0 * h)) if ok(rp) and ok(rm) else 0.0
@@ -306,8 +353,8 @@ def contact_lost_at(t_from_contact: np.ndarray, phi_W_m2: np.ndarray, t_heat_s: 
     return None if hit.size == 0 else float(t[on[hit[0]]])
 
 
-def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None = None, *,
-                          heater_radius_m: float | None = None) -> dict[str, Any]:
+def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
+                          heater_radius_m: float | None = None, library=None) -> dict[str, Any]:
     """e, R_c and T_obj0 of one touch, with their uncertainties, flags and the fit's quality.
 
     Parameters
@@ -318,13 +365,15 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
         Absolute thermocouple temperature (degC or K; T_obj0 is returned on the same scale).
     q_W_m2 : array (n,)
         Flux-sensor voltage over its nominal sensitivity, W/m^2.
-    calibration : ProbeCalibration, optional
-        Default: the uncalibrated datasheet probe (flagged).
+    calibration : edge.calibration.model.ProbeCalibration, optional
+        Default: the uncalibrated datasheet probe (:class:`DatasheetChain`, flagged).
     heater_radius_m : float, optional
         Radius of the heated disk (default: the calibration's probe's); ``math.inf`` for 1-D.  The
         object loses heat sideways from a finite disk at a rate set by its alpha: e is the disk
         fit's at the alpha the record and the library prior make most likely, alpha's uncertainty
         and the fit's change between windows going into u(e) (``u_e_parts["lateral"]``).
+    library : Library, optional
+        The prior on alpha given e (default: the CSV's; the seam passes the model bundle's).
 
     Returns
     -------
@@ -334,12 +383,13 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
         ``object_temperature0`` (+ ``_u``), ``probe_temperature0``, ``contact_t_s``,
         ``normalised_residual``, ``flags``, ``determined``, ``calibration_sha256``; with a finite
         heater also ``alpha_m2_s``, ``k_W_mK`` (+ ``_u``; measured when ``determined`` lists them,
-        otherwise the prior's) and ``alpha_prior_ln`` (mean, sd of ln alpha).
+        otherwise the prior's) and ``alpha_prior_ln`` (mean, sd of ln alpha).  Flags are
+        :class:`edge.status.Flag` words.
     """
-    cal = ProbeCalibration.nominal() if calibration is None else calibration
+    cal = DatasheetChain() if calibration is None else calibration
     t, T, q = uniform_record(t_s, T_C, q_W_m2)
     c = find_contact(t, T, q)
-    flags: list[str] = [] if cal.calibrated else ["uncalibrated"]
+    flags: list[Flag] = [] if cal.calibrated else [Flag.UNCALIBRATED]
     i0 = c.index
     tt, TT, qq = t[i0:] - t[i0], T[i0:], q[i0:]
     if tt.size < 8 or tt[-1] < FIT_START_s + 0.2:
@@ -363,7 +413,7 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
     if t_lost is not None:
         # A lifted probe: what follows is the probe in air, not the object.  Refused, not fitted
         # (fitting up to the lift would pass off a shorter, unplanned touch as the measurement).
-        return {"flags": flags + ["contact_lost"], "effusivity_W_s05_m2K": None, "effusivity_W_s05_m2K_u": None,
+        return {"flags": flags + [Flag.CONTACT_LOST], "effusivity_W_s05_m2K": None, "effusivity_W_s05_m2K_u": None,
                 "contact_t_s": float(t[i0]), "contact_lost_t_s": float(t[i0] + t_lost),
                 "normalised_residual": None, "determined": [], "calibration_sha256": cal.sha256,
                 "probe": cal.probe}
@@ -395,7 +445,7 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
             if bad(c1):
                 continue
             p = lateral_profile(lambda al, F=F: F((a, al)), c1.e_W_s05_m2K, noise_T,
-                                point=lambda al, F=F: F.point((a, al)))
+                                point=lambda al, F=F: F.point((a, al)), library=library)
             if p is None or bad(p.fit):
                 continue
             cands.append([n_keep, c1, p, math.hypot(p.fit.u_e_W_s05_m2K / p.fit.e_W_s05_m2K, p.u_ln_e), 0.0])
@@ -416,12 +466,12 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
         else:
             tt, TT, qq = full
     if bad(r):
-        return {"flags": flags + ["no_fit"], "effusivity_W_s05_m2K": None, "effusivity_W_s05_m2K_u": None,
+        return {"flags": flags + [Flag.NO_FIT], "effusivity_W_s05_m2K": None, "effusivity_W_s05_m2K_u": None,
                 "contact_t_s": float(t[i0]), "normalised_residual": r.normalised_residual,
                 "determined": [], "calibration_sha256": cal.sha256, "probe": cal.probe}
     e = r.e_W_s05_m2K
     if disk is not None and abs(math.log(e / r1d.e_W_s05_m2K)) > LATERAL_FLAG:
-        flags.append("lateral_spread")
+        flags.append(Flag.LATERAL_SPREAD)
     # Calibration's part: d ln e / d theta by finite differences, through the covariance.
     # The same for R_c and T_obj0: an error in the sensing depth trades directly with R_c (dL / k).
     th0 = cal.theta
@@ -439,7 +489,7 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
     u_fit = r.u_e_W_s05_m2K / r.e_W_s05_m2K
     u_contact = 0.0
     if not c.recorded_in_air:
-        flags.append("contact_not_recorded")
+        flags.append(Flag.CONTACT_NOT_RECORDED)
         r_late = fit(cal.chain, disk, 1.0)
         if r_late.e_W_s05_m2K > 0 and math.isfinite(r_late.e_W_s05_m2K):
             u_contact = abs(math.log(r_late.e_W_s05_m2K / r.e_W_s05_m2K))
@@ -451,7 +501,7 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: ProbeCalibration | None
     u_Rc_method = abs(r_raw.R_c_m2K_W - r.R_c_m2K_W) if math.isfinite(r_raw.R_c_m2K_W) else 0.0
     u_Rc = math.sqrt(r.u_R_c_m2K_W**2 + float(var_cal[1]) + u_Rc_method**2)
     if r.normalised_residual > POOR_FIT:
-        flags.append("poor_fit")
+        flags.append(Flag.POOR_FIT)
     determined = ["e", "T_obj0"] + (["R_c"] if u_Rc <= R_C_RESOLVED_m2K_W else [])
     lateral: dict[str, Any] = {}
     if lat is not None:

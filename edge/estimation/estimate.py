@@ -42,6 +42,7 @@ from edge.estimation.mlp import MLP
 from edge.estimation.spline import resample
 from edge.model.bundle import Bundle, max_relative_error
 from edge.physics.fluxmodel import duhamel_apply, surface_temperature, surface_temperature_scan
+from edge.physics.probe import volumetric_heat_W_m3
 from edge.physics.solids import Solid
 from edge.status import Flag
 
@@ -70,8 +71,12 @@ PAPER_ALPHA_SCANS = (
 
 
 @dataclass
-class Estimate:
-    """Result of one estimation (SI units; ``*_u`` are standard uncertainties)."""
+class MethodEstimate:
+    """One 1-D method's own result (SI units; ``*_u`` are standard uncertainties).
+
+    The method step of the estimate path (:class:`edge.estimation.methods.ThickBodyMethod` turns it into
+    the dict the seam reads); the answer to a touch is :class:`edge.estimation.result.Estimate`.
+    """
 
     effusivity_W_s05_m2K: float | None
     effusivity_W_s05_m2K_u: float | None
@@ -231,8 +236,8 @@ class Estimator:
     # -- entry point ------------------------------------------------------------
     def estimate(self, t_s, dT_K, q_W_m2, *, t_q_s=None, method: str = "default", thickness_m: float | None = None,
                  back: str = "infinite", q_v_W_m3: float | None = None, n_raw: int | None = None,
-                 T_resolution_K: float = 0.0) -> Estimate:
-        """Estimate from a record that starts at heater-on.
+                 T_resolution_K: float = 0.0, power_W: float | None = None) -> MethodEstimate:
+        """Estimate from a record that starts at heater-on (this method's own result).
 
         Parameters
         ----------
@@ -244,10 +249,14 @@ class Estimator:
             ``"fixed"`` back) lets the default method separate k and alpha.
         q_v_W_m3 : heater power density, only used to flag powers outside
             the paper network's training range.
+        power_W : the heater's power (W): the same flag, through the paper heater's
+            volume (the network's training convention; ``q_v_W_m3`` wins when both are given).
         T_resolution_K : the thermometer's resolution (ADC step in K); its
             rounding error enters the uncertainty of e (0: none known).
         """
         one_of("method", method, METHODS)
+        if q_v_W_m3 is None and power_W is not None:
+            q_v_W_m3 = volumetric_heat_W_m3(power_W)
         tT = finite_array("t_s", t_s, min_len=4)
         strictly_increasing("t_s", tT)
         T = finite_array("dT_K", dT_K)
@@ -277,21 +286,21 @@ class Estimator:
         flags: list[Flag] = []
         if float(np.mean(qg[grid.size // 2:])) < 20.0 or float(np.max(Tg)) <= 0.0:
             flags.append(Flag.NO_SIGNAL)
-            return Estimate(None, None, None, None, None, None, None, 0.0, method, self.sha256, flags)
+            return MethodEstimate(None, None, None, None, None, None, None, 0.0, method, self.sha256, flags)
         if method == "paper":
             return self._paper(grid, Tg, qg, n_eff, flags, q_v_W_m3, T_resolution_K)
         return self._default(grid, Tg, qg, n_eff, flags, thickness_m, back, T_resolution_K)
 
-    def _finish(self, e, u_ln_e, k, u_ln_k, alpha, u_ln_alpha, method, flags, fit, grid) -> Estimate:
+    def _finish(self, e, u_ln_e, k, u_ln_k, alpha, u_ln_alpha, method, flags, fit, grid) -> MethodEstimate:
         cands = self.library.identify(e, u_ln_e)
-        return Estimate(
+        return MethodEstimate(
             effusivity_W_s05_m2K=e, effusivity_W_s05_m2K_u=e * u_ln_e,
             k_W_mK=k, k_W_mK_u=k * u_ln_k, alpha_m2_s=alpha, alpha_m2_s_u=alpha * u_ln_alpha,
             material=cands[0][0], material_confidence=cands[0][1], method=method, model_sha256=self.sha256,
             flags=flags, candidates=cands, fit_T_K=fit, t_model_s=grid,
         )
 
-    def _default(self, grid, Tg, qg, n_eff, flags, thickness_m, back, lsb_K) -> Estimate:
+    def _default(self, grid, Tg, qg, n_eff, flags, thickness_m, back, lsb_K) -> MethodEstimate:
         if thickness_m is not None and back != "infinite":
             return self._default_finite(grid, Tg, qg, n_eff, flags, thickness_m, back, lsb_K)
         m = duhamel_apply(qg, MODEL_DT_s)
@@ -300,33 +309,28 @@ class Estimator:
         if not a > MIN_SNR * u_a:
             # The temperature rise is lost in noise or quantisation: an e from it would be a guess.
             flags.append(Flag.INSUFFICIENT_SIGNAL)
-            return Estimate(None, None, None, None, None, None, None, 0.0, "default", self.sha256, flags)
+            return MethodEstimate(None, None, None, None, None, None, None, 0.0, "default", self.sha256, flags)
         e = 1.0 / a
         u_ln_e = math.hypot(u_a / a, FLUX_CALIBRATION_U_REL)
         return self.from_effusivity(e, u_ln_e, flags=flags, fit=fit, grid=grid)
 
     def from_effusivity(self, e: float, u_ln_e: float, *, method: str = "default", flags: list | None = None,
-                        fit=None, grid=None) -> Estimate:
+                        fit=None, grid=None) -> MethodEstimate:
         """The estimate a thick body's effusivity alone gives: k and α from the library prior given e.
 
         ``k = e^2 / rho c``, ``alpha = k / rho c`` with ln rho c and its spread
         from the library (:meth:`Library.prior_rho_c`), the material named by
         :meth:`Library.identify`. The default method's last step, and the one
         definition the device uses for an e measured another way (the sensor
-        chain's, :func:`edge.service.calibration.promote_chain`).
+        chain's, :func:`edge.estimation.seam.chain_answer`).
         """
         flags = [] if flags is None else flags
-        ln_rc, u_ln_rc, outside = self.library.prior_rho_c(e, u_ln_e)
+        k, u_ln_k, alpha, u_ln_alpha, outside = self.library.k_alpha_given_e(e, u_ln_e)
         if outside:
             flags.append(Flag.OUTSIDE_TRAINING_RANGE)
-        rc = math.exp(ln_rc)
-        k = e * e / rc
-        alpha = k / rc
-        u_ln_k = math.hypot(2 * u_ln_e, u_ln_rc)
-        u_ln_alpha = math.hypot(2 * u_ln_e, 2 * u_ln_rc)
         return self._finish(e, u_ln_e, k, u_ln_k, alpha, u_ln_alpha, method, flags, fit, grid)
 
-    def _default_finite(self, grid, Tg, qg, n_eff, flags, thickness_m, back, lsb_K) -> Estimate:
+    def _default_finite(self, grid, Tg, qg, n_eff, flags, thickness_m, back, lsb_K) -> MethodEstimate:
         # For fixed alpha the flux model is linear in 1/e: scan alpha, solve e.
         alphas = np.geomspace(1e-8, 3e-4, 61)
         units = [Solid(math.sqrt(al), 1.0 / math.sqrt(al), 1.0) for al in alphas]  # e = 1
@@ -343,7 +347,7 @@ class Estimator:
             best = (rss, float(alphas[i]), a, u_a, fit)
         if best is None or not best[2] > MIN_SNR * best[3]:
             flags.append(Flag.INSUFFICIENT_SIGNAL)
-            return Estimate(None, None, None, None, None, None, None, 0.0, "default", self.sha256, flags)
+            return MethodEstimate(None, None, None, None, None, None, None, 0.0, "default", self.sha256, flags)
         rss, alpha, a, u_a, fit = best
         e = 1.0 / a
         u_ln_e = math.hypot(u_a / a, FLUX_CALIBRATION_U_REL)
@@ -377,7 +381,7 @@ class Estimator:
         u_ln_k = math.hypot(u_ln_e, 0.5 * u_ln_alpha)
         return self._finish(e, u_ln_e, k, u_ln_k, alpha, u_ln_alpha, "default", flags, fit, grid)
 
-    def _paper(self, grid, Tg, qg, n_eff, flags, q_v_W_m3, lsb_K) -> Estimate:
+    def _paper(self, grid, Tg, qg, n_eff, flags, q_v_W_m3, lsb_K) -> MethodEstimate:
         u = paper_features(grid, qg, Tg)
         k_arr, p, clipped = self.paper_k(u)
         k = float(k_arr[0])
@@ -389,7 +393,7 @@ class Estimator:
             flags.append(Flag.POWER_OUTSIDE_TRAINING_RANGE)
         if not (k > 0 and math.isfinite(k)):
             flags.append(Flag.NO_SIGNAL)
-            return Estimate(None, None, None, None, None, None, None, 0.0, "paper", self.sha256, flags)
+            return MethodEstimate(None, None, None, None, None, None, None, 0.0, "paper", self.sha256, flags)
         lo, hi, step = next(rng for kmax, rng in PAPER_ALPHA_SCANS if k < kmax)
         alphas = np.arange(lo, hi + step / 2, step)
         m = duhamel_apply(qg, MODEL_DT_s)

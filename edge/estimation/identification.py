@@ -122,6 +122,26 @@ class Library:
         outside = bool(e < self.effusivity.min() / OUTSIDE_FACTOR or e > self.effusivity.max() * OUTSIDE_FACTOR)
         return mean, math.sqrt(var), outside
 
+    def k_alpha_given_e(self, e: float, u_ln_e: float) -> tuple[float, float, float, float, bool]:
+        """k and α of an object of effusivity e, from the library's ρc given e: the one prior.
+
+        ``k = e^2 / ρc`` and ``α = e^2 / (ρc)^2`` with ln ρc and its spread from
+        :meth:`prior_rho_c`; every path that has e but not k and α separately (the
+        default method on a thick body, the small heater's fit that did not resolve
+        them, the calibrated sensor chain) takes them from here.
+
+        Returns
+        -------
+        k_W_mK, u_ln_k, alpha_m2_s, u_ln_alpha : float
+            The values and the standard uncertainties of their logarithms.
+        outside : bool
+            Whether e lies outside the library (``outside_training_range``).
+        """
+        ln_rc, u_ln_rc, outside = self.prior_rho_c(e, u_ln_e)
+        rc = math.exp(ln_rc)
+        k = e * e / rc
+        return k, math.hypot(2 * u_ln_e, u_ln_rc), k / rc, math.hypot(2 * u_ln_e, 2 * u_ln_rc), outside
+
     def identify(self, e: float, u_ln_e: float, top: int = 3) -> list[tuple[str, float]]:
         """Library materials ranked by likelihood of the measured e, with probabilities."""
         s = math.hypot(u_ln_e, self.material_spread_ln)

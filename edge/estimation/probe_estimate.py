@@ -177,7 +177,7 @@ class AxiEstimator:
         Returns
         -------
         dict
-            The keys of :meth:`edge.estimation.estimate.Estimate.to_dict` plus ``probe``,
+            The keys of :meth:`edge.estimation.estimate.MethodEstimate.to_dict` plus ``probe``,
             ``determined``, ``from_prior``, ``prior_reason``, ``corr_k_alpha`` and ``fit``
             (the fit's own k, alpha, their relative u, chi^2/dof, iterations, power scale).
         """
@@ -280,12 +280,9 @@ class AxiEstimator:
             reasons.append(f"u(alpha) {100 * u_la:.0f} % >= {100 * thr:.0f} %")
         if reasons:
             # k and alpha together: one without the other would not satisfy e = k / sqrt(alpha).
-            ln_rc, u_ln_rc, outside = est.library.prior_rho_c(e, u_le)
+            k, u_lk, alpha, u_la, outside = est.library.k_alpha_given_e(e, u_le)
             if outside:
                 flags.append(str(Flag.OUTSIDE_TRAINING_RANGE))
-            rc = math.exp(ln_rc)
-            k, alpha = e * e / rc, e * e / (rc * rc)
-            u_lk, u_la = math.hypot(2 * u_le, u_ln_rc), math.hypot(2 * u_le, 2 * u_ln_rc)
             flags.append(str(Flag.K_ALPHA_FROM_PRIOR))
             out["from_prior"] = ["k", "alpha"]
             out["prior_reason"] = "the touch did not resolve k and alpha: " + "; ".join(reasons)

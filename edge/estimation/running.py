@@ -26,6 +26,31 @@ decided: the top answer's posterior (an object, or "unknown") at least
 ``threshold`` after at least ``min_time_s`` of heating. The full estimate
 at the end of the touch is still made from the whole record.
 
+Every running decision of the device lives here (:func:`decision_for` picks
+the one a probe head takes, from its estimator kind's ``running``):
+
+* :class:`SequentialDecision` -- the thick-body model above, on the raw
+  thermopile reading (the paper probe, uncalibrated);
+* :class:`ChainDecision` -- the calibrated sensor chain on the record so far
+  (the paper probe once calibrated).  The thick-body model is right for the
+  flux at the object's face, wrong for a thermopile inside its sensing layer,
+  which for the first second or two reads heat still warming the layer (on
+  the faithful world a PMMA touch read as glass); with a calibration the
+  answer is the chain's (:func:`edge.estimation.seam.chain_answer`), and the
+  running answer is the same estimate, from the contact on, every ``every_s``
+  of heating.  It needs the samples since arming: the sequence hands it its
+  record lists (``attach_record``);
+* :class:`EstimatorDecision` -- the device's own estimator refitted on the
+  record so far (the small-heater probe, whose flux sensor sees its heater's
+  edge from the first samples: no early-time model), resampled as the result
+  will be, naming the object with e and, where the touch measured it, α.
+  When heating starts the estimator builds its model for the touch's whole
+  grid (``estimate_fn.prepare``); each refit then costs the fit alone
+  (``python bench/decision_bench.py --world faithful --probe small-heater``: about 12 ms).
+
+No running answer is made from an estimate raising any of the one blocker
+table's flags (:data:`edge.estimation.result.BLOCKERS`).
+
 NumPy only (edge runtime).
 """
 
@@ -38,38 +63,14 @@ from typing import Any, Callable
 
 import numpy as np
 
+from edge.estimation.chain_estimate import estimate_from_contact
+from edge.estimation.conditioning import duhamel_m, resample_uniform
 from edge.estimation.estimate import FLUX_CALIBRATION_U_REL, MIN_SNR, QUANTISATION_SAMPLES_PER_STEP
+from edge.estimation.result import BLOCKERS
 
 __all__ = ["duhamel_m", "RunningEffusivity", "RunningAnswer", "SequentialDecision", "RefitCadence",
-           "RefitDecision", "REFIT_MAX_SHARE"]
-
-_TWO_OVER_SQRT_PI = 2.0 / math.sqrt(math.pi)
-
-
-def duhamel_m(t_eval: float, t_q: np.ndarray, q: np.ndarray) -> float:
-    """``m(t_eval)`` for a flux that is 0 before t = 0 and piecewise constant between its samples.
-
-    Over ``(t_q[j-1], t_q[j]]`` the flux is the mean of the two samples (the
-    first interval, from heater-on at 0, takes ``q[0]``: the flux jumps at
-    switch-on); past the last sample it holds ``q[-1]``. Samples after
-    ``t_eval`` are ignored and the interval that contains it is cut there.
-    """
-    if t_eval <= 0 or t_q.size == 0:
-        return 0.0
-    b = np.asarray(t_q, float)
-    q = np.asarray(q, float)
-    q_last = q[-1]
-    q = np.concatenate((q[:1], 0.5 * (q[1:] + q[:-1])))
-    a = np.concatenate(([0.0], b[:-1]))
-    a = np.minimum(a, t_eval)
-    b = np.minimum(b, t_eval)
-    # The last sample's value also holds up to t_eval when t_eval is past it.
-    if t_eval > b[-1]:
-        a = np.append(a, b[-1])
-        b = np.append(b, t_eval)
-        q = np.append(q, q_last)
-    return float(_TWO_OVER_SQRT_PI * np.sum(q * (np.sqrt(t_eval - a) - np.sqrt(t_eval - b))))
-
+           "RefitDecision", "REFIT_MAX_SHARE", "ChainDecision", "CHAIN_EVERY_s", "EstimatorDecision",
+           "ESTIMATOR_EVERY_s", "decision_for"]
 
 class RunningEffusivity:
     """Running fit of ``dT = m / e + c`` over the heating samples seen so far.
@@ -271,8 +272,8 @@ class RefitDecision(SequentialDecision):
     """A sequential decision that refits the record so far, on a :class:`RefitCadence`.
 
     The base of the decisions that need more than the heating samples
-    (:class:`edge.estimation.chain_decision.ChainDecision`,
-    :class:`edge.measure.estimator_decision.EstimatorDecision`): the sequence hands them its
+    (:class:`edge.estimation.running.ChainDecision`,
+    :class:`edge.estimation.running.EstimatorDecision`): the sequence hands them its
     record lists (``attach_record``, which stores them in ``_record``), and :meth:`update` calls
     ``_refit(t_s)`` whenever the cadence says a refit is due.
 
@@ -315,3 +316,170 @@ class RefitDecision(SequentialDecision):
         if not (math.isfinite(e) and e > 0 and math.isfinite(u) and u > 0):
             return None
         return u / e
+
+
+# -- the calibrated sensor chain's running answer ----------------------------------------------------
+#: Heating time between two chain fits: about 6 ms each on this machine (bench/daemon_bench.py), so a
+#: fit per 0.1 s keeps the sampling loop's budget on a Pi-class CPU.
+CHAIN_EVERY_s = 0.1
+
+
+class ChainDecision(RefitDecision):
+    """Sequential decision on the calibrated sensor chain's running estimate.
+
+    Parameters
+    ----------
+    object_set, threshold, min_time_s
+        As for :class:`~edge.estimation.running.SequentialDecision`.
+    calibration : ProbeCalibration
+        The installed calibration (the chain's parameters and their u).
+    library : Library, optional
+        The prior on alpha given e: the model bundle's, as for the answer (default: the CSV's).
+    every_s : float
+        Heating time between fits (:data:`CHAIN_EVERY_s`), stretched where a fit takes more than its
+        share (:class:`~edge.estimation.running.RefitCadence`).
+    timer : callable
+        Wall-clock seconds for the cadence (tests pass their own).
+    """
+
+    source = "sensor_chain"
+
+    def __init__(self, object_set: Any, threshold: float, min_time_s: float, *, calibration: Any,
+                 library: Any = None, every_s: float = CHAIN_EVERY_s,
+                 timer: Callable[[], float] = time.perf_counter) -> None:
+        super().__init__(object_set, threshold, min_time_s, every_s=every_s, timer=timer)
+        self.calibration = calibration
+        self.library = library
+
+    def attach_record(self, t_s: list, T_C: list, q_W_m2: list, t_on_s: float, **_baseline: Any) -> None:
+        """The sequence's record lists (appended in place; absolute clock times) and the heater-on time.
+
+        The chain fits from the contact on, with the object's temperature free: the baseline the
+        sequence also passes (``T0_C``, ``q0_W_m2``, ``dts``) is not used.
+        """
+        self._record = (t_s, T_C, q_W_m2, float(t_on_s))
+
+    def _refit(self, t_s: float) -> RunningAnswer | None:
+        ts, Ts, qs, t_on = self._record
+        n = min(len(ts), len(Ts), len(qs))
+        try:
+            d = estimate_from_contact(np.asarray(ts[:n], float) - t_on, np.asarray(Ts[:n], float),
+                                      np.asarray(qs[:n], float), self.calibration, library=self.library)
+        except ValueError:  # a prefix the chain cannot fit yet (too few samples since contact)
+            return self.answer
+        u_ln_e = self.u_ln_e(d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u"))
+        if u_ln_e is None or BLOCKERS & set(d.get("flags") or ()):   # the one blocker table
+            return self.answer
+        return self._answer(t_s, float(d["effusivity_W_s05_m2K"]), u_ln_e, n)
+
+
+# -- the device estimator's running answer (probe heads without an early-time model) --------------
+#: Heating time between two refits.  A small-heater fit on a prepared model takes ~12 ms on this
+#: machine and a few times that on a Pi-class CPU: one per 0.25 s keeps the sampling loop's budget
+#: (its samples are 20 ms apart) and answers within a quarter second of when the record allows.
+ESTIMATOR_EVERY_s = 0.25
+
+
+class EstimatorDecision(RefitDecision):
+    """Sequential decision on the device estimator's refit of the record so far.
+
+    Parameters
+    ----------
+    object_set, threshold, min_time_s
+        As for :class:`~edge.estimation.running.SequentialDecision`.
+    estimate_fn : callable
+        The device's estimator, ``(t_s, dT_K, q_W_m2, power_W, method) -> dict`` on a uniform
+        grid from heater-on (:class:`edge.service.estimator.ModelEstimator`); its optional
+        ``prepare(t_s)`` is called with the touch's whole grid when heating starts.
+    rate_Hz : float
+        The grid's rate (the profile's sample rate, as for the result).
+    heat_s : float
+        Planned heating time (the whole grid).
+    power_W : float
+        Heater power (the estimator's starting scale).
+    method : str
+        Passed to ``estimate_fn``.
+    T_age_s : float
+        Age of a thermocouple reading when read (as for the result's resampling).
+    every_s : float
+        Heating time between refits (:data:`ESTIMATOR_EVERY_s`), stretched where a refit takes more
+        than its share (:class:`~edge.estimation.running.RefitCadence`).
+    timer : callable
+        Wall-clock seconds for the cadence (tests pass their own).
+    """
+
+    source = "device_estimate"
+
+    def __init__(self, object_set: Any, threshold: float, min_time_s: float, *,
+                 estimate_fn: Callable[..., dict], rate_Hz: float, heat_s: float, power_W: float,
+                 method: str = "default", T_age_s: float = 0.0, every_s: float = ESTIMATOR_EVERY_s,
+                 timer: Callable[[], float] = time.perf_counter) -> None:
+        super().__init__(object_set, threshold, min_time_s, every_s=every_s, timer=timer)
+        for name, v in (("rate_Hz", rate_Hz), ("heat_s", heat_s)):
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be finite and > 0, got {v!r}")
+        self.estimate_fn = estimate_fn
+        self.rate_Hz, self.heat_s = float(rate_Hz), float(heat_s)
+        self.power_W = float(power_W)
+        self.method = method
+        self.T_age_s = float(T_age_s)
+
+    def attach_record(self, t_s: list, T_C: list, q_W_m2: list, t_on_s: float, *, T0_C: float | None = None,
+                      q0_W_m2: float | None = None, dts: list | None = None) -> None:
+        """The sequence's record lists (appended in place; absolute clock times), heater-on time and baseline.
+
+        ``T0_C`` and ``q0_W_m2``: the baseline the heating is measured from; ``dts``: each sample's
+        read-time skews (see :func:`~edge.estimation.conditioning.resample_uniform`).
+        """
+        if T0_C is None or q0_W_m2 is None:
+            raise ValueError("EstimatorDecision needs the baseline (T0_C, q0_W_m2)")
+        self._record = (t_s, T_C, q_W_m2, float(t_on_s), float(T0_C), float(q0_W_m2), dts)
+        prepare = getattr(self.estimate_fn, "prepare", None)
+        if prepare is not None:
+            n = int(math.floor(self.heat_s * self.rate_Hz + 1e-9))
+            if n >= 4:
+                prepare(np.arange(1, n + 1) / self.rate_Hz)
+
+    def _refit(self, t_s: float) -> RunningAnswer | None:
+        ts, Ts, qs, t_on, T0, q0, dts = self._record
+        n = min(len(ts), len(Ts), len(qs))
+        t = np.asarray(ts[:n], float) - t_on
+        skew = np.asarray(dts[:n], float).reshape(-1, 2) if dts is not None and len(dts) >= n else None
+        try:
+            g_t, g_dT, g_q = resample_uniform(t, np.asarray(Ts[:n], float), np.asarray(qs[:n], float), T0, q0,
+                                              self.rate_Hz, t_s, self.T_age_s,
+                                              T_dt_s=None if skew is None else skew[:, 0],
+                                              q_dt_s=None if skew is None else skew[:, 1])
+            if g_t.size < 4:
+                return self.answer
+            d = self.estimate_fn(g_t, g_dT, g_q, self.power_W, self.method)
+        except ValueError:   # a prefix the estimator cannot fit yet
+            return self.answer
+        if BLOCKERS & set(d.get("flags") or ()):   # the one blocker table
+            return self.answer
+        u_ln_e = self.u_ln_e(d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u"))
+        rec = self.objects.classify_estimate(d) if u_ln_e is not None else None
+        if rec is None:
+            return self.answer
+        return self._settle(RunningAnswer(rec.object, rec.object_posterior, t_s, float(d["effusivity_W_s05_m2K"]),
+                                          u_ln_e, int(g_t.size), cls=rec.cls, source=self.source))
+
+
+def decision_for(kind: Any, object_set: Any, threshold: float, min_time_s: float, *, calibration: Any = None,
+                 estimate_fn: Callable[..., dict] | None = None, params: Any = None, T_age_s: float = 0.0,
+                 T_resolution_K: float = 0.0, library: Any = None) -> SequentialDecision:
+    """The running decision of a probe head whose estimator class is ``kind`` (:mod:`edge.estimation.methods`).
+
+    ``kind.running == "refit"``: :class:`EstimatorDecision` on ``estimate_fn`` (``params``: the run's
+    MeasurementParams); otherwise :class:`ChainDecision` when ``calibration`` (already checked to be this
+    probe head's) is given and the kind carries a sensor chain (``library``: the model bundle's prior),
+    else :class:`SequentialDecision`.
+    """
+    if kind.running == "refit":
+        return EstimatorDecision(object_set, threshold, min_time_s, estimate_fn=estimate_fn,
+                                 rate_Hz=params.sample_rate_Hz, heat_s=params.contact_time_s,
+                                 power_W=params.power_W, method=params.method, T_age_s=T_age_s)
+    if calibration is not None and kind.sensor_chain:
+        # Calibrated: the running answer is the same estimate the result will be (seam.chain_answer).
+        return ChainDecision(object_set, threshold, min_time_s, calibration=calibration, library=library)
+    return SequentialDecision(object_set, threshold, min_time_s, T_age_s=T_age_s, T_resolution_K=T_resolution_K)

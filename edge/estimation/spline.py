@@ -4,8 +4,8 @@ Instruments sample at their own rate; the estimators want the model's time
 step.  :class:`CubicSpline` is the not-a-knot interpolating cubic (scipy's
 default boundary condition), solved for the knot slopes by vectorised cyclic
 reduction of the tridiagonal system, so it needs neither scipy nor a Python
-loop per point.  :func:`resample` caches the (linear) resampling operator of
-time bases it meets repeatedly.
+loop per point.  :func:`resample` keeps the (linear) resampling operator of
+small time bases (the daemon's grid) for the ones it meets again.
 """
 
 from __future__ import annotations
@@ -157,11 +157,12 @@ def _not_a_knot_slopes(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 #: Largest resampling operator kept, in entries (targets x knots): 2^17 doubles = 1 MiB.
 _OPERATOR_MAX = 1 << 17
-#: Resampling operators kept (least recently used dropped), and time bases remembered as seen once.
+#: Most knots of a resampling operator: up to here building W costs about one direct solve (more
+#: knots would make every new time base -- a jittered record, each calibration touch -- pay n^2).
+_OPERATOR_KNOTS = 64
+#: Resampling operators kept (least recently used dropped).
 _OPERATORS_KEPT = 8
-_SEEN_KEPT = 16
 _operators: OrderedDict = OrderedDict()
-_seen: OrderedDict = OrderedDict()
 _cache_lock = threading.Lock()
 
 
@@ -181,15 +182,20 @@ def resampling_operator(t_s, t_new_s) -> np.ndarray:
 def resample(t_s, series, t_new_s) -> np.ndarray:
     """Resample ``series`` ((n,) or (n, m)) from times ``t_s`` to ``t_new_s`` by cubic spline.
 
-    For fixed knots and targets resampling is a linear operator W.  A pair
-    of time bases seen a second time (the daemon's grid, an instrument's
-    fixed sample times) gets its W cached, if it has at most
-    :data:`_OPERATOR_MAX` entries, and is then resampled as ``W @ y``.
+    For fixed knots and targets resampling is a linear operator W.  Where W
+    costs about one direct solve to build (at most :data:`_OPERATOR_KNOTS`
+    knots and :data:`_OPERATOR_MAX` entries: the daemon's measurement grid,
+    an instrument's fixed sample times) a series is always resampled as
+    ``W @ y``, W kept for the time bases met most recently; otherwise always
+    directly.  Which of the two is decided by the sizes alone, never by what
+    the cache holds: the two round differently in the last bits, and one record
+    must give the same answer bit for bit in a warm daemon and in a fresh
+    ``thermotouch estimate``.
     """
     x = np.asarray(t_s, dtype=np.float64)
     xi = np.asarray(t_new_s, dtype=np.float64)
     y = np.asarray(series, dtype=np.float64)
-    if not (x.ndim == 1 and xi.ndim == 1 and y.ndim in (1, 2) and x.size >= 2
+    if not (x.ndim == 1 and xi.ndim == 1 and y.ndim in (1, 2) and 2 <= x.size <= _OPERATOR_KNOTS
             and x.size * xi.size <= _OPERATOR_MAX):
         return CubicSpline(x, y)(xi)
     key = _operator_key(x, xi)
@@ -197,13 +203,6 @@ def resample(t_s, series, t_new_s) -> np.ndarray:
         W = _operators.get(key)
         if W is not None:
             _operators.move_to_end(key)
-        again = W is None and _seen.pop(key, False)
-        if W is None and not again:
-            _seen[key] = True
-            while len(_seen) > _SEEN_KEPT:
-                _seen.popitem(last=False)
-    if W is None and not again:
-        return CubicSpline(x, y)(xi)
     if W is None:
         W = resampling_operator(x, xi)  # validates x
         W.flags.writeable = False

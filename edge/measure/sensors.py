@@ -139,7 +139,7 @@ def make_sensors(board: Any, sensors_cfg: Any) -> ProbeSensors:
             raise ValueError(f"{spec.part} cannot read the {role}; chips that can: {chips.names_for(role)}")
         st = chips.chip_settings(spec, s)
         if name not in devices:     # one chip may play both roles: open (and reset) it once
-            devices[name] = spec.open(bus, st, attempts=s.i2c_attempts, sleep=sleep)
+            devices[name] = spec.open(bus, st, attempts=s.i2c_attempts, sleep=sleep, clock=board.clock.monotonic)
         return spec.readers[role](devices[name], st)
 
     T = reader(chips.THERMOCOUPLE, s.thermocouple)

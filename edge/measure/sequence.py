@@ -2,7 +2,7 @@
 
 One touch runs::
 
-    idle -> [cooldown] -> baseline -> heating -> (heater off) -> resampling -> estimating -> idle
+    idle -> [cooldown] -> baseline -> heating -> (heater off) -> estimating -> idle
 
 * **cooldown** (``cooldown_s`` since the last heating, on the board clock).
 * **baseline** (``baseline_s``, heater off): T0 is the mean thermocouple
@@ -18,9 +18,12 @@ One touch runs::
   which STATUS reports); with ``until_decided`` the heating stops as soon as
   that answer is decided, the record is flagged ``decided`` and its result
   carries the ``decision``.
-* **heater off**, then the raw series are resampled onto a uniform grid
-  (:func:`edge.measure.signal.resample_uniform`) and handed to the
-  estimator, whose crash can no longer leave the heater on.
+* **heater off**, then the raw record (:class:`~edge.estimation.record.TouchRecord`)
+  goes to the estimate path (:func:`edge.estimation.seam.estimate_touch`, through
+  the ``estimator`` hook), which conditions it (baseline, quality flags, the
+  uniform grid) and estimates; its crash can no longer leave the heater on.
+  The sequence judges the baseline itself only for safety (``no_heat_while_on``
+  needs a steady baseline) and for the record of a run it does not estimate.
 
 Safety (the heater can burn)
 ----------------------------
@@ -61,12 +64,12 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from edge.estimation.record import RecordError, TouchRecord
+from edge.estimation.seam import TooFewSamples, condition
 from edge.hw.drivers.heater import Heater, HeaterOffError
-from edge.physics.probe import volumetric_heat_W_m3
 from edge.hw.faults import SensorFault
 from edge.measure.sensors import Reading
-from edge.measure.signal import (contact_effusivity, heat_while_off, no_heat_while_on, quality_flags,
-                                 resample_uniform)
+from edge.measure.signal import heat_while_off, no_heat_while_on
 from edge.measure.watchdog import HeaterWatchdog, Limits, Trip
 from edge.status import Flag, Reason, Status
 from edge.storage.history import utc_now
@@ -81,8 +84,9 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: ``estimator(t_s, dT_K, q_W_m2, q_v_W_m3, method) -> JSON-able dict`` (see edge.estimation.estimate).
-EstimatorFn = Callable[[np.ndarray, np.ndarray, np.ndarray, float, str], Mapping[str, Any]]
+#: ``estimator(record, decision) -> Estimate``: the one estimate path on a touch record and the running
+#: decision's last answer (:func:`edge.estimation.seam.estimate_touch` with the device's context).
+EstimatorFn = Callable[[TouchRecord, "Mapping[str, Any] | None"], Any]
 
 
 class Phase(StrEnum):
@@ -92,6 +96,7 @@ class Phase(StrEnum):
     COOLDOWN = "cooldown"
     BASELINE = "baseline"
     HEATING = "heating"
+    #: Not entered any more (resampling is part of the estimate path); kept as a word of the protocol.
     RESAMPLING = "resampling"
     ESTIMATING = "estimating"
 
@@ -130,8 +135,10 @@ class Outcome:
 
     ``status`` is :attr:`Status.OK`, :attr:`Status.ABORTED` (a safety cut or
     a stop: ``reason`` says which) or :attr:`Status.FAILED` (sensor fault,
-    estimator crash, bug).  ``flags`` holds :class:`~edge.status.Flag` members from the
-    sequence and whatever strings the estimator reported.
+    estimator crash, bug).  ``flags`` holds :class:`~edge.status.Flag` members: the
+    estimate's (which include the sequence's quality flags) when there is one, else the sequence's.
+    ``touch`` is the raw record the estimate was made from, ``estimate`` the typed answer
+    (``result`` is its ``to_dict()``).
     """
 
     status: Status = Status.FAILED
@@ -159,14 +166,22 @@ class Outcome:
     decision: dict[str, Any] | None = None
     #: Armed runs: when the contact was detected, s after arming (None: not armed, or on something already).
     contact_detected_s: float | None = None
+    #: The raw touch as the estimate path reads it (None: too little was recorded to make one).
+    touch: TouchRecord | None = None
+    #: The typed answer (:class:`edge.estimation.result.Estimate`), when the touch was estimated.
+    estimate: Any = None
 
     def record(self, config_snapshot: Mapping[str, Any]) -> dict[str, Any]:
-        """Keyword set for :meth:`edge.storage.history.History.add`."""
+        """Keyword set for :meth:`edge.storage.history.History.add` (with the touch's header and read times)."""
         keys = ("status", "reason", "error", "flags", "result", "started_utc", "power_W", "contact_time_s",
                 "heater_on_s", "T0_C", "q_offset_W_m2", "sample_rate_Hz", "model_sha256", "raw_t_s",
                 "raw_T_C", "raw_q_W_m2", "grid_t_s", "grid_dT_K", "grid_q_W_m2")
         rec = {k: getattr(self, k) for k in keys}
         rec["config"] = dict(config_snapshot)
+        touch = self.touch
+        rec["touch_header"] = None if touch is None else touch.header()
+        rec["raw_T_dt_s"] = None if touch is None else touch.T_dt_s
+        rec["raw_q_dt_s"] = None if touch is None else touch.q_dt_s
         return rec
 
 
@@ -193,8 +208,9 @@ class MeasurementSequence:
         The board clock (virtual in the simulator).
     limits : Limits
     estimator : EstimatorFn
-        Called after the heater is off; any exception it raises becomes a
-        ``failed`` outcome with the raw data kept.
+        ``(record, decision) -> Estimate``, called after the heater is off; any exception it raises
+        becomes a ``failed`` outcome with the raw data kept (``too_few_samples`` for
+        :class:`~edge.estimation.seam.TooFewSamples`).
     thresholds : namespace
         The ``[measurement]`` flag thresholds.
     watchdog : HeaterWatchdog, optional
@@ -216,6 +232,8 @@ class MeasurementSequence:
     decision : callable (MeasurementParams) -> SequentialDecision or None, optional
         Builds the running decision for one run (the daemon's, on its object
         set); None or a None result: no running answer.
+    probe : str
+        The probe head (``board.probe``) the touch records name.
     """
 
     def __init__(self, heater: Heater, sensors: Any, clock: Any, limits: Limits, estimator: EstimatorFn,
@@ -224,7 +242,7 @@ class MeasurementSequence:
                  model_sha256: Callable[[], str | None] | None = None,
                  on_state: Callable[[Phase], None] | None = None,
                  cancel_event: threading.Event | None = None, beats: Any = None,
-                 decision: Callable[[MeasurementParams], Any] | None = None) -> None:
+                 decision: Callable[[MeasurementParams], Any] | None = None, probe: str = "paper") -> None:
         self.heater = heater
         self.sensors = sensors
         self.clock = clock
@@ -240,6 +258,8 @@ class MeasurementSequence:
         self.on_state = on_state or (lambda s: None)
         self.beats = beats
         self.decision = decision
+        #: The probe head (``board.probe``), recorded with every touch.
+        self.probe = probe
         #: The running answer of the current (or last) run: a RunningAnswer, or None.
         self.answer: Any = None
         self.state = Phase.IDLE
@@ -512,7 +532,7 @@ class MeasurementSequence:
                 self._finish(out, params, t_arr, T_arr, q_arr, any(sat), t_on, t_off,
                              np.array(dts, float).reshape(-1, 2) if len(dts) == t_arr.size else None)
             except Exception as e:
-                # Whatever breaks after the heating (a bug in resampling or flagging), the touch
+                # Whatever breaks after the heating (a bug in the record or the baseline), the touch
                 # heated and its raw data is returned for the record.
                 out.status, out.reason = Status.FAILED, Reason.INTERNAL
                 out.error, out.exception = f"{type(e).__name__}: {e}", e
@@ -596,28 +616,41 @@ class MeasurementSequence:
         except HeaterOffError:
             pass  # already reported: the run's own off() failed the same way
 
+    def _touch(self, out: Outcome, params: MeasurementParams, t: np.ndarray, T: np.ndarray, q: np.ndarray,
+               saturated: bool, t_on: float | None, t_off: float | None, dts: np.ndarray | None) -> TouchRecord | None:
+        """The raw record of this run, as the estimate path and an export read it (None: nothing to record)."""
+        heated = t_on is not None and t_off is not None
+        try:
+            return TouchRecord(
+                probe=self.probe, t_s=t, T_C=T, q_W_m2=q,
+                power_W=params.power_W, heater_on_s=max(t_off - t_on, 0.0) if heated else 0.0,
+                sample_rate_Hz=params.sample_rate_Hz, baseline_s=params.baseline_s, method=params.method,
+                T_age_s=float(getattr(self.sensors, "T_age_s", 0.0)),
+                T_resolution_K=float(getattr(self.sensors, "T_resolution_K", 0.0)), saturated=bool(saturated),
+                T_dt_s=None if dts is None else dts[:, 0], q_dt_s=None if dts is None else dts[:, 1],
+                arm_s=params.arm_s, contact_detected_s=out.contact_detected_s,
+                meta={"started_utc": out.started_utc})
+        except RecordError as e:
+            log.warning("no touch record: %s", e)
+            return None
+
     def _finish(self, out: Outcome, params: MeasurementParams, t: np.ndarray, T: np.ndarray, q: np.ndarray,
                 saturated: bool, t_on: float | None, t_off: float | None, dts: np.ndarray | None = None) -> None:
-        """Baseline statistics, flags, resampling and estimation (heater already off).
+        """The touch record, the safety check on the heating, and the estimate (heater already off).
 
         ``dts`` (n, 2): each sample's thermocouple and flux read time relative to ``t`` (s), or None.
         """
         c0 = time.perf_counter()
-        base = t < 0 if t_on is not None else np.ones(t.shape, bool)
-        if params.arm_s > 0 and t_on is not None:
-            # Armed: the default method's baseline is the last baseline_s before heating (the earlier
-            # samples are the probe in air and the contact; the sensor chain uses them all).
-            base = base & (t >= -params.baseline_s)
-        if base.any():
-            out.T0_C = float(np.mean(T[base]))
-            out.q_offset_W_m2 = float(np.mean(q[base]))
-        heat_q = q[~base] - (out.q_offset_W_m2 or 0.0)
-        contact_e = None
-        if out.T0_C is not None and heat_q.size:
-            lsb = float(getattr(self.sensors, "T_resolution_K", 0.0))
-            contact_e = contact_effusivity(t[~base], T[~base] - out.T0_C, heat_q,
-                                           getattr(self.sensors, "T_age_s", 0.0), min_rise_K=2 * lsb)
-        out.flags = quality_flags(t[base], T[base], q[base], heat_q, contact_e, saturated, self.thresholds)
+        touch = out.touch = self._touch(out, params, t, T, q, saturated, t_on, t_off, dts)
+        if touch is None:
+            if out.status == Status.OK or out.reason is None:
+                out.status, out.reason, out.error = Status.FAILED, Reason.TOO_FEW_SAMPLES, "no samples recorded"
+            return
+        # The baseline and its flags, as the estimate path will find them: the record of a run that is not
+        # estimated keeps them, and the heating is judged against a steady baseline only.
+        cond = condition(touch, self.thresholds)
+        out.T0_C, out.q_offset_W_m2 = cond.T0_C, cond.q_offset_W_m2
+        out.flags = list(cond.flags)
         if out.decision is not None and out.decision.get("stopped_early"):
             out.flags.append(Flag.DECIDED)
         if out.status != Status.OK and out.reason is not None:
@@ -626,28 +659,23 @@ class MeasurementSequence:
         # "No heat" is measured from the baseline's offset and T0: a baseline that is not steady (a
         # warm probe put back on the object drives a transient flux) is no reference to judge by.
         steady = out.T0_C is not None and Flag.NOISY not in out.flags and Flag.UNSTABLE_BASELINE not in out.flags
-        why = no_heat_while_on(T[~base], heat_q, out.T0_C, params.power_W, self.limits) if steady else None
+        heat = ~cond.base
+        why = (no_heat_while_on(T[heat], q[heat] - (out.q_offset_W_m2 or 0.0), out.T0_C, params.power_W,
+                                self.limits) if steady else None)
         if why is not None:
             out.status, out.reason, out.error = Status.FAILED, Reason.HEATER_FAULT, why
             return
         out.status = Status.OK
-        self._set_state(Phase.RESAMPLING)
-        try:
-            g_t, g_dT, g_q = resample_uniform(t, T, q, out.T0_C, out.q_offset_W_m2, params.sample_rate_Hz,
-                                              t_off - t_on, getattr(self.sensors, "T_age_s", 0.0),
-                                              T_dt_s=None if dts is None else dts[:, 0],
-                                              q_dt_s=None if dts is None else dts[:, 1])
-        except ValueError as e:
-            out.status, out.reason, out.error = Status.FAILED, Reason.TOO_FEW_SAMPLES, str(e)
-            return
-        out.grid_t_s, out.grid_dT_K, out.grid_q_W_m2 = g_t, g_dT, g_q
         self._set_state(Phase.ESTIMATING)
         try:
             out.model_sha256 = self.model_sha256()
         except Exception:
             out.model_sha256 = None
         try:
-            res = dict(self.estimator(g_t, g_dT, g_q, volumetric_heat_W_m3(params.power_W), params.method))
+            est = self.estimator(touch, out.decision)
+        except TooFewSamples as e:
+            out.status, out.reason, out.error = Status.FAILED, Reason.TOO_FEW_SAMPLES, str(e)
+            return
         except Exception as e:
             out.status, out.reason = Status.FAILED, Reason.ESTIMATION_FAILED
             out.error, out.exception = f"{type(e).__name__}: {e}", e
@@ -655,10 +683,10 @@ class MeasurementSequence:
             return
         finally:
             out.compute_s = time.perf_counter() - c0
-        if out.decision is not None:
-            res["decision"] = out.decision
-        out.result = res
-        out.model_sha256 = res.get("model_sha256", out.model_sha256)
-        for f in res.get("flags", []) or []:
-            if isinstance(f, str) and f not in out.flags:
-                out.flags.append(f)
+        out.estimate = est
+        out.result = est.to_dict()
+        out.model_sha256 = est.model_sha256 or out.model_sha256
+        # The estimate's flags begin with the same conditioning flags; whatever it adds follows.
+        out.flags = list(dict.fromkeys(out.flags + list(est.flags)))
+        g = est.series
+        out.grid_t_s, out.grid_dT_K, out.grid_q_W_m2 = g.get("grid_t_s"), g.get("grid_dT_K"), g.get("grid_q_W_m2")

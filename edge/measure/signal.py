@@ -1,176 +1,26 @@
 """Signal conditioning of one measurement's raw series: pure functions, no hardware, no state.
 
-* :func:`resample_uniform` puts the heating phase on the uniform time grid
-  the estimator expects (cubic spline, :mod:`edge.estimation.spline`).
-* :func:`quality_flags` judges the baseline and the heating flux against the
-  ``[measurement]`` thresholds.
+* :func:`resample_uniform`, :func:`quality_flags` and :func:`contact_effusivity` live in
+  :mod:`edge.estimation.conditioning` (the estimate path conditions a touch itself) and are
+  re-exported here for the running decisions and the sequence.
 * :func:`heat_while_off` and :func:`no_heat_while_on` tell whether the heater
   follows its command (``heater.fault_flux_W_m2``, ``heater.fault_rise_K``).
 """
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 
-from edge.estimation.spline import resample
+from edge.estimation.conditioning import contact_effusivity, quality_flags, resample_uniform
 from edge.physics.probe import HEATER_AREA_m2
-from edge.status import Flag
 
 __all__ = ["MIN_HEAT_s", "MIN_HEAT_SAMPLES", "min_contact_time_s", "resample_uniform", "quality_flags", "contact_effusivity", "temperature_rise_K", "heat_while_off",
            "no_heat_while_on", "AIR_EFFUSIVITY_W_s05_m2K"]
 
 #: Still air near 300 K: sqrt(0.0263 W/(m K) * 1.16 kg/m^3 * 1007 J/(kg K)) (Incropera 7e, Table A.4).
 AIR_EFFUSIVITY_W_s05_m2K = 5.5
-
-
-def resample_uniform(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, T0_C: float, q_offset_W_m2: float,
-                     rate_Hz: float, t_end_s: float, T_age_s: float = 0.0, *, T_dt_s: np.ndarray | None = None,
-                     q_dt_s: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Heating-phase series on the grid ``k / rate_Hz``, k = 1 .. floor(t_end * rate).
-
-    ``t_s`` is time since heater-on; samples with ``t_s < 0`` (baseline) are
-    ignored. The temperature rise is anchored at ``(0, 0)`` (temperature is
-    continuous at switch-on; flux is not, so it is not anchored).  Temperature
-    readings are placed ``T_age_s`` before they were read (the converter's
-    sampling lag), which would otherwise bias e upwards by several percent.
-
-    Parameters
-    ----------
-    t_s, T_C, q_W_m2 : ndarray
-        The raw series: time since heater-on (s), thermocouple (°C), flux (W/m^2).
-    T0_C, q_offset_W_m2 : float
-        Baseline temperature and flux offset, subtracted.
-    rate_Hz : float
-        Grid rate.
-    t_end_s : float
-        Heating duration (s); the grid never runs past it nor past the data.
-    T_age_s : float
-        Mean age of a temperature reading when read (s).
-    T_dt_s, q_dt_s : ndarray, optional
-        Each sample's thermocouple and flux read time relative to ``t_s`` (s;
-        :attr:`edge.measure.sensors.Reading.T_dt_s`): the sensors are read one
-        after the other, and the small-heater probe's fit turns a 1.5-ms skew
-        between the two records into several per cent on k and alpha.  The
-        grid still starts at heater-on (``t_s = 0``).
-
-    Returns
-    -------
-    t_s, dT_K, q_W_m2 : ndarray
-        The grid and the series on it, flux offset removed.
-    """
-    t_s = np.asarray(t_s, float)
-    heat = t_s >= 0
-    th, Th, qh = t_s[heat], np.asarray(T_C, float)[heat], np.asarray(q_W_m2, float)[heat]
-    if th.size < 2:
-        raise ValueError(f"need at least 2 heating samples to resample, got {th.size}")
-    tT = th - T_age_s
-    if T_dt_s is not None:
-        tT = tT + np.asarray(T_dt_s, float)[heat]
-    if q_dt_s is not None:
-        th = th + np.asarray(q_dt_s, float)[heat]
-    dT = Th - T0_C
-    keep = tT > 0  # a reading taken before heater-on belongs to the baseline
-    tT, dT = tT[keep], dT[keep]
-    if tT.size < 1:
-        raise ValueError("no temperature reading taken after heater-on")
-    tT, dT = np.concatenate(([0.0], tT)), np.concatenate(([0.0], dT))
-    n = int(math.floor(t_end_s * rate_Hz + 1e-9))
-    grid = np.arange(1, n + 1) / rate_Hz
-    grid = grid[grid <= min(th[-1], tT[-1]) + 1e-9]  # interpolate, never extrapolate
-    if grid.size < 2:
-        raise ValueError("heating phase too short for the sample rate")
-    dT_grid = resample(tT, dT, grid)
-    q_grid = resample(th, qh - q_offset_W_m2, np.maximum(grid, th[0]))
-    return grid, dT_grid, q_grid
-
-
-def contact_effusivity(t_s: np.ndarray, dT_K: np.ndarray, q_W_m2: np.ndarray, T_age_s: float = 0.0,
-                       min_rise_K: float = 0.0) -> float | None:
-    """The effusivity of whatever the probe's face touched, from the heating record alone (W s^0.5/(m^2 K)).
-
-    Whatever lies under the sensor -- a solid, or air -- obeys Duhamel's
-    relation between the flux into it and its surface temperature rise,
-    ``m(t) = e dT(t)`` with ``m`` the flux's half-integral
-    (:func:`edge.estimation.running.duhamel_m`). So ``e`` of the contact is
-    the least-squares slope of m on dT (through the origin: both are zero at
-    heater-on). In air almost all the heater's power stays in the probe: the
-    temperature climbs fastest and the flux is near zero, so this gives
-    still air's ~5.5 (or less: noise); on the lightest foam ~28, on
-    cardboard ~120, PMMA ~570, metals thousands -- whatever the power and the
-    contact time (the ratio does not depend on either), unlike a flux
-    threshold on a fraction of P/A, which a poor conductor never reaches in
-    a short touch.
-
-    Returns None when the rise (mean over the last third of the record) is
-    not above ``min_rise_K`` (pass two thermometer steps): no rise to judge
-    by -- a metal at a power below a step, where rounding makes the slope
-    anything, or no heat, which :func:`no_heat_while_on` judges. In air the
-    rise is the largest any touch gives (all of P/A into the probe's own
-    heat capacity), so a probe in air with an unresolved rise would not be
-    told from a metal by any record.
-    """
-    from edge.estimation.running import duhamel_m  # noqa: PLC0415 (edge.estimation imports this module's peers)
-
-    t = np.asarray(t_s, float)
-    dT, q = np.asarray(dT_K, float), np.asarray(q_W_m2, float)
-    keep = t > 0
-    t, dT, q = t[keep], dT[keep], q[keep]
-    tT = t - T_age_s
-    ok = tT > 0
-    if not ok.any():
-        return None
-    m = np.array([duhamel_m(x, t, q) for x in tT[ok]])
-    d = dT[ok]
-    s_dd = float(d @ d)
-    if not s_dd > 0 or float(np.mean(d[-max(1, d.size // 3):])) <= min_rise_K:
-        return None
-    return float(m @ d) / s_dd
-
-
-def quality_flags(base_t: np.ndarray, base_T: np.ndarray, base_q: np.ndarray, heat_q: np.ndarray,
-                  contact_e: float | None, saturated: bool, thresholds: Any) -> list[Flag]:
-    """Flags from the baseline and heating series (see the ``[measurement]`` thresholds).
-
-    Parameters
-    ----------
-    base_t, base_T, base_q : ndarray
-        Baseline times (s), thermocouple (°C) and flux (W/m^2).
-    heat_q : ndarray
-        Heating-phase flux with the baseline offset removed (W/m^2).
-    contact_e : float or None
-        :func:`contact_effusivity` of the heating record; ``no_contact`` when it is
-        below ``thresholds.no_contact_e_W_s05_m2K`` (None: not judged).
-    saturated : bool
-        Whether any reading clipped.
-    thresholds : namespace
-        The ``[measurement]`` section.
-
-    Returns
-    -------
-    list of Flag
-        In the order no_contact, saturated, noisy, unstable_baseline.
-    """
-    flags = []
-    if heat_q.size and contact_e is not None and contact_e < thresholds.no_contact_e_W_s05_m2K:
-        flags.append(Flag.NO_CONTACT)
-    if saturated:
-        flags.append(Flag.SATURATED)
-    if base_T.size >= 3:
-        # Noise is the scatter about the baseline's trend; the trend itself is drift.
-        x = base_t - base_t[0]
-        span = float(x[-1])
-        slope, resid_T = 0.0, base_T - np.mean(base_T)
-        if span > 0:
-            coef = np.polyfit(x, base_T, 1)
-            slope, resid_T = float(coef[0]), base_T - np.polyval(coef, x)
-        if float(np.std(resid_T)) > thresholds.noise_T_K or float(np.std(base_q)) > thresholds.noise_q_W_m2:
-            flags.append(Flag.NOISY)
-        if abs(slope) * span > thresholds.unstable_baseline_K:
-            flags.append(Flag.UNSTABLE_BASELINE)
-    return flags
 
 
 def temperature_rise_K(t_s: np.ndarray, T_C: np.ndarray) -> float:

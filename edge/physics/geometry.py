@@ -77,6 +77,11 @@ class ProbeGeometry:
         Depth range of the flux sensor below the top of the sensing layer.
     thermocouple_r_m : float
         Distance of the thermocouple from the axis (on the interface).
+    estimator : str
+        The estimator kind that reads this probe's touches (a key of
+        :data:`edge.estimation.methods.KINDS`): ``"thick_body"`` for a heater wide against the heat's
+        reach (one-dimensional at its sensors), ``"axisym"`` for a small heater whose lateral spreading
+        the estimate must model.
     nominal_power_W : float
         Heater power of a standard touch.
     """
@@ -94,6 +99,7 @@ class ProbeGeometry:
     sensor_depth_m: tuple[float, float] = (0.0, 0.4e-3)
     thermocouple_r_m: float = 0.0
     nominal_power_W: float = PAPER_POWER_W
+    estimator: str = "thick_body"
 
     def __post_init__(self) -> None:
         for n in ("heater_radius_m", "heater_thickness_m", "sensing_thickness_m", "substrate_thickness_m",
@@ -145,7 +151,7 @@ PAPER = ProbeGeometry.with_rectangular_heater("paper", 0.055, 0.060, nominal_pow
 #: sensing layer, 30 mm PU foam, probe radius 40 mm, 10 x 10 mm flux sensor centred under it.
 SMALL_HEATER = ProbeGeometry(
     name="small-heater", heater_radius_m=5.0e-3, probe_radius_m=0.040,
-    nominal_power_W=PAPER_POWER_W / _PAPER_HEATER_AREA_m2 * math.pi * 5.0e-3 ** 2)
+    nominal_power_W=PAPER_POWER_W / _PAPER_HEATER_AREA_m2 * math.pi * 5.0e-3 ** 2, estimator="axisym")
 
 PROBES: dict[str, ProbeGeometry] = {"paper": PAPER, "small-heater": SMALL_HEATER}
 

@@ -73,17 +73,18 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 from edge.security.policy import UpdatePolicy
-from edge.recognition import recognition_fields
+from edge.estimation.methods import method_class
+from edge.estimation.record import TouchRecord
+from edge.estimation.result import Estimate
+from edge.estimation.seam import SeamContext, estimate_touch
 from edge.hw.board import Board
 from edge.hw.drivers.button import Button
 from edge.hw.drivers.heater import Heater, HeaterError, HeaterOffError
 from edge.hw.faults import SensorFault
 from edge.measure.sensors import make_sensors, thermocouple_resolution_K
-from edge.estimation.chain_decision import ChainDecision
-from edge.estimation.running import SequentialDecision
-from edge.measure.estimator_decision import EstimatorDecision
+from edge.estimation.running import SequentialDecision, decision_for
 from edge.measure.ready import Readiness
-from edge.measure.sequence import EstimatorFn, MeasurementParams, MeasurementSequence, Phase
+from edge.measure.sequence import MeasurementParams, MeasurementSequence, Phase
 from edge.measure.watchdog import HeaterWatchdog, Limits
 from edge.model.bundle import limits_for_ram
 from edge.model.store import ModelStore, ModelStoreError
@@ -95,7 +96,7 @@ from edge.protocol.messages import Request
 from edge.service.config import Config, RuntimeOverrides
 from edge.service.estimator import ModelEstimator
 from edge.service.notify import Notifier
-from edge.service.calibration import ProbeCalibrations, promote_chain
+from edge.service.calibration import ProbeCalibrations
 from edge.service.faults import FAULT_RECHECK_s, MAX_UNSAVED_RECORDS, MIN_FREE_BYTES, FaultKeeping
 from edge.service.history_commands import HistoryCommands
 from edge.service.objects import ObjectSets
@@ -105,7 +106,7 @@ from edge.service.status_commands import FIRMWARE_VERSION, State, StatusCommands
 from edge.service.update_commands import CalibrationCommands, ConfigCommands, ModelCommands, ObjectSetCommands
 from edge.service.upload import MAX_UPLOAD_BYTES, ModelUpload
 from edge.service.worker import MeasurementWorker
-from edge.status import Flag, Reason, Status
+from edge.status import Reason, Status
 from edge.storage.history import History, HistoryError
 from edge.storage.identity import IdentityError, load_or_create_device_id
 
@@ -129,8 +130,10 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
     config : Config
         The file configuration; stored runtime overrides are applied on top.
     board : Board
-    estimator : EstimatorFn, optional
-        Default: :class:`edge.service.estimator.ModelEstimator` on the model store.
+    estimator : callable, optional
+        The probe head's estimator on a uniform grid, ``(t_s, dT_K, q_W_m2, power_W, method) -> dict``
+        (tests and benches put their own here).  Default: :class:`edge.service.estimator.ModelEstimator`
+        on the model store.  Either way the answer is :func:`edge.estimation.seam.estimate_touch`'s.
     stop_event : threading.Event, optional
         Set to stop serving; also aborts a running measurement.
     model_store, history : optional
@@ -150,7 +153,7 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
         (:meth:`edge.recognition.ObjectSet.from_library`).
     """
 
-    def __init__(self, config: Config, board: Board, *, estimator: EstimatorFn | None = None,
+    def __init__(self, config: Config, board: Board, *, estimator: Callable[..., Any] | None = None,
                  stop_event: threading.Event | None = None, model_store: ModelStore | None = None,
                  history: History | None = None, max_payload: int = DEFAULT_MAX_PAYLOAD,
                  max_upload_bytes: int = MAX_UPLOAD_BYTES, notifier: Notifier | None = None,
@@ -193,7 +196,7 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
                 log.info("model %s (%s) from %s", b.model_version, b.sha256[:12], self.store.source)
             except ModelStoreError as e:
                 log.error("no usable model yet: %s", e)
-            # Before the estimator: the small heater's estimate applies the installed flux scale.
+            # Before the estimator: the probe head's estimator applies the installed calibration.
             self.calibration = ProbeCalibrations(self._calibration_root(), self.config.board.probe,
                                                  self._update_policy())
             self._model_est = ModelEstimator(self.store, thermocouple_resolution_K(self.config.sensors),
@@ -302,7 +305,7 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
                        h.duty_window_s),
                 self._estimate, self.config.measurement, watchdog=self.watchdog, abort_event=self.stop_event,
                 model_sha256=self._model_sha256, on_state=self._on_state, cancel_event=self._cancel,
-                beats=self.notifier, decision=self._make_decision)
+                beats=self.notifier, decision=self._make_decision, probe=self.config.board.probe)
         self.sequence.thresholds = self.config.measurement
         return self.sequence
 
@@ -321,22 +324,19 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
         objs = self.object_set()
         if objs is None or not len(objs):
             return None
-        if self.config.board.probe != "paper":
-            # The small heater's sensor sees its heater's edge from the first samples: no 1-D running
-            # model applies.  The running answer is the device's own estimate on the record so far.
-            return EstimatorDecision(objs, m.decide_posterior, m.decide_min_s, estimate_fn=self.estimator,
-                                     rate_Hz=params.sample_rate_Hz, heat_s=params.contact_time_s,
-                                     power_W=params.power_W, method=params.method,
-                                     T_age_s=getattr(self.sensors, "T_age_s", 0.0))
+        probe = self.config.board.probe
         store = getattr(self, "calibration", None)
-        cal = store.current() if store is not None else None   # None too for one made for another probe
-        # The paper probe's chain (the small heater's calibration is a flux scale for its axisymmetric fit).
-        if cal is not None and self.config.board.probe == "paper":
-            # Calibrated: the running answer is the same estimate the result will be (promote_chain).
-            return ChainDecision(objs, m.decide_posterior, m.decide_min_s, calibration=cal)
-        return SequentialDecision(objs, m.decide_posterior, m.decide_min_s,
-                                  T_age_s=getattr(self.sensors, "T_age_s", 0.0),
-                                  T_resolution_K=getattr(self.sensors, "T_resolution_K", 0.0))
+        cal = store.current() if store is not None else None
+        try:   # the answer's prior (the model bundle's library), for the calibrated chain's running answer
+            library = self._model_est.estimator().library
+        except (ModelStoreError, ValueError):
+            library = None
+        # The probe head's estimator kind decides (edge.estimation.running.decision_for).
+        return decision_for(method_class(probe), objs, m.decide_posterior, m.decide_min_s, library=library,
+                            calibration=cal if cal is not None and cal.probe == probe else None,
+                            estimate_fn=self.estimator, params=params,
+                            T_age_s=getattr(self.sensors, "T_age_s", 0.0),
+                            T_resolution_K=getattr(self.sensors, "T_resolution_K", 0.0))
 
     def _poll_readiness(self) -> None:
         """One idle reading of the probe for STATUS ``ready`` (at most one per sample period, board clock).
@@ -357,44 +357,20 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
             return
         self.readiness.add(now, r.T_C)
 
-    def _name_object(self, res: dict) -> None:
-        """Add the active object set's recognition fields to a result (in place); never raises."""
-        try:
-            name, objs = self._named_object_set()
-            if objs is not None and len(objs):
-                res.update(recognition_fields(objs, res, set_name=name))
-        except Exception as e:  # naming the object must never lose the measurement
-            log.exception("naming the object failed")
-            res["object_error"] = f"{type(e).__name__}: {e}"
-
-    def _estimate(self, *args: Any) -> Mapping[str, Any]:
-        res = dict(self.estimator(*args))
-        self._name_object(res)
-        return res
-
-    def _promote_chain(self, outcome: Any) -> None:
-        """A calibrated chain's e becomes the answer, and the object is named from it (edge.service.calibration)."""
-        if outcome.result is None:
-            return
-        try:
-            promoted = promote_chain(outcome.result, self._model_est.estimator)
-        except Exception as e:  # the default method's answer stands; the measurement is never lost
-            log.exception("promoting the sensor chain's answer failed")
-            outcome.result["promote_error"] = f"{type(e).__name__}: {e}"
-            return
-        if promoted:
-            self._name_object(outcome.result)
-
-    @staticmethod
-    def _check_decision(outcome: Any) -> None:
-        """Flag a touch stopped early on a running answer that its result names differently."""
-        res = outcome.result or {}
-        dec = res.get("decision") or {}
-        if not dec.get("stopped_early") or dec.get("object") in (None, res.get("object")):
-            return
-        for flags in (outcome.flags, res.setdefault("flags", [])):
-            if Flag.DECISION_DISAGREES not in flags:
-                flags.append(Flag.DECISION_DISAGREES)
+    def _estimate(self, record: TouchRecord, decision: Mapping[str, Any] | None = None) -> Estimate:
+        """The one estimate path on this device's context: model, calibration, object set, thresholds."""
+        name, objs = self._named_object_set()
+        kw = dict(calibration=self.calibration.current(), object_set=objs if objs is not None and len(objs) else None,
+                  object_set_name=name, thresholds=self.config.measurement)
+        if self.estimator is self._model_est:
+            ctx = self._model_est.context(**kw)
+        else:
+            # An injected estimator (tests, benches) on the store's model when there is one (the prior).
+            try:
+                ctx = self._model_est.context(**kw).with_(method=self.estimator)
+            except (ModelStoreError, ValueError):   # no model, or one without a library: no prior then
+                ctx = SeamContext(method=self.estimator, **kw)
+        return estimate_touch(record, ctx, decision=decision)
 
     def _model_sha256(self) -> str | None:
         return self._model_est.model_sha256()
@@ -472,11 +448,6 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
                     log.critical("heater still on after the measurement: %s", e)
         self.measurements += 1
         self._idle_since = self.board.clock.monotonic()
-        t_chain = time.perf_counter()
-        self.calibration.apply(outcome)   # the sensor chain's estimate: part of the compute after the last sample
-        self._promote_chain(outcome)
-        self._check_decision(outcome)
-        chain_s = time.perf_counter() - t_chain
         t_commit = time.perf_counter()
         mid = self._add_record(outcome.record(cfg.to_dict()))
         commit_s = time.perf_counter() - t_commit
@@ -488,13 +459,14 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
                                "stored once the history works again")
         self._last_run_id = mid
         #: Wall-clock costs of the last measurement after its last sample (for bench/).
-        compute_s = None if outcome.compute_s is None else outcome.compute_s + chain_s
-        self.last_timing = {"compute_s": compute_s, "sequence_compute_s": outcome.compute_s, "chain_s": chain_s,
+        # The sensor chain runs inside the estimate path now: its time is part of compute_s.
+        compute_s = outcome.compute_s
+        self.last_timing = {"compute_s": compute_s, "sequence_compute_s": outcome.compute_s,
                             "commit_s": commit_s,
                             "compute_and_commit_s": None if compute_s is None else compute_s + commit_s}
         self.last_id = mid
         if compute_s is not None:
-            log.debug("measurement %d: compute %.2f ms (sensor chain %.2f ms)", mid, compute_s * 1e3, chain_s * 1e3)
+            log.debug("measurement %d: compute %.2f ms", mid, compute_s * 1e3)
         log.info("measurement %d: %s%s flags=%s", mid, outcome.status,
                  f" ({outcome.reason})" if outcome.reason else "", [str(f) for f in outcome.flags])
         if outcome.reason == Reason.HEATER_FAULT:

@@ -1,35 +1,40 @@
-"""The daemon's default estimator: the estimation pipeline on the model store's active bundle.
+"""The daemon's model: the store's active bundle as the estimate path's context.
 
 It lives in the service layer because it joins two peers that know nothing
-of each other -- the model store (:mod:`edge.model.store`) and the estimator
-(:mod:`edge.estimation.estimate`) -- into the ``EstimatorFn`` the
-measurement sequence calls (:data:`edge.measure.sequence.EstimatorFn`).
+of each other -- the model store (:mod:`edge.model.store`) and the estimate
+path (:mod:`edge.estimation.seam`).  It keeps the active bundle's
+:class:`~edge.estimation.estimate.Estimator` (rebuilt when the bundle
+changes) and the probe head's estimators built on it (the small heater's
+model is built once per time grid), and hands them out two ways:
 
-It dispatches on the probe head (``board.probe``): ``"paper"`` takes the 1-D
-path exactly as before; ``"small-heater"`` the axisymmetric fit
-(:class:`edge.estimation.probe_estimate.AxiEstimator`), whose result also says
-what the touch determined and what came from the library prior.
+* :meth:`ModelEstimator.context` -- a :class:`~edge.estimation.seam.SeamContext`
+  for :func:`~edge.estimation.seam.estimate_touch` (the daemon's answer to a touch);
+* calling it -- the probe head's estimator on a uniform grid,
+  ``(t_s, dT_K, q_W_m2, power_W, method) -> dict`` with the installed calibration,
+  for the running decision that refits the record so far
+  (:class:`edge.estimation.running.EstimatorDecision`).
+
+Which estimator a probe head takes is data: its ``estimator`` kind
+(:data:`edge.estimation.methods.KINDS`), not its name.
 """
 
 from __future__ import annotations
 
 import threading
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from edge.estimation.estimate import Estimator
+from edge.estimation.seam import SeamContext
 from edge.model.store import ModelStore, ModelStoreError
-from edge.physics.geometry import PROBES, get_probe
-from edge.physics.probe import HEATER_VOLUME_m3
+from edge.physics.geometry import PROBES
 
 __all__ = ["ModelEstimator"]
 
 
 class ModelEstimator:
-    """:class:`edge.estimation.estimate.Estimator` on the store's active bundle.
-
-    Rebuilt when the active bundle changes (after an upload or rollback).
+    """The store's active bundle as an estimator and as the estimate path's context.
 
     Parameters
     ----------
@@ -38,23 +43,24 @@ class ModelEstimator:
         The thermometer's resolution (K), which the estimator carries into u(e).
     probe : str
         The probe head (a name in :data:`edge.physics.geometry.PROBES`, ``board.probe``).
+    calibration : callable () -> ProbeCalibration or None, optional
+        The installed calibration (applied when it is this probe head's).
     """
 
     def __init__(self, store: ModelStore, T_resolution_K: float = 0.0, probe: str = "paper",
-                 calibration=None) -> None:
+                 calibration: Callable[[], Any] | None = None) -> None:
         if probe not in PROBES:
             raise ValueError(f"unknown probe {probe!r}; shipped: {sorted(PROBES)}")
         self.store = store
-        #: The probe head whose geometry decides the estimator.
+        #: The probe head whose estimator kind decides the estimator.
         self.probe = probe
-        self._axi = None
-        #: ``calibration()`` -> the installed ProbeCalibration or None: the small heater's flux scale
-        #: (the paper probe's chain is applied after the estimate, edge.service.calibration).
         self.calibration = calibration
         #: The thermometer's resolution (K), which the estimator carries into u(e).
         self.T_resolution_K = float(T_resolution_K)
         self._sha: str | None = None
         self._est: Estimator | None = None
+        #: The probe heads' estimators on the active bundle (shared with every context made here).
+        self.methods: dict = {}
         self._lock = threading.Lock()
 
     def model_sha256(self) -> str | None:
@@ -69,7 +75,7 @@ class ModelEstimator:
         bundle = self.store.current()
         if self._sha != bundle.sha256:
             self._est, self._sha = Estimator.from_bundle(bundle), bundle.sha256
-            self._axi = None
+            self.methods.clear()
         return self._est
 
     def estimator(self) -> Estimator:
@@ -77,39 +83,24 @@ class ModelEstimator:
         with self._lock:
             return self._refresh()
 
-    def _axi_estimator(self) -> Any:
-        """The small heater's estimator on the active bundle (call under the lock)."""
-        est = self._refresh()
-        if self._axi is None:
-            from edge.estimation.probe_estimate import AxiEstimator  # noqa: PLC0415
+    def context(self, **kw: Any) -> SeamContext:
+        """A :class:`SeamContext` on the active bundle (``kw``: the other fields), sharing the estimators.
 
-            self._axi = AxiEstimator(est, get_probe(self.probe))
-        return self._axi
+        Raises ModelStoreError when the store has no usable model.
+        """
+        return SeamContext(estimator=self.estimator(), methods=self.methods, **kw)
+
+    def _method(self) -> Any:
+        with self._lock:
+            self._refresh()
+        return SeamContext(estimator=self._est, methods=self.methods).method_for(self.probe, self.T_resolution_K)
 
     def prepare(self, t_s: np.ndarray) -> None:
-        """Get ready to estimate on grid ``t_s`` and its prefixes (the small heater's model; else nothing)."""
-        if self.probe == "paper":
-            return
-        with self._lock:
-            axi = self._axi_estimator()
-        axi.prepare(t_s)
+        """Get ready to estimate on grid ``t_s`` and its prefixes (the small heater builds its model)."""
+        self._method().prepare(t_s)
 
-    def __call__(self, t_s: np.ndarray, dT_K: np.ndarray, q_W_m2: np.ndarray, q_v_W_m3: float,
+    def __call__(self, t_s: np.ndarray, dT_K: np.ndarray, q_W_m2: np.ndarray, power_W: float | None,
                  method: str) -> dict:
-        """Estimate from the resampled series (see :data:`edge.measure.sequence.EstimatorFn`)."""
-        with self._lock:
-            est = self._refresh()
-            axi = self._axi_estimator() if self.probe != "paper" else None
-        if self.probe != "paper":
-            # The sequence reports the heater's power density on the paper's heater volume (the
-            # 1-D model's convention); the power itself is what the axisymmetric fit starts from.
-            cal = self.calibration() if self.calibration is not None else None
-            flux = {} if cal is None or cal.probe != self.probe else {
-                "flux_scale": cal.chain.flux_scale, "flux_u_rel": float(cal.u_theta[0])}
-            d = axi.estimate(t_s, dT_K, q_W_m2, power_W=q_v_W_m3 * HEATER_VOLUME_m3 if q_v_W_m3 else None,
-                             T_resolution_K=self.T_resolution_K, **flux)
-            if flux:
-                d["calibration_sha256"] = cal.sha256
-            return d
-        return est.estimate(t_s, dT_K, q_W_m2, method=method, q_v_W_m3=q_v_W_m3,
-                            T_resolution_K=self.T_resolution_K).to_dict()
+        """The probe head's estimate on a uniform grid from heater-on, with the installed calibration."""
+        cal = self.calibration() if self.calibration is not None else None
+        return self._method()(t_s, dT_K, q_W_m2, power_W, method, calibration=cal)

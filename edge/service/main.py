@@ -34,7 +34,7 @@ from typing import Any, Callable, Iterable
 import serial
 
 from edge.hw.board import Board, force_rpi_heater_off, make_board
-from edge.measure.sequence import EstimatorFn
+from edge.estimation.seam import MethodFn
 from edge.service.config import Config, ConfigError, load_config
 from edge.service.daemon import FIRMWARE_VERSION, Daemon
 from edge.service.notify import Notifier
@@ -57,7 +57,7 @@ def board_from_config(cfg: Config) -> Board:
 
 
 def run_daemon(config: Config, board: Board, serial_port: Any, stop_event: threading.Event, *,
-               estimator: EstimatorFn | None = None, ready: Callable[[Daemon], None] | None = None,
+               estimator: MethodFn | None = None, ready: Callable[[Daemon], None] | None = None,
                **kwargs: Any) -> None:
     """Run a daemon on ``board`` answering ``serial_port`` until ``stop_event`` is set.
 

@@ -1,4 +1,4 @@
-"""The user's object sets on the device: OBJECTS_* requests, the active set, and naming a measurement's object.
+"""The user's object sets on the device: OBJECTS_* requests and the active set (the estimate path names objects in it).
 
 :class:`ObjectSets` joins the store (:mod:`edge.storage.objects_store`,
 which knows files, not objects) and the recognition
@@ -27,9 +27,9 @@ from __future__ import annotations
 import logging
 import secrets
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
-from edge.recognition import LIBRARY_SET, ObjectSet, recognition_fields
+from edge.recognition import LIBRARY_SET, ObjectSet
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.storage.objects_store import MAX_SET_BYTES, ObjectSetStore, ObjectStoreError, UploadRefused, check_name
 from edge.service.upload import append_chunk
@@ -110,11 +110,6 @@ class ObjectSets:
         if s is None:
             return LIBRARY_SET, self.library()
         return s.name, s.objects
-
-    def name_object(self, result: Mapping[str, Any]) -> dict:
-        """The object fields of a measurement result (:func:`edge.recognition.recognition_fields`)."""
-        name, objs = self.active()
-        return recognition_fields(objs, result, set_name=name)
 
     # -- upload ----------------------------------------------------------------------
     def _require_store(self) -> ObjectSetStore:

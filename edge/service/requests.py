@@ -28,6 +28,7 @@ from edge.measure.sequence import MeasurementParams
 from edge.measure.signal import min_contact_time_s
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.service.config import RUNTIME_KEYS, Config
+from edge.storage.history import series_header
 
 __all__ = ["REPLY_MARGIN", "SERIES_COLUMNS", "max_sample_rate_Hz", "measure_params", "fit_record", "history_page", "series_page",
            "config_reply"]
@@ -35,7 +36,8 @@ __all__ = ["REPLY_MARGIN", "SERIES_COLUMNS", "max_sample_rate_Hz", "measure_para
 #: Bytes kept free in a reply for the frame's JSON envelope.
 REPLY_MARGIN = 256
 #: SERIES reply names and History columns, per ``which``.
-SERIES_COLUMNS = {"raw": (("t_s", "raw_t_s"), ("T_C", "raw_T_C"), ("q_W_m2", "raw_q_W_m2")),
+SERIES_COLUMNS = {"raw": (("t_s", "raw_t_s"), ("T_C", "raw_T_C"), ("q_W_m2", "raw_q_W_m2"),
+                           ("T_dt_s", "raw_T_dt_s"), ("q_dt_s", "raw_q_dt_s")),
                   "grid": (("t_s", "grid_t_s"), ("dT_K", "grid_dT_K"), ("q_W_m2", "grid_q_W_m2"))}
 
 
@@ -169,30 +171,47 @@ def series_page(record: Mapping[str, Any], measurement_id: int, which: str, offs
         BAD_ARGUMENT for an offset past the end; INTERNAL if not even one
         sample fits.
     """
-    cols = [(name, record.get(col)) for name, col in SERIES_COLUMNS[which]]
+    # The read-time columns travel only when stored (records before them, and boards that do not time
+    # their reads, have none); the touch's header rides on the raw series' first page.
+    cols = [(name, record.get(col)) for i, (name, col) in enumerate(SERIES_COLUMNS[which])
+            if i < 3 or record.get(col) is not None]
     total = 0 if cols[0][1] is None else int(len(cols[0][1]))
     if offset > total:
         raise CommandError(ErrorCode.BAD_ARGUMENT, f"offset {offset} is past the end of the {which} series "
                            f"({total} samples)", "offset")
     end = total if limit is None else min(total, offset + limit)
     body: dict[str, Any] = {"measurement_id": measurement_id, "which": which, "offset": offset, "total": total}
+    if which == "raw" and offset == 0 and total:
+        header = series_header(record)
+        if header is not None:
+            body["header"] = header
     body.update((name, []) for name, _ in cols)
     # JSON has no NaN: a non-finite sample travels as null.
     values = [[x if math.isfinite(x) else None for x in np.asarray(a[offset:end], float).tolist()]
               if end > offset else [] for _, a in cols]
-    budget = max_payload - len(json.dumps(body, separators=(",", ":")))
-    n = used = 0
-    for i in range(end - offset):
-        cost = sum(len(json.dumps(v[i])) + 1 for v in values)  # the value and its comma
-        if used + cost > budget:
-            break
-        used += cost
-        n += 1
+    n = _samples_that_fit(body, values, end - offset, max_payload)
+    if n == 0 and end > offset and body.pop("header", None) is not None:
+        # A frame too small for the header and a sample: the samples first (the host then rebuilds the
+        # header from the measurement's record).
+        n = _samples_that_fit(body, values, end - offset, max_payload)
     if n == 0 and end > offset:
         raise CommandError(ErrorCode.INTERNAL, f"max_payload {max_payload} B is too small for one sample")
     for (name, _), v in zip(cols, values):
         body[name] = v[:n]
     return body
+
+
+def _samples_that_fit(body: dict[str, Any], values: list[list], n_max: int, max_payload: int) -> int:
+    """How many of the ``values``' samples fit in one reply beside ``body``."""
+    budget = max_payload - len(json.dumps(body, separators=(",", ":")))
+    n = used = 0
+    for i in range(n_max):
+        cost = sum(len(json.dumps(v[i])) + 1 for v in values)  # the value and its comma
+        if used + cost > budget:
+            break
+        used += cost
+        n += 1
+    return n
 
 
 def config_reply(values: dict[str, Any], max_payload: int) -> dict[str, Any]:

@@ -2,17 +2,21 @@
 
 A calibration (:class:`edge.calibration.model.ProbeCalibration`) is a few kB of
 JSON; the device keeps the one in use as ``calibration.json`` in its store
-directory, with the signature it was installed with beside it
-(``calibration.sig``).  Installing checks, in order: size, UTF-8 JSON and
-every field (with the file's own SHA-256), the probe it was made for against
-the device's, and the update policy's signature rule over the exact bytes
-(as model bundles and object sets).  Then the bytes are written with
-:func:`edge.storage.durable.atomic_write_file` (a crash leaves the old
-calibration or the new one), the signature first: a calibration is never
-on disk without the signature that let it in (a crash between the two
-leaves the old calibration beside the new signature: ``signed_by`` is then
-wrong until the next install, the calibration in use is still whole).
-Reading back re-checks the fields and the checksum (a damaged file is
+directory, with the signature it was installed with beside it, named by the
+SHA-256 of the bytes it signed (``calibration.<sha256>.sig``).  Installing
+checks, in order: size, UTF-8 JSON and every field (with the file's own
+SHA-256), the probe it was made for against the device's, and the update
+policy's signature rule over the exact bytes (as model bundles and object
+sets).  Then the signature is written under the new bytes' hash, the bytes
+with :func:`edge.storage.durable.atomic_write_file` (the one durable step: a
+kill leaves the old calibration or the new one), and the signatures of other
+bytes are dropped.  The signature in use is always the one named by the hash
+of the calibration in use, so after a kill at any step the calibration and its
+``signed_by`` agree (ISSUE #35 §9: with one ``calibration.sig`` written before
+the bytes, a kill in between named the new signer beside the old bytes).
+Opening the store removes stray temporaries and signatures of other bytes, and
+migrates an old ``calibration.sig`` (kept only if it verifies over the stored
+bytes).  Reading back re-checks the fields and the checksum (a damaged file is
 named, never used).
 
 The store knows files, not what a calibration means: the caller gives it the
@@ -22,6 +26,10 @@ and the size bound, so storage does not import the calibration model above it.
 
 from __future__ import annotations
 
+import hashlib
+import logging
+import os
+import re
 from pathlib import Path
 from typing import Any, Callable, Protocol
 
@@ -30,8 +38,13 @@ from edge.storage import durable
 
 __all__ = ["CalibrationStore", "CalibrationStoreError", "StoredCalibration"]
 
+log = logging.getLogger("thermotouch.edge")
+
 FILE = "calibration.json"
-SIGNATURE = "calibration.sig"
+#: The signature file of earlier stores (whatever bytes it signed); migrated on open.
+LEGACY_SIGNATURE = "calibration.sig"
+#: A signature's file name: ``calibration.<sha256 of the bytes it signed>.sig``.
+_SIG_RE = re.compile(r"^calibration\.([0-9a-f]{64})\.sig$")
 
 
 class CalibrationStoreError(ValueError):
@@ -75,8 +88,60 @@ class CalibrationStore:
         if not self.root.is_dir():
             self.root.parent.mkdir(parents=True, exist_ok=True)
             durable.make_dir(self.root)
-        for name in (FILE, SIGNATURE):
-            durable.remove_stray_temporaries(self.root / name)
+        self._clean()
+
+    # -- signatures ----------------------------------------------------------------
+    def _signature_path(self, sha256: str) -> Path:
+        return self.root / f"calibration.{sha256}.sig"
+
+    def _stored_sha256(self) -> str | None:
+        try:
+            return hashlib.sha256((self.root / FILE).read_bytes()).hexdigest()
+        except OSError:
+            return None
+
+    def _clean(self) -> None:
+        """Start-up: stray temporaries go, an old ``calibration.sig`` is migrated, other bytes' signatures go."""
+        for entry in os.listdir(self.root):
+            if entry.startswith(".calibration.") and ".tmp" in entry:
+                durable.remove_tree(self.root / entry)
+        sha = self._stored_sha256()
+        legacy = self.root / LEGACY_SIGNATURE
+        if os.path.lexists(legacy):
+            self._migrate(legacy, sha)
+        try:
+            self._drop_signatures(keep=None if sha is None else self._signature_path(sha))
+        except OSError as e:
+            log.error("calibration store: cannot remove stale signatures: %s", e)
+
+    def _migrate(self, legacy: Path, sha: str | None) -> None:
+        """Keep an earlier store's ``calibration.sig`` only if it verifies over the stored bytes."""
+        ok = False
+        if sha is not None and self.policy is not None:
+            try:
+                ok = self.policy.authenticate((self.root / FILE).read_bytes(), legacy.read_bytes()).signed
+            except (OSError, UpdateRefused):
+                ok = False
+        try:
+            if ok:
+                durable.replace(legacy, self._signature_path(sha))
+            else:
+                log.warning("calibration store: %s does not verify over the stored calibration; dropped",
+                            LEGACY_SIGNATURE)
+                os.unlink(legacy)
+            durable.fsync_dir(self.root)
+        except OSError as e:
+            log.error("calibration store: cannot migrate %s: %s", LEGACY_SIGNATURE, e)
+
+    def _drop_signatures(self, keep: Path | None) -> None:
+        """Remove every signature file but ``keep`` (None: all)."""
+        gone = False
+        for entry in os.listdir(self.root):
+            if _SIG_RE.match(entry) and self.root / entry != keep:
+                os.unlink(self.root / entry)
+                gone = True
+        if gone:
+            durable.fsync_dir(self.root)
 
     def current(self) -> StoredCalibration | None:
         """The installed calibration, or None when there is none.
@@ -127,20 +192,27 @@ class CalibrationStore:
         except UpdateRefused as e:
             raise CalibrationStoreError(f"calibration refused: {e}".replace("flash --key FILE",
                                                                             "calibrate --key FILE")) from None
-        sig_path = self.root / SIGNATURE
+        # The signature first, under the hash of the bytes it signs (never read beside other bytes),
+        # then the bytes in one rename (the install's one durable step), then the other signatures.
+        keep = None
         if signature is not None:
-            durable.atomic_write_file(sig_path, signature)
-        elif sig_path.exists():
-            durable.remove_tree(sig_path)
-            durable.fsync_dir(self.root)
+            keep = self._signature_path(hashlib.sha256(blob).hexdigest())
+            durable.atomic_write_file(keep, bytes(signature))
         durable.atomic_write_file(self.root / FILE, blob)
+        try:
+            self._drop_signatures(keep)
+        except OSError as e:  # the calibration is installed; a stale signature names no bytes in use
+            log.error("calibration store: cannot remove stale signatures: %s", e)
         return cal
 
     def signed_by(self) -> str | None:
         """Key id of the installed calibration's signature (None: unsigned or none installed)."""
-        try:
-            from edge.security.keys import parse_signature  # noqa: PLC0415
+        from edge.security.keys import KeyFileError, parse_signature  # noqa: PLC0415
 
-            return parse_signature((self.root / SIGNATURE).read_bytes())[0]
-        except Exception:
+        sha = self._stored_sha256()
+        if sha is None:
+            return None
+        try:
+            return parse_signature(self._signature_path(sha).read_bytes())[0]
+        except (OSError, KeyFileError):
             return None

@@ -5,6 +5,7 @@ Layout under ``root``::
     sets/<name>.csv   one verified object-set CSV per name (the bytes as uploaded)
     sets/<name>.<sha256 of the bytes>.sig   the signature those bytes came with, if any
     active            pointer file: "<name>\\n" of the active set; absent = the built-in library
+    pending           the install under way: {"name", "sha256", "activate"} (absent between installs)
 
 Every write goes through :mod:`edge.storage.durable`: a set file is written
 to a temporary sibling, fsynced and renamed over its name, and the pointer
@@ -12,6 +13,17 @@ the same way, so after a power cut at any step each name holds either its
 old or its new bytes, and the pointer names a set that was complete when it
 was written. An upload is checked completely (:func:`verify_upload`) before
 anything is written: a bad one changes nothing.
+
+An install is all or nothing, signature and activation included (ISSUE #35
+§9). The signature is written first, under the hash of the bytes it signs
+(it can never name the signer of other bytes); then ``pending`` records what
+the install is (name, hash, whether it activates); then the set file is
+renamed into place -- the install's commit point; then the pointer, then
+the other signatures go and ``pending`` with them. Opening the store after
+a kill finishes an install whose bytes are in place (the pointer is
+written if it asked for activation) and forgets one whose bytes are not
+(the old set, its signature and the old pointer stand); signatures of bytes
+no set holds are removed.
 
 What an object set *is* (the CSV format) is not known here: the parser is
 injected (``parse``; the daemon passes
@@ -22,6 +34,7 @@ takes its golden check -- storage stays below estimation.
 from __future__ import annotations
 
 import hashlib
+import json
 import logging
 import os
 import re
@@ -162,6 +175,7 @@ class ObjectSetStore:
     """
 
     ACTIVE = "active"
+    PENDING = "pending"
 
     def __init__(self, root: str | os.PathLike, parse: Parser, *, max_bytes: int = MAX_SET_BYTES,
                  max_sets: int = MAX_SETS, policy: Any = None) -> None:
@@ -183,6 +197,8 @@ class ObjectSetStore:
                 durable.fsync_dir(d.parent)
         self._clean_temporaries()
         self._migrate_signatures()
+        self._finish_pending()
+        self._drop_orphan_signatures()
 
     def _migrate_signatures(self) -> None:
         """Earlier stores kept ``<name>.sig`` whatever bytes it signed: keep one only if it verifies over them."""
@@ -204,6 +220,63 @@ class ObjectSetStore:
                 durable.fsync_dir(self.sets_dir)
             except OSError as e:
                 log.error("object set %r: cannot migrate its signature file: %s", name, e)
+
+    def _finish_pending(self) -> None:
+        """Start-up after a kill: complete the install whose bytes are in place, forget one whose bytes are not."""
+        p = self.root / self.PENDING
+        if not os.path.lexists(p):
+            return
+        try:
+            doc = json.loads(p.read_bytes()[:4096])
+            name, sha, activate = check_name(doc["name"]), str(doc["sha256"]), bool(doc["activate"])
+        except (OSError, ValueError, KeyError, TypeError, ObjectStoreError) as e:
+            log.warning("object store: unreadable pending install dropped (%s)", e)
+            name = sha = None
+            activate = False
+        try:
+            if name is not None:
+                try:
+                    stored = hashlib.sha256(self._set_path(name).read_bytes()).hexdigest()
+                except FileNotFoundError:
+                    stored = None
+                if stored == sha:  # past the commit point: finish what the request asked
+                    if activate and self._pointer_or_none() != name:
+                        durable.atomic_write_file(self.root / self.ACTIVE, (name + "\n").encode("ascii"))
+                    self._drop_signatures(name, keep=self._signature_path(name, sha))
+                    log.warning("object set %r: install cut by a restart, completed%s", name,
+                                ", active" if activate else "")
+                else:
+                    log.warning("object set %r: install cut before its bytes were stored, forgotten", name)
+            os.unlink(p)
+            durable.fsync_dir(self.root)
+        except OSError as e:
+            log.error("object store: cannot finish the pending install: %s", e)
+
+    def _pointer_or_none(self) -> str | None:
+        try:
+            return self._read_pointer()
+        except (ObjectStoreError, OSError):
+            return None
+
+    def _drop_orphan_signatures(self) -> None:
+        """Signatures of bytes no stored set holds (left by a cut install) go at start-up."""
+        held: dict[str, str | None] = {}
+        try:
+            for entry in sorted(os.listdir(self.sets_dir)):
+                if not entry.endswith(".sig") or len(entry) < 70 or not _SIG_RE.match(entry[-68:]):
+                    continue
+                name, sha = entry[:-69], entry[-68:-4]
+                if name not in held:
+                    try:
+                        held[name] = hashlib.sha256(self._set_path(name).read_bytes()).hexdigest()
+                    except OSError:
+                        held[name] = None
+                if held[name] != sha:
+                    os.unlink(self.sets_dir / entry)
+                    log.info("object store: signature %s names no stored bytes; removed", entry)
+            durable.fsync_dir(self.sets_dir)
+        except OSError as e:
+            log.error("object store: cannot remove orphan signatures: %s", e)
 
     # -- paths -----------------------------------------------------------------------
     def _set_path(self, name: str) -> Path:
@@ -334,7 +407,8 @@ class ObjectSetStore:
         UploadRefused
             The set fails verification, or the name is unusable.
         ObjectStoreError
-            The store is full or a write failed (the previous state stays).
+            The store is full or a write failed: the previous state stays, unless the set's bytes were
+            already in place (then the install is finished here, or at the next opening of the store).
         """
         try:
             check_name(name)
@@ -347,19 +421,26 @@ class ObjectSetStore:
             if name not in existing and len(existing) >= self.max_sets:
                 raise ObjectStoreError(f"{len(existing)} object sets stored, the most this device keeps; "
                                        "remove one first")
+            sha = hashlib.sha256(blob).hexdigest()
             try:
-                # Who signed it, for listings (the set itself was verified above, before any write):
-                # the signature first, under the bytes' own hash, then the bytes, then the old
-                # signatures go.
+                # The signature first, under the bytes' own hash; then what the install is; then the
+                # bytes (the commit point: a restart finishes the install from here on), the pointer,
+                # and the old signatures and the record go.
                 sig = None
                 if signature is not None:
-                    sig = self._signature_path(name, hashlib.sha256(blob).hexdigest())
+                    sig = self._signature_path(name, sha)
                     durable.atomic_write_file(sig, bytes(signature))
+                durable.atomic_write_file(self.root / self.PENDING, json.dumps(
+                    {"name": name, "sha256": sha, "activate": bool(activate)}).encode("ascii"))
                 durable.atomic_write_file(self._set_path(name), bytes(blob))
-                self._drop_signatures(name, keep=sig)
                 if activate:
                     durable.atomic_write_file(self.root / self.ACTIVE, (name + "\n").encode("ascii"))
+                self._drop_signatures(name, keep=sig)
+                os.unlink(self.root / self.PENDING)
+                durable.fsync_dir(self.root)
             except OSError as e:
+                self._finish_pending()  # past the commit point: finish now if the disk lets us
+                self._loaded = False
                 raise ObjectStoreError(f"cannot store object set {name!r}: {e}") from None
             self._loaded = False  # the active set (or its content) may have changed
             stored = StoredSet(name, hashlib.sha256(blob).hexdigest(), len(blob), objs)

@@ -20,6 +20,9 @@ Emulated (datasheet sections in brackets):
   attribute: :attr:`alert_asserted` (logical) and :attr:`alert_pin_high`
   (electrical, honouring COMP_POL). In continuous conversion-ready mode the
   real pin pulses for ~8 µs per conversion; :attr:`rdy_pulses` counts them.
+* Frozen converter (``converter_frozen``, :mod:`firmware_sim.chips.freeze`): a single shot
+  does not finish while frozen (OS reads 0; it finishes when the freeze ends), and in continuous
+  mode the conversion register stops changing (no conversion-ready pulses either).
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from typing import Callable
 
 import numpy as np
 
+from firmware_sim.chips.freeze import Freezable
 from edge.hw.regmaps.ads1115 import CODE_MAX, CODE_MIN, PGA_FSR_V, REGISTERS
 
 _EPS = 1e-9
@@ -38,7 +42,7 @@ _MUX_LABELS = {v: k for k, v in _CFG.field("MUX").enum.items()}
 _DR_SPS = {v: k for k, v in _CFG.field("DR").enum.items()}
 
 
-class ADS1115Emulator:
+class ADS1115Emulator(Freezable):
     """Emulated ADS1115 (the driver is :class:`edge.hw.drivers.ads1115.ADS1115`).
 
     Parameters
@@ -103,9 +107,13 @@ class ADS1115Emulator:
             if now - self._t_end > _MAX_BACKLOG * t:
                 self._t_end += (math.floor((now - self._t_end) / t) - _MAX_BACKLOG) * t
             while self._t_end <= now:
-                self._convert(self._t_end, t)
+                if not self.frozen_at(self._t_end):
+                    self._convert(self._t_end, t)
                 self._t_end += t
-        elif self._t_end <= now:
+            return
+        if self.frozen_at(self._t_end):
+            self._t_end = self.thaw_s(self._t_end)  # a frozen single shot ends when the freeze does
+        if self._t_end <= now:
             self._convert(self._t_end, self._t_conv())
             self._converting = False
 

@@ -18,6 +18,8 @@ Emulated (datasheet sections in brackets):
   left-justified in the 24-bit word, low 10 bits zero [8.3.10, Table 13].
 * System monitors: (VREFP-VREFN)/4, (AVDD-AVSS)/4, shorted inputs [8.3.9].
 * Data counter (DCNT) and data-integrity bytes (inverted data / CRC-16).
+* Frozen converter (``converter_frozen``, :mod:`firmware_sim.chips.freeze`): no conversion
+  completes, DRDY is never set; a START after the freeze ends converts again.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from typing import Callable
 
 import numpy as np
 
+from firmware_sim.chips.freeze import Freezable
 from edge.hw.regmaps.ads122c04 import (
     CODE_MAX,
     CODE_MIN,
@@ -43,7 +46,7 @@ _MAX_BACKLOG = 64
 _MUX_LABELS = {v: k for k, v in MUX.items()}
 
 
-class ADS122C04Emulator:
+class ADS122C04Emulator(Freezable):
     """Emulated ADS122C04 (the driver is :class:`edge.hw.drivers.ads122c04.ADS122C04`).
 
     Parameters
@@ -111,13 +114,15 @@ class ADS122C04Emulator:
         t_single, t_cont = self._times()
         if not self._continuous():
             if self._t_end <= now:
-                self._convert(self._t_end, t_single)
+                if not self.frozen_at(self._t_end):  # frozen: the result is lost, DRDY never set
+                    self._convert(self._t_end, t_single)
                 self._running = False   # single-shot: power down after the result
             return
         if now - self._t_end > _MAX_BACKLOG * t_cont:
             self._t_end += (math.floor((now - self._t_end) / t_cont) - _MAX_BACKLOG) * t_cont
         while self._t_end <= now:
-            self._convert(self._t_end, t_cont)
+            if not self.frozen_at(self._t_end):
+                self._convert(self._t_end, t_cont)
             self._t_end += t_cont
 
     def _vref(self) -> float:

@@ -32,6 +32,10 @@ Open thermocouple: the input floats to the rail, the EMF leaves the type's
 range, STATUS.INPUT_RANGE is set and T_H / T_delta keep their last in-range
 values (so only the status bit tells), the raw ADC register shows positive
 full scale.
+
+Frozen converter (``converter_frozen``, :mod:`firmware_sim.chips.freeze`): no conversion
+completes -- T_H, T_delta, T_C, the raw ADC register and STATUS (its T_H update flag included)
+keep what they held -- while the interface answers as usual.
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ from typing import Callable
 import numpy as np
 
 from edge.physics import typek
+from firmware_sim.chips.freeze import Freezable
 from edge.hw.regmaps.mcp9600 import (
     COLD_JUNCTION_TIME_s,
     CONVERSION_TIME_s,
@@ -63,7 +68,7 @@ def _temp_code(t_C: float, lsb_C: float = 0.0625) -> int:
     return code & 0xFFFF
 
 
-class MCP9600Emulator:
+class MCP9600Emulator(Freezable):
     """Emulated MCP9600 (the driver is :class:`edge.hw.drivers.mcp9600.MCP9600`).
 
     Parameters
@@ -159,10 +164,14 @@ class MCP9600Emulator:
                 break
 
     def _convert_cold(self, t: float) -> None:
+        if self.frozen_at(t):
+            return
         lsb = self._dev("COLD_JUNCTION_RESOLUTION")
         self.regs[0x02] = _temp_code(float(self.cold_junction_C(t)), lsb)
 
     def _convert_hot(self, t_end: float, t_conv: float) -> None:
+        if self.frozen_at(t_end):
+            return  # frozen: no result, no T_H update flag (a burst does not finish either)
         self.conversions += 1
         tm = t_end - 0.5 * t_conv
         status = self.regs[0x04] | 0x40          # T_H update

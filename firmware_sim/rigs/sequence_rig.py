@@ -1,9 +1,9 @@
 """One touch through the device's own measurement code on a scene's simulator, without a daemon.
 
 The device's :class:`~edge.measure.sequence.MeasurementSequence` with its drivers on the scene's
-emulated board, and the daemon's estimator (:class:`~edge.service.estimator.ModelEstimator`, which
-dispatches on the configured probe) on a given bundle: what a MEASURE does, minus the serial link
-and the history. Used by the small-heater tests and bench, which need many touches on scenes
+emulated board, and the daemon's estimate path (:func:`edge.estimation.seam.estimate_touch` on
+:class:`~edge.service.estimator.ModelEstimator`'s context: the configured probe head's estimator, no
+calibration, no object set) on a given bundle: what a MEASURE does, minus the serial link and the history. Used by the small-heater tests and bench, which need many touches on scenes
 built in code.
 """
 
@@ -15,6 +15,7 @@ from edge.hw.drivers.heater import Heater
 from edge.measure.sensors import make_sensors, thermocouple_resolution_K
 from edge.measure.sequence import MeasurementParams, MeasurementSequence
 from edge.measure.watchdog import Limits
+from edge.estimation.seam import TouchEstimator
 from edge.service.config import Config
 from edge.service.estimator import ModelEstimator
 from firmware_sim.run import config_for_scene
@@ -63,7 +64,7 @@ def sequence_touch(scene: Any, store: Any, workdir: str, overrides: Mapping[str,
         est = ModelEstimator(store, thermocouple_resolution_K(cfg.sensors), probe=cfg.board.probe)
         seq = MeasurementSequence(heater, make_sensors(board, cfg.sensors), board.clock,
                                   Limits(h.max_on_time_s, h.over_temperature_C, h.fault_flux_W_m2, h.fault_rise_K),
-                                  est, m)
+                                  TouchEstimator(est.context(thresholds=m)), m, probe=cfg.board.probe)
         try:
             out = seq.run(MeasurementParams(power_W=h.power_W, contact_time_s=m.contact_time_s,
                                             baseline_s=m.baseline_s, sample_rate_Hz=m.sample_rate_Hz,

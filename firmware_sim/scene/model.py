@@ -41,6 +41,7 @@ FAULT_KINDS = (
     "heater_dead",
     "supply_sag",
     "no_contact",
+    "converter_frozen",
 )
 BACKS = ("fixed", "insulated", "infinite")
 #: Thermal worlds behind the chips: ``"ideal"`` (firmware_sim.world.ThermalWorld, the exact 1-D

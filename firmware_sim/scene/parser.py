@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 from edge.hw.chips import FLUX, THERMOCOUPLE, names_for
+from edge.physics.geometry import get_probe
 from edge.physics.materials import load_materials
 from edge.physics.solids import Solid
 from edge.schema import Field, SchemaError, check_table, check_value
@@ -116,7 +117,7 @@ def _board(data: Any) -> BoardSpec:
         if all(b.get(chip) is None for chip in able):
             raise SchemaError(f"board.{able[0]}", f"missing: fit a {what} reader ("
                               + " or ".join(f"board.{chip}" for chip in able) + ")")
-    if b["probe"] != "paper" and b["world"] != "faithful":
+    if get_probe(b["probe"]).estimator != "thick_body" and b["world"] != "faithful":
         raise SchemaError("board.probe", f'probe {b["probe"]!r} needs world = "faithful" '
                           "(the ideal world is 1-D: it knows no heater smaller than the object)")
     return BoardSpec(**{chip: b.get(chip) for chip in CHIP_ADDRESSES}, stack_name=b["stack"], world=b["world"],

@@ -48,7 +48,7 @@ Top level::
     world?      str  "ideal" (default: exact 1-D, the estimator's idealisation) or "faithful"
                      (axisymmetric finite volumes: foam, finite heater, convection, as-built deviations)
     probe?      str  a name in edge.physics.geometry.PROBES: "paper" (default) or "small-heater";
-                     anything but "paper" needs world = "faithful"
+                     a probe head whose estimator is not 1-D ("thick_body") needs world = "faithful"
 
 At least one thermocouple reader (mcp9600 or ads122c04) and one flux reader
 (ads1115 or ads122c04) must be fitted; addresses must differ.
@@ -111,6 +111,7 @@ Factors lie in [0.5, 2].
         heater_dead        -
         supply_sag         factor (0 < factor <= 1) or voltage_V (> 0)
         no_contact         -
+        converter_frozen   chip ("mcp9600" | "ads1115" | "ads122c04"): completes no conversion
 
 Material names are resolved in the validated material library,
 :mod:`edge.physics.materials` (``edge/physics/data/materials.csv``); callers may pass their
@@ -273,4 +274,5 @@ FAULT_PARAM_FIELDS: Mapping[str, Mapping[str, Field]] = {
         "voltage_V": Field("float", None, "supply drops to voltage_V", **_POSITIVE),
     },
     "no_contact": {},
+    "converter_frozen": {"chip": Field("str", doc="the fitted chip that freezes", choices=tuple(CHIP_ADDRESSES))},
 }

@@ -132,8 +132,15 @@ def _run_walk(args) -> int:
 
     if args.out is None:
         raise CliError("the walk-through needs --out CAL.json (the calibration is kept on the host too)")
-    if args.probe != "paper":
-        raise CliError(f"--probe {args.probe}: the sensor-chain calibration exists for the paper probe only")
+    from edge.estimation.methods import method_class  # noqa: PLC0415
+
+    if not method_class(args.probe).sensor_chain:
+        from edge.physics.geometry import PROBES  # noqa: PLC0415
+
+        chained = [p for p in PROBES if method_class(p).sensor_chain]
+        raise CliError(f"--probe {args.probe}: the sensor-chain calibration exists for the {' and '.join(chained)} "
+                       f"probe{'s' if len(chained) > 1 else ''} only (this probe head's estimator has no sensor "
+                       "chain: fit its flux scale from --record/--reference pairs)")
     if not args.arm > 0:
         raise CliError("--arm must be > 0 for the walk-through (the device waits that long for each touch)")
     names = args.reference or list(DEFAULT_REFERENCES)
@@ -281,11 +288,11 @@ def _reference(lib, name):
 
 def _print_calibration(cal) -> None:
     c = cal.chain
-    u = cal.u_theta
-    print(f"  flux sensor sensitivity  x {1.0 / c.flux_scale:.4f} of nominal  (u {u[0]:.1%})")
-    print(f"  sensing depth            {c.sensing_thickness_m * 1e3:.4f} mm  (u {u[1]:.1%})")
-    print(f"  sensing layer k          {c.k_W_mK:.4f} W/m/K  (u {u[3]:.1%})")
-    print(f"  thermocouple lag         {c.tc_tau_s * 1e3:.1f} ms  (u {u[2] * 1e3:.1f} ms)")
+    u = cal.u_of
+    print(f"  flux sensor sensitivity  x {1.0 / c.flux_scale:.4f} of nominal  (u {u('ln_flux_scale'):.1%})")
+    print(f"  sensing depth            {c.sensing_thickness_m * 1e3:.4f} mm  (u {u('ln_sensing_thickness_m'):.1%})")
+    print(f"  sensing layer k          {c.k_W_mK:.4f} W/m/K  (u {u('ln_sensing_k_W_mK'):.1%})")
+    print(f"  thermocouple lag         {c.tc_tau_s * 1e3:.1f} ms  (u {u('tc_tau_s') * 1e3:.1f} ms)")
     print(f"  transfer floor on e      {cal.u_rel_floor:.1%}")
     for r in cal.references:
         errs = ", ".join(f"{x:+.1%}" for x in r.rel_errors)
@@ -294,6 +301,7 @@ def _print_calibration(cal) -> None:
 
 def _fit(args):
     """``--record``/``--reference`` pairs: fit the probe's calibration and write ``--out``."""
+    from edge.estimation.methods import method_class  # noqa: PLC0415
     from edge.physics.geometry import PROBES  # noqa: PLC0415
     from edge.physics.materials import load_materials  # noqa: PLC0415
     from host.atomic import write_text_atomic  # noqa: PLC0415
@@ -304,7 +312,8 @@ def _fit(args):
         raise CliError(f"give one --reference per --record ({len(args.record)} records, "
                        f"{len(args.reference)} references)")
     lib = load_materials()
-    cal = _fit_axi(args, lib) if args.probe != "paper" else _fit_chain(args, lib)
+    # What a calibration is follows the probe head's estimator: its sensor chain, or its flux scale.
+    cal = _fit_chain(args, lib) if method_class(args.probe).sensor_chain else _fit_axi(args, lib)
     write_text_atomic(args.out, cal.to_json())
     if args.json:
         print(cal.to_json(), end="")

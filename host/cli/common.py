@@ -59,6 +59,23 @@ def load_estimator(path, method: str = "default"):
     return est, bundle
 
 
+def seam_context(path=None, *, calibration=None, object_set=None, object_set_name: str | None = None,
+                 thresholds=None, method: str = "default", **kw):
+    """The estimate path's context on a bundle directory (default: the shipped one), as the device builds it.
+
+    ``thresholds``: the ``[measurement]`` quality thresholds (default: the configuration's defaults, which a
+    device runs with unless configured otherwise); ``kw``: the other :class:`SeamContext` fields
+    (``thickness_m``, ``back``).  The object set is named ``object_set_name`` (default: its label).
+    """
+    from edge.estimation.seam import SeamContext  # noqa: PLC0415
+    from edge.service.config import Config  # noqa: PLC0415
+
+    est, _ = load_estimator(path, method)
+    return SeamContext(estimator=est, calibration=calibration, object_set=object_set,
+                       object_set_name=object_set_name, thresholds=Config().measurement if thresholds is None
+                       else thresholds, **kw)
+
+
 def load_object_set(path) -> tuple[Any, bytes]:
     """``(ObjectSet, raw bytes)`` of an object-set CSV, parsed by the device's own parser.
 

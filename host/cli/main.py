@@ -17,6 +17,7 @@ import sys
 
 from host.cli import (calibrate, deploy, demo, design, estimate, evaluate, flash, history, info, keys, measure, model, objects,
                        sim, train)
+from host.cli import flags, lab_report, series
 from host.cli.args import Parser, check_outputs
 from host.blas import limit_blas_threads
 from host.cli.errors import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_RUNTIME, CliError
@@ -25,7 +26,7 @@ __all__ = ["VERBS", "build_parser", "main", "version"]
 
 #: One module per verb, in the order of ``thermotouch --help``.
 VERBS = (measure, info, history, flash, objects, sim, demo, deploy, keys, model, design, train, evaluate, estimate,
-         calibrate)
+         calibrate, series, lab_report, flags)
 
 #: Loggers of this code base (the edge daemon and simulator log under ``thermotouch``).
 _LOGGERS = ("thermotouch", "host", "edge", "firmware_sim")

@@ -7,6 +7,7 @@ from host.cli.args import measure_bound as _protocol_bound
 from host.cli.common import device_session
 from host.cli.errors import EXIT_RUNTIME, CliError
 from host.cli.report import dumps, measure_json, print_result
+from host.lab_metadata import add_metadata_args, metadata_of
 
 #: Plot formats (the suffix picks one).
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
@@ -41,6 +42,7 @@ def add_parser(sub, parents):
                    help=f"armed: detected contact to heater-on, s ({rng}; default the device's)")
     p.add_argument("--method", choices=("paper", "default"), default=None,
                    help="estimation method for this touch (default: the device's setting)")
+    add_metadata_args(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     add_output(p, "--plot", suffixes=PLOT_SUFFIXES, metavar="FILE.png",
                help="save measured and fitted flux and temperature (.png, .pdf or .svg; in an existing directory)")
@@ -77,6 +79,9 @@ def run(args) -> int:
     decision = (t.record.get("result") or {}).get("decision")
     if decision is not None:
         d["decision"] = decision
+    metadata = metadata_of(args)
+    if any(v is not None for v in metadata.values()):  # the user's words about the sample, carried as given
+        d["metadata"] = metadata
     fit = t.fits.get(d["method"])
     only_measured = "" if fit is not None else f" (measured series only: {t.fit_note or 'no model fit'})"
     # The result is printed first: a plot that cannot be written must not lose it.
@@ -84,6 +89,8 @@ def run(args) -> int:
         print(dumps(d), flush=True)
     else:
         print(f"measurement {d['measurement_id']}: {d['power_W']:.3g} W for {d['contact_time_s']:.3g} s")
+        if "metadata" in d:
+            print("  ".join(f"{k} {v}" for k, v in d["metadata"].items() if v is not None))
         print_result(d)
         if decision is not None:
             how = "decided" if decision.get("stopped_early") else "not decided, full contact time"

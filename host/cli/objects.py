@@ -59,7 +59,7 @@ def add_parser(sub, parents):
     cal.add_argument("--touches", type=positive_int, default=None,
                      help="specimens per object, each touched at 0.5 / 1 / 1.5 / 2 s (default 30 for the paper "
                           "probe: z_crit is a tail quantile of the touches; 10 for the slower small-heater probe)")
-    cal.add_argument("--probe", choices=("paper", "small-heater"), default="paper",
+    cal.add_argument("--probe", choices=tuple(CALIBRATION_TOUCHES), default="paper",
                      help="probe head of the simulated touches: the paper's (e alone, exact 1-D model) or the "
                           "small-heater probe (e and alpha, on the faithful (r, z) world: about 1 s per specimen)")
     cal.add_argument("--seed", type=non_negative_int, default=0)
@@ -149,6 +149,7 @@ def run_calibrate(args) -> int:
     from pathlib import Path  # noqa: PLC0415
 
     from host.atomic import write_text_atomic  # noqa: PLC0415
+    from edge.estimation.methods import method_class  # noqa: PLC0415
     from host.recognition import calibrate, simulate_probe_touches  # noqa: PLC0415
 
     objects, _ = load_object_set(args.file)
@@ -158,7 +159,7 @@ def run_calibrate(args) -> int:
     out = Path(args.out) if args.out else src.with_name(src.stem + "_calibrated.csv")
     try:
         # The small-heater probe also measures alpha: its set is calibrated on touches that carry it.
-        sim = (None if args.probe == "paper" else
+        sim = (None if not method_class(args.probe).measures_alpha else
                simulate_probe_touches(objects.objects, probe=args.probe, instruments=(args.board,),
                                       touches=args.touches, seed=args.seed))
         cal, rep = calibrate(objects, args.board, touches=args.touches, seed=args.seed, sim=sim)

@@ -43,7 +43,7 @@ def result_lines(d: dict) -> list[str]:
     ]
     if d["material"]:
         lines.append(f"material     {d['material']} (confidence {d['material_confidence'] * 100:.0f} %)")
-    if d.get("object") is not None:
+    if d.get("object") is not None and d.get("object_posterior") is not None:   # named, or unknown by the test
         cands = ", ".join(f"{c['name']} {c['posterior']:.2f}" for c in d.get("candidates") or [])
         lines.append(f"object       {d['object']} (posterior {d['object_posterior']:.2f}; class {d['class']} "
                      f"{d['class_posterior']:.2f}; set {d.get('object_set')}; candidates {cands})")

@@ -208,7 +208,7 @@ def test_validate_fault_from_code():
     with pytest.raises(SceneError, match=r"fault\.params\.duty"):
         validate_fault("heater_stuck_on", params={"duty": 2.0})
     assert set(FAULT_KINDS) == {"i2c_nack", "bus_stuck", "open_thermocouple", "flux_saturation",
-                                "heater_stuck_on", "heater_dead", "supply_sag", "no_contact"}
+                                "heater_stuck_on", "heater_dead", "supply_sag", "no_contact", "converter_frozen"}
 
 
 def test_scene_text_in_readme_example_parses():

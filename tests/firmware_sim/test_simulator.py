@@ -315,9 +315,11 @@ def test_edge_measurement_sequence_runs_unchanged_on_the_simulator(name, tmp_pat
     cfg = load_config(tmp_path / "edge.toml")
     board = sim.board()
     heater = Heater(board, supply_voltage_V=sc.heater.supply_voltage_V, resistance_ohm=sc.heater.resistance_ohm)
+    from edge.estimation.result import Estimate
+
     seq = MeasurementSequence(heater, make_sensors(board, cfg.sensors), board.clock,
-                              Limits(cfg.heater.max_on_time_s, 80.0), lambda *a, **k: {"stub": True},
-                              cfg.measurement)
+                              Limits(cfg.heater.max_on_time_s, 80.0),
+                              lambda rec, decision: Estimate(probe=rec.probe, method="stub"), cfg.measurement)
     sim.advance_to(sc.touch.start_s)
     out = seq.run(MeasurementParams(power_W=0.99 * sc.heater.max_power_W, contact_time_s=2.0, baseline_s=0.2,
                                     sample_rate_Hz=20.0, cooldown_s=0.0))

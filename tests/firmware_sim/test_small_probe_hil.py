@@ -76,7 +76,9 @@ def test_paper_probe_on_the_same_glass_reports_k_and_alpha_from_the_prior(store,
     # The paper's probe is one-dimensional at its sensors: e from the touch, k and alpha from the library
     # prior given e (k = e^2 / rho c, alpha = e^2 / (rho c)^2), exactly -- nothing of k or alpha was measured.
     e, u_e = r["effusivity_W_s05_m2K"], r["effusivity_W_s05_m2K_u"]
-    assert "determined" not in r and r["method"] == "default"
+    # Every answer says what the touch determined (issue #33: one Estimate, the same keys on every path).
+    assert r["determined"] == ["e"] and r["from_prior"] == ["k", "alpha"] and r["method"] == "default"
+    assert r["determined_by"] == {"e": "data", "k": "prior", "alpha": "prior"}
     ln_rc, _, _ = Estimator.from_bundle(store.bundle).library.prior_rho_c(e, u_e / e)
     rc = math.exp(ln_rc)
     assert r["k_W_mK"] == pytest.approx(e * e / rc, rel=1e-9)

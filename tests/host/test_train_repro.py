@@ -40,7 +40,6 @@ def test_noisy_training_set_does_not_depend_on_what_the_process_resampled_before
     spec = DatasetSpec(noisy_copies=1, levels_W_m3=DatasetSpec.levels_W_m3[::10])
     with spline._cache_lock:  # a process that has resampled nothing yet
         spline._operators.clear()
-        spline._seen.clear()
     first = generate(spec, small, cache=False)
     second = generate(spec, small, cache=False)  # now every time base is in the resampling cache
     assert first.noisy.any()

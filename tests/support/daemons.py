@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from edge.estimation.seam import SeamContext, TouchEstimator
 from edge.service.config import Config
 from edge.hw.drivers.heater import Heater
 from edge.measure.sensors import make_sensors
@@ -50,12 +51,13 @@ class FakeEstimator:
         self.flags = list(flags)
         self.heater_on_at_call = []
 
-    def __call__(self, t, dT, q, q_v, method):
+    def __call__(self, t, dT, q, power_W, method):
         if self.parts is not None:
             self.heater_on_at_call.append(self.parts.chip.level(self.parts.heater_enable_offset) == 1)
-        self.calls.append((np.array(t), np.array(dT), np.array(q), q_v, method))
+        self.calls.append((np.array(t), np.array(dT), np.array(q), power_W, method))
         e = 2.0 * float(np.mean(q)) * math.sqrt(t[-1] / math.pi) / float(dT[-1]) if dT[-1] > 0 else None
-        return {"effusivity_W_s05_m2K": e, "method": method, "model_sha256": "f" * 64, "flags": list(self.flags)}
+        return {"effusivity_W_s05_m2K": e, "effusivity_W_s05_m2K_u": None if e is None else 0.05 * e,
+                "method": method, "model_sha256": "f" * 64, "flags": list(self.flags)}
 
 
 class CrashingEstimator(FakeEstimator):
@@ -79,8 +81,11 @@ def make_sequence(rig=None, *, cfg: Config | None = None, estimator=None, sensor
     heater = Heater(rig.board, supply_voltage_V=cfg.heater.supply_voltage_V, resistance_ohm=cfg.heater.resistance_ohm)
     sensors = sensors or make_sensors(rig.board, cfg.sensors)
     est = estimator if estimator is not None else FakeEstimator(rig.parts)
+    # The sequence's hook is the one estimate path; ``est`` stands in for the probe head's estimator
+    # (reach it as ``seq.estimator.context.method``).
+    hook = TouchEstimator(SeamContext(method=est, thresholds=cfg.measurement))
     seq = MeasurementSequence(heater, sensors, rig.clock,
-                              Limits(cfg.heater.max_on_time_s, cfg.heater.over_temperature_C), est, cfg.measurement)
+                              Limits(cfg.heater.max_on_time_s, cfg.heater.over_temperature_C), hook, cfg.measurement)
     m = cfg.measurement
     params = MeasurementParams(power_W=cfg.heater.power_W, contact_time_s=m.contact_time_s, baseline_s=m.baseline_s,
                                sample_rate_Hz=m.sample_rate_Hz, cooldown_s=m.cooldown_s)

@@ -117,6 +117,11 @@ class PointResult:
     seconds: float = 0.0
 
 
+#: Uploads: the session their BEGIN's reply names goes into their CHUNKs and COMMIT.
+_BEGINS = (Command.MODEL_BEGIN, Command.OBJECTS_BEGIN)
+_IN_SESSION = (Command.MODEL_CHUNK, Command.MODEL_COMMIT, Command.OBJECTS_CHUNK, Command.OBJECTS_COMMIT)
+
+
 def _child(op: Operation, point_dir: Path, n: int | None, trace_fd: int, host_fd: int) -> None:
     steps = Steps(n, trace_fd)
     if op.startup:
@@ -132,13 +137,13 @@ def _child(op: Operation, point_dir: Path, n: int | None, trace_fd: int, host_fd
         instrument_heater(daemon, steps)
     session = None
     for i, (command, args) in enumerate(op.requests):
-        if session is not None and command in (Command.MODEL_CHUNK, Command.MODEL_COMMIT):
+        if session is not None and command in _IN_SESSION:
             args = {**args, "session": session}
         try:
             body = daemon.handle(Request(command, i + 1, dict(args)))
         except CommandError as e:
             body = {"error": str(e.code), "message": e.message}
-        if command == Command.MODEL_BEGIN and body and "session" in body:
+        if command in _BEGINS and body and "session" in body:
             session = body["session"]
         steps.step("host", f"reply {command.name}")
         write_all(host_fd, (json.dumps({"command": command.name, "body": body}, default=str) + "\n").encode())
@@ -260,10 +265,10 @@ def warm_up(op: Operation, root: Path) -> None:
     try:
         session = None
         for i, (command, args) in enumerate(op.requests):
-            if session is not None and command in (Command.MODEL_CHUNK, Command.MODEL_COMMIT):
+            if session is not None and command in _IN_SESSION:
                 args = {**args, "session": session}
             body = daemon.handle(Request(command, i + 1, dict(args)))
-            if command == Command.MODEL_BEGIN:
+            if command in _BEGINS:
                 session = body["session"]
     finally:
         daemon.close()

@@ -22,7 +22,8 @@ __all__ = ["WATCHED_MODULES", "MUTATING_OS_CALLS", "Steps", "instrument_files", 
 #: Modules whose file-system calls are steps (the durable layer and everything that writes state through it).
 WATCHED_MODULES = frozenset({"edge.storage.durable", "edge.storage.history", "edge.model.store", "edge.model.bundle",
                              "edge.model.container", "edge.model.loader", "edge.model.transport",
-                             "edge.service.config"})
+                             "edge.service.config", "edge.storage.calibration_store",
+                             "edge.storage.objects_store"})
 #: The os calls that change the file system (``open`` only with O_CREAT: opening to read, or to fsync a
 #: directory, changes nothing).
 MUTATING_OS_CALLS = ("open", "write", "fsync", "replace", "rename", "mkdir", "unlink", "rmdir")

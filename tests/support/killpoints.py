@@ -1,14 +1,15 @@
 """Kill -9 at every step of a device operation, restart, and check that nothing was lost or half-written.
 
-An *operation* (a MEASURE, a model flash, a run of CONFIG_SETs, the daemon's start-up) is a list of protocol requests
+An *operation* (a MEASURE, a model flash, a run of CONFIG_SETs, the daemon's start-up, a signed
+CALIBRATION_SET, a signed object-set upload with activation) is a list of protocol requests
 that a daemon built on the simulated rig answers. A *step* is anything the operation does that
 outlives the process:
 
 * ``file``: every ``os.open(O_CREAT)``, ``os.write``, ``os.fsync``, ``os.replace``,
   ``os.rename``, ``os.mkdir``, ``os.unlink`` and ``os.rmdir`` made from
-  :mod:`edge.storage.durable`, :mod:`edge.model.store`, the bundle modules of :mod:`edge.model` or
-  :mod:`edge.service.config` (found by the caller's stack, so ``shutil.rmtree`` and
-  ``Path.unlink`` inside ``durable.remove_tree`` count, step by step);
+  :mod:`edge.storage.durable`, :mod:`edge.model.store`, the bundle modules of :mod:`edge.model`,
+  :mod:`edge.service.config` or the calibration and object-set stores (found by the caller's
+  stack, so ``shutil.rmtree`` and ``Path.unlink`` inside ``durable.remove_tree`` count, step by step);
 * ``sqlite``: every writing statement the history issues (``BEGIN``, ``INSERT``, ``COMMIT``; at
   start-up ``PRAGMA journal_mode``, ``CREATE TABLE``, ``PRAGMA user_version``); SQLite's own page
   writes (and its WAL recovery) happen inside one C call and cannot be split from Python;
@@ -42,8 +43,10 @@ SIGKILL does not drop the page cache, so tmpfs and a disk behave the same for th
 (power cuts are :mod:`tests.edge.model.test_store`'s business).
 
 Modules: :mod:`tests.support.killpoint_steps` (steps and the child's instrumentation),
-:mod:`tests.support.killpoint_runner` (operations, children, restarts); this module holds the
-four operations (MEASURE, a model flash, CONFIG_SETs, start-up) and re-exports the harness.
+:mod:`tests.support.killpoint_runner` (operations, children, restarts),
+:mod:`tests.support.killpoint_installs` (the signed installs: CALIBRATION_SET, and an object-set
+upload with activation, each checked for its signature and all-or-nothing); this module holds the
+four operations (MEASURE, a model flash, CONFIG_SETs, start-up) and re-exports the rest.
 """
 
 from __future__ import annotations
@@ -60,11 +63,13 @@ from typing import Any, Callable
 from edge.protocol.commands import Command
 from tests.support.killpoint_runner import (EXIT_CRASHED, Operation, PointResult, child_daemon, dry_run, full_restart,
                                             heater_line, kill_at, open_model_store, run_all, warm_up, work_root)
+from tests.support.killpoint_installs import calibration_operation, objects_operation
 from tests.support.killpoint_steps import WATCHED_MODULES, Steps
 
 __all__ = ["Steps", "Operation", "PointResult", "warm_up", "dry_run", "kill_at", "run_all", "work_root",
            "child_daemon", "full_restart", "measure_operation", "flash_operation", "config_operation",
-           "startup_operation", "CONFIG_KEYS", "CONFIG_VALUES", "WATCHED_MODULES"]
+           "startup_operation", "calibration_operation", "objects_operation", "CONFIG_KEYS", "CONFIG_VALUES",
+           "WATCHED_MODULES"]
 
 # ---------------------------------------------------------------------------------------------- the three operations
 

@@ -10,6 +10,14 @@ or beyond full scale (datasheet 9.3.3, "Full-Scale Range"). With
 ``SensorFault(reason="saturated")``; with ``"flag"`` it returns the clipped
 value and sets :attr:`ADS1115.saturated` (for callers that prefer to keep the
 sample and mark it).
+
+A frozen converter (ISSUE #35 §5): in single shot the chip's own "done"
+indication is CONFIG.OS (0 while converting); a conversion not done within
+three conversion times plus 10 ms raises ``SensorFault(reason="timeout")``
+naming the chip (the probe reads the flux this way). In continuous mode the
+chip has no new-data bit (OS reads 0 throughout; only the ALERT/RDY pin
+pulses, which the probe does not wire), so :meth:`ADS1115.read_latest_code`
+cannot tell a frozen converter from a steady input.
 """
 
 from __future__ import annotations
@@ -39,7 +47,7 @@ class ADS1115(I2CDevice):
         0x48..0x4B.
     on_saturation : {"raise", "flag"}
         See module docstring.
-    attempts, backoff_s, sleep
+    attempts, backoff_s, sleep, clock
         Retry policy; ``sleep`` is also used to wait for conversions.
     """
 
@@ -48,8 +56,9 @@ class ADS1115(I2CDevice):
 
     def __init__(self, bus, address: int = 0x48, *, on_saturation: str = "raise",
                  attempts: int = 4, backoff_s: float = 0.002,
-                 sleep: Callable[[float], None] = time.sleep) -> None:
-        super().__init__(bus, address, attempts=attempts, backoff_s=backoff_s, sleep=sleep)
+                 sleep: Callable[[float], None] = time.sleep,
+                 clock: Callable[[], float] | None = None) -> None:
+        super().__init__(bus, address, attempts=attempts, backoff_s=backoff_s, sleep=sleep, clock=clock)
         if on_saturation not in ("raise", "flag"):
             raise ValueError(f"on_saturation must be 'raise' or 'flag', got {on_saturation!r}")
         self.on_saturation = on_saturation
@@ -117,7 +126,8 @@ class ADS1115(I2CDevice):
         waited = t_conv
         while not REGISTERS.CONFIG.get(self.read_register("CONFIG"), "OS"):  # OS reads 0 while converting
             if waited >= timeout_s:
-                raise self.fault("timeout", f"conversion not done after {timeout_s:.4f} s")
+                raise self.fault("timeout", f"converter stuck: single shot not done (CONFIG.OS) after "
+                                            f"{timeout_s:.4f} s, one takes {t_conv:.4f} s")
             step = t_conv / 10.0
             self.sleep(step)
             waited += step

@@ -11,6 +11,11 @@ The chip is command driven (datasheet 8.5.3): a command byte is the SMBus
 WREG to ``write_byte_data(addr, 0x40 | r << 2, value)``, RDATA to
 ``read_i2c_block_data(addr, 0x10, n)`` and RESET/START/POWERDOWN to
 ``write_byte(addr, cmd)``.
+
+A frozen converter (ISSUE #35 §5): every conversion, single shot or
+continuous, is waited for on the chip's DRDY bit; none within three
+conversion times plus 5 ms raises ``SensorFault(reason="timeout")`` naming
+the chip.
 """
 
 from __future__ import annotations
@@ -60,7 +65,7 @@ class ADS122C04(I2CDevice):
     on_saturation : {"raise", "flag"}
         Full-scale codes 0x7FFFFF / 0x800000 raise SensorFault("saturated")
         or set :attr:`saturated`.
-    attempts, backoff_s, sleep
+    attempts, backoff_s, sleep, clock
         Retry policy; ``sleep`` also waits for conversions.
     """
 
@@ -69,8 +74,9 @@ class ADS122C04(I2CDevice):
 
     def __init__(self, bus, address: int = 0x40, *, vref_V: float = INTERNAL_VREF_V,
                  on_saturation: str = "raise", attempts: int = 4, backoff_s: float = 0.002,
-                 sleep: Callable[[float], None] = time.sleep) -> None:
-        super().__init__(bus, address, attempts=attempts, backoff_s=backoff_s, sleep=sleep)
+                 sleep: Callable[[float], None] = time.sleep,
+                 clock: Callable[[], float] | None = None) -> None:
+        super().__init__(bus, address, attempts=attempts, backoff_s=backoff_s, sleep=sleep, clock=clock)
         if on_saturation not in ("raise", "flag"):
             raise ValueError(f"on_saturation must be 'raise' or 'flag', got {on_saturation!r}")
         if not vref_V > 0:
@@ -211,7 +217,8 @@ class ADS122C04(I2CDevice):
         waited = t_conv
         while not self.data_ready():
             if waited >= timeout_s:
-                raise self.fault("timeout", f"DRDY not set after {timeout_s:.4f} s")
+                raise self.fault("timeout", f"converter stuck: DRDY not set after {timeout_s:.4f} s, "
+                                            f"a conversion takes {t_conv:.4f} s")
             step = max(t_conv / 20.0, 1e-4)
             self.sleep(step)
             waited += step

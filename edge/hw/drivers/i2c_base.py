@@ -21,6 +21,14 @@ T = TypeVar("T")
 _TIMEOUT_ERRNOS = {errno.ETIMEDOUT}
 
 
+def _clock_of(sleep: Callable[[float], None]) -> Callable[[], float] | None:
+    """The monotonic clock ``sleep`` waits on, when it can be told (see :class:`I2CDevice`)."""
+    if sleep is time.sleep:
+        return time.monotonic
+    owner = getattr(sleep, "__self__", None)
+    return getattr(owner, "monotonic", None) if owner is not None else None
+
+
 class I2CDevice:
     """Base class: one chip at one address on one bus.
 
@@ -36,13 +44,20 @@ class I2CDevice:
         Sleep before the first retry; doubles on each further retry.
     sleep : callable
         ``sleep(seconds)``; pass ``clock.sleep`` in the simulator.
+    clock : callable, optional
+        ``clock() -> s``, monotonic (the board clock's ``monotonic`` in the simulator): how long a
+        converter has gone without a new result (:meth:`MCP9600.read_hot_junction_C`). None: the
+        clock ``sleep`` belongs to (``time.monotonic`` for ``time.sleep``, ``c.monotonic`` for a
+        clock's ``c.sleep``), so that time is never measured on one clock and waited on another;
+        without one, nothing is timed.
     """
 
     CHIP = "i2c"
     ADDRESSES: tuple[int, ...] = tuple(range(0x08, 0x78))
 
     def __init__(self, bus, address: int, *, attempts: int = 4, backoff_s: float = 0.002,
-                 sleep: Callable[[float], None] = time.sleep) -> None:
+                 sleep: Callable[[float], None] = time.sleep,
+                 clock: Callable[[], float] | None = None) -> None:
         if not isinstance(address, int) or address not in self.ADDRESSES:
             raise ValueError(
                 f"address must be one of {[hex(a) for a in self.ADDRESSES]} for {self.CHIP}, "
@@ -56,6 +71,7 @@ class I2CDevice:
         self.attempts = attempts
         self.backoff_s = float(backoff_s)
         self.sleep = sleep
+        self.clock = clock if clock is not None else _clock_of(sleep)
         #: transactions that needed at least one retry / errors seen (for diagnostics)
         self.retries = 0
 

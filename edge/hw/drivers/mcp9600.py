@@ -18,6 +18,20 @@ bounded number of times before a SensorFault is raised. ``"combined"`` (one
 ``i2c_rdwr`` with a repeated start) and ``"smbus"`` (``read_i2c_block_data``)
 are available for adapters where they work better. Lowering the bus clock
 (``dtparam=i2c_baudrate=10000``) further reduces errors on a Pi.
+
+A frozen converter (ISSUE #35 §5)
+---------------------------------
+In normal (continuous) mode the chip sets STATUS.TH_UPDATE at the end of
+every hot-junction conversion. :meth:`MCP9600.read_hot_junction_C` reads
+STATUS anyway (for the open-input bit); when the flag is set it clears it
+(one write), and when it is not it checks how long ago it last cleared it: a
+conversion must have ended within :data:`STALE_FACTOR` conversion times plus
+:data:`STALE_MARGIN_s` of the clear (one lost to the clear itself is
+followed by the next within one conversion time). Past that the converter is
+stuck and the read raises ``SensorFault(reason="timeout")`` naming the chip.
+An unchanged *temperature* is no fault: a touch on metal legitimately moves
+the hot junction by less than one LSB (0.0625 °C) -- only the chip's own
+"new data" flag is believed.
 """
 
 from __future__ import annotations
@@ -41,6 +55,12 @@ from edge.hw.regmaps.mcp9600 import (
     REGISTERS,
 )
 
+#: A conversion is overdue after this many conversion times since the update flag was cleared
+#: (the datasheet's conversion times are typical; the chip's oscillator is specified to a few %).
+STALE_FACTOR = 1.5
+#: ... plus this much (s): the I2C traffic between the flag's clear and the check.
+STALE_MARGIN_s = 0.02
+
 
 @dataclass(frozen=True)
 class MCP9600Reading:
@@ -62,7 +82,7 @@ class MCP9600(I2CDevice):
         0x60..0x67.
     transport : {"split", "combined", "smbus"}
         How registers are read (see module docstring).
-    attempts, backoff_s, sleep
+    attempts, backoff_s, sleep, clock
         Retry policy (see :class:`edge.hw.drivers.i2c_base.I2CDevice`).
     """
 
@@ -71,8 +91,9 @@ class MCP9600(I2CDevice):
 
     def __init__(self, bus, address: int = 0x60, *, transport: str = "split",
                  attempts: int = 4, backoff_s: float = 0.002,
-                 sleep: Callable[[float], None] = time.sleep) -> None:
-        super().__init__(bus, address, attempts=attempts, backoff_s=backoff_s, sleep=sleep)
+                 sleep: Callable[[float], None] = time.sleep,
+                 clock: Callable[[], float] | None = None) -> None:
+        super().__init__(bus, address, attempts=attempts, backoff_s=backoff_s, sleep=sleep, clock=clock)
         if transport not in ("split", "combined", "smbus"):
             raise ValueError(f"transport must be 'split', 'combined' or 'smbus', got {transport!r}")
         if transport != "smbus" and (i2c_msg is None or not hasattr(bus, "i2c_rdwr")):
@@ -80,6 +101,10 @@ class MCP9600(I2CDevice):
         self.transport = transport
         self.adc_resolution_bits = 18
         self.cold_junction_resolution_C = 0.0625
+        #: The chip's mode as configured ("normal" at power-on: converts continuously).
+        self.mode = "normal"
+        #: When the T_H update flag was last cleared by :meth:`read_hot_junction_C` (None: not yet).
+        self._cleared_at_s: float | None = None
 
     # -- raw register access ------------------------------------------------
     def _read_reg(self, reg: Register) -> int:
@@ -139,6 +164,8 @@ class MCP9600(I2CDevice):
         self._write_reg(REGISTERS.DEVICE_CONFIG, dc)
         self.adc_resolution_bits = adc_resolution_bits
         self.cold_junction_resolution_C = cold_junction_resolution_C
+        self.mode = mode
+        self._cleared_at_s = None  # new settings restart the conversions: watch afresh
 
     def read_config(self) -> dict:
         out = REGISTERS.THERMOCOUPLE_CONFIG.decode(self._read_reg(REGISTERS.THERMOCOUPLE_CONFIG))
@@ -196,14 +223,36 @@ class MCP9600(I2CDevice):
     def _temp(self, name: str) -> float:
         return REGISTERS[name].get(self._read_reg(REGISTERS[name]), "TEMP_C")
 
+    @property
+    def stale_after_s(self) -> float:
+        """Longest time (s) from clearing the T_H update flag to the next conversion of a working chip."""
+        return STALE_FACTOR * self.conversion_time_s + STALE_MARGIN_s
+
+    def _check_fresh(self, status: dict) -> None:
+        """Normal mode: a new conversion must arrive within :attr:`stale_after_s` (see the module docstring)."""
+        if self.mode != "normal" or self.clock is None:
+            return  # shutdown / burst: no conversions are due (no clock: nothing can be timed)
+        if status["TH_UPDATE"] or self._cleared_at_s is None:
+            self.clear_flags()
+            self._cleared_at_s = self.clock()
+            return
+        waited = self.clock() - self._cleared_at_s
+        if waited > self.stale_after_s:
+            raise self.fault("timeout", f"converter stuck: no new hot-junction conversion (STATUS.TH_UPDATE) for "
+                                        f"{waited:.3f} s, one is due every {self.conversion_time_s:.3f} s")
+
     def read_hot_junction_C(self, check_status: bool = True) -> float:
         """Hot-junction (thermocouple) temperature, 0.0625 °C resolution.
 
         Raises SensorFault(reason="open_thermocouple") when the chip flags its
-        input out of range (``check_status=False`` skips that status read).
+        input out of range, and SensorFault(reason="timeout") when no new
+        conversion arrived in time (a frozen converter; module docstring).
+        ``check_status=False`` skips that status read and both checks.
         """
         if check_status:
-            self._check_range(self.read_status())
+            status = self.read_status()
+            self._check_range(status)
+            self._check_fresh(status)
         return self._temp("TH")
 
     def read_delta_C(self) -> float:

@@ -12,7 +12,7 @@ from functools import lru_cache
 import pytest
 
 from edge.calibration.model import ProbeCalibration
-from edge.estimation.chain_decision import CHAIN_EVERY_s, ChainDecision
+from edge.estimation.running import CHAIN_EVERY_s, ChainDecision
 from edge.recognition import KnownObject, ObjectSet
 from edge.estimation.running import SequentialDecision
 from edge.physics.materials import load_materials

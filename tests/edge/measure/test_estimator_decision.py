@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from edge.recognition import KnownObject, ObjectSet
-from edge.measure.estimator_decision import EstimatorDecision
+from edge.estimation.running import EstimatorDecision
 
 P = KnownObject.from_properties
 SET = ObjectSet([P("pmma", "polymer", 0.185, 1178.35, 1429), P("glass", "glass", 1.0, 2500, 750),
@@ -24,8 +24,8 @@ class FakeEstimator:
     def prepare(self, t_s):
         self.prepared.append(np.array(t_s))
 
-    def __call__(self, t_s, dT_K, q_W_m2, q_v_W_m3, method):
-        self.calls.append((np.array(t_s), np.array(dT_K), np.array(q_W_m2), q_v_W_m3, method))
+    def __call__(self, t_s, dT_K, q_W_m2, power_W, method):
+        self.calls.append((np.array(t_s), np.array(dT_K), np.array(q_W_m2), power_W, method))
         if t_s.size < self.fail_below:
             raise ValueError("too short")
         return {"effusivity_W_s05_m2K": GLASS_E, "effusivity_W_s05_m2K_u": GLASS_E * 0.5 / np.sqrt(t_s.size),
@@ -61,11 +61,11 @@ def test_refits_the_resampled_record_at_most_once_per_interval_and_prepares_the_
     starts = [c[0][-1] for c in fn.calls]
     assert len(fn.calls) == dec.fits and 6 <= len(fn.calls) <= 8
     assert starts[0] == pytest.approx(0.3) and np.all(np.diff(starts) >= 0.25 - 1e-9)
-    t, dT, q, q_v, method = fn.calls[-1]
+    t, dT, q, power_W, method = fn.calls[-1]
     # Each refit sees the heating record as the result will: grid k / rate from heater-on, baseline removed.
     assert t == pytest.approx(np.arange(1, t.size + 1) / RATE_Hz)
     assert dT[-1] == pytest.approx(0.5 * np.sqrt(t[-1]), rel=1e-3) and q == pytest.approx(800.0)
-    assert q_v > 0 and method == "default"
+    assert power_W == 0.1 and method == "default"   # the power itself (issue #33: no q_v round trip)
     ans = dec.answer
     assert ans.object in ("glass", "glass_twin") and ans.source == "device_estimate" and not ans.decided
     assert ans.n == t.size

@@ -304,9 +304,11 @@ def test_a_crash_after_heating_that_is_not_a_value_error_still_stores_the_record
     import edge.measure.sequence as seq_mod
 
     def broken(*a, **kw):
-        raise IndexError("resampler bug")
+        raise IndexError("baseline bug")
 
-    monkeypatch.setattr(seq_mod, "resample_uniform", broken)
+    # The sequence's own post-processing (the baseline it judges the heating by; resampling moved into
+    # the estimate path, issue #33, where a crash is an estimation_failed record).
+    monkeypatch.setattr(seq_mod, "condition", broken)
     rig = make_rig()
     with Daemon(sim_config(tmp_path), rig.board, estimator=FakeEstimator()) as d:
         with pytest.raises(CommandError) as ei:
@@ -318,7 +320,7 @@ def test_a_crash_after_heating_that_is_not_a_value_error_still_stores_the_record
     assert_heater_safe(rig.parts, MAX_ON)
 
 
-def test_a_non_finite_value_in_the_result_is_stored_as_null_and_named(tmp_path):
+def test_a_non_finite_value_from_the_estimator_never_reaches_the_record(tmp_path):
     class NanEstimator(FakeEstimator):
         def __call__(self, *args):
             d = super().__call__(*args)
@@ -330,10 +332,11 @@ def test_a_non_finite_value_in_the_result_is_stored_as_null_and_named(tmp_path):
         stored = d.history.get(1)
     assert rec["measurement_id"] == 1
     for r in (rec, stored):
-        # The rest of the result is kept: the estimate is not lost with its one bad number.
-        assert r["result"]["effusivity_W_s05_m2K"] > 0 and r["result"]["effusivity_W_s05_m2K_u"] is None
-        assert r["result"]["fit"]["trace"] == [1.0, None]
-        assert "result.effusivity_W_s05_m2K_u" in r["error"] and "result.fit.trace[1]" in r["error"]
+        # The typed answer (issue #33): a value without a finite u is no answer -- e and its u are both
+        # absent -- and a non-finite number in the method's details is stored as null.  The rest is kept.
+        assert r["result"]["effusivity_W_s05_m2K"] is None and r["result"]["effusivity_W_s05_m2K_u"] is None
+        assert r["result"]["fit"]["trace"] == [1.0, None] and r["result"]["object"] == "unknown"
+        assert r["error"] is None and r["status"] == "ok"
 
 
 def test_an_unstorable_result_is_stored_without_it(tmp_path):
@@ -342,7 +345,7 @@ def test_an_unstorable_result_is_stored_without_it(tmp_path):
 
     class OddEstimator(FakeEstimator):
         def __call__(self, *args):
-            return {**super().__call__(*args), "extra": Unstorable()}
+            return {**super().__call__(*args), "fit": {"extra": Unstorable()}}
 
     rig = make_rig()
     with Daemon(sim_config(tmp_path), rig.board, estimator=OddEstimator()) as d:

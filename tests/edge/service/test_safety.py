@@ -64,7 +64,7 @@ def test_exception_mid_heating_cuts_the_heater_and_keeps_the_data():
     rig, heater, seq, params = _hooked(hook=hook)
     out = seq.run(params)
     assert (out.status, out.reason) == ("failed", "internal") and "driver bug" in out.error
-    assert out.raw_t_s.size == 12 and out.result is None and seq.estimator.calls == []
+    assert out.raw_t_s.size == 12 and out.result is None and seq.estimator.context.method.calls == []
     inv = assert_heater_safe(rig.parts, MAX_ON)
     assert inv["n_intervals"] == 1 and inv["longest_on_s"] < params.contact_time_s
     seq.close()

@@ -122,7 +122,7 @@ def test_quick_profile_rate_per_board(tmp_path):
 
 
 def test_until_decided_on_the_small_heater_decides_on_the_devices_own_estimate(tmp_path):
-    from edge.measure.estimator_decision import EstimatorDecision
+    from edge.estimation.running import EstimatorDecision
 
     sim, d = _daemon("glass_15V_small", tmp_path, object_set=lambda: SET)
     try:
@@ -181,7 +181,7 @@ def test_a_failing_running_decision_never_fails_the_touch(tmp_path, where):
 
 
 def test_a_calibrated_device_decides_on_the_sensor_chain(tmp_path):
-    from edge.estimation.chain_decision import ChainDecision
+    from edge.estimation.running import ChainDecision
     from edge.estimation.running import SequentialDecision
     from tests.support.calibrations import sample_calibration
 

@@ -1,3 +1,4 @@
+import json
 import sqlite3
 import subprocess
 import sys
@@ -6,7 +7,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from edge.storage.history import History, HistoryError
+from edge.storage.history import SCHEMA_VERSION, History, HistoryError, touch_header
 
 
 def _rec(i, **kw):
@@ -110,3 +111,87 @@ def test_unknown_schema_version_is_refused(tmp_path):
     db.close()
     with pytest.raises(HistoryError, match="schema version 99"):
         History(path)
+
+
+def test_touch_header_and_read_times_round_trip(tmp_path):
+    header = {"probe": "paper", "power_W": 5.0, "heater_on_s": 2.0, "sample_rate_Hz": 10.0, "baseline_s": 0.5,
+              "method": "default", "T_age_s": 0.04, "T_resolution_K": 0.0625, "saturated": False, "arm_s": 0.0,
+              "contact_detected_s": None}
+    rng = np.random.default_rng(5)
+    dT, dq = rng.normal(size=26) * 1e-3, rng.normal(size=26) * 1e-3
+    with History(tmp_path / "h.db") as h:
+        mid = h.add(_rec(0, touch_header=header, raw_T_dt_s=dT, raw_q_dt_s=dq))
+        old = h.add(_rec(1))
+        got = h.get(mid, series=True)
+        assert got["touch_header"] == header and touch_header(got) == header
+        assert np.array_equal(got["raw_T_dt_s"], dT) and np.array_equal(got["raw_q_dt_s"], dq)
+        # A summary (HISTORY, RESULT, MEASURE replies) stays as it was.
+        assert "touch_header" not in h.get(mid) and "raw_T_dt_s" not in h.get(mid)
+        plain = h.get(old, series=True)
+        assert plain["touch_header"] is None and plain["raw_T_dt_s"] is None
+        with pytest.raises(ValueError, match="raw_q_dt_s has 3"):
+            h.add(_rec(2, raw_q_dt_s=np.ones(3)))
+        with pytest.raises(ValueError, match="touch_header"):
+            h.add(_rec(2, touch_header=["paper"]))
+        with pytest.raises(ValueError, match="JSON"):
+            h.add(_rec(2, touch_header={"power_W": float("inf")}))
+        assert h.count() == 2
+
+
+#: Version 1's table, as the software before the touch record's columns created it.
+_V1_DDL = """CREATE TABLE measurements (
+    id INTEGER PRIMARY KEY AUTOINCREMENT, created_utc TEXT NOT NULL, started_utc TEXT, status TEXT NOT NULL,
+    reason TEXT, error TEXT, flags TEXT NOT NULL, result TEXT, model_sha256 TEXT, power_W REAL,
+    contact_time_s REAL, heater_on_s REAL, T0_C REAL, q_offset_W_m2 REAL, sample_rate_Hz REAL,
+    config TEXT NOT NULL, n_samples INTEGER NOT NULL, raw_t_s BLOB, raw_T_C BLOB, raw_q_W_m2 BLOB,
+    grid_t_s BLOB, grid_dT_K BLOB, grid_q_W_m2 BLOB)"""
+
+
+def test_version_1_database_is_migrated_and_loses_nothing(tmp_path):
+    path = tmp_path / "h.db"
+    t = np.linspace(-0.5, 2.0, 26)
+    db = sqlite3.connect(path)
+    db.execute(_V1_DDL)
+    cfg = {"board": {"probe": "small-heater"}, "measurement": {"baseline_s": 0.7},
+           "estimation": {"method": "paper"}}
+    db.execute("INSERT INTO measurements (created_utc, started_utc, status, flags, result, model_sha256, power_W, "
+               "contact_time_s, heater_on_s, sample_rate_Hz, config, n_samples, raw_t_s, raw_T_C, raw_q_W_m2) "
+               "VALUES ('2026-01-01', '2026-01-01T00:00:00Z', 'ok', '[\"saturated\"]', '{\"e\":1.0}', ?, 4.5, "
+               "2.0, 2.01, 12.5, ?, 26, ?, ?, ?)",
+               ("b" * 64, json.dumps(cfg), t.astype("<f8").tobytes(), (25 + t).astype("<f8").tobytes(),
+                np.full(26, 9.0).astype("<f8").tobytes()))
+    db.execute("INSERT INTO measurements (created_utc, status, flags, config, n_samples) "
+               "VALUES ('2026-01-02', 'failed', '[]', '{}', 0)")
+    db.execute("PRAGMA user_version=1")
+    db.commit()
+    db.close()
+    with History(path) as h:
+        assert h._db.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 2
+        old = h.get(1, series=True)
+        assert old["result"] == {"e": 1.0} and old["flags"] == ["saturated"] and old["power_W"] == 4.5
+        assert np.array_equal(old["raw_t_s"], t) and np.array_equal(old["raw_T_C"], 25 + t)
+        assert old["touch_header"] is None and old["raw_T_dt_s"] is None and old["raw_q_dt_s"] is None
+        assert touch_header(old) == {"probe": "small-heater", "power_W": 4.5, "heater_on_s": 2.01,
+                                     "sample_rate_Hz": 12.5, "baseline_s": 0.7, "method": "paper",
+                                     "saturated": True, "header_rebuilt": True}
+        assert touch_header(h.get(2, series=True)) is None  # nothing was sampled
+        # A record that starts well before its baseline was armed: only its last baseline_s is the baseline.
+        armed = dict(old, raw_t_s=np.linspace(-5.0, 2.0, 26))
+        assert touch_header(armed)["arm_s"] == 5.0 and "arm_s" not in touch_header(old)
+        # New rows take the new columns; ids go on.
+        assert h.add(_rec(0, touch_header={"probe": "paper"})) == 3
+        assert h.get(3, series=True)["touch_header"] == {"probe": "paper"}
+    with History(path) as h:  # opening a migrated database again changes nothing
+        assert h.count() == 3 and h.get(1, series=True)["power_W"] == 4.5
+
+
+def test_series_page_carries_the_header_first_and_gives_way_to_a_sample_in_a_small_frame():
+    """SERIES (edge.service.requests.series_page) sends the stored header on the raw series' first page."""
+    from edge.service.requests import series_page
+
+    rec = _rec(0, touch_header={"probe": "paper", "power_W": 5.0, "note": "x" * 300})
+    page = series_page(rec, 1, "raw", 0, None, 4096)
+    assert page["header"]["note"] == "x" * 300 and page["header"]["power_W"] == 5.0 and len(page["t_s"]) == 26
+    assert "header" not in series_page(rec, 1, "raw", 5, None, 4096)   # the first page only
+    small = series_page(rec, 1, "raw", 0, None, 300)   # no room for the header and a sample
+    assert "header" not in small and len(small["t_s"]) >= 1

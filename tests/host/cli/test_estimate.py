@@ -197,3 +197,55 @@ def test_train_reprior_copies_the_network_and_refits_only_the_priors_spread(tmp_
     assert main(["train", "--reprior", str(DEFAULT_BUNDLE), "--quick", "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err
     assert "exists" in err and "--quick" in err and not (tmp_path / "x").exists()
+
+
+_EXPORT_HEAD = ("# measurement_id: 3\n# probe: paper\n# power_W: 4.5\n# heater_on_s: 2.0\n# sample_rate_Hz: 10.0\n"
+                "# baseline_s: 0.5\n# method: default\n")
+
+
+def _export(tmp_path, head=_EXPORT_HEAD, cols="t_s,T_C,q_W_m2"):
+    t = np.arange(-5, 21) * 0.1
+    T = 25.0 + np.where(t > 0, 0.8 * np.sqrt(np.clip(t, 0, None)), 0.0)
+    q = np.where(t > 0, 3000.0, 0.0)
+    p = tmp_path / "export.csv"
+    rows = zip(t.tolist(), T.tolist(), q.tolist())
+    p.write_text(head + cols + "\n" + "\n".join(f"{a!r},{b!r},{c!r}" for a, b, c in rows) + "\n")
+    return p
+
+
+@pytest.mark.parametrize("head,needle", [
+    (_EXPORT_HEAD.replace("4.5", "lots"), "header power_W: expected a number, got 'lots'"),
+    (_EXPORT_HEAD.replace("# sample_rate_Hz: 10.0\n", ""), "header lacks sample_rate_Hz"),
+    (_EXPORT_HEAD.replace("4.5", "-1"), "power_W must be a finite number > 0"),
+    (_EXPORT_HEAD + "# saturated: maybe\n", "header saturated: expected true or false"),
+    (_EXPORT_HEAD + "# measurement.noise_T_K: loud\n", "measurement.noise_T_K: expected a number"),
+    (_EXPORT_HEAD.replace("paper", "tiny"), "tiny"),
+    (_EXPORT_HEAD.replace("# probe: paper\n", ""), "header lacks probe"),
+])
+def test_bad_export_header_is_one_line(capsys, tmp_path, head, needle):
+    code, out, err = run(capsys, "estimate", "--csv", _export(tmp_path, head), "--json")
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and needle in err, err
+
+
+def test_export_names_its_probe_and_a_failed_touch_has_no_estimate(capsys, tmp_path):
+    p = _export(tmp_path, _EXPORT_HEAD.replace("paper", "small-heater"))
+    code, out, err = run(capsys, "estimate", "--csv", p, "--json")   # no --probe: the export's own
+    d = json.loads(out)  # (this made-up touch is too weak for the small heater's fit: no estimate, exit 1)
+    assert d["probe"] == "small-heater" and code == (0 if d["effusivity_W_s05_m2K"] is not None else 1), err
+    code, out, err = run(capsys, "estimate", "--csv", p, "--probe", "paper")
+    assert code == 2 and "taken with probe 'small-heater', not --probe paper" in err
+    failed = _export(tmp_path, _EXPORT_HEAD + "# status: failed\n# reason: open_thermocouple\n")
+    code, out, err = run(capsys, "estimate", "--csv", failed)
+    assert code == 1 and out == "" and "measurement 3 ended failed (open_thermocouple)" in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_an_estimate_in_another_context_than_the_devices_says_so(capsys, tmp_path):
+    p = _export(tmp_path, _EXPORT_HEAD + "# calibration_sha256: " + "d" * 64 + "\n# model_sha256: " + "e" * 64 + "\n")
+    code, out, err = run(capsys, "estimate", "--csv", p, "--json")
+    notes = [ln for ln in err.splitlines() if ln.startswith("note: ")]
+    assert code == 0 and json.loads(out)["effusivity_W_s05_m2K"] > 0
+    assert len(notes) == 2 and "model eeeeeeeeeeee" in notes[0] and "calibration dddddddddddd" in notes[1]
+    plain = _export(tmp_path)   # the device was uncalibrated, and so is this estimate: nothing to say
+    code, out, err = run(capsys, "estimate", "--csv", plain, "--json")
+    assert code == 0 and err == ""

@@ -1,0 +1,188 @@
+"""The measurement report of a series: one HTML page from a series file (``thermotouch report SERIES.json``).
+
+What a lab hands on (Hot Disk's and C-Therm's reports are the bar): who
+measured what (sample, lot, operator, notes), with which device, probe
+head, model and calibration, every touch with its answer, the mean ± RSD of
+each quantity with the check of the spread against the stated u, a plot, what
+determined each quantity (the touch's data, the library prior, the
+calibration), and each quality flag that occurred, explained (the words of
+``thermotouch flags``).  Everything is recomputed from the touches
+(:func:`host.lab_series.summarize_touches`).
+"""
+
+from __future__ import annotations
+
+from host.lab_html import esc, figure_png, fmt, kv_table, page, pm, png_img, pyplot, table
+from host.lab_series import answered_values, source_of
+from host.lab_stats import QUANTITIES, TAIL, VERDICTS
+
+__all__ = ["series_report_html", "series_plot_png"]
+
+#: What each source of a quantity means, for the report's readers.
+SOURCES = {
+    "data": "this touch's own measurement",
+    "prior": "the material library's prior given the measured e (not measured by the touch)",
+    "calibration": "the calibrated sensor chain (the probe's calibration on reference materials)",
+    "thickness": "the touch, with the object's stated thickness",
+    "not stated": "the answer does not say (an older device)",
+}
+
+
+def series_plot_png(doc: dict) -> bytes:
+    """Each touch's e (and k) with its u (k = 1), the mean and the ±sd band; touches without an answer marked."""
+    plt = pyplot()
+    touches = doc["touches"]
+    keys = [q for q in QUANTITIES[:2] if answered_values(touches, q[0])]
+    fig, axes = plt.subplots(max(1, len(keys)), 1, figsize=(7.5, 2.6 * max(1, len(keys))), sharex=True,
+                             squeeze=False)
+    missing = [t["index"] for t in touches if not t["answered"]]
+    for ax, (key, _, label, unit, scale) in zip(axes[:, 0], keys or [QUANTITIES[0]]):
+        pts = answered_values(touches, key)
+        if pts:
+            idx = [p[0] for p in pts]
+            val = [p[1] * scale for p in pts]
+            err = [(p[2] or 0.0) * scale for p in pts]
+            ax.errorbar(idx, val, yerr=err, fmt="o", color="C0", capsize=3, label="touch ± u (k = 1)")
+            s = doc["summary"]["quantities"][key]
+            ax.axhline(s["mean"] * scale, color="C1", label="mean")
+            if s["sd"] is not None:
+                ax.axhspan((s["mean"] - s["sd"]) * scale, (s["mean"] + s["sd"]) * scale, color="C1", alpha=0.15,
+                           label="mean ± sd")
+        for i in missing:
+            ax.axvline(i, color="0.6", linestyle=":", linewidth=1)
+        ax.set_ylabel(f"{label}\n({unit})", fontsize=9)
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=8, loc="best")
+    if missing:
+        axes[0, 0].set_title(f"dotted: touch{'es' if len(missing) > 1 else ''} without an answer "
+                             f"({', '.join(map(str, missing))})", fontsize=9)
+    axes[-1, 0].set_xlabel("touch")
+    axes[-1, 0].set_xticks([t["index"] for t in touches] if len(touches) <= 30 else axes[-1, 0].get_xticks())
+    return figure_png(fig)
+
+
+def _results_table(summary: dict) -> str:
+    rows = []
+    for key, _, label, unit, scale in QUANTITIES:
+        s = summary["quantities"][key]
+        if not s["n"]:
+            rows.append([label, unit, "–", "–", "0", "–", "–", "–", "no values"])
+            continue
+        band = "–" if s["ratio_band"] is None else f"{s['ratio_band'][0]:.2f}–{s['ratio_band'][1]:.2f}"
+        chi = "–" if s["chi2"] is None else f"{s['chi2_dof']:.2f} (dof {s['dof']}, p = {s['p_value']:.3f})"
+        ratio = "–" if s["sd_over_u_rms"] is None else f"{s['sd_over_u_rms']:.2f} (accepted {band})"
+        rows.append([label, unit, pm(s["mean"], s["sd"], scale),
+                     "–" if s["rsd"] is None else f"{s['rsd'] * 100:.2f} %", str(s["n"]), fmt(s["u_mean"], 3, scale),
+                     chi, ratio, VERDICTS[s["verdict"]]])
+    return table(["quantity", "unit", "mean ± sd", "RSD", "n", "mean stated u (k = 1)", "χ²/dof",
+                  "sd / rms(u)", "spread against u"], rows, numeric=(2, 3, 4, 5))
+
+
+def _sources_table(summary: dict) -> str:
+    rows = []
+    for key, _, label, *_ in QUANTITIES:
+        by = summary["quantities"][key]["determined_by"]
+        for src, n in sorted(by.items()):
+            rows.append([label, src, str(n), SOURCES.get(src, "")])
+    if not rows:
+        return "<p>No answered touch.</p>"
+    return table(["quantity", "determined by", "touches", "meaning"], rows, numeric=(2,))
+
+
+def _touch_rows(doc: dict) -> list[list[str]]:
+    rows = []
+    for t in doc["touches"]:
+        a = t["answer"] or {}
+        if not t["answered"]:
+            rows.append([str(t["index"]), esc(t["measurement_id"]), esc(t.get("started_utc")),
+                         f"<span class=\"warn\">no answer: {esc(t['no_answer'])}</span>", "", "", "", "",
+                         esc(", ".join(t["flags"]) or "none")])
+            continue
+        src = ", ".join(f"{q}: {source_of(a, k)}" for k, q in
+                        (("effusivity_W_s05_m2K", "e"), ("k_W_mK", "k"), ("alpha_m2_s", "α")) if a.get(k) is not None)
+        rows.append([str(t["index"]), esc(t["measurement_id"]), esc(t.get("started_utc")),
+                     esc(pm(a.get("effusivity_W_s05_m2K"), a.get("effusivity_W_s05_m2K_u"))),
+                     esc(pm(a.get("k_W_mK"), a.get("k_W_mK_u"))),
+                     esc(pm(a.get("alpha_m2_s"), a.get("alpha_m2_s_u"), 1e6)),
+                     esc(a.get("object") if a.get("object") not in (None, "unknown") else a.get("material")),
+                     esc(src), esc(", ".join(t["flags"]) or "none")])
+    return rows
+
+
+def _flags_table(summary: dict) -> str:
+    from host.flag_docs import describe_flag  # noqa: PLC0415
+
+    if not summary["flags"]:
+        return "<p>No quality flag on any touch.</p>"
+    rows = [[w, str(n), describe_flag(w).replace("``", "")] for w, n in sorted(summary["flags"].items())]
+    return table(["flag", "touches", "meaning and what to do"], rows, numeric=(1,))
+
+
+def _distinct(touches: list[dict], key: str) -> str:
+    vals = sorted({str((t.get("answer") or {}).get(key)) for t in touches if (t.get("answer") or {}).get(key)})
+    return ", ".join(vals) or "–"
+
+
+def series_report_html(doc: dict, *, source_name: str, generated_utc: str, software_version: str) -> str:
+    """The report page of a loaded series file (:func:`host.lab_series.load_series`)."""
+    md, dev, st, summary = doc["metadata"], doc["device"], doc["settings"], doc["summary"]
+    e = summary["quantities"]["effusivity_W_s05_m2K"]
+    title = f"Measurement report: {md.get('sample') or 'unnamed sample'}"
+    if e["n"]:
+        rsd = "" if e["rsd"] is None else f", RSD {e['rsd'] * 100:.2f} %"
+        headline = (f"e = {pm(e['mean'], e['sd'])} W s<sup>0.5</sup>/(m<sup>2</sup> K) (mean ± sd{rsd}, "
+                    f"n = {e['n']} of {summary['n_requested']} touches)")
+    else:
+        headline = f"No answer in {summary['n_requested']} touches."
+    powers = sorted({t["power_W"] for t in doc["touches"] if t.get("power_W") is not None})
+    times = sorted({t["contact_time_s"] for t in doc["touches"] if t.get("contact_time_s") is not None})
+    where = (f"simulated probe, scene {dev.get('scene')}" if dev.get("source") == "sim"
+             else f"port {dev.get('port')}" if dev.get("port") else None)
+    body = [
+        f"<h1>{esc(title)}</h1>",
+        f"<p class=\"headline\">{headline}</p>",
+        "<h2>Sample</h2>",
+        kv_table([("sample", md.get("sample")), ("lot", md.get("lot")), ("operator", md.get("operator")),
+                  ("notes", md.get("notes")), ("series started (UTC)", doc.get("started_utc")),
+                  ("series written (UTC)", doc.get("created_utc")), ("series file", source_name)]),
+        "<h2>Device and probe</h2>",
+        kv_table([("device", dev.get("device_id")), ("connection", where), ("board", dev.get("board")),
+                  ("firmware", dev.get("firmware_version")), ("protocol", dev.get("protocol_version")),
+                  ("probe head", _distinct(doc["touches"], "probe")),
+                  ("method", _distinct(doc["touches"], "method")),
+                  ("model", f"{dev.get('model_version')} (sha256 {dev.get('model_sha256')})"),
+                  ("models in the answers", ", ".join(summary["model_sha256"]) or None),
+                  ("calibration", (f"sha256 {dev.get('calibration_sha256')}" if dev.get("calibrated")
+                                   else "none installed: answers are flagged 'uncalibrated'")
+                   if "calibrated" in dev else None),
+                  ("calibrations in the answers", ", ".join(summary["calibration_sha256"]) or None),
+                  ("object set", dev.get("object_set")),
+                  ("heater power (W)", ", ".join(f"{p:.3g}" for p in powers) or None),
+                  ("contact time (s)", ", ".join(f"{x:.3g}" for x in times) or None),
+                  ("rest between touches (s)", st.get("cooldown_s")),
+                  ("software (series)", f"{doc['software'].get('name')} {doc['software'].get('version')}")]),
+        "<h2>Result</h2>",
+        _results_table(summary),
+        f"<p class=\"note\">± and u are standard uncertainties (coverage factor k = 1). RSD = sd / mean. The "
+        f"spread is checked by χ² of the touches about their u-weighted mean with n − 1 degrees of freedom, "
+        f"two-sided at {(1 - 2 * TAIL) * 100:.0f} %: below the band, u holds parts every touch shares "
+        f"(calibration, model, prior) that repeating cannot show; above it, the touches differ by more than "
+        f"their u.</p>",
+        png_img(series_plot_png(doc), "each touch's value with its u, the mean and the ±sd band"),
+        "<h2>What determined each quantity</h2>",
+        _sources_table(summary),
+        "<h2>Touches</h2>",
+        f"<p>{summary['n_answered']} of {summary['n_requested']} touches answered"
+        + ("." if not summary["n_unanswered"] else
+           f"; {summary['n_unanswered']} without an answer: "
+           + esc("; ".join(f"touch {u['index']} (measurement {u['measurement_id']}): {u['why']}"
+                           for u in summary["unanswered"])) + ".") + "</p>",
+        table(["touch", "measurement", "started (UTC)", "e (W s^0.5/(m² K))", "k (W/(m K))", "α (mm²/s)",
+               "object / material", "determined by", "flags"], _touch_rows(doc), numeric=(0, 1, 3, 4, 5),
+              raw=tuple(range(9))),
+        "<h2>Quality flags</h2>",
+        _flags_table(summary),
+        f"<p class=\"note\">Report generated {esc(generated_utc)} by thermotouch {esc(software_version)} from "
+        f"{esc(source_name)}; the flags' texts are those of <code>thermotouch flags</code>.</p>",
+    ]
+    return page(title, body)

@@ -1,0 +1,139 @@
+"""Round trip (issue #33): a device's touch, exported and re-estimated, gives the device's answer.
+
+On every shipped scene, uncalibrated and with a calibration installed: MEASURE on the simulated
+device, ``history --export-series`` that measurement, ``thermotouch estimate`` the file with the
+same calibration -- e, u, flags and object equal to the last printed digit (and bit for bit). And
+the walk-through's calibration, refitted offline from its own exported touches, is the installed
+one; an armed touch on that calibrated probe (the issue's example) round-trips too.
+
+Every command runs through ``host.cli.main`` against a simulated probe on a pseudo-terminal
+(:func:`host.device.simulated_probe`), as a user's would.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from firmware_sim.scene.files import scene_names
+from host.cli.main import main
+from host.cli.report import pm
+from host.device import simulated_probe
+from host.records import read_touch
+from tests.support.calibrations import sample_calibration
+
+pytestmark = [pytest.mark.hil, pytest.mark.slow]
+
+SCENES = scene_names()
+#: What the device and the offline estimate must agree on (the object's fields included).
+SAME = ("flags", "object", "object_set", "class", "material", "method", "probe", "calibration_sha256",
+        "model_sha256", "determined", "from_prior")
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _measure_and_export(capsys, port: str, path: Path) -> dict:
+    """One MEASURE (its JSON as the user gets it) and the export of that measurement to ``path``.
+
+    A touch the device could not finish (a sensor fault) prints no result: its stored record is
+    exported all the same, and what the device said is its status and reason.
+    """
+    code, out, err = run(capsys, "measure", "--port", port, "--json")
+    if out:
+        assert code in (0, 1), err  # 1: the device gave no estimate -- the offline estimate must say so too
+        device = json.loads(out)
+    else:
+        assert code != 0, err
+        code, out, err = run(capsys, "history", "--port", port, "--json", "--limit", 1)
+        assert code == 0, err
+        device = json.loads(out)[0]
+        assert device["status"] != "ok", device
+    code, out, err = run(capsys, "history", "--port", port, "--export-series", device["measurement_id"], path)
+    assert code == 0, err
+    return device
+
+
+def _assert_same_answer(capsys, device: dict, path: Path, *extra) -> None:
+    code, out, err = run(capsys, "estimate", "--csv", path, "--json", *extra)
+    if device.get("status", "ok") != "ok":
+        # The device gave no answer: neither does the estimate of its record, and it says why.
+        assert code == 1 and out == "" and device["status"] in err and device["reason"] in err, err
+        return
+    offline = json.loads(out) if out else {}
+    e, u = device.get("effusivity_W_s05_m2K"), device.get("effusivity_W_s05_m2K_u")
+    assert code == (0 if e is not None else 1), err
+    for q in ("effusivity_W_s05_m2K", "k_W_mK", "alpha_m2_s"):
+        # To the last printed digit: what `measure` and `estimate` print must be the same text.
+        assert pm(offline.get(q), offline.get(q + "_u"), "") == pm(device.get(q), device.get(q + "_u"), ""), q
+        # And bit for bit: the same record through the same code (JSON carries floats exactly).
+        assert (offline.get(q), offline.get(q + "_u")) == (device.get(q), device.get(q + "_u")), q
+    diff = {k: (device.get(k), offline.get(k)) for k in SAME if device.get(k) != offline.get(k)}
+    assert not diff, f"device vs offline: {diff}"
+    if e is not None:
+        assert u is not None and offline["object_posterior"] == device["object_posterior"]
+
+
+@pytest.mark.parametrize("scene", SCENES)
+def test_exported_touch_re_estimated_gives_the_devices_answer(capsys, tmp_path, scene):
+    workdir = tmp_path / "probe"
+    with simulated_probe(scene, workdir) as (port, _daemon, _sim):
+        plain = _measure_and_export(capsys, port, tmp_path / "plain.csv")
+        cal = tmp_path / "cal.json"
+        cal.write_text(sample_calibration(probe=read_touch(tmp_path / "plain.csv").probe).to_json())
+        code, _, err = run(capsys, "calibrate", "--port", port, "--install", cal)
+        assert code == 0, err
+    # The installed calibration stays in the probe's directory: the next session's touch is calibrated.
+    # (A new session, not the scene's next touch: the simulated seconds between the scene's touches cost more CPU
+    # on the faithful world than a daemon's start.)
+    with simulated_probe(scene, workdir) as (port, _daemon, _sim):
+        calibrated = _measure_and_export(capsys, port, tmp_path / "calibrated.csv")
+    ok = plain.get("status", "ok") == "ok"
+    assert not ok or "uncalibrated" in plain["flags"] or plain.get("effusivity_W_s05_m2K") is None
+    _assert_same_answer(capsys, plain, tmp_path / "plain.csv")
+    ok = calibrated.get("status", "ok") == "ok"
+    assert not ok or "uncalibrated" not in calibrated["flags"]
+    _assert_same_answer(capsys, calibrated, tmp_path / "calibrated.csv", "--calibration", cal)
+    header = (tmp_path / "calibrated.csv").read_text().split("\nt_s,")[0]
+    # (a touch the device did not finish has no answer, so no calibration or model id: its header says why)
+    named = ("calibration_sha256", "model_sha256") if ok else ("status", "reason")
+    for key in ("probe", "power_W", "sample_rate_Hz", "heater_on_s", "software", "measurement_id") + named:
+        assert f"# {key}: " in header, key
+
+
+def test_walk_through_refitted_offline_from_its_exports_is_the_installed_calibration(capsys, tmp_path):
+    workdir = tmp_path / "probe"
+    cal = tmp_path / "cal.json"
+    code, _, err = run(capsys, "calibrate", "--sim", "glass_15V_faithful", "--workdir", workdir, "--out", cal)
+    assert code == 0, err
+    installed = json.loads(cal.read_text())
+    argv = []
+    for mid, name in enumerate(("pmma", "pyroceram", "aisi_304"), 1):
+        f = tmp_path / f"{name}.csv"
+        code, _, err = run(capsys, "history", "--sim", "glass_15V_faithful", "--workdir", workdir,
+                           "--export-series", mid, f)
+        assert code == 0, err
+        argv += ["--record", f, "--reference", name]
+    again = tmp_path / "again.json"
+    code, _, err = run(capsys, "calibrate", *argv, "--out", again)
+    assert code == 0, err
+    refit = json.loads(again.read_text())
+    for d in (installed, refit):  # when it was made, and the identity that includes it
+        d.pop("created_utc"), d.pop("sha256")
+    assert refit == installed
+    # The issue's own example: an armed touch on the calibrated probe, exported and re-estimated.
+    code, out, err = run(capsys, "measure", "--sim", "glass_15V_faithful", "--workdir", workdir, "--arm", 30,
+                         "--settle", 1, "--json")
+    assert code in (0, 1), err
+    device = json.loads(out)
+    assert device["calibration_sha256"] == json.loads(cal.read_text())["sha256"]
+    f = tmp_path / "armed.csv"
+    code, _, err = run(capsys, "history", "--sim", "glass_15V_faithful", "--workdir", workdir, "--export-series",
+                       device["measurement_id"], f)
+    assert code == 0 and "# arm_s: 30.0" in f.read_text(), err
+    _assert_same_answer(capsys, device, f, "--calibration", cal)
