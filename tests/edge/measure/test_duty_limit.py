@@ -21,6 +21,7 @@ def _max_window_on_s(intervals, window_s):
     return best
 
 
+@pytest.mark.slow  # six 5-s touches and their rests: over a minute of simulated sampling
 def test_back_to_back_touches_are_held_to_the_duty_limit():
     rig, heater, seq, params = make_sequence()
     seq.limits = dataclasses.replace(seq.limits, max_duty=0.25, duty_window_s=40.0)

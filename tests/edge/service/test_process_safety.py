@@ -29,6 +29,7 @@ from edge.service.main import install_signal_handlers
 from firmware_sim.gpiod.state import read_line
 from tests.support.daemon_proc import ForkServer
 from tests.support.killpoints import work_root
+from tests.support.waiting import wait_until
 
 pytestmark = [pytest.mark.hil, pytest.mark.slow]
 MAX_ON = Config().heater.max_on_time_s
@@ -158,6 +159,12 @@ def test_interpreter_exit_drives_the_heater_off(forks, state_dir):
     assert read_line(state_dir / "gpio", "gpiochip0", ENABLE)["level"] == 0
 
 
+def _all_threads_stopped(pid) -> bool:
+    """Whether every thread of process ``pid`` is in the stopped state (a SIGSTOP has taken effect)."""
+    return all((t / "stat").read_text().rsplit(")", 1)[1].split()[0] == "T"
+               for t in Path(f"/proc/{pid}/task").iterdir())
+
+
 def _pending_and_stopped(pid, sig):
     """Whether ``sig`` is pending (sent, not yet delivered) to process ``pid``, and it is stopped."""
     fields = dict(line.split(":", 1) for line in Path(f"/proc/{pid}/status").read_text().splitlines())
@@ -193,6 +200,9 @@ def test_a_frozen_daemon_stops_petting_and_the_watchdog_kill_leaves_the_heater_o
         assert n_pets() >= 2  # idle: the serve loop pets
         host = _heat(proc, host_port)
         os.kill(proc.pid, signal.SIGSTOP)  # frozen mid-heating, heater on
+        # A stop takes effect as each thread next runs: on a loaded machine that can be long after the
+        # kill (a SIGABRT sent before it would still be handled). Frozen is when every thread is stopped.
+        wait_until(lambda: _all_threads_stopped(proc.pid), "the daemon to freeze")
         t_frozen = time.monotonic()
         assert read_line(state_dir / "gpio", "gpiochip0", ENABLE)["level"] == 1
         # Watchdog stand-in: no pet for WatchdogSec -> SIGABRT; still there after TimeoutAbortSec -> SIGKILL.

@@ -254,6 +254,7 @@ def _report_or_refuse(capsys, path, out, bad, what):
     return code
 
 
+@pytest.mark.slow  # a report run per field and kind of wrong value: seconds
 def test_a_hand_edited_series_file_is_reported_or_refused_in_one_line_never_a_crash(capsys, tmp_path, series_file,
                                                                                     monkeypatch):
     import host.lab_report
