@@ -35,6 +35,15 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str):  # noqa: D102
         raise CliError(message, EXIT_BAD_INPUT, prog=self.prog)
 
+    def _get_value(self, action, arg_string):
+        # A converter that touches the file system (a name too long for it, a path through a file) raises
+        # OSError: that is the argument's fault, reported like any other (exit 2, the verb's prefix).
+        try:
+            return super()._get_value(action, arg_string)
+        except OSError as exc:
+            shown = arg_string if len(arg_string) <= 60 else arg_string[:40] + "..." + arg_string[-12:]
+            raise argparse.ArgumentError(action, f"{shown}: {exc.strerror or exc}") from None
+
 
 # --- numbers ----------------------------------------------------------------------------
 
