@@ -90,7 +90,15 @@ def measure_bound(name: str):
     from edge.protocol.commands import COMMANDS, Command  # noqa: PLC0415
 
     f = next(a for a in COMMANDS[Command.MEASURE].args if a.name == name)
-    return bounded_float(f.lo, f.hi, lo_open=f.lo_open), f"{'>' if f.lo_open else '>='} {f.lo:g}, <= {f.hi:g}"
+    text = f"{'>' if f.lo_open else '>='} {f.lo:g}, <= {f.hi:g}"
+    if name == "contact_time_s":
+        # The protocol's bound is not the device's: its heater refuses an on-time >= heater.max_on_time_s.
+        from edge.service.config import Config  # noqa: PLC0415
+
+        limit = Config().heater.max_on_time_s
+        text = f"{'>' if f.lo_open else '>='} {f.lo:g}; the device refuses >= its heater.max_on_time_s, {limit:g} s " \
+               "by default"
+    return bounded_float(f.lo, f.hi, lo_open=f.lo_open), text
 
 
 def _integer(text: str) -> int:

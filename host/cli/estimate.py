@@ -213,6 +213,6 @@ def _chain_line(c: dict) -> str:
 
     return (f"sensor chain e {num('effusivity_W_s05_m2K', '.1f')} ± {num('effusivity_W_s05_m2K_u', '.1f')}, "
             f"R_c {num('contact_resistance_m2K_W', '.2e')} ± {num('contact_resistance_m2K_W_u', '.1e')} m^2 K/W, "
-            f"T_obj0 {num('object_temperature0', '.3f')} ± {num('object_temperature0_u', '.3f')}, "
+            f"T_obj0 {num('object_temperature0', '.3f')} ± {num('object_temperature0_u', '.3f')} degC, "
             f"contact at t = {num('contact_t_s', '.3f')} s, normalised residual {num('normalised_residual', '.2f')}, "
             f"flags {', '.join(c.get('flags') or []) or '-'}")
