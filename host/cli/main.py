@@ -125,7 +125,8 @@ def _run(argv: list[str] | None) -> tuple[int, str]:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:  # --help, --version: printed by argparse
         return (exc.code if isinstance(exc.code, int) else 0), "thermotouch"
-    prog = f"thermotouch {args.command}"
+    action = getattr(args, f"{args.command}_command", None)  # objects add, keys new: the whole verb says it
+    prog = f"thermotouch {args.command}" + (f" {action}" if action else "")
     logs = _Logging(getattr(args, "verbose", False), getattr(args, "log_file", None))
     try:
         log.debug("%s %s", prog, argv if argv is not None else sys.argv[1:])

@@ -39,7 +39,7 @@ def test_objects_add_refuses_a_stored_name_without_overwrite(capsys, tmp_path, k
     other.write_text(KITCHEN.replace("window", "pane"))
     code, out, err = run(capsys, "objects", "add", other, "--name", "kitchen", *sim)
     line = one_line(err)
-    assert code == 2 and line.startswith("thermotouch objects") and "--overwrite" in line and out == ""
+    assert code == 2 and line.startswith("thermotouch objects add: ") and "--overwrite" in line and out == ""
     code, out, err = run(capsys, "objects", "list", *sim, "--json")
     sets = json.loads(out)["sets"]
     assert [s["name"] for s in sets] == ["kitchen"]
