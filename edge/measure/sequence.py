@@ -260,6 +260,9 @@ class MeasurementSequence:
         self.decision = decision
         #: The probe head (``board.probe``), recorded with every touch.
         self.probe = probe
+        #: Identity recorded with every touch (its record's ``meta``: the daemon sets ``device_id`` and the
+        #: software version), so a stored record and its export name the instrument that made them.
+        self.identity: dict[str, Any] = {}
         #: The running answer of the current (or last) run: a RunningAnswer, or None.
         self.answer: Any = None
         self.state = Phase.IDLE
@@ -629,7 +632,7 @@ class MeasurementSequence:
                 T_resolution_K=float(getattr(self.sensors, "T_resolution_K", 0.0)), saturated=bool(saturated),
                 T_dt_s=None if dts is None else dts[:, 0], q_dt_s=None if dts is None else dts[:, 1],
                 arm_s=params.arm_s, contact_detected_s=out.contact_detected_s,
-                meta={"started_utc": out.started_utc})
+                meta={**self.identity, "started_utc": out.started_utc})
         except RecordError as e:
             log.warning("no touch record: %s", e)
             return None

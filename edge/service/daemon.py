@@ -307,6 +307,7 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
                 model_sha256=self._model_sha256, on_state=self._on_state, cancel_event=self._cancel,
                 beats=self.notifier, decision=self._make_decision, probe=self.config.board.probe)
         self.sequence.thresholds = self.config.measurement
+        self.sequence.identity = {"device_id": self.device_id, "firmware_version": FIRMWARE_VERSION}
         return self.sequence
 
     def object_set(self) -> Any:

@@ -10,17 +10,27 @@ read-out weights (:class:`GridConfig`).  Used by :class:`firmware_sim.rz.probe_w
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from edge.physics.geometry import PROBES, ProbeGeometry
 from edge.physics.solids import Solid
+from firmware_sim.rz.footprint import SquareSensor
 from firmware_sim.rz.grid import ADIABATIC, PU_FOAM, SENSOR_AREA_m2, Boundary, Grid, Layer, Mesh
 from firmware_sim.rz.solver import Solver
 from firmware_sim.scene.model import Scene
 
-__all__ = ["AsBuilt", "Geometry", "GridConfig", "geometry_for_probe", "as_built_for_scene", "build_config"]
+__all__ = ["AsBuilt", "Geometry", "GridConfig", "SQUARE_SENSOR_PROBES", "geometry_for_probe", "build_config"]
+
+#: Heads whose world reads the square thermopile by default.  The small-heater probe's square has its
+#: edge on the heater's edge, where the flux changes fastest: the equal-area disk is the estimator's
+#: approximation and the world must not share it.  The paper probe's square lies 27 mm inside its
+#: heater's edge, where the flux is uniform: square and disk read the same to 3e-13 (PMMA, glass) and
+#: 2.5e-6 (copper, 0.5 mm off centre, 5 % gradient) after 2 s (python bench/asbuilt_bench.py --bounds),
+#: so its nominal scenes keep the disk and stay byte-identical.  A head's variants (``name@<r>mm``,
+#: :meth:`ProbeGeometry.with_heater_radius`) carry the same sensor.
+SQUARE_SENSOR_PROBES = frozenset({"small-heater"})
 
 
 @dataclass(frozen=True)
@@ -44,6 +54,19 @@ class AsBuilt:
         Temperature coefficient of the film's resistance (1/K).
     heater_reference_C : float
         Temperature at which the film has ``heater_resistance_ohm``.
+    heater_lead_resistance_ohm : float
+        Leads and contacts in series with the film: they take part of the supply's power
+        (``P_film = d V^2 R / (R + R_lead)^2``; the device computes ``d V^2 / R_nominal``).
+    substrate_k_W_mK, substrate_rho_c_J_m3K, substrate_thickness_m : float or None
+        The backing foam as built (default the probe geometry's substrate).
+    sensor : SquareSensor or None
+        The thermopile's real footprint (side, offset from the heater's axis, sensitivity map);
+        default the geometry's (the small-heater probe's centred 10 x 10 mm square, the paper
+        probe's equal-area disk).
+    thermocouple_r_m : float or None
+        The thermocouple's distance from the heater's axis (default the geometry's, 0).
+    thermocouple_height_m : float or None
+        The junction's height above the sensing layer's bottom face (default the geometry's, 0).
     """
 
     sensing_thickness_m: float | None = None
@@ -53,10 +76,17 @@ class AsBuilt:
     heater_resistance_ohm: float | None = None
     heater_tcr_per_K: float = 0.0
     heater_reference_C: float = 25.0
+    heater_lead_resistance_ohm: float = 0.0
+    substrate_k_W_mK: float | None = None
+    substrate_rho_c_J_m3K: float | None = None
+    substrate_thickness_m: float | None = None
+    sensor: SquareSensor | None = None
+    thermocouple_r_m: float | None = None
+    thermocouple_height_m: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("sensing_thickness_m", "sensing_k_W_mK", "flux_sensitivity_V_per_W_m2",
-                     "heater_resistance_ohm"):
+                     "heater_resistance_ohm", "substrate_k_W_mK", "substrate_rho_c_J_m3K", "substrate_thickness_m"):
             v = getattr(self, name)
             if v is not None and not (v > 0 and math.isfinite(v)):
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")
@@ -65,6 +95,28 @@ class AsBuilt:
             raise ValueError(f"thermocouple_time_constant_s must be finite and >= 0, got {tau!r}")
         if not math.isfinite(self.heater_tcr_per_K):
             raise ValueError("heater_tcr_per_K must be finite")
+        for name in ("heater_lead_resistance_ohm", "thermocouple_r_m", "thermocouple_height_m"):
+            v = getattr(self, name)
+            if v is not None and not (v >= 0 and math.isfinite(v)):
+                raise ValueError(f"{name} must be finite and >= 0, got {v!r}")
+
+    def apply_to(self, geometry: "Geometry") -> "Geometry":
+        """``geometry`` with this probe's substrate, sensor footprint and thermocouple position."""
+        geo = geometry
+        if geo.substrate is not None and (self.substrate_k_W_mK is not None or self.substrate_rho_c_J_m3K is not None):
+            sub = geo.substrate
+            k = sub.k_W_mK if self.substrate_k_W_mK is None else self.substrate_k_W_mK
+            rho_c = sub.rho_kg_m3 * sub.c_J_kgK if self.substrate_rho_c_J_m3K is None else self.substrate_rho_c_J_m3K
+            geo = replace(geo, substrate=Solid(k_W_mK=k, rho_kg_m3=sub.rho_kg_m3, c_J_kgK=rho_c / sub.rho_kg_m3))
+        if geo.substrate is not None and self.substrate_thickness_m is not None:
+            geo = replace(geo, substrate_thickness_m=self.substrate_thickness_m)
+        if self.sensor is not None:
+            geo = replace(geo, sensor_square=self.sensor)
+        if self.thermocouple_r_m is not None:
+            geo = replace(geo, thermocouple_r_m=self.thermocouple_r_m)
+        if self.thermocouple_height_m is not None:
+            geo = replace(geo, thermocouple_height_m=self.thermocouple_height_m)
+        return geo
 
 
 @dataclass(frozen=True)
@@ -87,6 +139,11 @@ class Geometry:
     #: A heater disk wider than this (the 1-D limit) is a larger film at the same power density.
     heater_area_m2: float | None = None
     sensor_radius_m: float | None = None     # default: the 10 x 10 mm thermopile's equal-area disk
+    #: The thermopile's real footprint; when given it replaces the disk in the read-out (the disk is
+    #: only what the estimator assumes).
+    sensor_square: SquareSensor | None = None
+    thermocouple_r_m: float = 0.0            # the thermocouple's distance from the axis
+    thermocouple_height_m: float = 0.0       # its height above the sensing layer's bottom face
 
     def __post_init__(self) -> None:
         if not self.h_air_W_m2K >= 0 or math.isinf(self.h_air_W_m2K):
@@ -95,42 +152,31 @@ class Geometry:
             v = getattr(self, name)
             if v is not None and not (v > 0 and math.isfinite(v)):
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")
+        for name in ("thermocouple_r_m", "thermocouple_height_m"):
+            if not (getattr(self, name) >= 0 and math.isfinite(getattr(self, name))):
+                raise ValueError(f"{name} must be finite and >= 0")
 
 
 def geometry_for_probe(probe: ProbeGeometry | str, **overrides) -> Geometry:
     """The world's :class:`Geometry` for a probe of :data:`edge.physics.geometry.PROBES` (or its name).
 
     Only the probe's dimensions are taken (heater disk and its area, probe
-    radius, substrate, flux-sensor disk): the layer stack (heater film and
-    sensing layer) stays the scene's, as built. ``overrides`` replace any
-    other :class:`Geometry` field (object radius, convection, mesh, ...).
+    radius, substrate, flux-sensor disk, thermocouple radius): the layer stack
+    (heater film and sensing layer) stays the scene's, as built.  The probes
+    of :data:`SQUARE_SENSOR_PROBES` read their thermopile through its real
+    10 x 10 mm square (:class:`SquareSensor`), not the estimator's disk.
+    ``overrides`` replace any other :class:`Geometry` field (object radius,
+    convection, mesh, ...).
     """
     p = PROBES[probe] if isinstance(probe, str) else probe
     kw = dict(substrate=p.substrate, substrate_thickness_m=p.substrate_thickness_m,
               heater_radius_m=p.heater_radius_m, probe_radius_m=p.probe_radius_m,
-              heater_area_m2=p.heater_area_m2, sensor_radius_m=p.sensor_radius_m)
+              heater_area_m2=p.heater_area_m2, sensor_radius_m=p.sensor_radius_m,
+              thermocouple_r_m=p.thermocouple_r_m)
+    if p.name.split("@")[0] in SQUARE_SENSOR_PROBES:
+        kw["sensor_square"] = SquareSensor()
     kw.update(overrides)
     return Geometry(**kw)
-
-
-def as_built_for_scene(scene: Scene) -> AsBuilt:
-    """The :class:`AsBuilt` a scene's ``[as_built]`` table describes (nominal when it has none).
-
-    Factors multiply the scene's nominal values: the stack's sensing layer,
-    the ``[sensors]`` flux sensitivity and the ``[heater]`` resistance.
-    """
-    a = scene.as_built
-    if a is None:
-        return AsBuilt()
-    st, sens = scene.stack, scene.sensors
-    return AsBuilt(
-        sensing_thickness_m=st.sensing_thickness_m * a.sensing_thickness_factor,
-        sensing_k_W_mK=st.material.k_W_mK * a.sensing_k_factor,
-        flux_sensitivity_V_per_W_m2=sens.flux_sensitivity_V_per_W_m2 * a.flux_sensitivity_factor,
-        thermocouple_time_constant_s=a.thermocouple_time_constant_s,
-        heater_resistance_ohm=scene.heater.resistance_ohm * a.heater_resistance_factor,
-        heater_tcr_per_K=a.heater_tcr_per_K,
-        heater_reference_C=a.heater_reference_C)
 
 
 class GridConfig:
@@ -197,9 +243,19 @@ def build_config(key: tuple, scene: Scene, geometry: Geometry, stack, sensing_ma
         bottom = Boundary(math.inf, T_obj) if o.back == "fixed" else ADIABATIC
     mesh = geo.mesh
     R = max(r_p, geo.object_radius_m)   # the same radial faces in every configuration
-    r_s = math.sqrt(SENSOR_AREA_m2 / math.pi) if geo.sensor_radius_m is None else geo.sensor_radius_m
+    sq = geo.sensor_square
+    if sq is None:
+        r_s = math.sqrt(SENSOR_AREA_m2 / math.pi) if geo.sensor_radius_m is None else geo.sensor_radius_m
+        sensor_feats = {r_s: mesh.feature_dr_m}
+    else:
+        # The square's read-out weights are exact ring integrals on any faces; faces at its inner
+        # circle and its farthest corner keep the rings it only partly covers narrow.
+        r_s = sq.outer_radius_m
+        sensor_feats = {r_s: mesh.feature_dr_m}
+        if sq.inner_radius_m > 0:
+            sensor_feats[sq.inner_radius_m] = mesh.feature_dr_m
     # The heater's edge wins where it coincides with another feature (it is the sharp 2-D corner).
-    feats = {0.0: mesh.axis_dr_m, r_s: mesh.feature_dr_m, r_p: mesh.edge_dr_m,
+    feats = {0.0: mesh.axis_dr_m, **sensor_feats, r_p: mesh.edge_dr_m,
              geo.object_radius_m: mesh.feature_dr_m, R: mesh.feature_dr_m, a_h: mesh.edge_dr_m}
     # A sensor wider than the heater (the small-heater probe) reads the heater's edge and beyond.
     if r_s > r_p:
@@ -212,6 +268,14 @@ def build_config(key: tuple, scene: Scene, geometry: Geometry, stack, sensing_ma
                   sensor_z_m=(z_sens, z_sens + stack.sensing_thickness_m),
                   interface_z_m=z_sens + stack.sensing_thickness_m,
                   heater_volume_m3=float(np.pi * a_h ** 2 * stack.heater_thickness_m))
+    if sq is not None:
+        g.meta["sensor_ring_weights"] = sq.ring_weights(g.r_faces_m[: g.r_index_below(r_s) + 1])
+    if geo.thermocouple_r_m > 0:
+        g.meta["thermocouple_r_m"] = geo.thermocouple_r_m
+    if geo.thermocouple_height_m > 0:
+        if geo.thermocouple_height_m >= stack.sensing_thickness_m:
+            raise ValueError("the thermocouple must lie inside the sensing layer")
+        g.meta["thermocouple_height_m"] = geo.thermocouple_height_m
     n_probe_rows = int(np.sum(g.layer_of_row < n_probe_layers))
     # Heater film mean temperature (for the TCR): volume weights over the heated disk.
     w = g.volume_source_W("heater", a_h, 1.0)

@@ -75,14 +75,21 @@ class FilmHeater:
             raise ValueError(f"heater resistance {r} ohm at {T_heater_C} degC: TCR out of range")
         return r
 
+    def _film_power(self, dv2: float, R: float) -> float:
+        """Power in a film of resistance ``R`` for ``d V^2 = dv2``, less what its leads take (W)."""
+        r_lead = self.as_built.heater_lead_resistance_ohm
+        if r_lead == 0.0:
+            return dv2 / R
+        return dv2 * R / (R + r_lead) ** 2
+
     def heater_power_W(self, t_s: float) -> float:
-        """Electrical power in the film at ``t_s`` (W), ``d V^2 / R(T_heater)``."""
+        """Electrical power in the film at ``t_s`` (W), ``d V^2 R / (R + R_lead)^2`` with ``R = R(T_heater)``."""
         dv2 = self._dv2(float(t_s))
         if dv2 == 0.0:
             return 0.0
         if self.as_built.heater_tcr_per_K == 0.0:
-            return dv2 / self.R0
-        return dv2 / self._resistance_in_step(float(t_s))
+            return self._film_power(dv2, self.R0)
+        return self._film_power(dv2, self._resistance_in_step(float(t_s)))
 
     def q_v_at(self, t_s: float) -> float:
         """Heater power density at ``t_s`` (W/m^3) over the nominal film."""

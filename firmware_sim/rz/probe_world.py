@@ -24,16 +24,20 @@ finite-volume model of :mod:`firmware_sim.rz`:
   :func:`geometry_for_probe`, :meth:`FaithfulWorld.for_scene` (``[board]
   probe`` and ``[as_built]`` of a scene);
 * the flux sensor as a thermopile inside the sensing layer: the axial flux
-  averaged over its depth and its 10 x 10 mm (equal-area disk) area, times
-  its *true* sensitivity;
-* the thermocouple on the axis at the bottom of the sensing layer (probe
-  side of any contact resistance) through a first-order bead lag with its
-  *true* time constant;
+  averaged over its depth and its footprint, times its *true* sensitivity --
+  the real 10 x 10 mm square (offset, sensitivity map: exact ring weights,
+  :mod:`firmware_sim.rz.footprint`) for the small-heater probe and every
+  drawn probe, the equal-area disk for the nominal paper probe (whose square
+  lies deep inside its heater's uniform flux);
+* the thermocouple at its radius (on the axis nominally) at the bottom of the
+  sensing layer (probe side of any contact resistance) through a first-order
+  bead lag with its *true* time constant;
 * the heater film's resistance with a temperature coefficient at constant
   voltage, ``P = d V^2 / (R_0 (1 + alpha_R (T_heater - T_ref)))``;
 * as-built deviations (:class:`AsBuilt`, :mod:`firmware_sim.rz.configs`: sensing-layer thickness and
-  conductivity, flux sensitivity, thermocouple lag, heater R and TCR) that
-  the device is never told.
+  conductivity, flux sensitivity and footprint, thermocouple position and lag, heater R, TCR and
+  lead resistance, the substrate's k, rho c and thickness) that the device is never told; drawn
+  per probe by :mod:`firmware_sim.asbuilt`.
 
 Time stepping
 -------------
@@ -91,7 +95,8 @@ from edge.physics.solids import Solid
 from firmware_sim.drive import HeaterDrive
 from firmware_sim.heater_faults import WORLD_FAULTS, active
 from firmware_sim.rz.heater import FilmHeater
-from firmware_sim.rz.configs import AsBuilt, Geometry, GridConfig, as_built_for_scene, build_config, geometry_for_probe
+from firmware_sim.asbuilt import as_built_for_scene
+from firmware_sim.rz.configs import AsBuilt, Geometry, GridConfig, build_config, geometry_for_probe
 from firmware_sim.rz.solver import axis_value
 from firmware_sim.scene.model import Fault, Scene
 from firmware_sim.world_protocol import REPEAT_RELEASE_S, SensorSignals, Truth, WorldState
@@ -179,6 +184,8 @@ class FaithfulWorld(SensorSignals, FilmHeater):
         self.clock = clock
         self.drive = drive
         self.as_built = as_built
+        # The probe's substrate, thermopile footprint and thermocouple position as built.
+        geometry = as_built.apply_to(geometry)
         self.geometry = geometry
         self.dt = float(dt_s)
         nominal = scene.stack
@@ -506,7 +513,7 @@ class FaithfulWorld(SensorSignals, FilmHeater):
         T_h = float(np.sum(cfg.heater_w * st.T))
         R = self.resistance_ohm(T_h)
         self._steps.append((t_a, t_b, ph, e_nom, R))
-        power = e_nom / dt / R if e_nom else 0.0
+        power = self._film_power(e_nom / dt, R) if e_nom else 0.0
         if st.k == 0 and (st.t > 0 or cfg.has_object) and abs(dt - self.dt) <= 1e-12 * self.dt:
             # First step of a phase: the field jumps at the new interface (contact) or at the
             # newly exposed face (lift); march it with L-stable, monotone backward-Euler

@@ -24,13 +24,11 @@ elimination of a banded matrix whose bandwidth is the block size, the fill
 inside the band kept as dense Schur-complement inverses.  Per step that is
 two dense block mat-vecs per block row -- NumPy only.
 
-Outputs per step (:class:`Record`): the thermocouple (on the axis at the
-bottom face of the sensing layer), the flux sensor (axial flux averaged over
-its depth range and its equal-area disk) and the flux into the object's face
-over the same disk.  Everything is linear in the initial temperatures, the
-ambient temperatures and the source amplitude, so a heater run is the free
-(initial-condition) response plus the unit-step response superposed over the
-power changes (:meth:`Solver.superpose`), exactly as a direct run.
+Outputs per step (:class:`Record`, :class:`Probes`): thermocouple, flux
+sensor and the flux into the object's face.  Everything is linear in the
+initial and ambient temperatures and the source amplitude, so a heater run is
+the free response plus the unit-step response superposed over the power
+changes (:meth:`Solver.superpose`), exactly as a direct run.
 """
 
 from __future__ import annotations
@@ -43,6 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from firmware_sim.rz.footprint import depth_weights, off_axis_weights
 from firmware_sim.rz.grid import Grid
 
 __all__ = ["BlockTridiagonal", "clear_factor_cache", "Probes", "Record", "Solver", "steady_state", "axis_value", "SCHEMES"]
@@ -311,11 +310,12 @@ class Probes:
     the pair on the ambient forcing (non-empty only where an output uses an
     outer surface's flux, i.e. no object under the probe).
 
-    ``T_tc``: thermocouple on the axis at the bottom of the sensing layer
-    (probe side of any contact resistance), ``q_sensor``: flux sensor,
-    ``q_face``: flux into the object's face (or out of the sensing layer's
-    bottom surface when there is no object), both over the sensor disk,
-    positive downwards (probe to object).
+    ``T_tc``: thermocouple at the bottom of the sensing layer (probe side of any
+    contact resistance; on the axis, or at ``meta`` ``thermocouple_r_m`` and
+    ``thermocouple_height_m`` above it), ``q_sensor``: flux sensor, ``q_face``:
+    flux into the object's face (or out of the sensing layer's bottom surface
+    without an object), both over the sensor's footprint (its disk, or ``meta``
+    ``sensor_ring_weights``), positive downwards (probe to object).
     """
 
     idx: tuple[np.ndarray, ...]
@@ -374,26 +374,37 @@ def _probes(grid: Grid) -> Probes:
     # Thermocouple: probe-side face temperature T_c - q dz/(2k) in the first two columns,
     # then the even extrapolation to the axis, T(r) = a + b r^2, through the cells' mean r^2
     # (see _axis_weights).
-    c0, c1 = _axis_weights(grid)
     tc_i, tc_w, tc_gi, tc_gw = [], [], [], []
-    for i, c in ((0, c0), (1, c1)):
+    r_tc, h_tc = float(meta.get("thermocouple_r_m", 0.0)), float(meta.get("thermocouple_height_m", 0.0))
+    lever = 0.5 * dz[j_s] - h_tc   # from the last cell's centre down to the junction
+    for i, c in (zip((0, 1), _axis_weights(grid)) if r_tc <= 0.0 else off_axis_weights(grid.r_faces_m, r_tc)):
+        if lever < 0:   # the junction lies above the last cell's centre: linear between two centres
+            j, f = depth_weights(grid.z_centres_m[rows], float(grid.z_faces_m[j_s + 1]) - h_tc)
+            tc_i += [flat(rows[j], i), flat(rows[j + 1], i)]
+            tc_w += [c * (1.0 - f), c * f]
+            continue
         fi, fw, gi, gw = bottom_flux(i)
         tc_i += [flat(j_s, i)] + fi
-        tc_w += [c] + [-c * w * 0.5 * dz[j_s] / k_s for w in fw]
         tc_gi += gi
-        tc_gw += [-c * w * 0.5 * dz[j_s] / k_s for w in gw]
+        if h_tc == 0.0:   # (the same expression as ever: nominal probes read bit for bit as before)
+            tc_w += [c] + [-c * w * 0.5 * dz[j_s] / k_s for w in fw]
+            tc_gw += [-c * w * 0.5 * dz[j_s] / k_s for w in gw]
+        else:
+            tc_w += [c] + [-c * w * lever / k_s for w in fw]
+            tc_gw += [-c * w * lever / k_s for w in gw]
 
-    # Flux sensor: trapezoid in z over the face fluxes of its depth range, area mean over its disk.
+    # Flux sensor: trapezoid in z over the face fluxes of its depth range, area mean over its footprint:
+    # the real one's share of each ring (firmware_sim.rz.footprint) when the grid carries it, else its disk.
     n_s = grid.r_index_below(meta["sensor_radius_m"])
-    A_s = math.pi * grid.r_faces_m[n_s] ** 2
+    rw = meta.get("sensor_ring_weights")
+    ring_w = area[:n_s] / (math.pi * grid.r_faces_m[n_s] ** 2) if rw is None else np.asarray(rw)[:n_s] / np.sum(rw)
     z0, z1 = meta["sensor_z_m"]
     f0, f1 = grid.z_index_of(z0), grid.z_index_of(z1)
     qs_i, qs_w = [], []
     qs_gi, qs_gw = [], []
     for f in range(f0, f1 + 1):  # faces f between rows f-1 and f
         wz = (0.5 * (dz[f - 1] if f > f0 else 0.0) + 0.5 * (dz[f] if f < f1 else 0.0)) / (z1 - z0)
-        for i in range(n_s):
-            wa = area[i] / A_s
+        for i, wa in enumerate(ring_w):
             if f == nz:  # no object: the sensor's bottom is the probe's outer surface
                 fi, fw, gi, gw = bottom_flux(i)
                 qs_i += fi
@@ -406,21 +417,17 @@ def _probes(grid: Grid) -> Probes:
             qs_w += [wz * wa * g, -wz * wa * g]
 
     qf_i, qf_w, qf_gi, qf_gw = [], [], [], []
-    for i in range(n_s):
-        wa = area[i] / A_s
+    for i, wa in enumerate(ring_w):
         fi, fw, gi, gw = bottom_flux(i)
         qf_i += fi
         qf_w += [wa * w for w in fw]
         qf_gi += gi
         qf_gw += [wa * w for w in gw]
 
-    def arr(x, dtype=float):
-        return np.asarray(x, dtype=dtype)
-
     idx, w = [], []
     for a, b, c, d in ((tc_i, tc_w, tc_gi, tc_gw), (qs_i, qs_w, qs_gi, qs_gw), (qf_i, qf_w, qf_gi, qf_gw)):
-        idx += [arr(a, int), arr(c, int)]
-        w += [arr(b), arr(d)]
+        idx += [np.asarray(a, dtype=int), np.asarray(c, dtype=int)]
+        w += [np.asarray(b, dtype=float), np.asarray(d, dtype=float)]
     return Probes(idx=tuple(idx), w=tuple(w))
 
 

@@ -158,8 +158,13 @@ class AsBuiltSpec:
     """How the simulated probe was really built (``[as_built]``); the device is never told.
 
     Factors multiply the nominal values (the stack's sensing layer, the
-    ``[sensors]`` flux sensitivity, the ``[heater]`` resistance); the lag and
-    the TCR are absolute. Used by the faithful world only.
+    ``[sensors]`` flux sensitivity, the ``[heater]`` resistance, the probe's
+    substrate); the lag, the TCR, lead resistance and positions are absolute.
+    ``sensor_square`` makes the world read the thermopile's real square (with
+    its offset) where the probe's default is the disk (the paper probe).
+    ``draw_seed`` draws every deviation from the tolerances of
+    :mod:`firmware_sim.asbuilt` instead (then no other key may be given).
+    Used by the faithful world only.
     """
 
     sensing_thickness_factor: float = 1.0
@@ -169,6 +174,16 @@ class AsBuiltSpec:
     thermocouple_time_constant_s: float | None = None   # None: the [sensors] value
     heater_tcr_per_K: float = 0.0
     heater_reference_C: float = 25.0
+    heater_lead_resistance_ohm: float = 0.0
+    substrate_k_factor: float = 1.0
+    substrate_rho_c_factor: float = 1.0
+    substrate_thickness_factor: float = 1.0
+    sensor_square: bool = False
+    sensor_offset_x_m: float = 0.0
+    sensor_offset_y_m: float = 0.0
+    thermocouple_r_m: float = 0.0
+    thermocouple_height_m: float = 0.0
+    draw_seed: int | None = None
 
 
 @dataclass(frozen=True)

@@ -148,6 +148,14 @@ def _as_built(data: Any, board: BoardSpec) -> AsBuiltSpec:
     if board.world != "faithful":
         # The ideal world is the nominal probe by construction: a deviation it would ignore is an error.
         raise SchemaError("as_built", 'needs board.world = "faithful" (the ideal world is the nominal probe)')
+    if a.get("draw_seed") is not None and len(data) > 1:
+        others = sorted(k for k in data if k != "draw_seed")
+        raise SchemaError("as_built", f"draw_seed draws every deviation: it cannot be combined with "
+                                      f"{', '.join(others)}")
+    offset = a.get("sensor_offset_x_m") or a.get("sensor_offset_y_m")
+    if offset and not a.get("sensor_square") and board.probe == "paper":
+        raise SchemaError("as_built", "sensor_offset_x_m / sensor_offset_y_m need sensor_square = true on the "
+                                      "paper probe")
     return AsBuiltSpec(**a)
 
 

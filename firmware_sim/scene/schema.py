@@ -64,6 +64,18 @@ nominal values)::
     thermocouple_time_constant_s?  float  >= 0, true bead lag (default: the [sensors] value)
     heater_tcr_per_K?              float  film temperature coefficient of resistance (default 0)
     heater_reference_C?            float  temperature of the stated resistance (default 25)
+    heater_lead_resistance_ohm?    float  >= 0, leads in series with the film (default 0)
+    substrate_k_factor?, substrate_rho_c_factor?, substrate_thickness_factor?
+                                   float  backing foam as built / the probe's (default 1)
+    sensor_square?                 bool   read the thermopile's real square (the small-heater
+                                          probe always does; default: the probe's footprint)
+    sensor_offset_x_m?, sensor_offset_y_m?
+                                   float  the square's centre off the heater's axis (default 0;
+                                          needs the square)
+    thermocouple_r_m?              float  >= 0, thermocouple's distance from the axis (default 0)
+    thermocouple_height_m?         float  >= 0, junction above the sensing layer's bottom face (default 0)
+    draw_seed?                     int    >= 0: draw every deviation per probe from
+                                          firmware_sim.asbuilt's tolerances (alone in the table)
 
 Factors lie in [0.5, 2].
 
@@ -218,6 +230,17 @@ AS_BUILT_FIELDS: Mapping[str, Field] = {
                               lo=-0.01, hi=0.01),
     "heater_reference_C": Field("float", _NOMINAL.heater_reference_C, "temperature of the stated resistance",
                                 **_TEMPERATURE),
+    "heater_lead_resistance_ohm": Field("float", 0.0, "leads in series with the film", lo=0.0, hi=100.0),
+    "substrate_k_factor": Field("float", 1.0, "backing foam conductivity / the probe's", **_FACTOR),
+    "substrate_rho_c_factor": Field("float", 1.0, "backing foam volumetric heat capacity / the probe's", **_FACTOR),
+    "substrate_thickness_factor": Field("float", 1.0, "backing foam thickness / the probe's", **_FACTOR),
+    "sensor_square": Field("bool", False, "read the thermopile's real square (default: the probe's footprint)"),
+    "sensor_offset_x_m": Field("float", 0.0, "square's centre off the heater's axis along x", lo=-0.005, hi=0.005),
+    "sensor_offset_y_m": Field("float", 0.0, "square's centre off the heater's axis along y", lo=-0.005, hi=0.005),
+    "thermocouple_r_m": Field("float", 0.0, "thermocouple's distance from the axis", lo=0.0, hi=0.005),
+    "thermocouple_height_m": Field("float", 0.0, "junction's height above the sensing layer's bottom face",
+                                   lo=0.0, hi=0.001),
+    "draw_seed": Field("int", None, "draw every deviation from firmware_sim.asbuilt's tolerances", lo=0),
 }
 
 _DEFAULT_SENSORS = SensorSpec()

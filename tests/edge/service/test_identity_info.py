@@ -28,6 +28,10 @@ def test_info_carries_the_identity_made_at_first_start_and_kept(tmp_path):
         validate_reply(Command.INFO, info)
         first = info["device_id"]
         assert DEVICE_ID_RE.match(first)
+        sim.advance_to(0.6)
+        mid = d.measure(contact_time_s=1.0)["measurement_id"]
+        header = d.history.get(mid, series=True)["touch_header"]  # every record, and so its export, names the instrument
+        assert header["device_id"] == first and header["firmware_version"] == info["firmware_version"]
     finally:
         d.close()
     sim, cfg, d = _daemon(tmp_path)  # restart on the same storage

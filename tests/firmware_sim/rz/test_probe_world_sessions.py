@@ -139,7 +139,9 @@ def test_small_heater_edge_reaches_the_axis_of_a_metal_but_not_of_glass():
     # only where the diffusion length sqrt(alpha t) approaches it: ~1 mm in glass after 2 s (the
     # axis cannot tell the heaters apart), ~10 mm in aluminium (the rise falls far behind: the
     # length scale that makes k and alpha identifiable). The 10 x 10 mm thermopile overhangs the
-    # disk: it reads the heated fraction of its area, pi (5 mm)^2 / (10 mm)^2.
+    # disk: it reads the heated fraction of its area, pi (5 mm)^2 / (10 mm)^2 -- to 1.2 % on glass
+    # through its real square, whose corners lie farther out than the equal-area disk's rim and
+    # catch less of the heat the sensing layer spreads past the heater's edge.
     probe = PROBES["small-heater"]
     frac = probe.heater_area_m2 / probe.sensor_area_m2
     t = np.array([0.7, 1.0, 1.5, 2.0])   # heating from 0.5 s
@@ -156,7 +158,8 @@ def test_small_heater_edge_reaches_the_axis_of_a_metal_but_not_of_glass():
     T_glass, q_glass = ratios["glass_15V"]
     T_alu, q_alu = ratios["alu_20V"]
     np.testing.assert_allclose(T_glass, 1.0, atol=1e-3)
-    np.testing.assert_allclose(q_glass, frac, rtol=0.01)
+    np.testing.assert_allclose(q_glass, frac, rtol=0.015)
+    assert np.all(np.diff(q_glass) < 0)   # the spread past the edge grows with time: less of it reaches the corners
     assert np.all(np.diff(T_alu) < 0) and T_alu[-1] < 0.7, T_alu
     np.testing.assert_allclose(q_alu, frac, rtol=0.02)
 
