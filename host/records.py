@@ -163,8 +163,9 @@ CHECKS = {
     "flux-sign": "the flux into the object is negative while heating",
     "constant-temperature": "the temperature does not change",
 }
-#: Longest plausible touch record, s: the device heats < heater.max_on_time_s (10 s by default, 60 s at most in
-#: the protocol) after a baseline and arming of seconds; t_s spanning more, in steps of >= 1, is milliseconds.
+#: Longest plausible record without a stated sample rate (an older CSV), s: the device heats
+#: < heater.max_on_time_s (10 s by default, 60 s at most in the protocol) after a baseline of seconds; t_s
+#: spanning more, in steps of >= 1, is milliseconds. (An export states its rate, which is checked instead.)
 MAX_RECORD_SPAN_s = 60.0
 #: Below this an absolute temperature in K is not a room's or an object's (-73 degC): it is degC; above it, a
 #: degC reading is not a touch (a contact probe's thermocouple tops out well below 200 degC): it is K.
@@ -207,10 +208,12 @@ def check_record(record, t_column: str = "T_C", *, accept=(), source: str = "") 
             raise RecordError(f"{where}{what} (if it is intended, give --accept {check})")
 
     t, q = record.t_s, record.q_W_m2
+    exported = "measurement_id" in record.meta or record.meta.get("header") != "none (older CSV)"
     steps = np.diff(t)
     step = float(np.median(steps)) if steps.size else 0.0
     span = float(t[-1] - t[0])
-    if span > MAX_RECORD_SPAN_s and step >= 1.0:
+    # An export states its sample rate (checked next); an armed export at 1 Hz may span 120 s of arming.
+    if not exported and span > MAX_RECORD_SPAN_s and step >= 1.0:
         refuse("time-units", f"t_s spans {span:g} s in steps of {step:g} s: it looks like milliseconds "
                              "(divide by 1000)")
     rate = record.sample_rate_Hz
@@ -230,7 +233,7 @@ def check_record(record, t_column: str = "T_C", *, accept=(), source: str = "") 
     if np.ptp(record.T_C[heating]) == 0.0:
         refuse("constant-temperature", f"the temperature is {record.T_C[heating][0]:g} throughout the heating: nothing was measured "
                                        "(the thermocouple column?)")
-    if "measurement_id" in record.meta or record.meta.get("header") != "none (older CSV)":
+    if exported:
         # A device's export: the device converted its own sensor to W/m^2, and a weak or odd flux is its
         # measurement (a touch in air, flagged no_contact), which estimate must reproduce, not refuse.
         return

@@ -72,6 +72,19 @@ def test_header_sample_rate_disagrees(capsys, tmp_path, glass):
     refused(capsys, p, "sample_rate_Hz 1000", "time-units")
 
 
+def test_a_long_armed_export_at_its_stated_rate_is_not_milliseconds(capsys, tmp_path):
+    """An export states its rate: 1 Hz over 90 s of arming and heating is what the device said, not ms."""
+    t = np.arange(-80.0, 11.0)
+    T_C = np.where(t > 0, 20.0 + 0.3 * np.sqrt(np.clip(t, 0, None)), 20.0)
+    q = np.where(t > 0, 700.0, 0.0)
+    rec = TouchRecord(probe="paper", t_s=t, T_C=T_C, q_W_m2=q, power_W=5.0, heater_on_s=10.0, sample_rate_Hz=1.0,
+                      baseline_s=80.0, arm_s=80.0, meta={"measurement_id": 9})
+    p = tmp_path / "armed.csv"
+    write_touch(p, rec)
+    code, out, err = estimate(capsys, "--csv", p)
+    assert code in (0, 1) and "milliseconds" not in err and "--accept" not in err, err
+
+
 def test_celsius_in_a_kelvin_column(capsys, tmp_path, glass):
     t, T, q = glass
     refused(capsys, write(tmp_path / "c.csv", "t_s,T_K,q_W_m2", t, T - 273.15, q), "looks like degC",
