@@ -29,7 +29,7 @@ from firmware_sim.scene.files import PRECISION_BOARD, scene_variant
 from host.atomic import write_text_atomic
 from host.device import DeviceUnavailable, open_device
 
-__all__ = ["PAPER_SCENES", "TABLE2", "run_demo", "measure_scenes", "format_table"]
+__all__ = ["PAPER_SCENES", "TABLE2", "run_demo", "measure_scenes", "format_table", "build_then_move"]
 
 PAPER_SCENES = ("glass_12V", "glass_15V", "glass_18V", "pmma_8V", "pmma_15V", "pmma_20V",
                 "alu_15V", "alu_20V", "alu_25V")
@@ -186,25 +186,33 @@ def run_demo(out: str | Path = "thermotouch-demo", *, train: bool = False, scene
         raise NotADirectoryError(f"{out} exists and is not a directory")
     if out.exists() and not overwrite:
         raise FileExistsError(f"{out} exists (use --overwrite to replace it)")
+    return build_then_move(out, lambda work: _demo_into(work, out, train=train, scenes=scenes, progress=progress,
+                                                        overwrite=overwrite, log=log, t0=t0))
+
+
+def build_then_move(out: Path, build: Callable[[Path], Any]) -> Any:
+    """``build(work)`` in a hidden sibling of ``out``, then its entries moved into ``out``; its return value.
+
+    A run that fails (a full disk, a device that stops) leaves nothing behind that would block the rerun:
+    the sibling is removed and the failure raised as :class:`host.device.DeviceUnavailable` with exit
+    status 1 -- inside the demo every input is its own (shipped scenes, its own variants), so even a file
+    the device calls invalid is a runtime failure, not the user's input.
+    """
+    out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    # Everything is written into a hidden sibling and moved into ``out`` at the end: a run that fails
-    # (a full disk, a device that stops) leaves nothing behind that would block the rerun.
     work = Path(tempfile.mkdtemp(prefix=".thermotouch-demo-partial-", dir=out.parent))
     try:
-        status = _demo_into(work, out, train=train, scenes=scenes, progress=progress, overwrite=overwrite, log=log,
-                            t0=t0)
+        result = build(work)
         _move_into(work, out)
     except (OSError, DeviceUnavailable) as exc:
         shutil.rmtree(work, ignore_errors=True)
-        # Inside the demo every input is its own (shipped scenes, its own variants): a failure here is a
-        # runtime failure (exit 1), even when the device calls the file it could not read invalid.
         why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
         where = f"{exc.filename}: " if isinstance(exc, OSError) and exc.filename else ""
         raise DeviceUnavailable(f"demo failed, nothing written to {out}: {where}{why}", 1) from None
     except BaseException:
         shutil.rmtree(work, ignore_errors=True)
         raise
-    return status
+    return result
 
 
 def _move_into(work: Path, out: Path) -> None:

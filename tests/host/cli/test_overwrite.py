@@ -114,3 +114,18 @@ def test_demo_failure_exits_1_and_leaves_nothing(capsys, tmp_path, monkeypatch, 
     line = one_line(err)
     assert code == 1 and line.startswith("thermotouch demo: ") and "nothing written to run" in line, line
     assert sorted(p.name for p in tmp_path.iterdir()) == []  # no partial folder to block the rerun
+
+
+def test_real_probe_demo_failure_exits_1_and_leaves_nothing(capsys, tmp_path, monkeypatch):
+    import host.realprobe
+
+    def full_disk(out, say=print):
+        (out / "probe").mkdir()
+        raise OSError(errno.ENOSPC, "No space left on device", str(out / "probe" / "history.sqlite"))
+
+    monkeypatch.setattr(host.realprobe, "run_real_probe", full_disk)
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run(capsys, "demo", "--real-probe", "--out", "real")
+    line = one_line(err)
+    assert code == 1 and "nothing written to real" in line and "No space left" in line, line
+    assert list(tmp_path.iterdir()) == []
