@@ -18,7 +18,9 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+import os
 import shutil
+import tempfile
 import time
 from pathlib import Path
 from typing import Any, Callable
@@ -27,7 +29,7 @@ from firmware_sim.scene.files import PRECISION_BOARD, scene_variant
 from host.atomic import write_text_atomic
 from host.device import DeviceUnavailable, open_device
 
-__all__ = ["PAPER_SCENES", "TABLE2", "run_demo", "measure_scenes", "format_table"]
+__all__ = ["PAPER_SCENES", "TABLE2", "run_demo", "measure_scenes", "format_table", "build_then_move"]
 
 PAPER_SCENES = ("glass_12V", "glass_15V", "glass_18V", "pmma_8V", "pmma_15V", "pmma_20V",
                 "alu_15V", "alu_20V", "alu_25V")
@@ -175,27 +177,75 @@ def run_demo(out: str | Path = "thermotouch-demo", *, train: bool = False, scene
         ``out`` exists and ``overwrite`` is false.
     NotADirectoryError
         ``out`` exists and is not a directory.
+    host.device.DeviceUnavailable
+        The run failed (exit status 1); nothing was written to ``out``.
     """
+    t0 = time.perf_counter()
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise NotADirectoryError(f"{out} exists and is not a directory")
+    if out.exists() and not overwrite:
+        raise FileExistsError(f"{out} exists (use --overwrite to replace it)")
+    return build_then_move(out, lambda work: _demo_into(work, out, train=train, scenes=scenes, progress=progress,
+                                                        overwrite=overwrite, log=log, t0=t0))
+
+
+def build_then_move(out: Path, build: Callable[[Path], Any]) -> Any:
+    """``build(work)`` in a hidden sibling of ``out``, then its entries moved into ``out``; its return value.
+
+    A run that fails (a full disk, a device that stops) leaves nothing behind that would block the rerun:
+    the sibling is removed and the failure raised as :class:`host.device.DeviceUnavailable` with exit
+    status 1 -- inside the demo every input is its own (shipped scenes, its own variants), so even a file
+    the device calls invalid is a runtime failure, not the user's input.
+    """
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix=".thermotouch-demo-partial-", dir=out.parent))
+    try:
+        result = build(work)
+        _move_into(work, out)
+    except (OSError, DeviceUnavailable) as exc:
+        shutil.rmtree(work, ignore_errors=True)
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        where = f"{exc.filename}: " if isinstance(exc, OSError) and exc.filename else ""
+        raise DeviceUnavailable(f"demo failed, nothing written to {out}: {where}{why}", 1) from None
+    except BaseException:
+        shutil.rmtree(work, ignore_errors=True)
+        raise
+    return result
+
+
+def _move_into(work: Path, out: Path) -> None:
+    """Move the finished run from ``work`` to ``out``: a rename, or (``out`` exists: --overwrite) each of the
+    demo's own entries replaced, the user's other files in ``out`` kept."""
+    if not out.exists():
+        os.replace(work, out)
+        return
+    for child in work.iterdir():
+        dest = out / child.name
+        if dest.is_dir() and not dest.is_symlink():
+            shutil.rmtree(dest)
+        elif os.path.lexists(dest):
+            dest.unlink()
+        os.replace(child, dest)
+    work.rmdir()
+
+
+def _demo_into(out: Path, final: Path, *, train: bool, scenes, progress: bool, overwrite: bool,
+               log: Callable[[str], None], t0: float) -> int:
+    """The demo's run, written into ``out`` (the temporary sibling); messages name ``final``."""
     from host.deploy import DeployRefused, train_and_deploy  # noqa: PLC0415
     from host.flash import flash_bundle  # noqa: PLC0415
     from host.plots import PlotProcess  # noqa: PLC0415
     from host.progress import ProgressBar  # noqa: PLC0415
 
-    t0 = time.perf_counter()
-    out = Path(out)
     workdir = out / "device"
-    if out.exists() and not out.is_dir():
-        raise NotADirectoryError(f"{out} exists and is not a directory")
-    if out.exists() and not overwrite:
-        raise FileExistsError(f"{out} exists (use --overwrite to replace it)")
-    shutil.rmtree(workdir, ignore_errors=True)  # a fresh probe every run: reproducible numbers
-    out.mkdir(parents=True, exist_ok=True)
     from thermotouch_models import DEFAULT_BUNDLE  # noqa: PLC0415
 
     # The plots are drawn in a child process from the start (it imports Matplotlib while the
     # model is flashed) to the end, on the other core, while the probe is touched.
     with PlotProcess() as plotter:
-        log(f"ThermoTouch demo: simulated probe (storage {workdir}), virtual serial link")
+        log(f"ThermoTouch demo: simulated probe (storage {final / 'device'}), virtual serial link")
         with open_device(sim=scenes[0], workdir=workdir) as s:
             log(f"probe on {s.port}: board {s.client.info()['board']}")
             sha = None
@@ -236,6 +286,6 @@ def run_demo(out: str | Path = "thermotouch-demo", *, train: bool = False, scene
     heater_ok = all(r["heater"]["ok"] for r in rows)
     log("")
     log(f"heater invariant held on every touch: {'yes' if heater_ok else 'NO'}; "
-        f"plots in {out / 'plots'}/, numbers in {out / 'results.json'}; {time.perf_counter() - t0:.1f} s")
-    log(f"the probe's history: thermotouch history --sim glass_15V --workdir {workdir}")
+        f"plots in {final / 'plots'}/, numbers in {final / 'results.json'}; {time.perf_counter() - t0:.1f} s")
+    log(f"the probe's history: thermotouch history --sim glass_15V --workdir {final / 'device'}")
     return 0 if heater_ok else 1

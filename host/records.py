@@ -102,6 +102,7 @@ def read_series(path: str | Path) -> dict[str, np.ndarray | str]:
         raise RecordError(f"{path}: empty file")
     header_line, header = rows[0]
     cols = [c.strip() for c in next(csv.reader([header]))]
+    _check_columns(path, header_line, cols)
     if "t_s" not in cols or "q_W_m2" not in cols or not (set(T_COLUMNS) & set(cols)):
         raise RecordError(f"{path}, line {header_line}: header must have t_s, q_W_m2 and T_C, T_K or dT_K, "
                           f"got {cols}")
@@ -135,6 +136,120 @@ def read_series(path: str | Path) -> dict[str, np.ndarray | str]:
         if extra in data:
             out[extra] = np.array(data[extra])
     return out
+
+
+def _check_columns(path: Path, line: int, cols: list[str]) -> None:
+    """Refuse a header whose columns are ambiguous: a name twice, or two temperature columns.
+
+    Which one is meant cannot be guessed (the first used silently was wrong half of the time), so
+    the user keeps one; no ``--accept`` overrides this.
+    """
+    seen: set[str] = set()
+    for c in cols:
+        if c and c in seen:
+            raise RecordError(f"{path}, line {line}: column '{c}' appears twice (keep the one you mean)")
+        seen.add(c)
+    temps = [c for c in cols if c in T_COLUMNS]
+    if len(temps) > 1:
+        raise RecordError(f"{path}, line {line}: columns {' and '.join(temps)} together: the temperature is "
+                          "ambiguous (keep one of them)")
+
+
+#: Record checks ``--accept`` can waive (a record that is right although it looks wrong), and what each says.
+CHECKS = {
+    "time-units": "t_s looks like milliseconds",
+    "temperature-units": "a temperature column's unit looks wrong",
+    "flux-units": "q_W_m2 looks like the sensor's mV or V",
+    "flux-sign": "the flux into the object is negative while heating",
+    "constant-temperature": "the temperature does not change",
+}
+#: Longest plausible record without a stated sample rate (an older CSV), s: the device heats
+#: < heater.max_on_time_s (10 s by default, 60 s at most in the protocol) after a baseline of seconds; t_s
+#: spanning more, in steps of >= 1, is milliseconds. (An export states its rate, which is checked instead.)
+MAX_RECORD_SPAN_s = 60.0
+#: Below this an absolute temperature in K is not a room's or an object's (-73 degC): it is degC; above it, a
+#: degC reading is not a touch (a contact probe's thermocouple tops out well below 200 degC): it is K.
+T_UNIT_SPLIT = 200.0
+#: Smallest mean flux into the object while heating, as a fraction of the heater's areal power. Simulated 2-s
+#: touches of every library material at the paper's 1540 W/m^2 give 2.6 % (expanded polystyrene foam) to
+#: 59 % (copper); the same flux written in mV of the 0.56 uV/(W/m^2) sensor is 0.056 % of it or less, in V
+#: a thousand times less: 0.5 % is five times below the foam and ten times above copper in mV.
+MIN_FLUX_FRACTION = 0.005
+#: A sample rate stated in the header and the samples' mean rate may differ by this factor (the device's reads
+#: jitter, and the thermocouple and flux converters interleave); t_s in ms is off by 1000.
+RATE_FACTOR = 3.0
+
+
+def check_record(record, t_column: str = "T_C", *, accept=(), source: str = "") -> None:
+    """Refuse a record whose units or sign look wrong before it is estimated.
+
+    Parameters
+    ----------
+    record : edge.estimation.record.TouchRecord
+    t_column : str
+        The temperature column the file had (``T_C``, ``T_K`` or ``dT_K``): which unit to expect.
+    accept : iterable of str
+        Names in :data:`CHECKS` the user says are intended (``--accept``).
+    source : str
+        The file, named in the message.
+
+    Raises
+    ------
+    RecordError
+        One line: what looks wrong, and the ``--accept`` that says it is intended.
+    """
+    from edge.physics.geometry import PROBES  # noqa: PLC0415
+
+    accept = set(accept)
+    where = f"{source}: " if source else ""
+
+    def refuse(check: str, what: str) -> None:
+        if check not in accept:
+            raise RecordError(f"{where}{what} (if it is intended, give --accept {check})")
+
+    t, q = record.t_s, record.q_W_m2
+    exported = "measurement_id" in record.meta or record.meta.get("header") != "none (older CSV)"
+    steps = np.diff(t)
+    step = float(np.median(steps)) if steps.size else 0.0
+    span = float(t[-1] - t[0])
+    # An export states its sample rate (checked next); an armed export at 1 Hz may span 120 s of arming.
+    if not exported and span > MAX_RECORD_SPAN_s and step >= 1.0:
+        refuse("time-units", f"t_s spans {span:g} s in steps of {step:g} s: it looks like milliseconds "
+                             "(divide by 1000)")
+    rate = record.sample_rate_Hz
+    shown = (t.size - 1) / span if span > 0 else rate  # the samples' mean rate (the device's reads jitter)
+    if not 1.0 / RATE_FACTOR <= shown / rate <= RATE_FACTOR:
+        refuse("time-units", f"the header's sample_rate_Hz {rate:g} disagrees with the samples' "
+                             f"{shown:.3g} Hz (t_s in other units?)")
+    if t_column != "dT_K":
+        T_abs = np.median(record.T_C) + (_ZERO_C_K if t_column == "T_K" else 0.0)
+        if t_column == "T_K" and T_abs < T_UNIT_SPLIT:
+            refuse("temperature-units", f"column T_K reads {T_abs:.4g}: it looks like degC (name the column T_C)")
+        if t_column == "T_C" and T_abs > T_UNIT_SPLIT:
+            refuse("temperature-units", f"column T_C reads {T_abs:.4g}: it looks like kelvin (name the column T_K)")
+    heating = (t > 0) & (t <= record.heater_on_s)
+    if np.count_nonzero(heating) < 2:
+        return
+    if np.ptp(record.T_C[heating]) == 0.0:
+        refuse("constant-temperature", f"the temperature is {record.T_C[heating][0]:g} throughout the heating: nothing was measured "
+                                       "(the thermocouple column?)")
+    if exported:
+        # A device's export: the device converted its own sensor to W/m^2, and a weak or odd flux is its
+        # measurement (a touch in air, flagged no_contact), which estimate must reproduce, not refuse.
+        return
+    before = t < 0
+    q_heat = float(np.mean(q[heating]) - (np.mean(q[before]) if before.any() else 0.0))
+    geometry = PROBES.get(record.probe)
+    if geometry is None:
+        return
+    expected = record.power_W / geometry.heater_area_m2  # the heater's areal power, W/m^2
+    if q_heat < 0 and abs(q_heat) >= MIN_FLUX_FRACTION * expected:
+        refuse("flux-sign", f"the mean flux while heating is {q_heat:.4g} W/m^2, negative: the sensor's sign "
+                            "looks inverted (q_W_m2 is the flux into the object)")
+    elif abs(q_heat) < MIN_FLUX_FRACTION * expected:
+        refuse("flux-units", f"the mean flux while heating is {q_heat:.3g} W/m^2, under "
+                             f"{MIN_FLUX_FRACTION:.1%} of the heater's {expected:.4g} W/m^2: it looks like the "
+                             "sensor's mV or V, not W/m^2")
 
 
 def read_record(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -251,7 +366,7 @@ def _header(path: Path) -> dict[str, str]:
     return meta
 
 
-def read_touch(path: str | Path, probe: str | None = None):
+def read_touch(path: str | Path, probe: str | None = None, *, accept=()):
     """A record file as the :class:`~edge.estimation.record.TouchRecord` to estimate.
 
     A device's export (its header names the touch: probe, power, heater on-time, sample clock,
@@ -261,6 +376,9 @@ def read_touch(path: str | Path, probe: str | None = None):
     t_s = 0 to the last sample, the baseline is what comes before 0, the clock is the median
     sample interval and the power is ``heater_W_m2`` times the heater's area, or the head's
     nominal power when the file has no such column.
+
+    The record is then checked (:func:`check_record`): units and sign that look wrong are refused
+    unless ``accept`` names the check.
 
     Raises
     ------
@@ -292,10 +410,13 @@ def read_touch(path: str | Path, probe: str | None = None):
     try:
         if exported:
             # A device's export: every field as the device had it.
-            return TouchRecord.from_header(header, t, T_C, q, s.get("T_dt_s"), s.get("q_dt_s"))
-        return _older_record(path, name, s, T_C, {k: v for k, v in header.items() if k != "probe"})
+            record = TouchRecord.from_header(header, t, T_C, q, s.get("T_dt_s"), s.get("q_dt_s"))
+        else:
+            record = _older_record(path, name, s, T_C, {k: v for k, v in header.items() if k != "probe"})
     except BadRecord as exc:
         raise RecordError(f"{path}: {exc}") from None
+    check_record(record, s["T_column"], accept=accept, source=str(path))
+    return record
 
 
 def _older_record(path: Path, name: str, s: dict, T_C: np.ndarray, meta: dict):

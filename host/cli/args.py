@@ -35,6 +35,15 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str):  # noqa: D102
         raise CliError(message, EXIT_BAD_INPUT, prog=self.prog)
 
+    def _get_value(self, action, arg_string):
+        # A converter that touches the file system (a name too long for it, a path through a file) raises
+        # OSError: that is the argument's fault, reported like any other (exit 2, the verb's prefix).
+        try:
+            return super()._get_value(action, arg_string)
+        except OSError as exc:
+            shown = arg_string if len(arg_string) <= 60 else arg_string[:40] + "..." + arg_string[-12:]
+            raise argparse.ArgumentError(action, f"{shown}: {exc.strerror or exc}") from None
+
 
 # --- numbers ----------------------------------------------------------------------------
 
@@ -81,7 +90,15 @@ def measure_bound(name: str):
     from edge.protocol.commands import COMMANDS, Command  # noqa: PLC0415
 
     f = next(a for a in COMMANDS[Command.MEASURE].args if a.name == name)
-    return bounded_float(f.lo, f.hi, lo_open=f.lo_open), f"{'>' if f.lo_open else '>='} {f.lo:g}, <= {f.hi:g}"
+    text = f"{'>' if f.lo_open else '>='} {f.lo:g}, <= {f.hi:g}"
+    if name == "contact_time_s":
+        # The protocol's bound is not the device's: its heater refuses an on-time >= heater.max_on_time_s.
+        from edge.service.config import Config  # noqa: PLC0415
+
+        limit = Config().heater.max_on_time_s
+        text = f"{'>' if f.lo_open else '>='} {f.lo:g}; the device refuses >= its heater.max_on_time_s, {limit:g} s " \
+               "by default"
+    return bounded_float(f.lo, f.hi, lo_open=f.lo_open), text
 
 
 def _integer(text: str) -> int:

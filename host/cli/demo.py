@@ -51,9 +51,8 @@ def run(args) -> int:
 
 
 def _run_real_probe(args) -> int:
-    import shutil  # noqa: PLC0415
-
     from host.cli.errors import CliError  # noqa: PLC0415
+    from host.demo import build_then_move  # noqa: PLC0415
     from host.realprobe import run_real_probe  # noqa: PLC0415
 
     if args.train:
@@ -61,8 +60,7 @@ def _run_real_probe(args) -> int:
     out = args.out
     if out.exists() and not args.overwrite:
         raise CliError(f"--out {out} exists (use --overwrite to replace it)")
-    # Our own subdirectories only: a fresh probe every run (reproducible numbers), nothing else touched.
-    for sub in ("scenes", "probe"):
-        shutil.rmtree(out / sub, ignore_errors=True)
-    run_real_probe(out, say=say)
+    # A fresh probe every run (reproducible numbers) in a hidden sibling; only our own entries of an
+    # existing --out are replaced when it is done, and a failed run leaves nothing.
+    build_then_move(out, lambda work: run_real_probe(work, say=say))
     return 0

@@ -11,6 +11,7 @@ must respect); 32 mm is the paper's heater (equal-area disk of 55 x 60 mm).
 
 from __future__ import annotations
 
+import argparse
 import math
 
 from host.cli.args import bounded_float, positive_float
@@ -30,8 +31,12 @@ MIN_SAMPLES = 5
 def add_parser(sub, parents):
     p = sub.add_parser("design", help="attainable u(e), u(k), u(alpha) of one touch (Fisher information)",
                        parents=parents)
-    p.add_argument("--heater-radius", type=bounded_float(0.5, 100.0), default=None, metavar="MM",
+    radius = bounded_float(0.5, 100.0)
+    p.add_argument("--heater-radius-mm", type=radius, dest="heater_radius", default=None, metavar="MM",
                    help="heater disk radius, mm (0.5 to 100; 32 = the paper's heater)")
+    # The old spelling (the unit was not in the name): kept for one release, not shown.
+    p.add_argument("--heater-radius", type=radius, dest="heater_radius", default=argparse.SUPPRESS,
+                   help=argparse.SUPPRESS)
     p.add_argument("--time", type=bounded_float(0.0, 30.0, lo_open=True), default=None, metavar="S",
                    help="contact time, s (at most 30)")
     p.add_argument("--material", default=None, metavar="NAME", help="library material name, e.g. pmma")
@@ -117,9 +122,9 @@ def run(args) -> int:
     one = (args.heater_radius, args.time, args.material)
     if args.table:
         if any(v is not None for v in one):
-            raise CliError("--table computes its own grid; drop --heater-radius, --time and --material")
+            raise CliError("--table computes its own grid; drop --heater-radius-mm, --time and --material")
     elif any(v is None for v in one):
-        raise CliError("give --heater-radius MM, --time S and --material NAME (or --table)")
+        raise CliError("give --heater-radius-mm MM, --time S and --material NAME (or --table)")
     if not args.table and args.time / args.dt < MIN_SAMPLES:
         raise CliError(f"--time {args.time:g} s holds fewer than {MIN_SAMPLES} samples of --dt {args.dt:g} s")
     if args.table and min(TABLE_TIMES_S) / args.dt < MIN_SAMPLES:

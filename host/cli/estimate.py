@@ -10,6 +10,7 @@ from host.cli.calibrate import calibration_file
 from host.cli.common import load_object_set, seam_context
 from host.cli.errors import EXIT_RUNTIME, CliError
 from host.cli.report import dumps, print_result
+from host.records import CHECKS
 
 
 def probe_name(text: str) -> str:
@@ -47,8 +48,18 @@ def add_parser(sub, parents):
                         "from the moment of contact (the record should start before contact) and its e is the "
                         "answer when it describes the record; small heater: its flux sensor's scale and "
                         "uncertainty. Without it results are flagged 'uncalibrated'")
+    p.add_argument("--accept", action="append", default=[], metavar="CHECK", type=_check_name,
+                   help="a record check to waive when the record is right although it looks wrong (repeatable): "
+                        + "; ".join(f"{k}: {v}" for k, v in CHECKS.items()))
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=run)
+
+
+def _check_name(text: str) -> str:
+    """A record check's name (:data:`host.records.CHECKS`)."""
+    if text not in CHECKS:
+        raise argparse.ArgumentTypeError(f"unknown check {text!r}; checks: {', '.join(CHECKS)}")
+    return text
 
 
 def _check_method(probe: str, args) -> type:
@@ -151,7 +162,7 @@ def run(args) -> int:
     else:
         objects, set_name = ObjectSet.from_library(), LIBRARY_SET
     try:
-        record = read_touch(args.csv, probe=args.probe)
+        record = read_touch(args.csv, probe=args.probe, accept=args.accept)
     except RecordError as exc:
         raise CliError(f"--csv {exc}") from None
     _check_method(record.probe, args)
@@ -181,16 +192,17 @@ def run(args) -> int:
         raise CliError(f"--csv {args.csv}: {exc}") from None
     d = answer.to_dict()
     if args.json:
-        print(dumps(d))
-    elif d.get("effusivity_W_s05_m2K") is None:
-        print(f"no estimate: {', '.join(d['flags']) or 'the record gave none'}")
-    else:
+        print(dumps(d), flush=True)
+    elif d.get("effusivity_W_s05_m2K") is not None:
         # An object the set cannot name has no posteriors to print.
         print_result(d if d.get("object_posterior") is not None else dict(d, object=None))
         chain = d.get("sensor_chain")
         if isinstance(chain, dict) and chain.get("effusivity_W_s05_m2K") is not None:
             print(_chain_line(chain))
-    return 0 if d.get("effusivity_W_s05_m2K") is not None else 1
+    if d.get("effusivity_W_s05_m2K") is None:  # no answer is not a success, as for measure
+        raise CliError(f"--csv {args.csv} gave no estimate"
+                       + (f" (flags: {', '.join(d['flags'])})" if d.get("flags") else ""), EXIT_RUNTIME)
+    return 0
 
 
 def _chain_line(c: dict) -> str:
@@ -199,8 +211,8 @@ def _chain_line(c: dict) -> str:
         v = c.get(key)
         return "n/a" if v is None else format(v, fmt)
 
-    return (f"sensor chain e {num('effusivity_W_s05_m2K', '.1f')} +- {num('effusivity_W_s05_m2K_u', '.1f')}, "
-            f"R_c {num('contact_resistance_m2K_W', '.2e')} +- {num('contact_resistance_m2K_W_u', '.1e')} m^2 K/W, "
-            f"T_obj0 {num('object_temperature0', '.3f')} +- {num('object_temperature0_u', '.3f')}, "
+    return (f"sensor chain e {num('effusivity_W_s05_m2K', '.1f')} ± {num('effusivity_W_s05_m2K_u', '.1f')}, "
+            f"R_c {num('contact_resistance_m2K_W', '.2e')} ± {num('contact_resistance_m2K_W_u', '.1e')} m^2 K/W, "
+            f"T_obj0 {num('object_temperature0', '.3f')} ± {num('object_temperature0_u', '.3f')} degC, "
             f"contact at t = {num('contact_t_s', '.3f')} s, normalised residual {num('normalised_residual', '.2f')}, "
             f"flags {', '.join(c.get('flags') or []) or '-'}")

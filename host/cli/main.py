@@ -10,6 +10,7 @@ Ctrl-C -- never a traceback (``--log-file`` or ``--verbose`` records it;
 from __future__ import annotations
 
 import argparse
+import errno
 import functools
 import logging
 import os
@@ -124,7 +125,8 @@ def _run(argv: list[str] | None) -> tuple[int, str]:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:  # --help, --version: printed by argparse
         return (exc.code if isinstance(exc.code, int) else 0), "thermotouch"
-    prog = f"thermotouch {args.command}"
+    action = getattr(args, f"{args.command}_command", None)  # objects add, keys new: the whole verb says it
+    prog = f"thermotouch {args.command}" + (f" {action}" if action else "")
     logs = _Logging(getattr(args, "verbose", False), getattr(args, "log_file", None))
     try:
         log.debug("%s %s", prog, argv if argv is not None else sys.argv[1:])
@@ -156,8 +158,11 @@ def _one_line(exc: BaseException, prog: str) -> tuple[str, int]:
     if isinstance(exc, MemoryError):
         return f"{prog}: out of memory", EXIT_RUNTIME
     if isinstance(exc, OSError):
-        where = f"{exc.filename}: " if exc.filename else ""
-        return f"{prog}: {where}{exc.strerror or exc}", EXIT_RUNTIME
+        name = str(exc.filename) if exc.filename else ""
+        where = f"{name if len(name) <= 60 else name[:40] + '...' + name[-12:]}: " if name else ""
+        # A file name the file system cannot take is the user's input, not a runtime failure.
+        code = EXIT_BAD_INPUT if exc.errno == errno.ENAMETOOLONG else EXIT_RUNTIME
+        return f"{prog}: {where}{exc.strerror or exc}", code
     return (f"{prog}: internal error: {type(exc).__name__}: {exc} "
             "(see --log-file, or set THERMOTOUCH_DEBUG=1 for the traceback)"), EXIT_RUNTIME
 

@@ -11,9 +11,9 @@ The active set names the object of every measurement (``measure`` prints it;
 
 from __future__ import annotations
 
-from host.cli.args import add_device_args, existing_file, non_negative_int, positive_int
+from host.cli.args import add_device_args, existing_file, non_negative_int, output_file, positive_int
 from host.cli.common import device_call, device_session, load_object_set, note
-from host.cli.errors import CliError
+from host.cli.errors import EXIT_BAD_INPUT, CliError
 from host.cli.report import dumps
 
 #: Typical relative standard uncertainty of e on the precision board (README), for the add-time warning.
@@ -35,6 +35,8 @@ def add_parser(sub, parents):
                         "optional spread_rel")
     a.add_argument("--name", default=None, help="store it under this name (default: the file's stem)")
     a.add_argument("--no-activate", action="store_true", help="store it without making it the active set")
+    a.add_argument("--overwrite", action="store_true",
+                   help="replace a stored set of the same name (default: refuse)")
     a.add_argument("--key", metavar="SECRET.json", type=existing_file, default=None,
                    help="sign the set with this secret key (thermotouch keys new); a probe that does not allow "
                         "unsigned updates needs it")
@@ -63,8 +65,11 @@ def add_parser(sub, parents):
                      help="probe head of the simulated touches: the paper's (e alone, exact 1-D model) or the "
                           "small-heater probe (e and alpha, on the faithful (r, z) world: about 1 s per specimen)")
     cal.add_argument("--seed", type=non_negative_int, default=0)
-    cal.add_argument("--out", "-o", default=None,
-                     help="where to write the calibrated CSV (default: FILE's stem + '_calibrated.csv')")
+    # Not add_output: writing onto the input is refused first, whatever --overwrite says.
+    cal.add_argument("--out", "-o", type=output_file((".csv",)), default=None, metavar="FILE.csv",
+                     help="where to write the calibrated CSV (default: FILE's stem + '_calibrated.csv'); never FILE "
+                          "itself, and an existing file only with --overwrite")
+    cal.add_argument("--overwrite", action="store_true", help="replace an existing calibrated CSV")
     cal.add_argument("--json", action="store_true")
     cal.set_defaults(func=run_calibrate)
     sel = verbs.add_parser("select", help="make a stored set, or 'library', the active one", parents=parents)
@@ -74,7 +79,7 @@ def add_parser(sub, parents):
 
 
 def run_add(args) -> int:
-    from host.objects import set_name_of, upload_object_set  # noqa: PLC0415
+    from host.objects import list_object_sets, set_name_of, upload_object_set  # noqa: PLC0415
     from edge.storage.objects_store import ObjectStoreError, check_name  # noqa: PLC0415
 
     from host.flash import load_signing_key  # noqa: PLC0415
@@ -92,6 +97,12 @@ def run_add(args) -> int:
                                                                  else "")
         note(f"note: effusivity alone hardly separates {shown} (within 2 u at u(e)/e = {TYPICAL_U_LN_E:.0%})")
     with device_session(args) as session:
+        if not args.overwrite:
+            # The device's OBJECTS_COMMIT replaces a set of the same name: the host asks first.
+            stored = device_call(list_object_sets, session.client)
+            if any(s.get("name") == name for s in stored.get("sets", [])):
+                raise CliError(f"object set {name!r} is already stored on the probe (use --overwrite to replace "
+                               f"it, or --name NEW)", EXIT_BAD_INPUT)
         res = device_call(upload_object_set, session.client, name, raw, activate=not args.no_activate, key=key)
     if args.json:
         print(dumps(res))
@@ -146,17 +157,24 @@ def run_select(args) -> int:
 
 def run_calibrate(args) -> int:
     """Fit temperature and z_crit on simulated touches; write the set with them as ``#@`` directives."""
+    import os  # noqa: PLC0415
     from pathlib import Path  # noqa: PLC0415
 
     from host.atomic import write_text_atomic  # noqa: PLC0415
     from edge.estimation.methods import method_class  # noqa: PLC0415
     from host.recognition import calibrate, simulate_probe_touches  # noqa: PLC0415
 
+    src = Path(args.file)
+    out = Path(args.out) if args.out else src.with_name(src.stem + "_calibrated.csv")
+    if out.resolve() == src.resolve():
+        # The input is the user's set: its calibrated copy goes beside it, never over it (not even --overwrite).
+        raise CliError(f"--out {out} is the input FILE; write the calibrated set to another file")
+    if os.path.lexists(out) and not args.overwrite:
+        raise CliError(f"{'--out ' if args.out else ''}{out} exists (use --overwrite to replace it"
+                       f"{'' if args.out else ', or give --out FILE'})")
     objects, _ = load_object_set(args.file)
     if args.touches is None:
         args.touches = CALIBRATION_TOUCHES[args.probe]
-    src = Path(args.file)
-    out = Path(args.out) if args.out else src.with_name(src.stem + "_calibrated.csv")
     try:
         # The small-heater probe also measures alpha: its set is calibrated on touches that carry it.
         sim = (None if not method_class(args.probe).measures_alpha else

@@ -34,6 +34,10 @@ def pm(v: float | None, u: float | None, unit: str, scale: float = 1.0) -> str:
     return f"{round(v / q) * q:.0f} ± {round(u / q) * q:.0f} {unit}"
 
 
+#: The one ± convention, stated once per output that prints uncertainties.
+UNCERTAINTY_NOTE = "± is one standard uncertainty (coverage factor k = 1, about 68 %)"
+
+
 def result_lines(d: dict) -> list[str]:
     """Human-readable estimate (rounded to its uncertainty)."""
     lines = [
@@ -56,6 +60,7 @@ def result_lines(d: dict) -> list[str]:
         lines.append(f"prior: {d['prior_reason']}")
     lines.append(f"method {d['method']}, model {(d.get('model_sha256') or '')[:12]}, "
                  f"flags: {', '.join(d['flags']) or 'none'}")
+    lines.append(UNCERTAINTY_NOTE)
     return lines
 
 
