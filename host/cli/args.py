@@ -190,6 +190,15 @@ def output_dir(text: str) -> Path:
     return _check_parent(text)
 
 
+def probe_name(text: str) -> str:
+    """A shipped probe head (a name in :data:`edge.physics.geometry.PROBES`)."""
+    from edge.physics.geometry import PROBES  # noqa: PLC0415
+
+    if text not in PROBES:
+        raise argparse.ArgumentTypeError(f"unknown probe {text!r}; shipped: {', '.join(PROBES)}")
+    return text
+
+
 def add_output(p: argparse.ArgumentParser, *flags: str, kind: str = "file", suffixes=None, **kw) -> None:
     """Add an output-path option; :func:`check_outputs` refuses it if it exists and ``--overwrite`` is not given."""
     action = p.add_argument(*flags, type=output_dir if kind == "dir" else output_file(suffixes), **kw)

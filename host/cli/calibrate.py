@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import argparse
 
-from host.cli.args import add_device_args, add_output, existing_file, measure_bound
+from host.cli.args import add_device_args, add_output, existing_file, measure_bound, probe_name
 from host.cli.common import device_call, device_session
 from host.cli.errors import CliError
 from host.cli.report import dumps
@@ -64,7 +64,7 @@ def add_parser(sub, parents):
     p.add_argument("--reference", action="append", default=[], metavar="NAME",
                    help="library name of the material the preceding --record touched (default set: "
                         "pmma, pyroceram, aisi_304; at least two different); with --check, the one touched")
-    p.add_argument("--probe", default="paper", help="probe head that took the records (default paper)")
+    p.add_argument("--probe", type=probe_name, default="paper", help="probe head that took the records (default paper)")
     add_output(p, "--out", suffixes=(".json",), metavar="CAL.json", default=None,
                help="calibration file to write (the fit)")
     mode = p.add_mutually_exclusive_group()
@@ -76,8 +76,10 @@ def add_parser(sub, parents):
     p.add_argument("--key", metavar="SECRET.json", type=existing_file, default=None,
                    help="sign what is installed with this secret key (thermotouch keys new)")
     conv, rng = measure_bound("contact_time_s")
-    p.add_argument("--heat", type=conv, default=None, metavar="S",
+    # One flag per concept across verbs: contact (heating) time is --time (--heat, its old name, still works).
+    p.add_argument("--time", type=conv, default=None, metavar="S", dest="heat",
                    help=f"walk-through: heating time of each reference touch ({rng}; default 8 s)")
+    p.add_argument("--heat", type=conv, dest="heat", default=argparse.SUPPRESS, help=argparse.SUPPRESS)
     conv, rng = measure_bound("arm_s")
     p.add_argument("--arm", type=conv, default=30.0, metavar="S",
                    help=f"walk-through: how long the device waits for each touch ({rng}; default 30 s)")
@@ -284,7 +286,7 @@ def _run_check(args) -> int:
     else:
         verdict = "holds" if res["holds"] else "does NOT hold: recalibrate"
         cal = res.get("calibration_sha256")
-        print(f"{name}: e {res['e_W_s05_m2K']:.0f} +- {res['u_e_W_s05_m2K']:.0f} against "
+        print(f"{name}: e {res['e_W_s05_m2K']:.0f} ± {res['u_e_W_s05_m2K']:.0f} against "
               f"{res['reference_e_W_s05_m2K']:.0f} ({res['deviation_rel']:+.1%}, z = {res['z']:+.2f}): "
               f"the calibration {'(none installed) ' if cal is None else cal[:12] + ' '}{verdict}")
     return 0 if res["holds"] else 1

@@ -5,21 +5,12 @@ from __future__ import annotations
 import argparse
 import sys
 
-from host.cli.args import existing_file, positive_float
+from host.cli.args import existing_file, positive_float, probe_name
 from host.cli.calibrate import calibration_file
 from host.cli.common import load_object_set, seam_context
 from host.cli.errors import EXIT_RUNTIME, CliError
 from host.cli.report import dumps, print_result
 from host.records import CHECKS
-
-
-def probe_name(text: str) -> str:
-    """A shipped probe head (a name in :data:`edge.physics.geometry.PROBES`)."""
-    from edge.physics.geometry import PROBES  # noqa: PLC0415
-
-    if text not in PROBES:
-        raise argparse.ArgumentTypeError(f"unknown probe {text!r}; shipped: {', '.join(PROBES)}")
-    return text
 
 
 def add_parser(sub, parents):

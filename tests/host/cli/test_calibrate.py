@@ -139,7 +139,7 @@ def test_walk_through_on_the_simulator_touches_each_reference_fits_writes_and_in
     # as its object; the device is armed, finds the contact, heats; the host fits its raw records.
     out, work = tmp_path / "cal.json", tmp_path / "probe"
     code, text, err = run(capsys, "calibrate", "--sim", "alu_20V_faithful", "--workdir", str(work), "--reference",
-                          "pmma", "--reference", "pyroceram", "--heat", "2", "--out", str(out))
+                          "pmma", "--reference", "pyroceram", "--time", "2", "--out", str(out))
     assert code == 0, err
     assert text.count("reference ") == 2 and "written to" in text and "installed" in text
     cal = json.loads(out.read_text())

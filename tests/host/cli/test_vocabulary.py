@@ -76,3 +76,12 @@ def test_estimate_states_the_coverage_once_and_never_plus_minus(capsys, glass_re
     assert code == 0, err
     assert "±" in out and "+-" not in out
     assert out.count("k = 1") == 1
+
+
+def test_calibrate_takes_time_for_the_contact_time_and_keeps_heat_as_an_alias():
+    from host.cli.main import build_parser
+
+    p = build_parser()
+    assert p.parse_args(["calibrate", "--sim", "glass_15V", "--time", "3"]).heat == 3.0
+    assert p.parse_args(["calibrate", "--sim", "glass_15V", "--heat", "4"]).heat == 4.0
+    assert "--heat" not in p._subparsers._group_actions[0].choices["calibrate"].format_help()
