@@ -12,7 +12,7 @@ import numpy as np
 from host.cli.args import add_device_args, add_output, output_file, positive_int
 from host.cli.common import device_session
 from host.cli.errors import EXIT_RUNTIME, CliError
-from host.cli.report import HISTORY_CSV_COLUMNS, dumps, history_lines, history_row
+from host.cli.report import HISTORY_CSV_COLUMNS, csv_cell, dumps, history_lines, history_row
 
 #: Records per HISTORY request.
 PAGE = 100
@@ -151,7 +151,7 @@ def run(args) -> int:
                 w = csv.DictWriter(fh, fieldnames=HISTORY_CSV_COLUMNS)
                 w.writeheader()
                 for it in items:
-                    w.writerow(history_row(it))
+                    w.writerow({k: csv_cell(v) for k, v in history_row(it).items()})
         except OSError as exc:
             raise CliError(f"cannot write {args.export}: {exc.strerror or exc}", EXIT_RUNTIME) from None
     if args.json:

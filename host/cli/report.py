@@ -10,7 +10,7 @@ import numpy as np
 
 __all__ = [
     "pm", "result_lines", "print_result", "measure_json", "model_json", "model_lines", "evaluate_lines",
-    "info_lines", "HISTORY_CSV_COLUMNS", "history_row", "history_lines", "dumps",
+    "info_lines", "HISTORY_CSV_COLUMNS", "history_row", "csv_cell", "history_lines", "dumps",
 ]
 
 
@@ -148,8 +148,19 @@ HISTORY_CSV_COLUMNS = (
     "measurement_id", "created_utc", "started_utc", "status", "reason", "power_W", "contact_time_s",
     "heater_on_s", "T0_C", "effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u",
     "alpha_m2_s", "alpha_m2_s_u", "material", "material_confidence", "object_set", "object", "object_posterior",
-    "class", "class_posterior", "method", "model_sha256", "flags",
+    "class", "class_posterior", "method", "model_sha256", "calibration_sha256", "flags",
 )
+
+# A cell a spreadsheet would run as a formula (=, +, -, @, and tab/CR that some read as the same):
+# text from outside (object names, materials) is quoted with a leading apostrophe; numbers are not text.
+_FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def csv_cell(v):
+    """A history-export cell that a spreadsheet shows as text, never runs (ISSUE #35 §10)."""
+    if isinstance(v, str) and v.startswith(_FORMULA_START):
+        return "'" + v
+    return v
 
 
 def history_row(item: dict) -> dict:
@@ -160,6 +171,7 @@ def history_row(item: dict) -> dict:
               "class", "class_posterior", "method"):
         row[k] = r.get(k)  # the object fields are None in records stored before object sets
     row["model_sha256"] = item.get("model_sha256") or r.get("model_sha256")
+    row["calibration_sha256"] = r.get("calibration_sha256")
     row["flags"] = " ".join(item.get("flags") or [])
     return row
 
