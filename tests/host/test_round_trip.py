@@ -110,12 +110,11 @@ def test_walk_through_refitted_offline_from_its_exports_is_the_installed_calibra
     workdir = tmp_path / "probe"
     cal = tmp_path / "cal.json"
     # --force: on this scene the self-check refuses the calibration (the chain's fit is flagged poor_fit
-    # on pyroceram and steel, whose answers fall back to the 1-D method: -22 %, -40 %); the round trip
-    # of what is written and installed is what this test is about.
-    code, _, err = run(capsys, "calibrate", "--sim", "glass_15V_faithful", "--workdir", workdir, "--out", cal)
-    assert code == 2 and "self-check failed" in err and not cal.exists()
+    # on pyroceram and steel, whose answers fall back to the 1-D method); the round trip of what is
+    # written and installed is what this test is about. 4-s touches instead of the default 8 s: the
+    # round trip does not depend on the heating time, and the faithful world's touches are the cost.
     code, _, err = run(capsys, "calibrate", "--sim", "glass_15V_faithful", "--workdir", workdir, "--out", cal,
-                       "--force")
+                       "--force", "--time", 4)
     assert code == 0, err
     installed = json.loads(cal.read_text())
     argv = []
@@ -126,6 +125,7 @@ def test_walk_through_refitted_offline_from_its_exports_is_the_installed_calibra
         assert code == 0, err
         argv += ["--record", f, "--reference", name]
     again = tmp_path / "again.json"
+    # (The file holds its self-check -- verdict, misses, floor -- so the equality below covers it too.)
     code, _, err = run(capsys, "calibrate", *argv, "--out", again, "--force")
     assert code == 0, err
     refit = json.loads(again.read_text())
