@@ -29,14 +29,14 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from typing import Any
 
 import numpy as np
 
 from edge.estimation.chain_estimate import DatasheetChain
-from edge.estimation.sensor_chain import SensorChainCalibration
+from edge.estimation.sensor_chain import SensorChainCalibration, chain_theta, chain_with_theta
 from edge.physics.geometry import PROBES
 from edge.schema import Field, SchemaError, check_table
 
@@ -183,16 +183,11 @@ class ProbeCalibration:
     @property
     def theta(self) -> np.ndarray:
         """(ln flux_scale, ln sensing_thickness_m, tc_tau_s, ln sensing_k_W_mK)."""
-        c = self.chain
-        return np.array([math.log(c.flux_scale), math.log(c.sensing_thickness_m), c.tc_tau_s, math.log(c.k_W_mK)])
+        return chain_theta(self.chain)
 
     def chain_at(self, theta) -> SensorChainCalibration:
         """The chain with parameters ``theta`` (a bead lag below 0 is 0: it cannot lead; rho c is kept)."""
-        th = np.asarray(theta, dtype=np.float64)
-        k = float(math.exp(th[3]))
-        rho_c = self.chain.k_W_mK / self.chain.alpha_m2_s
-        return replace(self.chain, flux_scale=float(math.exp(th[0])), sensing_thickness_m=float(math.exp(th[1])),
-                       tc_tau_s=float(max(th[2], 0.0)), k_W_mK=k, alpha_m2_s=k / rho_c)
+        return chain_with_theta(self.chain, theta)
 
     @property
     def created_time(self) -> datetime:

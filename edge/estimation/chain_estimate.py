@@ -35,14 +35,15 @@ Flags: ``uncalibrated`` (the datasheet chain), ``contact_not_recorded``,
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any, Callable
 
 import numpy as np
 
 from edge.estimation.contact import find_contact
-from edge.estimation.sensor_chain import DiskFitter, SensorChainCalibration, face_flux, fit_sensor_chain
+from edge.estimation.sensor_chain import (DiskFitter, SensorChainCalibration, chain_theta, chain_with_theta, face_flux,
+                                          fit_sensor_chain)
 from edge.physics.geometry import PROBES
 from edge.physics.probe import (FLUX_SENSITIVITY_U_REL, SENSING_K_U_REL, SENSING_THICKNESS_U_REL,
                                THERMOCOUPLE_TAU_U_s)
@@ -128,16 +129,11 @@ class DatasheetChain:
     @property
     def theta(self) -> np.ndarray:
         """(ln flux_scale, ln sensing_thickness_m, tc_tau_s, ln sensing_k_W_mK)."""
-        c = self.chain
-        return np.array([math.log(c.flux_scale), math.log(c.sensing_thickness_m), c.tc_tau_s, math.log(c.k_W_mK)])
+        return chain_theta(self.chain)
 
     def chain_at(self, theta) -> SensorChainCalibration:
         """The chain with parameters ``theta`` (as :meth:`ProbeCalibration.chain_at`)."""
-        th = np.asarray(theta, dtype=np.float64)
-        k = float(math.exp(th[3]))
-        rho_c = self.chain.k_W_mK / self.chain.alpha_m2_s
-        return replace(self.chain, flux_scale=float(math.exp(th[0])), sensing_thickness_m=float(math.exp(th[1])),
-                       tc_tau_s=float(max(th[2], 0.0)), k_W_mK=k, alpha_m2_s=k / rho_c)
+        return chain_with_theta(self.chain, theta)
 
 
 @lru_cache(maxsize=1)

@@ -48,7 +48,7 @@ from edge.physics.integrators import causal_convolution
 from edge.physics.laplace import talbot_invert
 from edge.physics.probe import DEFAULT_STACK
 
-__all__ = ["DiskFitter", "ProfilePoint", "SensorChainCalibration", "SensorChainResult", "chain_design", "face_flux",
+__all__ = ["DiskFitter", "ProfilePoint", "SensorChainCalibration", "SensorChainResult", "chain_design", "chain_theta", "chain_with_theta", "face_flux",
            "fit_sensor_chain", "simulate_chain"]
 
 
@@ -86,6 +86,24 @@ class SensorChainCalibration:
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")
         if not (self.tc_tau_s >= 0 and math.isfinite(self.tc_tau_s)):
             raise ValueError(f"tc_tau_s must be finite and >= 0, got {self.tc_tau_s!r}")
+
+
+def chain_theta(chain: "SensorChainCalibration") -> np.ndarray:
+    """The calibration's parameter vector theta = (ln flux_scale, ln sensing_thickness_m, tc_tau_s, ln sensing_k_W_mK)."""
+    c = chain
+    return np.array([math.log(c.flux_scale), math.log(c.sensing_thickness_m), c.tc_tau_s, math.log(c.k_W_mK)])
+
+
+def chain_with_theta(chain: "SensorChainCalibration", theta) -> "SensorChainCalibration":
+    """``chain`` with parameters ``theta`` (see :func:`chain_theta`): a bead lag below 0 is 0 (it cannot lead);
+    the layer's rho c is kept, so alpha follows k."""
+    from dataclasses import replace  # noqa: PLC0415 - the module imports only dataclass
+
+    th = np.asarray(theta, dtype=np.float64)
+    k = float(math.exp(th[3]))
+    rho_c = chain.k_W_mK / chain.alpha_m2_s
+    return replace(chain, flux_scale=float(math.exp(th[0])), sensing_thickness_m=float(math.exp(th[1])),
+                   tc_tau_s=float(max(th[2], 0.0)), k_W_mK=k, alpha_m2_s=k / rho_c)
 
 
 @dataclass(frozen=True)
