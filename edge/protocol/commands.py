@@ -156,7 +156,9 @@ COMMANDS: dict[Command, CommandSpec] = {spec.command: spec for spec in (
         reply=(arg("offset", "int", required=True, lo=0),
                arg("total", "int", required=True, lo=0),
                arg("items", "list", required=True)),
-        doc="Page of stored results, newest first."),
+        doc="Page of stored results, newest first, as many as fit one reply; each result is its answer's "
+            "summary (values, u, names, ids, flags: no candidates, decision or sensor-chain detail), RESULT "
+            "gives a whole record."),
     CommandSpec(
         Command.CONFIG_GET,
         args=(arg("keys", "list_str", lo=1, hi=_CONFIG_MAX_KEYS, doc="absent = all"),),

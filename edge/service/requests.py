@@ -128,6 +128,23 @@ def fit_record(record: dict, max_payload: int) -> dict:
     return record
 
 
+#: The answer's keys a HISTORY page carries for each record: what a list shows and an export writes. The
+#: rest (candidates, the running decision, the sensor chain's fit, u parts) is RESULT's: a whole answer is
+#: ~2 kB, which made a 4-kB page one record long (ISSUE #35 §8).
+HISTORY_RESULT_KEYS = ("effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u", "alpha_m2_s",
+                       "alpha_m2_s_u", "determined_by", "material", "material_confidence", "method", "probe",
+                       "object_set", "object", "object_posterior", "class", "class_posterior", "unknown_posterior",
+                       "model_sha256", "calibration_sha256", "flags")
+
+
+def history_item(record: dict) -> dict:
+    """A record as a HISTORY page lists it: its result reduced to :data:`HISTORY_RESULT_KEYS`."""
+    result = record.get("result")
+    if not isinstance(result, dict):
+        return record
+    return dict(record, result={k: result[k] for k in HISTORY_RESULT_KEYS if k in result})
+
+
 def history_page(offset: int, total: int, items: list[dict], max_payload: int) -> dict[str, Any]:
     """The HISTORY reply: as many of ``items`` (each fitted) as fit in one reply.
 
@@ -139,7 +156,7 @@ def history_page(offset: int, total: int, items: list[dict], max_payload: int) -
     budget = max_payload - REPLY_MARGIN - len(json.dumps({"offset": offset, "total": total, "items": []}))
     page: list[dict] = []
     for r in items:
-        r = fit_record(r, max_payload)
+        r = fit_record(history_item(r), max_payload)
         size = len(json.dumps(r)) + (2 if page else 0)  # ", " before every item but the first
         if size > budget:
             break
