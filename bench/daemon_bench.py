@@ -276,7 +276,9 @@ def readme_text(r: dict) -> str:
             f"while the daemon's own object count {'grew: ' + str(edge_grew) if edge_grew else 'did not grow'}; "
             f"compute from the last sample to the result,\nthe sensor chain's estimate from contact included, "
             f"median {c['median']:.1f} ms (p95 {c['p95']:.1f} ms; target {r['targets']['compute_median_ms']} ms), "
-            f"of which the chain {ch['median']:.1f} ms;\n{cc['median']:.1f} ms with the durable database commit; "
+            + (f"of which the chain {ch['median']:.1f} ms;\n" if ch else "(the chain's share is no longer timed apart: "
+               "it is one step of the one estimate path);\n")
+            + f"{cc['median']:.1f} ms with the durable database commit; "
             f"{r['n_measurements']} measurements in a row, {r['statuses'].get('ok', 0)} ok and "
             f"{r['history_total']} stored,\nfile descriptors {r['fds']['after_10']} → {r['fds']['end']}, heater on "
             f"at most {inv['longest_on_s']:.3f} s per touch against a {r['max_on_time_s']:g} s\nlimit, "
