@@ -40,3 +40,19 @@ def test_a_too_short_touch_is_a_bad_argument_and_the_device_measures_after_it(tm
         assert d._cmd_status({})["heater_fault"] is False
     finally:
         d.close()
+
+
+def test_no_cool_down_then_an_armed_touch_does_not_latch(tmp_path):
+    """ISSUE #35 §3: cooldown_s = 0 followed by an armed MEASURE latched HEATER FAULT."""
+    sim = load_scene("glass_15V")
+    cfg = config_for_scene(sim.scene, tmp_path, {"measurement": {"trigger_button": False, "cooldown_s": 0.0}})
+    d = Daemon(cfg, sim.board(), estimator=FakeEstimator())
+    sim.advance_to(0.6)
+    try:
+        assert d.measure(contact_time_s=1.0)["status"] == "ok"
+        assert d.measure(contact_time_s=1.0, arm_s=2.0, settle_s=0.2)["status"] in ("ok", "aborted")
+        st = d._cmd_status({})
+        assert st["heater_fault"] is False and st["can_measure"] is True and d.heater.disabled is None
+        assert d.measure(contact_time_s=1.0)["status"] == "ok"
+    finally:
+        d.close()
