@@ -79,6 +79,13 @@ def heat_while_off(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, limits:
 #: and the estimators need at least 4 grid points after heater-on.
 MIN_HEAT_s = 0.5
 MIN_HEAT_SAMPLES = 5
+#: How long after a heater-off the probe's own layers keep redistributing their stored heat, s: the
+#: heater, sensor and adhesive films (~0.4 mm of polymer, alpha ~1e-7 m^2/s) relax with L^2/alpha ~1.6 s,
+#: so within ~3 of those the junction can still warm with no heat source (0.6 K in 0.4 s seen right after
+#: a touch with cooldown_s = 0, with 14 W/m^2 leaving the probe). Within that time "heat while off" needs
+#: the evidence relaxation cannot give -- the flux a heater pushes (>= fault_flux_W_m2) or twice the
+#: rise -- or it latched a healthy heater (ISSUE #35 §3); later windows are judged as before.
+HEAT_RELAX_s = 5.0
 
 
 def min_contact_time_s(sample_rate_Hz: float) -> float:
