@@ -58,7 +58,7 @@ import logging
 import math
 import threading
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any, Callable, Mapping
 
@@ -69,7 +69,7 @@ from edge.estimation.seam import TooFewSamples, condition
 from edge.hw.drivers.heater import Heater, HeaterOffError
 from edge.hw.faults import SensorFault
 from edge.measure.sensors import Reading
-from edge.measure.signal import HEAT_RELAX_s, heat_while_off, no_heat_while_on
+from edge.measure.signal import heat_while_off, no_heat_while_on
 from edge.measure.watchdog import HeaterWatchdog, Limits, Trip
 from edge.status import Flag, Reason, Status
 from edge.storage.history import utc_now
@@ -329,13 +329,8 @@ class MeasurementSequence:
             self.clock.sleep(min(dt, 0.05))
 
     def _check_heat_off(self, t: list, T: list, q: list, where: str) -> None:
-        limits = self.limits
-        if t and self._last_off is not None and t[0] - self._last_off < HEAT_RELAX_s:
-            # Still relaxing from the last heating (edge.measure.signal.HEAT_RELAX_s): only a heater's own
-            # flux or twice the rise is evidence of heat.
-            if float(np.mean(q)) < limits.fault_flux_W_m2:
-                limits = replace(limits, fault_rise_K=2 * limits.fault_rise_K)
-        why = heat_while_off(np.array(t), np.array(T), np.array(q), limits)
+        since = None if not t or self._last_off is None else t[0] - self._last_off
+        why = heat_while_off(np.array(t), np.array(T), np.array(q), self.limits, since_off_s=since)
         if why is not None:
             raise _Stop(Reason.HEATER_FAULT, f"{where}: {why}")
 

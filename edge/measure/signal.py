@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -16,8 +17,8 @@ import numpy as np
 from edge.estimation.conditioning import contact_effusivity, quality_flags, resample_uniform
 from edge.physics.probe import HEATER_AREA_m2
 
-__all__ = ["MIN_HEAT_s", "MIN_HEAT_SAMPLES", "min_contact_time_s", "resample_uniform", "quality_flags", "contact_effusivity", "temperature_rise_K", "heat_while_off",
-           "no_heat_while_on", "AIR_EFFUSIVITY_W_s05_m2K"]
+__all__ = ["MIN_HEAT_s", "MIN_HEAT_SAMPLES", "HEAT_RELAX_s", "min_contact_time_s", "resample_uniform", "quality_flags",
+           "contact_effusivity", "temperature_rise_K", "heat_while_off", "no_heat_while_on", "AIR_EFFUSIVITY_W_s05_m2K"]
 
 #: Still air near 300 K: sqrt(0.0263 W/(m K) * 1.16 kg/m^3 * 1007 J/(kg K)) (Incropera 7e, Table A.4).
 AIR_EFFUSIVITY_W_s05_m2K = 5.5
@@ -36,7 +37,8 @@ def temperature_rise_K(t_s: np.ndarray, T_C: np.ndarray) -> float:
     return float(np.polyfit(x, T, 1)[0] * x[-1])
 
 
-def heat_while_off(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, limits: Any) -> str | None:
+def heat_while_off(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, limits: Any, *,
+                   since_off_s: float | None = None) -> str | None:
     """Why a window with the heater commanded off shows heat from the heater, or None.
 
     The junction warming by more than ``limits.fault_rise_K`` while no heat
@@ -55,11 +57,17 @@ def heat_while_off(t_s: np.ndarray, T_C: np.ndarray, q_W_m2: np.ndarray, limits:
         The window's times (s), thermocouple (°C) and flux (W/m^2, no offset removed).
     limits : namespace
         With ``fault_flux_W_m2`` and ``fault_rise_K`` (the ``[heater]`` section).
+    since_off_s : float, optional
+        How long before the window the heater was last switched off (None: not since start-up).
+        Within :data:`HEAT_RELAX_s` the probe is still relaxing: only a heater's own flux (at least
+        ``fault_flux_W_m2``) or twice the rise is evidence of heat.
     """
     q = np.asarray(q_W_m2, float)
     if q.size < 3:
         return None
     q_mean, rise = float(np.mean(q)), temperature_rise_K(t_s, T_C)
+    if since_off_s is not None and since_off_s < HEAT_RELAX_s and q_mean < limits.fault_flux_W_m2:
+        limits = SimpleNamespace(fault_flux_W_m2=limits.fault_flux_W_m2, fault_rise_K=2 * limits.fault_rise_K)
     # Heat flows in from the object when the mean flux is negative beyond the noise of a mean
     # (a quarter of fault_flux_W_m2: ~37 W/m^2, above the ~22 W/m^2 3-sigma bound of a baseline
     # mean). A warm PMMA object 1 K above the probe, touched before heating, draws ~100 W/m^2 into
