@@ -1,14 +1,6 @@
 """A bundle's container: its file names, the size bounds, and reading and writing its files and npz arrays.
 
-On disk a bundle is a directory holding three files and optionally a fourth::
-
-    manifest.json   schema_version, model_version, description, created_utc,
-                    training_set_sha256, metrics, files: {arrays.npz|golden.npz: {sha256, size}}
-    arrays.npz      every weight and preprocessing constant (see edge.model.schema)
-    golden.npz      golden input/output vectors the device re-runs before trusting the model
-    signature.json  optional: a detached Ed25519 signature over the manifest's bytes
-                    ({key_id, signature_hex}; edge.security.keys). Not part of the identity:
-                    the same bundle signed by another key is the same model.
+The layout on disk is :mod:`edge.model.bundle`'s (its module docstring).
 
 Loading never unpickles: every file is read with a size bound (:func:`read_regular_file`), and
 :func:`parse_npz` parses each npy header before allocating. What the arrays must hold is

@@ -18,8 +18,7 @@ import os
 import pytest
 
 from edge.calibration.model import MAX_BYTES, ProbeCalibration
-from edge.security.keys import SecretKey, signature_document
-from edge.security.policy import UpdatePolicy
+from edge.security.keys import signature_document
 from edge.service.objects import parse_object_set
 from edge.storage.calibration_store import CalibrationStore
 from edge.storage.objects_store import ObjectSetStore
@@ -36,16 +35,6 @@ class _Killed(BaseException):
 
 def sha(b: bytes) -> str:
     return hashlib.sha256(b).hexdigest()
-
-
-@pytest.fixture
-def keys(tmp_path):
-    k1, k2 = SecretKey.generate(), SecretKey.generate()
-    d = tmp_path / "trusted"
-    d.mkdir()
-    for k in (k1, k2):
-        (d / f"{k.key_id}.json").write_text(json.dumps(k.public_key().document()))
-    return k1, k2, UpdatePolicy(str(d))
 
 
 def _run_killed_at(monkeypatch, n: int | None, fn) -> int:

@@ -1,11 +1,10 @@
 """A stored set's signer is the signer of the bytes stored (ISSUE #35 §9), at every cut of an install."""
 
 import hashlib
-import json
 
 import pytest
 
-from edge.security.keys import SecretKey, signature_document
+from edge.security.keys import signature_document
 from edge.security.policy import UpdatePolicy
 from edge.service.objects import parse_object_set
 from edge.storage import durable
@@ -17,16 +16,6 @@ B = b"name,class,e_W_s05_m2K\ndesk,wood,400\n"
 
 def sha(b):
     return hashlib.sha256(b).hexdigest()
-
-
-@pytest.fixture
-def keys(tmp_path):
-    k1, k2 = SecretKey.generate(), SecretKey.generate()
-    d = tmp_path / "trusted"
-    d.mkdir()
-    for k in (k1, k2):
-        (d / f"{k.key_id}.json").write_text(json.dumps(k.public_key().document()))
-    return k1, k2, UpdatePolicy(str(d))
 
 
 def store(tmp_path, policy):
