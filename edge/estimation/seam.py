@@ -341,13 +341,13 @@ def chain_answer(est: Estimate, chain: Mapping[str, Any], estimator: Any,
                    flags=flags, details={**est.details, "default_method": {k_: old[k_] for k_ in DEFAULT_METHOD_KEYS}})
 
 
-def _recognise(est: Estimate, context: SeamContext) -> Estimate:
+def _recognise(est: Estimate, context: SeamContext, contact_time_s: float | None = None) -> Estimate:
     objs = context.object_set
     name = context.object_set_name
     if objs is None or not len(objs):
         return replace(est, **_recognition_kw(unknown_recognition(name)))
     try:
-        r = recognition_fields(objs, est.to_dict(), set_name=name)
+        r = recognition_fields(objs, est.to_dict(), set_name=name, contact_time_s=contact_time_s)
     except Exception as e:  # naming the object must never lose the measurement
         log.exception("naming the object failed")
         return replace(est, details={**est.details, "object_error": f"{type(e).__name__}: {e}"},
@@ -417,7 +417,7 @@ def estimate_touch(record: TouchRecord, context: SeamContext, *,
             # The installed calibration did not make this answer: say so (ISSUE #34, "answers that look
             # calibrated but are not"); sensor_chain.flags say why.
             est = est.with_flags(Flag.CALIBRATION_REFUSED)
-    est = _recognise(est, context)
+    est = _recognise(est, context, record.heater_on_s)   # the set's calibration at this contact time
     if decision is not None:
         est = replace(est, details={**est.details, "decision": dict(decision)})
         if decision.get("stopped_early") and decision.get("object") not in (None, est.object):

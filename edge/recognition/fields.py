@@ -16,7 +16,7 @@ LIBRARY_SET = "library"
 
 
 def recognition_fields(object_set: ObjectSet, estimate: Mapping, *, set_name: str | None = None,
-                       top: int = 3) -> dict:
+                       top: int = 3, contact_time_s: float | None = None) -> dict:
     """Which object of ``object_set`` an estimate names, as the result fields every output shares.
 
     One definition for ``thermotouch estimate --json`` and the device's
@@ -34,6 +34,9 @@ def recognition_fields(object_set: ObjectSet, estimate: Mapping, *, set_name: st
         Name reported as ``object_set`` (default: the set's label).
     top : int
         Number of candidates.
+    contact_time_s : float, optional
+        How long the touch heated, s: the set's calibration at that contact time names it
+        (:meth:`ObjectSet.at_contact`; a set without a per-contact table ignores it).
 
     Returns
     -------
@@ -47,7 +50,7 @@ def recognition_fields(object_set: ObjectSet, estimate: Mapping, *, set_name: st
     out: dict = {"object_set": object_set.label if set_name is None else set_name, "object": None,
                  "object_posterior": None, "class": None, "class_posterior": None, "unknown_posterior": None,
                  "candidates": []}
-    r = object_set.classify_estimate(estimate, top=top)
+    r = object_set.classify_estimate(estimate, top=top, contact_time_s=contact_time_s)
     if r is None:
         return out
     out.update({"object": r.object, "object_posterior": float(r.object_posterior), "class": r.cls,

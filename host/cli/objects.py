@@ -162,7 +162,7 @@ def run_calibrate(args) -> int:
 
     from host.atomic import write_text_atomic  # noqa: PLC0415
     from edge.estimation.methods import method_class  # noqa: PLC0415
-    from host.recognition import calibrate, simulate_probe_touches  # noqa: PLC0415
+    from host.recognition import calibrate_by_contact, simulate_probe_touches  # noqa: PLC0415
 
     src = Path(args.file)
     out = Path(args.out) if args.out else src.with_name(src.stem + "_calibrated.csv")
@@ -180,18 +180,22 @@ def run_calibrate(args) -> int:
         sim = (None if not method_class(args.probe).measures_alpha else
                simulate_probe_touches(objects.objects, probe=args.probe, instruments=(args.board,),
                                       touches=args.touches, seed=args.seed))
-        cal, rep = calibrate(objects, args.board, touches=args.touches, seed=args.seed, sim=sim)
+        cal, rep = calibrate_by_contact(objects, args.board, touches=args.touches, seed=args.seed, sim=sim)
     except ValueError as exc:  # e.g. every simulated touch refused (metals on the reference board)
         raise CliError(f"{args.file}: cannot calibrate on {args.board}: {exc}") from None
     write_text_atomic(out, cal.to_csv_text())
     summary = dict(file=str(out), board=args.board, probe=args.probe, touches=rep["touches"],
                    temperature=rep["temperature"],
                    z_crit=rep["z_crit"], acceptance=rep["acceptance"],
-                   ece_before=rep["reliability_before"]["ece"], ece_after=rep["reliability_after"]["ece"])
+                   ece_before=rep["reliability_before"]["ece"], ece_after=rep["reliability_after"]["ece"],
+                   by_contact_s=rep["by_contact_s"])
     if args.json:
         print(dumps(summary))
     else:
         print(f"{out}: temperature {rep['temperature']:.3g}, z_crit {rep['z_crit']:.3g} (fitted on {rep['touches']} "
               f"simulated {args.board} touches of the {args.probe} probe; posterior ECE {summary['ece_before'] * 100:.1f} % -> "
               f"{summary['ece_after'] * 100:.1f} %); upload it with: thermotouch objects add {out}")
+        for ct, r in rep["by_contact_s"].items():
+            print(f"  at {float(ct):g} s: temperature {r['temperature']:.3g}, z_crit {r['z_crit']:.3g} "
+                  f"({r['touches']} touches, ECE {r['ece_after'] * 100:.1f} %)")
     return 0
