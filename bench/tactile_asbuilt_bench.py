@@ -51,7 +51,8 @@ from _common import write_block, write_json
 import _asbuilt_touches as A
 from _objects import HELD_OUT_FAR, IN_SET
 from _recognition import bayes_ceiling, confusion_matrix, in_set_reliability
-from edge.recognition import UNKNOWN, ObjectSet, measured_alpha
+from edge.recognition import BROAD_LN, ObjectSet, measured_alpha
+from edge.recognition.fields import BROAD_FLAGS
 from host.recognition import Touches, calibrate, classify_touches
 
 CONTACTS_S = (0.5, 1.0, 2.0)
@@ -136,7 +137,9 @@ def estimate_head(head: str, recs, meta) -> dict:
                     row.update(method=d["method"], flags=list(d["flags"]),
                                chain_flags=(d.get("sensor_chain") or {}).get("flags"))
                     if e is not None and u is not None and e > 0:
-                        row.update(e=float(e), u_ln_e=float(u) / float(e))
+                        row.update(e=float(e), u_ln_e=float(u) / float(e), u_ln_e_stated=float(u) / float(e))
+                        if BROAD_FLAGS & set(d["flags"]):   # named as the device names it (recognition_fields)
+                            row["u_ln_e"] = max(row["u_ln_e"], BROAD_LN)
                         a = measured_alpha(d)
                         if a is not None:
                             row.update(alpha=a[0], u_ln_alpha=a[1], corr=a[2])
@@ -171,7 +174,7 @@ def cross_fit(oset: ObjectSet, t: Touches, j: np.ndarray):
     return recs, fits
 
 
-def evaluate(oset: ObjectSet, t: Touches, recs, out_names) -> dict:
+def evaluate(oset: ObjectSet, t: Touches, recs, out_names, u_fisher: dict) -> dict:
     truth = [t.names[i] for i in t.obj]
     cls_of = {o.name: o.recognition_class for o in oset.objects}
     a_in = [k for k, n in enumerate(truth) if n in oset and recs[k] is not None]
@@ -184,6 +187,9 @@ def evaluate(oset: ObjectSet, t: Touches, recs, out_names) -> dict:
     n_of = {k: len(v) for k, v in u_of.items()}
     u_of = {k: float(np.median(v)) for k, v in u_of.items()}
     bayes_obj, bayes_cls = bayes_ceiling(oset, u_of, n_of) if u_of else (None, None)
+    # The reference: the Bayes rate at the attainable u (Fisher bound with R_c fitted, host.objects).
+    w_all = {n: 1 for n in oset.names}
+    bayes_att, bayes_att_cls = bayes_ceiling(oset, {n: u_fisher[n] for n in oset.names}, w_all)
     err = {}
     for k in a_in:
         err.setdefault(truth[k], []).append(float(t.e[k] / t.e_true[k] - 1.0))
@@ -196,7 +202,8 @@ def evaluate(oset: ObjectSet, t: Touches, recs, out_names) -> dict:
         in_set_accepted=sum(recs[k].accepted for k in a_in) / max(1, n_in),
         out_rejected=mean([not recs[k].accepted for k in a_out]),
         out_rejected_by_object={n: mean([not recs[k].accepted for k in a_out if truth[k] == n]) for n in out_names},
-        bayes_object=bayes_obj, bayes_class=bayes_cls, attainable_u_by_object=u_of,
+        bayes_object=bayes_att, bayes_class=bayes_att_cls, bayes_object_stated_u=bayes_obj,
+        bayes_class_stated_u=bayes_cls, stated_u_by_object=u_of, attainable_u_by_object=u_fisher,
         median_err_by_object={n: float(np.median(v)) for n, v in err.items()},
         rel_object=in_set_reliability(oset, t, recs), rel_class=in_set_reliability(oset, t, recs, of_class=True),
         confusion=confusion_matrix(oset, t, recs))
@@ -235,6 +242,8 @@ def until_decided(oset, rows, names, fits_by_ct) -> dict:
 
 
 def recognise_head(head: str, est: dict, objects, out_objs) -> dict:
+    from host.objects import attainable_u_ln_e
+
     names = [o.name for o in objects]
     out_names = [o.name for o in out_objs]
     oset = ObjectSet(IN_SET, label="tactile")
@@ -245,7 +254,8 @@ def recognise_head(head: str, est: dict, objects, out_objs) -> dict:
         j = np.array([r["j"] for r in rows])
         recs, fits = cross_fit(oset, t, j)
         fits_by_ct[ct] = fits
-        res[str(ct)] = {**evaluate(oset, t, recs, out_names), "fits": fits,
+        u_fisher = attainable_u_ln_e(oset, ct, probe=head)
+        res[str(ct)] = {**evaluate(oset, t, recs, out_names, u_fisher), "fits": fits,
                         "refused": sum(not math.isfinite(r["e"]) for r in rows),
                         "methods": {m: sum(r["method"] == m for r in rows) for m in {r["method"] for r in rows}}}
     return {"by_contact_s": res}
@@ -275,13 +285,17 @@ def head_lines(head: str, h: dict) -> list[str]:
                  f"{pct(r['out_rejected'], 1)} % | {pct(r['rel_object']['ece'], 1)} % | "
                  f"{pct(r['rel_class']['ece'], 1)} % | {r['refused']} | "
                  + ", ".join(f"{x['temperature']:.2f}/{x['z_crit']:.2f}" for x in f) + " |")
-    L += ["", "Attainable u(e) (median stated by the calibrated probe) and median e error, per object:", "",
-          "| object | " + " | ".join(f"u {float(c):g} s | err {float(c):g} s" for c in R) + " |",
-          "|---|" + "---|---|" * len(R)]
+    L += ["", "Bayes rate with the u the calibrated probe states (median per object): "
+          + ", ".join(f"{float(c):g} s {pct(R[c]['bayes_object_stated_u'], 1)} % (class "
+                      f"{pct(R[c]['bayes_class_stated_u'], 1)} %)" for c in R) + ".", "",
+          "Per object: attainable u(e) (Fisher bound, R_c fitted: `host.objects.attainable_u_ln_e`), the u the "
+          "calibrated probe stated (median) and the median e error:", "",
+          "| object | " + " | ".join(f"{float(c):g} s: attainable u / stated u / error" for c in R) + " |",
+          "|---|" + "---|" * len(R)]
     for o in IN_SET:
         L.append(f"| {o.name} | " + " | ".join(
-            f"{pct(R[c]['attainable_u_by_object'].get(o.name), 1)} % | "
-            f"{pct(R[c]['median_err_by_object'].get(o.name), 1)} %" for c in R) + " |")
+            f"{pct(R[c]['attainable_u_by_object'].get(o.name), 1)} / {pct(R[c]['stated_u_by_object'].get(o.name), 1)}"
+            f" / {pct(R[c]['median_err_by_object'].get(o.name), 1)} %" for c in R) + " |")
     L += ["", "Reliability (object posterior of in-set answers; `unknown` counts wrong):", "",
           "| bin | " + " | ".join(f"{float(c):g} s n | conf | acc" for c in R) + " |", "|---|" + "---|---|---|" * len(R)]
     for b in range(len(R["1.0"]["rel_object"]["rows"])):

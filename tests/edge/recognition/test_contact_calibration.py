@@ -45,3 +45,13 @@ def test_csv_round_trip_and_refusals():
             ObjectSet.from_csv_text(bad + "\n" + base)
     with pytest.raises(ValueError):
         ObjectSet(OBJS, contact_calibration={0.0: {"temperature": 1.0}})
+
+
+def test_an_answer_the_calibration_refused_is_named_with_a_broad_u():
+    s = ObjectSet(OBJS)
+    e = OBJS[0].e_W_s05_m2K
+    est = {"effusivity_W_s05_m2K": e, "effusivity_W_s05_m2K_u": 0.01 * e, "flags": ["calibration_refused"]}
+    f, g = recognition_fields(s, est), recognition_fields(s, {**est, "flags": []})
+    assert g["object"] == "a" and g["object_posterior"] > 0.9
+    # a and b lie 0.4 in ln e apart: with u(ln e) = 1 the answer cannot choose between them.
+    assert f["object_posterior"] < 0.6 and f["candidates"]
