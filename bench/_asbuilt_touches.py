@@ -43,10 +43,25 @@ SMALL_REF_HEAT_s = 5.0
 OBJECT_THICKNESS_m = 0.1
 
 
+#: The reference board (MCP9600 thermocouple converter + ADS1115 flux ADC) as a shipped paper scene reads it.
+REFERENCE_BOARD_SCENE = "glass_15V_faithful"
+
+
 def hand_scene(head: str, solid: Solid, draw_seed: int | None, seed: int, *, rc_m2K_W: float, offset_K: float,
-               lead_s: float, heat_s: float, label: str = "specimen"):
-    """The head's base scene touching ``solid`` by hand: R_c, object - probe, contact ``lead_s`` before heating."""
+               lead_s: float, heat_s: float, label: str = "specimen", board: str = "precision"):
+    """The head's base scene touching ``solid`` by hand: R_c, object - probe, contact ``lead_s`` before heating.
+
+    ``board``: ``"precision"`` (the base scene's ADS122C04) or ``"reference"`` (paper head only:
+    :data:`REFERENCE_BOARD_SCENE`'s chips and noise).
+    """
     sc = scene_for(head, "pmma", draw_seed, seed)
+    if board == "reference":
+        if head != "paper":
+            raise ValueError("the reference board is modelled for the paper head only")
+        from firmware_sim.scene.files import read_scene  # noqa: PLC0415
+
+        ref = read_scene(REFERENCE_BOARD_SCENE)
+        sc = dataclasses.replace(sc, board=ref.board, sensors=ref.sensors)
     touch = dataclasses.replace(sc.touch, start_s=0.5, length_s=lead_s + heat_s + 0.8, contact_lead_s=lead_s,
                                 contact_resistance_m2K_W=rc_m2K_W, object_offset_K=offset_K,
                                 object_temperature_C=None)
@@ -110,7 +125,8 @@ def load_records(path: Path) -> tuple[list[TouchRecord | None], list[dict], dict
 
 
 # -- calibration of a drawn probe -------------------------------------------------------------------
-def reference_records(head: str, draw_seed: int, store, workdir: str) -> list[tuple[str, TouchRecord | None]]:
+def reference_records(head: str, draw_seed: int, store, workdir: str, board: str = "precision"
+                      ) -> list[tuple[str, TouchRecord | None]]:
     """The reference touches of one drawn probe, as ``thermotouch calibrate``'s walk-through takes them."""
     from _objects import REFERENCES  # noqa: PLC0415
     from asbuilt_bench import solid  # noqa: PLC0415
@@ -120,7 +136,7 @@ def reference_records(head: str, draw_seed: int, store, workdir: str) -> list[tu
     for j, (name, rc, off) in enumerate(REFERENCES):
         if head == "paper":
             sc = hand_scene(head, solid(name), draw_seed, 7000 + 13 * draw_seed + j, rc_m2K_W=rc, offset_K=off,
-                            lead_s=1.0, heat_s=HEAT_s, label=name)
+                            lead_s=1.0, heat_s=HEAT_s, label=name, board=board)
             out.append((name, simulate(sc, store, workdir, HEAT_s)))
         else:
             sc = hand_scene(head, solid(name), draw_seed, 7000 + 13 * draw_seed + j, rc_m2K_W=0.0, offset_K=0.0,
