@@ -20,6 +20,8 @@ from host.cli.report import dumps
 #: the touches' distances, so the fast paper-probe simulation uses enough of them for the tail; the
 #: small-heater probe's faithful-world touches take about a second each.
 CALIBRATION_TOUCHES = {"paper": 30, "small-heater": 10}
+#: Largest set ``objects add`` checks pair by pair (an attainable-u bound per object, ~0.3 s each).
+MAX_SEPARATION_OBJECTS = 200
 
 
 def add_parser(sub, parents):
@@ -116,6 +118,10 @@ def separation_warnings(objects, contact_time_s: float, probe: str = "paper") ->
     """One warning line per pair of objects the probe cannot separate at ``contact_time_s`` (attainable u)."""
     from host.objects import SEPARATION_SIGMAS, attainable_u_ln_e, inseparable_pairs  # noqa: PLC0415
 
+    if len(objects) > MAX_SEPARATION_OBJECTS:
+        # One bound per object and a pass over the pairs: a catalogue of thousands is not a robot's set.
+        return [f"warning: separability at {contact_time_s:g} s not checked for {len(objects)} objects "
+                f"(more than {MAX_SEPARATION_OBJECTS})"]
     try:
         u = attainable_u_ln_e(objects, contact_time_s, probe=probe)
     except (ValueError, ArithmeticError) as exc:   # the bound itself failed: say so, the upload goes on

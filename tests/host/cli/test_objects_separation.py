@@ -27,3 +27,10 @@ def test_one_warning_per_inseparable_pair_at_the_users_contact_time():
     assert all(w.startswith("warning: ") and "\n" not in w for w in short)
     pairs = inseparable_pairs(SET, attainable_u_ln_e(SET, 0.5))
     assert len(short) == len(pairs) and all(p["delta_ln_e"] < p["threshold_ln"] for p in pairs)
+
+
+def test_a_catalogue_is_not_checked_pair_by_pair():
+    from host.cli.objects import MAX_SEPARATION_OBJECTS
+    big = ObjectSet([P(f"o{i}", "glass", 1.0, 2500, 800, 0.05) for i in range(MAX_SEPARATION_OBJECTS + 1)])
+    (line,) = separation_warnings(big, 1.0)
+    assert "not checked" in line
