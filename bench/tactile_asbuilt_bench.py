@@ -59,6 +59,9 @@ CONTACTS_S = (0.5, 1.0, 2.0)
 HEAT_S = 2.0
 BOARD = "ads122c04"
 DEFAULT_OUT = ("ldpe_squeeze_bottle", "concrete_step", "ti_bike_frame", "cast_iron_pan")
+#: Noise (1 sigma) of T (K) and q (W/m^2) per board for the attainable u: the precision board's, and the
+#: reference board's converter steps (MCP9600 0.0625 K, ADS1115 ~14 W/m^2) as uniform rounding, step / sqrt(12).
+BOARD_NOISE = {"precision": (0.01, 0.5), "reference": (0.0625 / math.sqrt(12.0), 14.0 / math.sqrt(12.0))}
 #: Until-decided emulation: the running answer is checked at these heating times (s) ...
 DECIDE_GRID_S = (0.5, 0.75, 1.0, 1.25, 1.5, 2.0)
 #: ... and heating stops at the first where the accepted object's calibrated posterior reaches this.
@@ -158,13 +161,17 @@ def touches_of(rows, names, ct) -> Touches:
                    col("alpha"), col("u_ln_alpha"), col("corr"))
 
 
-def cross_fit(oset: ObjectSet, t: Touches, j: np.ndarray):
-    """Two-fold: the set fitted on the in-set touches of one specimen parity answers the other parity."""
+def cross_fit(oset: ObjectSet, t: Touches, j: np.ndarray, broad: np.ndarray):
+    """Two-fold: the set fitted on the in-set touches of one specimen parity answers the other parity.
+
+    Touches named with a widened u (``broad``: the calibrated path refused them, BROAD_FLAGS) are
+    answered but not fitted on: their width is fixed by the rule, not by the probe's stated u.
+    """
     recs: list = [None] * t.e.size
     fits = []
     in_set = np.array([t.names[i] in oset for i in t.obj])
     for fold in (0, 1):
-        fit_on = in_set & (j % 2 == fold) & t.ok
+        fit_on = in_set & (j % 2 == fold) & t.ok & ~broad
         cal, rep = calibrate(oset, BOARD, sim=t.select(fit_on))
         fits.append({"temperature": rep["temperature"], "z_crit": rep["z_crit"], "touches": rep["touches"],
                      "alpha_u_growth": rep["alpha_u_growth"]})
@@ -242,7 +249,7 @@ def until_decided(oset, rows, names, fits_by_ct) -> dict:
             "share_stopped_before_2s": float(np.mean(np.array(out["decided_s"]) < 2.0)), "n": len(out["correct"])}
 
 
-def recognise_head(head: str, est: dict, objects, out_objs) -> dict:
+def recognise_head(head: str, est: dict, objects, out_objs, board: str = "precision") -> dict:
     from host.objects import attainable_u_ln_e
 
     names = [o.name for o in objects]
@@ -253,11 +260,14 @@ def recognise_head(head: str, est: dict, objects, out_objs) -> dict:
         rows = [r for r in est["rows"] if r["contact_s"] == ct]
         t = touches_of(rows, names, ct)
         j = np.array([r["j"] for r in rows])
-        recs, fits = cross_fit(oset, t, j)
+        broad = np.array([r.get("u_ln_e_stated") is not None and r["u_ln_e"] != r["u_ln_e_stated"] for r in rows])
+        recs, fits = cross_fit(oset, t, j, broad)
         fits_by_ct[ct] = fits
-        u_fisher = attainable_u_ln_e(oset, ct, probe=head)
+        sT, sq = BOARD_NOISE[board]
+        u_fisher = attainable_u_ln_e(oset, ct, probe=head, sigma_T_K=sT, sigma_q_W_m2=sq)
         res[str(ct)] = {**evaluate(oset, t, recs, out_names, u_fisher), "fits": fits,
                         "refused": sum(not math.isfinite(r["e"]) for r in rows),
+                        "calibration_refused": int(broad.sum()),
                         "methods": {m: sum(r["method"] == m for r in rows) for m in {r["method"] for r in rows}}}
     return {"by_contact_s": res}
 
@@ -278,13 +288,14 @@ def head_lines(head: str, h: dict) -> list[str]:
                                         if c.get("refused") is None else f"refused ({c['refused'][:90]})")
                      for p, c in h["calibrations"].items()) + ")", "",
          "| contact | object acc | Bayes rate | class acc | class Bayes | in-set accepted | out-of-set rejected | "
-         "ECE object | ECE class | refused | T, z_crit (folds) |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+         "ECE object | ECE class | no estimate / calibrated path refused | T, z_crit (folds) |",
+         "|---|---|---|---|---|---|---|---|---|---|---|"]
     for ct, r in R.items():
         f = r["fits"]
         L.append(f"| {float(ct):g} s | {pct(r['object_accuracy'], 1)} % | {pct(r['bayes_object'], 1)} % | "
                  f"{pct(r['class_accuracy'], 1)} % | {pct(r['bayes_class'], 1)} % | {pct(r['in_set_accepted'], 1)} % | "
                  f"{pct(r['out_rejected'], 1)} % | {pct(r['rel_object']['ece'], 1)} % | "
-                 f"{pct(r['rel_class']['ece'], 1)} % | {r['refused']} | "
+                 f"{pct(r['rel_class']['ece'], 1)} % | {r['refused']} / {r.get('calibration_refused', 0)} | "
                  + ", ".join(f"{x['temperature']:.2f}/{x['z_crit']:.2f}" for x in f) + " |")
     L += ["", "Bayes rate with the u the calibrated probe states (median per object): "
           + ", ".join(f"{float(c):g} s {pct(R[c]['bayes_object_stated_u'], 1)} % (class "
@@ -339,6 +350,13 @@ def bar_lines(res: dict) -> list[str]:
                  f"{pct(r['out_rejected'], 1)} % ({ok(r['out_rejected'], bx)})")
     L.append("* ECE (object): " + ", ".join(f"{float(c):g} s {pct(R[c]['rel_object']['ece'], 1)} % "
                                             f"({'met' if R[c]['rel_object']['ece'] <= 0.03 else 'NOT met'})" for c in R))
+    for c in R:
+        big = [b for b in R[c]["rel_object"]["rows"] if b["n"] >= 20]
+        off = [b for b in big if abs(b["accuracy"] - b["confidence"]) > 0.05]
+        L.append(f"* reliability at {float(c):g} s, bins with ≥ 20 touches within ±5 points: "
+                 + ("met" if not off else "NOT met (" + ", ".join(
+                     f"{b['lo']:.2f}-{b['hi']:.2f}: confidence {pct(b['confidence'])} %, right {pct(b['accuracy'])} %"
+                     f" of {b['n']}" for b in off) + ")") + f" ({len(big)} such bins)")
     return L
 
 
@@ -375,7 +393,7 @@ def main() -> None:
         present = [o for o in objects if any(m.get("name") == o.name for m in meta)]
         h = {"n_probes": len({m["probe"] for m in meta}), "calibrations": {str(k): v for k, v in est["calibrations"].items()},
              "sim_s": info.get("sim_s"), "estimate_s": est["estimate_s"], "rows": est["rows"]}
-        h["recognition"] = recognise_head(head, est, present, out_objs)
+        h["recognition"] = recognise_head(head, est, present, out_objs, args.board)
         fits = {float(c): r["fits"] for c, r in h["recognition"]["by_contact_s"].items()}
         h["until_decided"] = until_decided(ObjectSet(IN_SET), est["rows"], [o.name for o in present], fits)
         res["heads"][head] = h
