@@ -35,8 +35,11 @@ from edge.protocol.messages import (
     CHUNK_HEADER_SIZE,
     SESSION_CHUNK_HEADER_SIZE,
     ErrorReply,
+    Event,
+    decode_event,
     decode_reply,
     encode_request,
+    is_event,
 )
 from edge.protocol.commands import COMMANDS, Command, SERIES_KINDS
 from edge.protocol.frame import DEFAULT_MAX_PAYLOAD, FrameDecoder
@@ -189,6 +192,10 @@ class DeviceClient:
         self._next_id = 1
         self._lock = threading.Lock()
         self.stale_replies = 0
+        #: EVENT frames received for the running request (given to its ``on_event``), and those that
+        #: broke the event schema or came with no one listening (ignored: events are best effort).
+        self.events_received = 0
+        self.events_ignored = 0
         #: Session id of this client's last MODEL_BEGIN (None before one, or from a device without sessions).
         self.upload_session: int | None = None
         # Bytes the device sent before we were listening belong to nobody.
@@ -237,7 +244,8 @@ class DeviceClient:
         return read_available(self.ser)
 
     def request(self, command: Command | str, args: Mapping[str, Any] | None = None, *,
-                timeout_s: float | None = None, retries: int | None = None) -> dict[str, Any]:
+                timeout_s: float | None = None, retries: int | None = None,
+                on_event: Callable[[Event], None] | None = None) -> dict[str, Any]:
         """Send one request and return the reply body.
 
         Parameters
@@ -251,6 +259,10 @@ class DeviceClient:
         retries : int, optional
             Extra attempts after a timeout (default: the client's, and 0 for
             non-idempotent commands such as MEASURE).
+        on_event : callable, optional
+            Called with each :class:`~edge.protocol.messages.Event` the device pushes for this
+            request (a MEASURE with ``stream``) while the reply is awaited; an exception it raises
+            propagates (the request is then abandoned: a MEASURE's caller should ABORT).
 
         Raises
         ------
@@ -272,7 +284,7 @@ class DeviceClient:
             for _ in range(retries + 1):
                 attempts += 1
                 self._write(frame)
-                reply = self._await(rid, command, timeout)
+                reply = self._await(rid, command, timeout, on_event)
                 if reply is not None:
                     if command == Command.MODEL_BEGIN:
                         self.upload_session = reply.get("session")
@@ -288,7 +300,8 @@ class DeviceClient:
         except (serial.SerialException, OSError) as exc:
             raise PortUnavailable(self.port, f"write failed: {exc}") from exc
 
-    def _await(self, rid: int, command: Command, timeout_s: float) -> dict[str, Any] | None:
+    def _await(self, rid: int, command: Command, timeout_s: float,
+               on_event: Callable[[Event], None] | None = None) -> dict[str, Any] | None:
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             try:
@@ -298,6 +311,9 @@ class DeviceClient:
             if not data:
                 continue
             for frame in self.decoder.feed(data):
+                if is_event(frame):
+                    self._event(frame, rid, on_event)
+                    continue
                 if frame.request_id != rid:
                     self.stale_replies += 1
                     continue
@@ -313,6 +329,18 @@ class DeviceClient:
         # A reply cut off mid-frame must not glue onto the next one.
         self.decoder.discard_partial()
         return None
+
+    def _event(self, frame: Any, rid: int, on_event: Callable[[Event], None] | None) -> None:
+        if frame.request_id != rid or on_event is None:
+            self.events_ignored += 1  # an earlier request's, or nobody asked
+            return
+        try:
+            event = decode_event(frame)
+        except ProtocolError:
+            self.events_ignored += 1  # best effort: a bad event is no reason to lose the reply
+            return
+        self.events_received += 1
+        on_event(event)
 
     # -- convenience -------------------------------------------------------------
 
@@ -331,8 +359,13 @@ class DeviceClient:
     def measure(self, power_W: float | None = None, voltage_V: float | None = None,
                 contact_time_s: float | None = None, *, timeout_s: float | None = None,
                 sample_rate_Hz: float | None = None, until_decided: bool = False, arm_s: float | None = None,
-                settle_s: float | None = None) -> dict[str, Any]:
+                settle_s: float | None = None,
+                on_event: Callable[[Event], None] | None = None) -> dict[str, Any]:
         """Run one measurement and return its result record (never retried).
+
+        With ``on_event``, the device is asked to stream (MEASURE ``stream``) and each pushed
+        :class:`~edge.protocol.messages.Event` (phases, sample batches, the running answer) is
+        given to it as it arrives, before this returns.
 
         The default timeout is the client's plus the contact time (or 5 s)
         plus 10 s of margin for heating, settling and inference.
@@ -358,12 +391,14 @@ class DeviceClient:
                 if v is not None}
         if until_decided:
             args["until_decided"] = True
+        if on_event is not None:
+            args["stream"] = True
         if timeout_s is None:
             timeout_s = (self.timeout_s + (contact_time_s if contact_time_s is not None else 5.0) + 10.0
                          + (arm_s or 0.0) + (settle_s or 0.0))
         self.last_abort: dict[str, Any] | None = None
         try:
-            return self.request(Command.MEASURE, args, timeout_s=timeout_s)
+            return self.request(Command.MEASURE, args, timeout_s=timeout_s, on_event=on_event)
         except (KeyboardInterrupt, DeviceNotAnswering):
             try:
                 self.last_abort = self.abort()
