@@ -343,13 +343,18 @@ class SerialEndpoint:
                              max_payload=self.max_payload, validate=self.validate_replies)
         self._write(frame)
 
-    def send_event(self, request_id: int, body: Mapping[str, Any]) -> bool:
+    def send_event(self, request_id: int, body: Mapping[str, Any], *, final: bool = False) -> bool:
         """Queue an EVENT frame for ``request_id`` (best effort: False if it was dropped).
 
-        Never blocks on the port. A body that breaks the event schema raises ProtocolError
-        (nothing is sent).
+        Never blocks on the port. A ``final`` event (one per request, e.g. ``done`` with the drop
+        count) is queued under the replies' bound, so a host that lost events learns how many.
+        A body that breaks the event schema raises ProtocolError (nothing is sent).
         """
-        return self._write(encode_event(request_id, body, max_payload=self.max_payload), event=True)
+        frame = encode_event(request_id, body, max_payload=self.max_payload)
+        if final:
+            self.events_sent += 1
+            return self._write(frame)
+        return self._write(frame, event=True)
 
     def send_error(self, request_id: int, code: ErrorCode, message: str, field: str | None = None) -> None:
         """Send an ERROR reply addressed to ``request_id``."""

@@ -395,8 +395,8 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
         if not stream or link is None:
             return None
         endpoint, rid = link
-        return EventStream(lambda body: endpoint.send_event(rid, body), self.board.clock.monotonic, armed=armed,
-                           dropped=lambda: endpoint.events_dropped)
+        return EventStream(lambda body, final=False: endpoint.send_event(rid, body, final=final),
+                           self.board.clock.monotonic, armed=armed, dropped=lambda: endpoint.events_dropped)
 
     # -- requests --------------------------------------------------------------------
     def handle(self, req: Request) -> dict[str, Any] | None:

@@ -35,8 +35,8 @@ log = logging.getLogger("thermotouch.edge")
 #: Least board time between two sample batches, and between two running answers, s.
 EVENT_PERIOD_s = 0.1
 
-#: ``send(body) -> bool``: queue one event body (False: dropped).
-Send = Callable[[dict], bool]
+#: ``send(body, final=False) -> bool``: queue one event body (False: dropped); ``final``: the last one.
+Send = Callable[..., bool]
 
 
 def _num(x: float, digits: int) -> float | None:
@@ -50,7 +50,8 @@ class EventStream:
     Parameters
     ----------
     send : callable
-        ``send(body) -> bool`` queues one event body (e.g. ``lambda b: endpoint.send_event(rid, b)``).
+        ``send(body, final=False) -> bool`` queues one event body (e.g. ``endpoint.send_event`` bound to
+        the request id); ``final`` marks ``done``, which the link queues under the replies' bound.
     clock : callable
         The board clock (``monotonic``), the time base of every ``t_s``.
     armed : bool
@@ -82,11 +83,11 @@ class EventStream:
     def _t(self, t_board: float | None = None) -> float:
         return round((self._clock() if t_board is None else t_board) - self.t0, 6)
 
-    def _emit(self, kind: EventKind, t_s: float, **fields: Any) -> None:
+    def _emit(self, kind: EventKind, t_s: float, final: bool = False, **fields: Any) -> None:
         body = {"kind": str(kind), "seq": self._seq, "t_s": t_s, **fields}
         self._seq += 1
         try:
-            ok = self._send(body)
+            ok = self._send(body, final=True) if final else self._send(body)
         except Exception:  # a link that cannot take events ends the stream, not the touch
             log.exception("event stream ended: the link refused an event")
             self.closed = True
@@ -149,7 +150,7 @@ class EventStream:
             self._flush_samples()
             self._flush_answer(force=True)
             dropped = (self._dropped() - self._dropped0) if self._dropped is not None else self.refused
-            self._emit(EventKind.PHASE, self._t(), phase="done", measurement_id=measurement_id, status=status,
+            self._emit(EventKind.PHASE, self._t(), True, phase="done", measurement_id=measurement_id, status=status,
                        events_sent=self.sent, events_dropped=max(0, int(dropped)))
         self._guard(done)
         self.closed = True
