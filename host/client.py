@@ -196,6 +196,7 @@ class DeviceClient:
         #: broke the event schema or came with no one listening (ignored: events are best effort).
         self.events_received = 0
         self.events_ignored = 0
+        self._on_event: Callable[[Event], None] | None = None
         #: Session id of this client's last MODEL_BEGIN (None before one, or from a device without sessions).
         self.upload_session: int | None = None
         # Bytes the device sent before we were listening belong to nobody.
@@ -284,7 +285,11 @@ class DeviceClient:
             for _ in range(retries + 1):
                 attempts += 1
                 self._write(frame)
-                reply = self._await(rid, command, timeout, on_event)
+                self._on_event = on_event  # read by _await while this request's reply is awaited
+                try:
+                    reply = self._await(rid, command, timeout)
+                finally:
+                    self._on_event = None
                 if reply is not None:
                     if command == Command.MODEL_BEGIN:
                         self.upload_session = reply.get("session")
@@ -300,8 +305,7 @@ class DeviceClient:
         except (serial.SerialException, OSError) as exc:
             raise PortUnavailable(self.port, f"write failed: {exc}") from exc
 
-    def _await(self, rid: int, command: Command, timeout_s: float,
-               on_event: Callable[[Event], None] | None = None) -> dict[str, Any] | None:
+    def _await(self, rid: int, command: Command, timeout_s: float) -> dict[str, Any] | None:
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             try:
@@ -312,7 +316,7 @@ class DeviceClient:
                 continue
             for frame in self.decoder.feed(data):
                 if is_event(frame):
-                    self._event(frame, rid, on_event)
+                    self._event(frame, rid, self._on_event)
                     continue
                 if frame.request_id != rid:
                     self.stale_replies += 1

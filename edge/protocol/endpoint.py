@@ -222,11 +222,11 @@ class SerialEndpoint:
         """Queue ``data`` for the writer thread; drop it if the queue is full. True if queued."""
         with self._cond:
             if self._closed:
-                self._drop(len(data), "the endpoint is closed", event)
+                self._dropped(len(data), "the endpoint is closed", event)
                 return False
             bound = self.max_event_bytes if event else self.max_pending_bytes
             if self._queued_bytes + len(data) > bound:
-                self._drop(len(data), f"{self._queued_bytes} B already wait for a host that is not reading", event)
+                self._dropped(len(data), f"{self._queued_bytes} B already wait for a host that is not reading", event)
                 return False
             if event:
                 self.events_sent += 1
@@ -239,12 +239,15 @@ class SerialEndpoint:
             self._cond.notify_all()
         return True
 
-    def _drop(self, n: int, why: str, event: bool = False) -> None:
-        if event:
-            # Events are best effort and may come by the hundred: counted, logged at DEBUG only.
-            self.events_dropped += 1
-            log.debug("event of %d B dropped (%s); %d dropped so far", n, why, self.events_dropped)
-            return
+    def _drop_event(self, n: int, why: str) -> None:
+        # Events are best effort and may come by the hundred: counted, logged at DEBUG only.
+        self.events_dropped += 1
+        log.debug("event of %d B dropped (%s); %d dropped so far", n, why, self.events_dropped)
+
+    def _dropped(self, n: int, why: str, event: bool) -> None:
+        (self._drop_event if event else self._drop)(n, why)
+
+    def _drop(self, n: int, why: str) -> None:
         self.replies_dropped += 1
         # One line per dropped reply; DEBUG after the first few so a flood cannot fill the log.
         level = logging.WARNING if self.replies_dropped <= 3 or self.replies_dropped % 1000 == 0 else logging.DEBUG
@@ -279,7 +282,7 @@ class SerialEndpoint:
             keep = collections.deque(item for item in self._queue if not item[1])
             for data, _ in (item for item in self._queue if item[1]):
                 self._queued_bytes -= len(data)
-                self._drop(len(data), "an earlier event was not taken in time", True)
+                self._drop_event(len(data), "an earlier event was not taken in time")
             self._queue = keep
 
     def _write_now(self, data: bytes, event: bool = False) -> bool:
@@ -292,10 +295,10 @@ class SerialEndpoint:
                 # pyserial's SerialTimeoutException: the host is not reading; anything else propagates.
                 if type(e).__name__ != "SerialTimeoutException" and not isinstance(e, TimeoutError):
                     raise
-                self._drop(len(data), f"not written within {self.write_timeout_s:g} s", event)
+                self._dropped(len(data), f"not written within {self.write_timeout_s:g} s", event)
                 return False
             if isinstance(n, int) and n < len(data):
-                self._drop(len(data), f"only {n} B written", event)
+                self._dropped(len(data), f"only {n} B written", event)
                 return False
             return True
 
@@ -323,7 +326,7 @@ class SerialEndpoint:
         with self._cond:
             self._closed = True
             for data, event in self._queue:
-                self._drop(len(data), "the endpoint is closing", event)
+                self._dropped(len(data), "the endpoint is closing", event)
             self._queue.clear()
             self._queued_bytes = 0
             self._cond.notify_all()
