@@ -191,6 +191,7 @@ class DeviceClient:
         self.decoder = FrameDecoder(max_payload)
         self._next_id = 1
         self._lock = threading.Lock()
+        self._id_lock = threading.Lock()  # request ids are also taken by send_abort() from another thread
         self.stale_replies = 0
         #: EVENT frames received for the running request (given to its ``on_event``), and those that
         #: broke the event schema or came with no one listening (ignored: events are best effort).
@@ -279,7 +280,8 @@ class DeviceClient:
         if retries is None:
             retries = self.retries if COMMANDS[command].idempotent else 0
         with self._lock:
-            rid = self._new_id()
+            with self._id_lock:
+                rid = self._new_id()
             frame = encode_request(command, rid, args, max_payload=self.max_payload)
             attempts = 0
             for _ in range(retries + 1):
@@ -426,6 +428,16 @@ class DeviceClient:
         """
         total = self.abort_timeout_s if timeout_s is None else float(timeout_s)
         return self.request(Command.ABORT, timeout_s=total / ABORT_ATTEMPTS, retries=ABORT_ATTEMPTS - 1)
+
+    def send_abort(self) -> None:
+        """Send an ABORT without waiting for its reply, from any thread (e.g. while :meth:`measure` waits).
+
+        The device cuts the running touch at once; the waiting MEASURE then gets the aborted record
+        (its ABORT reply is skipped as a stale reply). Prefer :meth:`abort` when nothing else waits.
+        """
+        with self._id_lock:
+            rid = self._new_id()
+        self._write(encode_request(Command.ABORT, rid, None, max_payload=self.max_payload))
 
     def result(self, measurement_id: int | None = None) -> dict[str, Any]:
         """Result record by id, or the latest when ``measurement_id`` is None."""

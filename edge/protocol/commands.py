@@ -366,7 +366,8 @@ EVENTS: dict[EventKind, EventSpec] = {spec.kind: spec for spec in (
             arg("T_C", "list_num", required=True, hi=MAX_EVENT_SAMPLES, doc="thermocouple, °C"),
             arg("q_W_m2", "list_num", required=True, hi=MAX_EVENT_SAMPLES, doc="heat flux, W/m^2")),
         same_length=("sample_t_s", "T_C", "q_W_m2"),
-        doc="A batch of raw samples in the order read (null: a non-finite reading)."),
+        doc="A batch of the record's raw samples in the order read (null: a non-finite reading; the "
+            "cool-down's readings are not the record's and are not sent)."),
     EventSpec(
         EventKind.ANSWER,
         fields=_EVENT_COMMON + (

@@ -75,6 +75,8 @@ class EventStream:
         self._batch_t = self.t0
         self._answer: dict | None = None
         self._answer_t = -math.inf
+        # Cool-down readings are kept apart from the record's series (edge.measure.sequence): not streamed.
+        self._cooling = False
         self.closed = False
         #: Events handed to the link (queued) and refused by it (dropped) during this measurement.
         self.sent = 0
@@ -109,8 +111,13 @@ class EventStream:
 
     # -- taps ----------------------------------------------------------------------------
     def sample(self, t_board: float, T_C: float, q_W_m2: float) -> None:
-        """One reading at board time ``t_board`` (the middle of its read, as the sequence records it)."""
+        """One reading at board time ``t_board`` (the middle of its read, as the sequence records it).
+
+        Readings of a cool-down are not streamed: the samples are exactly the record's raw series.
+        """
         def add() -> None:
+            if self._cooling:
+                return
             ts, Ts, qs = self._batch
             ts.append(self._t(t_board))
             Ts.append(_num(T_C, 4))
@@ -134,6 +141,7 @@ class EventStream:
             self._flush_samples()
             self._flush_answer(force=True)
             word = str(phase)
+            self._cooling = word == "cooldown"
             if word == "idle":
                 return
             if word == "baseline" and self.armed:
