@@ -192,3 +192,26 @@ def test_a_host_that_interrupts_on_an_event_aborts_the_touch_and_the_heater_goes
     assert_heater_safe(rig.parts, MAX_ON)
     daemon.sensors = real_sensors
     assert client.measure(contact_time_s=0.5)["status"] == "ok"  # the stale reply and events are skipped
+
+
+def test_a_sensor_fault_while_streaming_ends_the_touch_as_without_events(probe, monkeypatch):
+    from edge.hw.faults import SensorFault
+    from host.client import DeviceError
+
+    client, daemon, rig = probe
+    reads = []
+
+    def fail(n, heater_on):  # the converter stops answering at the 3rd heating read
+        reads.append(heater_on)
+        if sum(reads) == 3 and heater_on:
+            raise SensorFault("mcp9600@0x60", "i2c", "bus stuck")
+
+    monkeypatch.setattr(daemon, "sensors", HookedSensors(daemon.sensors, daemon.heater, fail))
+    events = []
+    with pytest.raises(DeviceError) as e:
+        client.measure(contact_time_s=1.0, on_event=events.append)
+    assert e.value.code.name == "SENSOR_FAULT"
+    done = events[-1].body
+    assert done["phase"] == "done" and done["status"] == "failed"
+    assert daemon.history.get(done["measurement_id"])["reason"] == "sensor_fault"
+    assert_heater_safe(rig.parts, MAX_ON)
