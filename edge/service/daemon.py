@@ -237,6 +237,8 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
             self._events: EventStream | None = None
             #: (endpoint, request id) of a streaming MEASURE the serve loop dispatched, for its worker.
             self._event_link: tuple[SerialEndpoint, int] | None = None
+            #: Status of the record the last measurement stored (the ``done`` event names it).
+            self._last_status: str | None = None
             self.objects = ObjectSets(self._object_sets_root(), policy=self._update_policy())
             #: This device's identity (INFO; every measurement carries it): None if it cannot be read.
             self.device_id = self._load_device_id()
@@ -429,7 +431,7 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
         """
         if not self._measure_lock.acquire(blocking=False):
             raise CommandError(ErrorCode.BUSY, "a measurement is already running")
-        self._last_status: str | None = None
+        self._last_status = None
         try:
             return self._measure(power_W, voltage_V, contact_time_s, sample_rate_Hz, until_decided, arm_s, settle_s,
                                  stream)
