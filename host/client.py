@@ -371,7 +371,8 @@ class DeviceClient:
 
         With ``on_event``, the device is asked to stream (MEASURE ``stream``) and each pushed
         :class:`~edge.protocol.messages.Event` (phases, sample batches, the running answer) is
-        given to it as it arrives, before this returns.
+        given to it as it arrives, before this returns. A device that predates events refuses
+        ``stream`` before touching; the touch then runs without events.
 
         The default timeout is the client's plus the contact time (or 5 s)
         plus 10 s of margin for heating, settling and inference.
@@ -404,7 +405,14 @@ class DeviceClient:
                          + (arm_s or 0.0) + (settle_s or 0.0))
         self.last_abort: dict[str, Any] | None = None
         try:
-            return self.request(Command.MEASURE, args, timeout_s=timeout_s, on_event=on_event)
+            try:
+                return self.request(Command.MEASURE, args, timeout_s=timeout_s, on_event=on_event)
+            except DeviceError as e:
+                if not (on_event is not None and e.code == ErrorCode.BAD_ARGUMENT and e.field == "stream"):
+                    raise
+                # A device older than events refused the argument before the touch began: touch without them.
+                del args["stream"]
+                return self.request(Command.MEASURE, args, timeout_s=timeout_s)
         except (KeyboardInterrupt, DeviceNotAnswering):
             try:
                 self.last_abort = self.abort()

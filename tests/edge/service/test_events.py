@@ -215,3 +215,23 @@ def test_a_sensor_fault_while_streaming_ends_the_touch_as_without_events(probe, 
     assert done["phase"] == "done" and done["status"] == "failed"
     assert daemon.history.get(done["measurement_id"])["reason"] == "sensor_fault"
     assert_heater_safe(rig.parts, MAX_ON)
+
+
+def test_a_device_that_predates_events_still_touches_for_a_streaming_host(probe, monkeypatch):
+    import edge.protocol.endpoint as endpoint_mod
+    from edge.protocol.errors import ProtocolError
+
+    client, daemon, rig = probe
+    real = endpoint_mod.decode_request
+
+    def old_device(frame):  # the device's own table without ``stream``, as before events
+        req = real(frame)
+        if "stream" in req.args:
+            raise ProtocolError("MEASURE has no argument 'stream'", "stream", request_id=req.request_id)
+        return req
+
+    monkeypatch.setattr(endpoint_mod, "decode_request", old_device)
+    n = daemon.history.count()
+    events = []
+    rec = client.measure(contact_time_s=0.5, on_event=events.append)
+    assert rec["status"] == "ok" and events == [] and daemon.history.count() == n + 1
