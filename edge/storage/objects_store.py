@@ -25,6 +25,18 @@ written if it asked for activation) and forgets one whose bytes are not
 (the old set, its signature and the old pointer stand); signatures of bytes
 no set holds are removed.
 
+Versions (ISSUE #35 §2, as calibrations and models): a signed set carries its
+release time in a comment line before its header, ``# created_utc:
+YYYY-MM-DDTHH:MM:SSZ`` (``thermotouch objects add --key`` writes it), and is
+refused unless strictly newer than every signed set this store installed
+(the ``version`` file keeps the newest: its time and sha256; removing a set
+does not lower it) and not dated in the future
+(:func:`edge.security.policy.check_version`, the rule calibrations follow).
+Re-sending the newest set's own bytes is no version change and is accepted.
+The floor applies to signed sets only: an unsigned upload (allowed on a
+development device) dates itself as its sender likes, as for models. The
+floor is written before the set's bytes, so a cut install can only raise it.
+
 What an object set *is* (the CSV format) is not known here: the parser is
 injected (``parse``; the daemon passes
 :meth:`edge.recognition.ObjectSet.from_csv_text`), as the model store
@@ -40,14 +52,15 @@ import os
 import re
 import threading
 from dataclasses import dataclass
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable
 
-from edge.security.policy import UpdateRefused
+from edge.security.policy import UpdateRefused, check_version, release_time
 from edge.storage import durable
 
 __all__ = ["MAX_SET_BYTES", "MAX_SETS", "NAME_RE", "RESERVED_NAMES", "ObjectStoreError", "UploadRefused",
-           "StoredSet", "verify_upload", "check_name", "ObjectSetStore"]
+           "StoredSet", "verify_upload", "check_name", "set_created_utc", "ObjectSetStore"]
 
 log = logging.getLogger("thermotouch.edge")
 
@@ -60,6 +73,8 @@ NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
 #: Names that are not stored sets: the built-in library (the default set).
 RESERVED_NAMES = frozenset({"library"})
 
+#: The version line of a set: ``# created_utc: YYYY-MM-DDTHH:MM:SSZ`` before the header.
+_CREATED_RE = re.compile(r"^#\s*created_utc\s*[:=]\s*(\S+)\s*$")
 #: What follows "<name>." in a signature's file name.
 _SIG_RE = re.compile(r"^[0-9a-f]{64}\.sig$")
 #: ``parse(text, label) -> object set`` (raises ValueError for a malformed set).
@@ -159,6 +174,24 @@ def verify_upload(blob: bytes, expected_sha256: str, expected_size: int | None, 
         raise UploadRefused(f"object set {name!r} refused: {detail}") from None
 
 
+def set_created_utc(blob: bytes) -> str | None:
+    """The ``# created_utc:`` of a set's CSV bytes (comment lines before its header), or None."""
+    for raw in blob[:8192].decode("utf-8-sig", errors="replace").splitlines():
+        line = raw.strip()
+        if not line:
+            continue
+        if not line.startswith("#"):
+            return None  # the header: a version line comes before it
+        m = _CREATED_RE.match(line)
+        if m:
+            return m.group(1)
+    return None
+
+
+def _utc_now() -> datetime:
+    return datetime.now(timezone.utc)
+
+
 class ObjectSetStore:
     """Device-side store of object sets, with one active set (or none: the built-in library).
 
@@ -172,14 +205,20 @@ class ObjectSetStore:
         Largest set accepted.
     max_sets : int
         Most sets stored.
+    policy : edge.security.policy.UpdatePolicy, optional
+        Who may send sets (None: uploads are refused).
+    now : callable () -> datetime, optional
+        The device's clock (aware UTC datetime); default the system's.
     """
 
     ACTIVE = "active"
     PENDING = "pending"
+    VERSION = "version"
 
     def __init__(self, root: str | os.PathLike, parse: Parser, *, max_bytes: int = MAX_SET_BYTES,
-                 max_sets: int = MAX_SETS, policy: Any = None) -> None:
+                 max_sets: int = MAX_SETS, policy: Any = None, now: Callable[[], datetime] = _utc_now) -> None:
         self.root = Path(root)
+        self.now = now
         #: Who may send sets (:class:`edge.security.policy.UpdatePolicy`; None: uploads are refused).
         self.policy = policy
         self.sets_dir = self.root / "sets"
@@ -277,6 +316,37 @@ class ObjectSetStore:
             durable.fsync_dir(self.sets_dir)
         except OSError as e:
             log.error("object store: cannot remove orphan signatures: %s", e)
+
+    # -- versions ----------------------------------------------------------------------
+    def version_floor(self) -> tuple[str, str] | None:
+        """``(created_utc, sha256)`` of the newest signed set installed (None: none yet)."""
+        try:
+            doc = json.loads((self.root / self.VERSION).read_bytes()[:4096])
+            return str(doc["created_utc"]), str(doc["sha256"])
+        except FileNotFoundError:
+            return None
+        except (OSError, ValueError, KeyError, TypeError) as e:
+            # Written in one atomic step, so only outside damage gets here; it is named, not fatal.
+            log.error("object store: version file unreadable (%s); no floor until the next signed set", e)
+            return None
+
+    def _check_version(self, name: str, blob: bytes, sha: str) -> dict:
+        """The floor a signed set must clear (module docstring); the new floor to write."""
+        created = set_created_utc(blob)
+        if created is None:
+            raise UploadRefused(f"object set {name!r} refused: a signed set names its version in a line "
+                                "'# created_utc: YYYY-MM-DDTHH:MM:SSZ' before its header (thermotouch objects "
+                                "add --key writes it)")
+        try:
+            new_t = release_time({"created_utc": created}, f"object set {name!r}")
+            floor = self.version_floor()
+            old_t = None
+            if floor is not None and floor[1] != sha:  # the newest set's own bytes again: no version change
+                old_t = release_time({"created_utc": floor[0]}, "installed object set")
+            check_version("object set", created, new_t, None if floor is None else floor[0], old_t, self.now())
+        except UpdateRefused as e:
+            raise UploadRefused(f"object set {name!r} refused: {e}") from None
+        return {"created_utc": created, "sha256": sha}
 
     # -- paths -----------------------------------------------------------------------
     def _set_path(self, name: str) -> Path:
@@ -422,12 +492,15 @@ class ObjectSetStore:
                 raise ObjectStoreError(f"{len(existing)} object sets stored, the most this device keeps; "
                                        "remove one first")
             sha = hashlib.sha256(blob).hexdigest()
+            version = None if signature is None else self._check_version(name, blob, sha)
             try:
-                # The signature first, under the bytes' own hash; then what the install is; then the
-                # bytes (the commit point: a restart finishes the install from here on), the pointer,
-                # and the old signatures and the record go.
+                # The version floor and the signature first (the signature under the bytes' own hash);
+                # then what the install is; then the bytes (the commit point: a restart finishes the
+                # install from here on), the pointer, and the old signatures and the record go.
                 sig = None
                 if signature is not None:
+                    if version is not None and self.version_floor() != (version["created_utc"], sha):
+                        durable.atomic_write_file(self.root / self.VERSION, json.dumps(version).encode("ascii"))
                     sig = self._signature_path(name, sha)
                     durable.atomic_write_file(sig, bytes(signature))
                 durable.atomic_write_file(self.root / self.PENDING, json.dumps(
