@@ -14,7 +14,8 @@ from typing import Any, Callable
 from edge.protocol.commands import Command
 from edge.protocol.messages import SESSION_CHUNK_HEADER_SIZE
 
-__all__ = ["set_name_of", "stamp_version", "upload_object_set", "list_object_sets", "remove_object_set", "select_object_set"]
+__all__ = ["set_name_of", "stamp_version", "upload_object_set", "list_object_sets", "remove_object_set",
+           "select_object_set"]
 
 
 def set_name_of(path: str | Path) -> str:

@@ -26,7 +26,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-__all__ = ["result_title", "plot_touch", "TouchFigure", "PlotProcess", "PlotError", "pyplot", "mpl_config_dir", "preload"]
+__all__ = ["result_title", "plot_touch", "TouchFigure", "PlotProcess", "PlotError", "pyplot", "mpl_config_dir",
+           "preload"]
 
 #: The series entries a plot reads (the rest of a record is not sent to a plot process).
 _SERIES_KEYS = ("raw_t_s", "raw_T_C", "raw_q_W_m2", "grid_t_s", "grid_dT_K", "grid_q_W_m2", "T0_C",

@@ -117,8 +117,8 @@ _CLASSES = ("foam", "wood", "polymer", "rubber", "glass", "ceramic", "stone", "m
 
 def _csv(rows: int, tag: str, created_utc: str) -> bytes:
     # Signed sets name their version; the new one is newer (an older signed set is refused: ISSUE #35 §2).
-    lines = [f"# created_utc: {created_utc}", "name,class,e_W_s05_m2K"] + [f"{tag}-object-{i:03d},{_CLASSES[i % len(_CLASSES)]},{300 + 17 * i}"
-                                           for i in range(rows)]
+    lines = [f"# created_utc: {created_utc}", "name,class,e_W_s05_m2K"]
+    lines += [f"{tag}-object-{i:03d},{_CLASSES[i % len(_CLASSES)]},{300 + 17 * i}" for i in range(rows)]
     return ("\n".join(lines) + "\n").encode()
 
 
