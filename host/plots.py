@@ -1,8 +1,8 @@
 """Plots of one touch: measured and model-fitted heat flux and temperature (like the paper's Figs. 10, 12, 14).
 
-One code path for every touch plot: ``measure --plot`` and the demo draw through
-:class:`PlotProcess` (a child process that imports Matplotlib while the touch runs),
-which draws with :class:`TouchFigure`; what a figure shows is computed by
+One code path for every touch plot: ``measure --plot`` draws with :class:`TouchFigure` in
+process (Matplotlib imported by :func:`preload` while the touch runs), the demo through
+:class:`PlotProcess` (a child process drawing with the same class); what a figure shows is computed by
 :func:`host.plot_data.touch_plot_data` (data with the answer's model curve and its
 band at e -+ u(e), residuals, the pre-contact phase and the fit's window, the
 touch's identification), and the reports take their Matplotlib from :func:`pyplot`.
