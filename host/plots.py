@@ -116,9 +116,19 @@ class TouchFigure:
         ax_r.set_ylabel("residual (K)")
         ax_r.grid(alpha=0.3)
         self._spans: list = []
+        self._legend_keys: dict[int, tuple] = {}
         self._note = ax_T.text(0.98, 0.04, "", transform=ax_T.transAxes, ha="right", va="bottom", fontsize=8,
                                color="0.3")
         self._title = fig.suptitle("", fontsize=10)
+
+    def _legend(self, ax: Any, handles: list, loc: str) -> None:
+        """A legend of ``handles``, built again only when its entries change (a legend's layout is a large
+        part of a draw, and touch after touch of the demo has the same entries)."""
+        key = tuple(h.get_label() for h in handles)
+        if self._legend_keys.get(id(ax)) == key and ax.get_legend() is not None:
+            return
+        ax.legend(handles=handles, loc=loc, fontsize=8)
+        self._legend_keys[id(ax)] = key
 
     def _shade(self, data: dict) -> None:
         for span in self._spans:
@@ -169,10 +179,9 @@ class TouchFigure:
         self._shade(data)
         handles_T = [self._T_meas] + ([self._T_grid] if show_grid else [])
         handles_T += [self._T_fit, self._band] if curve is not None else []
-        self.ax_T.legend(handles=handles_T, loc="upper left", fontsize=8)
         shaded = [sp for sp in self._spans if sp.axes is self.ax_q]
-        self.ax_q.legend(handles=[self._q_meas] + ([self._q_grid] if has_grid_q else []) + shaded,
-                         loc="lower right", fontsize=8)
+        self._legend(self.ax_T, handles_T, "upper left")
+        self._legend(self.ax_q, [self._q_meas] + ([self._q_grid] if has_grid_q else []) + shaded, "lower right")
         for ax in (self.ax_q, self.ax_T, self.ax_r):
             ax.relim()
             ax.autoscale_view()
