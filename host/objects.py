@@ -14,13 +14,29 @@ from typing import Any, Callable
 from edge.protocol.commands import Command
 from edge.protocol.messages import SESSION_CHUNK_HEADER_SIZE
 
-__all__ = ["set_name_of", "upload_object_set", "list_object_sets", "remove_object_set", "select_object_set",
-           "SEPARATION_SIGMAS", "attainable_u_ln_e", "inseparable_pairs"]
+__all__ = ["set_name_of", "stamp_version", "upload_object_set", "list_object_sets", "remove_object_set",
+           "select_object_set", "SEPARATION_SIGMAS", "attainable_u_ln_e", "inseparable_pairs"]
 
 
 def set_name_of(path: str | Path) -> str:
     """The name a file's set is stored under by default: its stem (``kitchen.csv`` -> ``kitchen``)."""
     return Path(path).stem
+
+
+def stamp_version(data: bytes) -> bytes:
+    """``data`` with its version line (``# created_utc: now``) first, unless it names one already.
+
+    A signed set must name its version (:mod:`edge.storage.objects_store`): a device refuses a signed
+    set not newer than the newest it installed, so an old signed set cannot be replayed.
+    """
+    from datetime import datetime, timezone  # noqa: PLC0415
+
+    from edge.storage.objects_store import set_created_utc  # noqa: PLC0415
+
+    if set_created_utc(data) is not None:
+        return data
+    now = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    return f"# created_utc: {now}\n".encode("ascii") + data.removeprefix(b"\xef\xbb\xbf")
 
 
 def upload_object_set(client: Any, name: str, data: bytes, *, activate: bool = True, chunk_size: int | None = None,
@@ -41,9 +57,10 @@ def upload_object_set(client: Any, name: str, data: bytes, *, activate: bool = T
     progress : callable, optional
         ``progress(bytes_sent, total)`` after each chunk.
     key : edge.security.keys.SecretKey, optional
-        Sign the exact CSV bytes with it (the signature travels in
-        OBJECTS_BEGIN); without one the upload is unsigned, which a device
-        refuses unless it allows unsigned updates.
+        Sign the CSV bytes with it (the signature travels in
+        OBJECTS_BEGIN), after :func:`stamp_version` names their version;
+        without one the upload is unsigned, which a device refuses unless it
+        allows unsigned updates.
 
     Returns
     -------
@@ -60,6 +77,8 @@ def upload_object_set(client: Any, name: str, data: bytes, *, activate: bool = T
     from host.client import BadReply, ClientError  # noqa: PLC0415
 
     data = bytes(data)
+    if key is not None:
+        data = stamp_version(data)
     digest = hashlib.sha256(data).hexdigest()
     max_chunk = client.max_payload - SESSION_CHUNK_HEADER_SIZE
     chunk_size = max_chunk if chunk_size is None else min(int(chunk_size), max_chunk)

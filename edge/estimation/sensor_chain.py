@@ -313,6 +313,11 @@ def _prepare(t_s, T_tc_C, q_m_W_m2, cal: SensorChainCalibration, T_probe0_C, fit
         raise ValueError("t_s must be uniform and increasing")
     if not (np.all(np.isfinite(T)) and np.all(np.isfinite(q))):
         raise ValueError("records must be finite")
+    if np.count_nonzero(t - t[0] >= fit_start_s) < 4:
+        # Three parameters need four samples; none at all divided the residual by zero (ISSUE #35 fuzz run:
+        # a 0.7-s touch without its contact in air asked for the late fit from 1 s).
+        raise ValueError(f"fit_start_s = {fit_start_s:g} s leaves fewer than 4 samples to fit (the record ends "
+                         f"{t[-1] - t[0]:.3g} s after contact)")
     Tp0 = float(T[0]) if T_probe0_C is None else float(T_probe0_C)
     KA, KB = _slab_kernels(t.size, dt, cal.sensing_thickness_m, cal.k_W_mK, cal.alpha_m2_s)
     y = T - Tp0
