@@ -163,6 +163,7 @@ def seam_remeasure(records, contexts):
     """
     from dataclasses import replace  # noqa: PLC0415
 
+    from edge.estimation.methods import method_class  # noqa: PLC0415
     from edge.estimation.seam import estimate_touch  # noqa: PLC0415
 
     def remeasure(cal, j):
@@ -172,7 +173,14 @@ def seam_remeasure(records, contexts):
             d = estimate_touch(records[j], replace(contexts[j], calibration=cal)).to_dict()
         except (ValueError, ArithmeticError):
             return None
-        if d.get("calibration_sha256") != cal.sha256 or "uncalibrated" in (d.get("flags") or []):
+        # The chain's sha is stamped on the answer even when the calibrated path refused it and the 1-D
+        # method answered instead (``calibration_refused``): that answer is not the calibration's, and
+        # taking it made a held-out reference "miss" by the 1-D method's bias (a drawn probe's walk-through
+        # refused on pyroceram -19.8 %, ISSUE #34).
+        flags = d.get("flags") or []
+        chained = method_class(records[j].probe).sensor_chain
+        if (d.get("calibration_sha256") != cal.sha256 or "uncalibrated" in flags or "calibration_refused" in flags
+                or (chained and d.get("method") != "sensor_chain")):
             return None
         e, u = d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u")
         return None if e is None or u is None else (float(e), float(u))

@@ -47,6 +47,9 @@ from edge.physics.geometry import get_probe
 from edge.recognition import recognition_fields
 from edge.status import Flag
 
+#: Flags under which a touch gets no answer (ISSUE #34 item 3): nothing was touched, or nothing measured.
+NO_ANSWER = frozenset({Flag.NO_CONTACT, Flag.NO_SIGNAL})
+
 __all__ = ["SeamContext", "TouchEstimator", "Conditioned", "TooFewSamples", "BLOCKERS", "condition", "estimate_touch",
            "chain_answer", "method_estimate", "MethodFn", "CHAIN_KEEP"]
 
@@ -417,6 +420,10 @@ def estimate_touch(record: TouchRecord, context: SeamContext, *,
             # The installed calibration did not make this answer: say so (ISSUE #34, "answers that look
             # calibrated but are not"); sensor_chain.flags say why.
             est = est.with_flags(Flag.CALIBRATION_REFUSED)
+    if NO_ANSWER & set(est.flags):
+        # Nothing was touched or nothing measured: no answer, whatever a method fitted (ISSUE #34 item 3).
+        est = replace(est, effusivity_W_s05_m2K=None, k_W_mK=None, alpha_m2_s=None, determined_by={},
+                      material=None, material_confidence=0.0, material_candidates=(), u_e_parts={})
     est = _recognise(est, context)
     if decision is not None:
         est = replace(est, details={**est.details, "decision": dict(decision)})
