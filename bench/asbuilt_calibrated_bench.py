@@ -316,6 +316,7 @@ def summarise(rows: list[dict], probes: list[dict]) -> dict:
                    "refusals": [p["refused"] for p in hp if p["refused"]],
                    "references_within_u_pct": 100 * sum(abs(z) <= 1.96 for z in ref_z) / len(ref_z) if ref_z else None,
                    "references_max_abs_z": max(map(abs, ref_z)) if ref_z else None,
+                   "hand_touches_aborted": sum(1 for r in rows if r["head"] == head and r["window_s"] is None),
                    "floors": [None if p["calibration"] is None else p["calibration"]["u_rel_floor"] for p in hp],
                    "windows": {}}
         for w in spec["windows_s"]:
@@ -355,7 +356,9 @@ def table(summary: dict) -> str:
                      + f"; references re-measured after calibration within 1.96 u: "
                        f"{'–' if s['references_within_u_pct'] is None else format(s['references_within_u_pct'], '.0f')} %"
                      + f" (max |z| {'–' if s['references_max_abs_z'] is None else format(s['references_max_abs_z'], '.1f')})"
-                     + (f"; model-form floors {min(floors):.1%} … {max(floors):.1%}" if floors else "") + ".")
+                     + (f"; model-form floors {min(floors):.1%} … {max(floors):.1%}" if floors else "")
+                     + f"; {s['hand_touches_aborted']} hand touches aborted by the device (no contact found: an object "
+                       "near the probe's temperature).")
     return "\n".join(lines)
 
 

@@ -415,7 +415,10 @@ def estimate_touch(record: TouchRecord, context: SeamContext, *,
                       details={**est.details, "sensor_chain": chain})
         promoted = chain_answer(est, chain, context.estimator, chain_parts)
         if promoted is not None:
-            est = promoted
+            # The calibrated chain found the contact in the record and fitted it, object temperature and
+            # R_c included: the 1-D judgements of "no contact" / "no signal" (which assume an object at
+            # the probe's temperature; a hand touch of a metal 2 K colder fooled them) are superseded.
+            est = replace(promoted, flags=tuple(f for f in promoted.flags if f not in NO_ANSWER))
         elif cal is not None:
             # The installed calibration did not make this answer: say so (ISSUE #34, "answers that look
             # calibrated but are not"); sensor_chain.flags say why.

@@ -52,18 +52,18 @@ def test_a_method_answer_flagged_so_is_withheld(estimator, pmma_record, flag):
         return {"method": "default", "effusivity_W_s05_m2K": 14020.0, "effusivity_W_s05_m2K_u": 910.0,
                 "k_W_mK": 100.0, "k_W_mK_u": 10.0, "alpha_m2_s": 4e-5, "alpha_m2_s_u": 4e-6, "flags": [flag]}
 
-    for cal in (None, sample_calibration()):
-        d = estimate_touch(pmma_record, SeamContext(estimator=estimator, calibration=cal, method=method)).to_dict()
-        _assert_no_answer(d)
-
-
-def test_the_calibrated_chain_is_not_promoted_on_a_touch_flagged_no_contact(estimator, pmma_record):
-    cal = sample_calibration()
-    ctx = SeamContext(estimator=estimator, calibration=cal, thresholds=Config().measurement)
-    d = estimate_touch(pmma_record, ctx).to_dict()
-    assert d["method"] == "sensor_chain" and d["effusivity_W_s05_m2K"] is not None   # the chain answers it
-    # The same record judged against a no-contact threshold above pmma's e: flagged, so no answer.
-    strict = dataclasses.replace(Config().measurement, no_contact_e_W_s05_m2K=5000.0)
-    d = estimate_touch(pmma_record, dataclasses.replace(ctx, thresholds=strict)).to_dict()
-    assert "no_contact" in d["flags"]
+    d = estimate_touch(pmma_record, SeamContext(estimator=estimator, method=method)).to_dict()
     _assert_no_answer(d)
+
+
+def test_no_contact_withholds_the_uncalibrated_answer_and_the_calibrated_chain_supersedes_it(estimator, pmma_record):
+    # The same record judged against a no-contact threshold above pmma's e: the 1-D judgement flags it.
+    strict = dataclasses.replace(Config().measurement, no_contact_e_W_s05_m2K=5000.0)
+    d = estimate_touch(pmma_record, SeamContext(estimator=estimator, thresholds=strict)).to_dict()
+    assert "no_contact" in d["flags"] and "uncalibrated" in d["flags"]
+    _assert_no_answer(d)
+    # The calibrated chain found the contact in the record and fitted it: its answer stands, unflagged.
+    d = estimate_touch(pmma_record, SeamContext(estimator=estimator, calibration=sample_calibration(),
+                                                thresholds=strict)).to_dict()
+    assert d["method"] == "sensor_chain" and d["effusivity_W_s05_m2K"] is not None
+    assert not NO_ANSWER & {Flag(f) for f in d["flags"]}
