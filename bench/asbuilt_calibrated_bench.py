@@ -195,14 +195,13 @@ def calibrate_probe(head: str, draw_seed: int, n_touches: int, store, workdir: s
     return out
 
 
-def attainable_u(obj, window_s: float, power_W: float, dt_s: float) -> float | None:
-    """``thermotouch design``'s attainable u(e) with the hand touch's nuisances (R_c, object temperature)."""
-    from edge.estimation import design
+def attainable_u(head: str, obj, window_s: float, power_W: float, dt_s: float, R_c: float, lead_s: float
+                 ) -> float | None:
+    """``thermotouch design --hand``'s attainable u(e): R_c (at the touch's) and the object's temperature unknown."""
+    from edge.estimation.design import attainable
 
-    kw = {"fit_contact": True}
-    if "fit_object_temperature" in design.attainable.__code__.co_varnames:
-        kw["fit_object_temperature"] = True
-    d = design.attainable(obj, window_s, probe="paper", power_W=power_W, dt_s=dt_s, **kw)
+    d = attainable(obj, window_s, probe=head, power_W=power_W, dt_s=dt_s, fit_contact=True,
+                   contact_resistance_m2K_W=R_c, fit_object_temperature=True, contact_lead_s=lead_s)
     return d.u_rel_effusivity if math.isfinite(d.u_rel_effusivity) else None
 
 
@@ -269,9 +268,10 @@ def run(n_probes: int, n_solids: int, n_touches: int) -> dict:
                     except ValueError as exc:
                         d = {"effusivity_W_s05_m2K": None, "flags": [f"error: {exc}"]}
                     e, u = d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u")
-                    key = (name, w)
+                    key = (name, w, h["R_c"], h["lead_s"])
                     if key not in att_cache:
-                        att_cache[key] = attainable_u(obj.solid, w, rec.power_W, 1.0 / rec.sample_rate_Hz)
+                        att_cache[key] = attainable_u(head, obj.solid, w, rec.power_W, 1.0 / rec.sample_rate_Hz,
+                                                      h["R_c"], h["lead_s"])
                     rows.append({"head": head, "probe": draw_seed, "solid": name, "class": obj.cls, **h,
                                  "status": str(out.status), "window_s": w, "e_true": e_true, "e": e, "u_e": u,
                                  "err": None if e is None else e / e_true - 1.0, "flags": d.get("flags"),
