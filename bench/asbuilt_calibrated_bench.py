@@ -215,6 +215,7 @@ def pick(n: int) -> tuple:
 def run(n_probes: int, n_solids: int, n_touches: int) -> dict:
     from thermotouch_models import DEFAULT_BUNDLE
 
+    from edge.calibration.model import identifiability
     from edge.estimation.estimate import pipeline_golden_check
     from edge.estimation.seam import estimate_touch
     from edge.model.bundle import load_bundle
@@ -238,7 +239,7 @@ def run(n_probes: int, n_solids: int, n_touches: int) -> dict:
                     "calibration": None if cal is None else {
                         "sha256": cal.sha256, "u_rel_floor": cal.u_rel_floor, "forced": cal.forced,
                         "theta": cal.theta.tolist(), "u_theta": cal.u_theta.tolist(),
-                        "identifiability": getattr(cal, "identifiability", None) or (cal.to_dict().get("identifiability"))},
+                        "identifiability": identifiability(cal)},
                     "self_check": None if check is None else check.to_dict()}
             probes.append(info)
             zs = [r["z"] for r in c.get("remeasured", []) if r["z"] is not None]

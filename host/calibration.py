@@ -218,7 +218,7 @@ def checked_calibration(fit, touches, names, e_refs, u_refs, remeasure, *, force
     """
     from dataclasses import replace  # noqa: PLC0415
 
-    from edge.calibration.model import ReferenceFit, check_plausible  # noqa: PLC0415
+    from edge.calibration.model import ReferenceFit, check_plausible, identifiability  # noqa: PLC0415
     from edge.calibration.selfcheck import leave_one_out  # noqa: PLC0415
 
     cal0 = fit(touches, 2)
@@ -230,8 +230,13 @@ def checked_calibration(fit, touches, names, e_refs, u_refs, remeasure, *, force
     # The model-form floor: what the held-out references show the model does not describe, or the fit's
     # own transfer floor where that is larger.
     floor = max(float(cal0.u_rel_floor), check.floor)
+    # What the references determined and what the datasheet prior settled, in the file (ISSUE #34 item 1):
+    # a probe the references cannot identify is written flagged with the reference that would, never silently.
+    from edge.estimation.methods import method_class  # noqa: PLC0415
+
+    extra = {"identifiability": identifiability(cal0)} if method_class(cal0.probe).sensor_chain else {}
     cal = replace(cal0, u_rel_floor=floor, device_id=device_id, forced=not check.passed,
-                  self_check=check.to_dict())
+                  self_check={**check.to_dict(), **extra})
     # What the calibration reports for its references is what the device will answer: each touch
     # through the estimate path with this calibration (its e does not depend on the references' entries).
     per: dict[str, list[float]] = {}

@@ -313,12 +313,13 @@ class _Prepared:
 REFINE_DT_s = 0.02
 
 
-def _refine(t: np.ndarray, x: np.ndarray, m: int, breaks_s: tuple[float, ...]) -> np.ndarray:
-    """``x`` on the grid ``m`` times finer than ``t`` (see :data:`REFINE_DT_s`)."""
+def _refine(t: np.ndarray, x: np.ndarray, m: int, breaks_s: tuple[float, ...], k: int = 0) -> np.ndarray:
+    """``x`` on the grid ``m`` times finer than ``t`` (see :data:`REFINE_DT_s`); contact after fine point ``k``."""
     dt_f = (t[1] - t[0]) / m
     tf = t[0] + dt_f * np.arange((t.size - 1) * m + 1)
     xf = np.interp(tf, t, x)
-    xf[1:m] = x[1]                      # contact: the change happens at its instant (sample 0)
+    xf[1:k + 1] = x[0]                  # still in air up to the contact ...
+    xf[k + 1:m] = x[1]                  # ... then the change happens at its instant
     for b in breaks_s:
         tb = t[0] + b
         j = int(np.searchsorted(t, tb, side="right"))
@@ -332,7 +333,8 @@ def _refine(t: np.ndarray, x: np.ndarray, m: int, breaks_s: tuple[float, ...]) -
 
 def _prepare(t_s, T_tc_C, q_m_W_m2, cal: SensorChainCalibration, T_probe0_C, fit_start_s,
              breaks_s: tuple[float, ...] = (), smooth_s: float = SMOOTH_HALF_WIDTH_s,
-             smooth_growth: int = SMOOTH_GROWTH, refine_dt_s: float | None = REFINE_DT_s) -> _Prepared:
+             smooth_growth: int = SMOOTH_GROWTH, refine_dt_s: float | None = REFINE_DT_s,
+             contact_frac: float = 0.0) -> _Prepared:
     t = np.asarray(t_s, dtype=np.float64)
     T = np.asarray(T_tc_C, dtype=np.float64)
     q = np.asarray(q_m_W_m2, dtype=np.float64) * cal.flux_scale
@@ -346,10 +348,14 @@ def _prepare(t_s, T_tc_C, q_m_W_m2, cal: SensorChainCalibration, T_probe0_C, fit
     m = 1 if refine_dt_s is None else max(1, int(math.ceil(dt / refine_dt_s - 1e-9)))
     recorded = np.ones(t.size, dtype=bool)
     if m > 1:
-        T, q = _refine(t, T, m, breaks_s), _refine(t, q, m, breaks_s)
+        # The contact lies within the record's first interval, ``contact_frac`` of it after sample 0: the
+        # refined record starts at that instant (the last fine point in air).
+        k = min(max(int(round(contact_frac * m)), 0), m - 1)
+        T, q = _refine(t, T, m, breaks_s, k)[k:], _refine(t, q, m, breaks_s, k)[k:]
         dt = dt / m
         t = t[0] + dt * np.arange(T.size)
-        recorded = np.arange(t.size) % m == 0
+        recorded = (np.arange(t.size) + k) % m == 0
+        breaks_s = tuple(b - k * dt for b in breaks_s)
     Tp0 = float(T[0]) if T_probe0_C is None else float(T_probe0_C)
     KA, KB = _slab_kernels(t.size, dt, cal.sensing_thickness_m, cal.k_W_mK, cal.alpha_m2_s)
     y = T - Tp0
@@ -418,8 +424,8 @@ def fit_sensor_chain(t_s, T_tc_C, q_m_W_m2, *, T_probe0_C: float | None = None,
                      calibration: SensorChainCalibration = SensorChainCalibration(),
                      fit_start_s: float = 0.3, noise_T_K: float = 0.01, n_iterations: int = 1,
                      breaks_s: tuple[float, ...] = (), disk: tuple[float, float] | None = None,
-                     smooth_s: float = SMOOTH_HALF_WIDTH_s, refine_dt_s: float | None = REFINE_DT_s
-                     ) -> SensorChainResult:
+                     smooth_s: float = SMOOTH_HALF_WIDTH_s, refine_dt_s: float | None = REFINE_DT_s,
+                     contact_frac: float = 0.0) -> SensorChainResult:
     """Fit (e, R_c, T_obj0) to a record that starts at the moment of contact.
 
     Parameters
@@ -452,6 +458,9 @@ def fit_sensor_chain(t_s, T_tc_C, q_m_W_m2, *, T_probe0_C: float | None = None,
     refine_dt_s : float or None
         A record sampled coarser than this runs on a refined grid (:data:`REFINE_DT_s`); None: on its
         own samples, every input linear between them (the model of :func:`simulate_chain`).
+    contact_frac : float
+        On a refined grid: where within the record's first interval the contact happened (0: right
+        after sample 0; :func:`edge.estimation.chain_estimate.estimate_from_contact` fits it).
     n_iterations : int
         Passes of phi_face.  The first uses the measured thermocouple as theta_b; further passes
         use the fitted theta_b, which is wrong over the unresolved contact transient and, through
@@ -462,7 +471,7 @@ def fit_sensor_chain(t_s, T_tc_C, q_m_W_m2, *, T_probe0_C: float | None = None,
         aluminium (mixed), so the default stays 1.
     """
     c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, T_probe0_C, fit_start_s, breaks_s, smooth_s,
-                 refine_dt_s=refine_dt_s)
+                 refine_dt_s=refine_dt_s, contact_frac=contact_frac)
     t, y, fit, dt, cal = c.t, c.y, c.fit, c.dt, calibration
     theta = c.theta
     for it in range(max(1, n_iterations)):
@@ -545,8 +554,10 @@ class DiskFitter:
 
     def __init__(self, t_s, T_tc_C, q_m_W_m2, *, calibration: SensorChainCalibration = SensorChainCalibration(),
                  fit_start_s: float = 0.3, noise_T_K: float = 0.01, breaks_s: tuple[float, ...] = (),
-                 smooth_s: float = SMOOTH_HALF_WIDTH_s, T_probe0_C: float | None = None) -> None:
-        c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, T_probe0_C, fit_start_s, breaks_s, smooth_s)
+                 smooth_s: float = SMOOTH_HALF_WIDTH_s, T_probe0_C: float | None = None,
+                 contact_frac: float = 0.0) -> None:
+        c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, T_probe0_C, fit_start_s, breaks_s, smooth_s,
+                     contact_frac=contact_frac)
         self._c, self._tau, self._noise = c, calibration.tc_tau_s, float(noise_T_K)
         self._phi = c.phiA - _apply(c.KB, c.theta)
         self._X1 = _lag(np.column_stack((np.ones_like(c.t), self._phi, duhamel_apply(self._phi, c.dt))),
