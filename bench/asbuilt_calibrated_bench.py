@@ -300,7 +300,13 @@ def _stats(rs: list[dict]) -> dict:
     err = [abs(r["err"]) for r in ans]
     cover = [abs(r["e"] - r["e_true"]) <= 1.96 * r["u_e"] for r in ans]
     att = [r["attainable_u_rel"] for r in rs if r.get("attainable_u_rel") is not None]
-    return {"n": len(rs), "answered": len(ans),
+    # Answers the calibrated chain made (the rest: the calibrated path refused, flagged, the 1-D method answered).
+    chain = [r for r in ans if r.get("method") == "sensor_chain"]
+    cover_chain = [abs(r["e"] - r["e_true"]) <= 1.96 * r["u_e"] for r in chain]
+    return {"n": len(rs), "answered": len(ans), "through_calibration": len(chain),
+            "calibration_refused": sum("calibration_refused" in (r.get("flags") or []) for r in rs),
+            "cov95_through_calibration": sum(cover_chain) / len(cover_chain) if cover_chain else None,
+            "median_abs_err_through_calibration": statistics.median(abs(r["err"]) for r in chain) if chain else None,
             "median_abs_err": statistics.median(err) if err else None,
             "p90_abs_err": float(np.percentile(err, 90)) if err else None,
             "cov95": sum(cover) / len(cover) if cover else None,
@@ -332,21 +338,24 @@ def summarise(rows: list[dict], probes: list[dict]) -> dict:
 
 def table(summary: dict) -> str:
     lines = ["| head | window | e median \\|error\\|, R_c ≤ 3e-5 | 90th pct, R_c ≤ 3e-5 | 95 % coverage, all | "
-             "answered / touches | median stated u | median attainable u |", "|---|---|---|---|---|---|---|---|"]
+             "coverage, calibrated answers | answered / through calibration / touches | median stated u | "
+             "median attainable u |", "|---|---|---|---|---|---|---|---|---|"]
     for head, s in summary.items():
         for w, ws in s["windows"].items():
             lo, al = ws["low_Rc"], ws["all"]
             lines.append(f"| {head} | {w} s | {_pct(lo['median_abs_err'], '.1f')} | {_pct(lo['p90_abs_err'], '.1f')} | "
-                         f"{_pct(al['cov95'], '.0f')} | {al['answered']} / {al['n']} | {_pct(al['median_u_rel'], '.1f')} | "
+                         f"{_pct(al['cov95'], '.0f')} | {_pct(al['cov95_through_calibration'], '.0f')} | "
+                         f"{al['answered']} / {al['through_calibration']} / {al['n']} | {_pct(al['median_u_rel'], '.1f')} | "
                          f"{_pct(al['median_attainable_u_rel'], '.1f')} |")
-    lines += ["", "| head | window | class | touches | median \\|error\\| | 95 % coverage | median stated u | "
-              "median attainable u | error / attainable |", "|---|---|---|---|---|---|---|---|---|"]
+    lines += ["", "| head | window | class | touches (calibration refused) | median \\|error\\| | 95 % coverage | "
+              "median stated u | median attainable u | error / attainable |", "|---|---|---|---|---|---|---|---|---|"]
     for head, s in summary.items():
         for w, ws in s["windows"].items():
             for cls, c in ws["classes"].items():
                 ratio = (None if c["median_abs_err"] is None or not c["median_attainable_u_rel"]
                          else c["median_abs_err"] / c["median_attainable_u_rel"])
-                lines.append(f"| {head} | {w} s | {cls} | {c['n']} | {_pct(c['median_abs_err'], '.1f')} | "
+                lines.append(f"| {head} | {w} s | {cls} | {c['n']} ({c['calibration_refused']}) | "
+                             f"{_pct(c['median_abs_err'], '.1f')} | "
                              f"{_pct(c['cov95'], '.0f')} | {_pct(c['median_u_rel'], '.1f')} | "
                              f"{_pct(c['median_attainable_u_rel'], '.1f')} | {'–' if ratio is None else f'{ratio:.1f}'} |")
     lines.append("")
