@@ -69,14 +69,14 @@ DETERMINED_SHRINK = 0.5
 STRONG_CORRELATION = 0.8
 #: Per parameter: the reference or touch that would determine it.
 ADVICE = {
-    "ln_flux_scale": "add a reference of certified e (a metal such as aisi_304 with a polymer such as pmma): the "
-                     "sensitivity scales every e alike, only well-known references pin it",
-    "ln_sensing_thickness_m": "add a metal reference (aisi_304): the layer's depth shows where the object draws "
-                              "the most heat through it",
-    "tc_tau_s": "add a metal reference touched firmly, or touches with the object off the probe's temperature: the "
-                "bead lag shows on the fastest rises",
-    "ln_sensing_k_W_mK": "add touches of an insulating foam (or the probe held in air before each touch): the "
-                         "layer's heat capacity then shows apart from its resistance, and with it its conductivity",
+    "ln_flux_scale": "touch a certified metal block (aisi_304) and a polymer block (pmma): the sensitivity scales "
+                     "every e alike, only materials of well-known e pin it",
+    "ln_sensing_thickness_m": "touch a metal block (aisi_304): the layer's depth shows where the object draws the "
+                              "most heat through it",
+    "tc_tau_s": "touch a metal block firmly, or with the block off the probe's temperature: the bead lag shows on "
+                "the fastest rises",
+    "ln_sensing_k_W_mK": "touch an insulating foam (or record the probe in air before each touch): the layer's heat "
+                         "capacity then shows apart from its resistance, and with it its conductivity",
 }
 #: created_utc's format (as model manifests: the order of updates).
 TIME_FORMAT = "%Y-%m-%dT%H:%M:%SZ"
