@@ -212,7 +212,7 @@ def pick(n: int) -> tuple:
     return tuple(SOLIDS[int(i)] for i in np.unique(np.round(np.linspace(0, len(SOLIDS) - 1, n))))
 
 
-def run(n_probes: int, n_solids: int, n_touches: int) -> dict:
+def run(n_probes: int, n_solids: int, n_touches: int, seeds: list[int] | None = None) -> dict:
     from thermotouch_models import DEFAULT_BUNDLE
 
     from edge.calibration.model import identifiability
@@ -230,7 +230,7 @@ def run(n_probes: int, n_solids: int, n_touches: int) -> dict:
     att_cache: dict = {}
     t0 = time.perf_counter()
     for head, spec in HEADS.items():
-        for draw_seed in range(1, n_probes + 1):
+        for draw_seed in (seeds or range(1, n_probes + 1)):
             rng = np.random.default_rng([TOUCH_SEED, draw_seed])
             c = calibrate_probe(head, draw_seed, n_touches, store, workdir, rng)
             cal = c.pop("cal")
@@ -372,6 +372,23 @@ def table(summary: dict) -> str:
     return "\n".join(lines)
 
 
+def merge(parts: list[str]) -> dict:
+    """One result from the JSON files of runs over disjoint probe seeds (``--part``; each probe is seeded alone)."""
+    import json
+
+    from _common import RESULTS
+
+    got = [json.loads((RESULTS / f"asbuilt_calibrated_{p}.json").read_text()) for p in parts]
+    out = {k: v for k, v in got[0].items() if k not in ("rows", "probes", "summary", "machine")}
+    out["rows"] = [r for g in got for r in g["rows"]]
+    out["probes"] = sorted((p for g in got for p in g["probes"]), key=lambda p: (p["head"], p["draw_seed"]))
+    out["probes_per_head"] = len({p["draw_seed"] for p in out["probes"]})
+    out["wall_s"] = max(g["wall_s"] for g in got)
+    out["parts"] = {p: {"wall_s": g["wall_s"], "load_avg_1min": g["load_avg_1min"]} for p, g in zip(parts, got)}
+    out["summary"] = summarise(out["rows"], out["probes"])
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--probes", type=int, default=8, help="drawn probes per head (default 8)")
@@ -379,10 +396,19 @@ def main() -> None:
     ap.add_argument("--touches", type=int, default=3, help="touches per reference (default 3)")
     ap.add_argument("--update-readme", action="store_true", help="write the block in docs/results.md")
     ap.add_argument("--tag", default="", help="suffix of the results file (a development run beside the shipped one)")
+    ap.add_argument("--seeds", type=int, nargs="+", default=None,
+                    help="only these drawn probes (a part of a run split over processes; see --merge)")
+    ap.add_argument("--merge", nargs="+", default=None, metavar="TAG",
+                    help="combine the results of runs with these --tag's (disjoint --seeds) into one")
     args = ap.parse_args()
     if min(args.probes, args.solids, args.touches) < 1:
         sys.exit("--probes, --solids and --touches must be >= 1")
-    res = run(args.probes, args.solids, args.touches)
+    if args.merge:
+        res = merge(args.merge)
+        args.probes = res["probes_per_head"]
+        args.solids, args.touches = len(res["solids"]), res["touches_per_reference"]
+    else:
+        res = run(args.probes, args.solids, args.touches, args.seeds)
     text = table(res["summary"])
     print(text)
     print(f"wall {res['wall_s']:.0f} s, load {res['load_avg_1min']:.1f}")
@@ -390,7 +416,9 @@ def main() -> None:
     if args.update_readme:
         write_block("asbuilt-calibrated-bench",
                     f"{args.probes} drawn probes per head x {args.solids} solids, {args.touches} touches per reference, "
-                    f"{res['wall_s']:.0f} s wall (`python bench/asbuilt_calibrated_bench.py --update-readme`). "
+                    f"{res['wall_s']:.0f} s wall (`python bench/asbuilt_calibrated_bench.py --update-readme`; "
+                    "run here as two processes over seeds 1-4 and 5-8, `--seeds ... --tag ...`, then "
+                    "`--merge TAG TAG --update-readme`). "
                     f"{res['conditions']}.\n\n" + text)
 
 
