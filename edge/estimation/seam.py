@@ -47,6 +47,9 @@ from edge.physics.geometry import get_probe
 from edge.recognition import recognition_fields
 from edge.status import Flag
 
+#: Flags under which a touch gets no answer (ISSUE #34 item 3): nothing was touched, or nothing measured.
+NO_ANSWER = frozenset({Flag.NO_CONTACT, Flag.NO_SIGNAL})
+
 __all__ = ["SeamContext", "TouchEstimator", "Conditioned", "TooFewSamples", "BLOCKERS", "condition", "estimate_touch",
            "chain_answer", "method_estimate", "MethodFn", "CHAIN_KEEP"]
 
@@ -412,11 +415,18 @@ def estimate_touch(record: TouchRecord, context: SeamContext, *,
                       details={**est.details, "sensor_chain": chain})
         promoted = chain_answer(est, chain, context.estimator, chain_parts)
         if promoted is not None:
-            est = promoted
+            # The calibrated chain found the contact in the record and fitted it, object temperature and
+            # R_c included: the 1-D judgements of "no contact" / "no signal" (which assume an object at
+            # the probe's temperature; a hand touch of a metal 2 K colder fooled them) are superseded.
+            est = replace(promoted, flags=tuple(f for f in promoted.flags if f not in NO_ANSWER))
         elif cal is not None:
             # The installed calibration did not make this answer: say so (ISSUE #34, "answers that look
             # calibrated but are not"); sensor_chain.flags say why.
             est = est.with_flags(Flag.CALIBRATION_REFUSED)
+    if NO_ANSWER & set(est.flags):
+        # Nothing was touched or nothing measured: no answer, whatever a method fitted (ISSUE #34 item 3).
+        est = replace(est, effusivity_W_s05_m2K=None, k_W_mK=None, alpha_m2_s=None, determined_by={},
+                      material=None, material_confidence=0.0, material_candidates=(), u_e_parts={})
     est = _recognise(est, context, record.heater_on_s)   # the set's calibration at this contact time
     if decision is not None:
         est = replace(est, details={**est.details, "decision": dict(decision)})
