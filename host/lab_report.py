@@ -16,7 +16,8 @@ from host.lab_html import esc, figure_png, fmt, kv_table, page, pm, png_img, pyp
 from host.lab_series import answered_values, source_of
 from host.lab_stats import QUANTITIES, TAIL, VERDICTS
 
-__all__ = ["series_report_html", "series_plot_png"]
+__all__ = ["series_report_html", "series_plot_png", "touch_figures", "results_rows", "sample_pairs", "device_pairs",
+           "headline_text", "report_title", "calibration_of"]
 
 #: What each source of a quantity means, for the report's readers.
 SOURCES = {
@@ -61,7 +62,12 @@ def series_plot_png(doc: dict) -> bytes:
     return figure_png(fig)
 
 
-def _results_table(summary: dict) -> str:
+RESULT_HEADER = ["quantity", "unit", "mean ± sd", "RSD", "n", "mean stated u (k = 1)", "χ²/dof", "sd / rms(u)",
+                 "spread against u"]
+
+
+def results_rows(summary: dict) -> list[list[str]]:
+    """The result table's rows (HTML and PDF): per quantity mean ± sd, RSD, n, mean u and the spread check."""
     rows = []
     for key, _, label, unit, scale in QUANTITIES:
         s = summary["quantities"][key]
@@ -74,8 +80,11 @@ def _results_table(summary: dict) -> str:
         rows.append([label, unit, pm(s["mean"], s["sd"], scale),
                      "–" if s["rsd"] is None else f"{s['rsd'] * 100:.2f} %", str(s["n"]), fmt(s["u_mean"], 3, scale),
                      chi, ratio, VERDICTS[s["verdict"]]])
-    return table(["quantity", "unit", "mean ± sd", "RSD", "n", "mean stated u (k = 1)", "χ²/dof",
-                  "sd / rms(u)", "spread against u"], rows, numeric=(2, 3, 4, 5))
+    return rows
+
+
+def _results_table(summary: dict) -> str:
+    return table(RESULT_HEADER, results_rows(summary), numeric=(2, 3, 4, 5))
 
 
 def _sources_table(summary: dict) -> str:
@@ -87,6 +96,10 @@ def _sources_table(summary: dict) -> str:
     if not rows:
         return "<p>No answered touch.</p>"
     return table(["quantity", "determined by", "touches", "meaning"], rows, numeric=(2,))
+
+
+TOUCH_HEADER = ["touch", "measurement", "started (UTC)", "e (W s^0.5/(m² K))", "k (W/(m K))", "α (mm²/s)",
+                "object / material", "determined by", "flags"]
 
 
 def _touch_rows(doc: dict) -> list[list[str]]:
@@ -123,52 +136,120 @@ def _distinct(touches: list[dict], key: str) -> str:
     return ", ".join(vals) or "–"
 
 
-def series_report_html(doc: dict, *, source_name: str, generated_utc: str, software_version: str) -> str:
-    """The report page of a loaded series file (:func:`host.lab_series.load_series`)."""
-    md, dev, st, summary = doc["metadata"], doc["device"], doc["settings"], doc["summary"]
+def headline_text(doc: dict) -> str:
+    """The report's headline, plain text (the HTML sets the exponents)."""
+    summary = doc["summary"]
     e = summary["quantities"]["effusivity_W_s05_m2K"]
-    title = f"Measurement report: {md.get('sample') or 'unnamed sample'}"
-    if e["n"]:
-        rsd = "" if e["rsd"] is None else f", RSD {e['rsd'] * 100:.2f} %"
-        headline = (f"e = {pm(e['mean'], e['sd'])} W s<sup>0.5</sup>/(m<sup>2</sup> K) (mean ± sd{rsd}, "
-                    f"n = {e['n']} of {summary['n_requested']} touches)")
-    else:
-        headline = f"No answer in {summary['n_requested']} touches."
+    if not e["n"]:
+        return f"No answer in {summary['n_requested']} touches."
+    rsd = "" if e["rsd"] is None else f", RSD {e['rsd'] * 100:.2f} %"
+    return (f"e = {pm(e['mean'], e['sd'])} W s^0.5/(m² K) (mean ± sd{rsd}, "
+            f"n = {e['n']} of {summary['n_requested']} touches)")
+
+
+def report_title(doc: dict) -> str:
+    """``Measurement report: SAMPLE``."""
+    return f"Measurement report: {doc['metadata'].get('sample') or 'unnamed sample'}"
+
+
+def sample_pairs(doc: dict, source_name: str) -> list[tuple[str, object]]:
+    """The Sample table: who measured what, when, from which file."""
+    md = doc["metadata"]
+    return [("sample", md.get("sample")), ("lot", md.get("lot")), ("operator", md.get("operator")),
+            ("notes", md.get("notes")), ("series started (UTC)", doc.get("started_utc")),
+            ("series written (UTC)", doc.get("created_utc")), ("series file", source_name)]
+
+
+def device_pairs(doc: dict) -> list[tuple[str, object]]:
+    """The Device and probe table: identity, firmware, model, calibration, power, contact time."""
+    dev, st, summary = doc["device"], doc["settings"], doc["summary"]
     powers = sorted({t["power_W"] for t in doc["touches"] if t.get("power_W") is not None})
     times = sorted({t["contact_time_s"] for t in doc["touches"] if t.get("contact_time_s") is not None})
     where = (f"simulated probe, scene {dev.get('scene')}" if dev.get("source") == "sim"
              else f"port {dev.get('port')}" if dev.get("port") else None)
+    return [("device", dev.get("device_id")), ("connection", where), ("board", dev.get("board")),
+            ("firmware", dev.get("firmware_version")), ("protocol", dev.get("protocol_version")),
+            ("probe head", _distinct(doc["touches"], "probe")),
+            ("method", _distinct(doc["touches"], "method")),
+            ("model", f"{dev.get('model_version')} (sha256 {dev.get('model_sha256')})"),
+            ("models in the answers", ", ".join(summary["model_sha256"]) or None),
+            ("calibration", (f"sha256 {dev.get('calibration_sha256')}" if dev.get("calibrated")
+                             else "none installed: answers are flagged 'uncalibrated'")
+             if "calibrated" in dev else None),
+            ("calibrations in the answers", ", ".join(summary["calibration_sha256"]) or None),
+            ("object set", dev.get("object_set")),
+            ("heater power (W)", ", ".join(f"{p:.3g}" for p in powers) or None),
+            ("contact time (s)", ", ".join(f"{x:.3g}" for x in times) or None),
+            ("rest between touches (s)", st.get("cooldown_s")),
+            ("software (series)", f"{doc['software'].get('name')} {doc['software'].get('version')}")]
+
+
+#: The note under the result table (HTML and PDF).
+SPREAD_NOTE = (f"± and u are standard uncertainties (coverage factor k = 1). RSD = sd / mean. The spread is checked "
+               f"by χ² of the touches about their u-weighted mean with n − 1 degrees of freedom, two-sided at "
+               f"{(1 - 2 * TAIL) * 100:.0f} %: below the band, u holds parts every touch shares (calibration, "
+               f"model, prior) that repeating cannot show; above it, the touches differ by more than their u.")
+
+
+def touch_figures(doc: dict) -> tuple[list[tuple[dict, bytes]], str]:
+    """The touches' figures (shared :class:`host.plots.TouchFigure`, PNG) and the sentence introducing them."""
+    from host.lab_plots import MAX_TOUCH_FIGURES, figure_touches, touch_figure_pngs  # noqa: PLC0415
+
+    chosen, every = figure_touches(doc["touches"])
+    n_ans = doc["summary"]["n_answered"]
+    if not chosen:
+        return [], ("No touch figure: the series file keeps no touch's series (written by an older "
+                    "thermotouch series, or no touch answered).")
+    cal = calibration_of(doc)
+    pngs = touch_figure_pngs(chosen, label=doc["metadata"].get("sample") or "", calibration=cal)
+    if every:
+        missing = n_ans - len(chosen)
+        text = (f"Each answered touch: (a) heat flux, (b) excess temperature with the model fit and its band at "
+                f"e ± u(e), (c) residuals; grey: before contact, green: the fit's window."
+                + (f" {missing} answered touch(es) kept no series and are not drawn." if missing else ""))
+    else:
+        text = (f"{n_ans} answered touches (more than {MAX_TOUCH_FIGURES}): the representative touch "
+                f"{chosen[0]['index']} (e nearest the median) is drawn; the summary plot shows every reading.")
+    return pngs, text
+
+
+def calibration_of(doc: dict):
+    """The device's calibration the series file kept (None: none, or not readable -- the chain curve is omitted)."""
+    if not doc.get("calibration"):
+        return None
+    from edge.calibration.model import CalibrationError, ProbeCalibration  # noqa: PLC0415
+
+    try:
+        return ProbeCalibration.from_json(doc["calibration"])
+    except CalibrationError:
+        return None
+
+
+def series_report_html(doc: dict, *, source_name: str, generated_utc: str, software_version: str,
+                       figures: tuple[list[tuple[dict, bytes]], str] | None = None) -> str:
+    """The report page of a loaded series file (:func:`host.lab_series.load_series`).
+
+    ``figures``: :func:`touch_figures` of ``doc`` when the caller drew them already (the PDF uses the same).
+    """
+    summary = doc["summary"]
+    title = report_title(doc)
+    headline = esc(headline_text(doc)).replace("s^0.5", "s<sup>0.5</sup>").replace("m² K", "m<sup>2</sup> K")
+    pngs, fig_text = figures if figures is not None else touch_figures(doc)
     body = [
         f"<h1>{esc(title)}</h1>",
         f"<p class=\"headline\">{headline}</p>",
         "<h2>Sample</h2>",
-        kv_table([("sample", md.get("sample")), ("lot", md.get("lot")), ("operator", md.get("operator")),
-                  ("notes", md.get("notes")), ("series started (UTC)", doc.get("started_utc")),
-                  ("series written (UTC)", doc.get("created_utc")), ("series file", source_name)]),
+        kv_table(sample_pairs(doc, source_name)),
         "<h2>Device and probe</h2>",
-        kv_table([("device", dev.get("device_id")), ("connection", where), ("board", dev.get("board")),
-                  ("firmware", dev.get("firmware_version")), ("protocol", dev.get("protocol_version")),
-                  ("probe head", _distinct(doc["touches"], "probe")),
-                  ("method", _distinct(doc["touches"], "method")),
-                  ("model", f"{dev.get('model_version')} (sha256 {dev.get('model_sha256')})"),
-                  ("models in the answers", ", ".join(summary["model_sha256"]) or None),
-                  ("calibration", (f"sha256 {dev.get('calibration_sha256')}" if dev.get("calibrated")
-                                   else "none installed: answers are flagged 'uncalibrated'")
-                   if "calibrated" in dev else None),
-                  ("calibrations in the answers", ", ".join(summary["calibration_sha256"]) or None),
-                  ("object set", dev.get("object_set")),
-                  ("heater power (W)", ", ".join(f"{p:.3g}" for p in powers) or None),
-                  ("contact time (s)", ", ".join(f"{x:.3g}" for x in times) or None),
-                  ("rest between touches (s)", st.get("cooldown_s")),
-                  ("software (series)", f"{doc['software'].get('name')} {doc['software'].get('version')}")]),
+        kv_table(device_pairs(doc)),
         "<h2>Result</h2>",
         _results_table(summary),
-        f"<p class=\"note\">± and u are standard uncertainties (coverage factor k = 1). RSD = sd / mean. The "
-        f"spread is checked by χ² of the touches about their u-weighted mean with n − 1 degrees of freedom, "
-        f"two-sided at {(1 - 2 * TAIL) * 100:.0f} %: below the band, u holds parts every touch shares "
-        f"(calibration, model, prior) that repeating cannot show; above it, the touches differ by more than "
-        f"their u.</p>",
+        f"<p class=\"note\">{esc(SPREAD_NOTE)}</p>",
         png_img(series_plot_png(doc), "each touch's value with its u, the mean and the ±sd band"),
+        "<h2>Touch figures</h2>",
+        f"<p>{esc(fig_text)}</p>",
+        *(png_img(png, f"touch {t['index']}: measured series, model fit with its band, residuals")
+          for t, png in pngs),
         "<h2>What determined each quantity</h2>",
         _sources_table(summary),
         "<h2>Touches</h2>",
@@ -177,9 +258,7 @@ def series_report_html(doc: dict, *, source_name: str, generated_utc: str, softw
            f"; {summary['n_unanswered']} without an answer: "
            + esc("; ".join(f"touch {u['index']} (measurement {u['measurement_id']}): {u['why']}"
                            for u in summary["unanswered"])) + ".") + "</p>",
-        table(["touch", "measurement", "started (UTC)", "e (W s^0.5/(m² K))", "k (W/(m K))", "α (mm²/s)",
-               "object / material", "determined by", "flags"], _touch_rows(doc), numeric=(0, 1, 3, 4, 5),
-              raw=tuple(range(9))),
+        table(TOUCH_HEADER, _touch_rows(doc), numeric=(0, 1, 3, 4, 5), raw=tuple(range(9))),
         "<h2>Quality flags</h2>",
         _flags_table(summary),
         f"<p class=\"note\">Report generated {esc(generated_utc)} by thermotouch {esc(software_version)} from "

@@ -5,7 +5,9 @@ report or a later reader needs without the device: the user's metadata
 (sample, lot, operator, notes), the software version, the device's INFO
 (identity, firmware, model, calibration), the settings of the series, every
 touch with its measurement id, UTC times, status and whole answer -- also the
-touches that gave none, with the reason -- and a summary recomputed by
+touches that gave none, with the reason -- what each answered touch's figure
+needs (its series and fitted curve, :mod:`host.lab_plots`), the device's
+calibration (for a sensor-chain answer's curve) and a summary recomputed by
 :func:`summarize_touches` (:mod:`host.lab_stats`).  A reader recomputes the
 summary from the touches (one source of truth); the stored one is what the
 series printed.
@@ -21,6 +23,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterable
 
 from host.lab_metadata import check_metadata
+from host.lab_plots import check_plot
 from host.lab_stats import QUANTITIES, summarize
 
 __all__ = ["FORMAT", "SCHEMA_VERSION", "MAX_TOUCHES", "SeriesFileError", "measure_once", "touch_entry",
@@ -71,7 +74,8 @@ def measure_once(session: Any, **kw: Any) -> dict:
     return session.client.measure(**{k: v for k, v in kw.items() if v is not None})
 
 
-def touch_entry(index: int, rec: dict, answer_of: Callable[[dict], dict] | None = None) -> dict:
+def touch_entry(index: int, rec: dict, answer_of: Callable[[dict], dict] | None = None,
+                plot_of: Callable[[dict], dict | None] | None = None) -> dict:
     """A series' entry for touch ``index`` (1-based) from the device's MEASURE record.
 
     ``answer`` is ``answer_of(rec)`` (the CLI passes ``measure --json``'s
@@ -101,12 +105,14 @@ def touch_entry(index: int, rec: dict, answer_of: Callable[[dict], dict] | None 
         "model_sha256": rec.get("model_sha256") or (answer or {}).get("model_sha256"),
         "calibration_sha256": (answer or {}).get("calibration_sha256"),
         "answered": answered, "no_answer": why, "answer": answer,
+        "plot": plot_of(rec) if answered and plot_of is not None else None,
     }
 
 
 def run_series(session: Any, n: int, *, voltage_V: float | None = None, power_W: float | None = None,
                contact_time_s: float | None = None, cooldown_s: float = 0.0,
                answer_of: Callable[[dict], dict] | None = None,
+               plot_of: Callable[[dict], dict | None] | None = None,
                before_touch: Callable[[int], None] | None = None,
                on_touch: Callable[[dict], None] | None = None) -> list[dict]:
     """``n`` touches on ``session``; each touch's entry (:func:`touch_entry`) in order.
@@ -116,9 +122,9 @@ def run_series(session: Any, n: int, *, voltage_V: float | None = None, power_W:
     answer; any other refusal is raised.  Between touches the probe rests ``cooldown_s``: on a
     probe on a port the host waits that long (lift the probe, let it cool, put it back); on a
     simulated probe its simulated clock moves on by that much (its time moves only while it works,
-    so a wait on the host would change nothing).  ``answer_of`` makes each touch's answer
-    (:func:`touch_entry`); ``before_touch(i)`` runs after the rest, just before touch ``i`` (a
-    prompt to place the probe); ``on_touch`` sees each entry as soon as it is made (printing).
+    so a wait on the host would change nothing).  ``answer_of`` makes each touch's answer and
+    ``plot_of`` its figure's inputs (:func:`touch_entry`); ``before_touch(i)`` runs after the rest,
+    just before touch ``i`` (a prompt to place the probe); ``on_touch`` sees each entry as soon as it is made (printing).
     """
     from host.client import DeviceError  # noqa: PLC0415
 
@@ -138,7 +144,7 @@ def run_series(session: Any, n: int, *, voltage_V: float | None = None, power_W:
                 raise
             rec = {"measurement_id": None, "status": "refused", "reason": exc.code.name.lower(),
                    "error": exc.message, "flags": [], "result": None}
-        entry = touch_entry(i, rec, answer_of)
+        entry = touch_entry(i, rec, answer_of, plot_of)
         entries.append(entry)
         if on_touch is not None:
             on_touch(entry)
@@ -194,14 +200,18 @@ def summarize_touches(touches: list[dict]) -> dict:
 
 
 def series_document(touches: list[dict], *, metadata: dict, device: dict, settings: dict, started_utc: str,
-                    software_version: str) -> dict:
-    """The series file's content (see the module docstring)."""
+                    software_version: str, calibration: str | None = None) -> dict:
+    """The series file's content (see the module docstring).
+
+    ``calibration``: the device's installed calibration (its JSON), kept so a report draws a
+    sensor-chain answer with the chain's own curve; None when none is installed.
+    """
     return {
         "format": FORMAT, "schema_version": SCHEMA_VERSION,
         "software": {"name": "thermotouch", "version": software_version},
         "created_utc": utc_now(), "started_utc": started_utc,
         "metadata": dict(metadata), "device": dict(device), "settings": dict(settings),
-        "touches": touches, "summary": summarize_touches(touches),
+        "calibration": calibration, "touches": touches, "summary": summarize_touches(touches),
     }
 
 
@@ -259,6 +269,7 @@ def _check_touch(i: int, t: Any) -> dict:
             _finite_or_none(a.get(ukey), f"{where}.answer.{ukey}")
             if a.get(ukey) is not None and a[ukey] < 0:
                 raise SeriesFileError(f"{where}.answer.{ukey}: an uncertainty must be >= 0, got {a[ukey]!r}")
+    t["plot"] = check_plot(t.get("plot"), f"{where}.plot", SeriesFileError)
     t.setdefault("no_answer", None if t["answered"] else "not stated")
     for k in ("measurement_id", "status", "started_utc", "model_sha256", "calibration_sha256"):
         t.setdefault(k, None)
@@ -304,6 +315,9 @@ def load_series(path: str | Path) -> dict:
         if not isinstance(d.get(k) or {}, dict):
             raise SeriesFileError(f"{k}: must be a table")
         d[k] = d.get(k) or {}
+    if d.get("calibration") is not None and not isinstance(d["calibration"], str):
+        raise SeriesFileError("calibration: must be the calibration's JSON text or null")
+    d.setdefault("calibration", None)
     d["touches"] = [_check_touch(i, t) for i, t in enumerate(touches)]
     d["summary"] = summarize_touches(d["touches"])
     return d

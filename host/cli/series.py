@@ -12,7 +12,8 @@ their u-weighted mean, two-sided at 95 %, and sd / rms(u) with its accepted
 band).  Touches without an answer are counted and named.  On a port, with a
 terminal on stdin, each touch waits for Enter (put the probe on the sample
 first); ``--cooldown`` rests the probe between touches.  ``--out`` gets the
-self-describing series file (:mod:`host.lab_series`) that ``thermotouch
+self-describing series file (:mod:`host.lab_series`; with each answered
+touch's series and fitted curve, :mod:`host.lab_plots`) that ``thermotouch
 report`` turns into a measurement report; an existing file is replaced only
 with ``--overwrite``.  Exit 0 when at least one touch answered, 1 when none
 did (the file is still written: it records what happened).
@@ -116,6 +117,8 @@ def _answer(rec: dict) -> dict:
 
 def run(args) -> int:
     from host.atomic import write_text_atomic  # noqa: PLC0415
+    from host.calibration import read_calibration  # noqa: PLC0415
+    from host.lab_plots import touch_plot_inputs  # noqa: PLC0415
     from host.lab_series import run_series, series_document, software_version, utc_now  # noqa: PLC0415
 
     metadata = metadata_of(args)
@@ -139,9 +142,11 @@ def run(args) -> int:
         except EOFError:
             raise CliError(f"stopped before touch {i}: no Enter (end of input)", EXIT_RUNTIME) from None
 
+    calibration: list[str | None] = [None]
+
     def document() -> dict:
         return series_document(entries, metadata=metadata, device=device, settings=settings, started_utc=started,
-                               software_version=software_version())
+                               software_version=software_version(), calibration=calibration[0])
 
     try:
         with device_session(args) as session:
@@ -149,9 +154,16 @@ def run(args) -> int:
                           scene=session.simulator.scene.name if session.simulated else None,
                           port=None if session.simulated else session.port)
             device.update(device_call(session.client.info))
+            if device.get("calibrated"):
+                # Kept in the file: the report draws a sensor-chain answer with the chain's own curve.
+                calibration[0] = device_call(lambda: read_calibration(session.client))[1].get("calibration")
+
+            def plot_of(rec: dict) -> dict | None:
+                return device_call(lambda: touch_plot_inputs(session, rec))
+
             interactive = not session.simulated and not args.json and sys.stdin.isatty()
             run_series(session, n, voltage_V=args.voltage, power_W=args.power, contact_time_s=args.time,
-                       cooldown_s=args.cooldown, answer_of=_answer, before_touch=prompt if interactive else None,
+                       cooldown_s=args.cooldown, answer_of=_answer, plot_of=plot_of, before_touch=prompt if interactive else None,
                        on_touch=show)
     except BaseException as exc:
         # Ctrl-C or a lost probe after some touches: keep what was measured (the error is still reported).
