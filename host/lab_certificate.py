@@ -18,7 +18,7 @@ import numpy as np
 
 from host.lab_html import esc, figure_png, fmt, kv_table, page, pm, png_img, pyplot, table
 
-__all__ = ["certificate_html", "residual_plot_png", "PARAMETER_LABELS"]
+__all__ = ["certificate_html", "certificate_parts", "certificate_blocks", "residual_plot_png", "PARAMETER_LABELS"]
 
 #: How each calibrated parameter is shown (the words of ``thermotouch calibrate``): label, unit, display
 #: scale, and how theta maps to the shown value: "exp" (theta is its logarithm), "inv_exp" (theta is the
@@ -64,9 +64,19 @@ def residual_plot_png(cal) -> bytes:
     return figure_png(fig)
 
 
-def certificate_html(cal, *, source_name: str, generated_utc: str, software_version: str,
-                     issued_by: str | None = None, notes: str | None = None) -> str:
-    """The certificate page of a checked calibration (a :class:`edge.calibration.model.ProbeCalibration`)."""
+REFERENCE_HEADER = ["reference", "certified e (W s^0.5/(m² K))", "u (k = 1)", "touches",
+                    "re-measured after calibration: e / certified − 1 (%)", "mean", "rms",
+                    "against 2 u (reference and floor, k = 2)"]
+PARAMETER_HEADER = ["parameter", "name", "value ± u", "unit", "relative u"]
+#: The sentence on identity and coverage (HTML and PDF).
+IDENTITY_NOTE = ("Measurements made with this calibration record its sha256 as calibration_sha256. "
+                 "± values are standard uncertainties (coverage factor k = 1).")
+
+
+def certificate_parts(cal, *, source_name: str, generated_utc: str, software_version: str,
+                      issued_by: str | None = None, notes: str | None = None) -> dict:
+    """The certificate's content, shared by the HTML page and the PDF: title, identity pairs, the references'
+    rows, the parameters' rows, the chain pairs, the correlation table."""
     from edge.calibration.model import PARAMETERS  # noqa: PLC0415
 
     theta, u_theta = cal.theta, cal.u_theta
@@ -74,7 +84,6 @@ def certificate_html(cal, *, source_name: str, generated_utc: str, software_vers
     d = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(d, d)
-    title = f"Calibration certificate: probe {cal.probe}"
     par_rows = []
     for i, name in enumerate(PARAMETERS):
         label, unit, scale, _ = PARAMETER_LABELS[name]
@@ -97,29 +106,58 @@ def certificate_html(cal, *, source_name: str, generated_utc: str, software_vers
                          f"{rms * 100:.2f} %" if rms is not None else "–",
                          f"{outside} of {errs.size} outside ±{u2 * 100:.1f} %" if outside else
                          f"all within ±{u2 * 100:.1f} %"])
-    chain = cal.chain
+    return {
+        "title": f"Calibration certificate: probe {cal.probe}",
+        "identity": [("probe head", cal.probe), ("calibration created (UTC)", cal.created_utc or None),
+                     ("calibration identity (sha256)", cal.sha256), ("calibration file", source_name),
+                     ("issued by", issued_by), ("notes", notes), ("certificate generated (UTC)", generated_utc),
+                     ("software", f"thermotouch {software_version}")],
+        "references": ref_rows, "parameters": par_rows,
+        "chain": [("sensing layer diffusivity (m²/s, from k and the nominal ρc)", fmt(cal.chain.alpha_m2_s, 4)),
+                  ("residual floor added to every u(e) (relative, k = 1)", f"{cal.u_rel_floor * 100:.2f} %")],
+        "corr_header": ["", *PARAMETERS], "correlation": corr_rows,
+        "footer": f"Certificate generated {generated_utc} by thermotouch {software_version} from {source_name}.",
+        "residual_png": residual_plot_png(cal) if cal.references else None,
+    }
+
+
+def certificate_html(cal, *, source_name: str, generated_utc: str, software_version: str,
+                     issued_by: str | None = None, notes: str | None = None, parts: dict | None = None) -> str:
+    """The certificate page of a checked calibration (a :class:`edge.calibration.model.ProbeCalibration`).
+
+    ``parts``: :func:`certificate_parts` when the caller made them already (the PDF uses the same).
+    """
+    c = parts or certificate_parts(cal, source_name=source_name, generated_utc=generated_utc,
+                                   software_version=software_version, issued_by=issued_by, notes=notes)
+    n_par = len(c["corr_header"]) - 1
     body = [
-        f"<h1>{esc(title)}</h1>",
-        kv_table([("probe head", cal.probe), ("calibration created (UTC)", cal.created_utc or None),
-                  ("calibration identity (sha256)", cal.sha256), ("calibration file", source_name),
-                  ("issued by", issued_by), ("notes", notes), ("certificate generated (UTC)", generated_utc),
-                  ("software", f"thermotouch {software_version}")]),
-        "<p class=\"note\">Measurements made with this calibration record its sha256 as "
-        "<code>calibration_sha256</code>. ± values are standard uncertainties (coverage factor k = 1).</p>",
+        f"<h1>{esc(c['title'])}</h1>",
+        kv_table(c["identity"]),
+        f"<p class=\"note\">{esc(IDENTITY_NOTE)}</p>",
         "<h2>Reference materials</h2>",
-        table(["reference", "certified e (W s^0.5/(m² K))", "u (k = 1)", "touches",
-               "re-measured after calibration: e / certified − 1 (%)", "mean", "rms",
-               "against 2 u (reference and floor, k = 2)"], ref_rows,
-              numeric=(1, 2, 3, 5, 6)) if ref_rows else "<p>No references recorded.</p>",
-        png_img(residual_plot_png(cal), "relative error of each reference touch after calibration")
-        if cal.references else "",
+        table(REFERENCE_HEADER, c["references"], numeric=(1, 2, 3, 5, 6)) if c["references"]
+        else "<p>No references recorded.</p>",
+        png_img(c["residual_png"], "relative error of each reference touch after calibration")
+        if c["residual_png"] else "",
         "<h2>Fitted sensor chain parameters</h2>",
-        table(["parameter", "name", "value ± u", "unit", "relative u"], par_rows, numeric=(2, 4)),
-        kv_table([("sensing layer diffusivity (m²/s, from k and the nominal ρc)", fmt(chain.alpha_m2_s, 4)),
-                  ("residual floor added to every u(e) (relative, k = 1)", f"{cal.u_rel_floor * 100:.2f} %")]),
+        table(PARAMETER_HEADER, c["parameters"], numeric=(2, 4)),
+        kv_table(c["chain"]),
         "<h3>Correlation of the fitted parameters</h3>",
-        table(["", *PARAMETERS], corr_rows, numeric=tuple(range(1, len(PARAMETERS) + 1))),
-        f"<p class=\"note\">Certificate generated {esc(generated_utc)} by thermotouch {esc(software_version)} "
-        f"from {esc(source_name)}.</p>",
+        table(c["corr_header"], c["correlation"], numeric=tuple(range(1, n_par + 1))),
+        f"<p class=\"note\">{esc(c['footer'])}</p>",
     ]
-    return page(title, body)
+    return page(c["title"], body)
+
+
+def certificate_blocks(parts: dict) -> list[tuple]:
+    """The certificate as :mod:`host.lab_pdf` blocks (the HTML page's content, in its order)."""
+    return [
+        ("h1", parts["title"]), ("kv", parts["identity"]), ("note", IDENTITY_NOTE),
+        ("h2", "Reference materials"),
+        ("table", REFERENCE_HEADER, parts["references"]) if parts["references"] else ("p", "No references recorded."),
+        *((("png", parts["residual_png"]),) if parts["residual_png"] else ()),
+        ("h2", "Fitted sensor chain parameters"), ("table", PARAMETER_HEADER, parts["parameters"]),
+        ("kv", parts["chain"]),
+        ("h2", "Correlation of the fitted parameters"), ("table", parts["corr_header"], parts["correlation"]),
+        ("note", parts["footer"]),
+    ]

@@ -17,7 +17,7 @@ from host.lab_series import answered_values, source_of
 from host.lab_stats import QUANTITIES, TAIL, VERDICTS
 
 __all__ = ["series_report_html", "series_plot_png", "touch_figures", "results_rows", "sample_pairs", "device_pairs",
-           "headline_text", "report_title", "calibration_of"]
+           "headline_text", "report_title", "calibration_of", "report_blocks"]
 
 #: What each source of a quantity means, for the report's readers.
 SOURCES = {
@@ -265,3 +265,37 @@ def series_report_html(doc: dict, *, source_name: str, generated_utc: str, softw
         f"{esc(source_name)}; the flags' texts are those of <code>thermotouch flags</code>.</p>",
     ]
     return page(title, body)
+
+
+def report_blocks(doc: dict, *, source_name: str, generated_utc: str, software_version: str,
+                  figures: tuple[list[tuple[dict, bytes]], str]) -> list[tuple]:
+    """The report as :mod:`host.lab_pdf` blocks: the HTML page's content in its order (tables as text)."""
+    from host.flag_docs import describe_flag  # noqa: PLC0415
+    from host.lab_pdf import from_html  # noqa: PLC0415
+
+    summary = doc["summary"]
+    pngs, fig_text = figures
+    by = [[label, src, str(n), SOURCES.get(src, "")] for key, _, label, *_ in QUANTITIES
+          for src, n in sorted(summary["quantities"][key]["determined_by"].items())]
+    flags = [[w, str(n), describe_flag(w).replace("``", "")] for w, n in sorted(summary["flags"].items())]
+    unanswered = "; ".join(f"touch {u['index']} (measurement {u['measurement_id']}): {u['why']}"
+                           for u in summary["unanswered"])
+    return [
+        ("h1", report_title(doc)), ("p", headline_text(doc)),
+        ("h2", "Sample"), ("kv", sample_pairs(doc, source_name)),
+        ("h2", "Device and probe"), ("kv", device_pairs(doc)),
+        ("h2", "Result"), ("table", RESULT_HEADER, results_rows(summary)), ("note", SPREAD_NOTE),
+        ("png", series_plot_png(doc)),
+        ("h2", "Touch figures"), ("p", fig_text), *(("png", png) for _, png in pngs),
+        ("h2", "What determined each quantity"),
+        ("table", ["quantity", "determined by", "touches", "meaning"], by) if by else ("p", "No answered touch."),
+        ("h2", "Touches"),
+        ("p", f"{summary['n_answered']} of {summary['n_requested']} touches answered"
+         + (f"; {summary['n_unanswered']} without an answer: {unanswered}." if unanswered else ".")),
+        ("table", TOUCH_HEADER, [[from_html(c) for c in r] for r in _touch_rows(doc)]),
+        ("h2", "Quality flags"),
+        ("table", ["flag", "touches", "meaning and what to do"], flags) if flags
+        else ("p", "No quality flag on any touch."),
+        ("note", f"Report generated {generated_utc} by thermotouch {software_version} from {source_name}; the "
+                 f"flags' texts are those of thermotouch flags."),
+    ]
