@@ -112,14 +112,21 @@ def _table(pg: _Pages, header: Sequence[str] | None, rows: Sequence[Sequence[Any
         return
     texts = [[plain(c) for c in r] + [""] * (cols - len(r)) for r in rows]
     head = [plain(h) for h in header] if header else None
-    # Column widths after their longest word-wrapped content, capped so no column takes the page.
-    want = []
+    # Each column gets its longest word (no word is split where the page allows), then the rest of the
+    # width in proportion to how much more its longest cell (capped at 40 characters) would take.
+    base, more = [], []
     for j in range(cols):
         cells = [r[j] for r in texts] + ([head[j]] if head else [])
-        longest_word = max((len(w) for c in cells for w in c.split()), default=1)
-        want.append(max(longest_word, min(max((len(c) for c in cells), default=1), 40)) + 2)
-    total = sum(want)
-    widths_in = [pg.width_in * w / total for w in want]
+        word = max((len(w) for c in cells for w in c.split()), default=1) + 1
+        base.append(word)
+        more.append(max(0, min(max((len(c) for c in cells), default=1), 40) + 1 - word))
+    avail = pg.width_in * _PT_PER_in / (size_pt * _GLYPH_EM)
+    if sum(base) >= avail or not sum(more):
+        widths_in = [pg.width_in * b / sum(base) for b in base]
+    else:
+        extra = min(1.0, (avail - sum(base)) / sum(more))
+        chars = [b + m * extra for b, m in zip(base, more)]
+        widths_in = [pg.width_in * c / sum(chars) for c in chars]
     step = size_pt * _LINE / _PT_PER_in
     pad = 0.03
 

@@ -67,6 +67,8 @@ def touch_plot_inputs(session: Any, record: dict, *, bundle_dir: str | Path | No
                "effusivity_W_s05_m2K": getattr(f, "effusivity_W_s05_m2K", None),
                "effusivity_W_s05_m2K_u": getattr(f, "effusivity_W_s05_m2K_u", None)}
         note = None
+    elif record["result"].get("method") == "sensor_chain":
+        note = "the calibrated sensor chain's curve, from the device's calibration"
     elif bundle is not None:
         note = "the method has no model curve" if fits else "no raw series stored"
     return {"series": out_series, "fit": fit, "fit_note": note}

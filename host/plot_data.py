@@ -108,7 +108,9 @@ def chain_curve(series: Mapping[str, Any], chain: Mapping[str, Any], calibration
     def at(e_: float) -> np.ndarray:
         return Tp0 + base + X[:, 2] / e_
 
-    t_fit = tt[tt >= FIT_START_s] + t[i0]
+    # The rows chain_design fits are the record's tail from FIT_START_s; counted from its rows, since a
+    # sample at the boundary may fall either side of it in floating point (t - t[0] vs its uniform grid).
+    t_fit = tt[tt.size - X.shape[0]:] + t[i0]
     mid = at(e)
     hi = at(e - u) if e > u else 2.0 * mid - at(e + u)
     return {"t_s": t_fit, "T_C": mid, "T_lo_C": at(e + u), "T_hi_C": hi, "data_T_C": Tp0 + y,
