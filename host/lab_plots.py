@@ -142,15 +142,16 @@ def _title_result(t: dict) -> dict:
 
 
 def touch_figure_pngs(touches: Iterable[dict], *, label: str = "", calibration: Any = None,
-                      fmt: str = "png") -> list[tuple[dict, bytes]]:
-    """Each touch drawn with the shared :class:`host.plots.TouchFigure`: ``(touch, image bytes)``.
+                      fmt: str = "png") -> list[tuple[dict, bytes, str]]:
+    """Each touch drawn with the shared :class:`host.plots.TouchFigure`: ``(touch, image bytes, title)``.
 
-    ``fmt``: ``png`` for the HTML (embedded), ``pdf`` is not needed (the PDF places the PNGs).
+    ``title`` is the figure's title as drawn (identification line, label and method, the answer): the
+    HTML's alt text and the PDF's caption, so the documents say in text what each figure shows.
     """
     from host.plots import TouchFigure  # noqa: PLC0415
 
     touches = list(touches)
-    out: list[tuple[dict, bytes]] = []
+    out: list[tuple[dict, bytes, str]] = []
     if not touches:
         return out
     with tempfile.TemporaryDirectory(prefix="thermotouch-report-") as tmp, TouchFigure() as fig:
@@ -162,5 +163,6 @@ def touch_figure_pngs(touches: Iterable[dict], *, label: str = "", calibration: 
                 lab += f" (measured series only: {p.get('fit_note') or 'no model fit'})"
             path = Path(tmp) / f"touch{t['index']}.{fmt}"
             fig.draw(path, p["series"], _title_result(t), fit, lab, calibration=calibration)
-            out.append((t, path.read_bytes()))
+            title = fig.fig._suptitle.get_text() if fig.fig._suptitle is not None else lab
+            out.append((t, path.read_bytes(), title.replace("$^{0.5}$", "^0.5").replace("$^2$", "²")))
     return out

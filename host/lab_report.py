@@ -191,7 +191,7 @@ SPREAD_NOTE = (f"± and u are standard uncertainties (coverage factor k = 1). RS
                f"model, prior) that repeating cannot show; above it, the touches differ by more than their u.")
 
 
-def touch_figures(doc: dict) -> tuple[list[tuple[dict, bytes]], str]:
+def touch_figures(doc: dict) -> tuple[list[tuple[dict, bytes, str]], str]:
     """The touches' figures (shared :class:`host.plots.TouchFigure`, PNG) and the sentence introducing them."""
     from host.lab_plots import MAX_TOUCH_FIGURES, figure_touches, touch_figure_pngs  # noqa: PLC0415
 
@@ -226,7 +226,7 @@ def calibration_of(doc: dict):
 
 
 def series_report_html(doc: dict, *, source_name: str, generated_utc: str, software_version: str,
-                       figures: tuple[list[tuple[dict, bytes]], str] | None = None) -> str:
+                       figures: tuple[list[tuple[dict, bytes, str]], str] | None = None) -> str:
     """The report page of a loaded series file (:func:`host.lab_series.load_series`).
 
     ``figures``: :func:`touch_figures` of ``doc`` when the caller drew them already (the PDF uses the same).
@@ -248,8 +248,7 @@ def series_report_html(doc: dict, *, source_name: str, generated_utc: str, softw
         png_img(series_plot_png(doc), "each touch's value with its u, the mean and the ±sd band"),
         "<h2>Touch figures</h2>",
         f"<p>{esc(fig_text)}</p>",
-        *(png_img(png, f"touch {t['index']}: measured series, model fit with its band, residuals")
-          for t, png in pngs),
+        *(png_img(png, title) for _, png, title in pngs),
         "<h2>What determined each quantity</h2>",
         _sources_table(summary),
         "<h2>Touches</h2>",
@@ -268,7 +267,7 @@ def series_report_html(doc: dict, *, source_name: str, generated_utc: str, softw
 
 
 def report_blocks(doc: dict, *, source_name: str, generated_utc: str, software_version: str,
-                  figures: tuple[list[tuple[dict, bytes]], str]) -> list[tuple]:
+                  figures: tuple[list[tuple[dict, bytes, str]], str]) -> list[tuple]:
     """The report as :mod:`host.lab_pdf` blocks: the HTML page's content in its order (tables as text)."""
     from host.flag_docs import describe_flag  # noqa: PLC0415
     from host.lab_pdf import from_html  # noqa: PLC0415
@@ -286,7 +285,8 @@ def report_blocks(doc: dict, *, source_name: str, generated_utc: str, software_v
         ("h2", "Device and probe"), ("kv", device_pairs(doc)),
         ("h2", "Result"), ("table", RESULT_HEADER, results_rows(summary)), ("note", SPREAD_NOTE),
         ("png", series_plot_png(doc)),
-        ("h2", "Touch figures"), ("p", fig_text), *(("png", png) for _, png in pngs),
+        ("h2", "Touch figures"), ("p", fig_text),
+        *(b for _, png, title in pngs for b in (("png", png), ("note", title))),
         ("h2", "What determined each quantity"),
         ("table", ["quantity", "determined by", "touches", "meaning"], by) if by else ("p", "No answered touch."),
         ("h2", "Touches"),

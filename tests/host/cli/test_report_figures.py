@@ -1,0 +1,178 @@
+"""The report's per-touch figures (shared TouchFigure) and the PDFs of the report and the certificate (ISSUE #36)."""
+
+from __future__ import annotations
+
+import base64
+import json
+import re
+from dataclasses import replace
+
+import pytest
+
+from edge.calibration.model import ProbeCalibration, ReferenceFit
+from host.cli.main import main
+from host.lab_pdf import layout_pages, write_pdf
+from host.lab_plots import MAX_TOUCH_FIGURES, check_plot, figure_touches
+from host.lab_report import report_blocks, report_title, touch_figures
+from host.lab_series import SeriesFileError, load_series
+
+SAMPLE = "Glass <B33>"
+N = 3
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def pdf_text(raw: bytes) -> str:
+    """The text of an uncompressed Matplotlib PDF: each TJ array's glyph strings joined (kerning dropped).
+
+    Matplotlib's text shaping sets "fi", "fl", "ff" as ligature glyphs in a font of their own (another
+    text run): the needles searched here avoid those letter pairs.
+    """
+    out = []
+    for arr in re.findall(rb"\[(.*?)\]\s*TJ", raw, flags=re.S):
+        out.append(b"".join(re.findall(rb"\(((?:\\.|[^\\)])*)\)", arr)).replace(b"\\(", b"(").replace(b"\\)", b")")
+                   .decode("latin-1"))
+    return "\n".join(out)
+
+
+def pdf_pages(raw: bytes) -> int:
+    return len(re.findall(rb"/Type /Page\b", raw))
+
+
+@pytest.fixture(scope="module")
+def sim_series(tmp_path_factory):
+    """A 3-touch series of glass on a simulated probe (each answered touch keeps its series and fit)."""
+    d = tmp_path_factory.mktemp("series")
+    path = d / "s.json"
+    assert main(["series", "--sim", "glass_15V", "--repeat", str(N), "--sample", SAMPLE, "--operator", "A. Smith",
+                 "--out", str(path)]) == 0
+    return path
+
+
+def test_the_series_file_keeps_what_each_touch_figure_needs(sim_series):
+    doc = json.loads(sim_series.read_text())
+    for t in doc["touches"]:
+        assert t["answered"]
+        s = t["plot"]["series"]
+        assert len(s["raw_t_s"]) == len(s["raw_T_C"]) == len(s["raw_q_W_m2"]) > 10
+        assert min(s["raw_t_s"]) < 0 < max(s["raw_t_s"])   # the pre-contact phase is kept
+        fit = t["plot"]["fit"]
+        assert fit["method"] == t["answer"]["method"] and len(fit["t_model_s"]) == len(fit["fit_T_K"]) > 10
+    assert doc["calibration"] is None   # the simulated glass_15V probe has none installed
+
+
+def test_the_report_has_one_identified_figure_per_touch_and_the_pdf_the_same_content(capsys, tmp_path, sim_series):
+    html_path, pdf_path = tmp_path / "r.html", tmp_path / "r.pdf"
+    code, out, err = run(capsys, "report", sim_series, "--out", html_path, "--pdf", pdf_path)
+    assert code == 0, err
+    html = html_path.read_text()
+    doc = json.loads(sim_series.read_text())
+    imgs = re.findall(r'<img alt="([^"]*)" src="data:image/png;base64,([A-Za-z0-9+/=]+)"', html)
+    # The summary plot of the N readings, then one figure per touch, titled with its measurement.
+    assert len(imgs) == 1 + N
+    for t, (alt, b64) in zip(doc["touches"], imgs[1:]):
+        assert base64.b64decode(b64)[:8] == b"\x89PNG\r\n\x1a\n"
+        assert alt.startswith(f"measurement {t['measurement_id']}, ") and f"touch {t['index']}:" in alt
+        assert "model " + t["model_sha256"][:12] in alt and "calibration none" in alt and "4.5 W" in alt
+        assert f"{t['answer']['method']} method" in alt
+    assert "Each answered touch: (a) heat flux" in html
+    # The PDF: the pages the layout makes, with the report's title, sample and each touch's title as text.
+    raw = pdf_path.read_bytes()
+    assert raw.startswith(b"%PDF") and f"PDF ({pdf_pages(raw)} pages)" in out
+    loaded = load_series(sim_series)
+    figures = touch_figures(loaded)
+    blocks = report_blocks(loaded, source_name="s.json", generated_utc="now", software_version="x", figures=figures)
+    pages = layout_pages(report_title(loaded), blocks, "series s.json")
+    assert pdf_pages(raw) == len(pages) >= 3
+    plain = tmp_path / "plain.pdf"
+    write_pdf(plain, pages, title=report_title(loaded), compress=False)
+    text = pdf_text(plain.read_bytes())
+    assert pdf_pages(plain.read_bytes()) == pdf_pages(raw)
+    for needle in (f"Measurement report: {SAMPLE}", "A. Smith", "Touches", "Device and probe", "Quality",
+                   f"measurement {loaded['touches'][0]['measurement_id']},", f"page 1 of {len(pages)}"):
+        assert needle in text, needle
+    assert sum(b[0] == "png" for b in blocks) == 1 + N
+
+
+def _calibration(tmp_path):
+    refs = (ReferenceFit("pmma <lot&7>", 570.0, 0.03, 3, (0.011, -0.02, 0.004)),
+            ReferenceFit("pyroceram", 2100.0, 0.025, 2, (0.013, -0.006)))
+    cal = replace(ProbeCalibration.nominal(), calibrated=True, created_utc="2026-11-20T09:00:00+00:00",
+                  u_rel_floor=0.021, references=refs)
+    p = tmp_path / "cal.json"
+    p.write_text(cal.to_json())
+    return p, cal
+
+
+def test_the_certificate_pdf_lists_references_values_residuals_who_when_device(capsys, tmp_path, monkeypatch):
+    import host.lab_pdf as lab_pdf
+
+    path, cal = _calibration(tmp_path)
+    real = lab_pdf.write_pdf
+    monkeypatch.setattr(lab_pdf, "write_pdf", lambda *a, **kw: real(*a, **{**kw, "compress": False}))
+    out = tmp_path / "cert.pdf"
+    code, stdout, err = run(capsys, "report", "--calibration", path, "--out", tmp_path / "cert.html", "--pdf", out,
+                            "--operator", "Q & A <lab>")
+    assert code == 0, err
+    raw = out.read_bytes()
+    n = pdf_pages(raw)
+    assert n >= 1 and f"PDF ({n} pages)" in stdout
+    text = pdf_text(raw)
+    for needle in ("Calibration certi", "probe paper", "Reference materials", "pmma", "<lot&7>", "pyroceram",
+                   "570", "2100", "3.00 %", "+1.10, -2.00, +0.40", "issued by", "Q & A <lab>",
+                   "2026-11-20T09:00:00+00:00", cal.sha256, "Fitted sensor chain parameters", "2.10 %",
+                   "sensing depth"):
+        assert needle in text, needle
+
+
+def test_pdf_and_out_must_differ_and_an_existing_pdf_needs_overwrite(capsys, tmp_path, sim_series):
+    same = tmp_path / "r.pdf"
+    code, _, err = run(capsys, "report", sim_series, "--out", tmp_path / "r.html", "--pdf", tmp_path / "r.htm.pdf")
+    assert code == 0, err
+    code, _, err = run(capsys, "report", sim_series, "--out", tmp_path / "x.html", "--pdf", tmp_path / "r.htm.pdf")
+    assert code == 2 and "exists" in err and not (tmp_path / "x.html").exists()
+    code, _, err = run(capsys, "report", sim_series, "--out", tmp_path / "y.html", "--pdf", same.with_suffix(".txt"))
+    assert code == 2
+
+
+def test_above_the_limit_the_representative_touch_is_drawn():
+    def t(i, e, plot=True):
+        return {"index": i, "answered": e is not None, "answer": {"effusivity_W_s05_m2K": e} if e else None,
+                "plot": {"series": {}} if plot else None}
+
+    few = [t(1, 100.0), t(2, None), t(3, 120.0, plot=False), t(4, 90.0)]
+    chosen, every = figure_touches(few)
+    assert every and [x["index"] for x in chosen] == [1, 4]
+    many = [t(i, 1000.0 + (i if i % 2 else -i)) for i in range(1, MAX_TOUCH_FIGURES + 3)]
+    chosen, every = figure_touches(many)
+    values = sorted(x["answer"]["effusivity_W_s05_m2K"] for x in many)
+    median = (values[len(values) // 2 - 1] + values[len(values) // 2]) / 2
+    assert not every and len(chosen) == 1
+    assert abs(chosen[0]["answer"]["effusivity_W_s05_m2K"] - median) == min(abs(v - median) for v in values)
+
+
+@pytest.mark.parametrize("plot, words", [
+    ({"series": {"raw_t_s": [0.0, 1.0], "raw_T_C": [25.0], "raw_q_W_m2": [0.0, 1.0]}}, "differ in length"),
+    ({"series": {"raw_t_s": [0.0], "raw_T_C": [float("nan")], "raw_q_W_m2": [0.0]}}, "finite numbers"),
+    ({"series": {"raw_t_s": [0.0], "raw_T_C": [25.0]}}, "needs raw_t_s"),
+    ({"series": {"raw_t_s": [0.0], "raw_T_C": [25.0], "raw_q_W_m2": [0.0]},
+      "fit": {"t_model_s": [0.0, 1.0], "fit_T_K": [1.0], "method": "default"}}, "one length"),
+    ("a picture", "must be a table"),
+])
+def test_a_bad_plot_entry_is_named(plot, words):
+    with pytest.raises(SeriesFileError, match=words):
+        check_plot(plot, "touches[0].plot", SeriesFileError)
+
+
+def test_a_series_file_with_a_bad_plot_is_one_line_exit_2(capsys, tmp_path, sim_series):
+    doc = json.loads(sim_series.read_text())
+    doc["touches"][1]["plot"]["series"]["raw_T_C"] = doc["touches"][1]["plot"]["series"]["raw_T_C"][:-1]
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    code, _, err = run(capsys, "report", bad, "--out", tmp_path / "r.html")
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert code == 2 and len(lines) == 1 and "touches[1].plot.series" in lines[0], err
