@@ -65,6 +65,8 @@ class Serving:
         if req.command == Command.MEASURE:
             # The reply, addressed to this request id, is sent by the worker when the measurement ends.
             self._cancel.clear()
+            # A streaming MEASURE's events go to this link with its id (edge.service.events).
+            self._event_link = (endpoint, req.request_id) if req.args.get("stream") else None
             self._worker.start(lambda: endpoint.handle(req, self._handle_measure), "measure")
             return
         endpoint.handle(req, self.handle)

@@ -290,3 +290,25 @@ def test_sim_command_prints_the_port_first_and_stops_on_sigint(tmp_path):
             proc.wait()
     assert proc.returncode == 0, err
     assert "Traceback" not in err
+
+
+def test_measure_stream_prints_phases_and_running_answers_before_the_answer(capsys):
+    code, out, err = run(capsys, "measure", "--sim", "glass_15V", "--stream")
+    assert code == 0, err
+    lines = out.splitlines()
+    first_answer = next(i for i, ln in enumerate(lines) if ln.startswith("measurement "))
+    live = lines[:first_answer]
+    assert any(ln.strip().endswith("heating") for ln in live)
+    assert any("running answer:" in ln for ln in live)
+    assert live[-1].strip().endswith("done")            # the stream ends before the answer is printed
+
+
+def test_measure_stream_json_is_one_object_per_line_with_the_answer_last(capsys):
+    code, out, err = run(capsys, "measure", "--sim", "pmma_15V", "--stream", "--json")
+    assert code == 0, err
+    objs = [json.loads(ln) for ln in out.splitlines()]
+    kinds = {o.get("event") for o in objs[:-1]}
+    assert {"phase", "samples", "runninganswer"} <= kinds
+    assert "event" not in objs[-1] and RESULT_KEYS <= set(objs[-1])
+    streamed = [t for o in objs if o.get("event") == "samples" for t in o["t_s"]]
+    assert streamed == sorted(streamed) and len(streamed) >= 20   # 2.5 s at the scene's 10 Hz
