@@ -115,6 +115,7 @@ class Serving:
                 self.notifier.beat("serve")
                 for req in endpoint.poll():
                     self._dispatch(endpoint, req)
+                    self.notifier.beat("serve")  # per request: a burst of requests is not one long turn
                     if stop.is_set() or self.stop_event.is_set():
                         break
                 if not self.measuring:

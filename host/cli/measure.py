@@ -72,13 +72,23 @@ def run(args) -> int:
             raise CliError("--bundle is for the fitted curves of --plot")
         bundle_identity(args.bundle)  # a wrong directory is refused before the touch
     on_event = _event_printer(args.json) if args.stream else None
+    if args.plot:
+        from host.plots import preload  # noqa: PLC0415
+
+        preload()  # Matplotlib's import (most of a plot's time) while the touch runs
+    cal = None
     with device_session(args) as session:
         with Ticker("measuring", enabled=not (args.json or args.stream)):
             t = touch(session, power_W=args.power, voltage_V=args.voltage, contact_time_s=args.time,
                       method=args.method, with_series=bool(args.plot), bundle_dir=args.bundle,
                       sample_rate_Hz=rate, until_decided=args.until_decided, arm_s=args.arm,
                       settle_s=args.settle, on_event=on_event)
-        label = session.simulator.scene.name if session.simulated else session.port
+        if args.plot and (t.record.get("result") or {}).get("method") == "sensor_chain":
+            from host.calibration import read_calibration  # noqa: PLC0415
+
+            cal = read_calibration(session.client)[0]  # the chain's answer is drawn with its own curve
+        # The title identifies the measurement; a label names the sample or the scene, never the port.
+        label = metadata_of(args).get("sample") or (session.simulator.scene.name if session.simulated else "")
     d = measure_json(t.record)
     decision = (t.record.get("result") or {}).get("decision")
     if decision is not None:
@@ -87,7 +97,8 @@ def run(args) -> int:
     if any(v is not None for v in metadata.values()):  # the user's words about the sample, carried as given
         d["metadata"] = metadata
     fit = t.fits.get(d["method"])
-    only_measured = "" if fit is not None else f" (measured series only: {t.fit_note or 'no model fit'})"
+    only_measured = "" if fit is not None or cal is not None else \
+        f" (measured series only: {t.fit_note or 'no model fit'})"
     # The result is printed first: a plot that cannot be written must not lose it.
     if args.json:
         print(dumps(d), flush=True)
@@ -101,10 +112,12 @@ def run(args) -> int:
             print(f"running answer: {decision.get('object')} (posterior {decision.get('posterior', 0):.3f}) "
                   f"at {decision.get('elapsed_s', 0):.2f} s: {how}")
     if args.plot:
+        from host.plot_data import touch_identity  # noqa: PLC0415
         from host.plots import plot_touch  # noqa: PLC0415
 
         try:
-            plot_touch(args.plot, t.series, d, fit, label + only_measured)
+            plot_touch(args.plot, t.series, {**d, **touch_identity(t.record)}, fit, label + only_measured,
+                       calibration=cal)
         except (OSError, ValueError) as exc:
             why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
             raise CliError(f"measurement {d['measurement_id']} done, but cannot write the plot {args.plot}: {why}",
