@@ -70,7 +70,7 @@ def test_a_reference_far_outside_the_probes_tolerance_is_refused_as_swapped():
         check_reference("pmma", 558.0, 7500.0, 150.0)
 
 
-@pytest.mark.slow  # three simulated reference touches and a calibration fit with its noise-bias refits
+@pytest.mark.slow  # three simulated reference touches and a calibration fit
 def test_a_calibration_on_references_at_the_probes_temperature_does_not_overflow():
     # Once "OverflowError: math range error": an object at the probe's own temperature shows no contact
     # step; with 3 s of contact before heating the fit's normal equations were nearly singular and an
