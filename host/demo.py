@@ -371,7 +371,10 @@ def walk_through(walk: Path, scenes_dir: Path, workdir: Path, *, deploy: Callabl
     from edge.physics.materials import load_materials  # noqa: PLC0415
     from host.calibration import (CalibrationRefused, WalkError, checked_calibration, install_calibration,  # noqa: PLC0415
                                   reference_scene, seam_remeasure, touch_reference)
-    from host.cli.common import seam_context  # noqa: PLC0415
+    from edge.estimation.estimate import Estimator  # noqa: PLC0415
+    from edge.estimation.seam import SeamContext  # noqa: PLC0415
+    from edge.service.config import Config  # noqa: PLC0415
+    from host.touch import host_bundle  # noqa: PLC0415
 
     lib = load_materials()
     names = list(DEFAULT_REFERENCES)
@@ -393,8 +396,13 @@ def walk_through(walk: Path, scenes_dir: Path, workdir: Path, *, deploy: Callabl
                 f"{t.t_s.size} samples")
             if i + 1 < len(names):
                 continue
-            remeasure = seam_remeasure(records, [None if r is None else seam_context(None, method=r.method)
-                                                 for r in records])
+            # The self-check re-measures each reference as the device answers: its model, default thresholds.
+            bundle, note = host_bundle(sha, session=s)
+            if bundle is None:
+                raise DeviceUnavailable(f"calibration walk-through: no bundle to re-measure with ({note})", 1)
+            ctx = SeamContext(estimator=Estimator.from_bundle(bundle), calibration=None,
+                              thresholds=Config().measurement)
+            remeasure = seam_remeasure(records, [ctx] * len(records))
 
             def fit(tt, k):
                 return fit_calibration(tt, probe="paper", min_references=k)
