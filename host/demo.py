@@ -482,8 +482,8 @@ def _instrument_into(out: Path, final: Path, *, train: bool, scenes, progress: b
                                                   log=lambda m: log("  " + m)))
         cal, check, sha = w["calibration"], w["check"], w["model_sha256"]
         cal_lines = _calibration_lines(cal, check)
-        for line in cal_lines:
-            log(line)
+        log(f"  calibration {cal.sha256[:12]} installed{' FORCED' if cal.forced else ''} "
+            f"(self-check {'passed' if check.passed else 'FAILED'}; in full with the table below)")
         log(f"touching the paper's samples by hand with the calibrated probe ({len(scenes)} scenes) ...")
         with ProgressBar("touches", "touch", enabled=progress) as bar:
             rows = measure_scenes(workdir, variants, plots=out / "plots", plotter=plotter, expect_sha256=sha,
