@@ -2,7 +2,7 @@
 
 By default (:func:`run_demo`) the probe is the instrument as a user meets it: a
 paper probe DRAWN as built (:data:`DRAW_SEED`, the scene key ``[as_built]
-draw_seed``: firmware_sim.asbuilt draws every unknown, the device is told only
+draw_seed``: the simulator draws every unknown, the device is told only
 the nominal values) on the faithful world (the ``*_faithful`` scenes' board and
 sensors: the (r, z) finite-volume probe, never the estimator's model).  It is
 calibrated by the README's walk-through -- the code ``thermotouch calibrate
