@@ -68,59 +68,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from edge.checks import finite_array, finite_nonnegative, finite_positive, one_of
+from edge.physics.bessel import bessel_j
+from edge.physics.footprint import rectangle_weights
 from edge.physics.geometry import ProbeGeometry
 from edge.physics.solids import Solid
 
-__all__ = ["bessel_j", "HyperbolicInversion", "hankel_nodes", "AxisymModel", "Responses"]
+__all__ = ["bessel_j", "HyperbolicInversion", "hankel_nodes", "sensor_weights", "AxisymModel", "Responses"]
 
 BACKS = ("infinite", "insulated", "fixed")
 #: Contour angle of the hyperbola (W&T 2007 use values near 1.1; this one with N = 32 gives
 #: < 1e-6 relative on the layered transforms over Lambda = 250).
 _PHI = 1.09
-
-
-# ----------------------------------------------------------------------------------------------
-# Special functions (NumPy only on the device)
-
-
-def bessel_j(n: int, x: np.ndarray) -> np.ndarray:
-    """Bessel function J_n(x), n = 0 or 1, for real x (NumPy only).
-
-    From ``J_n(x) = (1/2pi) int_0^2pi cos(n tau - x sin tau) d tau`` with the
-    trapezoid rule, which converges geometrically for a periodic integrand once
-    the number of points m exceeds |x| + n by a margin (here |x| + 10 |x|^(1/3) + 48,
-    past the Airy transition of the aliased J_m(x)): errors ~1e-15.
-
-    The rule's nodes are the midpoints ``tau_j = 2 pi (j + 1/2) / m`` with m = 4 K: the
-    integrand's symmetries under ``tau -> pi - tau`` and ``tau -> tau + pi`` fold the m
-    points onto the K in the first quadrant (J0: ``cos(x sin tau)``; J1: its odd part
-    ``sin(tau) sin(x sin tau)``, the ``cos(tau) cos(x sin tau)`` part cancels in pairs), the
-    same sum at a quarter of the cost.  The x are taken in blocks by increasing |x|, each
-    with the m its own largest |x| needs: a model's set-up evaluates thousands of
-    arguments from 0 to ~1e3, and most need far fewer points than the largest.
-    """
-    if n not in (0, 1):
-        raise ValueError(f"n must be 0 or 1, got {n}")
-    x = np.asarray(x, dtype=float)
-    flat = x.reshape(-1)
-    order = np.argsort(np.abs(flat), kind="stable")
-    xs = flat[order]
-    res = np.empty(flat.size)
-    block = 256  # keeps the (x, tau) table at most ~2e5 entries for |x| ~ 3e3
-    for i in range(0, xs.size, block):
-        xb = xs[i:i + block]
-        xm = float(np.max(np.abs(xb)))
-        m = int(xm + 10.0 * xm ** (1.0 / 3.0)) + 48  # past the Airy transition of J_m(x)
-        k = -(-m // 4)  # quadrant points; 4 k >= m
-        sin_tau = np.sin(0.5 * np.pi * (np.arange(k) + 0.5) / k)
-        arg = xb[:, None] * sin_tau[None, :]
-        if n == 0:
-            res[i:i + block] = np.mean(np.cos(arg), axis=1)
-        else:
-            res[i:i + block] = np.mean(sin_tau[None, :] * np.sin(arg), axis=1)
-    out = np.empty(flat.size)
-    out[order] = res
-    return out.reshape(x.shape)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -198,7 +156,7 @@ def hankel_nodes(geometry: ProbeGeometry, *, per_panel: int = 4, depth_decades: 
         Panels halving towards zeta = 0 inside the first oscillation panel.
     """
     a = geometry.heater_radius_m
-    reach = max(geometry.sensor_radius_m, geometry.thermocouple_r_m)
+    reach = max(geometry.sensor_reach_m, geometry.thermocouple_r_m)
     w = math.pi / (a + reach)
     Z = depth_decades / geometry.sensing_thickness_m
     n_osc = max(1, int(math.ceil(Z / w)))
@@ -212,6 +170,15 @@ def hankel_nodes(geometry: ProbeGeometry, *, per_panel: int = 4, depth_decades: 
     ramp = np.clip((z - z0) / (Zend - z0), 0.0, 1.0)
     wz = wz * 0.5 * (1.0 + np.cos(np.pi * ramp))
     return z, wz
+
+
+def sensor_weights(geometry: ProbeGeometry, zeta: np.ndarray) -> np.ndarray:
+    """The flux sensor's read-out ``W(zeta)`` (area mean of ``J0(zeta |x|)`` over its footprint)."""
+    if geometry.sensor_square_m is None:
+        b = geometry.sensor_radius_m
+        return 2.0 * bessel_j(1, zeta * b) / (zeta * b)
+    (sx, sy), (ox, oy) = geometry.sensor_square_m, geometry.sensor_offset_m
+    return rectangle_weights(zeta, sx, sy, ox, oy)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -285,10 +252,10 @@ class AxisymModel:
         disk = a * bessel_j(1, zeta * a) / zeta
         q_v = 1.0 / g.heater_volume_m3
         # Output weights of the inverse Hankel transform, zeta d zeta, with the read-outs:
-        # thermocouple J0(zeta r_tc), sensor's area mean 2 J1(zeta b) / (zeta b).
-        b = g.sensor_radius_m
+        # thermocouple J0(zeta r_tc), sensor's area mean: over its real rectangle (exact,
+        # edge.physics.footprint) or over its equal-area disk, 2 J1(zeta b) / (zeta b).
         self._w_T = wz * zeta * disk * bessel_j(0, zeta * g.thermocouple_r_m)
-        self._w_q = wz * zeta * disk * 2.0 * bessel_j(1, zeta * b) / (zeta * b)
+        self._w_q = wz * zeta * disk * sensor_weights(g, zeta)
 
         # Heater film (material h): gamma, k gamma, tanh, sech.
         hm = g.heater_material
