@@ -48,9 +48,10 @@ from edge.checks import finite_array, one_of, strictly_increasing
 from edge.estimation.axifit import AxiFitter
 from edge.estimation.estimate import FLUX_CALIBRATION_U_REL, MIN_SNR, Estimator
 from edge.physics.geometry import ProbeGeometry, get_probe
+from edge.physics.solids import Solid
 from edge.status import Flag
 
-__all__ = ["AxiEstimator", "QUANTITIES"]
+__all__ = ["AxiEstimator", "QUANTITIES", "substrate_of"]
 
 #: Names of the quantities in ``determined`` / ``from_prior``.
 QUANTITIES = ("e", "k", "alpha")
@@ -59,6 +60,17 @@ _BACKS = ("infinite", "insulated", "fixed")
 #: ~1e-6 over 250 (edge.physics.axisym) and degrades beyond (2e-5 at 1000, 2e-4 at 5000); the first
 #: few milliseconds of a fast-sampled record carry next to nothing on k and alpha.
 MAX_TIME_SPAN = 250.0
+
+
+def substrate_of(cal, geometry: ProbeGeometry) -> tuple[float, float] | None:
+    """The calibrated substrate (k in W/m/K, rho c in J/m^3/K) a calibration's ``head_model`` carries, or None.
+
+    (:func:`edge.calibration.axi.fit_flux_scale` writes it; an older calibration has none: the datasheet foam.)
+    """
+    hm = None if cal is None else getattr(cal, "head_model", None)
+    if not hm or "substrate_k_W_mK" not in hm or geometry.substrate is None:
+        return None
+    return float(hm["substrate_k_W_mK"]), float(hm["substrate_rho_c_J_m3K"])
 
 
 def _num(x):
@@ -157,7 +169,8 @@ class AxiEstimator:
 
     def estimate(self, t_s, dT_K, q_W_m2, *, power_W: float | None = None, thickness_m: float | None = None,
                  back: str = "infinite", T_resolution_K: float = 0.0, flux_scale: float = 1.0,
-                 flux_u_rel: float | None = None, u_rel_floor: float = 0.0) -> dict:
+                 flux_u_rel: float | None = None, u_rel_floor: float = 0.0,
+                 substrate: tuple[float, float] | None = None) -> dict:
         """Estimate from one record (times from heater-on; thermocouple rise, flux-sensor reading).
 
         Parameters
@@ -176,6 +189,8 @@ class AxiEstimator:
         flux_scale, flux_u_rel : the flux sensor's calibration -- true flux per unit of the reading
             and its relative standard uncertainty (:func:`edge.calibration.axi.fit_flux_scale`);
             default the datasheet sensor, known to FLUX_CALIBRATION_U_REL.
+        substrate : the calibrated substrate above the heater, (k in W/m/K, rho c in J/m^3/K)
+            (:func:`edge.calibration.axi.substrate_of`); default the datasheet's foam.
 
         Returns
         -------
@@ -215,10 +230,17 @@ class AxiEstimator:
         if back == "infinite":
             thickness_m = None
         sigma_T = math.hypot(self.sigma_T_K, T_resolution_K / math.sqrt(12.0))
-        fitter = AxiFitter(self.geometry, t, sigma_T_K=sigma_T, sigma_q_W_m2=self.sigma_q_W_m2,
+        model = self._model(t)
+        if substrate is not None and self.geometry.substrate is not None:
+            # The calibrated substrate (a 5-mm heater splits its heat between it and the object: +-14 % in
+            # the foam's effusivity moved nickel's e by -63 / +69 %, issue #34); the probe part is shared.
+            nom = self.geometry.substrate
+            k_sub, rc_sub = (float(x) for x in substrate)
+            model = model.with_substrate(Solid(k_sub, rc_sub / nom.c_J_kgK, nom.c_J_kgK))
+        fitter = AxiFitter(model.geometry, t, sigma_T_K=sigma_T, sigma_q_W_m2=self.sigma_q_W_m2,
                            thickness_m=thickness_m, back=back if thickness_m is not None else "infinite",
                            identifiable_u_rel=self.identifiable_u_rel, fit_contact=self.fit_contact,
-                           model=self._model(t))
+                           model=model)
         f = fitter.fit(T, q, power_W=power_W)
         # The fit scales its covariance by chi^2/dof. Below 1 (sensors quieter than the noise they are
         # weighted by) that would state k and alpha better than the sensors' specified noise allows, and

@@ -63,7 +63,7 @@ computed from their integral representation).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -264,16 +264,8 @@ class AxisymModel:
         Th = _tanh(gh * g.heater_thickness_m)
         Sh = _sech(gh * g.heater_thickness_m)
         theta_p = q_v / (p * hm.k_W_mK * gh * gh)     # particular solution (per unit source shape)
-        # Substrate above with an insulated top.
-        if g.substrate is None:
-            Yup = np.zeros_like(gh)
-        else:
-            gf = np.sqrt(p / g.substrate.alpha_m2_s + z2)
-            Yup = g.substrate.k_W_mK * gf * _tanh(gf * g.substrate_thickness_m)
-        # theta at the heater's bottom = theta_p * num / (B + C Ydn)  (see module docstring).
-        self._num = theta_p * (kgh * Th + Yup * (1.0 - Sh))
-        self._B = Yup + kgh * Th
-        self._C = 1.0 + Yup * Th / kgh
+        self._heater = (kgh, Th, Sh, theta_p)
+        self._set_substrate(g.substrate, g.substrate_thickness_m)
 
         # Sensing layer (material s), thickness L; sensor depths u = L - z.
         sm = g.sensing
@@ -288,6 +280,32 @@ class AxisymModel:
         self._qa = sm.k_W_mK * (_ch_ratio(gs, u0, L) - _ch_ratio(gs, u1, L)) / dz
         self._qb = (_sh_ratio(gs, u0, L) - _sh_ratio(gs, u1, L)) / (gs * dz)
         self.n_nodes = int(gh.size)
+
+    def _set_substrate(self, substrate: Solid | None, thickness_m: float) -> None:
+        """The heater's terms that the substrate above it sets (an insulated top over ``thickness_m``)."""
+        kgh, Th, Sh, theta_p = self._heater
+        if substrate is None:
+            Yup = np.zeros_like(kgh)
+        else:
+            gf = np.sqrt(self._p / substrate.alpha_m2_s + self._z2)
+            Yup = substrate.k_W_mK * gf * _tanh(gf * thickness_m)
+        # theta at the heater's bottom = theta_p * num / (B + C Ydn)  (see module docstring).
+        self._num = theta_p * (kgh * Th + Yup * (1.0 - Sh))
+        self._B = Yup + kgh * Th
+        self._C = 1.0 + Yup * Th / kgh
+
+    def with_substrate(self, substrate: Solid | None, thickness_m: float | None = None) -> "AxisymModel":
+        """The same model with another substrate above the heater (its contour, nodes and read-outs shared).
+
+        A calibration identifies the as-built substrate (:mod:`edge.calibration.axi`): only the heater's
+        three substrate terms are recomputed, a few array operations instead of a model's set-up.
+        """
+        m = object.__new__(AxisymModel)
+        m.__dict__.update(self.__dict__)
+        th = self.geometry.substrate_thickness_m if thickness_m is None else finite_positive("thickness_m", thickness_m)
+        m.geometry = replace(self.geometry, substrate=substrate, substrate_thickness_m=th)
+        m._set_substrate(substrate, th)
+        return m
 
     def head(self, n: int) -> "AxisymModel":
         """The same model on its first ``n`` output times (the contour and probe part shared, not copied).
