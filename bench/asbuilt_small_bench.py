@@ -29,6 +29,8 @@ Scenes: :func:`bench.asbuilt_bench.scene_for` (``glass_15V_small``'s precision b
 0.1 m thick, insulated back) with the touch made a hand (or careful) touch here.
 
 Run:  python bench/asbuilt_small_bench.py [--probes 8] [--solids 23] [--ref-touches 3] [--update-docs]
+      (or in two processes: ``--part 1 4 --part-out A.json`` and ``--part 5 8 --part-out B.json``, then
+      ``--merge A.json B.json [--update-docs]``)
 Writes bench/results/asbuilt_small.json (and with ``--update-docs`` the docs/results.md block).
 """
 
@@ -36,12 +38,14 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import math
 import os
 import statistics
 import sys
 import tempfile
 import time
+from pathlib import Path
 
 from _common import write_block, write_json
 
@@ -58,6 +62,8 @@ SOLIDS = ("polystyrene_extruded_foam", "cork_board", "balsa", "fir_cross_grain",
 HEAT_S = 5.0
 SHORT_S = (1.0, 2.0)
 RC_SPLIT = 3e-5
+#: A diagnostic split: touches whose object was within this of the probe's temperature (K).
+DT_SPLIT = 1.0
 Z95 = 1.96
 QUANTITIES = ("effusivity_W_s05_m2K", "k_W_mK", "alpha_m2_s")
 SHORT = {"effusivity_W_s05_m2K": "e", "k_W_mK": "k", "alpha_m2_s": "alpha"}
@@ -167,7 +173,12 @@ def run_probe(draw_seed: int, solids: list[str], n_ref: int, store, workdir: str
                 continue
             names.append(ref)
             outs.append(o)
-    cal, check, refused, lib_u = calibrate(outs, names)
+    try:
+        cal, check, refused, lib_u = calibrate(outs, names)
+    except ValueError as exc:    # the fit refused its inputs (CalibrationError): no calibration at all
+        print(f"draw {draw_seed}: calibration failed: {exc}", flush=True)
+        return {"probe": draw_seed, "calibration": {"error": str(exc), "refused": str(exc), "u_rel_floor": None},
+                "references": [], "rows": [], "wall_s": time.perf_counter() - t0}
     hm = cal.head_model or {}
     print(f"draw {draw_seed}: calibrated in {time.perf_counter() - t0:.0f} s: flux x{cal.flux_scale:.4f} "
           f"(u {cal.flux_u_rel:.2%}), substrate k {hm.get('substrate_k_W_mK', float('nan')):.4f} rho c "
@@ -238,8 +249,11 @@ def summarise(probes: list[dict]) -> dict:
         for heat in ((HEAT_S, *SHORT_S) if cal else (HEAT_S,)):
             sel = [r for r in rows if r["calibrated"] == cal and r["heat_s"] == heat]
             for part, rs in (("rc_le_3e-5", [r for r in sel if r["R_c"] <= RC_SPLIT]),
+                             ("rc_le_3e-5_dT_le_1K", [r for r in sel if r["R_c"] <= RC_SPLIT
+                                                     and abs(r["offset_K"]) <= DT_SPLIT]),
                              ("rc_gt_3e-5", [r for r in sel if r["R_c"] > RC_SPLIT]), ("all", sel)):
-                s = {"touches": len(rs), "determined_k_alpha": _determined(rs)}
+                s = {"touches": len(rs), "determined_k_alpha": _determined(rs),
+                     "answered_e": sum(r["err_e"] is not None for r in rs) / max(len(rs), 1)}
                 for q in ("e", "k", "alpha"):
                     c, n = _coverage(rs, q)
                     s[q] = {"median_abs_err": _median_abs(rs, q), "cov95": c, "n": n}
@@ -248,25 +262,28 @@ def summarise(probes: list[dict]) -> dict:
     out["references_within_u"] = {q: sum(bool(x["within_u"][q]) for x in refs) / max(len(refs), 1)
                                   for q in ("e", "k", "alpha")}
     out["probes_all_references_within_u"] = sum(
-        all(x["within_u"][q] for x in p["references"] for q in ("e", "k", "alpha")) for p in probes)
+        bool(p["references"]) and all(x["within_u"][q] for x in p["references"] for q in ("e", "k", "alpha"))
+        for p in probes)
     out["refused"] = sum(p["calibration"]["refused"] is not None for p in probes)
-    out["floors"] = [p["calibration"]["u_rel_floor"] for p in probes]
+    out["floors"] = [p["calibration"]["u_rel_floor"] for p in probes if p["calibration"]["u_rel_floor"] is not None]
+    out["failed"] = sum("error" in p["calibration"] for p in probes)
     return out
 
 
-def table(summary: dict, n_probes: int, n_solids: int) -> str:
+def table(summary: dict, n_probes: int, n_solids: int, n_ref: int) -> str:
     def f(x, fmt=".1f"):
         return "–" if x is None else f"{100 * x:{fmt}}"
-    lines = [f"{n_probes} drawn small-heater probes, each calibrated (3 references x 3 careful 5-s touches, "
+    lines = [f"{n_probes} drawn small-heater probes, each calibrated (3 references x {n_ref} careful 5-s touches, "
              f"`thermotouch calibrate --probe small-heater`'s code), then hand touches of {n_solids} held-out solids "
              "(R_c 0-1e-4 m²K/W, object ±3 K, contact 0.5-3 s before heating).", "",
-             "| answer | heating | touches | R_c | k median abs err | α median abs err | e median abs err "
+             "| answer | heating | touches | R_c (ΔT object - probe) | k median abs err | α median abs err | e median abs err "
              "| 95 % cov k / α / e | k, α determined |", "|---|---|---|---|---|---|---|---|---|"]
     for key, s in summary.items():
         if "/" not in key:
             continue
         label, heat, part = key.split("/")
-        rc = {"rc_le_3e-5": "≤ 3e-5", "rc_gt_3e-5": "> 3e-5", "all": "all"}[part]
+        rc = {"rc_le_3e-5": "≤ 3e-5", "rc_le_3e-5_dT_le_1K": "≤ 3e-5, \\|ΔT\\| ≤ 1 K", "rc_gt_3e-5": "> 3e-5",
+              "all": "all"}[part]
         lines.append(f"| {label} | {heat} | {s['touches']} | {rc} | {f(s['k']['median_abs_err'])} % | "
                      f"{f(s['alpha']['median_abs_err'])} % | {f(s['e']['median_abs_err'])} % | "
                      f"{f(s['k']['cov95'], '.0f')} / {f(s['alpha']['cov95'], '.0f')} / {f(s['e']['cov95'], '.0f')} % | "
@@ -275,9 +292,26 @@ def table(summary: dict, n_probes: int, n_solids: int) -> str:
     lines += ["", f"References re-measured within their u after calibration (e / k / α, over all reference touches): "
               f"{f(ru['e'], '.0f')} / {f(ru['k'], '.0f')} / {f(ru['alpha'], '.0f')} %; probes with every reference "
               f"touch within u: {summary['probes_all_references_within_u']} of {n_probes}; self-check refused "
-              f"{summary['refused']} of {n_probes} (written forced); model-form floors "
+              f"{summary['refused'] - summary['failed']} of {n_probes} (written forced), fit failed "
+              f"{summary['failed']}; model-form floors "
               + ", ".join(f"{100 * x:.1f}" for x in summary["floors"]) + " %."]
     return "\n".join(lines)
+
+
+def finish(probes: list[dict], solids: list[str], n_ref: int, wall_s: float, update_docs: bool) -> None:
+    """Summarise, print, write the JSON (and the docs block)."""
+    summary = summarise(probes)
+    res = {"probes": len(probes), "solids": solids, "references": list(REFERENCES), "ref_touches": n_ref,
+           "heat_s": HEAT_S, "short_s": list(SHORT_S), "wall_s": wall_s, "load_avg_1min": os.getloadavg()[0],
+           "summary": summary, "per_probe": probes}
+    text = table(summary, len(probes), len(solids), n_ref)
+    print(text)
+    print(f"wall {wall_s:.0f} s, load {res['load_avg_1min']:.1f}")
+    print("wrote", write_json("asbuilt_small", res))
+    if update_docs:
+        print("wrote", write_block("asbuilt-small", text + f"\n\n`python bench/asbuilt_small_bench.py --probes "
+                                   f"{len(probes)} --solids {len(solids)} --ref-touches {n_ref} --update-docs` "
+                                   f"({wall_s / 60:.0f} min of probe time; shared machine)."))
 
 
 def main() -> None:
@@ -286,7 +320,16 @@ def main() -> None:
     ap.add_argument("--solids", type=int, default=len(SOLIDS))
     ap.add_argument("--ref-touches", type=int, default=3)
     ap.add_argument("--update-docs", action="store_true", help="write the docs/results.md block")
+    ap.add_argument("--part", nargs=2, type=int, metavar=("FIRST", "LAST"),
+                    help="only drawn probes FIRST..LAST, written to --part-out (to run the probes in two processes)")
+    ap.add_argument("--part-out", help="JSON file of a --part run")
+    ap.add_argument("--merge", nargs="+", metavar="PART_JSON", help="summarise --part runs instead of touching")
     args = ap.parse_args()
+    if args.merge:
+        parts = [json.loads(Path(f).read_text()) for f in args.merge]
+        probes = sorted((p for part in parts for p in part["per_probe"]), key=lambda p: p["probe"])
+        finish(probes, parts[0]["solids"], parts[0]["ref_touches"], sum(p["wall_s"] for p in probes), args.update_docs)
+        return
     if args.probes < 1 or args.solids < 1 or args.ref_touches < 1:
         sys.exit("--probes, --solids and --ref-touches must be >= 1")
     from thermotouch_models import DEFAULT_BUNDLE
@@ -298,20 +341,17 @@ def main() -> None:
     store = OneBundleStore(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
     workdir = tempfile.mkdtemp(prefix="asbuilt-small-")
     solids = solids_for(args.solids)
+    seeds = range(args.part[0], args.part[1] + 1) if args.part else range(1, args.probes + 1)
     t0 = time.perf_counter()
-    probes = [run_probe(s, solids, args.ref_touches, store, workdir) for s in range(1, args.probes + 1)]
-    summary = summarise(probes)
-    res = {"probes": args.probes, "solids": solids, "references": list(REFERENCES), "ref_touches": args.ref_touches,
-           "heat_s": HEAT_S, "short_s": list(SHORT_S), "wall_s": time.perf_counter() - t0,
-           "load_avg_1min": os.getloadavg()[0], "summary": summary, "per_probe": probes}
-    text = table(summary, args.probes, len(solids))
-    print(text)
-    print(f"wall {res['wall_s']:.0f} s, load {res['load_avg_1min']:.1f}")
-    print("wrote", write_json("asbuilt_small", res))
-    if args.update_docs:
-        print("wrote", write_block("asbuilt-small", text + f"\n\n`python bench/asbuilt_small_bench.py --probes "
-                                   f"{args.probes} --solids {args.solids} --update-docs` "
-                                   f"({res['wall_s'] / 60:.0f} min)."))
+    probes = []
+    for seed in seeds:
+        probes.append(run_probe(seed, solids, args.ref_touches, store, workdir))
+        if args.part_out:   # after every probe: a run cut short keeps what it has
+            Path(args.part_out).write_text(json.dumps({"solids": solids, "ref_touches": args.ref_touches,
+                                                       "per_probe": probes}))
+    if args.part:
+        return
+    finish(probes, solids, args.ref_touches, time.perf_counter() - t0, args.update_docs)
 
 
 if __name__ == "__main__":

@@ -188,6 +188,7 @@ class AxiFitter:
             return m[0], m[1], None, None
         npar = theta.size
         d = inv.invert(np.concatenate([out[2][:npar], out[3][:npar]]))
+
         dmT, dmq = d[:npar] * w[0], d[npar:] * w[1]
         if npar == 3:  # R_c is iterated in units of _RC_UNIT
             dmT[2] *= _RC_UNIT

@@ -111,3 +111,24 @@ def test_swapped_small_heater_references_are_refused_before_fitting(axi, model):
                AxiReferenceTouch("pmma", pmma.k_W_mK, pmma.alpha_m2_s, 0.02, steel.t_s, steel.dT_K, steel.q_W_m2)]
     with pytest.raises(CalibrationError, match="reference (aisi_304|pmma): the touch reads e"):
         fit_flux_scale(axi, swapped)
+
+
+def test_the_calibrations_covariance_enters_the_answers_u(axi, model):
+    from edge.estimation.probe_estimate import CALIBRATED
+    rng = np.random.default_rng(13)
+    g = touch(model, "tempered_glass", rng)
+    p = np.zeros(len(CALIBRATED))
+    f = 1.0 / READS_HIGH
+    tight = axi.estimate(g.t_s, g.dT_K, g.q_W_m2, flux_scale=f, flux_u_rel=0.01, calibrated=(p, np.diag([1e-4, 0, 0, 0, 0])))
+    wide = axi.estimate(g.t_s, g.dT_K, g.q_W_m2, flux_scale=f, flux_u_rel=0.01,
+                        calibrated=(p, np.diag([1e-4, 0.002 ** 2, 0.002 ** 2, 0.03 ** 2, 0.03 ** 2])))
+    # Same probe, same fit: the values agree; the sensing layer's and the substrate's u widen every u (the
+    # layer's strongly: on glass at 5 s, 1 % in its thickness alone is 25 % in k and 50 % in alpha).
+    assert wide["determined"] == tight["determined"] == ["e", "k", "alpha"]
+    assert wide["k_W_mK"] == pytest.approx(tight["k_W_mK"], rel=1e-9)
+    for key in ("k_W_mK", "alpha_m2_s"):
+        assert wide[f"{key}_u"] > 1.2 * tight[f"{key}_u"], key
+    assert wide["effusivity_W_s05_m2K_u"] > tight["effusivity_W_s05_m2K_u"]    # e is the robust one
+    # The flux-only entry reproduces the datasheet path's u (the flux scale's column is the data's response).
+    plain = axi.estimate(g.t_s, g.dT_K, g.q_W_m2, flux_scale=f, flux_u_rel=0.01)
+    assert tight["k_W_mK_u"] == pytest.approx(plain["k_W_mK_u"], rel=1e-6)

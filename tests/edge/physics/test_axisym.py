@@ -170,3 +170,15 @@ def test_shipped_geometries():
     assert small.substrate.k_W_mK == 0.03 and small.substrate_thickness_m == 0.030
     with pytest.raises(ValueError):
         ProbeGeometry("bad", heater_radius_m=5e-3, sensor_depth_m=(0.0, 1e-3))
+
+
+def test_with_substrate_is_the_model_built_with_that_substrate():
+    t = np.arange(1, 101) * 0.05
+    sub = Solid(0.036, 46.0, 1400.0)
+    g = PROBES["small-heater"]
+    swapped = AxisymModel(g, t).with_substrate(sub, 0.031).responses(1.1, 5.5e-7)
+    built = AxisymModel(dataclasses.replace(g, substrate=sub, substrate_thickness_m=0.031), t).responses(1.1, 5.5e-7)
+    np.testing.assert_array_equal(swapped.T_tc_K_per_W, built.T_tc_K_per_W)
+    np.testing.assert_array_equal(swapped.q_sensor_W_m2_per_W, built.q_sensor_W_m2_per_W)
+    nominal = AxisymModel(g, t).responses(1.1, 5.5e-7)
+    assert np.max(np.abs(swapped.q_sensor_W_m2_per_W / nominal.q_sensor_W_m2_per_W - 1)) > 1e-3   # it matters
