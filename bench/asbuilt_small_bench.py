@@ -5,8 +5,8 @@ sensitivity, the square's size, offset and sensitivity map, sensing layer, subst
 thermocouple position and lag, heater resistance, TCR and leads -- none of it told to the device):
 
 1. **Calibration** -- the walk-through's reference touches: ``--ref-touches`` careful touches (thermal
-   paste: R_c uniform in [0, 1e-5] m^2K/W; reference left on the probe 3 s so that it is at the probe's
-   temperature within 0.2 K) of each of PMMA, pyroceram and AISI 304 (insulator to metal), 5 s of
+   paste: R_c uniform in [0, 1e-5] m^2K/W; reference left on the probe until both read the same, within
+   0.02 K, the last 3 s in contact before heating) of each of PMMA, pyroceram and AISI 304 (insulator to metal), 5 s of
    heating, through the device's own code on the emulated chips (:func:`firmware_sim.rigs.sequence_rig.
    sequence_touch`).  Then the code ``thermotouch calibrate --probe small-heater`` runs: the fit
    (:func:`edge.calibration.axi.fit_flux_scale` on an :class:`AxiEstimator`), the leave-one-reference-out
@@ -62,6 +62,9 @@ SOLIDS = ("polystyrene_extruded_foam", "cork_board", "balsa", "fir_cross_grain",
 HEAT_S = 5.0
 SHORT_S = (1.0, 2.0)
 RC_SPLIT = 3e-5
+#: A reference left on the probe until both read the same: within this (K).  0.2 K was not enough: the
+#: small heater raises a metal by ~0.3 K, and probe 1's self-check then refused its fit with a 19 % floor.
+REF_OFFSET_K = 0.02
 #: A diagnostic split: touches whose object was within this of the probe's temperature (K).
 DT_SPLIT = 1.0
 Z95 = 1.96
@@ -166,7 +169,7 @@ def run_probe(draw_seed: int, solids: list[str], n_ref: int, store, workdir: str
         for r in range(n_ref):
             g = rng_for(draw_seed, 100 + 10 * i + r)
             sc = touch_scene(ref, draw_seed, 7000 + 97 * draw_seed + 10 * i + r, R_c=float(g.uniform(0, 1e-5)),
-                             offset_K=float(g.uniform(-0.2, 0.2)), lead_s=3.0)
+                             offset_K=float(g.uniform(-REF_OFFSET_K, REF_OFFSET_K)), lead_s=3.0)
             o = run_touch(sc, store, workdir)
             if o.touch is None or o.grid_t_s is None:
                 print(f"  draw {draw_seed} reference {ref} touch {r}: {o.status} {o.reason} {o.error}", flush=True)
