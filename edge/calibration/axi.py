@@ -114,6 +114,7 @@ class _Problem:
         sd[self.n_glob + self.n_ref:] = _RC_PRIOR_SD
         self.p0, self.sd = p0, sd
         self._sub_cache: dict = {}
+        self._fd_from: tuple[float, float] | None = None
 
     def _touch_model(self, j: int, p: np.ndarray):
         tc, t, yT, yq = self.touches[j]
@@ -123,7 +124,10 @@ class _Problem:
         if base is None:
             if len(self._sub_cache) > 16:
                 self._sub_cache.clear()
-            base = self._sub_cache[key] = AxisymModel(geometry_at(self.g, p), t)
+            # A finite-difference column uses the point's own Hankel nodes (the difference is then physics).
+            ref = None if self._fd_from is None else self._sub_cache.get((t.tobytes(), *self._fd_from))
+            base = self._sub_cache[key] = AxisymModel(geometry_at(self.g, p), t,
+                                                      nodes=None if ref is None else ref.nodes)
         m = base.with_substrate(geometry_at(self.g, p).substrate, None) if self.g.substrate is not None else base
         i = self.refs.index(tc.name)
         k = math.exp(p[self.n_glob + 2 * i])
@@ -159,13 +163,17 @@ class _Problem:
         J = np.zeros((r.size, self.n))
         sizes = [2 * tc[2].size for tc in self.touches]
         starts = np.concatenate([[0], np.cumsum(sizes)])
-        for i in range(self.n):
-            pp = p.copy()
-            pp[i] += _FD
-            for j in range(len(self.touches)):
-                if self.depends(j, i):
-                    rj = self.touch_residual(j, pp)[0]
-                    J[starts[j]:starts[j + 1], i] = (rj - r[starts[j]:starts[j + 1]]) / _FD
+        self._fd_from = (float(p[1]), float(p[2]))
+        try:
+            for i in range(self.n):
+                pp = p.copy()
+                pp[i] += _FD
+                for j in range(len(self.touches)):
+                    if self.depends(j, i):
+                        rj = self.touch_residual(j, pp)[0]
+                        J[starts[j]:starts[j + 1], i] = (rj - r[starts[j]:starts[j + 1]]) / _FD
+        finally:
+            self._fd_from = None
         fin = np.flatnonzero(np.isfinite(self.sd))
         for row, i in enumerate(fin):
             J[starts[-1] + row, i] = 1.0 / self.sd[i]
@@ -284,14 +292,17 @@ def fit_flux_scale(estimator, touches: list[AxiReferenceTouch], *, min_reference
     for tc in touches:
         d = estimator.estimate(tc.t_s, tc.dT_K, tc.q_W_m2, flux_scale=math.exp(p[0]), flux_u_rel=u_x,
                                calibrated=(p[:n_g], cov[:n_g, :n_g]), fit_contact=True)
-        resolved += {"k", "alpha"} <= set(d.get("determined") or [])
+        # Whether the record resolves k and alpha: the fit's own u (the calibration's part of an answer's u
+        # is what the references leave open, not what this record can tell).
+        fit = d.get("fit") or {}
+        resolved += all((fit.get(f"u_rel_{q}") or math.inf) < estimator.identifiable_u_rel for q in ("k", "alpha"))
         e_ref = tc.k_W_mK / math.sqrt(tc.alpha_m2_s)
         e = d.get("effusivity_W_s05_m2K")
         errs = refs.setdefault(tc.name, [e_ref, tc.u_rel_k, []])[2]
         if e is not None and math.isfinite(e):
             errs.append(e / e_ref - 1.0)
     if resolved == 0:
-        # Even the calibrated probe resolves k and alpha on none of its references: records too short
+        # The calibrated probe's fit resolves k and alpha on none of its references: records too short
         # (or references it cannot resolve) to say whether the calibration transfers.
         raise CalibrationError("no reference touch determined k and alpha: touch longer (5 s) or use "
                                "references the probe resolves (pmma, pyroceram)")

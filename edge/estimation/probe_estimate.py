@@ -163,7 +163,7 @@ class AxiEstimator:
         self.fit_contact = bool(fit_contact)
         self._models: OrderedDict = OrderedDict()
 
-    def _model(self, t: np.ndarray, geometry: ProbeGeometry | None = None):
+    def _model(self, t: np.ndarray, geometry: ProbeGeometry | None = None, nodes=None):
         """The fitter's model for these times (cached: its setup is most of a fit's cost on a cold grid).
 
         ``geometry``: a calibrated probe (:func:`calibrated_geometry`); default the datasheet's.
@@ -179,7 +179,7 @@ class AxiEstimator:
                 if k[0] == geo and full.t_s.size > t.size and np.array_equal(full.t_s[:t.size], t):
                     self._models.move_to_end(k)
                     return full.head(t.size)
-            m = AxisymModel(geo, t)
+            m = AxisymModel(geo, t, nodes=nodes)
             self._models[key] = m
             while len(self._models) > self.max_models:
                 self._models.popitem(last=False)
@@ -203,7 +203,7 @@ class AxiEstimator:
                 continue
             dp = np.array(p, float)
             dp[i] += _CAL_STEP
-            m = self._model(t, geometry_at(self.geometry, dp)) if i < 3 else \
+            m = self._model(t, geometry_at(self.geometry, dp), fitter.model.nodes) if i < 3 else \
                 fitter.model.with_substrate(geometry_at(self.geometry, dp).substrate)
             # The truth at p + dp read with the model at p: the fit is off by -response.
             S[:, i] = -fitter.model_response(m) / _CAL_STEP

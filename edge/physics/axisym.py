@@ -172,13 +172,27 @@ def hankel_nodes(geometry: ProbeGeometry, *, per_panel: int = 4, depth_decades: 
     return z, wz
 
 
+_WEIGHTS: dict = {}
+
+
 def sensor_weights(geometry: ProbeGeometry, zeta: np.ndarray) -> np.ndarray:
-    """The flux sensor's read-out ``W(zeta)`` (area mean of ``J0(zeta |x|)`` over its footprint)."""
+    """The flux sensor's read-out ``W(zeta)`` (area mean of ``J0(zeta |x|)`` over its footprint).
+
+    The rectangle's are cached per footprint and nodes (their set-up is most of a model's): a calibration
+    builds many models that share both.
+    """
     if geometry.sensor_square_m is None:
         b = geometry.sensor_radius_m
         return 2.0 * bessel_j(1, zeta * b) / (zeta * b)
     (sx, sy), (ox, oy) = geometry.sensor_square_m, geometry.sensor_offset_m
-    return rectangle_weights(zeta, sx, sy, ox, oy)
+    key = (float(sx), float(sy), float(ox), float(oy), zeta.tobytes())
+    w = _WEIGHTS.get(key)
+    if w is None:
+        if len(_WEIGHTS) >= 8:
+            _WEIGHTS.pop(next(iter(_WEIGHTS)))
+        w = _WEIGHTS[key] = rectangle_weights(zeta, sx, sy, ox, oy)
+        w.flags.writeable = False
+    return w
 
 
 # ----------------------------------------------------------------------------------------------
@@ -234,14 +248,19 @@ class AxisymModel:
     """
 
     def __init__(self, geometry: ProbeGeometry, t_s, *, n_laplace: int = 32, per_panel: int = 4,
-                 depth_decades: float = 10.0, taper: float = 0.25, low_levels: int = 8) -> None:
+                 depth_decades: float = 10.0, taper: float = 0.25, low_levels: int = 8,
+                 nodes: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         g = geometry
         self.geometry = g
         self.inversion = HyperbolicInversion.build(t_s, n_laplace)
         self.t_s = self.inversion.t_s
-        zeta, wz = hankel_nodes(g, per_panel=per_panel, depth_decades=depth_decades, taper=taper,
-                                low_levels=low_levels)
+        # ``nodes``: another model's Hankel nodes (:attr:`nodes`) -- a neighbouring probe (a calibration's
+        # finite difference) then differs from it only by the physics, not by a shifted quadrature, and
+        # shares its read-out weights (cached).
+        zeta, wz = nodes if nodes is not None else hankel_nodes(g, per_panel=per_panel, depth_decades=depth_decades,
+                                                                taper=taper, low_levels=low_levels)
         self.zeta = zeta
+        self.nodes = (zeta, wz)
         p = self.inversion.s[:, None]      # (n_p, 1)
         z2 = (zeta * zeta)[None, :]        # (1, n_z)
         self._p = p
