@@ -29,7 +29,12 @@ on glass and metals by about one to one (bench/sensitivity_bench.py) -- the stat
 u(k), u(alpha), u(e) and
 their correlation carry it, and a quantity it leaves above the threshold is
 not called determined.  An installed calibration (``flux_scale``, ``flux_u_rel``;
-:mod:`edge.calibration.axi`) replaces the datasheet's scale and 2 %.  The ``method``
+:mod:`edge.calibration.axi`) replaces the datasheet's scale and 2 %; one that identified the probe as
+built (``calibrated``: :data:`CALIBRATED` -- the sensing layer's thickness and k, the substrate's k
+and rho c, with their covariance) replaces the datasheet's probe in the fit, and its covariance enters
+every u through the fit's linear response to each parameter
+(:meth:`~edge.estimation.axifit.AxiFitter.model_response`: on glass at 5 s, 1 % of the sensing layer's
+thickness is 25 % of k).  The ``method``
 argument of the 1-D path does not apply (the paper's network was trained
 on the paper's probe); results say ``method: "axisym"``.
 
