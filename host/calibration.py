@@ -163,6 +163,7 @@ def seam_remeasure(records, contexts):
     """
     from dataclasses import replace  # noqa: PLC0415
 
+    from edge.estimation.methods import method_class  # noqa: PLC0415
     from edge.estimation.seam import estimate_touch  # noqa: PLC0415
 
     def remeasure(cal, j):
@@ -172,7 +173,14 @@ def seam_remeasure(records, contexts):
             d = estimate_touch(records[j], replace(contexts[j], calibration=cal)).to_dict()
         except (ValueError, ArithmeticError):
             return None
-        if d.get("calibration_sha256") != cal.sha256 or "uncalibrated" in (d.get("flags") or []):
+        # The chain's sha is stamped on the answer even when the calibrated path refused it and the 1-D
+        # method answered instead (``calibration_refused``): that answer is not the calibration's, and
+        # taking it made a held-out reference "miss" by the 1-D method's bias (a drawn probe's walk-through
+        # refused on pyroceram -19.8 %, ISSUE #34).
+        flags = d.get("flags") or []
+        chained = method_class(records[j].probe).sensor_chain
+        if (d.get("calibration_sha256") != cal.sha256 or "uncalibrated" in flags or "calibration_refused" in flags
+                or (chained and d.get("method") != "sensor_chain")):
             return None
         e, u = d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u")
         return None if e is None or u is None else (float(e), float(u))
@@ -210,7 +218,7 @@ def checked_calibration(fit, touches, names, e_refs, u_refs, remeasure, *, force
     """
     from dataclasses import replace  # noqa: PLC0415
 
-    from edge.calibration.model import ReferenceFit, check_plausible  # noqa: PLC0415
+    from edge.calibration.model import ReferenceFit, check_plausible, identifiability  # noqa: PLC0415
     from edge.calibration.selfcheck import leave_one_out  # noqa: PLC0415
 
     cal0 = fit(touches, 2)
@@ -222,8 +230,13 @@ def checked_calibration(fit, touches, names, e_refs, u_refs, remeasure, *, force
     # The model-form floor: what the held-out references show the model does not describe, or the fit's
     # own transfer floor where that is larger.
     floor = max(float(cal0.u_rel_floor), check.floor)
+    # What the references determined and what the datasheet prior settled, in the file (ISSUE #34 item 1):
+    # a probe the references cannot identify is written flagged with the reference that would, never silently.
+    from edge.estimation.methods import method_class  # noqa: PLC0415
+
+    extra = {"identifiability": identifiability(cal0)} if method_class(cal0.probe).sensor_chain else {}
     cal = replace(cal0, u_rel_floor=floor, device_id=device_id, forced=not check.passed,
-                  self_check=check.to_dict())
+                  self_check={**check.to_dict(), **extra})
     # What the calibration reports for its references is what the device will answer: each touch
     # through the estimate path with this calibration (its e does not depend on the references' entries).
     per: dict[str, list[float]] = {}

@@ -35,8 +35,11 @@ from edge.protocol.messages import (
     CHUNK_HEADER_SIZE,
     SESSION_CHUNK_HEADER_SIZE,
     ErrorReply,
+    Event,
+    decode_event,
     decode_reply,
     encode_request,
+    is_event,
 )
 from edge.protocol.commands import COMMANDS, Command, SERIES_KINDS
 from edge.protocol.frame import DEFAULT_MAX_PAYLOAD, FrameDecoder
@@ -188,7 +191,13 @@ class DeviceClient:
         self.decoder = FrameDecoder(max_payload)
         self._next_id = 1
         self._lock = threading.Lock()
+        self._id_lock = threading.Lock()  # request ids are also taken by send_abort() from another thread
         self.stale_replies = 0
+        #: EVENT frames received for the running request (given to its ``on_event``), and those that
+        #: broke the event schema or came with no one listening (ignored: events are best effort).
+        self.events_received = 0
+        self.events_ignored = 0
+        self._on_event: Callable[[Event], None] | None = None
         #: Session id of this client's last MODEL_BEGIN (None before one, or from a device without sessions).
         self.upload_session: int | None = None
         # Bytes the device sent before we were listening belong to nobody.
@@ -237,7 +246,8 @@ class DeviceClient:
         return read_available(self.ser)
 
     def request(self, command: Command | str, args: Mapping[str, Any] | None = None, *,
-                timeout_s: float | None = None, retries: int | None = None) -> dict[str, Any]:
+                timeout_s: float | None = None, retries: int | None = None,
+                on_event: Callable[[Event], None] | None = None) -> dict[str, Any]:
         """Send one request and return the reply body.
 
         Parameters
@@ -251,6 +261,10 @@ class DeviceClient:
         retries : int, optional
             Extra attempts after a timeout (default: the client's, and 0 for
             non-idempotent commands such as MEASURE).
+        on_event : callable, optional
+            Called with each :class:`~edge.protocol.messages.Event` the device pushes for this
+            request (a MEASURE with ``stream``) while the reply is awaited; an exception it raises
+            propagates (the request is then abandoned: a MEASURE's caller should ABORT).
 
         Raises
         ------
@@ -266,13 +280,18 @@ class DeviceClient:
         if retries is None:
             retries = self.retries if COMMANDS[command].idempotent else 0
         with self._lock:
-            rid = self._new_id()
+            with self._id_lock:
+                rid = self._new_id()
             frame = encode_request(command, rid, args, max_payload=self.max_payload)
             attempts = 0
             for _ in range(retries + 1):
                 attempts += 1
                 self._write(frame)
-                reply = self._await(rid, command, timeout)
+                self._on_event = on_event  # read by _await while this request's reply is awaited
+                try:
+                    reply = self._await(rid, command, timeout)
+                finally:
+                    self._on_event = None
                 if reply is not None:
                     if command == Command.MODEL_BEGIN:
                         self.upload_session = reply.get("session")
@@ -298,6 +317,9 @@ class DeviceClient:
             if not data:
                 continue
             for frame in self.decoder.feed(data):
+                if is_event(frame):
+                    self._event(frame, rid, self._on_event)
+                    continue
                 if frame.request_id != rid:
                     self.stale_replies += 1
                     continue
@@ -313,6 +335,18 @@ class DeviceClient:
         # A reply cut off mid-frame must not glue onto the next one.
         self.decoder.discard_partial()
         return None
+
+    def _event(self, frame: Any, rid: int, on_event: Callable[[Event], None] | None) -> None:
+        if frame.request_id != rid or on_event is None:
+            self.events_ignored += 1  # an earlier request's, or nobody asked
+            return
+        try:
+            event = decode_event(frame)
+        except ProtocolError:
+            self.events_ignored += 1  # best effort: a bad event is no reason to lose the reply
+            return
+        self.events_received += 1
+        on_event(event)
 
     # -- convenience -------------------------------------------------------------
 
@@ -331,8 +365,14 @@ class DeviceClient:
     def measure(self, power_W: float | None = None, voltage_V: float | None = None,
                 contact_time_s: float | None = None, *, timeout_s: float | None = None,
                 sample_rate_Hz: float | None = None, until_decided: bool = False, arm_s: float | None = None,
-                settle_s: float | None = None) -> dict[str, Any]:
+                settle_s: float | None = None,
+                on_event: Callable[[Event], None] | None = None) -> dict[str, Any]:
         """Run one measurement and return its result record (never retried).
+
+        With ``on_event``, the device is asked to stream (MEASURE ``stream``) and each pushed
+        :class:`~edge.protocol.messages.Event` (phases, sample batches, the running answer) is
+        given to it as it arrives, before this returns. A device that predates events refuses
+        ``stream`` before touching; the touch then runs without events.
 
         The default timeout is the client's plus the contact time (or 5 s)
         plus 10 s of margin for heating, settling and inference.
@@ -358,12 +398,21 @@ class DeviceClient:
                 if v is not None}
         if until_decided:
             args["until_decided"] = True
+        if on_event is not None:
+            args["stream"] = True
         if timeout_s is None:
             timeout_s = (self.timeout_s + (contact_time_s if contact_time_s is not None else 5.0) + 10.0
                          + (arm_s or 0.0) + (settle_s or 0.0))
         self.last_abort: dict[str, Any] | None = None
         try:
-            return self.request(Command.MEASURE, args, timeout_s=timeout_s)
+            try:
+                return self.request(Command.MEASURE, args, timeout_s=timeout_s, on_event=on_event)
+            except DeviceError as e:
+                if not (on_event is not None and e.code == ErrorCode.BAD_ARGUMENT and e.field == "stream"):
+                    raise
+                # A device older than events refused the argument before the touch began: touch without them.
+                del args["stream"]
+                return self.request(Command.MEASURE, args, timeout_s=timeout_s)
         except (KeyboardInterrupt, DeviceNotAnswering):
             try:
                 self.last_abort = self.abort()
@@ -387,6 +436,16 @@ class DeviceClient:
         """
         total = self.abort_timeout_s if timeout_s is None else float(timeout_s)
         return self.request(Command.ABORT, timeout_s=total / ABORT_ATTEMPTS, retries=ABORT_ATTEMPTS - 1)
+
+    def send_abort(self) -> None:
+        """Send an ABORT without waiting for its reply, from any thread (e.g. while :meth:`measure` waits).
+
+        The device cuts the running touch at once; the waiting MEASURE then gets the aborted record
+        (its ABORT reply is skipped as a stale reply). Prefer :meth:`abort` when nothing else waits.
+        """
+        with self._id_lock:
+            rid = self._new_id()
+        self._write(encode_request(Command.ABORT, rid, None, max_payload=self.max_payload))
 
     def result(self, measurement_id: int | None = None) -> dict[str, Any]:
         """Result record by id, or the latest when ``measurement_id`` is None."""

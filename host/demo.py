@@ -102,7 +102,9 @@ def _measure_scene(workdir: Path, scene_ref, plots: Path | None, plotter, expect
         if row[m] is not None:
             row[m]["errors"] = {q: _err(row[m][q], row["ref"][q]) for q in ("e", "k", "alpha")}
     if plots is not None:
-        d = dict(r)
+        from host.plot_data import touch_identity  # noqa: PLC0415
+
+        d = dict(r, **touch_identity(t.record))   # the title identifies the measurement
         d["flags"] = row["flags"]
         row["plot"] = str(plotter.submit(plots / f"{scene}.png", t.series, d, t.fits.get("default"), scene))
     log(f"  {scene:10} e = {_num(r['effusivity_W_s05_m2K'])} ({_pct(row['default']['errors']['e']).strip()})"

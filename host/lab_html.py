@@ -98,10 +98,7 @@ def figure_png(fig: Any, dpi: int = 100) -> bytes:
 
 
 def pyplot():
-    """matplotlib's pyplot on the Agg backend (no display needed)."""
-    import matplotlib  # noqa: PLC0415
+    """matplotlib's pyplot on the Agg backend: the touch plots' (:func:`host.plots.pyplot`, one setup)."""
+    from host.plots import pyplot as shared  # noqa: PLC0415
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # noqa: PLC0415
-
-    return plt
+    return shared()

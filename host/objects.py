@@ -14,12 +14,29 @@ from typing import Any, Callable
 from edge.protocol.commands import Command
 from edge.protocol.messages import SESSION_CHUNK_HEADER_SIZE
 
-__all__ = ["set_name_of", "upload_object_set", "list_object_sets", "remove_object_set", "select_object_set"]
+__all__ = ["set_name_of", "stamp_version", "upload_object_set", "list_object_sets", "remove_object_set",
+           "select_object_set", "SEPARATION_SIGMAS", "attainable_u_ln_e", "inseparable_pairs"]
 
 
 def set_name_of(path: str | Path) -> str:
     """The name a file's set is stored under by default: its stem (``kitchen.csv`` -> ``kitchen``)."""
     return Path(path).stem
+
+
+def stamp_version(data: bytes) -> bytes:
+    """``data`` with its version line (``# created_utc: now``) first, unless it names one already.
+
+    A signed set must name its version (:mod:`edge.storage.objects_store`): a device refuses a signed
+    set not newer than the newest it installed, so an old signed set cannot be replayed.
+    """
+    from datetime import datetime, timezone  # noqa: PLC0415
+
+    from edge.storage.objects_store import set_created_utc  # noqa: PLC0415
+
+    if set_created_utc(data) is not None:
+        return data
+    now = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    return f"# created_utc: {now}\n".encode("ascii") + data.removeprefix(b"\xef\xbb\xbf")
 
 
 def upload_object_set(client: Any, name: str, data: bytes, *, activate: bool = True, chunk_size: int | None = None,
@@ -40,9 +57,10 @@ def upload_object_set(client: Any, name: str, data: bytes, *, activate: bool = T
     progress : callable, optional
         ``progress(bytes_sent, total)`` after each chunk.
     key : edge.security.keys.SecretKey, optional
-        Sign the exact CSV bytes with it (the signature travels in
-        OBJECTS_BEGIN); without one the upload is unsigned, which a device
-        refuses unless it allows unsigned updates.
+        Sign the CSV bytes with it (the signature travels in
+        OBJECTS_BEGIN), after :func:`stamp_version` names their version;
+        without one the upload is unsigned, which a device refuses unless it
+        allows unsigned updates.
 
     Returns
     -------
@@ -59,6 +77,8 @@ def upload_object_set(client: Any, name: str, data: bytes, *, activate: bool = T
     from host.client import BadReply, ClientError  # noqa: PLC0415
 
     data = bytes(data)
+    if key is not None:
+        data = stamp_version(data)
     digest = hashlib.sha256(data).hexdigest()
     max_chunk = client.max_payload - SESSION_CHUNK_HEADER_SIZE
     chunk_size = max_chunk if chunk_size is None else min(int(chunk_size), max_chunk)
@@ -103,3 +123,69 @@ def remove_object_set(client: Any, name: str) -> dict:
 def select_object_set(client: Any, name: str) -> dict:
     """OBJECTS_SELECT (``"library"``: the built-in set): ``{"active": name}``."""
     return client.request(Command.OBJECTS_SELECT, {"name": name})
+
+
+#: A pair is reported when its objects' ln e differ by less than this many standard deviations of the
+#: difference (as :meth:`edge.recognition.ObjectSet.confusion_pairs`): below 2, a touch of either is
+#: named the other more than about one time in six.
+SEPARATION_SIGMAS = 2.0
+
+
+def attainable_u_ln_e(objects: Any, contact_time_s: float, *, probe: str = "paper", sigma_T_K: float = 0.01,
+                      sigma_q_W_m2: float = 0.5) -> dict[str, float]:
+    """Each object's attainable u(e)/e at ``contact_time_s`` (Fisher bound, :func:`edge.estimation.design.attainable`).
+
+    The hand touch's unknown contact resistance is among the fitted quantities (``fit_contact``):
+    what a touch by hand can resolve at best, before calibration and specimen spread.  An object
+    given by e alone is taken with the library's ρc prior (its α then follows from e).  Default noise:
+    the precision board's.
+    """
+    import math  # noqa: PLC0415
+
+    import numpy as np  # noqa: PLC0415
+
+    from edge.estimation.design import attainable  # noqa: PLC0415
+    from edge.physics.axisym import AxisymModel  # noqa: PLC0415
+    from edge.physics.geometry import PROBES  # noqa: PLC0415
+    from edge.physics.solids import Solid  # noqa: PLC0415
+    from host.recognition import library_estimator  # noqa: PLC0415
+
+    dt = 0.02
+    t = dt * np.arange(1, int(math.floor(contact_time_s / dt + 1e-9)) + 1)
+    model = AxisymModel(PROBES[probe], t)   # its probe part is the costly setup: once for every object
+    lib = None
+    out = {}
+    for o in objects.objects:
+        if o.has_properties:
+            solid = Solid(k_W_mK=o.k_W_mK, rho_kg_m3=o.rho_kg_m3, c_J_kgK=o.c_J_kgK)
+        else:
+            lib = lib or library_estimator().library
+            rho_c = math.exp(lib.prior_rho_c(o.e_W_s05_m2K, 0.0)[0])
+            solid = Solid(k_W_mK=o.e_W_s05_m2K ** 2 / rho_c, rho_kg_m3=rho_c / 1000.0, c_J_kgK=1000.0)
+        d = attainable(solid, contact_time_s, probe=probe, dt_s=dt, sigma_T_K=sigma_T_K, sigma_q_W_m2=sigma_q_W_m2,
+                       fit_contact=True, model=model)
+        out[o.name] = float(d.u_rel_effusivity)
+    return out
+
+
+def inseparable_pairs(objects: Any, u_ln_e: dict[str, float]) -> list[dict]:
+    """Pairs whose ln e differ by less than :data:`SEPARATION_SIGMAS` sd of the difference, closest first.
+
+    The difference's variance: both objects' ``u_ln_e`` (per object: :func:`attainable_u_ln_e`),
+    their specimen spreads and twice the set's ``calibration_ln``.
+    """
+    import math  # noqa: PLC0415
+
+    names, ln_e, spread = objects.names, objects.ln_e, objects.spread
+    out = []
+    for i in range(len(names)):
+        for j in range(i + 1, len(names)):
+            var = (u_ln_e[names[i]] ** 2 + u_ln_e[names[j]] ** 2 + spread[i] ** 2 + spread[j] ** 2
+                   + 2 * objects.calibration_ln ** 2)
+            d = abs(float(ln_e[i] - ln_e[j]))
+            thr = SEPARATION_SIGMAS * math.sqrt(var)
+            if d < thr:
+                a, b = (i, j) if ln_e[i] <= ln_e[j] else (j, i)
+                out.append({"a": names[a], "b": names[b], "delta_ln_e": d, "threshold_ln": thr,
+                            "u_a": u_ln_e[names[a]], "u_b": u_ln_e[names[b]]})
+    return sorted(out, key=lambda p: p["delta_ln_e"] / p["threshold_ln"])

@@ -1,10 +1,17 @@
 """Plots of one touch: measured and model-fitted heat flux and temperature (like the paper's Figs. 10, 12, 14).
 
-The model curve is recomputed on the host from the record's resampled series
+One code path for every touch plot: ``measure --plot`` draws with :class:`TouchFigure` in
+process (Matplotlib imported by :func:`preload` while the touch runs), the demo through
+:class:`PlotProcess` (a child process drawing with the same class); what a figure shows is computed by
+:func:`host.plot_data.touch_plot_data` (data with the answer's model curve and its
+band at e -+ u(e), residuals, the pre-contact phase and the fit's window, the
+touch's identification), and the reports take their Matplotlib from :func:`pyplot`.
+
+The method's curve is recomputed on the host from the record's resampled series
 with the same bundle the device used (:class:`edge.estimation.estimate.Estimator`
-returns the fitted temperature ``fit_T_K`` on its model grid ``t_model_s``);
-the flux panel shows the measured samples and the resampled flux the model
-was driven with.
+returns the fitted temperature ``fit_T_K`` on its model grid ``t_model_s``); a
+calibrated sensor chain's answer is drawn with the chain's own curve (it needs
+the device's calibration, ``CALIBRATION_GET``).
 """
 
 from __future__ import annotations
@@ -19,10 +26,12 @@ from typing import Any, Mapping
 
 import numpy as np
 
-__all__ = ["result_title", "plot_touch", "TouchFigure", "PlotProcess", "PlotError"]
+__all__ = ["result_title", "plot_touch", "TouchFigure", "PlotProcess", "PlotError", "pyplot", "mpl_config_dir",
+           "preload"]
 
 #: The series entries a plot reads (the rest of a record is not sent to a plot process).
-_SERIES_KEYS = ("raw_t_s", "raw_T_C", "raw_q_W_m2", "grid_t_s", "grid_q_W_m2", "T0_C", "q_offset_W_m2")
+_SERIES_KEYS = ("raw_t_s", "raw_T_C", "raw_q_W_m2", "grid_t_s", "grid_dT_K", "grid_q_W_m2", "T0_C",
+                "q_offset_W_m2")
 
 
 class PlotError(OSError):
@@ -59,66 +68,124 @@ def result_title(result: Mapping[str, Any], label: str = "") -> str:
 
 
 class TouchFigure:
-    """A two-panel figure of one touch, drawn once and re-used for touch after touch.
+    """A touch's figure, drawn once and re-used for touch after touch (what it shows: :mod:`host.plot_data`).
 
-    Building a Matplotlib figure (axes, ticks, labels, mathtext) costs more
-    than drawing it, and a constrained layout re-measures every text on each
-    save (half the demo's time in 2026-11); so the layout is fixed by hand and
-    each new touch only replaces the lines' data and the titles.
+    Panels: (a) the heat flux into the object, measured and resampled; (b) the excess temperature --
+    every measured sample, the grid the method fitted, the answer's model curve with its band at
+    e -+ u(e) (k = 1); (c) the residuals of that fit with the band's half-width. The pre-contact phase
+    and the window the fit used are shaded in every panel; the title identifies the touch
+    (measurement id, UTC time, power, model and calibration) and states the answer.
+
+    Building a Matplotlib figure (axes, ticks, labels, mathtext) costs more than drawing it, and a
+    constrained layout re-measures every text on each save; so the layout is fixed by hand and each
+    new touch only replaces the artists' data and the titles. Matplotlib runs on Agg, imported once
+    per process (its font cache is built once per machine, not per call).
 
     Use :meth:`draw` for each touch and :meth:`close` (or ``with``) at the end.
     """
 
     def __init__(self) -> None:
-        import matplotlib  # noqa: PLC0415
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt  # noqa: PLC0415
-
+        plt = pyplot()
         self._plt = plt
-        fig, (ax_q, ax_T) = plt.subplots(1, 2, figsize=(11, 4.4))
-        # Fixed margins: room for the two-line title and the axis labels at this size.
-        fig.subplots_adjust(left=0.07, right=0.985, bottom=0.12, top=0.82, wspace=0.22)
-        self.fig, self.ax_q, self.ax_T = fig, ax_q, ax_T
-        self._q_meas, = ax_q.plot([], [], "o", ms=4, color="tab:blue", label="measured")
+        fig = plt.figure(figsize=(11, 6.4))
+        gs = fig.add_gridspec(2, 2, height_ratios=(3, 1.25), left=0.07, right=0.985, bottom=0.085, top=0.83,
+                              wspace=0.22, hspace=0.08)
+        ax_q = fig.add_subplot(gs[:, 0])
+        ax_T = fig.add_subplot(gs[0, 1])
+        ax_r = fig.add_subplot(gs[1, 1], sharex=ax_T)
+        self.fig, self.ax_q, self.ax_T, self.ax_r = fig, ax_q, ax_T, ax_r
+        self._q_meas, = ax_q.plot([], [], "o", ms=3, color="tab:blue", label="measured")
         self._q_grid, = ax_q.plot([], [], "-", color="tab:orange", lw=1.5, label="resampled (model input)")
         ax_q.set_xlabel("time since heater on (s)")
         ax_q.set_ylabel("heat flux $q_f$ (W/m$^2$)")
-        # y given: no top ticks here, so the title sits where Matplotlib would put it, and it skips
-        # measuring every axis's tick labels to place it at each save.
+        # y given: the title sits where Matplotlib would put it without measuring the tick labels.
         ax_q.set_title("(a) heat flux into the object", y=1.0)
         ax_q.grid(alpha=0.3)
-        self._T_meas, = ax_T.plot([], [], "o", ms=4, color="tab:blue", label="measured")
-        self._T_fit, = ax_T.plot([], [], "-", color="tab:red", lw=1.5, label="model fit")
-        ax_T.set_xlabel("time since heater on (s)")
-        ax_T.set_ylabel("excess temperature $T_f - T_0$ (K)")
-        ax_T.set_title("(b) excess temperature", y=1.0)
+        self._T_meas, = ax_T.plot([], [], "o", ms=3, color="0.55", label="measured")
+        self._T_grid, = ax_T.plot([], [], "s", ms=3.5, mfc="none", color="tab:blue", label="fitted data")
+        self._T_fit, = ax_T.plot([], [], "-", color="tab:red", lw=1.6, label="model fit")
+        self._band = None
+        ax_T.set_ylabel("excess temperature $T - T_0$ (K)")
+        ax_T.set_title("(b) excess temperature, model at e ± u(e) (k = 1)", y=1.0)
         ax_T.grid(alpha=0.3)
+        ax_T.tick_params(labelbottom=False)
+        self._r_pts, = ax_r.plot([], [], "o", ms=3, color="tab:blue", label="data − model")
+        self._r_band = None
+        ax_r.axhline(0.0, color="tab:red", lw=1.0)
+        ax_r.set_xlabel("time since heater on (s)")
+        ax_r.set_ylabel("residual (K)")
+        ax_r.grid(alpha=0.3)
+        self._spans: list = []
+        self._legend_keys: dict[int, tuple] = {}
+        self._note = ax_T.text(0.98, 0.04, "", transform=ax_T.transAxes, ha="right", va="bottom", fontsize=8,
+                               color="0.3")
         self._title = fig.suptitle("", fontsize=10)
 
+    def _legend(self, ax: Any, handles: list, loc: str) -> None:
+        """A legend of ``handles``, built again only when its entries change (a legend's layout is a large
+        part of a draw, and touch after touch of the demo has the same entries)."""
+        key = tuple(h.get_label() for h in handles)
+        if self._legend_keys.get(id(ax)) == key and ax.get_legend() is not None:
+            return
+        ax.legend(handles=handles, loc=loc, fontsize=8)
+        self._legend_keys[id(ax)] = key
+
+    def _shade(self, data: dict) -> None:
+        for span in self._spans:
+            span.remove()
+        self._spans = []
+        t0, t1 = data["pre_contact"]
+        for ax in (self.ax_q, self.ax_T, self.ax_r):
+            if t1 > t0:
+                self._spans.append(ax.axvspan(t0, t1, color="0.85", alpha=0.6, lw=0,
+                                              label=data["pre_contact_label"] if ax is self.ax_q else None))
+            if data["window"] is not None:
+                w0, w1, lab = data["window"]
+                self._spans.append(ax.axvspan(w0, w1, color="tab:green", alpha=0.07, lw=0,
+                                              label=lab if ax is self.ax_q else None))
+
     def draw(self, path: str | Path, series: Mapping[str, Any], result: Mapping[str, Any], fit: Any,
-             label: str = "") -> Path:
+             label: str = "", *, calibration: Any = None) -> Path:
         """Write one touch to ``path`` (see :func:`plot_touch` for the arguments)."""
-        t = np.asarray(series["raw_t_s"], float)
-        heat = t >= 0
-        T0 = float(series.get("T0_C") or 0.0)
-        q0 = float(series.get("q_offset_W_m2") or 0.0)
-        self._q_meas.set_data(t[heat], np.asarray(series["raw_q_W_m2"], float)[heat] - q0)
-        has_grid = series.get("grid_t_s") is not None
-        self._q_grid.set_data(*((series["grid_t_s"], series["grid_q_W_m2"]) if has_grid else ([], [])))
-        self._T_meas.set_data(t[heat], np.asarray(series["raw_T_C"], float)[heat] - T0)
-        has_fit = fit is not None and fit.fit_T_K is not None
-        self._T_fit.set_data(*((fit.t_model_s, fit.fit_T_K) if has_fit else ([], [])))
-        if has_fit:
-            self._T_fit.set_label(f"model fit ({fit.method})")
-        # Legends name only the curves this touch has.
-        self.ax_q.legend(handles=[self._q_meas] + ([self._q_grid] if has_grid else []), loc="lower right")
-        self.ax_T.legend(handles=[self._T_meas] + ([self._T_fit] if has_fit else []),
-                         loc="upper left")  # the rise fills the lower right
-        for ax in (self.ax_q, self.ax_T):
+        from host.plot_data import touch_plot_data  # noqa: PLC0415
+
+        data = touch_plot_data(series, result, fit, calibration)
+        self.data = data
+        raw, grid, curve, res = data["raw"], data["grid"], data["curve"], data["residual"]
+        self._q_meas.set_data(raw["t_s"], raw["q_W_m2"])
+        has_grid_q = grid is not None and grid["q_W_m2"] is not None
+        self._q_grid.set_data(*((grid["t_s"], grid["q_W_m2"]) if has_grid_q else ([], [])))
+        self._T_meas.set_data(raw["t_s"], raw["dT_K"])
+        show_grid = grid is not None and grid["dT_K"] is not None and curve is not None and curve["kind"] == "method"
+        self._T_grid.set_data(*((grid["t_s"], grid["dT_K"]) if show_grid else ([], [])))
+        for band in (self._band, self._r_band):
+            if band is not None:
+                band.remove()
+        self._band = self._r_band = None
+        if curve is not None:
+            self._T_fit.set_data(curve["t_s"], curve["dT_K"])
+            self._T_fit.set_label(curve["label"])
+            self._band = self.ax_T.fill_between(curve["t_s"], curve["lo"], curve["hi"], color="tab:red", alpha=0.18,
+                                                lw=0, label="model at e ± u(e)")
+        else:
+            self._T_fit.set_data([], [])
+        if res is not None:
+            self._r_pts.set_data(res["t_s"], res["r_K"])
+            self._r_band = self.ax_r.fill_between(res["t_s"], -res["half_band_K"], res["half_band_K"],
+                                                  color="tab:red", alpha=0.18, lw=0)
+        else:
+            self._r_pts.set_data([], [])
+        self._note.set_text(data["note"] or "")
+        self._shade(data)
+        handles_T = [self._T_meas] + ([self._T_grid] if show_grid else [])
+        handles_T += [self._T_fit, self._band] if curve is not None else []
+        shaded = [sp for sp in self._spans if sp.axes is self.ax_q]
+        self._legend(self.ax_T, handles_T, "upper left")
+        self._legend(self.ax_q, [self._q_meas] + ([self._q_grid] if has_grid_q else []) + shaded, "lower right")
+        for ax in (self.ax_q, self.ax_T, self.ax_r):
             ax.relim()
             ax.autoscale_view()
-        self._title.set_text(result_title(result, label))
+        self._title.set_text(data["identification"] + "\n" + result_title(result, label))
         out = Path(path)
         from host.atomic import atomic_path  # noqa: PLC0415
 
@@ -128,7 +195,7 @@ class TouchFigure:
             # zlib's fastest level: a plot's flat colours compress almost as well as at the
             # default level, in less time.
             png = {"pil_kwargs": {"compress_level": 1}} if fmt == "png" else {}
-            self.fig.savefig(tmp, dpi=110, format=fmt, **png)
+            self.fig.savefig(tmp, dpi=100, format=fmt, **png)
         return out
 
     def close(self) -> None:
@@ -142,9 +209,69 @@ class TouchFigure:
         self.close()
 
 
+def mpl_config_dir(env: Mapping[str, str] | None = None) -> str | None:
+    """A persistent directory for Matplotlib's font cache when its own is not writable (None: its own is).
+
+    Matplotlib keeps its font list in ``$MPLCONFIGDIR`` or ``~/.config/matplotlib`` / ``~/.cache``; where
+    neither can be written (a service account, a read-only home) it builds the list again in a new
+    temporary directory on every import -- seconds per plot. Then ``$XDG_CACHE_HOME/thermotouch/matplotlib``
+    (or the temporary directory's ``thermotouch-matplotlib-<uid>``) is used, so it is built once.
+    """
+    import os  # noqa: PLC0415
+    import tempfile  # noqa: PLC0415
+
+    env = os.environ if env is None else env
+    if env.get("MPLCONFIGDIR"):
+        return None
+    home = Path(env.get("HOME") or "~").expanduser()
+    for own in (Path(env.get("XDG_CONFIG_HOME") or home / ".config") / "matplotlib",
+                Path(env.get("XDG_CACHE_HOME") or home / ".cache") / "matplotlib"):
+        probe = own
+        while not probe.exists() and probe != probe.parent:
+            probe = probe.parent          # Matplotlib creates the missing directories, if it can
+        if probe.is_dir() and os.access(probe, os.W_OK | os.X_OK):
+            return None
+    base = env.get("XDG_CACHE_HOME")
+    target = (Path(base) / "thermotouch" / "matplotlib" if base else
+              Path(tempfile.gettempdir()) / f"thermotouch-matplotlib-{os.getuid()}")
+    try:
+        target.mkdir(parents=True, exist_ok=True, mode=0o700)
+    except OSError:
+        return None
+    return str(target) if os.access(target, os.W_OK | os.X_OK) else None
+
+
+def pyplot():
+    """Matplotlib's pyplot on Agg (no display), for every plot of the package (this module's and the reports').
+
+    Its font cache goes to :func:`mpl_config_dir` where Matplotlib's own directory cannot be written.
+    """
+    import os  # noqa: PLC0415
+    import sys as _sys  # noqa: PLC0415
+
+    if "matplotlib" not in _sys.modules:
+        where = mpl_config_dir()
+        if where is not None:
+            os.environ["MPLCONFIGDIR"] = where
+    import matplotlib  # noqa: PLC0415
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    return plt
+
+
+def preload() -> None:
+    """Import Matplotlib (:func:`pyplot`) in a background thread: a caller that will plot after waiting on
+    a device (``measure --plot``) has it ready; a later import waits for this one, never repeats it."""
+    import threading  # noqa: PLC0415
+
+    threading.Thread(target=pyplot, name="matplotlib-preload", daemon=True).start()
+
+
 def plot_touch(path: str | Path, series: Mapping[str, Any], result: Mapping[str, Any], fit: Any,
-               label: str = "", *, figure: TouchFigure | None = None) -> Path:
-    """Write a two-panel PNG of one touch.
+               label: str = "", *, figure: TouchFigure | None = None, calibration: Any = None) -> Path:
+    """Write the figure of one touch (:class:`TouchFigure`).
 
     Parameters
     ----------
@@ -153,20 +280,22 @@ def plot_touch(path: str | Path, series: Mapping[str, Any], result: Mapping[str,
         (``.png``, ``.pdf``, ``.svg``; none: PNG). Written atomically.
     series : mapping
         The stored record with ``raw_t_s``, ``raw_T_C``, ``raw_q_W_m2``,
-        ``grid_t_s``, ``grid_q_W_m2``, ``T0_C`` and ``q_offset_W_m2``.
+        ``grid_t_s``, ``grid_dT_K``, ``grid_q_W_m2``, ``T0_C`` and ``q_offset_W_m2``.
     result : mapping
-        The device's result dict (title).
+        The device's answer, with :func:`host.plot_data.touch_identity`'s fields (title).
     fit : edge.estimation.result.Estimate
-        Host re-estimate on the same record (``t_model_s``, ``fit_T_K``).
+        Host re-estimate on the same record by the answer's method (``t_model_s``, ``fit_T_K``).
     label : str
-        Scene or sample name for the title.
+        Scene or sample name for the title (never a port: the title identifies the measurement).
     figure : TouchFigure, optional
         A figure to draw into and keep (many touches); default: a new one, closed after.
+    calibration : edge.calibration.model.ProbeCalibration, optional
+        The device's calibration: a sensor-chain answer is drawn with the chain's own curve.
     """
     if figure is not None:
-        return figure.draw(path, series, result, fit, label)
+        return figure.draw(path, series, result, fit, label, calibration=calibration)
     with TouchFigure() as fig:
-        return fig.draw(path, series, result, fit, label)
+        return fig.draw(path, series, result, fit, label, calibration=calibration)
 
 
 def _jsonable(x: Any) -> Any:
@@ -197,13 +326,16 @@ class PlotProcess:
                                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
     def submit(self, path: str | Path, series: Mapping[str, Any], result: Mapping[str, Any], fit: Any,
-               label: str = "") -> Path:
+               label: str = "", *, calibration: Any = None) -> Path:
         """Queue one plot (arguments as :func:`plot_touch`); returns its path (written by :meth:`close`)."""
         out = Path(path)
         job = {"path": str(out), "label": label, "result": dict(result),
                "series": {k: series.get(k) for k in _SERIES_KEYS},
                "fit": None if fit is None or fit.fit_T_K is None else
-               {"t_model_s": fit.t_model_s, "fit_T_K": fit.fit_T_K, "method": fit.method}}
+               {"t_model_s": fit.t_model_s, "fit_T_K": fit.fit_T_K, "method": fit.method,
+                "effusivity_W_s05_m2K": getattr(fit, "effusivity_W_s05_m2K", None),
+                "effusivity_W_s05_m2K_u": getattr(fit, "effusivity_W_s05_m2K_u", None)},
+               "calibration": None if calibration is None else calibration.to_json_compact()}
         try:
             self._proc.stdin.write(json.dumps(job, default=_jsonable) + "\n")
             self._proc.stdin.flush()
@@ -211,6 +343,11 @@ class PlotProcess:
             raise PlotError(f"plot process ended before {out} was drawn: {self._why(exc)}") from None
         self._paths.append(out)
         return out
+
+    @property
+    def closed(self) -> bool:
+        """Whether :meth:`close` ran (or the process was killed)."""
+        return self._closed
 
     def _why(self, exc: BaseException | None = None) -> str:
         try:
@@ -268,8 +405,13 @@ def _serve(stdin: Any, stdout: Any) -> int:
         for line in stdin:
             job = json.loads(line)
             fit = None if job["fit"] is None else SimpleNamespace(**job["fit"])
+            cal = None
+            if job.get("calibration") is not None:
+                from edge.calibration.model import ProbeCalibration  # noqa: PLC0415
+
+                cal = ProbeCalibration.from_json(job["calibration"])
             try:
-                figure.draw(job["path"], job["series"], job["result"], fit, job["label"])
+                figure.draw(job["path"], job["series"], job["result"], fit, job["label"], calibration=cal)
                 reply = {"path": job["path"]}
             except OSError as exc:
                 reply = {"path": job["path"], "error": f"cannot write plot {job['path']}: {exc.strerror or exc}"}

@@ -1,4 +1,4 @@
-"""Recorded touch series as CSV files.
+"""Recorded touch series as CSV (or Parquet) files.
 
 Schema: a header row, then one row per sample; columns (any order)
 
@@ -31,6 +31,14 @@ Lines starting with ``#`` are comments.  A comment of the form
 :data:`edge.physics.geometry.PROBES`), which ``thermotouch estimate`` checks
 against ``--probe``.  The file is UTF-8 text (a leading byte-order mark, as
 some spreadsheets write, is accepted).  Errors name the line and column.
+
+Parquet (``*.parquet``, with the optional ``pyarrow``: ``pip install
+'thermotouch[parquet]'``) holds the same thing in a table: the same columns as
+float64 (exact, no text round trip), each field's unit in its metadata
+(:data:`COLUMN_UNITS`), and the ``# key: value`` header as the file's key-value
+metadata (``kind`` says what the table is: ``touch`` or ``history``). Every
+reader here takes either form by the file's suffix; a column whose unit is not
+the one its name states, or a table of another kind, is refused by name.
 """
 
 from __future__ import annotations
@@ -52,15 +60,113 @@ T_COLUMNS = ("T_C", "dT_K", "T_K")
 #: Optional per-sample read times of the converters, s against ``t_s``.
 READ_TIME_COLUMNS = ("T_dt_s", "q_dt_s")
 _ZERO_C_K = 273.15
+#: The unit of each record column (its name's suffix says it; a Parquet field carries it, and is checked).
+COLUMN_UNITS = {"t_s": "s", "T_C": "degC", "T_K": "K", "dT_K": "K", "q_W_m2": "W/m^2", "heater_W_m2": "W/m^2",
+                "T_dt_s": "s", "q_dt_s": "s"}
+#: What a Parquet file from this module is, in its ``kind`` metadata.
+PARQUET_KINDS = ("touch", "history")
 
 
 # Keys may be dotted (``measurement.noise_T_K``: a device setting the touch was judged by).
 _META = re.compile(r"^#\s*([A-Za-z_][A-Za-z0-9_.]*)\s*:\s*(.*?)\s*$")
 
 
+def is_parquet(path: str | Path) -> bool:
+    """Whether ``path`` names a Parquet file (by its suffix, as the writers choose the format)."""
+    return Path(path).suffix.lower() == ".parquet"
+
+
+def _parquet():
+    try:
+        import pyarrow  # noqa: PLC0415, F401
+        import pyarrow.parquet as pq  # noqa: PLC0415
+    except ImportError:
+        raise RecordError("Parquet files need pyarrow (pip install 'thermotouch[parquet]')") from None
+    return pq
+
+
+def write_parquet(path: str | Path, columns: dict, meta: dict, units: dict[str, str], kind: str) -> None:
+    """Write ``columns`` (name -> values) as one Parquet table, atomically.
+
+    Parameters
+    ----------
+    columns : dict
+        Column name -> 1-D values (NumPy arrays as float64, pyarrow arrays as they are, lists as
+        pyarrow infers).
+    meta : dict
+        The file's key-value metadata (values written with :func:`_text`: one line each, None as 'none').
+    units : dict
+        Unit of each column that has one (field metadata ``unit``).
+    kind : str
+        What the table is (:data:`PARQUET_KINDS`), stored as ``kind``.
+    """
+    import pyarrow as pa  # noqa: PLC0415
+
+    from host.atomic import atomic_path  # noqa: PLC0415
+
+    pq = _parquet()
+    if kind not in PARQUET_KINDS:
+        raise ValueError(f"kind must be one of {PARQUET_KINDS}, got {kind!r}")
+    fields, arrays = [], []
+    for name, values in columns.items():
+        if isinstance(values, pa.Array):
+            arr = values
+        elif isinstance(values, np.ndarray):
+            arr = pa.array(np.asarray(values, dtype=np.float64))
+        else:
+            arr = pa.array(values)
+        fields.append(pa.field(name, arr.type, metadata={"unit": units[name]} if name in units else None))
+        arrays.append(arr)
+    head = {"kind": kind, **{k: _text(v) for k, v in meta.items()}}
+    table = pa.Table.from_arrays(arrays, schema=pa.schema(fields, metadata=head))
+    with atomic_path(path) as tmp:
+        pq.write_table(table, str(tmp))
+
+
+def read_parquet(path: str | Path, kind: str) -> tuple[dict[str, np.ndarray | list], dict[str, str]]:
+    """``(columns, metadata)`` of a Parquet table written by :func:`write_parquet` as ``kind``.
+
+    Each column with a unit in its field metadata is checked against :data:`COLUMN_UNITS`.
+
+    Raises
+    ------
+    RecordError
+        Not readable as Parquet, another kind of table, or a column in another unit.
+    """
+    path = Path(path)
+    pq = _parquet()
+    import pyarrow as pa  # noqa: PLC0415
+
+    try:
+        table = pq.read_table(str(path))
+    except OSError as exc:
+        raise RecordError(f"{path}: cannot read ({getattr(exc, 'strerror', None) or exc})") from None
+    except Exception as exc:  # noqa: BLE001 - pyarrow raises its own types for a file that is not Parquet
+        raise RecordError(f"{path}: not a Parquet file ({type(exc).__name__}: {exc})") from None
+    meta = {k.decode("utf-8", "replace"): v.decode("utf-8", "replace")
+            for k, v in (table.schema.metadata or {}).items()}
+    got = meta.pop("kind", None)
+    if got != kind:
+        raise RecordError(f"{path}: a Parquet table of kind {got!r}, not a {kind} "
+                          f"({'history --export' if kind == 'history' else 'history --export-series'} writes those)")
+    cols: dict[str, np.ndarray | list] = {}
+    for field in table.schema:
+        unit = (field.metadata or {}).get(b"unit")
+        want = COLUMN_UNITS.get(field.name)
+        if unit is not None and want is not None and unit.decode("utf-8", "replace") != want:
+            raise RecordError(f"{path}, column '{field.name}': unit {unit.decode('utf-8', 'replace')!r}, "
+                              f"but the name says {want}")
+        col = table.column(field.name)
+        cols[field.name] = (col.to_numpy().astype(np.float64) if pa.types.is_floating(field.type)
+                            else col.to_pylist())
+    return cols, meta
+
+
 def read_record_metadata(path: str | Path) -> dict[str, str]:
     """``# key: value`` comments before the header row, as a dict (keys lower case; the first wins)."""
     path = Path(path)
+    if is_parquet(path):
+        return {k.lower(): v for k, v in read_parquet(path, "touch")[1].items()}
     try:
         text = path.read_bytes().decode("utf-8-sig")
     except OSError as exc:
@@ -87,6 +193,8 @@ def read_series(path: str | Path) -> dict[str, np.ndarray | str]:
     (absent: not in the file) and ``T_column`` (which one was found).
     """
     path = Path(path)
+    if is_parquet(path):
+        return _parquet_series(path)
     try:
         data = path.read_bytes()
     except OSError as exc:
@@ -135,6 +243,33 @@ def read_series(path: str | Path) -> dict[str, np.ndarray | str]:
     for extra in ("heater_W_m2",) + READ_TIME_COLUMNS:
         if extra in data:
             out[extra] = np.array(data[extra])
+    return out
+
+
+def _parquet_series(path: Path) -> dict[str, np.ndarray | str]:
+    """:func:`read_series` of a Parquet touch record (the same checks; rows counted from 1)."""
+    cols, _ = read_parquet(path, "touch")
+    names = list(cols)
+    _check_columns(path, 0, names)
+    if "t_s" not in cols or "q_W_m2" not in cols or not (set(T_COLUMNS) & set(cols)):
+        raise RecordError(f"{path}: columns must include t_s, q_W_m2 and T_C, T_K or dT_K, got {names}")
+    tcol = next(c for c in T_COLUMNS if c in cols)
+    out: dict[str, np.ndarray | str] = {"t_s": cols["t_s"], "T": cols[tcol], "q_W_m2": cols["q_W_m2"], "T_column": tcol}
+    for extra in ("heater_W_m2",) + READ_TIME_COLUMNS:
+        if extra in cols:
+            out[extra] = cols[extra]
+    for name, v in out.items():
+        if isinstance(v, list):
+            raise RecordError(f"{path}, column '{name}': not numbers")
+        if isinstance(v, np.ndarray) and not np.all(np.isfinite(v)):
+            raise RecordError(f"{path}, row {int(np.argmax(~np.isfinite(v))) + 1}, column '{name}': "
+                              "value must be finite")
+    t = out["t_s"]
+    if t.size < 4:
+        raise RecordError(f"{path}: need at least 4 samples, got {t.size}")
+    bad = np.nonzero(np.diff(t) <= 0)[0]
+    if bad.size:
+        raise RecordError(f"{path}, row {int(bad[0]) + 2}, column 't_s': times must increase")
     return out
 
 
@@ -338,6 +473,13 @@ def write_touch(path: str | Path, record, identity=None) -> None:
         if getattr(record, name) is not None:
             names.append(name)
             columns.append(getattr(record, name))
+    for key in head:
+        if _META.match(f"# {key}: x") is None:
+            raise ValueError(f"header key {key!r} is not a name")
+    if is_parquet(path):
+        write_parquet(path, {n: np.asarray(c, dtype=np.float64) for n, c in zip(names, columns)}, head,
+                      COLUMN_UNITS, "touch")
+        return
     with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as f:
         f.write("# ThermoTouch touch record: the device's raw samples (t_s from heater-on, negative before; "
                 "T_C thermocouple; q_W_m2 flux sensor) and what it knew\n")
@@ -353,6 +495,8 @@ def write_touch(path: str | Path, record, identity=None) -> None:
 
 def _header(path: Path) -> dict[str, str]:
     """``# key: value`` lines before the column header, keys as written (the first wins)."""
+    if is_parquet(path):
+        return read_parquet(path, "touch")[1]
     meta: dict[str, str] = {}
     for line in Path(path).read_bytes().decode("utf-8-sig").splitlines():
         s = line.strip()

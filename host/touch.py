@@ -228,7 +228,8 @@ def _methods_on_grid(est: Any, series: dict, record: dict, methods) -> dict:
 def touch(session: DeviceSession, *, power_W: float | None = None, voltage_V: float | None = None,
           contact_time_s: float | None = None, method: str | None = None, with_series: bool = True,
           bundle_dir: str | Path | None = None, sample_rate_Hz: float | None = None,
-          until_decided: bool = False, arm_s: float | None = None, settle_s: float | None = None) -> Touch:
+          until_decided: bool = False, arm_s: float | None = None, settle_s: float | None = None,
+          on_event: Any = None) -> Touch:
     """Run one measurement (optionally with ``method`` set on the device for it) and collect what is reachable.
 
     The device's estimation method is a runtime setting; when ``method``
@@ -252,7 +253,8 @@ def touch(session: DeviceSession, *, power_W: float | None = None, voltage_V: fl
             c.config_set(**{"estimation.method": method})
     try:
         rec = c.measure(power_W=power_W, voltage_V=voltage_V, contact_time_s=contact_time_s,
-                        sample_rate_Hz=sample_rate_Hz, until_decided=until_decided, arm_s=arm_s, settle_s=settle_s)
+                        sample_rate_Hz=sample_rate_Hz, until_decided=until_decided, arm_s=arm_s, settle_s=settle_s,
+                        on_event=on_event)
     finally:
         if previous is not None:
             c.config_set(**{"estimation.method": previous})

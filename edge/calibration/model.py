@@ -41,7 +41,8 @@ from edge.physics.geometry import PROBES
 from edge.schema import Field, SchemaError, check_table
 
 __all__ = ["CalibrationError", "PARAMETERS", "ProbeCalibration", "ReferenceFit", "FORMAT", "SCHEMA_VERSION",
-           "FLUX_SCALE_BOUNDS", "COVARIANCE_PRIOR_FACTOR", "check_plausible", "parse_created_utc"]
+           "FLUX_SCALE_BOUNDS", "COVARIANCE_PRIOR_FACTOR", "check_plausible", "parse_created_utc", "identifiability",
+           "DETERMINED_SHRINK"]
 
 FORMAT = "thermotouch-calibration"
 SCHEMA_VERSION = 1
@@ -61,6 +62,22 @@ FLUX_SCALE_BOUNDS = (0.8, 1.25)
 #: allows the noise-bias correction's own sampling scatter, added to the fit's covariance (a few per
 #: cent of a variance), and rounding.
 COVARIANCE_PRIOR_FACTOR = 1.5
+#: A parameter is determined by the references when they shrink its datasheet u to this fraction or less
+#: (ISSUE #34 item 1); otherwise its prior settles it, and the report says which reference would help.
+DETERMINED_SHRINK = 0.5
+#: Correlations of theta beyond this are reported: the references trade the two off.
+STRONG_CORRELATION = 0.8
+#: Per parameter: the reference or touch that would determine it.
+ADVICE = {
+    "ln_flux_scale": "touch a certified metal block (aisi_304) and a polymer block (pmma): the sensitivity scales "
+                     "every e alike, only materials of well-known e pin it",
+    "ln_sensing_thickness_m": "touch a metal block (aisi_304): the layer's depth shows where the object draws the "
+                              "most heat through it",
+    "tc_tau_s": "touch a metal block firmly, or with the block off the probe's temperature: the bead lag shows on "
+                "the fastest rises",
+    "ln_sensing_k_W_mK": "touch an insulating foam (or record the probe in air before each touch): the layer's heat "
+                         "capacity then shows apart from its resistance, and with it its conductivity",
+}
 #: created_utc's format (as model manifests: the order of updates).
 TIME_FORMAT = "%Y-%m-%dT%H:%M:%SZ"
 
@@ -352,3 +369,26 @@ def check_plausible(cal: ProbeCalibration) -> None:
 
 def _canonical(d: dict[str, Any]) -> bytes:
     return json.dumps(d, sort_keys=True, separators=(",", ":")).encode("utf-8")
+
+
+def identifiability(cal: ProbeCalibration) -> dict[str, Any]:
+    """What the references determined of theta, their correlations, and which reference would determine the rest.
+
+    A parameter is determined when the calibration's u is at most :data:`DETERMINED_SHRINK` of the
+    datasheet's (:meth:`ProbeCalibration.nominal`); otherwise the datasheet prior settled it and
+    ``advice`` names the reference that would pin it (:data:`ADVICE`).  ``correlations``: the
+    off-diagonal correlations of theta; ``traded_off``: the pairs beyond :data:`STRONG_CORRELATION`
+    (the references trade one against the other: the issue's sensitivity against layer k).
+    """
+    prior = ProbeCalibration.nominal(cal.probe).u_theta
+    u = cal.u_theta
+    shrink = {n: float(a / b) if b > 0 else 1.0 for n, a, b in zip(PARAMETERS, u, prior)}
+    det = [n for n in PARAMETERS if shrink[n] <= DETERMINED_SHRINK]
+    uu = np.outer(u, u)
+    corr = np.divide(cal.covariance, uu, out=np.zeros_like(cal.covariance), where=uu > 0)
+    pairs = {f"{PARAMETERS[i]}~{PARAMETERS[j]}": float(corr[i, j])
+             for i in range(len(PARAMETERS)) for j in range(i + 1, len(PARAMETERS))}
+    return {"determined": det, "not_determined": [n for n in PARAMETERS if n not in det],
+            "u_over_prior": shrink, "correlations": pairs,
+            "traded_off": [k for k, c in pairs.items() if abs(c) >= STRONG_CORRELATION],
+            "advice": list(dict.fromkeys(ADVICE[n] for n in PARAMETERS if n not in det))}

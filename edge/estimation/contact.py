@@ -9,7 +9,14 @@ thermocouple drifts slowly.  At contact with an object at another
 temperature both step.  With an object at the probe's temperature nothing
 steps, and nothing needs to: the probe and the object are then one uniform
 body until the heater starts, so heater-on is as good an origin as the true
-contact.
+contact -- provided the probe was touching when the heater went on.  That is
+checked on the heater's response (ISSUE #37): under a touching probe the
+flux the heater drives into the object against the rise it makes
+(:func:`edge.estimation.conditioning.contact_effusivity`) is a solid's, in
+air it is still air's.  Without a step the origin comes, in this order, from
+the user's trigger (``trigger_t_s``: a record field, e.g. an armed run's
+``contact_detected_s`` on the record's clock), from the heater's response
+(origin heater-on), or the contact is refused (``how == "none"``).
 
 The noise is measured on the record itself: the first ``quiet_s`` seconds,
 with the median absolute deviation of the first differences (robust to a
@@ -30,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Contact", "find_contact"]
+__all__ = ["Contact", "find_contact", "HOW"]
 
 #: Flux step (W/m^2) below which a change is not a contact.  Convection from a
 #: probe 1 K above the room is ~5 W/m^2; a 0.5 K difference to foam (e ~ 40)
@@ -42,6 +49,12 @@ Q_FLOOR_W_m2 = 8.0
 Q_AIR_MAX_W_m2 = 60.0
 #: Temperature step (K) below which a change is not a contact, for the same reason.
 T_FLOOR_K = 0.03
+#: Effusivity of what the heater heats (W s^0.5/(m^2 K)) below which the probe was in air when the
+#: heater went on: still air 5.5, the lightest foams ~28 (as the ``no_contact`` quality flag's default).
+AIR_E_W_s05_m2K = 12.0
+#: How the contact was found: a temperature jump, a flux step, the user's trigger, the heater's
+#: response (no step: object at the probe's temperature, origin heater-on), or not at all.
+HOW = ("temperature", "flux", "trigger", "heater_response", "none")
 
 
 @dataclass(frozen=True)
@@ -63,6 +76,10 @@ class Contact:
         False: the touch began before the record, and the fit cannot start at contact.
     noise_T_K, noise_q_W_m2 : float
         Noise measured on the samples in air (NaN without them).
+    how : str
+        One of :data:`HOW`: what found the origin; ``"none"``: no step, no trigger, and the heater's
+        response was not a touching probe's (or could not be judged) -- a clear refusal to name a
+        contact, which the caller reports (``no_contact``) instead of fitting from heater-on.
     """
 
     index: int
@@ -71,6 +88,7 @@ class Contact:
     recorded_in_air: bool
     noise_T_K: float
     noise_q_W_m2: float
+    how: str = "none"
 
 
 def _noise(x: np.ndarray) -> float:
@@ -93,8 +111,21 @@ def _lsb(x: np.ndarray) -> float:
     return step if float(np.mean(np.abs(ratio - np.round(ratio)) < 0.05)) > 0.9 else 0.0
 
 
+def _heater_response_touching(t: np.ndarray, T: np.ndarray, q: np.ndarray, i_on: int, T0: float, q0: float,
+                              min_rise_K: float) -> bool | None:
+    """Did the heater heat a solid (True), air (False), or can the record not tell (None)?"""
+    from edge.estimation.conditioning import contact_effusivity  # noqa: PLC0415 - same package, below us
+
+    after = np.arange(i_on, t.size)
+    if after.size < 4:
+        return None
+    e = contact_effusivity(t[after], T[after] - T0, q[after] - q0, min_rise_K=min_rise_K)
+    return None if e is None else bool(e >= AIR_E_W_s05_m2K)
+
+
 def find_contact(t_s, T_C, q_W_m2, *, quiet_s: float = 0.3, n_sigma: float = 6.0,
-                 q_floor_W_m2: float = Q_FLOOR_W_m2, T_floor_K: float = T_FLOOR_K) -> Contact:
+                 q_floor_W_m2: float = Q_FLOOR_W_m2, T_floor_K: float = T_FLOOR_K,
+                 trigger_t_s: float | None = None) -> Contact:
     """Find the contact instant of a record whose clock has heater-on at 0.
 
     Parameters
@@ -109,6 +140,9 @@ def find_contact(t_s, T_C, q_W_m2, *, quiet_s: float = 0.3, n_sigma: float = 6.0
         Length of the baseline at the start of the record that must be in air, s.
     n_sigma : float
         Detection threshold in noise widths (above the floors).
+    trigger_t_s : float, optional
+        The user's trigger on the record's clock (s, at or before heater-on): the origin when no
+        step is seen.  Ignored when it lies after heater-on or outside the record.
 
     Returns
     -------
@@ -125,7 +159,7 @@ def find_contact(t_s, T_C, q_W_m2, *, quiet_s: float = 0.3, n_sigma: float = 6.0
     base = np.arange(max(4, int(np.count_nonzero(t <= t[0] + quiet_s + 1e-9))))
     if pre.size < 4 or base.size < 4 or base[-1] >= i_on:
         # Nothing (or too little) before heater-on to call "air": the record starts in contact or at heater-on.
-        return Contact(i_on, float(t[i_on]), False, False, float("nan"), float("nan"))
+        return Contact(i_on, float(t[i_on]), False, False, float("nan"), float("nan"), "none")
     T0, q0 = float(np.median(T[base])), float(np.median(q[base]))
 
     # A coarse converter (the MCP9600's 0.0625 K, the ADS1115's 14 W/m^2) flips an LSB now and then
@@ -155,8 +189,15 @@ def find_contact(t_s, T_C, q_W_m2, *, quiet_s: float = 0.3, n_sigma: float = 6.0
         hit, in_air = detect(sT, sq)
     # The baseline itself must be quiet: a record that starts during a contact transient is not in air.
     if not in_air:
-        return Contact(0, float(t[0]), False, False, sT, sq)
+        return Contact(0, float(t[0]), False, False, sT, sq, "none")
     if hit.size == 0:
-        return Contact(i_on, float(t[i_on]), False, True, sT, sq)
+        # No step: the object is at the probe's temperature (or the touch is too light to show).
+        if trigger_t_s is not None and math.isfinite(trigger_t_s) and t[0] <= trigger_t_s <= t[i_on]:
+            i = int(np.nonzero(t <= trigger_t_s + 1e-9)[0][-1])
+            return Contact(i, float(t[i]), True, True, sT, sq, "trigger")
+        touching = _heater_response_touching(t, T, q, i_on, T0, q0, 2.0 * lsb_T)
+        return Contact(i_on, float(t[i_on]), False, True, sT, sq, "heater_response" if touching else "none")
     i = max(int(hit[0]) - 1, 0)
-    return Contact(i, float(t[i]), True, True, sT, sq)
+    i_hit = int(hit[0])
+    stepped_T = abs(T[i_hit] - T[i_hit - 1]) > math.sqrt(2.0) * n_sigma * sT + T_floor_K if i_hit else False
+    return Contact(i, float(t[i]), True, True, sT, sq, "temperature" if stepped_T else "flux")

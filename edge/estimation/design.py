@@ -5,9 +5,9 @@ a contact time, a material, the noise of the two sensors and the sampling
 interval, :func:`attainable` returns the noise-only standard uncertainties
 (Cramer-Rao bounds at the true values) of ln e, ln k and ln alpha when k,
 alpha and the nuisances (the heater power scale, optionally the contact
-resistance) are all unknown and no prior is used:
+resistance and the object's temperature -- a hand touch's unknowns) are all unknown and no prior is used:
 
-    F = J^T J,   J = d(model / sigma) / d(ln k, ln alpha, ln P [, R_c]),
+    F = J^T J,   J = d(model / sigma) / d(ln k, ln alpha, ln P [, R_c] [, T_obj]),
     cov = F^-1,  u(ln e)^2 = g^T cov g with g = (1, -1/2, 0, ...).
 
 The Jacobian is the axisymmetric model's exact one
@@ -105,7 +105,8 @@ def covariance_ln_k_alpha(F: np.ndarray) -> np.ndarray:
 def attainable(solid: Solid, contact_time_s: float, *, probe: ProbeGeometry | str = "small-heater",
                heater_radius_m: float | None = None, dt_s: float = 0.02, sigma_T_K: float = 0.01,
                sigma_q_W_m2: float = 0.5, power_W: float | None = None, fit_contact: bool = False,
-               contact_resistance_m2K_W: float = 0.0, model: AxisymModel | None = None) -> Design:
+               contact_resistance_m2K_W: float = 0.0, model: AxisymModel | None = None,
+               fit_object_temperature: bool = False, contact_lead_s: float = 0.0) -> Design:
     """Attainable u(e), u(k), u(alpha) of one touch (see the module docstring).
 
     Parameters
@@ -127,6 +128,15 @@ def attainable(solid: Solid, contact_time_s: float, *, probe: ProbeGeometry | st
         Count the contact resistance among the unknowns.
     model : AxisymModel, optional
         A prebuilt model for this probe and these times.
+    fit_object_temperature : bool
+        Count the object's temperature among the unknowns (a hand touch: the object is not at the
+        probe's temperature).  After the contact transient it is a constant offset of the
+        thermocouple's record (the sensor chain's fit has it as its first column,
+        :func:`edge.estimation.sensor_chain.chain_design`); the flux record does not see it.
+    contact_lead_s : float
+        With ``fit_object_temperature``: the probe rests on the object this long before heating;
+        those samples (from :data:`edge.estimation.chain_estimate.FIT_START_s` after contact, as the
+        chain fits them) see the offset alone and pin it.
     """
     g = PROBES[probe] if isinstance(probe, str) else probe
     if heater_radius_m is not None:
@@ -145,6 +155,12 @@ def attainable(solid: Solid, contact_time_s: float, *, probe: ProbeGeometry | st
     cols.append(np.concatenate([y[0] * wT, y[1] * wq]))  # d / d ln P
     if fit_contact:
         cols[2] = cols[2] * 1e-4  # R_c in units of 1e-4 m^2 K/W keeps F well scaled
+    if fit_object_temperature:
+        # Samples in contact before heating (the chain fits from 0.3 s after contact): the offset alone.
+        lead = max(float(contact_lead_s) - 0.3, 0.0)
+        n_lead = int(math.floor(lead / dt + 1e-9))
+        cols = [np.concatenate([np.zeros(n_lead), c]) for c in cols]
+        cols.append(np.concatenate([np.full(n_lead + t.size, 1.0 / sigma_T_K), np.zeros(t.size)]))   # per K
     J = np.stack(cols, axis=1)
     cov = covariance_ln_k_alpha(J.T @ J)
     gvec = np.zeros(cov.shape[0])

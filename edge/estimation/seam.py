@@ -47,6 +47,9 @@ from edge.physics.geometry import get_probe
 from edge.recognition import recognition_fields
 from edge.status import Flag
 
+#: Flags under which a touch gets no answer (ISSUE #34 item 3): nothing was touched, or nothing measured.
+NO_ANSWER = frozenset({Flag.NO_CONTACT, Flag.NO_SIGNAL})
+
 __all__ = ["SeamContext", "TouchEstimator", "Conditioned", "TooFewSamples", "BLOCKERS", "condition", "estimate_touch",
            "chain_answer", "method_estimate", "MethodFn", "CHAIN_KEEP"]
 
@@ -341,13 +344,13 @@ def chain_answer(est: Estimate, chain: Mapping[str, Any], estimator: Any,
                    flags=flags, details={**est.details, "default_method": {k_: old[k_] for k_ in DEFAULT_METHOD_KEYS}})
 
 
-def _recognise(est: Estimate, context: SeamContext) -> Estimate:
+def _recognise(est: Estimate, context: SeamContext, contact_time_s: float | None = None) -> Estimate:
     objs = context.object_set
     name = context.object_set_name
     if objs is None or not len(objs):
         return replace(est, **_recognition_kw(unknown_recognition(name)))
     try:
-        r = recognition_fields(objs, est.to_dict(), set_name=name)
+        r = recognition_fields(objs, est.to_dict(), set_name=name, contact_time_s=contact_time_s)
     except Exception as e:  # naming the object must never lose the measurement
         log.exception("naming the object failed")
         return replace(est, details={**est.details, "object_error": f"{type(e).__name__}: {e}"},
@@ -412,12 +415,19 @@ def estimate_touch(record: TouchRecord, context: SeamContext, *,
                       details={**est.details, "sensor_chain": chain})
         promoted = chain_answer(est, chain, context.estimator, chain_parts)
         if promoted is not None:
-            est = promoted
+            # The calibrated chain found the contact in the record and fitted it, object temperature and
+            # R_c included: the 1-D judgements of "no contact" / "no signal" (which assume an object at
+            # the probe's temperature; a hand touch of a metal 2 K colder fooled them) are superseded.
+            est = replace(promoted, flags=tuple(f for f in promoted.flags if f not in NO_ANSWER))
         elif cal is not None:
             # The installed calibration did not make this answer: say so (ISSUE #34, "answers that look
             # calibrated but are not"); sensor_chain.flags say why.
             est = est.with_flags(Flag.CALIBRATION_REFUSED)
-    est = _recognise(est, context)
+    if NO_ANSWER & set(est.flags):
+        # Nothing was touched or nothing measured: no answer, whatever a method fitted (ISSUE #34 item 3).
+        est = replace(est, effusivity_W_s05_m2K=None, k_W_mK=None, alpha_m2_s=None, determined_by={},
+                      material=None, material_confidence=0.0, material_candidates=(), u_e_parts={})
+    est = _recognise(est, context, record.heater_on_s)   # the set's calibration at this contact time
     if decision is not None:
         est = replace(est, details={**est.details, "decision": dict(decision)})
         if decision.get("stopped_early") and decision.get("object") not in (None, est.object):

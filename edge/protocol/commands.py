@@ -54,6 +54,9 @@ class MsgType(enum.IntEnum):
     """Non-command message types."""
 
     ERROR = 0xFF
+    #: A device-pushed event during a MEASURE that asked for them (``stream``): addressed with that
+    #: request's id, never a reply (the MEASURE reply still ends the exchange). See :data:`EVENTS`.
+    EVENT = 0xFE
 
 
 # --------------------------------------------------------------------------
@@ -138,7 +141,10 @@ COMMANDS: dict[Command, CommandSpec] = {spec.command: spec for spec in (
                   doc="armed: sample in air up to this long for the touch, heat settle_s after the detected "
                       "contact (0 = off; default measurement.arm_s); no contact in time ends 'no_contact'"),
               arg("settle_s", "float", lo=0.0, hi=MAX_SETTLE_s,
-                  doc="armed: contact to heater-on, s (default measurement.settle_s)")),
+                  doc="armed: contact to heater-on, s (default measurement.settle_s)"),
+              arg("stream", "bool", doc="push EVENT frames (phases, sample batches, the running answer; "
+                  ":data:`EVENTS`) with this request's id while the touch runs; best effort: a slow "
+                  "host loses events (counted), never the touch or the reply")),
         exclusive=(("power_W", "voltage_V"),),
         reply=(arg("measurement_id", "int", required=True, lo=0),),
         idempotent=False,
@@ -309,6 +315,69 @@ COMMANDS: dict[Command, CommandSpec] = {spec.command: spec for spec in (
 )}
 
 
+# --------------------------------------------------------------------------
+# Events (data): what a streaming MEASURE pushes before its reply
+# --------------------------------------------------------------------------
+
+class EventKind(enum.StrEnum):
+    """The ``kind`` of an EVENT frame's JSON payload."""
+
+    PHASE = "phase"
+    SAMPLES = "samples"
+    ANSWER = "answer"
+
+
+#: Words of a phase event, in the order a touch passes them (``cooldown`` only after a recent heating,
+#: ``armed`` instead of ``baseline`` for an armed touch, ``contact`` when an armed touch found its
+#: contact and settled, just before ``heating``); ``done`` comes last, with the stored record's id.
+EVENT_PHASES = ("cooldown", "baseline", "armed", "contact", "heating", "estimating", "done")
+#: Most samples one ``samples`` event carries (about 1 kB of JSON).
+MAX_EVENT_SAMPLES = 64
+
+
+@dataclass(frozen=True)
+class EventSpec:
+    """Schema of one event kind: its fields (besides ``kind`` and ``seq``) and ``same_length`` lists."""
+
+    kind: EventKind
+    fields: tuple[Field, ...] = ()
+    same_length: tuple[str, ...] = ()
+    doc: str = ""
+
+
+_EVENT_COMMON = (arg("seq", "int", required=True, lo=0, doc="event number within this MEASURE, from 0"),
+                 arg("t_s", "float", required=True, doc="board-clock s since the measurement began"))
+
+EVENTS: dict[EventKind, EventSpec] = {spec.kind: spec for spec in (
+    EventSpec(
+        EventKind.PHASE,
+        fields=_EVENT_COMMON + (
+            arg("phase", "str", required=True, choices=EVENT_PHASES),
+            arg("measurement_id", "int", nullable=True, lo=0, doc="done: the stored record (null: not stored)"),
+            arg("status", "str", nullable=True, doc="done: the record's status (ok, aborted, failed)"),
+            arg("events_sent", "int", lo=0, doc="done: events queued for this host before this one"),
+            arg("events_dropped", "int", lo=0, doc="done: events of this MEASURE the link dropped so far")),
+        doc="The touch entered a phase; ``heating``'s t_s is heater-on, the record's time origin."),
+    EventSpec(
+        EventKind.SAMPLES,
+        fields=_EVENT_COMMON + (
+            arg("sample_t_s", "list_num", required=True, lo=1, hi=MAX_EVENT_SAMPLES,
+                doc="board-clock s since the measurement began, per sample"),
+            arg("T_C", "list_num", required=True, hi=MAX_EVENT_SAMPLES, doc="thermocouple, °C"),
+            arg("q_W_m2", "list_num", required=True, hi=MAX_EVENT_SAMPLES, doc="heat flux, W/m^2")),
+        same_length=("sample_t_s", "T_C", "q_W_m2"),
+        doc="A batch of the record's raw samples in the order read (null: a non-finite reading; the "
+            "cool-down's readings are not the record's and are not sent)."),
+    EventSpec(
+        EventKind.ANSWER,
+        fields=_EVENT_COMMON + (
+            arg("answer", "dict", required=True,
+                doc="the running answer (edge.estimation.running.RunningAnswer.to_dict: object, posterior, "
+                    "effusivity_W_s05_m2K, u_ln_e, elapsed_s, samples, decided, class, source)"),),
+        doc="The running answer changed (at most one per event period; the last one before each phase)."),
+)}
+
+
 def reply_type(command: Command) -> int:
     """msg_type of the reply to ``command``."""
     return int(command) | REPLY_FLAG
@@ -388,6 +457,33 @@ def validate_reply(command: Command, body: Mapping[str, Any]) -> dict[str, Any]:
         if length != lengths[0][1]:
             raise ProtocolError(f"{spec.command.name} reply: {n} has {length} values, "
                                 f"{lengths[0][0]} has {lengths[0][1]}", n)
+    return out
+
+
+def validate_event(body: Mapping[str, Any]) -> dict[str, Any]:
+    """Check an EVENT payload against :data:`EVENTS`; extra keys are kept (a newer device may add some).
+
+    Raises
+    ------
+    ProtocolError
+        If ``kind`` is unknown or a field is missing or of the wrong type.
+    """
+    if not isinstance(body, Mapping):
+        raise ProtocolError("event must be an object", "event")
+    try:
+        spec = EVENTS[EventKind(body.get("kind"))]
+    except ValueError:
+        raise ProtocolError(f"unknown event kind {body.get('kind')!r}", "kind") from None
+    out = dict(body)
+    for f in spec.fields:
+        if f.name in body:
+            out[f.name] = _check_field(f, body[f.name], f.name)
+        elif f.required:
+            raise ProtocolError(f"{spec.kind} event lacks field {f.name!r}", f.name)
+    lengths = {len(out[n]) for n in spec.same_length}
+    if len(lengths) > 1:
+        raise ProtocolError(f"{spec.kind} event: {', '.join(spec.same_length)} differ in length",
+                            spec.same_length[1])
     return out
 
 

@@ -19,6 +19,13 @@ A host that stops reading must not wedge the device: replies are queued
 written in time, is dropped with one log line; the serve loop itself never
 blocks on the port's output, so it keeps reading requests, answering STATUS
 and noticing its stop event.
+
+Events (a streaming MEASURE's EVENT frames, :meth:`SerialEndpoint.send_event`) share that queue, so
+they reach the host in order before the reply, but under a tighter bound: an event is queued only
+while the queue holds at most ``max_event_bytes`` (default :data:`EVENT_QUEUE_SHARE` of ``max_pending_bytes``), so
+replies always find room; an event the port does not take in time drops the events queued behind
+it too. Dropped events are counted (:attr:`SerialEndpoint.events_dropped`), never retried: a slow
+or gone host loses events, not the touch or its reply.
 """
 
 from __future__ import annotations
@@ -31,14 +38,18 @@ from typing import Any, Callable, Iterator, Mapping
 
 from edge.protocol.frame import DEFAULT_MAX_PAYLOAD, FrameDecoder, DecoderStats
 from edge.protocol.errors import CommandError, ErrorCode, ProtocolError
-from edge.protocol.messages import Request, decode_request, encode_error, encode_reply
+from edge.protocol.messages import Request, decode_request, encode_error, encode_event, encode_reply
 
-__all__ = ["SerialEndpoint", "Handler", "WRITE_TIMEOUT_s", "MAX_PENDING_BYTES"]
+__all__ = ["SerialEndpoint", "Handler", "WRITE_TIMEOUT_s", "MAX_PENDING_BYTES", "MAX_EVENT_BYTES"]
 
 #: Longest one reply may take to be written before it is dropped, s.
 WRITE_TIMEOUT_s = 0.5
 #: Most reply bytes queued for the port; replies beyond it are dropped.
 MAX_PENDING_BYTES = 64 * 1024
+#: Share of the queue events may fill (the rest is kept for replies).
+EVENT_QUEUE_SHARE = 0.25
+#: Most queued bytes under which an event is still queued, at the default queue bound.
+MAX_EVENT_BYTES = int(MAX_PENDING_BYTES * EVENT_QUEUE_SHARE)
 
 log = logging.getLogger(__name__)
 
@@ -83,6 +94,8 @@ class SerialEndpoint:
     max_pending_bytes : int
         Bound on reply bytes waiting for the port; a reply that would exceed
         it is dropped at once.
+    max_event_bytes : int
+        An event is queued only if the queue then holds at most this many bytes.
     """
 
     def __init__(self, ser: Any, *, max_payload: int = DEFAULT_MAX_PAYLOAD,
@@ -90,7 +103,7 @@ class SerialEndpoint:
                  validate_replies: bool = True,
                  clock: Callable[[], float] = time.monotonic,
                  write_timeout_s: float = WRITE_TIMEOUT_s,
-                 max_pending_bytes: int = MAX_PENDING_BYTES) -> None:
+                 max_pending_bytes: int = MAX_PENDING_BYTES, max_event_bytes: int | None = None) -> None:
         if not partial_timeout_s > 0:
             raise ValueError(f"partial_timeout_s must be > 0, got {partial_timeout_s!r}")
         if not poll_s > 0:
@@ -114,7 +127,13 @@ class SerialEndpoint:
         self.max_pending_bytes = int(max_pending_bytes)
         #: Replies dropped because the queue was full or the port did not take them in time.
         self.replies_dropped = 0
-        self._queue: collections.deque[bytes] = collections.deque()
+        self.max_event_bytes = int(self.max_pending_bytes * EVENT_QUEUE_SHARE if max_event_bytes is None
+                                   else max_event_bytes)
+        #: Events queued for the port, and events dropped (queue over its event bound, or not written in time).
+        self.events_sent = 0
+        self.events_dropped = 0
+        # (frame bytes, is_event)
+        self._queue: collections.deque[tuple[bytes, bool]] = collections.deque()
         self._queued_bytes = 0
         self._cond = threading.Condition()
         self._writing = False
@@ -199,22 +218,34 @@ class SerialEndpoint:
 
     # -- sending ---------------------------------------------------------------
 
-    def _write(self, data: bytes) -> None:
-        """Queue ``data`` for the writer thread; drop it if the queue is full."""
+    def _write(self, data: bytes, event: bool = False) -> bool:
+        """Queue ``data`` for the writer thread; drop it if the queue is full. True if queued."""
         with self._cond:
             if self._closed:
-                self._drop(len(data), "the endpoint is closed")
-                return
-            if self._queued_bytes + len(data) > self.max_pending_bytes:
-                self._drop(len(data), f"{self._queued_bytes} B already wait for a host that is not reading")
-                return
-            self._queue.append(data)
+                self._dropped(len(data), "the endpoint is closed", event)
+                return False
+            bound = self.max_event_bytes if event else self.max_pending_bytes
+            if self._queued_bytes + len(data) > bound:
+                self._dropped(len(data), f"{self._queued_bytes} B already wait for a host that is not reading", event)
+                return False
+            if event:
+                self.events_sent += 1
+            self._queue.append((data, event))
             self._queued_bytes += len(data)
             if self._writer is None:
                 self._writer = threading.Thread(target=self._write_loop, name="thermotouch-serial-writer",
                                                 daemon=True)
                 self._writer.start()
             self._cond.notify_all()
+        return True
+
+    def _drop_event(self, n: int, why: str) -> None:
+        # Events are best effort and may come by the hundred: counted, logged at DEBUG only.
+        self.events_dropped += 1
+        log.debug("event of %d B dropped (%s); %d dropped so far", n, why, self.events_dropped)
+
+    def _dropped(self, n: int, why: str, event: bool) -> None:
+        (self._drop_event if event else self._drop)(n, why)
 
     def _drop(self, n: int, why: str) -> None:
         self.replies_dropped += 1
@@ -229,11 +260,12 @@ class SerialEndpoint:
                     self._cond.wait()
                 if not self._queue:
                     return
-                data = self._queue.popleft()
+                data, event = self._queue.popleft()
                 self._queued_bytes -= len(data)
                 self._writing = True
             try:
-                self._write_now(data)
+                if not self._write_now(data, event) and event:
+                    self._drop_queued_events()
             except BaseException as e:  # a port error: the serve loop re-raises it
                 self.write_error = e
                 with self._cond:
@@ -244,7 +276,16 @@ class SerialEndpoint:
                     self._writing = False
                     self._cond.notify_all()
 
-    def _write_now(self, data: bytes) -> None:
+    def _drop_queued_events(self) -> None:
+        """An event was not taken in time: the host is slow or gone, so the events behind it go too."""
+        with self._cond:
+            keep = collections.deque(item for item in self._queue if not item[1])
+            for data, _ in (item for item in self._queue if item[1]):
+                self._queued_bytes -= len(data)
+                self._drop_event(len(data), "an earlier event was not taken in time")
+            self._queue = keep
+
+    def _write_now(self, data: bytes, event: bool = False) -> bool:
         # No flush(): pyserial writes straight to the fd, and tcdrain() on a line whose host
         # does not read would block without any timeout -- the very wedge this avoids.
         with self._write_lock:
@@ -254,10 +295,12 @@ class SerialEndpoint:
                 # pyserial's SerialTimeoutException: the host is not reading; anything else propagates.
                 if type(e).__name__ != "SerialTimeoutException" and not isinstance(e, TimeoutError):
                     raise
-                self._drop(len(data), f"not written within {self.write_timeout_s:g} s")
-                return
+                self._dropped(len(data), f"not written within {self.write_timeout_s:g} s", event)
+                return False
             if isinstance(n, int) and n < len(data):
-                self._drop(len(data), f"only {n} B written")
+                self._dropped(len(data), f"only {n} B written", event)
+                return False
+            return True
 
     def flush(self, timeout_s: float | None = None) -> bool:
         """Wait until every queued reply is written or dropped; True if the queue is empty.
@@ -282,8 +325,8 @@ class SerialEndpoint:
         self.flush(timeout_s)
         with self._cond:
             self._closed = True
-            for data in self._queue:
-                self._drop(len(data), "the endpoint is closing")
+            for data, event in self._queue:
+                self._dropped(len(data), "the endpoint is closing", event)
             self._queue.clear()
             self._queued_bytes = 0
             self._cond.notify_all()
@@ -302,6 +345,19 @@ class SerialEndpoint:
         frame = encode_reply(request.command, request.request_id, body,
                              max_payload=self.max_payload, validate=self.validate_replies)
         self._write(frame)
+
+    def send_event(self, request_id: int, body: Mapping[str, Any], *, final: bool = False) -> bool:
+        """Queue an EVENT frame for ``request_id`` (best effort: False if it was dropped).
+
+        Never blocks on the port. A ``final`` event (one per request, e.g. ``done`` with the drop
+        count) is queued under the replies' bound, so a host that lost events learns how many.
+        A body that breaks the event schema raises ProtocolError (nothing is sent).
+        """
+        frame = encode_event(request_id, body, max_payload=self.max_payload)
+        if final:
+            self.events_sent += 1
+            return self._write(frame)
+        return self._write(frame, event=True)
 
     def send_error(self, request_id: int, code: ErrorCode, message: str, field: str | None = None) -> None:
         """Send an ERROR reply addressed to ``request_id``."""

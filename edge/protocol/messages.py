@@ -12,7 +12,10 @@ The command set, with argument and reply schemas, is data: see
 answers ``{"measurement_id", "which", "offset", "total", "t_s", "T_C"
 (raw) | "dT_K" (grid), "q_W_m2"}`` with as many samples as fit in one
 reply (null for a non-finite sample); the host asks again from
-``offset + len(t_s)`` until it holds ``total``.  Requests are validated strictly (unknown fields are
+``offset + len(t_s)`` until it holds ``total``.  A MEASURE with ``stream``
+is answered as usual, preceded by EVENT frames (msg_type 0xFE, the MEASURE's
+request id, a JSON payload ``{"kind", "seq", "t_s", ...}`` per
+:data:`edge.protocol.commands.EVENTS`).  Requests are validated strictly (unknown fields are
 rejected); replies must carry their required fields and may carry more.
 
 This module is pure Python (no NumPy) so the host can import it cheaply.
@@ -25,7 +28,8 @@ import struct
 from dataclasses import dataclass, field
 from typing import Any, Mapping
 
-from edge.protocol.commands import COMMANDS, Command, MsgType, reply_type, validate_args, validate_reply
+from edge.protocol.commands import (COMMANDS, Command, EventKind, MsgType, reply_type, validate_args,
+                                    validate_event, validate_reply)
 from edge.protocol.errors import ErrorCode, ProtocolError
 from edge.protocol.frame import DEFAULT_MAX_PAYLOAD, Frame, PROTOCOL_VERSION, REPLY_FLAG, encode_frame
 
@@ -57,6 +61,15 @@ class Reply:
 
     command: Command
     request_id: int
+    body: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Event:
+    """An EVENT pushed by the device during the request ``request_id`` (a streaming MEASURE)."""
+
+    request_id: int
+    kind: EventKind
     body: dict[str, Any] = field(default_factory=dict)
 
 
@@ -247,3 +260,50 @@ def decode_reply(frame: Frame, *, validate: bool = True) -> Reply | ErrorReply:
             exc.request_id = rid
             raise
     return Reply(command, rid, body)
+
+
+def encode_event(request_id: int, body: Mapping[str, Any], *, max_payload: int = DEFAULT_MAX_PAYLOAD) -> bytes:
+    """Return the wire bytes of an EVENT frame (``body`` holds ``kind`` and its fields).
+
+    Raises
+    ------
+    ProtocolError
+        If ``body`` breaks :data:`~edge.protocol.commands.EVENTS` or does not fit ``max_payload``
+        (code INTERNAL: a device bug).
+    """
+    try:
+        body = validate_event(body)
+    except ProtocolError as exc:
+        raise ProtocolError(f"bad event: {exc.message}", exc.field, ErrorCode.INTERNAL) from None
+    payload = _json_dumps(body)
+    if len(payload) > max_payload:
+        raise ProtocolError(f"{body['kind']} event of {len(payload)} B exceeds max_payload {max_payload} B",
+                            "event", ErrorCode.INTERNAL)
+    return encode_frame(MsgType.EVENT, request_id, payload, max_payload=max_payload)
+
+
+def is_event(frame: Frame) -> bool:
+    """Whether ``frame`` is an EVENT (to be routed to :func:`decode_event`, not :func:`decode_reply`)."""
+    return frame.msg_type == MsgType.EVENT
+
+
+def decode_event(frame: Frame) -> Event:
+    """Parse and validate an EVENT frame.
+
+    Raises
+    ------
+    ProtocolError
+        Code BAD_FRAME for a frame that is no event or no JSON object, BAD_ARGUMENT (``field``
+        set) for a payload that breaks the event's schema.
+    """
+    rid = frame.request_id
+    if frame.version != PROTOCOL_VERSION:
+        raise ProtocolError(f"unsupported protocol version {frame.version}", "version", ErrorCode.BAD_FRAME, rid)
+    if frame.msg_type != MsgType.EVENT:
+        raise ProtocolError(f"msg_type 0x{frame.msg_type:02x} is not an event", "msg_type", ErrorCode.BAD_FRAME, rid)
+    try:
+        body = validate_event(_json_loads(frame.payload, rid))
+    except ProtocolError as exc:
+        exc.request_id = rid
+        raise
+    return Event(rid, EventKind(body["kind"]), body)

@@ -5,18 +5,34 @@ from __future__ import annotations
 from typing import Mapping
 
 from edge.recognition.object_set import ObjectSet
+from edge.recognition.touch import BROAD_LN
 
-__all__ = ["RESULT_KEYS", "LIBRARY_SET", "recognition_fields"]
+__all__ = ["RESULT_KEYS", "LIBRARY_SET", "BROAD_FLAGS", "recognition_fields"]
 
 #: Keys :func:`recognition_fields` adds to a result (``estimate --json``, the device's records).
 RESULT_KEYS = ("object_set", "object", "object_posterior", "class", "class_posterior", "unknown_posterior",
                "candidates")
 #: Name of the built-in object set (every library material), the default when no set is chosen.
 LIBRARY_SET = "library"
+#: Flags of an answer whose stated u recognition does not trust.  ``calibration_refused``: the probe is
+#: calibrated but this answer is the uncalibrated 1-D method's, which on a hand touch is off by tens
+#: of percent (ten-fold on foam) with a u that does not say so (ISSUE #10, #37): named from it with
+#: its own u, a posterior would be confident and wrong.  Its u(ln e) is widened to BROAD_LN (e known
+#: within a factor e), so the posteriors say how little such an answer tells.
+BROAD_FLAGS = frozenset({"calibration_refused"})
+
+
+def _broadened(estimate: Mapping) -> dict:
+    e = estimate.get("effusivity_W_s05_m2K")
+    u = estimate.get("effusivity_W_s05_m2K_u")
+    if e is None or not float(e) > 0:
+        return dict(estimate)
+    u_ln = float(u) / float(e) if u is not None and float(u) >= 0 else 0.0
+    return {**estimate, "effusivity_W_s05_m2K_u": float(e) * max(u_ln, BROAD_LN)}
 
 
 def recognition_fields(object_set: ObjectSet, estimate: Mapping, *, set_name: str | None = None,
-                       top: int = 3) -> dict:
+                       top: int = 3, contact_time_s: float | None = None) -> dict:
     """Which object of ``object_set`` an estimate names, as the result fields every output shares.
 
     One definition for ``thermotouch estimate --json`` and the device's
@@ -34,6 +50,9 @@ def recognition_fields(object_set: ObjectSet, estimate: Mapping, *, set_name: st
         Name reported as ``object_set`` (default: the set's label).
     top : int
         Number of candidates.
+    contact_time_s : float, optional
+        How long the touch heated, s: the set's calibration at that contact time names it
+        (:meth:`ObjectSet.at_contact`; a set without a per-contact table ignores it).
 
     Returns
     -------
@@ -42,12 +61,16 @@ def recognition_fields(object_set: ObjectSet, estimate: Mapping, *, set_name: st
         ``object_posterior``, ``class``, ``class_posterior``,
         ``unknown_posterior`` and ``candidates`` (the ``top`` objects by
         posterior, each ``{"name", "posterior"}``). Without an effusivity
-        (no estimate) the names and posteriors are None and ``candidates`` empty.
+        (no estimate) the names and posteriors are None and ``candidates`` empty (the seam reports
+        ``object`` as ``"unknown"``).  An answer flagged with one of :data:`BROAD_FLAGS` is named
+        with its u(ln e) widened to :data:`edge.recognition.touch.BROAD_LN`.
     """
     out: dict = {"object_set": object_set.label if set_name is None else set_name, "object": None,
                  "object_posterior": None, "class": None, "class_posterior": None, "unknown_posterior": None,
                  "candidates": []}
-    r = object_set.classify_estimate(estimate, top=top)
+    if BROAD_FLAGS & set(estimate.get("flags") or ()):
+        estimate = _broadened(estimate)
+    r = object_set.classify_estimate(estimate, top=top, contact_time_s=contact_time_s)
     if r is None:
         return out
     out.update({"object": r.object, "object_posterior": float(r.object_posterior), "class": r.cls,

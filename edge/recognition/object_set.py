@@ -71,8 +71,8 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from edge.physics.materials import load_materials
-from edge.recognition.objects import (DEFAULT_PRIOR_UNKNOWN, DEFAULT_SPREAD_REL, DEFAULT_Z_CRIT, DIRECTIVES, UNKNOWN,
-                                      UNKNOWN_LN_E_SPAN, KnownObject, parse_csv)
+from edge.recognition.objects import (CONTACT_DIRECTIVES, DEFAULT_PRIOR_UNKNOWN, DEFAULT_SPREAD_REL, DEFAULT_Z_CRIT,
+                                      DIRECTIVES, UNKNOWN, UNKNOWN_LN_E_SPAN, KnownObject, contact_key, parse_csv)
 from edge.recognition.stats import p_crit_of, tail_p, z_of_p
 from edge.recognition.touch import BROAD_LN, DEFAULT_ALPHA_U_GROWTH, effective_u_ln_alpha, measured_alpha
 from edge.schema import check_keys, check_value
@@ -84,6 +84,18 @@ __all__ = ["LIBRARY_CALIBRATION", "Recognition", "ConfusionPair", "Confusion", "
 #: of every library material, 0.5-2 s contacts, 5 % spread); reported there with its reliability table.
 LIBRARY_CALIBRATION = {"temperature": 1.03, "z_crit": 1.96}
 _LN_SQRT_2PI = 0.5 * math.log(2 * math.pi)
+
+
+def _contact_table(table: Mapping[float, Mapping[str, float]] | None) -> dict[float, dict[str, float]]:
+    """A per-contact-time calibration table, checked and sorted by contact time."""
+    out: dict[float, dict[str, float]] = {}
+    for t, entry in sorted((table or {}).items()):
+        t = float(t)
+        if not (math.isfinite(t) and t > 0):
+            raise ValueError(f"contact_calibration: contact time must be a positive number of seconds, got {t!r}")
+        check_keys(dict(entry), {k: DIRECTIVES[k] for k in CONTACT_DIRECTIVES})
+        out[t] = {k: check_value(DIRECTIVES[k], float(v), f"{k}@{t:g}s") for k, v in entry.items()}
+    return out
 
 
 @dataclass
@@ -168,13 +180,20 @@ class ObjectSet:
         Prior probability that a touched object is none of these.
     alpha_u_growth : float
         A measured α's uncertainty is used as ``u (1 + a u)`` (see :func:`effective_u_ln_alpha`).
+    contact_calibration : mapping, optional
+        ``{contact time s: {"temperature": T, "z_crit": z}}``: the calibration fitted at each contact
+        time (a short touch's u is understated differently from a long one's, ISSUE #37); a touch is
+        named with the entry nearest its heating time in ln t (:meth:`at_contact`), the scalars above
+        when there is none.  Stored as ``#@ temperature@1s = ...`` directives.
     label : str
         Where the set came from (messages only).
     """
 
     def __init__(self, objects: Iterable[KnownObject], *, temperature: float = 1.0, z_crit: float = DEFAULT_Z_CRIT,
                  calibration_ln: float = 0.0, prior_unknown: float = DEFAULT_PRIOR_UNKNOWN,
-                 alpha_u_growth: float = DEFAULT_ALPHA_U_GROWTH, label: str = "<memory>") -> None:
+                 alpha_u_growth: float = DEFAULT_ALPHA_U_GROWTH,
+                 contact_calibration: Mapping[float, Mapping[str, float]] | None = None,
+                 label: str = "<memory>") -> None:
         objs = tuple(objects)
         if not objs:
             raise ValueError("an object set needs at least one object")
@@ -190,6 +209,8 @@ class ObjectSet:
         self.calibration_ln = check_value(DIRECTIVES["calibration_ln"], calibration_ln, "calibration_ln")
         self.prior_unknown = check_value(DIRECTIVES["prior_unknown"], prior_unknown, "prior_unknown")
         self.alpha_u_growth = check_value(DIRECTIVES["alpha_u_growth"], alpha_u_growth, "alpha_u_growth")
+        self.contact_calibration = _contact_table(contact_calibration)
+        self._at: dict[float, ObjectSet] = {}
         self.label = label
         self.objects = objs
         self.names = tuple(names)
@@ -231,21 +252,45 @@ class ObjectSet:
     def with_calibration(self, **changes: float) -> "ObjectSet":
         """The same objects with some calibration scalars replaced (keys of :data:`DIRECTIVES`)."""
         check_keys(changes, DIRECTIVES)
-        return ObjectSet(self.objects, label=self.label, **{**self.calibration, **changes})
+        return ObjectSet(self.objects, label=self.label, contact_calibration=self.contact_calibration,
+                         **{**self.calibration, **changes})
+
+    def with_contact_calibration(self, table: Mapping[float, Mapping[str, float]] | None) -> "ObjectSet":
+        """The same objects and scalars with the per-contact-time table replaced (None: removed)."""
+        return ObjectSet(self.objects, label=self.label, contact_calibration=table, **self.calibration)
+
+    def at_contact(self, contact_time_s: float | None) -> "ObjectSet":
+        """The set as calibrated for a touch heated ``contact_time_s``: the table's entry nearest in ln t.
+
+        Without a table (or a contact time) the set itself.  The entry's values replace the
+        scalars; the result carries no table of its own.
+        """
+        if not self.contact_calibration or contact_time_s is None or not (
+                math.isfinite(contact_time_s) and contact_time_s > 0):
+            return self
+        t_fit = min(self.contact_calibration, key=lambda t: abs(math.log(t / contact_time_s)))
+        got = self._at.get(t_fit)
+        if got is None:
+            got = ObjectSet(self.objects, label=self.label, **{**self.calibration, **self.contact_calibration[t_fit]})
+            self._at[t_fit] = got
+        return got
 
     def with_object(self, obj: KnownObject) -> "ObjectSet":
         """The set with ``obj`` added (or replacing the object of the same name); calibration kept."""
         objs = [o for o in self.objects if o.name != obj.name] + [obj]
-        return ObjectSet(objs, label=self.label, **self.calibration)
+        return ObjectSet(objs, label=self.label, contact_calibration=self.contact_calibration, **self.calibration)
 
     def without(self, names: Iterable[str]) -> "ObjectSet":
         """The set without the named objects (calibration kept)."""
         drop = set(names)
-        return ObjectSet([o for o in self.objects if o.name not in drop], label=self.label, **self.calibration)
+        return ObjectSet([o for o in self.objects if o.name not in drop], label=self.label,
+                         contact_calibration=self.contact_calibration, **self.calibration)
 
     def to_csv_text(self) -> str:
         """The set as CSV, with its calibration as ``#@`` directives (round-trips through :meth:`from_csv_text`)."""
         lines = ["# ThermoTouch object set"] + [f"#@ {k} = {v!r}" for k, v in self.calibration.items()]
+        lines += [f"#@ {contact_key(k, t)} = {v!r}" for t, entry in self.contact_calibration.items()
+                  for k, v in entry.items()]
         header = ["name", "class", "k_W_mK", "rho_kg_m3", "c_J_kgK", "e_W_s05_m2K", "spread_rel", "source", "note"]
         rows = []
         for o in self.objects:
@@ -383,12 +428,15 @@ class ObjectSet:
         return Recognition(obj, obj_p, cls, cls_p, candidates, p_unknown,
                            {c: float(p) for c, p in zip(self.class_names, class_post)}, z_min, self.names[near])
 
-    def classify_estimate(self, estimate: Mapping, *, top: int = 3) -> Recognition | None:
+    def classify_estimate(self, estimate: Mapping, *, top: int = 3,
+                          contact_time_s: float | None = None) -> Recognition | None:
         """:meth:`classify` of an estimate's dict (``Estimate.to_dict()`` or the small heater's), None without e.
 
         e and its u (a missing u counts as 0: the objects' spreads still set
         the widths), and α where the probe measured it (:func:`measured_alpha`).
         One definition for every output (:func:`recognition_fields`) and the host.
+        ``contact_time_s`` (the touch's heating time) picks the set's calibration at that contact
+        time (:meth:`at_contact`).
         """
         e = estimate.get("effusivity_W_s05_m2K")
         if e is None or not (math.isfinite(float(e)) and float(e) > 0):
@@ -398,7 +446,7 @@ class ObjectSet:
         a = measured_alpha(estimate)
         kw = {} if a is None else {"alpha": a[0], "u_ln_alpha": a[1], "corr": a[2]}
         # A tiny floor: an object with zero spread and a zero uncertainty would divide by zero.
-        return self.classify(float(e), max(u_ln_e, 1e-9), top=top, **kw)
+        return self.at_contact(contact_time_s).classify(float(e), max(u_ln_e, 1e-9), top=top, **kw)
 
     # -- open-set design rates -----------------------------------------------------
     def acceptance_intervals(self, u_ln_e: float) -> np.ndarray:

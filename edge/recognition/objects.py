@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from dataclasses import dataclass
 from typing import Iterable
 
@@ -32,7 +33,7 @@ from edge.recognition.touch import DEFAULT_ALPHA_U_GROWTH
 from edge.schema import Field, SchemaError, check_keys, check_value
 
 __all__ = ["UNKNOWN", "DEFAULT_SPREAD_REL", "DEFAULT_Z_CRIT", "DEFAULT_PRIOR_UNKNOWN", "UNKNOWN_LN_E_SPAN", "COLUMNS",
-           "DIRECTIVES", "Issue", "ObjectSetError", "KnownObject", "parse_csv"]
+           "DIRECTIVES", "CONTACT_DIRECTIVES", "contact_key", "Issue", "ObjectSetError", "KnownObject", "parse_csv"]
 
 #: The answer when the touched object is none of the set's.
 UNKNOWN = "unknown"
@@ -159,6 +160,13 @@ def parse_csv(text: str, label: str) -> tuple[list[KnownObject], dict]:
             try:
                 if not sep:
                     raise SchemaError("", "directive must read '#@ key = value'")
+                per = _contact_key(key)
+                if per is not None:
+                    # ``#@ temperature@1s = 1.2``: the calibration at one contact time (ObjectSet.at_contact).
+                    name, t_s = per
+                    directives.setdefault("contact_calibration", {}).setdefault(t_s, {})[name] = check_value(
+                        DIRECTIVES[name], _number(value.strip(), key), key)
+                    continue
                 check_keys({key: None}, DIRECTIVES)
                 directives[key] = check_value(DIRECTIVES[key], _number(value.strip(), key), key)
             except SchemaError as exc:
@@ -212,6 +220,27 @@ def parse_csv(text: str, label: str) -> tuple[list[KnownObject], dict]:
     if issues:
         raise ObjectSetError(issues, label)
     return objs, directives
+
+
+#: Directives that may be given per contact time (``#@ temperature@0.5s = ...``).
+CONTACT_DIRECTIVES = ("temperature", "z_crit")
+_CONTACT_KEY = re.compile(r"^(temperature|z_crit)@([0-9]*\.?[0-9]+)s$")
+
+
+def _contact_key(key: str) -> tuple[str, float] | None:
+    """``("temperature", 0.5)`` for ``temperature@0.5s``; None for any other key."""
+    m = _CONTACT_KEY.match(key)
+    if m is None:
+        return None
+    t_s = float(m.group(2))
+    if not (0.0 < t_s <= 600.0):
+        raise SchemaError(key, f"contact time must lie in (0, 600] s, got {t_s:g}")
+    return m.group(1), t_s
+
+
+def contact_key(name: str, t_s: float) -> str:
+    """The directive key of ``name`` at contact time ``t_s`` (inverse of the parser's)."""
+    return f"{name}@{t_s:g}s"
 
 
 def _number(text: str, path: str) -> float:

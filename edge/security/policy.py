@@ -30,6 +30,14 @@ wrote, so comparing it would stop nobody and only get in the developer's way.
 
 The factory bundle is trusted by being on the read-only install, not by a
 signature; it is never installed through this policy.
+
+Calibrations and object sets are ordered the same way, by their own
+``created_utc``, with one rule (:func:`check_version`): refused when dated
+more than :data:`FUTURE_SLACK_s` after the device's clock (it would stay
+"newest" for years and block every real one), and refused when not strictly
+newer than the newest installed of its kind (a replay of an older, legitimately
+signed file). Neither has a downgrade authorisation: an older calibration or
+set is re-issued (signed again, with a new ``created_utc``).
 """
 
 from __future__ import annotations
@@ -44,11 +52,14 @@ from edge.security import ed25519
 from edge.security.keys import (KeyFileError, PublicKey, downgrade_message, load_trusted_keys, parse_downgrade,
                                  parse_signature)
 
-__all__ = ["UpdateRefused", "UpdatePolicy", "Authentication", "release_time"]
+__all__ = ["UpdateRefused", "UpdatePolicy", "Authentication", "release_time", "check_version", "FUTURE_SLACK_s"]
 
 log = logging.getLogger("thermotouch.edge")
 
 _TIME_FORMAT = "%Y-%m-%dT%H:%M:%SZ"
+#: How far an update's created_utc may lie after the device's clock (s): a day covers time zones
+#: and a device whose clock has not been set by NTP yet, not a file dated years ahead.
+FUTURE_SLACK_s = 86400.0
 
 
 class UpdateRefused(ValueError):
@@ -83,6 +94,34 @@ def release_time(manifest: Mapping[str, Any], what: str) -> datetime:
     except ValueError:
         raise UpdateRefused(f"{what} created_utc {text!r} is not YYYY-MM-DDTHH:MM:SSZ; "
                             "cannot order it against the active model") from None
+
+
+def check_version(what: str, created_utc: str, new_t: datetime, installed_utc: str | None,
+                  installed_t: datetime | None, now: datetime) -> None:
+    """The version rule of calibrations and object sets: not in the future, strictly newer than the installed.
+
+    Parameters
+    ----------
+    what : str
+        The kind, in messages ("calibration", "object set").
+    created_utc, new_t : str, datetime
+        The update's ``created_utc`` as written and as an aware UTC datetime.
+    installed_utc, installed_t : str or None, datetime or None
+        The newest installed of this kind (None: nothing to be newer than).
+    now : datetime
+        The device's clock (aware UTC).
+
+    Raises
+    ------
+    UpdateRefused
+        Dated more than :data:`FUTURE_SLACK_s` ahead of ``now``, or not newer than the installed one.
+    """
+    if (new_t - now).total_seconds() > FUTURE_SLACK_s:
+        raise UpdateRefused(f"created_utc {created_utc} is in the future (device clock "
+                            f"{now.strftime(_TIME_FORMAT)})")
+    if installed_t is not None and new_t <= installed_t:
+        raise UpdateRefused(f"created {created_utc}, not newer than the installed one ({installed_utc}); an older "
+                            f"{what} is not re-installed")
 
 
 @dataclass(frozen=True)

@@ -95,6 +95,7 @@ from edge.protocol.errors import CommandError, ErrorCode
 from edge.protocol.messages import Request
 from edge.service.config import Config, RuntimeOverrides
 from edge.service.estimator import ModelEstimator
+from edge.service.events import EventStream, TappedDecision, TappedSensors
 from edge.service.notify import Notifier
 from edge.service.calibration import ProbeCalibrations
 from edge.service.faults import FAULT_RECHECK_s, MAX_UNSAVED_RECORDS, MIN_FREE_BYTES, FaultKeeping
@@ -232,6 +233,12 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
             self.phase: Phase | None = None
             self._measure_t0: float | None = None
             self._object_set_hook = object_set
+            #: The running measurement's event stream (a MEASURE with ``stream``), else None.
+            self._events: EventStream | None = None
+            #: (endpoint, request id) of a streaming MEASURE the serve loop dispatched, for its worker.
+            self._event_link: tuple[SerialEndpoint, int] | None = None
+            #: Status of the record the last measurement stored (the ``done`` event names it).
+            self._last_status: str | None = None
             self.objects = ObjectSets(self._object_sets_root(), policy=self._update_policy())
             #: This device's identity (INFO; every measurement carries it): None if it cannot be read.
             self.device_id = self._load_device_id()
@@ -334,11 +341,13 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
         except (ModelStoreError, ValueError):
             library = None
         # The probe head's estimator kind decides (edge.estimation.running.decision_for).
-        return decision_for(method_class(probe), objs, m.decide_posterior, m.decide_min_s, library=library,
+        decision = decision_for(method_class(probe), objs, m.decide_posterior, m.decide_min_s, library=library,
                             calibration=cal if cal is not None and cal.probe == probe else None,
                             estimate_fn=self.estimator, params=params,
                             T_age_s=getattr(self.sensors, "T_age_s", 0.0),
                             T_resolution_K=getattr(self.sensors, "T_resolution_K", 0.0))
+        events = self._events
+        return decision if events is None or decision is None else TappedDecision(decision, events)
 
     def _poll_readiness(self) -> None:
         """One idle reading of the probe for STATUS ``ready`` (at most one per sample period, board clock).
@@ -379,6 +388,17 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
 
     def _on_state(self, s: Phase) -> None:
         self.phase = None if s == Phase.IDLE else s
+        if self._events is not None:
+            self._events.phase(s)
+
+    def _open_events(self, stream: bool, armed: bool) -> EventStream | None:
+        """The event stream of a streaming MEASURE the serve loop dispatched (None: no events)."""
+        link, self._event_link = self._event_link, None
+        if not stream or link is None:
+            return None
+        endpoint, rid = link
+        return EventStream(lambda body, final=False: endpoint.send_event(rid, body, final=final),
+                           self.board.clock.monotonic, armed=armed, dropped=lambda: endpoint.events_dropped)
 
     # -- requests --------------------------------------------------------------------
     def handle(self, req: Request) -> dict[str, Any] | None:
@@ -397,21 +417,28 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
         return self.measure(power_W=args.get("power_W"), voltage_V=args.get("voltage_V"),
                             contact_time_s=args.get("contact_time_s"), sample_rate_Hz=args.get("sample_rate_Hz"),
                             until_decided=bool(args.get("until_decided") or False), arm_s=args.get("arm_s"),
-                            settle_s=args.get("settle_s"))
+                            settle_s=args.get("settle_s"), stream=bool(args.get("stream") or False))
 
     def measure(self, *, power_W: float | None = None, voltage_V: float | None = None,
                 contact_time_s: float | None = None, sample_rate_Hz: float | None = None,
-                until_decided: bool = False, arm_s: float | None = None, settle_s: float | None = None) -> dict:
+                until_decided: bool = False, arm_s: float | None = None, settle_s: float | None = None,
+                stream: bool = False) -> dict:
         """Run one measurement, store it, return its summary (CommandError on failure).
 
         While it runs, :attr:`state` is ``"measuring"`` (``phase`` names the
-        sequence step); a second call meanwhile raises BUSY.
+        sequence step); a second call meanwhile raises BUSY. With ``stream`` (a MEASURE the serve
+        loop dispatched), events go to its host as the touch runs (:mod:`edge.service.events`).
         """
         if not self._measure_lock.acquire(blocking=False):
             raise CommandError(ErrorCode.BUSY, "a measurement is already running")
+        self._last_status = None
         try:
-            return self._measure(power_W, voltage_V, contact_time_s, sample_rate_Hz, until_decided, arm_s, settle_s)
+            return self._measure(power_W, voltage_V, contact_time_s, sample_rate_Hz, until_decided, arm_s, settle_s,
+                                 stream)
         finally:
+            events, self._events = self._events, None
+            if events is not None:  # before the reply: "done" names the stored record
+                events.close(self._last_run_id, self._last_status)
             self.readiness.reset()  # the probe was just heated: settle afresh
             self._measure_t0 = None
             self.phase = None
@@ -421,7 +448,7 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
 
     def _measure(self, power_W: float | None, voltage_V: float | None, contact_time_s: float | None,
                  sample_rate_Hz: float | None = None, until_decided: bool = False, arm_s: float | None = None,
-                 settle_s: float | None = None) -> dict:
+                 settle_s: float | None = None, stream: bool = False) -> dict:
         if self.state == State.FAULT:
             raise CommandError(ErrorCode.BAD_STATE, "heater fault: measurements are disabled until restart; "
                                + "; ".join(self.faults[-1:]))
@@ -437,6 +464,9 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
                                 contact_time_s=contact_time_s, sample_rate_Hz=sample_rate_Hz,
                                 until_decided=until_decided, arm_s=arm_s, settle_s=settle_s)
         seq = self._get_sequence()
+        self._events = self._open_events(stream, params.arm_s > 0)
+        if self._events is not None:
+            seq.sensors = TappedSensors(seq.sensors, self._events, self.board.clock.monotonic)
         self._measure_t0 = self.board.clock.monotonic()
         self.state = State.MEASURING
         try:
@@ -459,7 +489,7 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
                                f"{' (' + outcome.reason + ')' if outcome.reason else ''} but the history could "
                                f"not store it: {self.component_faults.get('unsaved')}; it is kept in memory and "
                                "stored once the history works again")
-        self._last_run_id = mid
+        self._last_run_id, self._last_status = mid, str(outcome.status)
         #: Wall-clock costs of the last measurement after its last sample (for bench/).
         # The sensor chain runs inside the estimate path now: its time is part of compute_s.
         compute_s = outcome.compute_s

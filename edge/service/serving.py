@@ -65,6 +65,8 @@ class Serving:
         if req.command == Command.MEASURE:
             # The reply, addressed to this request id, is sent by the worker when the measurement ends.
             self._cancel.clear()
+            # A streaming MEASURE's events go to this link with its id (edge.service.events).
+            self._event_link = (endpoint, req.request_id) if req.args.get("stream") else None
             self._worker.start(lambda: endpoint.handle(req, self._handle_measure), "measure")
             return
         endpoint.handle(req, self.handle)
@@ -113,6 +115,7 @@ class Serving:
                 self.notifier.beat("serve")
                 for req in endpoint.poll():
                     self._dispatch(endpoint, req)
+                    self.notifier.beat("serve")  # per request: a burst of requests is not one long turn
                     if stop.is_set() or self.stop_event.is_set():
                         break
                 if not self.measuring:

@@ -62,6 +62,9 @@ class StatusCommands:
                "sensor_error": self.sensor_error, "faults": self.fault_list(),
                "unsaved_records": len(self.unsaved), "can_measure": not self._measure_blockers(),
                "replies_dropped": getattr(self.endpoint, "replies_dropped", 0),
+               # Streaming MEASUREs' events queued for the link, and those a slow or gone host lost.
+               "events_sent": getattr(self.endpoint, "events_sent", 0),
+               "events_dropped": getattr(self.endpoint, "events_dropped", 0),
                "uptime_s": round(time.monotonic() - self.t_start, 3)}
         upload = self.upload.progress()
         if upload is not None:

@@ -15,7 +15,7 @@ of the calibration in use, so after a kill at any step the calibration and its
 ``signed_by`` agree (ISSUE #35 §9: with one ``calibration.sig`` written before
 the bytes, a kill in between named the new signer beside the old bytes).
 After the signature, an install is checked against what is installed and against this device
-(ISSUE #35 §2): a calibration dated more than :data:`FUTURE_SLACK_s` after the device's clock is
+(ISSUE #35 §2): a calibration dated more than :data:`edge.security.policy.FUTURE_SLACK_s` after the device's clock is
 refused (it would stay "newest" for years and block every real one); one not newer than the
 installed calibration (``created_utc`` order, as models) is refused unless it is the same bytes'
 calibration (a repeated install changes nothing); one naming another device (``device_id``) is
@@ -43,7 +43,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Protocol
 
-from edge.security.policy import UpdateRefused
+from edge.security.policy import UpdateRefused, check_version
 from edge.storage import durable
 
 __all__ = ["CalibrationStore", "CalibrationStoreError", "StoredCalibration"]
@@ -55,9 +55,6 @@ FILE = "calibration.json"
 LEGACY_SIGNATURE = "calibration.sig"
 #: A signature's file name: ``calibration.<sha256 of the bytes it signed>.sig``.
 _SIG_RE = re.compile(r"^calibration\.([0-9a-f]{64})\.sig$")
-#: How far a calibration's created_utc may lie after the device's clock (s): a day covers time
-#: zones and a device whose clock has not been set by NTP yet, not a file dated years ahead.
-FUTURE_SLACK_s = 86400.0
 
 
 def _utc_now() -> datetime:
@@ -217,24 +214,22 @@ class CalibrationStore:
             new_t = cal.created_time
         except ValueError as e:
             raise CalibrationStoreError(f"calibration refused: {e}") from None
-        now = self.now()
-        if (new_t - now).total_seconds() > FUTURE_SLACK_s:
-            raise CalibrationStoreError(f"calibration refused: created_utc {cal.created_utc} is in the future "
-                                        f"(device clock {now.strftime('%Y-%m-%dT%H:%M:%SZ')})")
         try:
             old = self.current()
         except CalibrationStoreError:
             old = None   # a damaged or foreign stored file orders nothing: a good one replaces it
-        if old is None or self._stored_sha256() == hashlib.sha256(blob).hexdigest():
-            return
-        try:
-            old_t = old.created_time
-        except ValueError:
-            return       # an installed file from before created_utc was checked cannot be ordered
-        if new_t <= old_t and getattr(old, "sha256", None) != getattr(cal, "sha256", object()):
-            raise CalibrationStoreError(f"calibration refused: created {cal.created_utc}, not newer than the "
-                                        f"installed one ({old.created_utc}); an older calibration is not "
-                                        "re-installed")
+        old_t = None
+        if old is not None and self._stored_sha256() != hashlib.sha256(blob).hexdigest() \
+                and getattr(old, "sha256", None) != getattr(cal, "sha256", object()):
+            try:
+                old_t = old.created_time
+            except ValueError:
+                pass     # an installed file from before created_utc was checked cannot be ordered
+        try:  # the rule shared with object sets (edge.security.policy.check_version)
+            check_version("calibration", cal.created_utc, new_t, None if old is None else old.created_utc, old_t,
+                          self.now())
+        except UpdateRefused as e:
+            raise CalibrationStoreError(f"calibration refused: {e}") from None
 
     def install(self, blob: bytes, signature: bytes | None = None) -> StoredCalibration:
         """Verify ``blob`` (a calibration file) and make it the one in use.

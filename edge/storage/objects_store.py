@@ -6,6 +6,8 @@ Layout under ``root``::
     sets/<name>.<sha256 of the bytes>.sig   the signature those bytes came with, if any
     active            pointer file: "<name>\\n" of the active set; absent = the built-in library
     pending           the install under way: {"name", "sha256", "activate"} (absent between installs)
+    version           the newest signed set installed: {"created_utc", "sha256"} (see Versions)
+    verified          {sha256: object count} of the bytes this store verified (see Work per request)
 
 Every write goes through :mod:`edge.storage.durable`: a set file is written
 to a temporary sibling, fsynced and renamed over its name, and the pointer
@@ -25,6 +27,28 @@ written if it asked for activation) and forgets one whose bytes are not
 (the old set, its signature and the old pointer stand); signatures of bytes
 no set holds are removed.
 
+Versions (ISSUE #35 §2, as calibrations and models): a signed set carries its
+release time in a comment line before its header, ``# created_utc:
+YYYY-MM-DDTHH:MM:SSZ`` (``thermotouch objects add --key`` writes it), and is
+refused unless strictly newer than every signed set this store installed
+(the ``version`` file keeps the newest: its time and sha256; removing a set
+does not lower it) and not dated in the future
+(:func:`edge.security.policy.check_version`, the rule calibrations follow).
+Re-sending the newest set's own bytes is no version change and is accepted.
+The floor applies to signed sets only: an unsigned upload (allowed on a
+development device) dates itself as its sender likes, as for models. The
+floor is written before the set's bytes, so a cut install can only raise it.
+
+Work per request (ISSUE #35 §7): the serve loop answers OBJECTS_LIST and
+commits uploads on its own thread, so neither may cost more than a fraction
+of ``WatchdogSec``. A set is parsed once, when it is installed (or, for bytes
+stored before ``verified`` existed, at its first listing); the object count of
+every verified byte string is kept in ``verified`` by its sha256 (written
+before the set's bytes, pruned to the stored sets), so OBJECTS_LIST reads and
+hashes each stored set (at most :data:`MAX_SETS` x :data:`MAX_SET_BYTES`) and
+parses none whose bytes it verified; a commit parses its upload once and the
+active set is never parsed again for it.
+
 What an object set *is* (the CSV format) is not known here: the parser is
 injected (``parse``; the daemon passes
 :meth:`edge.recognition.ObjectSet.from_csv_text`), as the model store
@@ -40,14 +64,15 @@ import os
 import re
 import threading
 from dataclasses import dataclass
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable
 
-from edge.security.policy import UpdateRefused
+from edge.security.policy import UpdateRefused, check_version, release_time
 from edge.storage import durable
 
 __all__ = ["MAX_SET_BYTES", "MAX_SETS", "NAME_RE", "RESERVED_NAMES", "ObjectStoreError", "UploadRefused",
-           "StoredSet", "verify_upload", "check_name", "ObjectSetStore"]
+           "StoredSet", "verify_upload", "check_name", "set_created_utc", "ObjectSetStore"]
 
 log = logging.getLogger("thermotouch.edge")
 
@@ -60,6 +85,10 @@ NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")
 #: Names that are not stored sets: the built-in library (the default set).
 RESERVED_NAMES = frozenset({"library"})
 
+#: The version line of a set: ``# created_utc: YYYY-MM-DDTHH:MM:SSZ`` before the header.
+_CREATED_RE = re.compile(r"^#\s*created_utc\s*[:=]\s*(\S+)\s*$")
+#: A sha256 in hex.
+_SHA_RE = re.compile(r"^[0-9a-f]{64}$")
 #: What follows "<name>." in a signature's file name.
 _SIG_RE = re.compile(r"^[0-9a-f]{64}\.sig$")
 #: ``parse(text, label) -> object set`` (raises ValueError for a malformed set).
@@ -159,6 +188,24 @@ def verify_upload(blob: bytes, expected_sha256: str, expected_size: int | None, 
         raise UploadRefused(f"object set {name!r} refused: {detail}") from None
 
 
+def set_created_utc(blob: bytes) -> str | None:
+    """The ``# created_utc:`` of a set's CSV bytes (comment lines before its header), or None."""
+    for raw in blob[:8192].decode("utf-8-sig", errors="replace").splitlines():
+        line = raw.strip()
+        if not line:
+            continue
+        if not line.startswith("#"):
+            return None  # the header: a version line comes before it
+        m = _CREATED_RE.match(line)
+        if m:
+            return m.group(1)
+    return None
+
+
+def _utc_now() -> datetime:
+    return datetime.now(timezone.utc)
+
+
 class ObjectSetStore:
     """Device-side store of object sets, with one active set (or none: the built-in library).
 
@@ -172,14 +219,21 @@ class ObjectSetStore:
         Largest set accepted.
     max_sets : int
         Most sets stored.
+    policy : edge.security.policy.UpdatePolicy, optional
+        Who may send sets (None: uploads are refused).
+    now : callable () -> datetime, optional
+        The device's clock (aware UTC datetime); default the system's.
     """
 
     ACTIVE = "active"
     PENDING = "pending"
+    VERSION = "version"
+    VERIFIED = "verified"
 
     def __init__(self, root: str | os.PathLike, parse: Parser, *, max_bytes: int = MAX_SET_BYTES,
-                 max_sets: int = MAX_SETS, policy: Any = None) -> None:
+                 max_sets: int = MAX_SETS, policy: Any = None, now: Callable[[], datetime] = _utc_now) -> None:
         self.root = Path(root)
+        self.now = now
         #: Who may send sets (:class:`edge.security.policy.UpdatePolicy`; None: uploads are refused).
         self.policy = policy
         self.sets_dir = self.root / "sets"
@@ -199,6 +253,8 @@ class ObjectSetStore:
         self._migrate_signatures()
         self._finish_pending()
         self._drop_orphan_signatures()
+        #: sha256 -> object count of the bytes verified by this store (the ``verified`` file's copy).
+        self._verified: dict[str, int] = self._read_verified()
 
     def _migrate_signatures(self) -> None:
         """Earlier stores kept ``<name>.sig`` whatever bytes it signed: keep one only if it verifies over them."""
@@ -278,6 +334,67 @@ class ObjectSetStore:
         except OSError as e:
             log.error("object store: cannot remove orphan signatures: %s", e)
 
+    # -- versions ----------------------------------------------------------------------
+    def version_floor(self) -> tuple[str, str] | None:
+        """``(created_utc, sha256)`` of the newest signed set installed (None: none yet)."""
+        try:
+            doc = json.loads((self.root / self.VERSION).read_bytes()[:4096])
+            return str(doc["created_utc"]), str(doc["sha256"])
+        except FileNotFoundError:
+            return None
+        except (OSError, ValueError, KeyError, TypeError) as e:
+            # Written in one atomic step, so only outside damage gets here; it is named, not fatal.
+            log.error("object store: version file unreadable (%s); no floor until the next signed set", e)
+            return None
+
+    def _check_version(self, name: str, blob: bytes, sha: str) -> dict:
+        """The floor a signed set must clear (module docstring); the new floor to write."""
+        created = set_created_utc(blob)
+        if created is None:
+            raise UploadRefused(f"object set {name!r} refused: a signed set names its version in a line "
+                                "'# created_utc: YYYY-MM-DDTHH:MM:SSZ' before its header (thermotouch objects "
+                                "add --key writes it)")
+        try:
+            new_t = release_time({"created_utc": created}, f"object set {name!r}")
+            floor = self.version_floor()
+            old_t = None
+            if floor is not None and floor[1] != sha:  # the newest set's own bytes again: no version change
+                old_t = release_time({"created_utc": floor[0]}, "installed object set")
+            check_version("object set", created, new_t, None if floor is None else floor[0], old_t, self.now())
+        except UpdateRefused as e:
+            raise UploadRefused(f"object set {name!r} refused: {e}") from None
+        return {"created_utc": created, "sha256": sha}
+
+    # -- verified bytes ------------------------------------------------------------------
+    def _read_verified(self) -> dict[str, int]:
+        try:
+            doc = json.loads((self.root / self.VERIFIED).read_bytes()[:65536])
+            return {str(k): int(v) for k, v in doc.items() if _SHA_RE.match(str(k))}
+        except FileNotFoundError:
+            return {}
+        except (OSError, ValueError, TypeError, AttributeError) as e:
+            log.error("object store: %s unreadable (%s); sets are parsed again when listed", self.VERIFIED, e)
+            return {}
+
+    def _hashes(self) -> dict[str, str]:
+        """sha256 of each stored set's bytes (unreadable ones left out)."""
+        out = {}
+        for name in self.names():
+            try:
+                out[name] = hashlib.sha256(self._set_path(name).read_bytes()).hexdigest()
+            except OSError:
+                pass
+        return out
+
+    def _write_verified(self, sha: str, count: int) -> None:
+        """Add ``sha`` (the install's bytes), keeping only the bytes stored sets hold (the file stays small)."""
+        held = set(self._hashes().values())
+        doc = {k: v for k, v in self._verified.items() if k in held}
+        doc[sha] = int(count)
+        if doc != self._verified:
+            durable.atomic_write_file(self.root / self.VERIFIED, json.dumps(doc, sort_keys=True).encode("ascii"))
+        self._verified = doc
+
     # -- paths -----------------------------------------------------------------------
     def _set_path(self, name: str) -> Path:
         return self.sets_dir / f"{name}.csv"
@@ -292,12 +409,16 @@ class ObjectSetStore:
         return [self.sets_dir / e for e in os.listdir(self.sets_dir)
                 if e.startswith(name + ".") and e.endswith(".sig") and _SIG_RE.match(e[len(name) + 1:])]
 
-    def signed_by(self, name: str) -> str | None:
-        """Key id that signed the stored bytes of set ``name`` (None: uploaded unsigned, or unreadable)."""
+    def signed_by(self, name: str, sha: str | None = None) -> str | None:
+        """Key id that signed the stored bytes of set ``name`` (None: uploaded unsigned, or unreadable).
+
+        ``sha``: the stored bytes' sha256 when the caller has just hashed them.
+        """
         from edge.security.keys import KeyFileError, parse_signature  # noqa: PLC0415
 
         try:
-            sha = hashlib.sha256(self._set_path(name).read_bytes()).hexdigest()
+            if sha is None:
+                sha = hashlib.sha256(self._set_path(name).read_bytes()).hexdigest()
             return parse_signature(self._signature_path(name, sha).read_bytes())[0]
         except (OSError, KeyFileError):
             return None
@@ -380,18 +501,32 @@ class ObjectSetStore:
             return self._active
 
     def listing(self) -> list[dict]:
-        """Every stored set: ``name``, ``sha256``, ``size``, ``objects`` (count), ``active``; or its ``error``."""
+        """Every stored set: ``name``, ``sha256``, ``size``, ``objects`` (count), ``active``; or its ``error``.
+
+        Bytes this store verified are not parsed again (module docstring, Work per request); others
+        (stored before ``verified`` existed, or changed on the card) are, and a set that no longer
+        parses is listed with its ``error``.
+        """
         with self._lock:
             act = self.active()
             out = []
             for name in self.names():
                 try:
-                    s = self._load(name)
-                except ObjectStoreError as e:
-                    out.append({"name": name, "error": str(e), "active": False})
+                    blob = self._set_path(name).read_bytes()
+                except OSError as e:
+                    out.append({"name": name, "error": f"object set {name!r} unreadable: {e}", "active": False})
                     continue
-                out.append({"name": name, "sha256": s.sha256, "size": s.size, "objects": len(s.objects),
-                            "active": act is not None and act.name == name, "signed_by": self.signed_by(name)})
+                sha = hashlib.sha256(blob).hexdigest()
+                count = self._verified.get(sha)
+                if count is None:
+                    try:
+                        count = len(self._load(name).objects)
+                    except ObjectStoreError as e:
+                        out.append({"name": name, "error": str(e), "active": False})
+                        continue
+                    self._verified[sha] = count  # in memory: a listing writes nothing
+                out.append({"name": name, "sha256": sha, "size": len(blob), "objects": count,
+                            "active": act is not None and act.name == name, "signed_by": self.signed_by(name, sha)})
             return out
 
     # -- changing --------------------------------------------------------------------
@@ -422,14 +557,18 @@ class ObjectSetStore:
                 raise ObjectStoreError(f"{len(existing)} object sets stored, the most this device keeps; "
                                        "remove one first")
             sha = hashlib.sha256(blob).hexdigest()
+            version = None if signature is None else self._check_version(name, blob, sha)
             try:
-                # The signature first, under the bytes' own hash; then what the install is; then the
-                # bytes (the commit point: a restart finishes the install from here on), the pointer,
-                # and the old signatures and the record go.
+                # The version floor and the signature first (the signature under the bytes' own hash);
+                # then what the install is; then the bytes (the commit point: a restart finishes the
+                # install from here on), the pointer, and the old signatures and the record go.
                 sig = None
                 if signature is not None:
+                    if version is not None and self.version_floor() != (version["created_utc"], sha):
+                        durable.atomic_write_file(self.root / self.VERSION, json.dumps(version).encode("ascii"))
                     sig = self._signature_path(name, sha)
                     durable.atomic_write_file(sig, bytes(signature))
+                self._write_verified(sha, len(objs))
                 durable.atomic_write_file(self.root / self.PENDING, json.dumps(
                     {"name": name, "sha256": sha, "activate": bool(activate)}).encode("ascii"))
                 durable.atomic_write_file(self._set_path(name), bytes(blob))
@@ -442,9 +581,10 @@ class ObjectSetStore:
                 self._finish_pending()  # past the commit point: finish now if the disk lets us
                 self._loaded = False
                 raise ObjectStoreError(f"cannot store object set {name!r}: {e}") from None
-            self._loaded = False  # the active set (or its content) may have changed
-            stored = StoredSet(name, hashlib.sha256(blob).hexdigest(), len(blob), objs)
-            if activate:
+            stored = StoredSet(name, sha, len(blob), objs)
+            if activate or (self._loaded and self._active is not None and self._active.name == name):
+                # Active now, or the active set's bytes were replaced: the parse just done is its content
+                # (a reload would parse it again on the serve loop).
                 self._active, self.error, self._loaded = stored, None, True
             log.info("object set %r stored (%d objects, sha256 %s)%s", name, len(objs), stored.sha256[:12],
                      ", active" if activate else "")

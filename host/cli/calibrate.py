@@ -311,6 +311,15 @@ def _print_calibration(cal) -> None:
     print(f"  sensing layer k          {c.k_W_mK:.4f} W/m/K  (u {u('ln_sensing_k_W_mK'):.1%})")
     print(f"  thermocouple lag         {c.tc_tau_s * 1e3:.1f} ms  (u {u('tc_tau_s') * 1e3:.1f} ms)")
     print(f"  model-form floor on e    {cal.u_rel_floor:.1%}")
+    ident = (cal.self_check or {}).get("identifiability")
+    if ident:
+        shrink = ", ".join(f"{n} {x:.2f}" for n, x in ident["u_over_prior"].items())
+        print(f"  determined               {', '.join(ident['determined']) or 'nothing'} (u / datasheet u: {shrink})")
+        corr = ident["correlations"]
+        if ident["traded_off"]:
+            print("  traded off               " + "; ".join(f"{k} {corr[k]:+.2f}" for k in ident["traded_off"]))
+        for a in ident["advice"]:
+            print(f"  to determine the rest    {a}")
     check = cal.self_check or {}
     if check:
         verdict = "passed" if check.get("passed") else "FAILED (written with --force: flagged 'forced')"

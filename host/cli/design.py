@@ -2,7 +2,8 @@
 
 The numbers are noise-only Cramer-Rao bounds from the axisymmetric model's
 Fisher information (:func:`edge.estimation.design.attainable`): k, alpha and
-the heater power unknown, no prior; white noise of ``--noise-T`` /
+the heater power unknown, no prior (``--hand``: the contact resistance and the
+object's temperature too); white noise of ``--noise-T`` /
 ``--noise-q`` on every ``--dt`` sample.  The probe is the small-heater one
 (same layers and sensors) with the heater radius replaced at the same areal
 power (the heater's temperature limit, not its total power, is what a design
@@ -49,6 +50,13 @@ def add_parser(sub, parents):
                    help="flux-sensor noise per sample, W/m^2 (default 0.5)")
     p.add_argument("--dt", type=bounded_float(1e-3, 1.0), default=0.02, metavar="S",
                    help="sample interval, s (default 0.02)")
+    p.add_argument("--hand", action="store_true",
+                   help="a hand touch: the contact resistance and the object's temperature are unknowns too "
+                        "(ISSUE #34: what a touch can attain when it does not know them)")
+    p.add_argument("--contact-resistance", type=bounded_float(0.0, 1e-2), default=3e-5, metavar="M2K_W",
+                   help="with --hand: the touch's contact resistance, m^2K/W (default 3e-5)")
+    p.add_argument("--lead", type=bounded_float(0.0, 30.0), default=1.0, metavar="S",
+                   help="with --hand: contact before heating, s (default 1)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -69,21 +77,29 @@ def _material(name: str):
 
 
 def compute(material: str, radius_mm: float, time_s: float, *, noise_T_K: float = 0.01,
-            noise_q_W_m2: float = 0.5, dt_s: float = 0.02, model=None) -> dict:
-    """One design point as a JSON-able dict (see the module docstring)."""
+            noise_q_W_m2: float = 0.5, dt_s: float = 0.02, model=None, hand: bool = False,
+            contact_resistance_m2K_W: float = 3e-5, lead_s: float = 1.0) -> dict:
+    """One design point as a JSON-able dict (see the module docstring).
+
+    ``hand``: R_c (at ``contact_resistance_m2K_W``) and the object's temperature (contact ``lead_s``
+    before heating) are unknowns as well.
+    """
     from edge.estimation.design import attainable  # noqa: PLC0415
 
     m = _material(material)
+    extra = ({"fit_contact": True, "contact_resistance_m2K_W": contact_resistance_m2K_W,
+              "fit_object_temperature": True, "contact_lead_s": lead_s} if hand else {})
     d = attainable(m.solid, time_s, heater_radius_m=radius_mm * 1e-3, dt_s=dt_s, sigma_T_K=noise_T_K,
-                   sigma_q_W_m2=noise_q_W_m2, model=model).to_dict()
+                   sigma_q_W_m2=noise_q_W_m2, model=model, **extra).to_dict()
     out = {"material": m.name, "heater_radius_mm": radius_mm, "time_s": time_s, **d,
-           "noise_T_K": noise_T_K, "noise_q_W_m2": noise_q_W_m2, "dt_s": dt_s}
+           "noise_T_K": noise_T_K, "noise_q_W_m2": noise_q_W_m2, "dt_s": dt_s,
+           "hand": ({"contact_resistance_m2K_W": contact_resistance_m2K_W, "lead_s": lead_s} if hand else None)}
     out["determined"] = [q for q, key in (("e", "u_rel_effusivity"), ("k", "u_rel_k"), ("alpha", "u_rel_alpha"))
                          if d[key] is not None and d[key] < DETERMINED_U_REL]
     return out
 
 
-def table(*, noise_T_K: float = 0.01, noise_q_W_m2: float = 0.5, dt_s: float = 0.02) -> list[dict]:
+def table(*, noise_T_K: float = 0.01, noise_q_W_m2: float = 0.5, dt_s: float = 0.02, **hand) -> list[dict]:
     """Every point of the ``--table`` grid (one model per radius and time, shared by the materials)."""
     import numpy as np  # noqa: PLC0415
 
@@ -98,7 +114,7 @@ def table(*, noise_T_K: float = 0.01, noise_q_W_m2: float = 0.5, dt_s: float = 0
             model = AxisymModel(g, t)  # its probe part is the costly setup: once for the four materials
             for name in TABLE_MATERIALS:
                 rows.append(compute(name, r, t_end, noise_T_K=noise_T_K, noise_q_W_m2=noise_q_W_m2, dt_s=dt_s,
-                                    model=model))
+                                    model=model, **hand))
     return rows
 
 
@@ -130,6 +146,8 @@ def run(args) -> int:
     if args.table and min(TABLE_TIMES_S) / args.dt < MIN_SAMPLES:
         raise CliError(f"--dt {args.dt:g} s leaves fewer than {MIN_SAMPLES} samples in a {min(TABLE_TIMES_S):g}-s touch")
     kw = {"noise_T_K": args.noise_T, "noise_q_W_m2": args.noise_q, "dt_s": args.dt}
+    if args.hand:
+        kw.update(hand=True, contact_resistance_m2K_W=args.contact_resistance, lead_s=args.lead)
     if args.table:
         rows = table(**kw)
         if args.json:
@@ -143,6 +161,9 @@ def run(args) -> int:
         return 0
     print(f"{d['material']}, heater radius {d['heater_radius_mm']:g} mm ({d['power_W']:.3g} W), "
           f"{d['contact_time_s']:g} s touch; noise {args.noise_T:g} K / {args.noise_q:g} W/m^2 every {args.dt:g} s")
+    if args.hand:
+        print(f"hand touch: R_c ({args.contact_resistance:g} m^2K/W) and the object's temperature unknown, contact "
+              f"{args.lead:g} s before heating")
     for label, key, q in (("u(e)", "u_rel_effusivity", "e"), ("u(k)", "u_rel_k", "k"),
                           ("u(alpha)", "u_rel_alpha", "alpha")):
         verdict = "determined" if q in d["determined"] else "not determined (the library prior answers)"

@@ -180,6 +180,9 @@ def run(args) -> int:
     try:
         answer = estimate_touch(record, context, decision=_decision(dict(record.meta)))
     except ValueError as exc:
+        if args.json:
+            # A refusal is an answer too: every key, object "unknown" (ISSUE #37), and why.
+            print(dumps(_refusal(record.probe, set_name, exc)), flush=True)
         raise CliError(f"--csv {args.csv}: {exc}") from None
     d = answer.to_dict()
     if args.json:
@@ -194,6 +197,13 @@ def run(args) -> int:
         raise CliError(f"--csv {args.csv} gave no estimate"
                        + (f" (flags: {', '.join(d['flags'])})" if d.get("flags") else ""), EXIT_RUNTIME)
     return 0
+
+
+def _refusal(probe: str, set_name: str | None, exc: Exception) -> dict:
+    """The JSON of a touch the estimate path refused: the result's keys, no values, object ``unknown``."""
+    from edge.estimation.result import Estimate, unknown_recognition  # noqa: PLC0415
+
+    return {**Estimate(probe=probe, method="none").to_dict(), **unknown_recognition(set_name), "error": str(exc)}
 
 
 def _chain_line(c: dict) -> str:

@@ -1,4 +1,11 @@
-"""``thermotouch history``: the probe's stored measurements, newest first; CSV export."""
+"""``thermotouch history``: the probe's stored measurements, newest first; CSV or Parquet export.
+
+``--export FILE.parquet`` (and ``--export-series ID FILE.parquet``) write the same columns as the CSV,
+typed (numbers as float64 with nulls, ids as integers, text as text), each column's unit in its field
+metadata, and what identifies the export in the file's metadata: the device (``device_id``, ``board``),
+its software, the probe head, the export's UTC time and the ± convention. Parquet needs the optional
+``pyarrow`` (``pip install 'thermotouch[parquet]'``); without it the export is refused before connecting.
+"""
 
 from __future__ import annotations
 
@@ -22,13 +29,15 @@ def add_parser(sub, parents):
     p = sub.add_parser("history", help="the probe's stored measurements, newest first", parents=parents)
     add_device_args(p)
     p.add_argument("--json", action="store_true", help="print one JSON list")
-    add_output(p, "--export", suffixes=(".csv",), metavar="FILE.csv", help="write the records to a CSV file")
+    add_output(p, "--export", suffixes=(".csv", ".parquet"), metavar="FILE.csv|FILE.parquet",
+               help="write the records to a CSV file, or a Parquet table (needs pyarrow)")
     p.add_argument("--limit", type=positive_int, default=None, help="at most this many records (default: all)")
     p.add_argument("--export-series", nargs=2, metavar=("ID", "FILE.csv"), default=None,
                    help="write measurement ID's touch record as the device recorded it (a '# key: value' header "
                         "naming the probe, power, sample clock, calibration, model and software; columns t_s from "
-                        "heater-on, negative before; T_C; q_W_m2; read times when recorded) as a CSV that "
-                        "`thermotouch estimate` and `calibrate --record` read")
+                        "heater-on, negative before; T_C; q_W_m2; read times when recorded) as a CSV (or, named "
+                        "*.parquet, a Parquet table with that header as metadata) that `thermotouch estimate` "
+                        "and `calibrate --record` read")
     p.set_defaults(func=run)
 
 
@@ -42,12 +51,24 @@ def _series_target(args) -> tuple[int, Path]:
     if mid < 1:
         raise CliError(f"--export-series: measurement ID must be >= 1, got {mid}")
     try:
-        path = output_file((".csv",))(file)
+        path = output_file((".csv", ".parquet"))(file)
     except argparse.ArgumentTypeError as exc:
         raise CliError(f"--export-series: {exc}") from None
     if os.path.lexists(path) and not args.overwrite:
         raise CliError(f"--export-series {path} exists (use --overwrite to replace it)")
+    _need_pyarrow(path, "--export-series")
     return mid, path
+
+
+def _need_pyarrow(path: Path, flag: str) -> None:
+    """A Parquet output without pyarrow is refused before any connection (exit 2)."""
+    from host.records import RecordError, _parquet, is_parquet  # noqa: PLC0415
+
+    if is_parquet(path):
+        try:
+            _parquet()
+        except RecordError as exc:
+            raise CliError(f"{flag} {path}: {exc}") from None
 
 
 def _export_series(args) -> int:
@@ -85,7 +106,7 @@ def _export_series(args) -> int:
                 else json.dumps(result["decision"], separators=(",", ":"), sort_keys=True)}
     try:
         write_touch(path, touch, identity)
-    except OSError as exc:
+    except (OSError, ValueError) as exc:
         raise CliError(f"cannot write {path}: {exc.strerror or exc}", EXIT_RUNTIME) from None
     dropped = int(len(t) - touch.t_s.size)
     print(f"measurement {mid}: {touch.t_s.size} samples ({dropped} unreadable dropped) written to {path}")
@@ -124,6 +145,58 @@ def _touch(mid: int, header: dict, s: dict):
         raise CliError(f"--export-series {mid}: the device's record is not usable: {exc}", EXIT_RUNTIME) from None
 
 
+#: Units of the history columns that have one (Parquet field metadata; the CSV's names say them).
+HISTORY_UNITS = {"power_W": "W", "contact_time_s": "s", "heater_on_s": "s", "T0_C": "degC",
+                 "effusivity_W_s05_m2K": "W s^0.5/(m^2 K)", "effusivity_W_s05_m2K_u": "W s^0.5/(m^2 K)",
+                 "k_W_mK": "W/(m K)", "k_W_mK_u": "W/(m K)", "alpha_m2_s": "m^2/s", "alpha_m2_s_u": "m^2/s"}
+_HISTORY_FLOATS = ("power_W", "contact_time_s", "heater_on_s", "T0_C", "effusivity_W_s05_m2K",
+                   "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u", "alpha_m2_s", "alpha_m2_s_u",
+                   "material_confidence", "object_posterior", "class_posterior")
+
+
+def write_history_parquet(path: Path, items: list[dict], info: dict) -> None:
+    """The history rows (:func:`host.cli.report.history_row`) as a typed Parquet table with the export's identity."""
+    import pyarrow as pa  # noqa: PLC0415
+
+    from host.cli.report import UNCERTAINTY_NOTE  # noqa: PLC0415
+    from host.records import write_parquet  # noqa: PLC0415
+
+    rows = [history_row(it) for it in items]
+    cols = {}
+    for name in HISTORY_CSV_COLUMNS:
+        values = [r[name] for r in rows]
+        if name in _HISTORY_FLOATS:
+            cols[name] = pa.array([None if v is None else float(v) for v in values], type=pa.float64())
+        elif name == "measurement_id":
+            cols[name] = pa.array(values, type=pa.int64())
+        else:
+            cols[name] = pa.array([None if v is None else str(v) for v in values], type=pa.string())
+    probes = sorted({str((it.get("result") or {}).get("probe")) for it in items
+                     if (it.get("result") or {}).get("probe")})
+    meta = {"device_id": info.get("device_id"), "board": info.get("board"), "software": info.get("firmware_version"),
+            "probe": info.get("probe") or (probes[0] if len(probes) == 1 else " ".join(probes) or None),
+            "exported_utc": _utc_now(), "records": len(rows), "uncertainty": UNCERTAINTY_NOTE}
+    write_parquet(path, cols, meta, HISTORY_UNITS, "history")
+
+
+def read_history_parquet(path) -> tuple[list[dict], dict[str, str]]:
+    """``(rows, metadata)`` of a ``history --export FILE.parquet`` table (rows as :func:`history_row` gives them)."""
+    from host.records import read_parquet  # noqa: PLC0415
+
+    cols, meta = read_parquet(path, "history")
+    names = list(cols)
+    n = len(cols[names[0]]) if names else 0
+    return [{k: (None if isinstance(cols[k], np.ndarray) and np.isnan(cols[k][i]) else
+                 (float(cols[k][i]) if isinstance(cols[k], np.ndarray) else cols[k][i])) for k in names}
+            for i in range(n)], meta
+
+
+def _utc_now() -> str:
+    from datetime import datetime, timezone  # noqa: PLC0415
+
+    return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
 def run(args) -> int:
     import csv  # noqa: PLC0415
 
@@ -133,9 +206,16 @@ def run(args) -> int:
         return _export_series(args)
 
     from host.atomic import atomic_path  # noqa: PLC0415
+    from host.records import is_parquet  # noqa: PLC0415
 
+    parquet = args.export is not None and is_parquet(args.export)
+    if parquet:
+        _need_pyarrow(args.export, "--export")
     items: list[dict] = []
+    info: dict = {}
     with device_session(args) as session:
+        if parquet:
+            info = session.client.info()
         offset = 0
         while args.limit is None or len(items) < args.limit:
             want = PAGE if args.limit is None else min(PAGE, args.limit - len(items))
@@ -145,7 +225,12 @@ def run(args) -> int:
             if not page["items"] or offset >= page["total"]:
                 break
     items = items[:args.limit] if args.limit is not None else items
-    if args.export:
+    if parquet:
+        try:
+            write_history_parquet(args.export, items, info)
+        except OSError as exc:
+            raise CliError(f"cannot write {args.export}: {exc.strerror or exc}", EXIT_RUNTIME) from None
+    elif args.export:
         try:
             with atomic_path(args.export) as tmp, open(tmp, "w", newline="", encoding="utf-8") as fh:
                 w = csv.DictWriter(fh, fieldnames=HISTORY_CSV_COLUMNS)

@@ -43,6 +43,9 @@ def add_parser(sub, parents):
     p.add_argument("--method", choices=("paper", "default"), default=None,
                    help="estimation method for this touch (default: the device's setting)")
     add_metadata_args(p)
+    p.add_argument("--stream", action="store_true",
+                   help="print the touch's phases and running answers as the device pushes them "
+                        "(with --json: one JSON object per line, the answer last)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     add_output(p, "--plot", suffixes=PLOT_SUFFIXES, metavar="FILE.png",
                help="save measured and fitted flux and temperature (.png, .pdf or .svg; in an existing directory)")
@@ -68,13 +71,24 @@ def run(args) -> int:
         if not args.plot:
             raise CliError("--bundle is for the fitted curves of --plot")
         bundle_identity(args.bundle)  # a wrong directory is refused before the touch
+    on_event = _event_printer(args.json) if args.stream else None
+    if args.plot:
+        from host.plots import preload  # noqa: PLC0415
+
+        preload()  # Matplotlib's import (most of a plot's time) while the touch runs
+    cal = None
     with device_session(args) as session:
-        with Ticker("measuring", enabled=not args.json):
+        with Ticker("measuring", enabled=not (args.json or args.stream)):
             t = touch(session, power_W=args.power, voltage_V=args.voltage, contact_time_s=args.time,
                       method=args.method, with_series=bool(args.plot), bundle_dir=args.bundle,
                       sample_rate_Hz=rate, until_decided=args.until_decided, arm_s=args.arm,
-                      settle_s=args.settle)
-        label = session.simulator.scene.name if session.simulated else session.port
+                      settle_s=args.settle, on_event=on_event)
+        if args.plot and (t.record.get("result") or {}).get("method") == "sensor_chain":
+            from host.calibration import read_calibration  # noqa: PLC0415
+
+            cal = read_calibration(session.client)[0]  # the chain's answer is drawn with its own curve
+        # The title identifies the measurement; a label names the sample or the scene, never the port.
+        label = metadata_of(args).get("sample") or (session.simulator.scene.name if session.simulated else "")
     d = measure_json(t.record)
     decision = (t.record.get("result") or {}).get("decision")
     if decision is not None:
@@ -83,7 +97,8 @@ def run(args) -> int:
     if any(v is not None for v in metadata.values()):  # the user's words about the sample, carried as given
         d["metadata"] = metadata
     fit = t.fits.get(d["method"])
-    only_measured = "" if fit is not None else f" (measured series only: {t.fit_note or 'no model fit'})"
+    only_measured = "" if fit is not None or cal is not None else \
+        f" (measured series only: {t.fit_note or 'no model fit'})"
     # The result is printed first: a plot that cannot be written must not lose it.
     if args.json:
         print(dumps(d), flush=True)
@@ -97,10 +112,12 @@ def run(args) -> int:
             print(f"running answer: {decision.get('object')} (posterior {decision.get('posterior', 0):.3f}) "
                   f"at {decision.get('elapsed_s', 0):.2f} s: {how}")
     if args.plot:
+        from host.plot_data import touch_identity  # noqa: PLC0415
         from host.plots import plot_touch  # noqa: PLC0415
 
         try:
-            plot_touch(args.plot, t.series, d, fit, label + only_measured)
+            plot_touch(args.plot, t.series, {**d, **touch_identity(t.record)}, fit, label + only_measured,
+                       calibration=cal)
         except (OSError, ValueError) as exc:
             why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
             raise CliError(f"measurement {d['measurement_id']} done, but cannot write the plot {args.plot}: {why}",
@@ -111,3 +128,28 @@ def run(args) -> int:
         raise CliError(f"measurement {d['measurement_id']} gave no estimate"
                        + (f" (flags: {', '.join(d['flags'])})" if d["flags"] else ""), EXIT_RUNTIME)
     return 0
+
+
+def _event_printer(as_json: bool):
+    """An ``on_event`` for :func:`host.touch.touch` printing what a robot or a user watches live.
+
+    Sample batches are not printed as text (they are the stored series, read with ``history
+    --export-series``); with ``--json`` every event is one line, so a pipe sees the samples too.
+    """
+    from dataclasses import asdict  # noqa: PLC0415
+
+    from host.api import Phase, RunningAnswer, typed_event  # noqa: PLC0415
+
+    def on_event(event) -> None:
+        item = typed_event(event)
+        if as_json:
+            print(dumps({"event": type(item).__name__.lower(), **asdict(item)}), flush=True)
+        elif isinstance(item, Phase):
+            print(f"  {item.t_s:6.2f} s  {item.phase}"
+                  + (f" ({item.events_dropped} events lost on the link)" if item.events_dropped else ""),
+                  flush=True)
+        elif isinstance(item, RunningAnswer):
+            print(f"  {item.t_s:6.2f} s  running answer: {item.object} (posterior {item.posterior:.2f}), "
+                  f"e {item.effusivity_W_s05_m2K:.4g} ± {100 * item.u_ln_e:.2g} %"
+                  + (", decided" if item.decided else ""), flush=True)
+    return on_event

@@ -11,17 +11,17 @@ The active set names the object of every measurement (``measure`` prints it;
 
 from __future__ import annotations
 
-from host.cli.args import add_device_args, existing_file, non_negative_int, output_file, positive_int
+from host.cli.args import add_device_args, existing_file, non_negative_int, output_file, positive_float, positive_int
 from host.cli.common import device_call, device_session, load_object_set, note
 from host.cli.errors import EXIT_BAD_INPUT, CliError
 from host.cli.report import dumps
 
-#: Typical relative standard uncertainty of e on the precision board (README), for the add-time warning.
-TYPICAL_U_LN_E = 0.02
 #: Default specimens per object for ``objects calibrate``, by probe: z_crit is a tail quantile (about 99.5 %) of
 #: the touches' distances, so the fast paper-probe simulation uses enough of them for the tail; the
 #: small-heater probe's faithful-world touches take about a second each.
 CALIBRATION_TOUCHES = {"paper": 30, "small-heater": 10}
+#: Largest set ``objects add`` checks pair by pair (an attainable-u bound per object, ~0.3 s each).
+MAX_SEPARATION_OBJECTS = 200
 
 
 def add_parser(sub, parents):
@@ -40,6 +40,11 @@ def add_parser(sub, parents):
     a.add_argument("--key", metavar="SECRET.json", type=existing_file, default=None,
                    help="sign the set with this secret key (thermotouch keys new); a probe that does not allow "
                         "unsigned updates needs it")
+    a.add_argument("--contact-time", type=positive_float, default=2.0, metavar="S",
+                   help="the contact time you will touch with, s: pairs of objects the probe cannot separate at "
+                        "it are named, one warning each (default 2)")
+    a.add_argument("--probe", choices=tuple(CALIBRATION_TOUCHES), default="paper",
+                   help="probe head for the separability warning (default paper)")
     a.add_argument("--json", action="store_true")
     add_device_args(a)
     a.set_defaults(func=run_add)
@@ -91,11 +96,8 @@ def run_add(args) -> int:
         check_name(name)
     except ObjectStoreError as exc:
         raise CliError(f"{exc}{'' if args.name else ' (give --name NAME)'}") from None
-    pairs = objects.confusion_pairs(TYPICAL_U_LN_E).pairs
-    if pairs and not args.json:
-        shown = ", ".join(f"{p.a}/{p.b}" for p in pairs[:5]) + (f" and {len(pairs) - 5} more" if len(pairs) > 5
-                                                                 else "")
-        note(f"note: effusivity alone hardly separates {shown} (within 2 u at u(e)/e = {TYPICAL_U_LN_E:.0%})")
+    for line in separation_warnings(objects, args.contact_time, args.probe):
+        note(line)   # a warning, not an error: the user may know the pair is never touched in one place
     with device_session(args) as session:
         if not args.overwrite:
             # The device's OBJECTS_COMMIT replaces a set of the same name: the host asks first.
@@ -110,6 +112,24 @@ def run_add(args) -> int:
         print(f"object set {res['name']}: {res['objects']} objects stored (sha256 {res['sha256'][:12]}); "
               f"active set: {res['active']}")
     return 0
+
+
+def separation_warnings(objects, contact_time_s: float, probe: str = "paper") -> list[str]:
+    """One warning line per pair of objects the probe cannot separate at ``contact_time_s`` (attainable u)."""
+    from host.objects import SEPARATION_SIGMAS, attainable_u_ln_e, inseparable_pairs  # noqa: PLC0415
+
+    if len(objects) > MAX_SEPARATION_OBJECTS:
+        # One bound per object and a pass over the pairs: a catalogue of thousands is not a robot's set.
+        return [f"warning: separability at {contact_time_s:g} s not checked for {len(objects)} objects "
+                f"(more than {MAX_SEPARATION_OBJECTS})"]
+    try:
+        u = attainable_u_ln_e(objects, contact_time_s, probe=probe)
+    except (ValueError, ArithmeticError) as exc:   # the bound itself failed: say so, the upload goes on
+        return [f"warning: separability at {contact_time_s:g} s not checked ({exc})"]
+    return [f"warning: {p['a']} and {p['b']} cannot be told apart at {contact_time_s:g} s on the {probe} probe: "
+            f"e differs by {p['delta_ln_e']:.1%}, less than {SEPARATION_SIGMAS:g} sd ({p['threshold_ln']:.1%}; "
+            f"attainable u(e) {p['u_a']:.1%} / {p['u_b']:.1%} with the specimen spreads)"
+            for p in inseparable_pairs(objects, u)]
 
 
 def run_list(args) -> int:
@@ -162,7 +182,7 @@ def run_calibrate(args) -> int:
 
     from host.atomic import write_text_atomic  # noqa: PLC0415
     from edge.estimation.methods import method_class  # noqa: PLC0415
-    from host.recognition import calibrate, simulate_probe_touches  # noqa: PLC0415
+    from host.recognition import calibrate_by_contact, simulate_probe_touches  # noqa: PLC0415
 
     src = Path(args.file)
     out = Path(args.out) if args.out else src.with_name(src.stem + "_calibrated.csv")
@@ -180,18 +200,22 @@ def run_calibrate(args) -> int:
         sim = (None if not method_class(args.probe).measures_alpha else
                simulate_probe_touches(objects.objects, probe=args.probe, instruments=(args.board,),
                                       touches=args.touches, seed=args.seed))
-        cal, rep = calibrate(objects, args.board, touches=args.touches, seed=args.seed, sim=sim)
+        cal, rep = calibrate_by_contact(objects, args.board, touches=args.touches, seed=args.seed, sim=sim)
     except ValueError as exc:  # e.g. every simulated touch refused (metals on the reference board)
         raise CliError(f"{args.file}: cannot calibrate on {args.board}: {exc}") from None
     write_text_atomic(out, cal.to_csv_text())
     summary = dict(file=str(out), board=args.board, probe=args.probe, touches=rep["touches"],
                    temperature=rep["temperature"],
                    z_crit=rep["z_crit"], acceptance=rep["acceptance"],
-                   ece_before=rep["reliability_before"]["ece"], ece_after=rep["reliability_after"]["ece"])
+                   ece_before=rep["reliability_before"]["ece"], ece_after=rep["reliability_after"]["ece"],
+                   by_contact_s=rep["by_contact_s"])
     if args.json:
         print(dumps(summary))
     else:
         print(f"{out}: temperature {rep['temperature']:.3g}, z_crit {rep['z_crit']:.3g} (fitted on {rep['touches']} "
               f"simulated {args.board} touches of the {args.probe} probe; posterior ECE {summary['ece_before'] * 100:.1f} % -> "
               f"{summary['ece_after'] * 100:.1f} %); upload it with: thermotouch objects add {out}")
+        for ct, r in rep["by_contact_s"].items():
+            print(f"  at {float(ct):g} s: temperature {r['temperature']:.3g}, z_crit {r['z_crit']:.3g} "
+                  f"({r['touches']} touches, ECE {r['ece_after'] * 100:.1f} %)")
     return 0

@@ -55,7 +55,7 @@ def test_a_reused_figure_drops_curves_a_touch_does_not_have(tmp_path):
         bare = dict(series, grid_t_s=None)
         fig.draw(tmp_path / "b.png", bare, result, None)
         assert [t.get_text() for t in fig.ax_T.get_legend().get_texts()] == ["measured"]
-        assert [t.get_text() for t in fig.ax_q.get_legend().get_texts()] == ["measured"]
+        assert [t.get_text() for t in fig.ax_q.get_legend().get_texts()] == ["measured", "before heater-on"]
     assert (tmp_path / "b.png").read_bytes()[:4] == PNG
 
 

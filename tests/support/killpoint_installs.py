@@ -115,9 +115,10 @@ def calibration_operation(root: Path) -> Operation:
 _CLASSES = ("foam", "wood", "polymer", "rubber", "glass", "ceramic", "stone", "metal")
 
 
-def _csv(rows: int, tag: str) -> bytes:
-    lines = ["name,class,e_W_s05_m2K"] + [f"{tag}-object-{i:03d},{_CLASSES[i % len(_CLASSES)]},{300 + 17 * i}"
-                                           for i in range(rows)]
+def _csv(rows: int, tag: str, created_utc: str) -> bytes:
+    # Signed sets name their version; the new one is newer (an older signed set is refused: ISSUE #35 §2).
+    lines = [f"# created_utc: {created_utc}", "name,class,e_W_s05_m2K"]
+    lines += [f"{tag}-object-{i:03d},{_CLASSES[i % len(_CLASSES)]},{300 + 17 * i}" for i in range(rows)]
     return ("\n".join(lines) + "\n").encode()
 
 
@@ -135,7 +136,7 @@ def objects_operation(root: Path, name: str = "bench") -> Operation:
     template = Path(tempfile.mkdtemp(prefix=f"objects-{name}-template-", dir=root))
     History(template / "history.db").close()
     k_old, k_new = _keys(template)
-    old, blob = _csv(12, "old"), _csv(60, "new")
+    old, blob = _csv(12, "old", "2026-01-01T00:00:00Z"), _csv(60, "new", "2026-02-01T00:00:00Z")
     sha_old, sha_new = hashlib.sha256(old).hexdigest(), hashlib.sha256(blob).hexdigest()
 
     def store(point: Path) -> ObjectSetStore:

@@ -122,12 +122,32 @@ def test_the_noise_bias_correction_undoes_most_of_the_depth_pull_of_a_noisy_ther
     clean = fit_calibration(_noisy_refs(0.0, 300), noise_bias_draws=0)
     refs = _noisy_refs(0.03, 300)
     raw = fit_calibration(refs, noise_bias_draws=0)
-    cal = fit_calibration(refs)
+    cal = fit_calibration(refs, noise_bias_draws=3)   # off by default (edge.calibration.fit.NOISE_BIAS_DRAWS)
     pull_raw, pull_cal = raw.theta[1] - clean.theta[1], cal.theta[1] - clean.theta[1]
     assert pull_raw < -cal.u_theta[1], (pull_raw, cal.u_theta[1])      # the pull is there, beyond 1 u
     assert abs(pull_cal) < 0.5 * abs(pull_raw), (pull_cal, pull_raw)
     # The correction's own scatter is in the covariance: no parameter claims less than before.
     assert np.all(cal.u_theta >= raw.u_theta * (1 - 1e-12))
+
+
+def test_noise_free_records_come_back_unbiased_with_or_without_the_noise_bias_correction():
+    # ISSUE #34 item 6: on records the chain describes and no noise, neither the fit nor the correction
+    # may move the answer: both calibrations agree to 1e-3 in every parameter and re-measure every
+    # reference within 0.5 %.  And the default path applies no correction.
+    import edge.calibration.fit as fit_mod
+
+    refs = []
+    for i, (name, rc) in enumerate((("pmma", 0.0), ("pmma", 1e-5), ("pyroceram", 1e-5), ("pyroceram", 0.0),
+                                     ("aisi_304", 0.0), ("aisi_304", 1e-5))):
+        t, T, q = _touch(E[name], rc, 0.0, seed=i, noise=False)
+        refs.append(ReferenceTouch(name, E[name], t, T, q))
+    plain = fit_calibration(refs, created_utc="t")
+    corrected = fit_calibration(refs, created_utc="t", noise_bias_draws=3)
+    assert fit_mod.NOISE_BIAS_DRAWS == 0 and plain.sha256 == fit_calibration(refs, created_utc="t",
+                                                                            noise_bias_draws=0).sha256
+    assert np.all(np.abs(corrected.theta - plain.theta) < 1e-3), corrected.theta - plain.theta
+    for cal in (plain, corrected):
+        assert all(abs(x) < 0.005 for r in cal.references for x in r.rel_errors), cal.references
 
 
 def test_a_calibration_is_reproducible_and_the_correction_is_optional():
@@ -149,4 +169,4 @@ def test_a_failing_noise_bias_correction_is_a_calibration_error(monkeypatch):
 
     monkeypatch.setattr(fit_mod, "simulate_chain", broken)
     with pytest.raises(CalibrationError, match="noise-bias correction failed"):
-        fit_calibration(_refs())
+        fit_calibration(_refs(), noise_bias_draws=1)

@@ -65,3 +65,50 @@ def test_a_coarse_converters_lsb_flips_are_not_a_touch_but_a_real_contact_is():
     assert c.detected and -1.5 - DT - 1e-9 <= c.t_s <= -1.5 + 1e-9
     t, T, q = _record(10.0, 0.0, 0.0)
     assert not find_contact(t, np.floor((T + 0.03) / 0.0625) * 0.0625, np.round(q / 14.0) * 14.0).detected
+
+
+def _heated(e_under, *, seed=0, q_W_m2=800.0, t0=-3.0, t1=2.0):
+    """A probe whose heater goes on at 0 over what lies under it (effusivity ``e_under``), no step before.
+
+    The face's rise under a constant flux into a half-space: 2 q sqrt(t) / (e sqrt(pi)).
+    """
+    rng = np.random.default_rng(seed)
+    t = np.arange(t0, t1 + 1e-9, DT)
+    on = np.clip(t, 0.0, None)
+    T = 25.0 + 2.0 * q_W_m2 * np.sqrt(on) / (e_under * np.sqrt(np.pi))
+    q = np.where(t > 0, q_W_m2, 0.0)
+    return t, T + 0.01 * rng.standard_normal(t.size), q + 0.5 * rng.standard_normal(t.size)
+
+
+def test_how_the_contact_was_found_is_said():
+    t, T, q = _record(-1.5, -1.0, -300.0)
+    assert find_contact(t, T, q).how == "temperature"
+    t, T, q = _record(-1.5, 0.0, 40.0)
+    assert find_contact(t, T, q).how == "flux"
+
+
+def test_no_step_a_touching_probe_is_found_by_the_heaters_response():
+    # Object at the probe's temperature (ISSUE #37's copper case): nothing steps; the heater heats a solid.
+    for e in (40.0, 600.0, 30000.0):
+        c = find_contact(*_heated(e, q_W_m2=800.0 if e < 1e4 else 20000.0))
+        assert c.how == "heater_response" and not c.detected and c.recorded_in_air
+        assert c.t_s == pytest.approx(0.0, abs=DT)
+
+
+def test_no_step_a_probe_in_air_is_refused():
+    # Still air (e 5.5): the heater's flux is not a touching probe's -- no contact, said clearly.
+    c = find_contact(*_heated(5.5, q_W_m2=20.0))
+    assert c.how == "none" and not c.detected
+
+
+def test_the_users_trigger_sets_the_origin_when_nothing_steps():
+    t, T, q = _heated(600.0)
+    c = find_contact(t, T, q, trigger_t_s=-1.2)
+    assert c.how == "trigger" and c.detected
+    assert -1.2 - DT - 1e-9 <= c.t_s <= -1.2 + 1e-9
+    # A trigger after heater-on or before the record is not a contact instant: the heater's response decides.
+    assert find_contact(t, T, q, trigger_t_s=0.5).how == "heater_response"
+    assert find_contact(t, T, q, trigger_t_s=-10.0).how == "heater_response"
+    # A step wins over the trigger.
+    t, T, q = _record(-1.5, -1.0, -300.0)
+    assert find_contact(t, T, q, trigger_t_s=-2.5).how == "temperature"

@@ -48,3 +48,22 @@ def test_bad_arguments_raise():
         attainable(ALU, -1.0)
     with pytest.raises(ValueError):
         attainable(ALU, 2.0, heater_radius_m=0.0)
+
+
+def test_a_hand_touchs_unknowns_cost_information_and_a_contact_lead_pins_the_object_temperature():
+    # ISSUE #34 item 5: the attainable u of a hand touch counts R_c and the object's temperature as unknowns.
+    from edge.physics.materials import load_materials
+
+    glass = load_materials().get("n_bk7").solid
+    kw = {"probe": "paper", "dt_s": 0.05, "power_W": 8.0}
+    plain = attainable(glass, 1.0, **kw).u_rel_effusivity
+    rc = attainable(glass, 1.0, fit_contact=True, contact_resistance_m2K_W=3e-5, **kw).u_rel_effusivity
+    hand = attainable(glass, 1.0, fit_contact=True, contact_resistance_m2K_W=3e-5, fit_object_temperature=True,
+                      contact_lead_s=0.0, **kw).u_rel_effusivity
+    lead = attainable(glass, 1.0, fit_contact=True, contact_resistance_m2K_W=3e-5, fit_object_temperature=True,
+                      contact_lead_s=2.0, **kw).u_rel_effusivity
+    assert plain < rc < hand            # every unknown costs information
+    assert rc <= lead < hand            # samples in contact before heating see the offset alone
+    # A longer touch attains more.
+    assert attainable(glass, 2.0, fit_contact=True, fit_object_temperature=True, contact_lead_s=1.0,
+                      **kw).u_rel_effusivity < lead

@@ -104,3 +104,19 @@ def test_a_refit_decides_only_on_an_estimate_with_a_finite_e_and_u(e, u, want):
 
     got = RefitDecision.u_ln_e(e, u)
     assert got == (pytest.approx(want) if want is not None else None)
+
+
+def test_a_set_calibrated_per_contact_time_names_with_that_time_and_never_decides_before_it():
+    objs = (KnownObject.from_properties("pmma", "polymer", 0.185, 1178.0, 1429.0, 0.05),
+            KnownObject.from_properties("glass", "glass", 1.0, 2500.0, 750.0, 0.05))
+    table = {0.5: {"temperature": 9.0, "z_crit": 6.0}, 2.0: {"temperature": 1.0, "z_crit": 2.5}}
+    s = ObjectSet(objs, contact_calibration=table)
+    e = PMMA.effusivity_W_s05_m2K
+    d = SequentialDecision(s, 0.9, 0.0)
+    early = d._answer(0.3, e, 0.01, 10)          # posterior >= 0.9, but before the calibrated 0.5 s
+    assert early.posterior >= 0.9 and not early.decided and d.decided is None
+    at_half = d._answer(0.6, e, 0.01, 12)
+    at_two = SequentialDecision(s, 0.9, 0.0)._answer(2.0, e, 0.01, 40)
+    # The 0.5-s calibration (T = 9) is less sure than the 2-s one (T = 1) of the same e and u.
+    assert at_half.posterior < at_two.posterior
+    assert at_half.decided and d.decided is at_half

@@ -26,8 +26,9 @@ def test_self_consistent_chain_recovers_its_parameters():
     for e, rc, tau in ((1500.0, 1e-4, 0.0), (560.0, 3e-5, 0.1), (20000.0, 1e-4, 0.0)):
         cal = SensorChainCalibration(tc_tau_s=tau)
         T = simulate_chain(t, q, e_W_s05_m2K=e, R_c_m2K_W=rc, T_obj0_C=24.0, T_probe0_C=25.0, calibration=cal)
-        # Unsmoothed: the fit's model is then the simulator's exactly.
-        r = fit_sensor_chain(t, T, q, calibration=cal, smooth_s=0.0)
+        # Unsmoothed and on the record's own samples (inputs linear between them): the fit's model is
+        # then the simulator's exactly.
+        r = fit_sensor_chain(t, T, q, calibration=cal, smooth_s=0.0, refine_dt_s=None)
         # The default smooths theta_b against noise, at a small cost on a noise-free record.
         assert fit_sensor_chain(t, T, q, calibration=cal, breaks_s=(1.0,)).e_W_s05_m2K == pytest.approx(e, rel=5e-3)
         # Exact without lag; with it the de-lagged reading stands in for theta_b in the storage term.

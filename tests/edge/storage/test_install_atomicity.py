@@ -24,8 +24,9 @@ from edge.storage.calibration_store import CalibrationStore
 from edge.storage.objects_store import ObjectSetStore
 from tests.support.calibrations import DEVICE_ID, sample_calibration
 
-A = b"name,class,e_W_s05_m2K\ncup,ceramic,1400\nsponge,foam,60\n"
-B = b"name,class,e_W_s05_m2K\ndesk,wood,400\n"
+# Signed sets name their version (an older signed set is refused: ISSUE #35 §2): B is newer than A.
+A = b"# created_utc: 2026-01-01T00:00:00Z\nname,class,e_W_s05_m2K\ncup,ceramic,1400\nsponge,foam,60\n"
+B = b"# created_utc: 2026-02-01T00:00:00Z\nname,class,e_W_s05_m2K\ndesk,wood,400\n"
 _MUTATING = ("open", "write", "fsync", "replace", "rename", "unlink", "mkdir", "rmdir")
 
 

@@ -10,8 +10,9 @@ from edge.service.objects import parse_object_set
 from edge.storage import durable
 from edge.storage.objects_store import ObjectSetStore, ObjectStoreError
 
-A = b"name,class,e_W_s05_m2K\ncup,ceramic,1400\nsponge,foam,60\n"
-B = b"name,class,e_W_s05_m2K\ndesk,wood,400\n"
+# Signed sets name their version (an older signed set is refused: ISSUE #35 §2): B is newer than A.
+A = b"# created_utc: 2026-01-01T00:00:00Z\nname,class,e_W_s05_m2K\ncup,ceramic,1400\nsponge,foam,60\n"
+B = b"# created_utc: 2026-02-01T00:00:00Z\nname,class,e_W_s05_m2K\ndesk,wood,400\n"
 
 
 def sha(b):

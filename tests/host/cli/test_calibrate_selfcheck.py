@@ -162,3 +162,25 @@ def test_references_touched_at_the_probes_temperature_are_fitted_not_an_internal
     code, _, err = run(capsys, "calibrate", *args, "--out", str(tmp_path / "cal.json"))
     assert "internal error" not in err and "Overflow" not in err
     assert code in (0, 2) and len(err.strip().splitlines()) <= 1, err
+
+
+def test_what_the_references_cannot_identify_is_written_flagged_with_the_reference_that_would(capsys, records,
+                                                                                              tmp_path):
+    # ISSUE #34 item 1: a calibration on two references leaves part of the probe to the datasheet prior;
+    # the file and the screen say which part and what to add -- never written silently.
+    cal = tmp_path / "cal.json"
+    code, out, err = run(capsys, "calibrate", *_args(records, (("pmma", "pmma"), ("pyroceram", "pyroceram"))),
+                         "--out", str(cal))
+    assert code == 0, err
+    ident = json.loads(cal.read_text())["self_check"]["identifiability"]
+    assert ident["not_determined"] and set(ident["determined"]) | set(ident["not_determined"]) == {
+        "ln_flux_scale", "ln_sensing_thickness_m", "tc_tau_s", "ln_sensing_k_W_mK"}
+    assert all(0 < x <= 1.5 for x in ident["u_over_prior"].values()) and ident["advice"]
+    assert "to determine the rest" in out and "determined" in out
+    # The three references determine more of the probe than two.
+    full = tmp_path / "full.json"
+    code, out, err = run(capsys, "calibrate", *_args(records, GOOD), "--out", str(full))
+    assert code == 0, err
+    ident3 = json.loads(full.read_text())["self_check"]["identifiability"]
+    assert len(ident3["determined"]) >= len(ident["determined"])
+    assert all(ident3["u_over_prior"][n] <= ident["u_over_prior"][n] * 1.05 for n in ident["u_over_prior"])

@@ -62,3 +62,20 @@ def test_design_table_covers_the_grid(capsys, monkeypatch):
 def test_design_bad_arguments_one_line(capsys, argv, needle):
     code, out, err = run(capsys, "design", *argv)
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and needle in err
+
+
+def test_design_hand_counts_contact_resistance_and_object_temperature(capsys):
+    from edge.estimation.design import attainable
+    from edge.physics.materials import load_materials
+
+    argv = ("design", "--heater-radius-mm", "32", "--time", "1", "--material", "copper", "--json")
+    code, out, err = run(capsys, *argv)
+    plain = json.loads(out)
+    code, out, err = run(capsys, *argv, "--hand", "--contact-resistance", "5e-5", "--lead", "2")
+    assert code == 0, err
+    d = json.loads(out)
+    ref = attainable(load_materials().get("copper").solid, 1.0, heater_radius_m=32e-3, fit_contact=True,
+                     contact_resistance_m2K_W=5e-5, fit_object_temperature=True, contact_lead_s=2.0)
+    assert d["u_rel_effusivity"] == pytest.approx(ref.u_rel_effusivity, rel=1e-9)
+    assert d["u_rel_effusivity"] > plain["u_rel_effusivity"] and d["hand"] == {"contact_resistance_m2K_W": 5e-5,
+                                                                               "lead_s": 2.0}

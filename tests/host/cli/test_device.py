@@ -106,9 +106,9 @@ def _capture_plots(monkeypatch):
     calls = []
     real = host.plots.plot_touch
 
-    def spy(path, series, result, fit, label=""):
-        calls.append({"series": series, "result": result, "fit": fit, "label": label})
-        return real(path, series, result, fit, label)
+    def spy(path, series, result, fit, label="", **kw):
+        calls.append({"series": series, "result": result, "fit": fit, "label": label, **kw})
+        return real(path, series, result, fit, label, **kw)
 
     monkeypatch.setattr(host.plots, "plot_touch", spy)
     return calls
@@ -129,7 +129,9 @@ def test_measure_plot_over_a_port_reads_the_series_over_the_link(capsys, tmp_pat
     # The series came over SERIES pages, bit for bit what the probe stored.
     for key in ("raw_t_s", "raw_T_C", "raw_q_W_m2", "grid_t_s", "grid_dT_K", "grid_q_W_m2"):
         assert c["series"][key].dtype == np.float64 and np.array_equal(c["series"][key], stored[key]), key
-    assert c["series"]["T0_C"] == stored["T0_C"] and c["label"] == port
+    # The title identifies the measurement, never the port (ISSUE #36 plots).
+    assert c["series"]["T0_C"] == stored["T0_C"] and port not in c["label"]
+    assert c["result"]["measurement_id"] == 1 and c["result"]["started_utc"] == stored["started_utc"]
     # The host's re-estimate with the same bundle reproduces the device's result.
     assert c["fit"] is not None and c["fit"].fit_T_K is not None
     assert c["fit"].effusivity_W_s05_m2K == pytest.approx(c["result"]["effusivity_W_s05_m2K"], rel=1e-9)
@@ -290,3 +292,25 @@ def test_sim_command_prints_the_port_first_and_stops_on_sigint(tmp_path):
             proc.wait()
     assert proc.returncode == 0, err
     assert "Traceback" not in err
+
+
+def test_measure_stream_prints_phases_and_running_answers_before_the_answer(capsys):
+    code, out, err = run(capsys, "measure", "--sim", "glass_15V", "--stream")
+    assert code == 0, err
+    lines = out.splitlines()
+    first_answer = next(i for i, ln in enumerate(lines) if ln.startswith("measurement "))
+    live = lines[:first_answer]
+    assert any(ln.strip().endswith("heating") for ln in live)
+    assert any("running answer:" in ln for ln in live)
+    assert live[-1].strip().endswith("done")            # the stream ends before the answer is printed
+
+
+def test_measure_stream_json_is_one_object_per_line_with_the_answer_last(capsys):
+    code, out, err = run(capsys, "measure", "--sim", "pmma_15V", "--stream", "--json")
+    assert code == 0, err
+    objs = [json.loads(ln) for ln in out.splitlines()]
+    kinds = {o.get("event") for o in objs[:-1]}
+    assert {"phase", "samples", "runninganswer"} <= kinds
+    assert "event" not in objs[-1] and RESULT_KEYS <= set(objs[-1])
+    streamed = [t for o in objs if o.get("event") == "samples" for t in o["t_s"]]
+    assert streamed == sorted(streamed) and len(streamed) >= 20   # 2.5 s at the scene's 10 Hz

@@ -1,0 +1,424 @@
+"""Tactile recognition on drawn as-built probes, calibrated, at 0.5 / 1 / 2 s of heating (issue #37).
+
+The robot's 14 everyday objects (bench/_objects.py ``IN_SET``, none a library entry) and objects
+outside the set (``--out``, default four of ``HELD_OUT_FAR``: the right answer is ``unknown``), each
+touched ``--touches`` times, every touch a fresh specimen (5 % spread in e and α, independent), by
+hand (R_c uniform in [0, ``--rc-max``], object - probe uniform in +-2 K, contact 0.5-3 s before
+heating: bench/_asbuilt_touches.hand_draw), on ``--probes`` probes drawn per head
+(:func:`firmware_sim.asbuilt.draw_as_built`; touch ``j`` of an object on probe ``j mod probes``),
+each calibrated on its own reference touches the way ``thermotouch calibrate`` does
+(bench/_asbuilt_touches.calibrate_records).  Every touch runs through the device's own code on the
+emulated chips (precision board, 2 s of heating); its raw record is cached
+(bench/results/cache/tactile_asbuilt_<head>.npz) and estimated through the one estimate path
+(:func:`edge.estimation.seam.estimate_touch`, the probe's calibration) at 0.5, 1 and 2 s of its
+heating (the first ``t`` s of the record: heating is causal).
+
+Recognition: the set's likelihood per object is a Gaussian in ln e (and ln α where the small head
+measured it) of variance ``T(t) (u² + spread²)``; ``u`` is the answer's stated u, which for the
+calibrated chain already carries the calibration's model-form floor (``u_e_parts``).  The
+temperature ``T(t)`` and the open-set ``z_crit(t)`` are fitted per head and per contact time
+(:func:`host.recognition.calibrate`) by two-fold cross-fitting: the touches of even specimen index
+calibrate the set that answers the odd ones and vice versa -- no touch is answered by a set fitted
+on it.  The fitted values are reported (they are what an object set's ``contact_calibration``
+directive stores).
+
+Reported per head and contact time: object and class accuracy of the in-set touches, the Bayes rate
+of the set (e alone; each object at the median u the calibrated probe states for it at that
+contact time, its *attainable* u, listed), in-set accepted, out-of-set rejected, ECE and the
+reliability table, the confusion matrix at 1 s, the e error (median per object) and an
+until-decided emulation against the fixed 1- and 2-s answers.
+
+Run:  python bench/tactile_asbuilt_bench.py [--heads paper small-heater] [--touches 10] [--probes 3]
+      [--reuse] [--update-readme]
+``--reuse`` re-estimates the cached records (a new calibration or estimator: no re-simulation).
+Writes bench/results/tactile_asbuilt.json; --update-readme the ``tactile-asbuilt-bench`` block of
+docs/results.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import tempfile
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from _common import write_block, write_json
+import _asbuilt_touches as A
+from _objects import HELD_OUT_FAR, IN_SET
+from _recognition import bayes_ceiling, confusion_matrix, in_set_reliability
+from edge.recognition import BROAD_LN, ObjectSet, measured_alpha
+from edge.recognition.fields import BROAD_FLAGS
+from host.recognition import Touches, calibrate, classify_touches
+
+CONTACTS_S = (0.5, 1.0, 2.0)
+HEAT_S = 2.0
+BOARD = "ads122c04"
+DEFAULT_OUT = ("ldpe_squeeze_bottle", "concrete_step", "ti_bike_frame", "cast_iron_pan")
+#: Noise (1 sigma) of T (K) and q (W/m^2) per board for the attainable u: the precision board's, and the
+#: reference board's converter steps (MCP9600 0.0625 K, ADS1115 ~14 W/m^2) as uniform rounding, step / sqrt(12).
+BOARD_NOISE = {"precision": (0.01, 0.5), "reference": (0.0625 / math.sqrt(12.0), 14.0 / math.sqrt(12.0))}
+#: Until-decided emulation: the running answer is checked at these heating times (s) ...
+DECIDE_GRID_S = (0.5, 0.75, 1.0, 1.25, 1.5, 2.0)
+#: ... and heating stops at the first where the accepted object's calibrated posterior reaches this.
+DECIDE_P = 0.95
+
+
+def _objects(out_names):
+    out = tuple(o for o in HELD_OUT_FAR if o.name in out_names)
+    return IN_SET + out, out
+
+
+def simulate_head(head: str, objects, touches: int, n_probes: int, rc_max: float, seed: int,
+                  board: str = "precision") -> dict:
+    """Calibrate ``n_probes`` drawn probes and touch every object ``touches`` times; the cacheable raw records."""
+    from thermotouch_models import DEFAULT_BUNDLE
+
+    from edge.estimation.estimate import pipeline_golden_check
+    from edge.model.bundle import load_bundle
+    from firmware_sim.rigs.sequence_rig import OneBundleStore
+
+    store = OneBundleStore(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
+    wd = tempfile.mkdtemp(prefix="tactile-asbuilt-")
+    rng = np.random.default_rng([seed, len(head)])
+    recs, meta = [], []
+    t0 = time.perf_counter()
+    for p in range(1, n_probes + 1):
+        for name, r in A.reference_records(head, p, store, wd, board):
+            recs.append(r)
+            meta.append({"kind": "reference", "probe": p, "name": name})
+        print(f"{head}: probe {p} references touched ({time.perf_counter() - t0:.0f} s)", flush=True)
+    for i, obj in enumerate(objects):
+        for j in range(touches):
+            sp = A.specimen(obj, rng)
+            hand = A.hand_draw(rng, rc_max)
+            p = 1 + j % n_probes
+            sc = A.hand_scene(head, sp, p, 100 * i + j + 1, heat_s=HEAT_S, label=obj.name, board=board, **hand)
+            recs.append(A.simulate(sc, store, wd, HEAT_S))
+            meta.append({"kind": "touch", "probe": p, "name": obj.name, "j": j,
+                         "e_true": sp.effusivity_W_s05_m2K, "alpha_true": sp.alpha_m2_s, **hand})
+        print(f"{head}: {obj.name} touched ({time.perf_counter() - t0:.0f} s)", flush=True)
+    return {"records": recs, "meta": meta, "sim_s": time.perf_counter() - t0}
+
+
+def estimate_head(head: str, recs, meta) -> dict:
+    """Calibrate each probe on its references, then estimate every touch at each contact time."""
+    from edge.calibration.model import CalibrationError
+    from edge.estimation.seam import estimate_touch
+    from host.cli.common import seam_context
+
+    t0 = time.perf_counter()
+    probes = sorted({m["probe"] for m in meta})
+    cals, ctx = {}, {}
+    for p in probes:
+        refs = [(m["name"], r) for r, m in zip(recs, meta) if m["kind"] == "reference" and m["probe"] == p]
+        try:
+            cal, check = A.calibrate_records(head, refs)
+            cals[p] = {"sha256": cal.sha256, "u_rel_floor": cal.u_rel_floor, "forced": cal.forced,
+                       "self_check_passed": check.get("passed"), "refused": None}
+        except (CalibrationError, ValueError) as exc:
+            cal = None
+            cals[p] = {"refused": f"{type(exc).__name__}: {exc}"}
+        ctx[p] = seam_context(None, calibration=cal)
+        print(f"{head}: probe {p} calibration {cals[p]}", flush=True)
+    rows = []
+    for r, m in zip(recs, meta):
+        if m["kind"] != "touch":
+            continue
+        for ct in sorted(set(CONTACTS_S) | set(DECIDE_GRID_S)):
+            row = {**m, "contact_s": ct, "e": math.nan, "u_ln_e": math.nan, "alpha": math.nan,
+                   "u_ln_alpha": math.nan, "corr": math.nan, "method": None, "flags": [], "error": None}
+            if r is None:
+                row["error"] = "no record"
+            else:
+                try:
+                    d = estimate_touch(A.truncated(r, ct), ctx[m["probe"]]).to_dict()
+                    e, u = d["effusivity_W_s05_m2K"], d["effusivity_W_s05_m2K_u"]
+                    row.update(method=d["method"], flags=list(d["flags"]),
+                               chain_flags=(d.get("sensor_chain") or {}).get("flags"))
+                    if e is not None and u is not None and e > 0:
+                        row.update(e=float(e), u_ln_e=float(u) / float(e), u_ln_e_stated=float(u) / float(e))
+                        if BROAD_FLAGS & set(d["flags"]):   # named as the device names it (recognition_fields)
+                            row["u_ln_e"] = max(row["u_ln_e"], BROAD_LN)
+                        a = measured_alpha(d)
+                        if a is not None:
+                            row.update(alpha=a[0], u_ln_alpha=a[1], corr=a[2])
+                except ValueError as exc:
+                    row["error"] = f"{type(exc).__name__}: {exc}"
+            rows.append(row)
+    return {"calibrations": cals, "rows": rows, "estimate_s": time.perf_counter() - t0}
+
+
+def touches_of(rows, names, ct) -> Touches:
+    rs = [r for r in rows if r["contact_s"] == ct]
+    col = lambda k: np.array([r[k] for r in rs], float)  # noqa: E731
+    return Touches(np.array([names.index(r["name"]) for r in rs], int), np.array([BOARD] * len(rs)),
+                   col("contact_s"), col("e_true"), col("e"), col("u_ln_e"), tuple(names),
+                   col("alpha"), col("u_ln_alpha"), col("corr"))
+
+
+def cross_fit(oset: ObjectSet, t: Touches, j: np.ndarray, broad: np.ndarray):
+    """Two-fold: the set fitted on the in-set touches of one specimen parity answers the other parity.
+
+    Touches named with a widened u (``broad``: the calibrated path refused them, BROAD_FLAGS) are
+    answered but not fitted on: their width is fixed by the rule, not by the probe's stated u.
+    """
+    recs: list = [None] * t.e.size
+    fits = []
+    in_set = np.array([t.names[i] in oset for i in t.obj])
+    for fold in (0, 1):
+        fit_on = in_set & (j % 2 == fold) & t.ok & ~broad
+        cal, rep = calibrate(oset, BOARD, sim=t.select(fit_on))
+        fits.append({"temperature": rep["temperature"], "z_crit": rep["z_crit"], "touches": rep["touches"],
+                     "alpha_u_growth": rep["alpha_u_growth"]})
+        ans = (j % 2 != fold)
+        sub = t.select(ans)
+        for k, rec in zip(np.flatnonzero(ans), classify_touches(cal, sub)):
+            recs[k] = rec
+    return recs, fits
+
+
+def evaluate(oset: ObjectSet, t: Touches, recs, out_names, u_fisher: dict) -> dict:
+    truth = [t.names[i] for i in t.obj]
+    cls_of = {o.name: o.recognition_class for o in oset.objects}
+    a_in = [k for k, n in enumerate(truth) if n in oset and recs[k] is not None]
+    a_out = [k for k, n in enumerate(truth) if n in out_names and recs[k] is not None]
+    n_in = sum(n in oset for n in truth)
+    mean = lambda a: float(np.mean(a)) if len(a) else None  # noqa: E731
+    u_of, n_of = {}, {}
+    for k in a_in:
+        u_of.setdefault(truth[k], []).append(float(t.u_ln_e[k]))
+    n_of = {k: len(v) for k, v in u_of.items()}
+    u_of = {k: float(np.median(v)) for k, v in u_of.items()}
+    bayes_obj, bayes_cls = bayes_ceiling(oset, u_of, n_of) if u_of else (None, None)
+    # The issue's reference: the Bayes rate at the attainable u (Fisher bound with R_c fitted, host.objects).
+    w_all = {n: 1 for n in oset.names}
+    bayes_att, bayes_att_cls = bayes_ceiling(oset, {n: u_fisher[n] for n in oset.names}, w_all)
+    err = {}
+    for k in a_in:
+        err.setdefault(truth[k], []).append(float(t.e[k] / t.e_true[k] - 1.0))
+    return dict(
+        touches_in=n_in, answered_in=len(a_in), touches_out=sum(n in out_names for n in truth),
+        # A refused touch (no estimate) is a wrong answer: accuracies over all in-set touches.
+        object_accuracy=sum(recs[k].object == truth[k] for k in a_in) / max(1, n_in),
+        class_accuracy=sum(recs[k].cls == cls_of[truth[k]] for k in a_in) / max(1, n_in),
+        closed_set_accuracy=mean([recs[k].candidates[0][0] == truth[k] for k in a_in]),
+        in_set_accepted=sum(recs[k].accepted for k in a_in) / max(1, n_in),
+        out_rejected=mean([not recs[k].accepted for k in a_out]),
+        out_rejected_by_object={n: mean([not recs[k].accepted for k in a_out if truth[k] == n]) for n in out_names},
+        bayes_object=bayes_att, bayes_class=bayes_att_cls, bayes_object_stated_u=bayes_obj,
+        bayes_class_stated_u=bayes_cls, stated_u_by_object=u_of, attainable_u_by_object=u_fisher,
+        median_err_by_object={n: float(np.median(v)) for n, v in err.items()},
+        rel_object=in_set_reliability(oset, t, recs), rel_class=in_set_reliability(oset, t, recs, of_class=True),
+        confusion=confusion_matrix(oset, t, recs))
+
+
+def until_decided(oset, rows, names, fits_by_ct) -> dict:
+    """Emulation: heating stops at the first grid time whose accepted answer's posterior reaches DECIDE_P.
+
+    Each grid time's answer is the same touch's record cut there, recognised by the set calibrated
+    at the nearest fitted contact time (fold of the other parity); never before 0.5 s (the chain's
+    fit needs FIT_START + 0.2 s after contact, and 0.5 s is the shortest window calibrated).
+    """
+    by = {}
+    for r in rows:
+        by.setdefault((r["name"], r["j"]), {})[r["contact_s"]] = r
+    out = {"decided_s": [], "correct": [], "fixed_1s": [], "fixed_2s": []}
+    for (name, j), per in by.items():
+        if name not in oset:
+            continue
+        stop, ans = None, None
+        for ct in DECIDE_GRID_S:
+            r = per.get(ct)
+            if r is None or not math.isfinite(r["e"]):
+                continue
+            fit = fits_by_ct[min(fits_by_ct, key=lambda c: abs(c - ct))][1 - j % 2]
+            s = oset.with_calibration(temperature=fit["temperature"], z_crit=fit["z_crit"])
+            rec = s.classify(r["e"], r["u_ln_e"])
+            ans = rec.object
+            if rec.accepted and rec.object_posterior >= DECIDE_P:
+                stop = ct
+                break
+        out["decided_s"].append(stop if stop is not None else max(DECIDE_GRID_S))
+        out["correct"].append(ans == name)
+    return {"median_decision_s": float(np.median(out["decided_s"])), "accuracy": float(np.mean(out["correct"])),
+            "share_stopped_before_2s": float(np.mean(np.array(out["decided_s"]) < 2.0)), "n": len(out["correct"])}
+
+
+def recognise_head(head: str, est: dict, objects, out_objs, board: str = "precision") -> dict:
+    from host.objects import attainable_u_ln_e
+
+    names = [o.name for o in objects]
+    out_names = [o.name for o in out_objs]
+    oset = ObjectSet(IN_SET, label="tactile")
+    res, fits_by_ct = {}, {}
+    for ct in CONTACTS_S:
+        rows = [r for r in est["rows"] if r["contact_s"] == ct]
+        t = touches_of(rows, names, ct)
+        j = np.array([r["j"] for r in rows])
+        broad = np.array([r.get("u_ln_e_stated") is not None and r["u_ln_e"] != r["u_ln_e_stated"] for r in rows])
+        recs, fits = cross_fit(oset, t, j, broad)
+        fits_by_ct[ct] = fits
+        sT, sq = BOARD_NOISE[board]
+        u_fisher = attainable_u_ln_e(oset, ct, probe=head, sigma_T_K=sT, sigma_q_W_m2=sq)
+        res[str(ct)] = {**evaluate(oset, t, recs, out_names, u_fisher), "fits": fits,
+                        "refused": sum(not math.isfinite(r["e"]) for r in rows),
+                        "calibration_refused": int(broad.sum()),
+                        "methods": {m: sum(r["method"] == m for r in rows) for m in {r["method"] for r in rows}}}
+    return {"by_contact_s": res}
+
+
+# -- report ---------------------------------------------------------------------------------------
+def pct(x, nd=0):
+    return "–" if x is None else f"{100 * x:.{nd}f}"
+
+
+BARS = {"1.0": (0.93, 0.96, 0.93, 0.85), "2.0": (0.98, 0.98, 0.95, 0.95)}
+
+
+def head_lines(head: str, h: dict) -> list[str]:
+    R = h["recognition"]["by_contact_s"]
+    L = [f"**{head}** ({h['n_probes']} drawn probes; calibrations: "
+         + "; ".join(f"probe {p}: " + (f"floor {c['u_rel_floor']:.1%}, self-check "
+                                        f"{'passed' if c['self_check_passed'] else 'failed (forced)'}"
+                                        if c.get("refused") is None else f"refused ({c['refused'][:90]})")
+                     for p, c in h["calibrations"].items()) + ")", "",
+         "| contact | object acc | Bayes rate | class acc | class Bayes | in-set accepted | out-of-set rejected | "
+         "ECE object | ECE class | no estimate / calibrated path refused | T, z_crit (folds) |",
+         "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for ct, r in R.items():
+        f = r["fits"]
+        L.append(f"| {float(ct):g} s | {pct(r['object_accuracy'], 1)} % | {pct(r['bayes_object'], 1)} % | "
+                 f"{pct(r['class_accuracy'], 1)} % | {pct(r['bayes_class'], 1)} % | {pct(r['in_set_accepted'], 1)} % | "
+                 f"{pct(r['out_rejected'], 1)} % | {pct(r['rel_object']['ece'], 1)} % | "
+                 f"{pct(r['rel_class']['ece'], 1)} % | {r['refused']} / {r.get('calibration_refused', 0)} | "
+                 + ", ".join(f"{x['temperature']:.2f}/{x['z_crit']:.2f}" for x in f) + " |")
+    L += ["", "Bayes rate with the u the calibrated probe states (median per object): "
+          + ", ".join(f"{float(c):g} s {pct(R[c]['bayes_object_stated_u'], 1)} % (class "
+                      f"{pct(R[c]['bayes_class_stated_u'], 1)} %)" for c in R) + ".", "",
+          "Per object: attainable u(e) (Fisher bound, R_c fitted: `host.objects.attainable_u_ln_e`), the u the "
+          "calibrated probe stated (median) and the median e error:", "",
+          "| object | " + " | ".join(f"{float(c):g} s: attainable u / stated u / error" for c in R) + " |",
+          "|---|" + "---|" * len(R)]
+    for o in IN_SET:
+        L.append(f"| {o.name} | " + " | ".join(
+            f"{pct(R[c]['attainable_u_by_object'].get(o.name), 1)} / {pct(R[c]['stated_u_by_object'].get(o.name), 1)}"
+            f" / {pct(R[c]['median_err_by_object'].get(o.name), 1)} %" for c in R) + " |")
+    L += ["", "Reliability (object posterior of in-set answers; `unknown` counts wrong):", "",
+          "| bin | " + " | ".join(f"{float(c):g} s n | conf | acc" for c in R) + " |", "|---|" + "---|---|---|" * len(R)]
+    for b in range(len(R["1.0"]["rel_object"]["rows"])):
+        row = [R[c]["rel_object"]["rows"][b] for c in R]
+        L.append(f"| {row[0]['lo']:.2f}-{row[0]['hi']:.2f} | " + " | ".join(
+            f"{x['n']} | {pct(x['confidence'])} | {pct(x['accuracy'])}" for x in row) + " |")
+    cm = R["1.0"]["confusion"]
+    short = [str(i + 1) for i in range(len(cm["cols"]) - 2)] + ["u", "r"]
+    L += ["", "Confusion at 1 s (rows: touched; columns: the set's objects in order, u = unknown, r = refused):", "",
+          "| touched | " + " | ".join(short) + " |", "|---|" + "---|" * len(short)]
+    for i, (name, row) in enumerate(zip(cm["rows"], cm["counts"])):
+        tag = f"{i + 1} {name}" if i < len(IN_SET) else f"(out) {name}"
+        L.append(f"| {tag} | " + " | ".join(str(x) if x else "." for x in row) + " |")
+    d = h.get("until_decided")
+    if d:
+        L += ["", f"Until decided (emulated on the record's prefixes, stop at an accepted posterior ≥ {DECIDE_P}): "
+              f"median decision {d['median_decision_s']:.2f} s, accuracy {pct(d['accuracy'], 1)} % "
+              f"(fixed 1 s {pct(R['1.0']['object_accuracy'], 1)} %, fixed 2 s {pct(R['2.0']['object_accuracy'], 1)} %), "
+              f"{pct(d['share_stopped_before_2s'])} % stopped before 2 s."]
+    return L
+
+
+def bar_lines(res: dict) -> list[str]:
+    h = res["heads"].get("paper")
+    if h is None:
+        return []
+    R = h["recognition"]["by_contact_s"]
+    L = [f"Bars (paper probe, precision board; this run: {res.get('board', 'precision')} board): object / class / "
+         "in-set accepted / out-of-set rejected, ECE ≤ 3 %:", ""]
+    for ct, (bo, bc, bi, bx) in BARS.items():
+        r = R[ct]
+        ok = lambda x, b: "met" if x is not None and x >= b else "NOT met"  # noqa: E731
+        extra = ""
+        if ct == "1.0" and r["bayes_object"] is not None:
+            extra = (f", within 3 points of the Bayes rate {pct(r['bayes_object'], 1)} %: "
+                     f"{'met' if r['object_accuracy'] >= r['bayes_object'] - 0.03 else 'NOT met'}")
+        L.append(f"* {float(ct):g} s: object {pct(r['object_accuracy'], 1)} % (≥ {pct(bo)}: {ok(r['object_accuracy'], bo)}"
+                 f"{extra}), class {pct(r['class_accuracy'], 1)} % ({ok(r['class_accuracy'], bc)}), in-set accepted "
+                 f"{pct(r['in_set_accepted'], 1)} % ({ok(r['in_set_accepted'], bi)}), out-of-set rejected "
+                 f"{pct(r['out_rejected'], 1)} % ({ok(r['out_rejected'], bx)})")
+    L.append("* ECE (object): " + ", ".join(f"{float(c):g} s {pct(R[c]['rel_object']['ece'], 1)} % "
+                                            f"({'met' if R[c]['rel_object']['ece'] <= 0.03 else 'NOT met'})" for c in R))
+    for c in R:
+        big = [b for b in R[c]["rel_object"]["rows"] if b["n"] >= 20]
+        off = [b for b in big if abs(b["accuracy"] - b["confidence"]) > 0.05]
+        L.append(f"* reliability at {float(c):g} s, bins with ≥ 20 touches within ±5 points: "
+                 + ("met" if not off else "NOT met (" + ", ".join(
+                     f"{b['lo']:.2f}-{b['hi']:.2f}: confidence {pct(b['confidence'])} %, right {pct(b['accuracy'])} %"
+                     f" of {b['n']}" for b in off) + ")") + f" ({len(big)} such bins)")
+    return L
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--heads", nargs="+", default=["paper", "small-heater"], choices=("paper", "small-heater"))
+    ap.add_argument("--touches", type=int, default=10)
+    ap.add_argument("--probes", type=int, default=3)
+    ap.add_argument("--out", nargs="+", default=list(DEFAULT_OUT))
+    ap.add_argument("--rc-max", type=float, default=3e-5)
+    ap.add_argument("--objects", type=int, default=None, help="first N in-set objects only (development)")
+    ap.add_argument("--seed", type=int, default=37)
+    ap.add_argument("--board", choices=("precision", "reference"), default="precision",
+                    help="reference: the MCP9600 + ADS1115 board (paper head only); its own cache and JSON")
+    ap.add_argument("--reuse", action="store_true", help="re-estimate the cached records (no simulation)")
+    ap.add_argument("--update-readme", action="store_true")
+    args = ap.parse_args()
+    objects, out_objs = _objects(args.out)
+    if args.objects:
+        objects = IN_SET[:args.objects] + out_objs
+    t0 = time.perf_counter()
+    res = {"heads": {}, "touches": args.touches, "probes": args.probes, "rc_max_m2K_W": args.rc_max,
+           "contacts_s": CONTACTS_S, "board": BOARD, "out": [o.name for o in out_objs]}
+    for head in args.heads:
+        suffix = "" if args.board == "precision" else f"_{args.board}"
+        path = A.CACHE / f"tactile_asbuilt_{head}{suffix}.npz"
+        if args.reuse and path.exists():
+            recs, meta, info = A.load_records(path)
+        else:
+            sim = simulate_head(head, objects, args.touches, args.probes, args.rc_max, args.seed, args.board)
+            recs, meta, info = sim["records"], sim["meta"], {"sim_s": sim["sim_s"], "argv": sys.argv[1:]}
+            A.save_records(path, recs, meta, info)
+        est = estimate_head(head, recs, meta)
+        present = [o for o in objects if any(m.get("name") == o.name for m in meta)]
+        h = {"n_probes": len({m["probe"] for m in meta}), "calibrations": {str(k): v for k, v in est["calibrations"].items()},
+             "sim_s": info.get("sim_s"), "estimate_s": est["estimate_s"], "rows": est["rows"]}
+        h["recognition"] = recognise_head(head, est, present, out_objs, args.board)
+        fits = {float(c): r["fits"] for c, r in h["recognition"]["by_contact_s"].items()}
+        h["until_decided"] = until_decided(ObjectSet(IN_SET), est["rows"], [o.name for o in present], fits)
+        res["heads"][head] = h
+        for line in head_lines(head, h):
+            print(line)
+    res["bench_s"] = time.perf_counter() - t0
+    res["load_avg_1min"] = os.getloadavg()[0]
+    res["board"] = args.board
+    write_json("tactile_asbuilt" + ("" if args.board == "precision" else f"_{args.board}"), res)
+    cmd = "python bench/tactile_asbuilt_bench.py " + " ".join(sys.argv[1:])
+    sims = ", ".join(f"{hd} {h['sim_s'] / 60:.0f} min" for hd, h in res["heads"].items() if h.get("sim_s"))
+    L = [f"Generated by `{cmd.strip()}` ({res['bench_s'] / 60:.1f} min, load {res['load_avg_1min']:.1f}; "
+         f"the simulation pass that made the cached records: {sims or '–'}; "
+         "JSON in `bench/results/tactile_asbuilt.json`). Drawn as-built probes, each calibrated on its own "
+         f"references; hand touches (R_c ≤ {args.rc_max:g} m²K/W, object ±2 K, contact 0.5–3 s before heating), "
+         f"{args.touches} specimens per object (5 % spread), 14 in-set objects and {len(out_objs)} outside the set; "
+         "temperature and z_crit per contact time, two-fold cross-fitted.", ""]
+    L += bar_lines(res) + [""]
+    for head, h in res["heads"].items():
+        L += head_lines(head, h) + [""]
+    for line in bar_lines(res):
+        print(line)
+    if args.update_readme:
+        write_block("tactile-asbuilt-bench" + ("" if args.board == "precision" else f"-{args.board}"), "\n".join(L))
+
+
+if __name__ == "__main__":
+    main()
