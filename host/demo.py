@@ -1,5 +1,21 @@
 """``thermotouch demo``: a simulated probe, a deployed model, the paper's nine touches, a table and plots.
 
+By default (:func:`run_demo`) the probe is the instrument as a user meets it: a
+paper probe DRAWN as built (:data:`DRAW_SEED`, the scene key ``[as_built]
+draw_seed``: the simulator draws every unknown, the device is told only
+the nominal values) on the faithful world (the ``*_faithful`` scenes' board and
+sensors: the (r, z) finite-volume probe, never the estimator's model).  It is
+calibrated by the README's walk-through -- the code ``thermotouch calibrate
+--sim`` runs: armed touches of the default references
+(:func:`host.calibration.touch_reference`), the fit, its leave-one-reference-out
+self-check (:func:`host.calibration.checked_calibration`) and CALIBRATION_SET --
+then the paper's samples are touched by hand (a contact resistance, an object
+off the probe's temperature) and each answer is printed against the true value
+with its 95 % interval, whether that interval holds the truth, the answer's
+calibration and its flags.
+
+With ``ideal=True`` (``--ideal``) it is the ideal-world demo below: the
+estimator's own 1-D world, so its errors show the estimator, not an instrument.
 One simulated probe with persistent storage (``OUT/device``) is powered up
 on each of the paper's nine scenes in turn (tempered glass at 12/15/18 V,
 PMMA at 8/15/20 V, aluminium alloy at 15/20/25 V). On the first, the model
@@ -29,13 +45,26 @@ from firmware_sim.scene.files import PRECISION_BOARD, scene_variant
 from host.atomic import write_text_atomic
 from host.device import DeviceUnavailable, open_device
 
-__all__ = ["PAPER_SCENES", "TABLE2", "run_demo", "measure_scenes", "format_table", "build_then_move"]
+__all__ = ["PAPER_SCENES", "TABLE2", "DRAW_SEED", "run_demo", "measure_scenes", "format_table",
+           "format_instrument_table", "build_then_move"]
 
 PAPER_SCENES = ("glass_12V", "glass_15V", "glass_18V", "pmma_8V", "pmma_15V", "pmma_20V",
                 "alu_15V", "alu_20V", "alu_25V")
 #: Paper Table 2 (reference measurements): k (W/m/K), alpha (m^2/s) by sample.
 TABLE2 = {"tempered glass": (1.097, 0.552e-6), "PMMA": (0.185, 0.110e-6), "Al alloy": (120.4, 51.9e-6)}
 _SAMPLE_OF = {"glass": "tempered glass", "pmma": "PMMA", "alu": "Al alloy"}
+#: The default demo's probe: ``[as_built] draw_seed`` (a fixed seed: every run draws the same probe).
+DRAW_SEED = 1
+#: The faithful scene whose board (precision: ADS122C04) and sensors the default demo's scenes take.
+FAITHFUL_BASE = "alu_20V_faithful"
+#: Heating of each walk-through reference touch (s): the walk-through's default is 8 s; 4 s is what the
+#: demo's time allows and the self-check accepts (its references re-measure within ~2 %; 2 s: ~6 %).
+REFERENCE_HEAT_s = 3.0
+#: The hand touch per sample (contact resistance m^2K/W, object minus probe K): a dry hand-pressed
+#: contact and an object off the probe's temperature, resting 1 s before the heating.
+#: The default demo's touches: one per paper sample at its middle voltage (the nine with ``scenes=PAPER_SCENES``).
+SAMPLE_SCENES = ("glass_15V", "pmma_15V", "alu_20V")
+HAND_TOUCH = {"glass": (2.0e-5, -1.5), "pmma": (1.0e-5, 1.0), "alu": (3.0e-5, -1.0)}
 
 
 def _err(v, ref):
@@ -95,6 +124,7 @@ def _measure_scene(workdir: Path, scene_ref, plots: Path | None, plotter, expect
         "paper": None if paper is None else {"e": paper.effusivity_W_s05_m2K, "k": paper.k_W_mK,
                                              "alpha": paper.alpha_m2_s, "flags": list(paper.flags)},
         "flags": list(t.record.get("flags") or []),
+        "method": r.get("method"), "calibration_sha256": r.get("calibration_sha256"),
         "heater": {"ok": inv["ok"], "longest_on_s": inv["longest_on_s"], "off_now": inv["off_now"],
                    "limit_s": limit},
     }
@@ -166,9 +196,14 @@ def format_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def run_demo(out: str | Path = "thermotouch-demo", *, train: bool = False, scenes=PAPER_SCENES,
-             progress: bool = True, overwrite: bool = False, log: Callable[[str], None] = print) -> int:
+def run_demo(out: str | Path = "thermotouch-demo", *, train: bool = False, scenes=None,
+             progress: bool = True, overwrite: bool = False, ideal: bool = False,
+             log: Callable[[str], None] = print) -> int:
     """The demo (see the module docstring); returns the exit status.
+
+    ``ideal``: the ideal-world demo (the estimator's 1-D world, both boards); otherwise the drawn
+    as-built probe, calibrated, touching ``scenes`` on the faithful world.  ``scenes``: default
+    :data:`PAPER_SCENES` (ideal) or :data:`SAMPLE_SCENES`.
 
     ``out`` must not exist unless ``overwrite`` (then its simulated probe
     storage ``out/device`` is reset, and the demo's files are replaced).
@@ -188,8 +223,11 @@ def run_demo(out: str | Path = "thermotouch-demo", *, train: bool = False, scene
         raise NotADirectoryError(f"{out} exists and is not a directory")
     if out.exists() and not overwrite:
         raise FileExistsError(f"{out} exists (use --overwrite to replace it)")
-    return build_then_move(out, lambda work: _demo_into(work, out, train=train, scenes=scenes, progress=progress,
-                                                        overwrite=overwrite, log=log, t0=t0))
+    demo = _demo_into if ideal else _instrument_into
+    if scenes is None:
+        scenes = PAPER_SCENES if ideal else SAMPLE_SCENES
+    return build_then_move(out, lambda work: demo(work, out, train=train, scenes=scenes, progress=progress,
+                                                  overwrite=overwrite, log=log, t0=t0))
 
 
 def build_then_move(out: Path, build: Callable[[Path], Any]) -> Any:
@@ -235,36 +273,18 @@ def _move_into(work: Path, out: Path) -> None:
 
 def _demo_into(out: Path, final: Path, *, train: bool, scenes, progress: bool, overwrite: bool,
                log: Callable[[str], None], t0: float) -> int:
-    """The demo's run, written into ``out`` (the temporary sibling); messages name ``final``."""
-    from host.deploy import DeployRefused, train_and_deploy  # noqa: PLC0415
-    from host.flash import flash_bundle  # noqa: PLC0415
+    """The ideal-world demo's run, written into ``out`` (the temporary sibling); messages name ``final``."""
     from host.plots import PlotProcess  # noqa: PLC0415
     from host.progress import ProgressBar  # noqa: PLC0415
 
     workdir = out / "device"
-    from thermotouch_models import DEFAULT_BUNDLE  # noqa: PLC0415
-
     # The plots are drawn in a child process from the start (it imports Matplotlib while the
     # model is flashed) to the end, on the other core, while the probe is touched.
     with PlotProcess() as plotter:
         log(f"ThermoTouch demo: simulated probe (storage {final / 'device'}), virtual serial link")
         with open_device(sim=scenes[0], workdir=workdir) as s:
             log(f"probe on {s.port}: board {s.client.info()['board']}")
-            sha = None
-            if train:
-                log("training a quick model and deploying it if it is no worse than the probe's ...")
-                try:
-                    r = train_and_deploy(s, out / "model", quick=True, progress=progress, overwrite=overwrite,
-                                         log=lambda m: log("  " + m))
-                    sha = r["model_sha256"]
-                except DeployRefused as exc:
-                    log(f"  refused: {exc}")
-                    log("  the demo continues with the model the probe runs")
-            if sha is None:
-                log(f"flashing the shipped model {DEFAULT_BUNDLE} ...")
-                fl = flash_bundle(s, DEFAULT_BUNDLE, progress=progress)
-                sha = fl["model_sha256"]
-                log(f"  device reports sha256 {sha}")
+            sha = _deploy(s, out, train=train, progress=progress, overwrite=overwrite, log=log)
         # The self-check (with --train) used the first scene's touch; every scene gets a fresh power-up.
         log(f"touching the paper's samples ({len(scenes)} scenes) ...")
         with ProgressBar("touches", "touch", enabled=progress) as bar:
@@ -290,4 +310,196 @@ def _demo_into(out: Path, final: Path, *, train: bool, scenes, progress: bool, o
     log(f"heater invariant held on every touch: {'yes' if heater_ok else 'NO'}; "
         f"plots in {final / 'plots'}/, numbers in {final / 'results.json'}; {time.perf_counter() - t0:.1f} s")
     log(f"the probe's history: thermotouch history --sim glass_15V --workdir {final / 'device'}")
+    return 0 if heater_ok else 1
+
+
+def _deploy(s, out: Path, *, train: bool, progress: bool, overwrite: bool, log: Callable[[str], None]) -> str:
+    """The model on the probe of session ``s``: a quick trained one (``train``, if no worse) or the shipped one."""
+    from host.deploy import DeployRefused, train_and_deploy  # noqa: PLC0415
+    from host.flash import flash_bundle  # noqa: PLC0415
+    from thermotouch_models import DEFAULT_BUNDLE  # noqa: PLC0415
+
+    if train:
+        log("training a quick model and deploying it if it is no worse than the probe's ...")
+        try:
+            r = train_and_deploy(s, out / "model", quick=True, progress=progress, overwrite=overwrite,
+                                 log=lambda m: log("  " + m))
+            return r["model_sha256"]
+        except DeployRefused as exc:
+            log(f"  refused: {exc}")
+            log("  the demo continues with the model the probe runs")
+    log(f"flashing the shipped model {DEFAULT_BUNDLE} ...")
+    sha = flash_bundle(s, DEFAULT_BUNDLE, progress=progress)["model_sha256"]
+    log(f"  device reports sha256 {sha}")
+    return sha
+
+
+def instrument_scenes(scenes, dest: Path, *, draw_seed: int = DRAW_SEED) -> tuple[Path, list[Path]]:
+    """The drawn probe's scenes: the walk-through's base, and each paper scene touched by hand on the faithful world.
+
+    Every scene takes :data:`FAITHFUL_BASE`'s board and sensors and ``[as_built] draw_seed``; a paper
+    scene keeps its object and heater voltage and gets the hand touch of :data:`HAND_TOUCH`.
+    """
+    import tomllib  # noqa: PLC0415
+
+    from firmware_sim.scene.files import scene_path  # noqa: PLC0415
+
+    base = tomllib.loads(scene_path(FAITHFUL_BASE).read_text())
+    tables = {"board": base["board"], "sensors": base["sensors"], "as_built": {"draw_seed": draw_seed}}
+    walk = scene_variant(FAITHFUL_BASE, dest, suffix=f"_drawn{draw_seed}", as_built=tables["as_built"])
+    out = []
+    for sc in scenes:
+        R_c, offset_K = HAND_TOUCH[Path(sc).stem.split("_")[0]]
+        touch = {"start_s": 0.5, "length_s": 3.5, "contact_lead_s": 1.0, "contact_resistance_m2K_W": R_c,
+                 "object_offset_K": offset_K}
+        out.append(scene_variant(sc, dest, suffix="_asbuilt", touch=touch, **tables))
+    return walk, out
+
+
+def walk_through(walk: Path, scenes_dir: Path, workdir: Path, *, deploy: Callable[[Any], str],
+                 heat_s: float = REFERENCE_HEAT_s, log: Callable[[str], None] = print) -> dict:
+    """``thermotouch calibrate --sim WALK``'s walk-through on the drawn probe: touch, fit, self-check, install.
+
+    ``deploy(session)`` puts the model on the probe (on the first reference's power-up) and returns its
+    sha256.  A calibration its self-check refuses is said so in one line and installed forced (flagged,
+    with the floor that covers its misses), so the touches still show what the probe would answer.
+    Returns ``model_sha256``, ``calibration`` (a ProbeCalibration), ``check`` (its SelfCheck) and ``refused``.
+    """
+    from edge.calibration.fit import DEFAULT_REFERENCES, OTHER_REFERENCE_U_REL, REFERENCE_U_REL  # noqa: PLC0415
+    from edge.calibration.fit import fit_calibration  # noqa: PLC0415
+    from edge.calibration.model import CalibrationError  # noqa: PLC0415
+    from edge.physics.materials import load_materials  # noqa: PLC0415
+    from host.calibration import (CalibrationRefused, WalkError, checked_calibration, install_calibration,  # noqa: PLC0415
+                                  reference_scene, seam_remeasure, touch_reference)
+    from edge.estimation.estimate import Estimator  # noqa: PLC0415
+    from edge.estimation.seam import SeamContext  # noqa: PLC0415
+    from edge.service.config import Config  # noqa: PLC0415
+    from host.touch import host_bundle  # noqa: PLC0415
+
+    lib = load_materials()
+    names = list(DEFAULT_REFERENCES)
+    e_refs = [lib.get(n).solid.effusivity_W_s05_m2K for n in names]
+    u_refs = [REFERENCE_U_REL.get(n, OTHER_REFERENCE_U_REL) for n in names]
+    touches, records, sha, out = [], [], None, {}
+    for i, (name, e_ref) in enumerate(zip(names, e_refs)):
+        path = reference_scene(str(walk), name, scenes_dir, heat_s=heat_s)
+        with open_device(sim=str(path), workdir=workdir) as s:
+            if sha is None:
+                sha = deploy(s)
+            try:
+                t, rec, record = touch_reference(s.client, name, e_ref, heat_s=heat_s)
+            except WalkError as exc:   # the demo's own scenes: a failed touch is a runtime failure
+                raise DeviceUnavailable(f"calibration walk-through: {exc}", 1) from None
+            touches.append(t)
+            records.append(record)
+            log(f"  reference {i + 1}/{len(names)} {name} (e {e_ref:.0f}): measurement {rec['measurement_id']}, "
+                f"{t.t_s.size} samples")
+            if i + 1 < len(names):
+                continue
+            # The self-check re-measures each reference as the device answers: its model, default thresholds.
+            bundle, note = host_bundle(sha, session=s)
+            if bundle is None:
+                raise DeviceUnavailable(f"calibration walk-through: no bundle to re-measure with ({note})", 1)
+            ctx = SeamContext(estimator=Estimator.from_bundle(bundle), calibration=None,
+                              thresholds=Config().measurement)
+            remeasure = seam_remeasure(records, [ctx] * len(records))
+
+            def fit(tt, k):
+                return fit_calibration(tt, probe="paper", min_references=k)
+            device_id = s.client.info().get("device_id")
+            try:
+                try:
+                    cal, check = checked_calibration(fit, touches, names, e_refs, u_refs, remeasure,
+                                                     device_id=device_id)
+                    out["refused"] = None
+                except CalibrationRefused as exc:
+                    out["refused"] = str(exc)
+                    log(f"  {exc}")
+                    log("  the demo installs it forced (flagged 'forced', its floor covers the misses)")
+                    cal, check = checked_calibration(fit, touches, names, e_refs, u_refs, remeasure, force=True,
+                                                     device_id=device_id)
+            except (CalibrationError, ValueError) as exc:
+                raise DeviceUnavailable(f"calibration walk-through: the fit failed: {exc}", 1) from None
+            install_calibration(s.client, cal)
+    out.update(model_sha256=sha, calibration=cal, check=check)
+    return out
+
+
+def _calibration_lines(cal, check) -> list[str]:
+    c = cal.chain
+    refs = "; ".join(f"{r.name} " + ", ".join(f"{x:+.1%}" for x in r.rel_errors) for r in cal.references)
+    return [f"calibration {cal.sha256[:12]}{' (FORCED)' if cal.forced else ''}: flux sensitivity x "
+            f"{1.0 / c.flux_scale:.4f} of nominal, sensing depth {c.sensing_thickness_m * 1e3:.4f} mm, layer k "
+            f"{c.k_W_mK:.4f} W/m/K, thermocouple lag {c.tc_tau_s * 1e3:.1f} ms, model-form floor on e "
+            f"{cal.u_rel_floor:.1%}",
+            f"  {check.line()}",
+            f"  references re-measured with it: {refs}"]
+
+
+def format_instrument_table(rows: list[dict], cal_sha256: str | None) -> str:
+    """Per touch: the true e, the answer ± u, its error, its 95 % interval and whether it holds the truth."""
+    width = max([10] + [len(r["scene"]) for r in rows])
+    hdr = (f"{'scene':{width}} {'true e':>7} {'e ± u':>13} {'err':>7} │ {'95 % interval':>15} {'holds':>5} │ "
+           f"{'k err':>7} {'α err':>7} │ {'answered':10} flags")
+    lines = ["e in W s^0.5/(m² K); true = the simulated object's; interval e ± 1.96 u; k and α of the paper "
+             "probe come from the library prior.", hdr, "─" * len(hdr)]
+    held = answered = 0
+    for r in rows:
+        d, e_true = r["default"], r["ref"]["e"]
+        e, u = d["e"], d["e_u"]
+        if e is None or u is None:
+            cells = f"{'-':>13} {'-':>7} │ {'-':>15} {'-':>5}"
+        else:
+            lo, hi = e - 1.96 * u, e + 1.96 * u
+            holds = lo <= e_true <= hi
+            held += holds
+            answered += 1
+            cells = (f"{f'{e:.0f} ± {u:.0f}':>13} {_pct(d['errors']['e'])} │ {f'{lo:.0f}–{hi:.0f}':>15} "
+                     f"{'yes' if holds else 'NO':>5}")
+        how = ("calibrated" if cal_sha256 is not None and r.get("calibration_sha256") == cal_sha256
+               and "uncalibrated" not in r["flags"] else "NOT calib.")
+        lines.append(f"{r['scene']:{width}} {e_true:7.0f} {cells} │ {_pct(d['errors']['k'])} "
+                     f"{_pct(d['errors']['alpha'])} │ {how:10} {', '.join(r['flags']) or '-'}")
+    lines.append(f"{answered} of {len(rows)} touches answered; the 95 % interval holds the true e on {held} of them.")
+    return "\n".join(lines)
+
+
+def _instrument_into(out: Path, final: Path, *, train: bool, scenes, progress: bool, overwrite: bool,
+                     log: Callable[[str], None], t0: float) -> int:
+    """The default demo's run (module docstring), written into ``out``; messages name ``final``."""
+    from host.plots import PlotProcess  # noqa: PLC0415
+    from host.progress import ProgressBar  # noqa: PLC0415
+
+    workdir = out / "device"
+    with PlotProcess() as plotter:
+        log(f"ThermoTouch demo: a paper probe drawn as built ([as_built] draw_seed = {DRAW_SEED}: the device is told "
+            f"only its nominal values) on the faithful world, precision board; storage {final / 'device'}")
+        walk, variants = instrument_scenes(scenes, out / "scenes")
+        log(f"calibrating it by the walk-through (thermotouch calibrate --sim): {REFERENCE_HEAT_s:g}-s touches of "
+            "the references ...")
+        w = walk_through(walk, out / "scenes", workdir, log=log,
+                         deploy=lambda s: _deploy(s, out, train=train, progress=progress, overwrite=overwrite,
+                                                  log=lambda m: log("  " + m)))
+        cal, check, sha = w["calibration"], w["check"], w["model_sha256"]
+        cal_lines = _calibration_lines(cal, check)
+        log(f"  calibration {cal.sha256[:12]} installed{' FORCED' if cal.forced else ''} "
+            f"(self-check {'passed' if check.passed else 'FAILED'}; in full with the table below)")
+        log(f"touching the paper's samples by hand with the calibrated probe ({len(scenes)} scenes) ...")
+        with ProgressBar("touches", "touch", enabled=progress) as bar:
+            rows = measure_scenes(workdir, variants, plots=out / "plots", plotter=plotter, expect_sha256=sha,
+                                  log=log, progress=bar)
+    table = "\n".join(cal_lines) + "\n\n" + format_instrument_table(rows, cal.sha256)
+    log("")
+    log(table)
+    write_text_atomic(out / "table.txt", table + "\n")
+    write_text_atomic(out / "results.json", json.dumps(
+        {"mode": "as_built", "draw_seed": DRAW_SEED, "faithful_base": FAITHFUL_BASE, "model_sha256": sha,
+         "reference_heat_s": REFERENCE_HEAT_s, "calibration": cal.to_dict(), "calibration_sha256": cal.sha256,
+         "refused": w["refused"], "self_check": check.to_dict(), "rows": rows}, indent=1))
+    heater_ok = all(r["heater"]["ok"] for r in rows)
+    log("")
+    log(f"heater invariant held on every touch: {'yes' if heater_ok else 'NO'}; "
+        f"plots in {final / 'plots'}/, numbers in {final / 'results.json'}; {time.perf_counter() - t0:.1f} s")
+    log(f"the probe's history: thermotouch history --sim {FAITHFUL_BASE} --workdir {final / 'device'}; "
+        "the ideal-world demo: thermotouch demo --ideal")
     return 0 if heater_ok else 1

@@ -82,6 +82,16 @@ def refits_at_their_nominal_pace():
         yield
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _shared_simulated_records(tmp_path_factory):
+    """Simulated reference touches computed once per session (tests/support/records.py), kept in its tmp dir."""
+    from tests.support import records
+
+    records.cache_dir = records.session_cache_dir(tmp_path_factory.getbasetemp())
+    yield
+    records.cache_dir = None
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)

@@ -216,13 +216,29 @@ def _solve(arrays, idx, prior, th0, u_th0, ln_e0, u_ln_e, p: np.ndarray) -> tupl
             lam *= 10.0
         if not improved:
             break
-        done = cost - c_new < 1e-10 * max(cost, 1.0)
+        done = cost - c_new < 1e-10 * max(cost, 1.0) or _small_step(A, delta)
         p, r, cost = p_new, r_new, c_new
         lam = max(lam / 10.0, 1e-9)
         J = jac(p, r)
         if done:
             break
     return p, J
+
+
+#: Converged when an accepted step moved every parameter by less than this fraction of its standard
+#: uncertainty.  The forward-difference Jacobian (steps 1e-4) cannot polish further: the iterations past
+#: this point zig-zagged for cost changes of 1e-8 relative, and stopping here moved the fitted chain by
+#: under 0.01 of its sigma (0.02 % in depth and k, 0.08 % in the bead lag) at half the fit's CPU time.
+_STEP_TOL_SIGMA = 1e-2
+
+
+def _small_step(A: np.ndarray, delta: np.ndarray) -> bool:
+    """Whether ``delta`` is within :data:`_STEP_TOL_SIGMA` sd of every parameter (sd from ``A = J^T J``)."""
+    try:
+        sd = np.sqrt(np.abs(np.diag(np.linalg.inv(A))))
+    except np.linalg.LinAlgError:
+        return False
+    return bool(np.all(np.abs(delta) <= _STEP_TOL_SIGMA * sd))
 
 
 #: A trial step further than this many prior standard deviations from the prior is not evaluated (a step

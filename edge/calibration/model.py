@@ -132,6 +132,7 @@ _FIELDS = {
     "device_id": Field("str", default=None, lo=1, hi=64, doc="the device it was fitted for (INFO device_id)"),
     "forced": Field("bool", default=None, doc="written with --force although its self-check failed"),
     "self_check": Field("table", default=None, doc="leave-one-reference-out check of the fit"),
+    "head_model": Field("table", default=None, doc="the head's own calibrated model (small heater: substrate)"),
 }
 
 
@@ -168,6 +169,9 @@ class ProbeCalibration:
     forced: bool = False
     #: The leave-one-reference-out check (:mod:`edge.calibration.selfcheck`), as a JSON table.
     self_check: dict[str, Any] | None = None
+    #: The probe head's own calibrated model parameters beyond the chain (small heater: the substrate's
+    #: k and rho c, the fit's covariance and identifiability; :mod:`edge.calibration.axi`), as a JSON table.
+    head_model: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
         if self.probe not in PROBES:
@@ -248,7 +252,8 @@ class ProbeCalibration:
             "references": [r.to_dict() for r in self.references],
         } | ({} if self.device_id is None else {"device_id": self.device_id}) \
           | ({"forced": True} if self.forced else {}) \
-          | ({} if self.self_check is None else {"self_check": self.self_check})
+          | ({} if self.self_check is None else {"self_check": self.self_check}) \
+          | ({} if self.head_model is None else {"head_model": self.head_model})
 
     @property
     def sha256(self) -> str:
@@ -305,7 +310,8 @@ class ProbeCalibration:
             cal = cls(probe=top["probe"], chain=SensorChainCalibration(**chain), covariance=np.array(cov, float),
                       u_rel_floor=top["u_rel_floor"], calibrated=top["calibrated"],
                       created_utc=top["created_utc"], references=tuple(refs), device_id=top.get("device_id"),
-                      forced=bool(top.get("forced")), self_check=top.get("self_check"))
+                      forced=bool(top.get("forced")), self_check=top.get("self_check"),
+                      head_model=top.get("head_model"))
         except CalibrationError:
             raise
         except ValueError as exc:

@@ -188,6 +188,7 @@ class AxiFitter:
             return m[0], m[1], None, None
         npar = theta.size
         d = inv.invert(np.concatenate([out[2][:npar], out[3][:npar]]))
+
         dmT, dmq = d[:npar] * w[0], d[npar:] * w[1]
         if npar == 3:  # R_c is iterated in units of _RC_UNIT
             dmT[2] *= _RC_UNIT
@@ -226,6 +227,26 @@ class AxiFitter:
         if self.fit_contact:
             th[2] = max(th[2], 0.0)
         return th
+
+    # -- the fit's response to a different model (a calibration's parameters)
+    def model_response(self, model: AxisymModel) -> np.ndarray:
+        """d(ln k, ln alpha) when the records follow ``model`` instead of the fitted one, at the last fit.
+
+        Linearised: the records' change ``dy`` (the other model's signals at the fitted k, alpha, R_c and
+        scale, minus the fitted model's, in noise units) moves the fit by ``(J^T J)^-1 J^T dy``.  Divided
+        by a parameter step it is the fit's sensitivity to that parameter of the probe.
+        """
+        theta, s, P0, J = self._final
+        base = self._weighted_eval(theta, P0, False)
+        keep = self.model
+        try:
+            self.model = model
+            other = self._weighted_eval(theta, P0, False)
+        finally:
+            self.model = keep
+        scale_T = s if self.nuisance == "power" else 1.0
+        dy = np.concatenate([scale_T * (other[0] - base[0]), s * (other[1] - base[1])])
+        return (covariance_ln_k_alpha(J.T @ J) @ (J.T @ dy))[:2]
 
     # -- the fit
     def fit(self, T_K, q_W_m2, *, power_W: float | None = None, prior: Prior | None = None,
@@ -320,6 +341,7 @@ class AxiFitter:
         # The fit's response to the flux record scaled by (1 + eps): d beta / d eps = (J^T J)^-1 J^T dy,
         # with the same (vanishing) regularisation as the covariance.
         dy = np.concatenate([np.zeros_like(yT), yq])
+        self._final = (theta.copy(), float(s), P0, J)
         d_beta = covariance_ln_k_alpha(J.T @ J) @ (J.T @ dy)
         sens = {"k": float(d_beta[0]), "alpha": float(d_beta[1]), "effusivity": float(d_beta[0] - 0.5 * d_beta[1])}
         k, a = math.exp(theta[0]), math.exp(theta[1])

@@ -105,10 +105,20 @@ class AxiMethod:
 
     def __call__(self, t_s, dT_K, q_W_m2, power_W: float | None, method: str = "default", *,
                  calibration: Any = None, thickness_m: float | None = None, back: str = "infinite") -> dict:
-        # The installed calibration of this probe head replaces the datasheet's flux scale and its u.
+        # The installed calibration of this probe head replaces the datasheet's probe (flux scale and its u;
+        # when it identified them, the sensing layer and the substrate, edge.calibration.axi), and such
+        # answers fit the touch's contact resistance: a hand touch's is unknown, and 1e-5 m^2K/W alone put
+        # AISI 304 at -9 % in e on a calibrated drawn probe (3.6 % fitted; bench/asbuilt_small_bench.py).
+        from edge.estimation.probe_estimate import calibrated_params  # noqa: PLC0415 - loaded with AxiEstimator
+
         cal = calibration if calibration is not None and calibration.probe == self.geometry.name else None
         flux = {} if cal is None else {"flux_scale": cal.flux_scale, "flux_u_rel": cal.flux_u_rel,
                                        "u_rel_floor": cal.u_rel_floor}
+        probe = calibrated_params(cal)
+        if probe is not None:
+            # A calibration that identified the probe as built (an older one calibrated the flux scale only,
+            # and its answers stay as they were).
+            flux.update(calibrated=probe, fit_contact=True)
         d = self.axi.estimate(t_s, dT_K, q_W_m2, power_W=power_W, thickness_m=thickness_m, back=back,
                               T_resolution_K=self.T_resolution_K, **flux)
         if cal is not None:

@@ -29,7 +29,12 @@ on glass and metals by about one to one (bench/sensitivity_bench.py) -- the stat
 u(k), u(alpha), u(e) and
 their correlation carry it, and a quantity it leaves above the threshold is
 not called determined.  An installed calibration (``flux_scale``, ``flux_u_rel``;
-:mod:`edge.calibration.axi`) replaces the datasheet's scale and 2 %.  The ``method``
+:mod:`edge.calibration.axi`) replaces the datasheet's scale and 2 %; one that identified the probe as
+built (``calibrated``: :data:`CALIBRATED` -- the sensing layer's thickness and k, the substrate's k
+and rho c, with their covariance) replaces the datasheet's probe in the fit, and its covariance enters
+every u through the fit's linear response to each parameter
+(:meth:`~edge.estimation.axifit.AxiFitter.model_response`: on glass at 5 s, 1 % of the sensing layer's
+thickness is 25 % of k).  The ``method``
 argument of the 1-D path does not apply (the paper's network was trained
 on the paper's probe); results say ``method: "axisym"``.
 
@@ -41,6 +46,7 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
+from dataclasses import replace
 
 import numpy as np
 
@@ -48,9 +54,10 @@ from edge.checks import finite_array, one_of, strictly_increasing
 from edge.estimation.axifit import AxiFitter
 from edge.estimation.estimate import FLUX_CALIBRATION_U_REL, MIN_SNR, Estimator
 from edge.physics.geometry import ProbeGeometry, get_probe
+from edge.physics.solids import Solid
 from edge.status import Flag
 
-__all__ = ["AxiEstimator", "QUANTITIES"]
+__all__ = ["AxiEstimator", "QUANTITIES", "CALIBRATED", "geometry_at", "calibrated_params"]
 
 #: Names of the quantities in ``determined`` / ``from_prior``.
 QUANTITIES = ("e", "k", "alpha")
@@ -59,6 +66,37 @@ _BACKS = ("infinite", "insulated", "fixed")
 #: ~1e-6 over 250 (edge.physics.axisym) and degrades beyond (2e-5 at 1000, 2e-4 at 5000); the first
 #: few milliseconds of a fast-sampled record carry next to nothing on k and alpha.
 MAX_TIME_SPAN = 250.0
+
+
+#: The probe's parameters a calibration identifies (:mod:`edge.calibration.axi`), as ln deviations from the
+#: datasheet probe, in this order: the flux scale (true flux per unit reading), the sensing layer's thickness
+#: and k (the thermopile spans the layer; its rho c kept), the substrate's k and rho c.
+CALIBRATED = ("ln_flux_scale", "ln_sensing_thickness_m", "ln_sensing_k_W_mK", "ln_substrate_k", "ln_substrate_rho_c")
+#: Step (in ln) of the finite differences that carry the calibration's covariance into an answer.
+_CAL_STEP = 1e-3
+
+
+def geometry_at(geometry: ProbeGeometry, p) -> ProbeGeometry:
+    """The probe with the calibrated parameters ``p`` (:data:`CALIBRATED` order; the flux scale is not geometry)."""
+    sm, sub = geometry.sensing, geometry.substrate
+    L = geometry.sensing_thickness_m * math.exp(p[1])
+    kw = {"sensing": Solid(sm.k_W_mK * math.exp(p[2]), sm.rho_kg_m3, sm.c_J_kgK), "sensing_thickness_m": L,
+          "sensor_depth_m": (0.0, L)}
+    if sub is not None:
+        kw["substrate"] = Solid(sub.k_W_mK * math.exp(p[3]), sub.rho_kg_m3 * math.exp(p[4]), sub.c_J_kgK)
+    return replace(geometry, **kw)
+
+
+def calibrated_params(cal) -> tuple[np.ndarray, np.ndarray] | None:
+    """(values, covariance) of :data:`CALIBRATED` a calibration's ``head_model`` carries, or None.
+
+    (:func:`edge.calibration.axi.fit_flux_scale` writes them; an older calibration has none: the datasheet
+    probe with its flux scale.)
+    """
+    hm = None if cal is None else getattr(cal, "head_model", None)
+    if not hm or list(hm.get("parameters") or []) != list(CALIBRATED):
+        return None
+    return np.array(hm["values"], float), np.array(hm["covariance"], float)
 
 
 def _num(x):
@@ -120,7 +158,7 @@ class AxiEstimator:
 
     def __init__(self, estimator: Estimator, probe: ProbeGeometry | str = "small-heater", *,
                  sigma_T_K: float = 0.01, sigma_q_W_m2: float = 0.5, identifiable_u_rel: float = 0.30,
-                 max_models: int = 4, fit_contact: bool = False) -> None:
+                 max_models: int = 8, fit_contact: bool = False) -> None:
         self.estimator = estimator
         self.geometry = get_probe(probe) if isinstance(probe, str) else probe
         self.sigma_T_K = float(sigma_T_K)
@@ -130,25 +168,51 @@ class AxiEstimator:
         self.fit_contact = bool(fit_contact)
         self._models: OrderedDict = OrderedDict()
 
-    def _model(self, t: np.ndarray):
-        """The fitter's model for these times (cached: its setup is most of a fit's cost on a cold grid)."""
+    def _model(self, t: np.ndarray, geometry: ProbeGeometry | None = None, nodes=None):
+        """The fitter's model for these times (cached: its setup is most of a fit's cost on a cold grid).
+
+        ``geometry``: a calibrated probe (:func:`calibrated_geometry`); default the datasheet's.
+        """
         from edge.physics.axisym import AxisymModel  # noqa: PLC0415 - the 1-D device never needs it
 
-        key = t.tobytes()
+        geo = self.geometry if geometry is None else geometry
+        key = (geo, t.tobytes())
         m = self._models.get(key)
         if m is None:
             # A prefix of a grid already modelled (a running answer on the samples so far): its head.
             for k, full in reversed(self._models.items()):
-                if full.t_s.size > t.size and np.array_equal(full.t_s[:t.size], t):
+                if k[0] == geo and full.t_s.size > t.size and np.array_equal(full.t_s[:t.size], t):
                     self._models.move_to_end(k)
                     return full.head(t.size)
-            m = AxisymModel(self.geometry, t)
+            m = AxisymModel(geo, t, nodes=nodes)
             self._models[key] = m
             while len(self._models) > self.max_models:
                 self._models.popitem(last=False)
         else:
             self._models.move_to_end(key)
         return m
+
+    def _calibration_sensitivity(self, fitter, f, t, calibrated, sens: dict, u_flux: float):
+        """(S, C): d(ln k, ln alpha) per calibrated parameter (2 x n) and their covariance (n x n).
+
+        Without a calibrated probe only the flux scale, known to ``u_flux``.
+        """
+        col0 = np.array([sens["k"], sens["alpha"]])
+        if calibrated is None or not f.converged:
+            return col0[:, None], np.array([[u_flux ** 2]])
+        p, C = calibrated
+        S = np.zeros((2, len(CALIBRATED)))
+        S[:, 0] = col0
+        for i in range(1, len(CALIBRATED)):
+            if i >= 3 and self.geometry.substrate is None:
+                continue
+            dp = np.array(p, float)
+            dp[i] += _CAL_STEP
+            m = self._model(t, geometry_at(self.geometry, dp), fitter.model.nodes) if i < 3 else \
+                fitter.model.with_substrate(geometry_at(self.geometry, dp).substrate)
+            # The truth at p + dp read with the model at p: the fit is off by -response.
+            S[:, i] = -fitter.model_response(m) / _CAL_STEP
+        return S, np.array(C, float)
 
     def prepare(self, t_s) -> None:
         """Build the model for the grid a touch will be estimated on (its prefixes then reuse it)."""
@@ -157,7 +221,8 @@ class AxiEstimator:
 
     def estimate(self, t_s, dT_K, q_W_m2, *, power_W: float | None = None, thickness_m: float | None = None,
                  back: str = "infinite", T_resolution_K: float = 0.0, flux_scale: float = 1.0,
-                 flux_u_rel: float | None = None, u_rel_floor: float = 0.0) -> dict:
+                 flux_u_rel: float | None = None, u_rel_floor: float = 0.0,
+                 calibrated: tuple[np.ndarray, np.ndarray] | None = None, fit_contact: bool | None = None) -> dict:
         """Estimate from one record (times from heater-on; thermocouple rise, flux-sensor reading).
 
         Parameters
@@ -176,6 +241,11 @@ class AxiEstimator:
         flux_scale, flux_u_rel : the flux sensor's calibration -- true flux per unit of the reading
             and its relative standard uncertainty (:func:`edge.calibration.axi.fit_flux_scale`);
             default the datasheet sensor, known to FLUX_CALIBRATION_U_REL.
+        calibrated : (values, covariance) of the probe's :data:`CALIBRATED` parameters as its calibration
+            identified them (:func:`calibrated_params`): the fit uses that probe (sensing layer,
+            substrate) and every answer's u carries the covariance (the flux scale's entry replaces
+            ``flux_u_rel``); default the datasheet's probe.
+        fit_contact : fit the contact resistance (default: the constructor's choice).
 
         Returns
         -------
@@ -215,10 +285,15 @@ class AxiEstimator:
         if back == "infinite":
             thickness_m = None
         sigma_T = math.hypot(self.sigma_T_K, T_resolution_K / math.sqrt(12.0))
-        fitter = AxiFitter(self.geometry, t, sigma_T_K=sigma_T, sigma_q_W_m2=self.sigma_q_W_m2,
+        # The calibrated probe: a 5-mm heater splits its heat between the substrate and the object (+-14 %
+        # in the foam's effusivity moved nickel's e by -63 / +69 %, issue #34), and the sensing layer's
+        # thickness and k set what both sensors see (+-10 % of either: chi^2 per point ~1000 on a drawn probe).
+        geometry = None if calibrated is None else geometry_at(self.geometry, calibrated[0])
+        model = self._model(t, geometry)
+        fitter = AxiFitter(model.geometry, t, sigma_T_K=sigma_T, sigma_q_W_m2=self.sigma_q_W_m2,
                            thickness_m=thickness_m, back=back if thickness_m is not None else "infinite",
-                           identifiable_u_rel=self.identifiable_u_rel, fit_contact=self.fit_contact,
-                           model=self._model(t))
+                           identifiable_u_rel=self.identifiable_u_rel,
+                           fit_contact=self.fit_contact if fit_contact is None else bool(fit_contact), model=model)
         f = fitter.fit(T, q, power_W=power_W)
         # The fit scales its covariance by chi^2/dof. Below 1 (sensors quieter than the noise they are
         # weighted by) that would state k and alpha better than the sensors' specified noise allows, and
@@ -258,20 +333,26 @@ class AxiEstimator:
         # flux_scale_sensitivity), not one to one. The fit's covariance (inflated as above) and the
         # calibration's part add; so do their k-alpha covariances.
         sens = f.flux_scale_sensitivity
-        u_le = math.hypot(u_le_fit, sens["effusivity"] * u_flux)
-        u_lk = math.hypot(u_rel["k"], sens["k"] * u_flux)
-        u_la = math.hypot(u_rel["alpha"], sens["alpha"] * u_flux)
+        # The calibration's part: (ln k, ln alpha) of the truth minus the fit's = S delta for the probe's
+        # parameters off by delta (the flux scale's column from the data's response, the others from the
+        # model's, AxiFitter.model_response), so its covariance is S C S^T.
+        S, C = self._calibration_sensitivity(fitter, f, t, calibrated, sens, u_flux)
+        V = S @ C @ S.T
+        V_e = V[0, 0] - V[0, 1] + 0.25 * V[1, 1]
+        u_le = math.sqrt(u_le_fit ** 2 + V_e)
+        u_lk = math.sqrt(u_rel["k"] ** 2 + V[0, 0])
+        u_la = math.sqrt(u_rel["alpha"] ** 2 + V[1, 1])
         # The calibration's model-form floor: independent of the fit and of the flux scale, so it adds in
         # quadrature (and, shared by nothing, leaves the k-alpha covariance as it is).
         u_le, u_lk, u_la = (math.hypot(u, floor) for u in (u_le, u_lk, u_la))
         if out["corr_k_alpha"] is not None and u_lk * u_la > 0:
-            cov = out["corr_k_alpha"] * u_rel["k"] * u_rel["alpha"] + sens["k"] * sens["alpha"] * u_flux ** 2
+            cov = out["corr_k_alpha"] * u_rel["k"] * u_rel["alpha"] + V[0, 1]
             out["corr_k_alpha"] = _num(max(-1.0, min(1.0, cov / (u_lk * u_la))))
         # What the record measured of (ln e, ln alpha), with the correlation of their errors, whatever is
         # reported below: object recognition uses it where the touch determined alpha
         # (edge.recognition.measured_alpha), jointly with e.
         c_fit = u_rel["alpha"] * (f.corr_k_alpha * u_rel["k"] - 0.5 * u_rel["alpha"])
-        c_ea = c_fit + sens["effusivity"] * sens["alpha"] * u_flux ** 2
+        c_ea = c_fit + V[0, 1] - 0.5 * V[1, 1]
         if f.converged and u_la > 0 and math.isfinite(u_la) and math.isfinite(c_ea) and u_le > 0:
             out["fit"]["u_ln_alpha"] = _num(u_la)
             out["fit"]["corr_e_alpha"] = _num(max(-0.999, min(0.999, c_ea / (u_le * u_la))))

@@ -418,7 +418,12 @@ def estimate_touch(record: TouchRecord, context: SeamContext, *,
             # The calibrated chain found the contact in the record and fitted it, object temperature and
             # R_c included: the 1-D judgements of "no contact" / "no signal" (which assume an object at
             # the probe's temperature; a hand touch of a metal 2 K colder fooled them) are superseded.
-            est = replace(promoted, flags=tuple(f for f in promoted.flags if f not in NO_ANSWER))
+            gone = tuple(f for f in promoted.flags if f in NO_ANSWER)
+            chain_d = {**promoted.details.get("sensor_chain", {}), "superseded_flags": [str(f) for f in gone]}
+            # Named in the chain's details so that whoever merges the conditioning's flags with this answer's
+            # (the device's record) drops them too: an answered touch must not read "no_contact".
+            est = replace(promoted, flags=tuple(f for f in promoted.flags if f not in NO_ANSWER),
+                          details={**promoted.details, "sensor_chain": chain_d})
         elif cal is not None:
             # The installed calibration did not make this answer: say so (ISSUE #34, "answers that look
             # calibrated but are not"); sensor_chain.flags say why.

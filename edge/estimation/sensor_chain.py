@@ -139,8 +139,7 @@ def _slab_kernels(n: int, dt_s: float, L_m: float, k_W_mK: float, alpha_m2_s: fl
         # gL / sinh(gL) and tanh(gL/2) written to stay finite for large |gL| (Talbot's nodes).
         ex = np.exp(-gL)
         A = 2.0 * gL * ex / (1.0 - ex * ex)
-        eh = np.exp(-gL)
-        B = k_W_mK * g * (1.0 - eh) / (1.0 + eh)
+        B = k_W_mK * g * (1.0 - ex) / (1.0 + ex)
         return A / s**2, B / s**2
 
     RA, RB = talbot_invert(F, t)
@@ -341,7 +340,8 @@ def _prepare(t_s, T_tc_C, q_m_W_m2, cal: SensorChainCalibration, T_probe0_C, fit
     if t.ndim != 1 or t.size < 8 or T.shape != t.shape or q.shape != t.shape:
         raise ValueError("t_s, T_tc_C and q_m_W_m2 must be 1-D of one length >= 8")
     dt = float(t[1] - t[0])
-    if not (dt > 0 and np.allclose(np.diff(t), dt, rtol=1e-6, atol=1e-9)):
+    # np.allclose(np.diff(t), dt, rtol=1e-6, atol=1e-9) written out: a fit calls this thousands of times.
+    if not (dt > 0 and bool(np.all(np.abs(np.diff(t) - dt) <= 1e-9 + 1e-6 * dt))):
         raise ValueError("t_s must be uniform and increasing")
     if not (np.all(np.isfinite(T)) and np.all(np.isfinite(q))):
         raise ValueError("records must be finite")

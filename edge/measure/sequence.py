@@ -691,6 +691,8 @@ class MeasurementSequence:
         out.result = est.to_dict()
         out.model_sha256 = est.model_sha256 or out.model_sha256
         # The estimate's flags begin with the same conditioning flags; whatever it adds follows.
-        out.flags = list(dict.fromkeys(out.flags + list(est.flags)))
+        # Flags the estimate superseded (the calibrated chain fitted a contact the 1-D check missed) go.
+        gone = set((est.details.get("sensor_chain") or {}).get("superseded_flags") or ())
+        out.flags = [f for f in dict.fromkeys(out.flags + list(est.flags)) if str(f) not in gone]
         g = est.series
         out.grid_t_s, out.grid_dT_K, out.grid_q_W_m2 = g.get("grid_t_s"), g.get("grid_dT_K"), g.get("grid_q_W_m2")

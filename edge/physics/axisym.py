@@ -63,64 +63,22 @@ computed from their integral representation).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from edge.checks import finite_array, finite_nonnegative, finite_positive, one_of
+from edge.physics.bessel import bessel_j
+from edge.physics.footprint import rectangle_weights
 from edge.physics.geometry import ProbeGeometry
 from edge.physics.solids import Solid
 
-__all__ = ["bessel_j", "HyperbolicInversion", "hankel_nodes", "AxisymModel", "Responses"]
+__all__ = ["bessel_j", "HyperbolicInversion", "hankel_nodes", "sensor_weights", "AxisymModel", "Responses"]
 
 BACKS = ("infinite", "insulated", "fixed")
 #: Contour angle of the hyperbola (W&T 2007 use values near 1.1; this one with N = 32 gives
 #: < 1e-6 relative on the layered transforms over Lambda = 250).
 _PHI = 1.09
-
-
-# ----------------------------------------------------------------------------------------------
-# Special functions (NumPy only on the device)
-
-
-def bessel_j(n: int, x: np.ndarray) -> np.ndarray:
-    """Bessel function J_n(x), n = 0 or 1, for real x (NumPy only).
-
-    From ``J_n(x) = (1/2pi) int_0^2pi cos(n tau - x sin tau) d tau`` with the
-    trapezoid rule, which converges geometrically for a periodic integrand once
-    the number of points m exceeds |x| + n by a margin (here |x| + 10 |x|^(1/3) + 48,
-    past the Airy transition of the aliased J_m(x)): errors ~1e-15.
-
-    The rule's nodes are the midpoints ``tau_j = 2 pi (j + 1/2) / m`` with m = 4 K: the
-    integrand's symmetries under ``tau -> pi - tau`` and ``tau -> tau + pi`` fold the m
-    points onto the K in the first quadrant (J0: ``cos(x sin tau)``; J1: its odd part
-    ``sin(tau) sin(x sin tau)``, the ``cos(tau) cos(x sin tau)`` part cancels in pairs), the
-    same sum at a quarter of the cost.  The x are taken in blocks by increasing |x|, each
-    with the m its own largest |x| needs: a model's set-up evaluates thousands of
-    arguments from 0 to ~1e3, and most need far fewer points than the largest.
-    """
-    if n not in (0, 1):
-        raise ValueError(f"n must be 0 or 1, got {n}")
-    x = np.asarray(x, dtype=float)
-    flat = x.reshape(-1)
-    order = np.argsort(np.abs(flat), kind="stable")
-    xs = flat[order]
-    res = np.empty(flat.size)
-    block = 256  # keeps the (x, tau) table at most ~2e5 entries for |x| ~ 3e3
-    for i in range(0, xs.size, block):
-        xb = xs[i:i + block]
-        xm = float(np.max(np.abs(xb)))
-        m = int(xm + 10.0 * xm ** (1.0 / 3.0)) + 48  # past the Airy transition of J_m(x)
-        k = -(-m // 4)  # quadrant points; 4 k >= m
-        sin_tau = np.sin(0.5 * np.pi * (np.arange(k) + 0.5) / k)
-        arg = xb[:, None] * sin_tau[None, :]
-        if n == 0:
-            res[i:i + block] = np.mean(np.cos(arg), axis=1)
-        else:
-            res[i:i + block] = np.mean(sin_tau[None, :] * np.sin(arg), axis=1)
-    out = np.empty(flat.size)
-    out[order] = res
-    return out.reshape(x.shape)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -198,7 +156,7 @@ def hankel_nodes(geometry: ProbeGeometry, *, per_panel: int = 4, depth_decades: 
         Panels halving towards zeta = 0 inside the first oscillation panel.
     """
     a = geometry.heater_radius_m
-    reach = max(geometry.sensor_radius_m, geometry.thermocouple_r_m)
+    reach = max(geometry.sensor_reach_m, geometry.thermocouple_r_m)
     w = math.pi / (a + reach)
     Z = depth_decades / geometry.sensing_thickness_m
     n_osc = max(1, int(math.ceil(Z / w)))
@@ -212,6 +170,29 @@ def hankel_nodes(geometry: ProbeGeometry, *, per_panel: int = 4, depth_decades: 
     ramp = np.clip((z - z0) / (Zend - z0), 0.0, 1.0)
     wz = wz * 0.5 * (1.0 + np.cos(np.pi * ramp))
     return z, wz
+
+
+_WEIGHTS: dict = {}
+
+
+def sensor_weights(geometry: ProbeGeometry, zeta: np.ndarray) -> np.ndarray:
+    """The flux sensor's read-out ``W(zeta)`` (area mean of ``J0(zeta |x|)`` over its footprint).
+
+    The rectangle's are cached per footprint and nodes (their set-up is most of a model's): a calibration
+    builds many models that share both.
+    """
+    if geometry.sensor_square_m is None:
+        b = geometry.sensor_radius_m
+        return 2.0 * bessel_j(1, zeta * b) / (zeta * b)
+    (sx, sy), (ox, oy) = geometry.sensor_square_m, geometry.sensor_offset_m
+    key = (float(sx), float(sy), float(ox), float(oy), zeta.tobytes())
+    w = _WEIGHTS.get(key)
+    if w is None:
+        if len(_WEIGHTS) >= 8:
+            _WEIGHTS.pop(next(iter(_WEIGHTS)))
+        w = _WEIGHTS[key] = rectangle_weights(zeta, sx, sy, ox, oy)
+        w.flags.writeable = False
+    return w
 
 
 # ----------------------------------------------------------------------------------------------
@@ -267,14 +248,19 @@ class AxisymModel:
     """
 
     def __init__(self, geometry: ProbeGeometry, t_s, *, n_laplace: int = 32, per_panel: int = 4,
-                 depth_decades: float = 10.0, taper: float = 0.25, low_levels: int = 8) -> None:
+                 depth_decades: float = 10.0, taper: float = 0.25, low_levels: int = 8,
+                 nodes: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         g = geometry
         self.geometry = g
         self.inversion = HyperbolicInversion.build(t_s, n_laplace)
         self.t_s = self.inversion.t_s
-        zeta, wz = hankel_nodes(g, per_panel=per_panel, depth_decades=depth_decades, taper=taper,
-                                low_levels=low_levels)
+        # ``nodes``: another model's Hankel nodes (:attr:`nodes`) -- a neighbouring probe (a calibration's
+        # finite difference) then differs from it only by the physics, not by a shifted quadrature, and
+        # shares its read-out weights (cached).
+        zeta, wz = nodes if nodes is not None else hankel_nodes(g, per_panel=per_panel, depth_decades=depth_decades,
+                                                                taper=taper, low_levels=low_levels)
         self.zeta = zeta
+        self.nodes = (zeta, wz)
         p = self.inversion.s[:, None]      # (n_p, 1)
         z2 = (zeta * zeta)[None, :]        # (1, n_z)
         self._p = p
@@ -285,10 +271,10 @@ class AxisymModel:
         disk = a * bessel_j(1, zeta * a) / zeta
         q_v = 1.0 / g.heater_volume_m3
         # Output weights of the inverse Hankel transform, zeta d zeta, with the read-outs:
-        # thermocouple J0(zeta r_tc), sensor's area mean 2 J1(zeta b) / (zeta b).
-        b = g.sensor_radius_m
+        # thermocouple J0(zeta r_tc), sensor's area mean: over its real rectangle (exact,
+        # edge.physics.footprint) or over its equal-area disk, 2 J1(zeta b) / (zeta b).
         self._w_T = wz * zeta * disk * bessel_j(0, zeta * g.thermocouple_r_m)
-        self._w_q = wz * zeta * disk * 2.0 * bessel_j(1, zeta * b) / (zeta * b)
+        self._w_q = wz * zeta * disk * sensor_weights(g, zeta)
 
         # Heater film (material h): gamma, k gamma, tanh, sech.
         hm = g.heater_material
@@ -297,16 +283,8 @@ class AxisymModel:
         Th = _tanh(gh * g.heater_thickness_m)
         Sh = _sech(gh * g.heater_thickness_m)
         theta_p = q_v / (p * hm.k_W_mK * gh * gh)     # particular solution (per unit source shape)
-        # Substrate above with an insulated top.
-        if g.substrate is None:
-            Yup = np.zeros_like(gh)
-        else:
-            gf = np.sqrt(p / g.substrate.alpha_m2_s + z2)
-            Yup = g.substrate.k_W_mK * gf * _tanh(gf * g.substrate_thickness_m)
-        # theta at the heater's bottom = theta_p * num / (B + C Ydn)  (see module docstring).
-        self._num = theta_p * (kgh * Th + Yup * (1.0 - Sh))
-        self._B = Yup + kgh * Th
-        self._C = 1.0 + Yup * Th / kgh
+        self._heater = (kgh, Th, Sh, theta_p)
+        self._set_substrate(g.substrate, g.substrate_thickness_m)
 
         # Sensing layer (material s), thickness L; sensor depths u = L - z.
         sm = g.sensing
@@ -321,6 +299,32 @@ class AxisymModel:
         self._qa = sm.k_W_mK * (_ch_ratio(gs, u0, L) - _ch_ratio(gs, u1, L)) / dz
         self._qb = (_sh_ratio(gs, u0, L) - _sh_ratio(gs, u1, L)) / (gs * dz)
         self.n_nodes = int(gh.size)
+
+    def _set_substrate(self, substrate: Solid | None, thickness_m: float) -> None:
+        """The heater's terms that the substrate above it sets (an insulated top over ``thickness_m``)."""
+        kgh, Th, Sh, theta_p = self._heater
+        if substrate is None:
+            Yup = np.zeros_like(kgh)
+        else:
+            gf = np.sqrt(self._p / substrate.alpha_m2_s + self._z2)
+            Yup = substrate.k_W_mK * gf * _tanh(gf * thickness_m)
+        # theta at the heater's bottom = theta_p * num / (B + C Ydn)  (see module docstring).
+        self._num = theta_p * (kgh * Th + Yup * (1.0 - Sh))
+        self._B = Yup + kgh * Th
+        self._C = 1.0 + Yup * Th / kgh
+
+    def with_substrate(self, substrate: Solid | None, thickness_m: float | None = None) -> "AxisymModel":
+        """The same model with another substrate above the heater (its contour, nodes and read-outs shared).
+
+        A calibration identifies the as-built substrate (:mod:`edge.calibration.axi`): only the heater's
+        three substrate terms are recomputed, a few array operations instead of a model's set-up.
+        """
+        m = object.__new__(AxisymModel)
+        m.__dict__.update(self.__dict__)
+        th = self.geometry.substrate_thickness_m if thickness_m is None else finite_positive("thickness_m", thickness_m)
+        m.geometry = replace(self.geometry, substrate=substrate, substrate_thickness_m=th)
+        m._set_substrate(substrate, th)
+        return m
 
     def head(self, n: int) -> "AxisymModel":
         """The same model on its first ``n`` output times (the contour and probe part shared, not copied).

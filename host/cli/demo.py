@@ -10,8 +10,11 @@ from host.cli.common import say
 
 
 def add_parser(sub, parents):
-    p = sub.add_parser("demo", help="simulated probe: deploy a model, touch the paper's samples, print and plot",
-                       parents=parents)
+    p = sub.add_parser("demo", help="simulated probe drawn as built: calibrate it, touch the paper's samples, print "
+                                    "errors and intervals, plot", parents=parents)
+    p.add_argument("--ideal", action="store_true",
+                   help="instead: the ideal-world demo (the estimator's own 1-D world; nine touches on the reference "
+                        "and the precision board against the paper's Table 2)")
     p.add_argument("--train", action="store_true", help="train a quick model and deploy it instead of the shipped one")
     p.add_argument("--real-probe", action="store_true",
                    help="instead: an as-built probe on the faithful world (precision board) is calibrated on three "
@@ -45,9 +48,13 @@ def run(args) -> int:
         # The README's main command runs twice in a row: the second run writes beside the first.
         args.out = default_out()
     if args.real_probe:
+        if args.ideal:
+            from host.cli.errors import CliError  # noqa: PLC0415
+
+            raise CliError("--ideal and --real-probe are two different demos: give one")
         return _run_real_probe(args)
 
-    return run_demo(args.out, train=args.train, overwrite=args.overwrite, log=say)
+    return run_demo(args.out, train=args.train, overwrite=args.overwrite, ideal=args.ideal, log=say)
 
 
 def _run_real_probe(args) -> int:

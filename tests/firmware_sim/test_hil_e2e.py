@@ -10,7 +10,7 @@ seconds) and runs the user's flows on it:
   reports the new sha256, a self-check touch on glass_15V passes;
 * the nine paper scenes touched with the quick-trained bundle on the device
   (effusivity does not depend on the network) and, through ``thermotouch
-  demo``, with the shipped one (k and alpha bars).
+  demo --ideal``, with the shipped one (k and alpha bars).
 
 Accuracy through the MCP9600 (16-bit, 10 Hz sampling, the daemon's
 defaults; readings placed one conversion time earlier, the converter's lag),
@@ -139,11 +139,14 @@ def test_deploying_a_better_model_flashes_confirms_and_self_checks(trained):
     assert inv["ok"] and inv["n_intervals"] == 1
 
 
-def test_demo_prints_table2_comparison_and_writes_plots(tmp_path):
+def test_ideal_demo_prints_table2_comparison_and_writes_plots(tmp_path):
+    # ``thermotouch demo --ideal``: today's table, the nine scenes on the estimator's own 1-D world.
     out = tmp_path / "demo"
     lines: list[str] = []
-    assert run_demo(out, progress=False, log=lines.append) == 0
+    assert run_demo(out, progress=False, ideal=True, log=lines.append) == 0
     text = "\n".join(lines)
+    assert "Reference board (MCP9600" in text and "Precision board (ADS122C04" in text
+    assert "calibration" not in text   # no walk-through in the ideal world
     for sample in ("tempered glass", "PMMA", "Al alloy"):
         assert sample in text
     assert "heater invariant held on every touch: yes" in text

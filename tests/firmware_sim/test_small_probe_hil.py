@@ -53,10 +53,6 @@ def _touch(sc, store, tmp_path, overrides=None):
     return out, cfg
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue #34: the world now reads the thermopile's real 10 x 10 mm square (item 4); the uncalibrated "
-    "estimator assumes its equal-area disk, fits k -38 %, alpha -59 % and honestly falls back to the prior "
-    "(determined ['e']). A calibration that identifies the footprint (item 1) must make this pass again."))
 def test_small_heater_touch_on_glass_determines_k_and_alpha_within_its_stated_uncertainty(store, tmp_path):
     sc = _glass_scene("small-heater")
     out, cfg = _touch(sc, store, tmp_path)

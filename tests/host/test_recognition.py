@@ -143,10 +143,6 @@ def test_calibration_with_alpha_fits_the_joint_scatter_and_accepts_the_target_sh
     assert np.mean([r.candidates[0][0] == s.names[i] for r, i, m in zip(e_only, ti, tile) if m]) < 0.75
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue #34: the faithful world reads the thermopile's real square (item 4), which the uncalibrated "
-    "estimator takes for its equal-area disk: at 1 s e is -6.6 % against a stated u of 2.0 % (z -3.4). "
-    "Items 1 and 3 (calibration of the footprint, a model-form term in u) must make this pass again."))
 @pytest.mark.slow  # touches simulated on the faithful world
 def test_small_heater_touches_on_the_faithful_world_measure_alpha_with_honest_uncertainty():
     from host.recognition import simulate_probe_touches

@@ -70,14 +70,16 @@ def test_a_reference_far_outside_the_probes_tolerance_is_refused_as_swapped():
         check_reference("pmma", 558.0, 7500.0, 150.0)
 
 
+@pytest.mark.slow  # three simulated reference touches and a calibration fit
 def test_a_calibration_on_references_at_the_probes_temperature_does_not_overflow():
     # Once "OverflowError: math range error": an object at the probe's own temperature shows no contact
     # step; with 3 s of contact before heating the fit's normal equations were nearly singular and an
     # undamped trial step sent ln(flux_scale) past exp's range.
     from edge.calibration.fit import ReferenceTouch, fit_calibration
     from edge.physics.materials import load_materials
-    from firmware_sim.rigs.contact_record import ContactTouch, record_touch
+    from firmware_sim.rigs.contact_record import ContactTouch
     from firmware_sim.rz.probe_world import AsBuilt
+    from tests.support.records import recorded_touch
 
     as_built = AsBuilt(sensing_thickness_m=0.424e-3, flux_sensitivity_V_per_W_m2=0.56e-6 * 1.04,
                        thermocouple_time_constant_s=0.06)
@@ -85,7 +87,7 @@ def test_a_calibration_on_references_at_the_probes_temperature_does_not_overflow
     touches = []
     for name in ("pmma", "pyroceram", "aisi_304"):
         s = lib.get(name).solid
-        r = record_touch(ContactTouch(s, 0.0, 0.0, lead_s=3.0, heat_s=2.0), as_built=as_built, seed=1)
+        r = recorded_touch(ContactTouch(s, 0.0, 0.0, lead_s=3.0, heat_s=2.0), as_built=as_built, seed=1)
         touches.append(ReferenceTouch(name, s.effusivity_W_s05_m2K, r["t_s"], r["T_C"], r["q_W_m2"]))
     cal = fit_calibration(touches, created_utc="2026-11-27T00:00:00Z")
     assert all(math.isfinite(x) for x in cal.theta) and 0.8 <= cal.flux_scale <= 1.25

@@ -124,10 +124,11 @@ def test_a_prefix_of_a_prepared_grid_is_fitted_on_its_head_and_agrees_with_its_o
     monkeypatch.setattr(axisym.AxisymModel, "__init__", counting)
     head = axi.estimate(t[:31], T[:31], q[:31])
     assert built == [] and len(axi._models) == 1        # no model built for the prefix, none cached
-    # The two contours' quadrature errors differ (~1e-8 of the signal): the values agree to 1e-6,
-    # the u, scaled by the fit's residual, to 1e-4.
+    # The two contours' quadrature errors differ (~2e-7 of the signal): the values agree to 5e-6 (2.2e-6
+    # measured with the sensor read over its real square, whose 0.6-s fit amplifies them more than the
+    # equal-area disk's did), the u, scaled by the fit's residual, to 1e-4.
     for key in ("effusivity_W_s05_m2K", "k_W_mK", "alpha_m2_s"):
-        assert head[key] == pytest.approx(own[key], rel=1e-6), key
+        assert head[key] == pytest.approx(own[key], rel=5e-6), key
     for key in ("effusivity_W_s05_m2K_u", "k_W_mK_u", "alpha_m2_s_u"):
         assert head[key] == pytest.approx(own[key], rel=1e-4), key
     with pytest.raises(ValueError, match="n must be in"):

@@ -122,3 +122,27 @@ def test_request_longer_than_the_limit_is_clamped():
     inv = assert_heater_safe(rig.parts, 3.0)
     assert inv["longest_on_s"] < 3.0 - 0.02 and out.status == "ok"  # clamped below the watchdog's guard
     seq.close()
+
+
+def test_a_flag_the_estimate_superseded_does_not_return_in_the_record():
+    # The calibrated chain that fitted the contact the 1-D check missed drops "no_contact" from its
+    # answer (edge.estimation.seam); the record's flags, the conditioning's merged with the answer's,
+    # must not bring it back (the demo's answered glass touch read "no_contact").
+    import dataclasses
+
+    from edge.status import Flag
+
+    rig, heater, seq, params = make_sequence(contact=False)
+    hook = seq.estimator
+
+    def superseding(touch, decision):
+        est = hook(touch, decision)
+        assert Flag.NO_CONTACT in est.flags
+        return dataclasses.replace(est, flags=tuple(f for f in est.flags if f != Flag.NO_CONTACT),
+                                   details={**est.details, "sensor_chain": {"superseded_flags": ["no_contact"]}})
+
+    seq.estimator = superseding
+    out = seq.run(params)
+    assert out.status == "ok" and "no_contact" not in out.flags and "uncalibrated" in out.flags
+    assert_heater_safe(rig.parts, 10.0)
+    seq.close()

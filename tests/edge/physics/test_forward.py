@@ -125,6 +125,7 @@ def test_linearity_and_superposition():
         assert rel_err(r.T_f_K, acc) < 1e-6 if scheme != "paper" else 2e-3
 
 
+@pytest.mark.slow  # every scheme marched over a stepped schedule: seconds
 def test_schemes_agree_on_stepped_power():
     times = np.array([0.0, 0.7, 1.3])
     levels = np.array([6e7, 1.3e8, 2e7])

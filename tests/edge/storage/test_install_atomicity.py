@@ -82,6 +82,7 @@ def _objects(root, policy):
     return ObjectSetStore(root / "objects", parse_object_set, policy=policy)
 
 
+@pytest.mark.slow  # a kill-point sweep: the install restarted once per file-system step
 @pytest.mark.parametrize("name", ["kitchen", "bench"], ids=["replace-the-active-set", "new-set-activated"])
 def test_an_object_set_install_is_all_or_nothing_with_its_signature(tmp_path, keys, monkeypatch, name):
     k1, k2, policy = keys
@@ -159,6 +160,7 @@ def _calibrations(root, policy):
                             device_id=lambda: DEVICE_ID)
 
 
+@pytest.mark.slow  # a kill-point sweep, as above
 def test_a_calibration_install_is_all_or_nothing_with_its_signature(tmp_path, keys, monkeypatch):
     k1, k2, policy = keys
     # The replacement is newer (a calibration not newer than the installed one is refused) and both

@@ -12,6 +12,8 @@ from firmware_sim.rz.probe_world import AsBuilt, FaithfulWorld
 from firmware_sim.scene.files import read_scene
 from firmware_sim.world import ScheduleDrive
 
+pytestmark = pytest.mark.slow  # faithful-world simulations of as-built probes, a second or more each
+
 T = np.array([1.0, 1.5, 2.5])   # heating from 0.5 s (the scenes' touch starts at 0.5 s)
 DT = 0.04
 

@@ -16,10 +16,11 @@ import numpy as np
 import pytest
 
 from edge.physics.materials import load_materials
-from firmware_sim.rigs.contact_record import ContactTouch, one_d_geometry, record_touch
+from firmware_sim.rigs.contact_record import ContactTouch, one_d_geometry
 from firmware_sim.rz.probe_world import AsBuilt
 from host.cli.main import main
 from host.records import write_series
+from tests.support.records import recorded_touch
 
 pytestmark = pytest.mark.slow
 
@@ -46,7 +47,7 @@ def records(tmp_path_factory):
     lib = load_materials()
     out = {}
     for i, (name, rc, off) in enumerate((("pmma", 0.0, -1.0), ("pyroceram", 1e-5, 1.0), ("aisi_304", 0.0, 1.0))):
-        r = record_touch(ContactTouch(lib.get(name).solid, rc, off, lead_s=1.0, heat_s=6.0), as_built=AS_BUILT,
+        r = recorded_touch(ContactTouch(lib.get(name).solid, rc, off, lead_s=1.0, heat_s=6.0), as_built=AS_BUILT,
                          geometry=one_d_geometry(), seed=i)
         p = d / f"{name}.csv"
         write_series(p, r["t_s"], r["T_C"] + 273.15, r["q_W_m2"])
@@ -154,7 +155,7 @@ def test_references_touched_at_the_probes_temperature_are_fitted_not_an_internal
     lib = load_materials()
     args = []
     for name in ("pmma", "pyroceram", "aisi_304"):
-        r = record_touch(ContactTouch(lib.get(name).solid, 0.0, 0.0, lead_s=3.0, heat_s=2.0), as_built=AS_BUILT,
+        r = recorded_touch(ContactTouch(lib.get(name).solid, 0.0, 0.0, lead_s=3.0, heat_s=2.0), as_built=AS_BUILT,
                          seed=1)
         p = tmp_path / f"{name}.csv"
         write_series(p, r["t_s"], r["T_C"] + 273.15, r["q_W_m2"])
