@@ -33,7 +33,9 @@ def pdf_text(raw: bytes) -> str:
     text run): the needles searched here avoid those letter pairs.
     """
     out = []
-    for arr in re.findall(rb"\[(.*?)\]\s*TJ", raw, flags=re.S):
+    # An array is strings "(...)" (which may hold an unescaped "]") and kerning numbers; matched element by
+    # element so that a "[" in image data fails at once instead of scanning the file for "] TJ".
+    for arr in re.findall(rb"\[((?:\((?:\\.|[^\\)])*\)|[^\](])*)\]\s*TJ", raw):
         out.append(b"".join(re.findall(rb"\(((?:\\.|[^\\)])*)\)", arr)).replace(b"\\(", b"(").replace(b"\\)", b")")
                    .decode("latin-1"))
     return "\n".join(out)
