@@ -90,33 +90,11 @@ def hand_scene(head: str, obj, draw_seed: int, seed: int, *, R_c: float, offset_
 
 def armed_touch(scene, store, workdir: str, *, heat_s: float, settle_s: float, arm_s: float = 10.0):
     """One armed touch through the device's sequence and estimate path (sequence_rig with MEASURE's arm)."""
-    from edge.hw.drivers.heater import Heater
-    from edge.measure.sensors import make_sensors, thermocouple_resolution_K
-    from edge.measure.sequence import MeasurementParams, MeasurementSequence
-    from edge.measure.watchdog import Limits
-    from edge.estimation.seam import TouchEstimator
-    from edge.service.estimator import ModelEstimator
-    from firmware_sim.run import config_for_scene
-    from firmware_sim.simulator import Simulator
+    from firmware_sim.rigs.sequence_rig import sequence_run
 
-    sim = Simulator(scene)
-    try:
-        cfg = config_for_scene(scene, workdir, {"measurement": {"contact_time_s": heat_s}})
-        h, m = cfg.heater, cfg.measurement
-        board = sim.board()
-        heater = Heater(board, supply_voltage_V=h.supply_voltage_V, resistance_ohm=h.resistance_ohm)
-        est = ModelEstimator(store, thermocouple_resolution_K(cfg.sensors), probe=cfg.board.probe)
-        seq = MeasurementSequence(heater, make_sensors(board, cfg.sensors), board.clock,
-                                  Limits(h.max_on_time_s, h.over_temperature_C, h.fault_flux_W_m2, h.fault_rise_K),
-                                  TouchEstimator(est.context(thresholds=m)), m, probe=cfg.board.probe)
-        try:
-            return seq.run(MeasurementParams(power_W=h.power_W, contact_time_s=heat_s, baseline_s=m.baseline_s,
-                                             sample_rate_Hz=m.sample_rate_Hz, cooldown_s=0.0, arm_s=arm_s,
-                                             settle_s=settle_s))
-        finally:
-            seq.close()
-    finally:
-        sim.close()
+    out, _, _ = sequence_run(scene, store, workdir, {"measurement": {"contact_time_s": heat_s}},
+                             arm_s=arm_s, settle_s=settle_s)
+    return out
 
 
 def cut(record, window_s: float):

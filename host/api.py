@@ -172,6 +172,13 @@ def typed_event(event: Event) -> Phase | Samples | RunningAnswer:
                          str(a.get("source")))
 
 
+def _unpack(kind: str, item: Any) -> tuple[Any, bool]:
+    """A stream queue's entry: the item and whether it is the last (the Measurement); an error is raised."""
+    if kind == "error":
+        raise item
+    return item, kind == "end"
+
+
 class Probe:
     """A connected probe. Use :meth:`connect` (and ``with``) or wrap an open :class:`DeviceClient`.
 
@@ -250,11 +257,9 @@ class Probe:
         th = self._start(kw, q.put, stop)
         try:
             while True:
-                kind, item = q.get()
-                if kind == "error":
-                    raise item
+                item, last = _unpack(*q.get())
                 yield item
-                if kind == "end":
+                if last:
                     return
         finally:
             self._stop_stream(stop, th)
@@ -268,11 +273,9 @@ class Probe:
         th = self._start(kw, lambda item: loop.call_soon_threadsafe(q.put_nowait, item), stop)
         try:
             while True:
-                kind, item = await q.get()
-                if kind == "error":
-                    raise item
+                item, last = _unpack(*await q.get())
                 yield item
-                if kind == "end":
+                if last:
                     return
         finally:
             self._stop_stream(stop, th)

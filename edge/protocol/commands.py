@@ -441,12 +441,7 @@ def validate_reply(command: Command, body: Mapping[str, Any]) -> dict[str, Any]:
     spec = _spec(command)
     if not isinstance(body, Mapping):
         raise ProtocolError(f"{spec.command.name} reply must be an object", "reply")
-    out = dict(body)
-    for f in spec.reply:
-        if f.name in body:
-            out[f.name] = _check_field(f, body[f.name], f.name)
-        elif f.required:
-            raise ProtocolError(f"{spec.command.name} reply lacks field {f.name!r}", f.name)
+    out = _checked_fields(spec.reply, body, f"{spec.command.name} reply")
     for key, value, names in spec.reply_when:
         if out.get(key) == value:
             for n in names:
@@ -457,6 +452,17 @@ def validate_reply(command: Command, body: Mapping[str, Any]) -> dict[str, Any]:
         if length != lengths[0][1]:
             raise ProtocolError(f"{spec.command.name} reply: {n} has {length} values, "
                                 f"{lengths[0][0]} has {lengths[0][1]}", n)
+    return out
+
+
+def _checked_fields(fields: Any, body: Mapping[str, Any], what: str) -> dict[str, Any]:
+    """``body`` with each of ``fields`` type-checked; a required one missing is refused, naming ``what``."""
+    out = dict(body)
+    for f in fields:
+        if f.name in body:
+            out[f.name] = _check_field(f, body[f.name], f.name)
+        elif f.required:
+            raise ProtocolError(f"{what} lacks field {f.name!r}", f.name)
     return out
 
 
@@ -474,12 +480,7 @@ def validate_event(body: Mapping[str, Any]) -> dict[str, Any]:
         spec = EVENTS[EventKind(body.get("kind"))]
     except ValueError:
         raise ProtocolError(f"unknown event kind {body.get('kind')!r}", "kind") from None
-    out = dict(body)
-    for f in spec.fields:
-        if f.name in body:
-            out[f.name] = _check_field(f, body[f.name], f.name)
-        elif f.required:
-            raise ProtocolError(f"{spec.kind} event lacks field {f.name!r}", f.name)
+    out = _checked_fields(spec.fields, body, f"{spec.kind} event")
     lengths = {len(out[n]) for n in spec.same_length}
     if len(lengths) > 1:
         raise ProtocolError(f"{spec.kind} event: {', '.join(spec.same_length)} differ in length",

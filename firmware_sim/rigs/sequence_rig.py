@@ -21,7 +21,7 @@ from edge.service.estimator import ModelEstimator
 from firmware_sim.run import config_for_scene
 from firmware_sim.simulator import Simulator
 
-__all__ = ["OneBundleStore", "sequence_touch"]
+__all__ = ["OneBundleStore", "sequence_touch", "sequence_run"]
 
 
 class OneBundleStore:
@@ -55,6 +55,16 @@ def sequence_touch(scene: Any, store: Any, workdir: str, overrides: Mapping[str,
     invariant : dict
         The heater invariant read from the simulated hardware (``ok``, ``longest_on_s`` ...).
     """
+    return sequence_run(scene, store, workdir, overrides)
+
+
+def sequence_run(scene: Any, store: Any, workdir: str, overrides: Mapping[str, Mapping[str, Any]] | None = None,
+                 **params: Any) -> tuple[Any, Config, dict]:
+    """:func:`sequence_touch` with MEASURE's own arguments (``arm_s``, ``settle_s``, ``contact_time_s`` ...).
+
+    ``params`` override the :class:`~edge.measure.sequence.MeasurementParams` the configuration gives
+    (power, contact time, baseline and sample rate from the scene's configuration; no cool-down).
+    """
     sim = Simulator(scene)
     try:
         cfg = config_for_scene(scene, workdir, overrides)
@@ -66,9 +76,9 @@ def sequence_touch(scene: Any, store: Any, workdir: str, overrides: Mapping[str,
                                   Limits(h.max_on_time_s, h.over_temperature_C, h.fault_flux_W_m2, h.fault_rise_K),
                                   TouchEstimator(est.context(thresholds=m)), m, probe=cfg.board.probe)
         try:
-            out = seq.run(MeasurementParams(power_W=h.power_W, contact_time_s=m.contact_time_s,
-                                            baseline_s=m.baseline_s, sample_rate_Hz=m.sample_rate_Hz,
-                                            cooldown_s=0.0))
+            out = seq.run(MeasurementParams(**{"power_W": h.power_W, "contact_time_s": m.contact_time_s,
+                                               "baseline_s": m.baseline_s, "sample_rate_Hz": m.sample_rate_Hz,
+                                               "cooldown_s": 0.0, **params}))
         finally:
             seq.close()
         return out, cfg, sim.heater_invariant(h.max_on_time_s)
