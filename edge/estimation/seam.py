@@ -64,7 +64,7 @@ MethodFn = Callable[..., Mapping[str, Any]]
 #: chain's parts of u(e) become the answer's ``u_e_parts`` when its e is the answer).
 CHAIN_KEEP = ("contact_lost_t_s", "effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "contact_resistance_m2K_W",
               "contact_resistance_m2K_W_u", "object_temperature0", "object_temperature0_u", "contact_t_s",
-              "normalised_residual", "flags", "determined", "alpha_m2_s", "alpha_m2_s_u", "k_W_mK", "k_W_mK_u")
+              "contact_detected", "normalised_residual", "flags", "determined", "alpha_m2_s", "alpha_m2_s_u", "k_W_mK", "k_W_mK_u")
 #: Keys of the method's own answer kept under ``default_method`` once the chain's is the answer.
 DEFAULT_METHOD_KEYS = ("effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u", "alpha_m2_s",
                        "alpha_m2_s_u", "material", "material_confidence", "method")
@@ -408,6 +408,7 @@ def estimate_touch(record: TouchRecord, context: SeamContext, *,
     model_sha = getattr(context.estimator, "sha256", None)
     est = method_estimate(d, record.probe, model_sha, thickness)
     est = replace(est, flags=tuple(seq_flags) + est.flags + (() if cal is not None else (Flag.UNCALIBRATED,)))
+    withhold = False
     if kind.sensor_chain and record.heater_on_t_s is not None:
         chain, chain_parts = _chain(record, cal, context.estimator)
         extra = (Flag.CONTACT_LOST,) if Flag.CONTACT_LOST in (chain.get("flags") or ()) else ()
@@ -428,7 +429,15 @@ def estimate_touch(record: TouchRecord, context: SeamContext, *,
             # The installed calibration did not make this answer: say so (ISSUE #34, "answers that look
             # calibrated but are not"); sensor_chain.flags say why.
             est = est.with_flags(Flag.CALIBRATION_REFUSED)
-    if NO_ANSWER & set(est.flags):
+            chain_flags = set(chain.get("flags") or ())
+            if (Flag.POOR_FIT in chain_flags and chain.get("contact_detected")
+                    and Flag.CONTACT_NOT_RECORDED not in chain_flags):
+                # The contact was made during the record, before heating: the 1-D methods' premise (a
+                # probe resting on the object long before heater-on) fails, and the chain, which models
+                # the contact, does not fit either. No answer: on drawn as-built probes the 1-D fallback
+                # read hand touches of foam 8-36 times too high with a u of 7-19 % (ISSUE #34).
+                est, withhold = est.with_flags(Flag.POOR_FIT), True
+    if withhold or NO_ANSWER & set(est.flags):
         # Nothing was touched or nothing measured: no answer, whatever a method fitted (ISSUE #34 item 3).
         est = replace(est, effusivity_W_s05_m2K=None, k_W_mK=None, alpha_m2_s=None, determined_by={},
                       material=None, material_confidence=0.0, material_candidates=(), u_e_parts={})
