@@ -18,21 +18,15 @@ import pytest
 from edge.physics.materials import load_materials
 from firmware_sim.rigs.contact_record import ContactTouch, one_d_geometry
 from firmware_sim.rz.probe_world import AsBuilt
-from host.cli.main import main
 from host.records import write_series
 from tests.support.records import recorded_touch
+from tests.support.cli import run
 
 pytestmark = pytest.mark.slow
 
 AS_BUILT = AsBuilt(sensing_thickness_m=0.424e-3, flux_sensitivity_V_per_W_m2=0.56e-6 * 1.04,
                    thermocouple_time_constant_s=0.06)
 DEVICE = "tt-0123456789abcdef"
-
-
-def run(capsys, *argv):
-    code = main(list(argv))
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def _with_header(path, **lines):

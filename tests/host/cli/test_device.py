@@ -17,20 +17,14 @@ import sys
 import pytest
 
 from edge.estimation.estimate import mlp_golden_check
-from host.cli.main import main
 from host.client import DeviceClient
 from host.device import DeviceUnavailable, describe_error, open_device, simulated_probe
+from tests.support.cli import run
 
 pytestmark = [pytest.mark.hil, pytest.mark.slow]
 
 RESULT_KEYS = {"effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u", "alpha_m2_s",
                "alpha_m2_s_u", "material", "material_confidence", "method", "model_sha256", "flags"}
-
-
-def run(capsys, *argv):
-    code = main(list(argv))
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def assert_touched(code: int, err: str) -> None:

@@ -9,14 +9,8 @@ import pytest
 
 import edge.status
 from edge.status import Flag
-from host.cli.main import main
 from host.flag_docs import describe_flag, flag_docs
-
-
-def run(capsys, *argv):
-    code = main(list(argv))
-    out, err = capsys.readouterr()
-    return code, out, err
+from tests.support.cli import run
 
 
 def test_every_flag_member_has_an_explanation_in_enum_order():

@@ -12,20 +12,8 @@ import pytest
 
 from edge.security.keys import PUBLIC_KIND, SECRET_KIND, key_id, read_key
 from edge.security import ed25519
-from host.cli.main import main
 from host.keys import KEYS_ENV, default_keys_dir
-
-
-def run(capsys, *argv):
-    code = main(list(argv))
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def one_line_error(err: str) -> str:
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    return lines[0]
+from tests.support.cli import run, one_line_error
 
 
 def test_keys_new_writes_a_secret_0600_and_a_public_file(capsys, tmp_path):

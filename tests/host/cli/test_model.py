@@ -9,13 +9,7 @@ import pytest
 
 from edge.physics.forward import simulate
 from edge.physics.solids import Solid
-from host.cli.main import main
-
-
-def run(capsys, *argv):
-    code = main(list(argv))
-    out, err = capsys.readouterr()
-    return code, out, err
+from tests.support.cli import run
 
 
 def test_json_glass_matches_model(capsys):

@@ -10,25 +10,13 @@ from dataclasses import replace
 import pytest
 
 from edge.calibration.model import ProbeCalibration, ReferenceFit
-from host.cli.main import main
 from host.flag_docs import describe_flag
 from host.lab_series import series_document, touch_entry
 from host.lab_stats import VERDICTS
+from tests.support.cli import run, one_line_error
 
 SAMPLE = "Glass <B33> & 'co'"
 E = [1500.0, 1540.0, None, 1470.0]
-
-
-def run(capsys, *argv):
-    code = main(list(argv))
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def one_line_error(err: str) -> str:
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    return lines[0]
 
 
 def _record(i: int, e: float | None) -> dict:

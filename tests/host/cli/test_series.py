@@ -23,21 +23,10 @@ import host.lab_series as lab_series
 from host.cli.main import main, version
 from host.lab_metadata import MAX_CHARS
 from host.lab_stats import TAIL, summarize
+from tests.support.cli import run, one_line_error
 
 SAMPLE = "Borofloat <B33> & co"
 N = 4
-
-
-def run(capsys, *argv):
-    code = main(list(argv))
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def one_line_error(err: str) -> str:
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    return lines[0]
 
 
 @pytest.fixture(scope="module")

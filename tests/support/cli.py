@@ -1,0 +1,21 @@
+"""Running the ``thermotouch`` CLI in process, as the CLI tests do."""
+
+from __future__ import annotations
+
+from host.cli.main import main
+
+__all__ = ["run", "one_line_error"]
+
+
+def run(capsys, *argv):
+    """``(exit code, stdout, stderr)`` of ``thermotouch ARGV`` run in this process."""
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def one_line_error(err: str) -> str:
+    """The one line a refusal prints (no traceback), asserted to be one line."""
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
