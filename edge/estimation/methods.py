@@ -45,18 +45,22 @@ from edge.physics.geometry import ProbeGeometry, get_probe
 __all__ = ["KINDS", "ThickBodyMethod", "AxiMethod", "method_class", "kind_of"]
 
 
-class ThickBodyMethod:
+class _Method:
+    """What every head's estimator holds: the bundle's estimator, the head, the thermocouple's resolution."""
+
+    def __init__(self, estimator: Estimator, geometry: ProbeGeometry, *, T_resolution_K: float = 0.0) -> None:
+        self.estimator = estimator
+        self.geometry = geometry
+        self.T_resolution_K = float(T_resolution_K)
+
+
+class ThickBodyMethod(_Method):
     """The 1-D estimator (``"default"`` and ``"paper"`` methods) of a heater wide against the heat's reach."""
 
     kind = "thick_body"
     sensor_chain = True
     running = "thick_body"
     measures_alpha = False
-
-    def __init__(self, estimator: Estimator, geometry: ProbeGeometry, *, T_resolution_K: float = 0.0) -> None:
-        self.estimator = estimator
-        self.geometry = geometry
-        self.T_resolution_K = float(T_resolution_K)
 
     def prepare(self, t_s: np.ndarray) -> None:
         """Nothing to build: the 1-D model is cheap on any grid."""
@@ -83,7 +87,7 @@ class ThickBodyMethod:
         return d
 
 
-class AxiMethod:
+class AxiMethod(_Method):
     """The small heater's axisymmetric fit (:class:`edge.estimation.probe_estimate.AxiEstimator`)."""
 
     kind = "axisym"
@@ -94,9 +98,7 @@ class AxiMethod:
     def __init__(self, estimator: Estimator, geometry: ProbeGeometry, *, T_resolution_K: float = 0.0) -> None:
         from edge.estimation.probe_estimate import AxiEstimator  # noqa: PLC0415 - the 1-D device never needs it
 
-        self.estimator = estimator
-        self.geometry = geometry
-        self.T_resolution_K = float(T_resolution_K)
+        super().__init__(estimator, geometry, T_resolution_K=T_resolution_K)
         self.axi = AxiEstimator(estimator, geometry)
 
     def prepare(self, t_s: np.ndarray) -> None:

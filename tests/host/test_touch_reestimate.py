@@ -6,6 +6,7 @@ import pytest
 
 from edge.estimation.seam import SeamContext, estimate_touch
 from host.touch import reestimate, touch_record
+from tests.support.cli import rounded as _rounded
 
 
 @pytest.fixture(scope="module")
@@ -59,14 +60,3 @@ def _estimator(bundle):
     from edge.estimation.estimate import Estimator
 
     return Estimator.from_bundle(bundle)
-
-
-def _rounded(v):
-    """``v`` with every float to 12 significant digits, however nested."""
-    if isinstance(v, float):
-        return float(f"{v:.12g}")
-    if isinstance(v, dict):
-        return {k: _rounded(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_rounded(x) for x in v]
-    return v

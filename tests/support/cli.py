@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from host.cli.main import main
 
-__all__ = ["run", "one_line_error"]
+__all__ = ["run", "one_line_error", "rounded"]
 
 
 def run(capsys, *argv):
     """``(exit code, stdout, stderr)`` of ``thermotouch ARGV`` run in this process."""
-    code = main(list(argv))
+    code = main([str(a) for a in argv])   # paths as the shell would pass them
     out, err = capsys.readouterr()
     return code, out, err
 
@@ -19,3 +19,14 @@ def one_line_error(err: str) -> str:
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert len(lines) == 1 and "Traceback" not in err, err
     return lines[0]
+
+
+def rounded(v):
+    """``v`` with every float to 12 significant digits, however nested (answers compared across processes)."""
+    if isinstance(v, float):
+        return float(f"{v:.12g}")
+    if isinstance(v, dict):
+        return {k: rounded(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [rounded(x) for x in v]
+    return v

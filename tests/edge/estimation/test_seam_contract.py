@@ -28,6 +28,7 @@ from edge.recognition import ObjectSet
 from edge.service.config import Config
 from edge.status import Flag
 from tests.support.calibrations import sample_calibration
+from tests.support.cli import rounded as _rounded
 
 #: Keys a method's details may add after RESULT_KEYS.
 DETAIL_KEYS = {"fit", "sensor_chain", "default_method", "decision", "object_error"}
@@ -215,14 +216,3 @@ def test_the_daemon_stores_the_seams_answer(tmp_path):
     assert _rounded(json.loads(json.dumps(mine))) == _rounded(stored["result"])
     assert stored["flags"] == mine["flags"] and mine["calibration_sha256"] == cal.sha256
     assert "uncalibrated" not in mine["flags"]
-
-
-def _rounded(v):
-    """``v`` with every float to 12 significant digits, however nested."""
-    if isinstance(v, float):
-        return float(f"{v:.12g}")
-    if isinstance(v, dict):
-        return {k: _rounded(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_rounded(x) for x in v]
-    return v

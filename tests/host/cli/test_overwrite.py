@@ -6,29 +6,10 @@ import json
 
 import pytest
 
-from host.cli.main import main
+from tests.host.cli.conftest import KITCHEN
+from tests.support.cli import one_line_error as one_line, run
 
-KITCHEN = "name,class,k_W_mK,rho_kg_m3,c_J_kgK\nwindow,glass,1.1,2450,810\nlid,polymer,0.19,1180,1430\n"
 LONG = "a" * 300
-
-
-def run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def one_line(err):
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    return lines[0]
-
-
-@pytest.fixture
-def kitchen(tmp_path):
-    p = tmp_path / "kitchen.csv"
-    p.write_text(KITCHEN)
-    return p
 
 
 @pytest.mark.hil
