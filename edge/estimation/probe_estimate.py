@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -57,7 +57,8 @@ from edge.physics.geometry import ProbeGeometry, get_probe
 from edge.physics.solids import Solid
 from edge.status import Flag
 
-__all__ = ["AxiEstimator", "QUANTITIES", "CALIBRATED", "geometry_at", "calibrated_params"]
+__all__ = ["AxiEstimator", "QUANTITIES", "CALIBRATED", "geometry_at", "calibrated_params", "PreHeating",
+           "ObjectOffset", "pre_heating"]
 
 #: Names of the quantities in ``determined`` / ``from_prior``.
 QUANTITIES = ("e", "k", "alpha")
@@ -101,6 +102,100 @@ def calibrated_params(cal) -> tuple[np.ndarray, np.ndarray] | None:
 
 def _num(x):
     return None if x is None or not math.isfinite(x) else float(x)
+
+
+#: Samples this soon after the contact instant are not fitted (s): the contact finder places the instant
+#: within a sample period, and a hand's first touch is not a perfect step (as the sensor chain's fit start).
+OFFSET_FIT_START_s = 0.2
+#: Air before the contact that pins the probe's own temperature and the flux channel's zero (s).
+OFFSET_AIR_s = 1.0
+#: Heating-grid samples before this (s) are not fitted with the offset model (the grid's anchor, above).
+OFFSET_GRID_START_s = 0.05
+#: Step (in ln e) of the finite difference of the contact response.
+_LN_E_STEP = 1e-4
+#: Step of R_c (m^2K/W) of the same.
+_RC_STEP = 1e-7
+
+
+@dataclass(frozen=True)
+class PreHeating:
+    """A touch's samples from before heater-on, for the object-offset model (:class:`ObjectOffset`).
+
+    ``t_s``: the samples' times (s, < 0, on the record's clock: 0 at heater-on); ``tau_T_s`` /
+    ``tau_q_s``: the thermocouple's and the flux sensor's read times since the contact instant;
+    ``dT_K`` / ``q_W_m2``: the readings less the same baseline the heating grid has; ``contact_t_s``:
+    the contact instant on the record's clock.
+    """
+
+    t_s: np.ndarray
+    tau_T_s: np.ndarray
+    tau_q_s: np.ndarray
+    dT_K: np.ndarray
+    q_W_m2: np.ndarray
+    contact_t_s: float
+
+
+def pre_heating(record, T0_C: float, q_offset_W_m2: float) -> PreHeating | None:
+    """The pre-heating samples of a hand touch whose contact the record holds, or None.
+
+    None when the record did not start in air or no contact step was seen before heater-on (an object
+    at the probe's temperature: nothing to model, :func:`edge.estimation.contact.find_contact`).
+    """
+    from edge.estimation.contact import find_contact  # noqa: PLC0415 - same package, a leaf
+
+    t, T, q = (np.asarray(x, float) for x in (record.t_s, record.T_C, record.q_W_m2))
+    if record.heater_on_t_s is None or t.size < 8:
+        return None
+    try:
+        c = find_contact(t, T, q)
+    except ValueError:
+        return None
+    if not (c.detected and c.recorded_in_air and c.how in ("temperature", "flux")):
+        return None
+    # The true instant lies within the sample period after the last sample in air.
+    t_c = float(c.t_s) + 0.5 / float(record.sample_rate_Hz)
+    tau = t - t_c
+    keep = (t < 0) & (((tau < 0) & (tau >= -OFFSET_AIR_s)) | (tau >= OFFSET_FIT_START_s))
+    if np.count_nonzero(keep & (tau < 0)) < 3:
+        return None
+    dTt = np.zeros_like(t) if record.T_dt_s is None else np.asarray(record.T_dt_s, float)
+    dqt = np.zeros_like(t) if record.q_dt_s is None else np.asarray(record.q_dt_s, float)
+    return PreHeating(t_s=t[keep], tau_T_s=(tau + dTt - record.T_age_s)[keep], tau_q_s=(tau + dqt)[keep],
+                      dT_K=T[keep] - T0_C, q_W_m2=q[keep] - q_offset_W_m2, contact_t_s=t_c)
+
+
+class ObjectOffset:
+    """Linear nuisances of a hand touch for :class:`~edge.estimation.axifit.AxiFitter`: the probe's own
+    temperature (a constant on the thermocouple), the flux channel's zero (a constant on the flux
+    sensor) and the object's offset ``T_obj - T_probe`` (times the contact response,
+    :class:`edge.physics.contact_offset.ContactKernel`, which depends on the object's e and R_c).
+    """
+
+    names = ("probe_temperature_K", "flux_zero_W_m2", "object_offset_K")
+
+    def __init__(self, kernel) -> None:
+        self.kernel = kernel
+        self.n_T = kernel.n_T
+        self.n_q = kernel.inversion.t_s.size - kernel.n_T
+
+    def _g(self, e: float, R: float) -> np.ndarray:
+        T, q = self.kernel.transforms(e, R)
+        return self.kernel.inversion.invert(np.stack([T, q]))
+
+    def columns(self, k: float, alpha: float, R: float, jac: bool):
+        e = k / math.sqrt(alpha)
+        g = self._g(e, R)
+        nT, nq = self.n_T, self.n_q
+        XT = np.stack([np.ones(nT), np.zeros(nT), g[0][:nT]])
+        Xq = np.stack([np.zeros(nq), np.ones(nq), g[1][nT:]])
+        if not jac:
+            return XT, Xq, None, None
+        dge = (self._g(e * math.exp(_LN_E_STEP), R) - g) / _LN_E_STEP
+        dgR = (self._g(e, R + _RC_STEP) - g) / _RC_STEP
+        dXT, dXq = np.zeros((3, 3, nT)), np.zeros((3, 3, nq))
+        for i, d in enumerate((dge, -0.5 * dge, dgR)):   # d / d(ln k, ln alpha, R_c); e = k / sqrt(alpha)
+            dXT[i, 2], dXq[i, 2] = d[0][:nT], d[1][nT:]
+        return XT, Xq, dXT, dXq
 
 
 #: Flux (W/m^2, mean over the record's second half) below which the heater's heat did not reach the
@@ -222,7 +317,8 @@ class AxiEstimator:
     def estimate(self, t_s, dT_K, q_W_m2, *, power_W: float | None = None, thickness_m: float | None = None,
                  back: str = "infinite", T_resolution_K: float = 0.0, flux_scale: float = 1.0,
                  flux_u_rel: float | None = None, u_rel_floor: float = 0.0,
-                 calibrated: tuple[np.ndarray, np.ndarray] | None = None, fit_contact: bool | None = None) -> dict:
+                 calibrated: tuple[np.ndarray, np.ndarray] | None = None, fit_contact: bool | None = None,
+                 pre: PreHeating | None = None) -> dict:
         """Estimate from one record (times from heater-on; thermocouple rise, flux-sensor reading).
 
         Parameters
@@ -246,6 +342,10 @@ class AxiEstimator:
             substrate) and every answer's u carries the covariance (the flux scale's entry replaces
             ``flux_u_rel``); default the datasheet's probe.
         fit_contact : fit the contact resistance (default: the constructor's choice).
+        pre : the touch's samples before heater-on (:func:`pre_heating`): the object's temperature offset
+            is then fitted as a linear nuisance (:class:`ObjectOffset`) on them and the heating grid,
+            and its covariance enters every u (``fit["object_offset_K"]``); default: none (an object at
+            the probe's temperature, as before).
 
         Returns
         -------
@@ -278,7 +378,9 @@ class AxiEstimator:
                "corr_k_alpha": None, "fit": None}
         if t.size < 4:
             raise ValueError(f"need at least 4 samples after heater-on, got {t.size}")
-        why = _signal_check(T, q, T_resolution_K)
+        # With an object offset the heating records carry its contact transient too (a colder object makes
+        # the thermocouple fall): the heater's own signal is judged after the fit, on the records less it.
+        why = None if pre is not None else _signal_check(T, q, T_resolution_K)
         if why is not None:
             out["flags"].append(str(why))
             return out
@@ -289,12 +391,37 @@ class AxiEstimator:
         # in the foam's effusivity moved nickel's e by -63 / +69 %, issue #34), and the sensing layer's
         # thickness and k set what both sensors see (+-10 % of either: chi^2 per point ~1000 on a drawn probe).
         geometry = None if calibrated is None else geometry_at(self.geometry, calibrated[0])
+        offset = None
+        if pre is not None:
+            # A hand touch: the object's temperature offset, the probe's temperature and the flux zero are
+            # linear nuisances over the pre-heating samples and the heating grid (the heater's model is 0
+            # before heater-on). The first samples of the grid are dropped: the grid's (0, 0) anchor assumes
+            # a flat baseline, which a contact transient is not.
+            from edge.physics.contact_offset import ContactKernel  # noqa: PLC0415
+
+            late = t >= OFFSET_GRID_START_s
+            t, T, q = t[late], T[late], q[late]
+            tau = t - pre.contact_t_s
+            kernel = ContactKernel(self.geometry if geometry is None else geometry,
+                                   np.concatenate([pre.tau_T_s, tau]), np.concatenate([pre.tau_q_s, tau]))
+            offset = ObjectOffset(kernel)
+            t = np.concatenate([pre.t_s, t])
+            T = np.concatenate([pre.dT_K, T])
+            q = np.concatenate([pre.q_W_m2 * flux_scale, q])
         model = self._model(t, geometry)
         fitter = AxiFitter(model.geometry, t, sigma_T_K=sigma_T, sigma_q_W_m2=self.sigma_q_W_m2,
                            thickness_m=thickness_m, back=back if thickness_m is not None else "infinite",
                            identifiable_u_rel=self.identifiable_u_rel,
-                           fit_contact=self.fit_contact if fit_contact is None else bool(fit_contact), model=model)
+                           fit_contact=self.fit_contact if fit_contact is None else bool(fit_contact), model=model,
+                           offset=offset)
         f = fitter.fit(T, q, power_W=power_W)
+        if offset is not None:
+            XT, Xq, _, _ = offset.columns(f.fit_k_W_mK, f.fit_alpha_m2_s, f.contact_resistance_m2K_W, False)
+            b, n_pre = fitter.offset_beta, pre.t_s.size
+            why = _signal_check((T - b @ XT)[n_pre:], (q - b @ Xq)[n_pre:], T_resolution_K)
+            if why is not None:
+                out["flags"].append(str(why))
+                return out
         # The fit scales its covariance by chi^2/dof. Below 1 (sensors quieter than the noise they are
         # weighted by) that would state k and alpha better than the sensors' specified noise allows, and
         # the residual no longer measures what it cannot see: the record's time stamps and the model's
@@ -307,6 +434,11 @@ class AxiEstimator:
                     "u_rel_k": _num(f.u_rel["k"]), "u_rel_alpha": _num(f.u_rel["alpha"]),
                     "u_rel_effusivity": _num(u_le_fit), "chi2_reduced": _num(f.chi2_reduced),
                     "iterations": f.iterations, "converged": f.converged, "power_scale": _num(f.scale)}
+        if offset is not None:
+            b, C = fitter.offset_beta, fitter.offset_cov
+            fit_info["object_offset_K"] = _num(float(b[2]))
+            fit_info["object_offset_K_u"] = _num(inflate * math.sqrt(max(float(C[2, 2]), 0.0)))
+            fit_info["contact_t_s"] = pre.contact_t_s
         out["fit"] = fit_info
         out["corr_k_alpha"] = _num(f.corr_k_alpha)
         flags: list[str] = []
