@@ -240,11 +240,30 @@ class AxiFitter:
     def _design(self, theta, mT, mq, dmT, dmq, jac: bool):
         """Columns [heater (power scale), offset's ...] (n, 1 + m) and d(columns)/d theta (npar, n, 1 + m)."""
         X, dX = self._offset_columns(theta, jac)
+        if getattr(self.offset, "tcr", False):
+            # A column made from the heater's own (the heater's TCR under the contact transient).
+            x, dx = self.offset.tcr_columns(math.exp(theta[0]), math.exp(theta[1]), self._R(theta), mT, mq,
+                                            dmT, dmq, jac)
+            X = np.concatenate([X, x[None, :]])
+            if jac:
+                dX = np.concatenate([dX, dx[:, None, :]], axis=1)
         A = np.concatenate([np.concatenate([mT, mq])[:, None], X.T], axis=1)
         if not jac:
             return A, None
         dm = np.concatenate([dmT, dmq], axis=1)
         return A, np.concatenate([dm[:, :, None], np.transpose(dX, (0, 2, 1))], axis=2)
+
+    def _with_prior(self, A, dA, y):
+        """The offset's prior on its nuisances as extra rows (``offset.prior(beta)`` -> rows, targets)."""
+        prior = getattr(self.offset, "prior", None)
+        if prior is None:
+            return A, dA, y
+        rows, targets = prior(np.linalg.lstsq(A, y, rcond=None)[0])
+        A = np.concatenate([A, rows])
+        y = np.concatenate([y, targets])
+        if dA is not None:
+            dA = np.concatenate([dA, np.zeros((dA.shape[0],) + rows.shape)], axis=1)
+        return A, dA, y
 
     def _residual_offset(self, theta, yT, yq, mT, mq, dmT, dmq, jac: bool):
         """Variable projection with the power scale and the offset's linear nuisances (Kaufman's Jacobian).
@@ -256,6 +275,7 @@ class AxiFitter:
             raise ValueError("the object offset is fitted with the power scale as the nuisance")
         y = np.concatenate([yT, yq])
         A, dA = self._design(theta, mT, mq, dmT, dmq, jac)
+        A, dA, y = self._with_prior(A, dA, y)
         Q, _ = np.linalg.qr(A)
         beta = np.linalg.lstsq(A, y, rcond=None)[0]
         r = y - A @ beta
@@ -292,6 +312,7 @@ class AxiFitter:
             self.model = keep
         scale_T = s if self.nuisance == "power" else 1.0
         dy = np.concatenate([scale_T * (other[0] - base[0]), s * (other[1] - base[1])])
+        dy = np.concatenate([dy, np.zeros(J.shape[0] - dy.size)])   # the offset's prior rows (none: 0)
         return (covariance_ln_k_alpha(J.T @ J) @ (J.T @ dy))[:2]
 
     # -- the fit
@@ -369,7 +390,8 @@ class AxiFitter:
             # Full Jacobian: theta's columns through every linear term, then the power scale and the
             # offset's nuisances -- their covariance with ln k and ln alpha enters every u.
             A, dA = self._design(theta, mT, mq, dmT, dmq, True)
-            beta = np.linalg.lstsq(A, np.concatenate([yT, yq]), rcond=None)[0]
+            A, dA, y_all = self._with_prior(A, dA, np.concatenate([yT, yq]))
+            beta = np.linalg.lstsq(A, y_all, rcond=None)[0]
             s = float(beta[0])
             J = np.concatenate([np.einsum("pnm,m->np", dA, beta), A], axis=1)
             self.offset_beta = beta[1:].copy()
@@ -395,6 +417,7 @@ class AxiFitter:
         # The fit's response to the flux record scaled by (1 + eps): d beta / d eps = (J^T J)^-1 J^T dy,
         # with the same (vanishing) regularisation as the covariance.
         dy = np.concatenate([np.zeros_like(yT), yq])
+        dy = np.concatenate([dy, np.zeros(J.shape[0] - dy.size)])   # the offset's prior rows (none: 0)
         self._final = (theta.copy(), float(s), P0, J)
         d_beta = covariance_ln_k_alpha(J.T @ J) @ (J.T @ dy)
         sens = {"k": float(d_beta[0]), "alpha": float(d_beta[1]), "effusivity": float(d_beta[0] - 0.5 * d_beta[1])}

@@ -51,7 +51,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from edge.checks import finite_array, one_of, strictly_increasing
-from edge.estimation.axifit import AxiFitter
+from edge.estimation.axifit import _RC_UNIT, AxiFitter
 from edge.estimation.estimate import FLUX_CALIBRATION_U_REL, MIN_SNR, Estimator
 from edge.physics.geometry import ProbeGeometry, get_probe
 from edge.physics.solids import Solid
@@ -111,6 +111,12 @@ OFFSET_FIT_START_s = 0.2
 OFFSET_AIR_s = 1.0
 #: Heating-grid samples before this (s) are not fitted with the offset model (the grid's anchor, above).
 OFFSET_GRID_START_s = 0.05
+SPLIT_OFFSET = False
+#: The heater film's temperature coefficient of resistance the device assumes (1/K): film heaters' range
+#: (NiCr / carbon films; constantan ~0); uniform over it, its sd is the prior's.
+HEATER_TCR_PER_K = (0.001, 0.004)
+#: Model the heater's TCR cross term of the offset (:class:`ObjectOffset`).
+OFFSET_TCR = True
 #: Step (in ln e) of the finite difference of the contact response.
 _LN_E_STEP = 1e-4
 #: Step of R_c (m^2K/W) of the same.
@@ -172,29 +178,88 @@ class ObjectOffset:
     """
 
     names = ("probe_temperature_K", "flux_zero_W_m2", "object_offset_K")
+    #: Give the flux sensor's contact response its own amplitude (object_offset_q_K).
+    @property
+    def split(self):
+        return SPLIT_OFFSET
 
-    def __init__(self, kernel) -> None:
+    def __init__(self, kernel, n_pre: int = 0, grid_k=None) -> None:
         self.kernel = kernel
         self.n_T = kernel.n_T
-        self.n_q = kernel.inversion.t_s.size - kernel.n_T
+        self.n_q = kernel.n_q
+        #: The heater's TCR: the contact transient moves the heater film's temperature, so its resistance
+        #: and, at constant voltage, its power: P0 (1 - alpha_R dT_obj g_h(t - t_c)). Its coefficient
+        #: (-alpha_R dT_obj; alpha_R 0.001-0.004 /K on film heaters, unknown to the device) is one more
+        #: linear nuisance, its column the heater's response to that power change (a convolution on the grid).
+        self.tcr = grid_k is not None
+        if not self.tcr:
+            self.prior = None     # nothing to constrain
+        self.n_pre = int(n_pre)
+        self.grid_k = None if grid_k is None else np.asarray(grid_k, int)
+
+    def prior(self, beta: np.ndarray):
+        """The TCR coefficient's prior given the offset: -alpha_R dT_obj, alpha_R in :data:`HEATER_TCR_PER_K`.
+
+        One row over the linear coefficients (power scale, probe temperature, flux zero, offset, TCR):
+        ``(c + alpha_mid dT) / (alpha_sd |dT|)`` with dT the unconstrained fit's (its scale, held fixed).
+        """
+        lo, hi = HEATER_TCR_PER_K
+        mid, sd = 0.5 * (lo + hi), (hi - lo) / math.sqrt(12.0)
+        width = sd * max(abs(float(beta[3])), 0.05)
+        row = np.zeros((1, beta.size))
+        row[0, 3], row[0, -1] = mid / width, 1.0 / width
+        return row, np.zeros(1)
 
     def _g(self, e: float, R: float) -> np.ndarray:
-        T, q = self.kernel.transforms(e, R)
+        T, q, _ = self.kernel.transforms(e, R)
         return self.kernel.inversion.invert(np.stack([T, q]))
+
+    def _conv(self, m: np.ndarray, d_eps: np.ndarray) -> np.ndarray:
+        """sum_k H((i - k + 1/2) dt) d_eps_k at the heating rows; H: the heater column on the grid (0 before)."""
+        N = d_eps.size
+        H = np.zeros(N + 1)
+        H[self.grid_k] = m[self.n_pre:]
+        Hm = 0.5 * (H[:-1] + H[1:])
+        full = np.convolve(Hm, d_eps)[:N]           # index i-1 <-> grid k = i
+        out = np.zeros(m.size)
+        out[self.n_pre:] = full[self.grid_k - 1]
+        return out
+
+    def tcr_columns(self, k: float, alpha: float, R: float, mT, mq, dmT, dmq, jac: bool):
+        """The TCR column (weighted like the heater's) and its theta-derivatives (npar, n) or None."""
+        e = k / math.sqrt(alpha)
+        d_eps = np.diff(self.kernel.heater_response(e, R))
+        xT, xq = self._conv(mT, d_eps), self._conv(mq, d_eps)
+        if not jac:
+            return np.concatenate([xT, xq]), None
+        de = np.diff(self.kernel.heater_response(e * math.exp(_LN_E_STEP), R)) - d_eps
+        dR = np.diff(self.kernel.heater_response(e, R + _RC_STEP)) - d_eps
+        rows = []
+        for i in range(dmT.shape[0]):
+            # R_c's derivative in the fitter's unit of R_c (as its heater columns').
+            dd = (de / _LN_E_STEP, -0.5 * de / _LN_E_STEP, dR / _RC_STEP * _RC_UNIT)[i]
+            rows.append(np.concatenate([self._conv(dmT[i], d_eps) + self._conv(mT, dd),
+                                        self._conv(dmq[i], d_eps) + self._conv(mq, dd)]))
+        return np.concatenate([xT, xq]), np.stack(rows)
 
     def columns(self, k: float, alpha: float, R: float, jac: bool):
         e = k / math.sqrt(alpha)
         g = self._g(e, R)
         nT, nq = self.n_T, self.n_q
         XT = np.stack([np.ones(nT), np.zeros(nT), g[0][:nT]])
-        Xq = np.stack([np.zeros(nq), np.ones(nq), g[1][nT:]])
+        Xq = np.stack([np.zeros(nq), np.ones(nq), g[1][nT:nT + nq]])
+        m = 3
+        if self.split:
+            XT = np.concatenate([XT, np.zeros((1, nT))])
+            Xq = np.concatenate([Xq[:2], np.zeros((1, nq)), Xq[2:]])
+            m = 4
         if not jac:
             return XT, Xq, None, None
         dge = (self._g(e * math.exp(_LN_E_STEP), R) - g) / _LN_E_STEP
         dgR = (self._g(e, R + _RC_STEP) - g) / _RC_STEP
-        dXT, dXq = np.zeros((3, 3, nT)), np.zeros((3, 3, nq))
+        dXT, dXq = np.zeros((3, m, nT)), np.zeros((3, m, nq))
         for i, d in enumerate((dge, -0.5 * dge, dgR)):   # d / d(ln k, ln alpha, R_c); e = k / sqrt(alpha)
-            dXT[i, 2], dXq[i, 2] = d[0][:nT], d[1][nT:]
+            dXT[i, 2], dXq[i, m - 1] = d[0][:nT], d[1][nT:nT + nq]
         return XT, Xq, dXT, dXq
 
 
@@ -402,9 +467,14 @@ class AxiEstimator:
             late = t >= OFFSET_GRID_START_s
             t, T, q = t[late], T[late], q[late]
             tau = t - pre.contact_t_s
+            dt = float(np.min(np.diff(t))) if t.size > 1 else 0.0
+            grid_k = np.rint(t / dt).astype(int) if dt > 0 else None
+            if grid_k is not None and not (np.allclose(grid_k * dt, t, atol=1e-3 * dt) and grid_k[0] >= 1):
+                grid_k = None     # not a uniform grid from heater-on: no TCR column
+            tau_h = None if grid_k is None or not OFFSET_TCR else dt * np.arange(grid_k[-1] + 1) - pre.contact_t_s
             kernel = ContactKernel(self.geometry if geometry is None else geometry,
-                                   np.concatenate([pre.tau_T_s, tau]), np.concatenate([pre.tau_q_s, tau]))
-            offset = ObjectOffset(kernel)
+                                   np.concatenate([pre.tau_T_s, tau]), np.concatenate([pre.tau_q_s, tau]), tau_h)
+            offset = ObjectOffset(kernel, pre.t_s.size, None if tau_h is None else grid_k)
             t = np.concatenate([pre.t_s, t])
             T = np.concatenate([pre.dT_K, T])
             q = np.concatenate([pre.q_W_m2 * flux_scale, q])
@@ -417,7 +487,7 @@ class AxiEstimator:
         f = fitter.fit(T, q, power_W=power_W)
         if offset is not None:
             XT, Xq, _, _ = offset.columns(f.fit_k_W_mK, f.fit_alpha_m2_s, f.contact_resistance_m2K_W, False)
-            b, n_pre = fitter.offset_beta, pre.t_s.size
+            b, n_pre = fitter.offset_beta[:3], pre.t_s.size
             why = _signal_check((T - b @ XT)[n_pre:], (q - b @ Xq)[n_pre:], T_resolution_K)
             if why is not None:
                 out["flags"].append(str(why))
@@ -439,6 +509,9 @@ class AxiEstimator:
             fit_info["object_offset_K"] = _num(float(b[2]))
             fit_info["object_offset_K_u"] = _num(inflate * math.sqrt(max(float(C[2, 2]), 0.0)))
             fit_info["contact_t_s"] = pre.contact_t_s
+            if offset.tcr:
+                # -alpha_R dT_obj (times the power scale): the heater's TCR as the contact transient moved it.
+                fit_info["tcr_offset"] = _num(float(b[-1]))
         out["fit"] = fit_info
         out["corr_k_alpha"] = _num(f.corr_k_alpha)
         flags: list[str] = []

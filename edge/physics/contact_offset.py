@@ -75,12 +75,14 @@ class ContactKernel:
         Nodes on the hyperbolic contour.
     """
 
-    def __init__(self, geometry: ProbeGeometry, tau_T_s, tau_q_s, *, n_laplace: int = 32) -> None:
+    def __init__(self, geometry: ProbeGeometry, tau_T_s, tau_q_s, tau_h_s=None, *, n_laplace: int = 32) -> None:
         self.geometry = geometry
         tT = finite_array("tau_T_s", tau_T_s)
         tq = finite_array("tau_q_s", tau_q_s)
-        self.n_T = tT.size
-        self.inversion = HyperbolicInversion.build(np.concatenate([tT, tq]), n_laplace)
+        th = np.zeros(0) if tau_h_s is None else finite_array("tau_h_s", tau_h_s)
+        self.n_T, self.n_q = tT.size, tq.size
+        # ``tau_h_s``: times of the heater film's temperature (its resistance follows it: the heater's TCR).
+        self.inversion = HyperbolicInversion.build(np.concatenate([tT, tq, th]), n_laplace)
         p = self.inversion.s
         self._p = p
         sm = geometry.sensing
@@ -94,7 +96,7 @@ class ContactKernel:
         self._sqrt_p = np.sqrt(p)
 
     def transforms(self, e_W_s05_m2K: float, contact_resistance_m2K_W: float = 0.0):
-        """Laplace transforms (n_p,) of the thermocouple's and the flux sensor's contact response."""
+        """Laplace transforms (n_p,) of the thermocouple's, the flux sensor's and the heater film's response."""
         Y = e_W_s05_m2K * self._sqrt_p
         R = contact_resistance_m2K_W
         Yo = Y / (1.0 + R * Y) if R != 0.0 else Y
@@ -114,12 +116,17 @@ class ContactKernel:
             up = up / (x1 - x0)
         else:
             up = kg * (A * np.exp(-g * x0) - B * np.exp(-g * (L - x0)))
-        return th_i, -up
+        return th_i, -up, A * E * (1.0 + rho)
 
     def responses(self, e_W_s05_m2K: float, contact_resistance_m2K_W: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """(thermocouple K, flux sensor W/m^2) per kelvin of object - probe, at ``tau_T_s`` and ``tau_q_s``."""
         finite_positive("e_W_s05_m2K", e_W_s05_m2K)
         finite_nonnegative("contact_resistance_m2K_W", contact_resistance_m2K_W)
-        T, q = self.transforms(e_W_s05_m2K, contact_resistance_m2K_W)
+        T, q, _ = self.transforms(e_W_s05_m2K, contact_resistance_m2K_W)
         out = self.inversion.invert(np.stack([T, q]))
-        return out[0][:self.n_T], out[1][self.n_T:]
+        return out[0][:self.n_T], out[1][self.n_T:self.n_T + self.n_q]
+
+    def heater_response(self, e_W_s05_m2K: float, contact_resistance_m2K_W: float = 0.0) -> np.ndarray:
+        """The heater film's temperature (K per kelvin of object - probe) at ``tau_h_s``."""
+        th = self.transforms(e_W_s05_m2K, contact_resistance_m2K_W)[2]
+        return self.inversion.invert(th[None, :])[0][self.n_T + self.n_q:]
