@@ -384,9 +384,13 @@ def table(summary: dict, n_probes: int, n_solids: int, n_ref: int) -> str:
               f"{summary['failed']}; model-form floors "
               + ", ".join(f"{100 * x:.1f}" for x in summary["floors"]) + " %.",
               "", "Read with care: the held-out solids are library materials, so where a touch did not determine k "
-              "and α its answer is the library prior given e, close to the truth for them (the 1-s rows: none "
-              "determined); the small-heater fit does not model a hand touch's object offset (the contact transient "
-              "of an object up to 3 K from the probe), which dominates the 5-s errors."]
+              "and α its answer is the library prior given e, close to the truth for them. The small-heater fit "
+              "models a hand touch's object offset (edge/physics/contact_offset.py: the 1-D contact response of the "
+              "calibrated stack; the probe's temperature, the flux zero, the offset and the heater TCR's cross term "
+              "as linear nuisances over the samples from contact to heater-off, their covariance in every u). What "
+              "it leaves: the error still grows with |ΔT| (the calibration identifies the stack with the heater's "
+              "TCR unmodelled, so the stack it hands the offset's kernel is not the probe's), and on metals with a "
+              "large R_c the contact kernel misses by ~0.01 K over the pre-heating window, which moves e."]
     return "\n".join(lines)
 
 
