@@ -88,6 +88,29 @@ def geometry_at(geometry: ProbeGeometry, p) -> ProbeGeometry:
     return replace(geometry, **kw)
 
 
+#: What the offset's kernel takes the stack to be known to (relative sd, index in :data:`CALIBRATED`): the
+#: datasheet tolerances of the sensing layer's thickness and k (+-10 %) and the substrate foam's k (+-20 %)
+#: and rho c (+-15 %), uniform (sd = half-width / sqrt 3).
+STACK_TOLERANCE = {1: 0.10 / math.sqrt(3.0), 2: 0.10 / math.sqrt(3.0), 3: 0.20 / math.sqrt(3.0),
+                   4: 0.15 / math.sqrt(3.0)}
+
+
+#: Take the offset kernel's stack as known to the calibration's covariance (True) or to the datasheet's
+#: tolerances (False, :data:`STACK_TOLERANCE`).
+OFFSET_STACK_FROM_CALIBRATION = False
+
+
+def _shift(geometry: ProbeGeometry, dp) -> ProbeGeometry:
+    """A calibrated probe moved by ``dp`` (ln deviations in :data:`CALIBRATED` order) from where it is."""
+    sm, sub = geometry.sensing, geometry.substrate
+    L = geometry.sensing_thickness_m * math.exp(dp[1])
+    kw = {"sensing": Solid(sm.k_W_mK * math.exp(dp[2]), sm.rho_kg_m3, sm.c_J_kgK), "sensing_thickness_m": L,
+          "sensor_depth_m": (0.0, L)}
+    if sub is not None:
+        kw["substrate"] = Solid(sub.k_W_mK * math.exp(dp[3]), sub.rho_kg_m3 * math.exp(dp[4]), sub.c_J_kgK)
+    return replace(geometry, **kw)
+
+
 def calibrated_params(cal) -> tuple[np.ndarray, np.ndarray] | None:
     """(values, covariance) of :data:`CALIBRATED` a calibration's ``head_model`` carries, or None.
 
@@ -374,6 +397,52 @@ class AxiEstimator:
             S[:, i] = -fitter.model_response(m) / _CAL_STEP
         return S, np.array(C, float)
 
+    def _offset_stack_variance(self, fitter, offset, geometry, calibrated=None) -> np.ndarray:
+        """Covariance (2 x 2) of (ln k, ln alpha) from the offset kernel's stack: known to the calibration's
+        covariance when it identified the stack, else to :data:`STACK_TOLERANCE`.
+
+        Linearised as :meth:`~edge.estimation.axifit.AxiFitter.model_response`: the records' change when the
+        kernel's stack is off by one tolerance (the fitted offset times the kernel's change, in noise units)
+        moves the fit by ``(J^T J)^-1 J^T dy``.
+        """
+        from edge.estimation.design import covariance_ln_k_alpha  # noqa: PLC0415
+        from edge.physics.contact_offset import ContactKernel  # noqa: PLC0415
+
+        theta, _s, _P0, J = fitter._final
+        k, alpha = math.exp(theta[0]), math.exp(theta[1])
+        R = fitter._R(theta)
+        e = k / math.sqrt(alpha)
+        dT = float(fitter.offset_beta[2])
+        base = offset._g(e, R)
+        kern = offset.kernel
+        geo = self.geometry if geometry is None else geometry
+        inv = covariance_ln_k_alpha(J.T @ J)
+        cols = {}
+        for i, tol in STACK_TOLERANCE.items():
+            if i >= 3 and geo.substrate is None:
+                continue
+            if calibrated is not None and OFFSET_STACK_FROM_CALIBRATION:
+                tol = _CAL_STEP
+            dp = np.zeros(len(CALIBRATED))
+            dp[i] = tol
+            other = ContactKernel(geometry_at(geo, dp) if geometry is None else _shift(geo, dp), kern.tau_T_s, kern.tau_q_s)
+            T1, q1, _ = other.transforms(e, R)
+            g1 = other.inversion.invert(np.stack([T1, q1]))
+            nT, nq = offset.n_T, offset.n_q
+            dy = np.concatenate([dT * (g1[0][:nT] - base[0][:nT]) / fitter.sigma_T,
+                                 dT * (g1[1][nT:nT + nq] - base[1][nT:nT + nq]) / fitter.sigma_q])
+            dy = np.concatenate([dy, np.zeros(J.shape[0] - dy.size)])
+            cols[i] = (inv @ (J.T @ dy))[:2] / tol
+        idx = sorted(cols)
+        if not idx:
+            return np.zeros((2, 2))
+        S = np.stack([cols[i] for i in idx], axis=1)
+        if calibrated is not None and OFFSET_STACK_FROM_CALIBRATION:
+            C = np.asarray(calibrated[1], float)[np.ix_(idx, idx)]
+        else:
+            C = np.diag([STACK_TOLERANCE[i] ** 2 for i in idx])
+        return S @ C @ S.T
+
     def prepare(self, t_s) -> None:
         """Build the model for the grid a touch will be estimated on (its prefixes then reuse it)."""
         t = strictly_increasing("t_s", finite_array("t_s", t_s, min_len=4))
@@ -543,6 +612,13 @@ class AxiEstimator:
         # model's, AxiFitter.model_response), so its covariance is S C S^T.
         S, C = self._calibration_sensitivity(fitter, f, t, calibrated, sens, u_flux)
         V = S @ C @ S.T
+        if offset is not None and f.converged:
+            # The offset's kernel is the stack the calibration identified, which it identified without the
+            # heater's TCR (a drawn probe's substrate came out 67 % off in k and still re-measured its
+            # references): its sensing layer and substrate are taken as known to their datasheet tolerances.
+            V_off = self._offset_stack_variance(fitter, offset, geometry, calibrated)
+            V = V + V_off
+            out["fit"]["u_rel_offset_stack"] = {"k": _num(math.sqrt(V_off[0, 0])), "alpha": _num(math.sqrt(V_off[1, 1]))}
         V_e = V[0, 0] - V[0, 1] + 0.25 * V[1, 1]
         u_le = math.sqrt(u_le_fit ** 2 + V_e)
         u_lk = math.sqrt(u_rel["k"] ** 2 + V[0, 0])

@@ -81,6 +81,7 @@ class ContactKernel:
         tq = finite_array("tau_q_s", tau_q_s)
         th = np.zeros(0) if tau_h_s is None else finite_array("tau_h_s", tau_h_s)
         self.n_T, self.n_q = tT.size, tq.size
+        self.tau_T_s, self.tau_q_s = tT, tq
         # ``tau_h_s``: times of the heater film's temperature (its resistance follows it: the heater's TCR).
         self.inversion = HyperbolicInversion.build(np.concatenate([tT, tq, th]), n_laplace)
         p = self.inversion.s

@@ -49,8 +49,9 @@ def hand_touch(solid, offset_K, lead_s, rng, heat_s=5.0):
 
 
 def test_an_object_2K_warmer_is_fitted_and_k_alpha_come_back_within_their_u(axi, rng, monkeypatch):
-    # This world has no heater TCR: its prior is pinned at 0.
+    # This world has no heater TCR (its prior pinned at 0) and its stack is the datasheet's, known exactly.
     monkeypatch.setattr(PE, "HEATER_TCR_PER_K", (0.0, 1e-6))
+    monkeypatch.setattr(PE, "STACK_TOLERANCE", {})
     t, dT, q, pre = hand_touch(PMMA, 2.0, 1.5, rng)
     d = axi.estimate(t, dT, q, pre=pre)
     assert d["determined"] == ["e", "k", "alpha"]
@@ -62,6 +63,19 @@ def test_an_object_2K_warmer_is_fitted_and_k_alpha_come_back_within_their_u(axi,
     # Without the offset model the same record reads k and alpha far off (the 5-s errors of ISSUE #34).
     old = axi.estimate(t, dT, q)
     assert abs(math.log(old["alpha_m2_s"] / PMMA.alpha_m2_s)) > 5 * abs(math.log(d["alpha_m2_s"] / PMMA.alpha_m2_s))
+
+
+def test_a_stack_known_to_its_datasheet_tolerance_makes_k_and_alpha_of_a_2K_offset_undetermined(axi, rng,
+                                                                                                monkeypatch):
+    # The offset's kernel depends on the stack: known only to the datasheet's tolerances, the 2-K transient
+    # moves k and alpha by more than the 30 % threshold, so the touch does not claim them; e survives.
+    monkeypatch.setattr(PE, "HEATER_TCR_PER_K", (0.0, 1e-6))
+    t, dT, q, pre = hand_touch(PMMA, 2.0, 1.5, rng)
+    d = axi.estimate(t, dT, q, pre=pre)
+    stack = d["fit"]["u_rel_offset_stack"]
+    assert stack["k"] > axi.identifiable_u_rel and stack["alpha"] > axi.identifiable_u_rel
+    assert d["determined"] == ["e"] and d["from_prior"] == ["k", "alpha"]
+    assert abs(math.log(d["effusivity_W_s05_m2K"] / PMMA.effusivity_W_s05_m2K)) < 0.03
 
 
 def test_the_offset_costs_u_but_an_object_at_the_probes_temperature_still_reads_true(axi, rng, monkeypatch):
