@@ -129,7 +129,7 @@ class AxiMethod(_Method):
         if record is not None and baseline is not None and None not in baseline:
             # A hand touch: the object met the probe at another temperature before heating (ISSUE #34: the
             # contact transient of an object up to 3 K off dominated the 5-s errors); its offset is fitted.
-            from edge.estimation.probe_estimate import pre_heating  # noqa: PLC0415
+            from edge.estimation.object_offset import pre_heating  # noqa: PLC0415
             pre = pre_heating(record, *baseline)
         d = self.axi.estimate(t_s, dT_K, q_W_m2, power_W=power_W, thickness_m=thickness_m, back=back,
                               T_resolution_K=self.T_resolution_K, pre=pre, **flux)

@@ -7,9 +7,10 @@ import math
 import numpy as np
 import pytest
 
-import edge.estimation.probe_estimate as PE
+import edge.estimation.object_offset as PE
 from edge.estimation.estimate import Estimator, pipeline_golden_check
-from edge.estimation.probe_estimate import AxiEstimator, PreHeating
+from edge.estimation.object_offset import PreHeating
+from edge.estimation.probe_estimate import AxiEstimator
 from edge.model.bundle import load_bundle
 from edge.physics.axisym import AxisymModel
 from edge.physics.contact_offset import ContactKernel
