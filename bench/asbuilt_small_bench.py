@@ -387,9 +387,11 @@ def table(summary: dict, n_probes: int, n_solids: int, n_ref: int) -> str:
               "and α its answer is the library prior given e, close to the truth for them. The small-heater fit "
               "models a hand touch's object offset (edge/physics/contact_offset.py: the 1-D contact response of the "
               "calibrated stack; the probe's temperature, the flux zero, the offset and the heater TCR's cross term "
-              "as linear nuisances over the samples from contact to heater-off, their covariance in every u). What "
-              "it leaves: the error still grows with |ΔT| (the calibration identifies the stack with the heater's "
-              "TCR unmodelled, so the stack it hands the offset's kernel is not the probe's), and on metals with a "
+              "as linear nuisances over the samples from contact to heater-off, their covariance in every u; "
+              "edge/estimation/object_offset.py). What it leaves: k and α still move with |ΔT| (the calibration "
+              "identifies the stack with the heater's TCR unmodelled, so the stack it hands the offset's kernel is "
+              "not the probe's: probe 1's substrate k came out +67 %), so every u carries the kernel's stack at its "
+              "datasheet tolerance, and a touch with a large offset leaves k and α to the prior; on metals with a "
               "large R_c the contact kernel misses by ~0.01 K over the pre-heating window, which moves e."]
     return "\n".join(lines)
 
