@@ -407,9 +407,13 @@ def finish(probes: list[dict], solids: list[str], n_ref: int, wall_s: float, upd
     print(f"wall {wall_s:.0f} s, load {res['load_avg_1min']:.1f}")
     print("wrote", write_json("asbuilt_small", res))
     if update_docs:
-        print("wrote", write_block("asbuilt-small", text + f"\n\n`python bench/asbuilt_small_bench.py --probes "
-                                   f"{len(probes)} --solids {len(solids)} --ref-touches {n_ref} --update-docs` "
-                                   f"({wall_s / 60:.0f} min of probe time; shared machine)."))
+        args = f"--probes {len(probes)} --solids {len(solids)} --ref-touches {n_ref}"
+        print("wrote", write_block("asbuilt-small", text + f"\n\n`python bench/asbuilt_small_bench.py {args} "
+                                   "--simulate-only` fills the touch cache (bench/results/cache/asbuilt_small/, "
+                                   f"~30 min), then `python bench/asbuilt_small_bench.py {args} --reuse "
+                                   f"--update-docs` re-estimates it ({wall_s / 60:.0f} min of calibration and "
+                                   "estimation; also in parts: `--part A B --part-out F`, then `--merge`; shared "
+                                   "machine)."))
 
 
 def main() -> None:
