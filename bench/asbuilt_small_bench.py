@@ -365,7 +365,7 @@ def table(summary: dict, n_probes: int, n_solids: int, n_ref: int) -> str:
              f"`thermotouch calibrate --probe small-heater`'s code), then hand touches of {n_solids} held-out solids "
              "(R_c 0-1e-4 m²K/W, object ±3 K, contact 0.5-3 s before heating).", "",
              "| answer | heating | touches | R_c (ΔT object - probe) | k median abs err | α median abs err | e median abs err "
-             "| 95 % cov k / α / e | k, α determined |", "|---|---|---|---|---|---|---|---|---|"]
+             "| 95 % cov k / α / e | k, α determined | answered |", "|---|---|---|---|---|---|---|---|---|---|"]
     for key, s in summary.items():
         if "/" not in key:
             continue
@@ -375,7 +375,7 @@ def table(summary: dict, n_probes: int, n_solids: int, n_ref: int) -> str:
         lines.append(f"| {label} | {heat} | {s['touches']} | {rc} | {f(s['k']['median_abs_err'])} % | "
                      f"{f(s['alpha']['median_abs_err'])} % | {f(s['e']['median_abs_err'])} % | "
                      f"{f(s['k']['cov95'], '.0f')} / {f(s['alpha']['cov95'], '.0f')} / {f(s['e']['cov95'], '.0f')} % | "
-                     f"{f(s['determined_k_alpha'], '.0f')} % |")
+                     f"{f(s['determined_k_alpha'], '.0f')} % | {f(s['answered_e'], '.0f')} % |")
     ru = summary["references_within_u"]
     lines += ["", f"References re-measured within their u after calibration (e / k / α, over all reference touches): "
               f"{f(ru['e'], '.0f')} / {f(ru['k'], '.0f')} / {f(ru['alpha'], '.0f')} %; probes with every reference "
