@@ -417,26 +417,36 @@ def bar_lines(res: dict) -> list[str]:
     R = h["recognition"]["by_contact_s"]
     L = [f"Bars (paper probe, precision board; this run: {res.get('board', 'precision')} board): object / class / "
          "in-set accepted / out-of-set rejected, ECE ≤ 3 %:", ""]
+    ok = lambda x, b: "met" if x is not None and x >= b else "NOT met"  # noqa: E731
+
+    def reach(bar, bayes):   # a bar above what the set allows at the attainable u cannot be met by any rule
+        return f"; above the set's Bayes rate {pct(bayes, 1)} %: unreachable" if bayes is not None and bar > bayes else ""
+
     for ct, (bo, bc, bi, bx) in BARS.items():
         r = R[ct]
-        ok = lambda x, b: "met" if x is not None and x >= b else "NOT met"  # noqa: E731
         extra = ""
         if ct == "1.0" and r["bayes_object"] is not None:
             extra = (f", within 3 points of the Bayes rate {pct(r['bayes_object'], 1)} %: "
                      f"{'met' if r['object_accuracy'] >= r['bayes_object'] - 0.03 else 'NOT met'}")
         L.append(f"* {float(ct):g} s: object {pct(r['object_accuracy'], 1)} % (≥ {pct(bo)}: {ok(r['object_accuracy'], bo)}"
-                 f"{extra}), class {pct(r['class_accuracy'], 1)} % ({ok(r['class_accuracy'], bc)}), in-set accepted "
+                 f"{reach(bo, r['bayes_object'])}{extra}), class {pct(r['class_accuracy'], 1)} % "
+                 f"({ok(r['class_accuracy'], bc)}{reach(bc, r['bayes_class'])}), in-set accepted "
                  f"{pct(r['in_set_accepted'], 1)} % ({ok(r['in_set_accepted'], bi)}), out-of-set rejected "
                  f"{pct(r['out_rejected'], 1)} % ({ok(r['out_rejected'], bx)})")
-    L.append("* ECE (object): " + ", ".join(f"{float(c):g} s {pct(R[c]['rel_object']['ece'], 1)} % "
-                                            f"({'met' if R[c]['rel_object']['ece'] <= 0.03 else 'NOT met'})" for c in R))
+    L.append("* ECE (object; in brackets the median ECE a perfectly calibrated answerer shows on as many touches, "
+             "`_recognition.ece_floor`: a bar below it cannot be judged at this size): "
+             + ", ".join(f"{float(c):g} s {pct(R[c]['rel_object']['ece'], 1)} % "
+                         f"({pct((R[c].get('ece_floor') or {}).get('median'), 1)} %; "
+                         f"{'met' if R[c]['rel_object']['ece'] <= 0.03 else 'NOT met'})" for c in R))
     for c in R:
         big = [b for b in R[c]["rel_object"]["rows"] if b["n"] >= 20]
         off = [b for b in big if abs(b["accuracy"] - b["confidence"]) > 0.05]
+        # A bin's accuracy is binomial: its sd sqrt(p (1 - p) / n) is what ±5 points must be read against.
         L.append(f"* reliability at {float(c):g} s, bins with ≥ 20 touches within ±5 points: "
                  + ("met" if not off else "NOT met (" + ", ".join(
                      f"{b['lo']:.2f}-{b['hi']:.2f}: confidence {pct(b['confidence'])} %, right {pct(b['accuracy'])} %"
-                     f" of {b['n']}" for b in off) + ")") + f" ({len(big)} such bins)")
+                     f" of {b['n']}, binomial sd {pct(math.sqrt(b['confidence'] * (1 - b['confidence']) / b['n']))} points"
+                     for b in off) + ")") + f" ({len(big)} such bins)")
     return L
 
 
