@@ -342,15 +342,18 @@ def head_lines(head: str, h: dict) -> list[str]:
           "|---|---|---|---|---|---|---|"]
     for ct, r in R.items():
         for label, x in (("evaluation", {**r, "ece": r["rel_object"]["ece"]}),
-                         ("calibration (in-sample)", r["calibration_split"]), ("evaluation, no bias term", r["no_bias"])):
-            L.append(f"| {float(ct):g} s | {label} | {pct(x['object_accuracy'], 1)} % | {pct(x['class_accuracy'], 1)} % | "
-                     f"{pct(x['in_set_accepted'], 1)} % | {pct(x['out_rejected'], 1)} % | {pct(x['ece'], 1)} % |")
+                         ("calibration (in-sample)", r["calibration_split"]),
+                         ("evaluation, no bias term", r["no_bias"])):
+            L.append(f"| {float(ct):g} s | {label} | {pct(x['object_accuracy'], 1)} % | "
+                     f"{pct(x['class_accuracy'], 1)} % | {pct(x['in_set_accepted'], 1)} % | "
+                     f"{pct(x['out_rejected'], 1)} % | {pct(x['ece'], 1)} % |")
     L += ["", "Fitted terms per contact time (`host.recognition.calibrate(bias=True)`, on the probes other than "
           "the one named; per held-out probe: T / z_crit / bias of ln e at e = 1000 / its slope per unit ln e / "
           "poor_fit_ln):", ""]
     for ct, r in R.items():
         L.append(f"* {float(ct):g} s: " + "; ".join(
-            f"probe {x['held_out_probe']}: {x['temperature']:.2f} / {x['z_crit']:.2f} / {100 * (x['bias_ln'] or 0):+.1f} % / "
+            f"probe {x['held_out_probe']}: {x['temperature']:.2f} / {x['z_crit']:.2f} / "
+            f"{100 * (x['bias_ln'] or 0):+.1f} % / "
             f"{100 * (x['bias_slope'] or 0):+.1f} % / {x['poor_fit_ln'] or 0:.2f}" for x in r["fits"]))
     L += ["", "Bayes rate with the u the calibrated probe states (median per object): "
           + ", ".join(f"{float(c):g} s {pct(R[c]['bayes_object_stated_u'], 1)} % (class "
@@ -420,7 +423,9 @@ def bar_lines(res: dict) -> list[str]:
     ok = lambda x, b: "met" if x is not None and x >= b else "NOT met"  # noqa: E731
 
     def reach(bar, bayes):   # a bar above what the set allows at the attainable u cannot be met by any rule
-        return f"; above the set's Bayes rate {pct(bayes, 1)} %: unreachable" if bayes is not None and bar > bayes else ""
+        if bayes is None or bar <= bayes:
+            return ""
+        return f"; above the set's Bayes rate {pct(bayes, 1)} %: unreachable"
 
     for ct, (bo, bc, bi, bx) in BARS.items():
         r = R[ct]
@@ -445,7 +450,8 @@ def bar_lines(res: dict) -> list[str]:
         L.append(f"* reliability at {float(c):g} s, bins with ≥ 20 touches within ±5 points: "
                  + ("met" if not off else "NOT met (" + ", ".join(
                      f"{b['lo']:.2f}-{b['hi']:.2f}: confidence {pct(b['confidence'])} %, right {pct(b['accuracy'])} %"
-                     f" of {b['n']}, binomial sd {pct(math.sqrt(b['confidence'] * (1 - b['confidence']) / b['n']))} points"
+                     f" of {b['n']}, binomial sd "
+                     f"{pct(math.sqrt(b['confidence'] * (1 - b['confidence']) / b['n']))} points"
                      for b in off) + ")") + f" ({len(big)} such bins)")
     return L
 

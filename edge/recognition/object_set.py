@@ -13,9 +13,12 @@ covariance
 
     T * (C_meas + diag(spread_i^2 + calibration_ln^2, spread_i^2))
 
-where ``C_meas`` is the measurement's covariance of (ln e, ln α) (their
-correlation included: a short touch fixes e = k / sqrt(α) much better than
-α, and the two errors are correlated) and ``T`` is the set's *temperature*:
+about what the object *reads* on this probe at this contact time: its ln e plus the probe's
+fitted bias ``bias_ln + bias_slope (ln e_i - ln e_ref)`` (0 unless fitted: a calibrated paper
+probe reads woods and polymers 4-11 % high at 1 s, ISSUE #37), where
+``C_meas`` is the measurement's covariance of (ln e, ln α) (their correlation
+included: a short touch fixes e = k / sqrt(α) much better than α, and the two
+errors are correlated) and ``T`` is the set's *temperature*:
 one scale on every variance, fitted on the host on held-out simulated
 touches (host/recognition.py) so that a posterior of 0.9 is right about 90 %
 of the time. The specimen spread is read as independent lognormal spreads of
@@ -71,7 +74,8 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from edge.physics.materials import load_materials
-from edge.recognition.objects import (BIAS_REF_E_W_s05_m2K, CONTACT_DIRECTIVES, DEFAULT_PRIOR_UNKNOWN, DEFAULT_SPREAD_REL, DEFAULT_Z_CRIT,
+from edge.recognition.objects import (BIAS_REF_E_W_s05_m2K, CONTACT_DIRECTIVES, DEFAULT_PRIOR_UNKNOWN,
+                                      DEFAULT_SPREAD_REL, DEFAULT_Z_CRIT,
                                       DIRECTIVES, UNKNOWN, UNKNOWN_LN_E_SPAN, KnownObject, contact_key, parse_csv)
 from edge.recognition.stats import p_crit_of, tail_p, z_of_p
 from edge.recognition.touch import BROAD_LN, DEFAULT_ALPHA_U_GROWTH, effective_u_ln_alpha, measured_alpha
@@ -192,9 +196,10 @@ class ObjectSet:
         chain's e (:func:`~edge.recognition.fields.recognition_fields`); 0: it names none.
     contact_calibration : mapping, optional
         ``{contact time s: {"temperature": T, "z_crit": z, ...}}`` (any of ``CONTACT_DIRECTIVES``):
-        the calibration fitted at each contact time (a short touch's u is understated differently from a long one's, ISSUE #37); a touch is
-        named with the entry nearest its heating time in ln t (:meth:`at_contact`), the scalars above
-        when there is none.  Stored as ``#@ temperature@1s = ...`` directives.
+        the calibration fitted at each contact time (a short touch's u is understated differently
+        from a long one's, and its estimate biased differently, ISSUE #37); a touch is named with
+        the entry nearest its heating time in ln t (:meth:`at_contact`), the scalars above when
+        there is none.  Stored as ``#@ temperature@1s = ...`` directives.
     label : str
         Where the set came from (messages only).
     """
