@@ -197,6 +197,24 @@ def cross_fit(oset: ObjectSet, t: Touches, fold: np.ndarray, broad: np.ndarray, 
     return recs, (np.array(cal_idx, int), cal_recs), fits, sets
 
 
+def strict_fit(oset: ObjectSet, t: Touches, fold: np.ndarray, broad: np.ndarray) -> list:
+    """The evaluation split made stricter: a touch is named by a set fitted on other probes *and* other objects.
+
+    Does the bias line generalise to an object it was not fitted on (a user's new object)?
+    """
+    recs: list = [None] * t.e.size
+    in_set = np.array([t.names[i] in oset for i in t.obj])
+    for f in sorted(set(fold.tolist())):
+        # Out-of-set touches (o = -1) by the set fitted on every in-set object of the other probes.
+        for o in [-1] + sorted(set(t.obj[in_set].tolist())):
+            fit_on = in_set & (fold != f) & (t.obj != o) & t.ok & ~broad
+            cal, _ = calibrate(oset, BOARD, sim=t.select(fit_on), bias=True)
+            ans = (fold == f) & ((t.obj == o) if o >= 0 else ~in_set)
+            for k, rec in zip(np.flatnonzero(ans), classify_touches(cal, t.select(ans))):
+                recs[k] = rec
+    return recs
+
+
 def evaluate(oset: ObjectSet, t: Touches, recs, out_names, u_fisher: dict) -> dict:
     truth = [t.names[i] for i in t.obj]
     cls_of = {o.name: o.recognition_class for o in oset.objects}
@@ -297,10 +315,12 @@ def recognise_head(head: str, est: dict, objects, out_objs, board: str = "precis
         cal_split = evaluate(oset, t.select(ci), crecs, out_names, u_fisher)
         plain, _, _, _ = cross_fit(oset, t, fold, broad, bias=False)
         no_bias = evaluate(oset, t, plain, out_names, u_fisher)
+        strict = evaluate(oset, t, strict_fit(oset, t, fold, broad), out_names, u_fisher)
         keys = ("object_accuracy", "class_accuracy", "in_set_accepted", "out_rejected")
         res[str(ct)] = {**ev, "fits": fits,
                         "calibration_split": {**{k: cal_split[k] for k in keys}, "ece": cal_split["rel_object"]["ece"]},
                         "no_bias": {**{k: no_bias[k] for k in keys}, "ece": no_bias["rel_object"]["ece"]},
+                        "object_held_out": {**{k: strict[k] for k in keys}, "ece": strict["rel_object"]["ece"]},
                         "ece_floor": ece_floor(ev["rel_object"]),
                         "diagnosis": diagnosis(oset, t, recs),
                         "refused": int(sum(not math.isfinite(r["e"]) and not r.get("poor_fit") for r in rows)),
@@ -337,12 +357,14 @@ def head_lines(head: str, h: dict) -> list[str]:
                  f"{pct(r['rel_class']['ece'], 1)} % | {r['refused']} / {r.get('calibration_refused', 0)} / "
                  f"{r.get('poor_fit_named', 0)} |")
     L += ["", "ECE floor: the median ECE a perfectly calibrated answerer shows on this many touches at these "
-          "confidences (`_recognition.ece_floor`). Both splits, and the evaluation split without the bias term:", "",
+          "confidences (`_recognition.ece_floor`). Both splits; the evaluation split with the touched object also "
+          "left out of the fit (out-of-set touches as in the evaluation split), and without the bias term:", "",
           "| contact | split | object | class | in-set accepted | out-of-set rejected | ECE object |",
           "|---|---|---|---|---|---|---|"]
     for ct, r in R.items():
         for label, x in (("evaluation", {**r, "ece": r["rel_object"]["ece"]}),
                          ("calibration (in-sample)", r["calibration_split"]),
+                         ("evaluation, the object also held out of the fit", r["object_held_out"]),
                          ("evaluation, no bias term", r["no_bias"])):
             L.append(f"| {float(ct):g} s | {label} | {pct(x['object_accuracy'], 1)} % | "
                      f"{pct(x['class_accuracy'], 1)} % | {pct(x['in_set_accepted'], 1)} % | "
