@@ -51,7 +51,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from _common import write_block, write_json
+from _common import ROOT, write_block, write_json
 import _asbuilt_touches as A
 from _objects import HELD_OUT_FAR, IN_SET
 from _recognition import bayes_ceiling, confusion_matrix, diagnosis, ece_floor, in_set_reliability
@@ -160,9 +160,9 @@ def estimate_head(head: str, recs, meta) -> dict:
     return {"calibrations": cals, "rows": rows, "estimate_s": time.perf_counter() - t0}
 
 
-def touches_of(rows, names, ct) -> Touches:
-    """The rows at contact time ``ct`` as Touches; a withheld poor_fit answer carries its chain's e (``poor_fit``)."""
-    rs = [r for r in rows if r["contact_s"] == ct]
+def touches_of(rows, names, ct=None) -> Touches:
+    """The rows at contact time ``ct`` (None: all) as Touches; a withheld poor_fit answer carries its chain's e."""
+    rs = [r for r in rows if ct is None or r["contact_s"] == ct]
     col = lambda k: np.array([r[k] for r in rs], float)  # noqa: E731
     poor = np.array([bool(r.get("poor_fit")) for r in rs])
     e = np.array([r["e_chain"] if r.get("poor_fit") else r["e"] for r in rs], float)
@@ -294,6 +294,23 @@ def until_decided(oset, rows, names, sets_by_ct) -> dict:
             "share_stopped_before_2s": float(np.mean(np.array(out["decided_s"]) < 2.0)), "n": len(out["correct"])}
 
 
+def installable_set(est: dict, objects, path) -> dict:
+    """The set a user of this probe design would install: fitted on every probe's touches, written as CSV.
+
+    :func:`host.recognition.calibrate_by_contact` with the bias, on the in-set touches at
+    CONTACTS_S of all drawn probes (those named with a widened u left out, as in the fits above);
+    the device applies its ``#@ ...@1s`` directives (``ObjectSet.at_contact``) and nothing else.
+    """
+    from host.recognition import calibrate_by_contact
+
+    oset = ObjectSet(IN_SET, label="tactile")
+    rows = [r for r in est["rows"] if r["contact_s"] in CONTACTS_S and r["name"] in oset
+            and not (r.get("u_ln_e_stated") is not None and r["u_ln_e"] != r["u_ln_e_stated"])]
+    cal, rep = calibrate_by_contact(oset, BOARD, sim=touches_of(rows, [o.name for o in objects]), bias=True)
+    path.write_text(cal.to_csv_text())
+    return {"path": str(path.relative_to(ROOT)), "by_contact_s": rep["by_contact_s"]}
+
+
 def recognise_head(head: str, est: dict, objects, out_objs, board: str = "precision") -> tuple[dict, dict]:
     """Per contact time: the evaluation split's scores, the calibration split's, the no-bias ablation, the diagnosis."""
     from host.objects import attainable_u_ln_e
@@ -403,6 +420,10 @@ def head_lines(head: str, h: dict) -> list[str]:
         for i, (name, row) in enumerate(zip(cm["rows"], cm["counts"])):
             tag = f"{i + 1} {name}" if i < len(IN_SET) else f"(out) {name}"
             L.append(f"| {tag} | " + " | ".join(str(x) if x else "." for x in row) + " |")
+    inst = h.get("installable_set")
+    if inst:
+        L += ["", f"The set fitted on all {h['n_probes']} probes, as a user of this probe design would install it "
+              f"(`thermotouch estimate --objects`; the device applies its per-contact-time directives): `{inst['path']}`."]
     d = h.get("until_decided")
     if d:
         L += ["", f"Until decided (emulated on the record's prefixes, stop at an accepted posterior ≥ {DECIDE_P}): "
@@ -512,6 +533,7 @@ def main() -> None:
         h = {"n_probes": len({m["probe"] for m in meta}), "calibrations": {str(k): v for k, v in est["calibrations"].items()},
              "sim_s": info.get("sim_s"), "estimate_s": est["estimate_s"], "rows": est["rows"]}
         h["recognition"], sets_by_ct = recognise_head(head, est, present, out_objs, args.board)
+        h["installable_set"] = installable_set(est, present, A.CACHE.parent / f"tactile_asbuilt_objects_{head}{suffix}.csv")
         h["until_decided"] = until_decided(ObjectSet(IN_SET), est["rows"], [o.name for o in present], sets_by_ct)
         res["heads"][head] = h
         for line in head_lines(head, h):
