@@ -423,7 +423,7 @@ def head_lines(head: str, h: dict) -> list[str]:
     inst = h.get("installable_set")
     if inst:
         L += ["", f"The set fitted on all {h['n_probes']} probes, as a user of this probe design would install it "
-              f"(`thermotouch estimate --objects`; the device applies its per-contact-time directives): `{inst['path']}`."]
+              f"(the object set of `estimate`'s --objects; the device applies its per-contact-time directives): `{inst['path']}`."]
     d = h.get("until_decided")
     if d:
         L += ["", f"Until decided (emulated on the record's prefixes, stop at an accepted posterior ≥ {DECIDE_P}): "
