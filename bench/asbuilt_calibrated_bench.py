@@ -172,6 +172,118 @@ def calibrate_probe(head: str, draw_seed: int, n_touches: int, store, workdir: s
     out["remeasured"] = remeasured
     return out
 
+#: --attribute: what each simplification of the hand touch / probe does to the answer (ISSUE #34 item 1).
+ATTRIBUTE_SOLIDS = ("cork_board", "balsa", "hdpe", "epdm", "soda_lime_plate_glass", "aluminium", "copper")
+#: Variant -> (hand-touch overrides, probe drawn?, calibration: "walk" the walk-through's, "true" the as-built truth).
+#: An object at the probe's own temperature is never detected by the armed touch (no contact step): 0.3 K off.
+ATTRIBUTE_VARIANTS = {
+    "as bench": ({}, True, "walk"),
+    "R_c = 0": ({"R_c": 0.0}, True, "walk"),
+    "object 0.3 K off": ({"offset_K": 0.3}, True, "walk"),
+    "contact at heater-on": ({"lead_s": 0.0}, True, "walk"),
+    "true as-built calibration": ({}, True, "true"),
+    "nominal probe, datasheet chain": ({}, False, "true"),
+    "true cal., R_c = 0, object 0.3 K off": ({"R_c": 0.0, "offset_K": 0.3}, True, "true"),
+}
+
+
+def true_calibration(head: str, draw_seed: int | None, like, scene=None):
+    """``like`` (a fitted calibration) with the chain the probe was really built with and no floor.
+
+    The thermopile reads its square's mean sensitivity (the map's gradients are linear about its centre:
+    mean 1), so the flux scale is nominal / true sensitivity.
+    """
+    from edge.estimation.sensor_chain import SensorChainCalibration
+    from firmware_sim.asbuilt import Nominal, draw_as_built
+
+    nom = Nominal.of(head, scene)
+    base = SensorChainCalibration()
+    rho_c = base.k_W_mK / base.alpha_m2_s
+    if draw_seed is None:
+        return dataclasses.replace(like, chain=dataclasses.replace(base, tc_tau_s=nom.thermocouple_time_constant_s),
+                                   u_rel_floor=0.0)
+    ab = draw_as_built(head, draw_seed, scene)
+    chain = SensorChainCalibration(sensing_thickness_m=ab.sensing_thickness_m, k_W_mK=ab.sensing_k_W_mK,
+                                   alpha_m2_s=ab.sensing_k_W_mK / rho_c, tc_tau_s=ab.thermocouple_time_constant_s,
+                                   flux_scale=nom.flux_sensitivity_V_per_W_m2 / ab.flux_sensitivity_V_per_W_m2)
+    return dataclasses.replace(like, chain=chain, u_rel_floor=0.0)
+
+
+def attribute(seeds: list[int], n_touches: int, solids=ATTRIBUTE_SOLIDS, windows=(1.0, 2.0)) -> dict:
+    """Switch off one thing at a time on the same hand touches: which one makes the answer right."""
+    from thermotouch_models import DEFAULT_BUNDLE
+
+    from edge.estimation.estimate import pipeline_golden_check
+    from edge.estimation.seam import estimate_touch
+    from edge.model.bundle import load_bundle
+    from edge.physics.materials import load_materials
+    from firmware_sim.rigs.sequence_rig import OneBundleStore
+    from host.cli.common import seam_context
+
+    head, spec = "paper", HEADS["paper"]
+    lib = load_materials()
+    store = OneBundleStore(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
+    workdir = tempfile.mkdtemp(prefix="asbuilt-cal-attr-")
+    rows = []
+    t0 = time.perf_counter()
+    for draw_seed in seeds:
+        rng = np.random.default_rng([TOUCH_SEED, draw_seed])
+        c = calibrate_probe(head, draw_seed, n_touches, store, workdir, rng)
+        walk = c["cal"]
+        print(f"draw {draw_seed}: calibrated ({time.perf_counter() - t0:.0f} s)", flush=True)
+        for si, name in enumerate(solids):
+            obj = lib.get(name)
+            h0 = _hand(rng)
+            for vname, (over, drawn, which) in ATTRIBUTE_VARIANTS.items():
+                h = {**h0, **over}
+                ds = draw_seed if drawn else None
+                sc = hand_scene(head, obj.solid, draw_seed, 5000 + 131 * draw_seed + si, heat_s=spec["heat_s"],
+                                label=name, **h)
+                if not drawn:
+                    sc = dataclasses.replace(sc, as_built=None)
+                settle = max(h["lead_s"], 0.0)
+                out = armed_touch(sc, store, workdir, heat_s=spec["heat_s"], settle_s=settle)
+                cal = walk if which == "walk" else true_calibration(head, ds, walk, sc)
+                row = {"probe": draw_seed, "solid": name, "class": obj.cls, "variant": vname, **h,
+                       "status": str(out.status)}
+                rec = out.touch
+                for w in windows:
+                    if rec is None:
+                        row[f"err_{w:g}"] = None
+                        continue
+                    ctx = seam_context(None, method=rec.method, calibration=cal)
+                    try:
+                        d = estimate_touch(cut(rec, w), ctx).to_dict()
+                    except ValueError:
+                        d = {}
+                    e, u = d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u")
+                    row[f"err_{w:g}"] = None if e is None else e / obj.solid.effusivity_W_s05_m2K - 1.0
+                    row[f"u_{w:g}"] = None if e is None or u is None else u / e
+                rows.append(row)
+                print(f"  {draw_seed} {name:22s} {vname:36s} " + " ".join(
+                    f"{w:g}s {_pct(row.get(f'err_{w:g}'))} (u {_pct(row.get(f'u_{w:g}'), '.1f')})" for w in windows),
+                    flush=True)
+    return {"seeds": seeds, "solids": list(solids), "windows_s": list(windows), "rows": rows,
+            "wall_s": time.perf_counter() - t0}
+
+
+def attribution_table(res: dict) -> str:
+    """Median |error| per variant and solid class, per window (the attribution of ISSUE #34 item 1)."""
+    rows, windows = res["rows"], res["windows_s"]
+    classes = sorted({r["class"] for r in rows}, key=lambda c: min(
+        i for i, r in enumerate(rows) if r["class"] == c))
+    head = "| variant | window | " + " | ".join(classes) + " |"
+    lines = [head, "|" + "---|" * (2 + len(classes))]
+    for v in ATTRIBUTE_VARIANTS:
+        for w in windows:
+            cells = []
+            for cls in classes:
+                errs = [abs(r[f"err_{w:g}"]) for r in rows if r["variant"] == v and r["class"] == cls
+                        and r.get(f"err_{w:g}") is not None]
+                cells.append(_pct(statistics.median(errs), ".1f") if errs else "–")
+            lines.append(f"| {v} | {w:g} s | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
 
 def attainable_u(head: str, obj, window_s: float, power_W: float, dt_s: float, R_c: float, lead_s: float
                  ) -> float | None:
@@ -378,7 +490,14 @@ def main() -> None:
                     help="only these drawn probes (a part of a run split over processes; see --merge)")
     ap.add_argument("--merge", nargs="+", default=None, metavar="TAG",
                     help="combine the results of runs with these --tag's (disjoint --seeds) into one")
+    ap.add_argument("--attribute", action="store_true",
+                    help="the attribution table: one simplification at a time on the same hand touches")
     args = ap.parse_args()
+    if args.attribute:
+        res = attribute(args.seeds or [1, 2], args.touches)
+        print(attribution_table(res))
+        print("wrote", write_json("asbuilt_calibrated_attribution" + (f"_{args.tag}" if args.tag else ""), res))
+        return
     if min(args.probes, args.solids, args.touches) < 1:
         sys.exit("--probes, --solids and --touches must be >= 1")
     if args.merge:
