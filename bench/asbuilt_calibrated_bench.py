@@ -88,12 +88,16 @@ def hand_scene(head: str, obj, draw_seed: int, seed: int, *, R_c: float, offset_
                                object=ObjectSpec(solid=obj, back="insulated", thickness_m=0.1, label=label))
 
 
-def armed_touch(scene, store, workdir: str, *, heat_s: float, settle_s: float, arm_s: float = 10.0):
-    """One armed touch through the device's sequence and estimate path (sequence_rig with MEASURE's arm)."""
+def armed_touch(scene, store, workdir: str, *, heat_s: float, settle_s: float, arm_s: float = 10.0,
+                rate_Hz: float | None = None):
+    """One armed touch through the device's sequence and estimate path (sequence_rig with MEASURE's arm).
+
+    ``rate_Hz``: another sample rate than the configuration's (the attribution's finely sampled touch).
+    """
     from firmware_sim.rigs.sequence_rig import sequence_run
 
-    out, _, _ = sequence_run(scene, store, workdir, {"measurement": {"contact_time_s": heat_s}},
-                             arm_s=arm_s, settle_s=settle_s)
+    m = {"contact_time_s": heat_s} | ({} if rate_Hz is None else {"sample_rate_Hz": rate_Hz})
+    out, _, _ = sequence_run(scene, store, workdir, {"measurement": m}, arm_s=arm_s, settle_s=settle_s)
     return out
 
 
@@ -174,7 +178,8 @@ def calibrate_probe(head: str, draw_seed: int, n_touches: int, store, workdir: s
 
 #: --attribute: what each simplification of the hand touch / probe does to the answer (ISSUE #34 item 1).
 ATTRIBUTE_SOLIDS = ("cork_board", "balsa", "hdpe", "epdm", "soda_lime_plate_glass", "aluminium", "copper")
-#: Variant -> (hand-touch overrides, probe drawn?, calibration: "walk" the walk-through's, "true" the as-built truth).
+#: Variant -> (hand-touch overrides, probe drawn?, calibration: "walk" the walk-through's, "true" the as-built truth);
+#: a "rate_Hz" override samples the touch that fast instead of the device's 10 Hz.
 #: An object at the probe's own temperature is never detected by the armed touch (no contact step): 0.3 K off.
 ATTRIBUTE_VARIANTS = {
     "as bench": ({}, True, "walk"),
@@ -184,6 +189,7 @@ ATTRIBUTE_VARIANTS = {
     "true as-built calibration": ({}, True, "true"),
     "nominal probe, datasheet chain": ({}, False, "true"),
     "true cal., R_c = 0, object 0.3 K off": ({"R_c": 0.0, "offset_K": 0.3}, True, "true"),
+    "true cal., sampled at 50 Hz": ({"rate_Hz": 50.0}, True, "true"),
 }
 
 
@@ -235,14 +241,14 @@ def attribute(seeds: list[int], n_touches: int, solids=ATTRIBUTE_SOLIDS, windows
             obj = lib.get(name)
             h0 = _hand(rng)
             for vname, (over, drawn, which) in ATTRIBUTE_VARIANTS.items():
-                h = {**h0, **over}
+                h = {**h0, **{k: v for k, v in over.items() if k != "rate_Hz"}}
                 ds = draw_seed if drawn else None
                 sc = hand_scene(head, obj.solid, draw_seed, 5000 + 131 * draw_seed + si, heat_s=spec["heat_s"],
                                 label=name, **h)
                 if not drawn:
                     sc = dataclasses.replace(sc, as_built=None)
                 settle = max(h["lead_s"], 0.0)
-                out = armed_touch(sc, store, workdir, heat_s=spec["heat_s"], settle_s=settle)
+                out = armed_touch(sc, store, workdir, heat_s=spec["heat_s"], settle_s=settle, rate_Hz=over.get("rate_Hz"))
                 cal = walk if which == "walk" else true_calibration(head, ds, walk, sc)
                 row = {"probe": draw_seed, "solid": name, "class": obj.cls, "variant": vname, **h,
                        "status": str(out.status)}
