@@ -35,6 +35,13 @@ touch's window, power and sample interval with R_c and the object's
 temperature as nuisance parameters), the calibrations refused and why, and
 each probe's references re-measured after calibration (rel. error and z).
 
+``--attribute`` (ISSUE #34 item 1): on the drawn probes of ``--seeds`` (default 2 and 6) the same hand
+touches of :data:`ATTRIBUTE_SOLIDS` are made again with one thing switched off at a time
+(:data:`ATTRIBUTE_VARIANTS`: R_c = 0, the object near the probe's temperature, contact at heater-on,
+the walk-through's calibration replaced by the probe's true as-built chain, the nominal probe, the
+touch sampled at 50 Hz instead of 10) and the median |error| per class and window is tabulated
+(bench/results/asbuilt_calibrated_attribution.json).
+
 Run:  python bench/asbuilt_calibrated_bench.py [--probes 8] [--solids 20] [--touches 3] [--update-readme]
 Writes bench/results/asbuilt_calibrated.json (and with --update-readme the block
 ``asbuilt-calibrated-bench`` in docs/results.md).  Small sizes while developing:

@@ -51,7 +51,7 @@ from edge.physics.probe import (FLUX_SENSITIVITY_U_REL, SENSING_K_U_REL, SENSING
                                THERMOCOUPLE_TAU_U_s)
 from edge.status import Flag
 
-__all__ = ["estimate_from_contact", "uniform_record", "alpha_prior", "lateral_profile", "LateralProfile", "POOR_FIT",
+__all__ = ["estimate_from_contact", "contact_fraction", "uniform_record", "alpha_prior", "lateral_profile", "LateralProfile", "POOR_FIT",
            "FIT_START_s", "DatasheetChain"]
 
 #: Normalised residual (rms residual / noise measured in air) above which the chain does not describe the record.
@@ -355,11 +355,11 @@ def contact_lost_at(t_from_contact: np.ndarray, phi_W_m2: np.ndarray, t_heat_s: 
 
 
 #: Where within the record's first interval the contact may lie (fractions of a sample after sample 0),
-#: tried by :func:`_contact_fraction` on a refined grid.
+#: tried by :func:`contact_fraction` on a refined grid.
 CONTACT_FRACTIONS = (0.0, 0.2, 0.4, 0.6, 0.8)
 
 
-def _contact_fraction(tt, TT, qq, chain, breaks, noise_T: float) -> tuple[float, float]:
+def contact_fraction(tt, TT, qq, chain, breaks, noise_T: float) -> tuple[float, float]:
     """Where, within its first interval, the contact happened, and u(ln e) from not knowing it better.
 
     :func:`find_contact` names the last sample in air; the contact lies anywhere in the interval that
@@ -440,8 +440,8 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
     breaks = (-float(t[i0]),) if t[i0] < 0 else ()
     a = PROBES[cal.probe].heater_radius_m if heater_radius_m is None else float(heater_radius_m)
 
-    # Where within its first interval the contact happened (a refined grid only; see _contact_fraction).
-    frac, u_instant = _contact_fraction(tt, TT, qq, cal.chain, breaks, noise_T) if c.recorded_in_air else (0.0, 0.0)
+    # Where within its first interval the contact happened (a refined grid only; see contact_fraction).
+    frac, u_instant = contact_fraction(tt, TT, qq, cal.chain, breaks, noise_T) if c.recorded_in_air else (0.0, 0.0)
 
     def fit(chain, disk, start=FIT_START_s):
         return fit_sensor_chain(tt, TT, qq, calibration=chain, fit_start_s=start, noise_T_K=noise_T,
