@@ -492,6 +492,21 @@ def merge(parts: list[str]) -> dict:
     return out
 
 
+def _attribution_block() -> str:
+    """The last ``--attribute`` run's table (bench/results/asbuilt_calibrated_attribution.json), if there is one."""
+    import json
+
+    from _common import RESULTS
+
+    path = RESULTS / "asbuilt_calibrated_attribution.json"
+    if not path.exists():
+        return ""
+    res = json.loads(path.read_text())
+    return ("\n\nAttribution (`python bench/asbuilt_calibrated_bench.py --attribute --seeds "
+            + " ".join(map(str, res["seeds"])) + "`; drawn probes " + ", ".join(map(str, res["seeds"]))
+            + ", the same hand touches with one thing switched off; median |error| of e):\n\n" + attribution_table(res))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--probes", type=int, default=8, help="drawn probes per head (default 8)")
@@ -529,7 +544,7 @@ def main() -> None:
                     f"{res['wall_s']:.0f} s wall (`python bench/asbuilt_calibrated_bench.py --update-readme`; "
                     "run here as two processes over seeds 1-4 and 5-8, `--seeds ... --tag ...`, then "
                     "`--merge TAG TAG --update-readme`). "
-                    f"{res['conditions']}.\n\n" + text)
+                    f"{res['conditions']}.\n\n" + text + _attribution_block())
 
 
 if __name__ == "__main__":
