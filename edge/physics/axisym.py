@@ -293,6 +293,10 @@ class AxisymModel:
         self._kgs = sm.k_W_mK * gs
         self._Ts = _tanh(gs * L)
         self._Ss = _sech(gs * L)
+        # Per-object terms that depend on the sensing layer only (the same products transforms forms).
+        self._kgsTs = self._kgs * self._Ts
+        self._dYdn_num = self._kgs * self._kgs * (1.0 - self._Ts * self._Ts)
+        self._Ts_kgs = self._Ts / self._kgs
         z0, z1 = g.sensor_depth_m
         u0, u1 = L - z0, L - z1
         dz = z1 - z0
@@ -362,7 +366,8 @@ class AxisymModel:
         ``Y_o = Y / (1 + R_c Y)``), so one derivative of the kernels with respect to ``Y_o``
         serves all three parameters: an exact Jacobian for about half a model evaluation.
         """
-        go = np.sqrt(self._p / alpha_m2_s + self._z2)
+        p_a = self._p / alpha_m2_s
+        go = np.sqrt(p_a + self._z2)
         Y = k_W_mK * go
         fin = not (back == "infinite" or thickness_m is None)
         if fin:
@@ -371,9 +376,10 @@ class AxisymModel:
         R = contact_resistance_m2K_W
         Yo = Y / (1.0 + R * Y) if R != 0.0 else Y
         kgs, Ts = self._kgs, self._Ts
-        den = 1.0 + Ts * Yo / kgs                       # sensing layer seen from below
-        dd = kgs + Ts * Yo
-        Ydn = kgs * (kgs * Ts + Yo) / dd                # admittance under the heater
+        TsYo = Ts * Yo
+        den = 1.0 + TsYo / kgs                          # sensing layer seen from below
+        dd = kgs + TsYo
+        Ydn = kgs * (self._kgsTs + Yo) / dd             # admittance under the heater
         hd = self._B + self._C * Ydn
         r = self._num / (hd * den)                      # heater-bottom temperature / den
         kT = r * self._Ss
@@ -383,13 +389,13 @@ class AxisymModel:
         if not derivatives:
             return T, q
         # d/dYo of the kernels.
-        dYdn = kgs * kgs * (1.0 - Ts * Ts) / (dd * dd)
-        dlnr = -(self._C * dYdn / hd + (Ts / kgs) / den)
+        dYdn = self._dYdn_num / (dd * dd)
+        dlnr = -(self._C * dYdn / hd + self._Ts_kgs / den)
         dkT = kT * dlnr
         dkq = r * (dlnr * kq_base + self._qb)
         # dYo/dtheta for theta = ln k, ln alpha, R_c.
         dYo_dY = 1.0 / (1.0 + R * Y) ** 2 if R != 0.0 else 1.0
-        dgo = -0.5 * (self._p / alpha_m2_s) / go       # d go / d ln alpha
+        dgo = -0.5 * p_a / go                          # d go / d ln alpha
         if not fin:
             dY_dgo = k_W_mK
         elif back == "fixed":
