@@ -63,6 +63,8 @@ computed from their integral representation).
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -223,6 +225,54 @@ def _sh_ratio(g, u, L):
 # The model
 
 
+#: Probe parts of the last few models built (everything a model's set-up computes), by geometry,
+#: times and quadrature: a new estimator, a design table, a restarted daemon on the same probe and
+#: grid take them instead of recomputing the same arrays (the set-up is most of a cold fit's cost).
+#: No model writes into these arrays (its variants -- :meth:`AxisymModel.with_substrate`,
+#: :meth:`AxisymModel.head` -- replace attributes, never modify them in place).
+_PARTS: OrderedDict = OrderedDict()
+_PARTS_MAX = 4
+_PARTS_LOCK = threading.Lock()
+
+
+def _parts_key(geometry: ProbeGeometry, t_s, quadrature: tuple, nodes) -> tuple | None:
+    """The key of a model's probe parts, or None where it has none (unhashable or invalid inputs:
+    the set-up then builds, and reports, as ever)."""
+    try:
+        t = np.asarray(t_s, dtype=float)
+        nd = None if nodes is None else tuple(np.asarray(a, dtype=float).tobytes() for a in nodes)
+        key = (geometry, t.shape, t.tobytes(), quadrature, nd)
+        hash(key)
+    except (TypeError, ValueError):
+        return None
+    return key
+
+
+def _cached_parts(key: tuple | None) -> dict | None:
+    if key is None:
+        return None
+    with _PARTS_LOCK:
+        parts = _PARTS.get(key)
+        if parts is not None:
+            _PARTS.move_to_end(key)
+        return parts
+
+
+def _keep_parts(key: tuple | None, model: "AxisymModel") -> None:
+    if key is None:
+        return
+    parts = dict(model.__dict__)
+    # The times as the key has them: the caller keeps its own array (and may reuse it).
+    inv = model.inversion
+    t = inv.t_s.copy()
+    parts["inversion"] = HyperbolicInversion(t_s=t, s=inv.s, matrix=inv.matrix)
+    parts["t_s"] = t
+    with _PARTS_LOCK:
+        _PARTS[key] = parts
+        while len(_PARTS) > _PARTS_MAX:
+            _PARTS.popitem(last=False)
+
+
 @dataclass(frozen=True)
 class Responses:
     """Unit-step responses per watt of heater power on the model's time grid."""
@@ -251,6 +301,11 @@ class AxisymModel:
                  depth_decades: float = 10.0, taper: float = 0.25, low_levels: int = 8,
                  nodes: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         g = geometry
+        key = _parts_key(g, t_s, (n_laplace, per_panel, depth_decades, taper, low_levels), nodes)
+        parts = _cached_parts(key)
+        if parts is not None:
+            self.__dict__.update(parts)
+            return
         self.geometry = g
         self.inversion = HyperbolicInversion.build(t_s, n_laplace)
         self.t_s = self.inversion.t_s
@@ -303,6 +358,7 @@ class AxisymModel:
         self._qa = sm.k_W_mK * (_ch_ratio(gs, u0, L) - _ch_ratio(gs, u1, L)) / dz
         self._qb = (_sh_ratio(gs, u0, L) - _sh_ratio(gs, u1, L)) / (gs * dz)
         self.n_nodes = int(gh.size)
+        _keep_parts(key, self)
 
     def _set_substrate(self, substrate: Solid | None, thickness_m: float) -> None:
         """The heater's terms that the substrate above it sets (an insulated top over ``thickness_m``)."""
