@@ -8,9 +8,10 @@ block row), both keyed by the exact bytes that determine what they hold:
 * whole factors (:func:`firmware_sim.rz.solver._factor`): a world rebuilt for the same
   probe, scene and step reuses its factor;
 * leading block rows (:data:`_ROW_CACHE`): row ``j``'s inverse depends only on the
-  rows up to ``j``, and the probe's rows come first in every configuration of a
-  probe (in air, on each object), so a new object's factor eliminates only its
-  object's rows -- the same arithmetic on the same numbers, so the same bits.
+  rows up to ``j``, and the probe's rows come first in every contact configuration
+  of a probe, so a factor on a new object takes the probe's rows and eliminates
+  its object's -- the same arithmetic on the same numbers, so the same bits (in
+  air the probe's rows are narrower: nothing to share there).
 """
 
 from __future__ import annotations
