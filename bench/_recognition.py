@@ -207,3 +207,59 @@ def thermal_ceiling(objects=IN_SET, n: int = 20000, seed: int = 11) -> dict:
                 pairs.append(dict(a=objects[a].name, b=objects[b].name, d_ln_e=float(mu[b, 0] - mu[a, 0]),
                                   d_ln_alpha=float(mu[b, 1] - mu[a, 1]), spreads=dist))
     return dict(object=hit / (n * len(objects)), cls=hit_c / (n * len(objects)), close_pairs=pairs, n=n)
+
+
+def diagnosis(oset: ObjectSet, touches, recs) -> dict:
+    """Per object: why its touches were (mis)named -- the estimate's bias, its z-scores, the answers.
+
+    ``bias``: median ln(e / e_true) of the answers with a stated u (against each touch's own
+    specimen, so the 5 % spread is not in it); ``rms_z``: rms of that error over the stated u (1
+    when the u is honest and there is no bias); ``z_object``: median distance of ln e from the
+    object's own ln e in the likelihood's units ``sqrt(u² + spread²)`` before any fitted bias (a
+    value near ±1 moves a touch into its neighbour's territory on a set spaced one spread
+    apart); ``answers``: what the touches were named (``(refused)``: nothing to name by).
+    """
+    out = {}
+    for i, name in enumerate(touches.names):
+        if name not in oset:
+            continue
+        j = oset.names.index(name)
+        ks = [k for k in range(touches.e.size) if touches.obj[k] == i]
+        stated = [k for k in ks if math.isfinite(touches.e[k]) and math.isfinite(touches.u_ln_e[k])
+                  and not touches.poor_fit[k]]
+        err = np.array([math.log(touches.e[k] / touches.e_true[k]) for k in stated])
+        u = np.array([touches.u_ln_e[k] for k in stated])
+        z_obj = (np.log(touches.e[stated]) - oset.ln_e_nominal[j]) / np.sqrt(u ** 2 + oset.spread[j] ** 2) \
+            if stated else np.array([])
+        answers: dict = {}
+        for k in ks:
+            a = recs[k].object if recs[k] is not None else "(refused)"
+            answers[a] = answers.get(a, 0) + 1
+        wrong = sorted(((n, c) for n, c in answers.items() if n != name), key=lambda x: -x[1])
+        out[name] = dict(n=len(ks), stated=len(stated), poor_fit=int(sum(bool(touches.poor_fit[k]) for k in ks)),
+                         bias=float(np.median(err)) if err.size else None,
+                         u=float(np.median(u)) if u.size else None,
+                         rms_z=float(np.sqrt(np.mean((err / u) ** 2))) if err.size else None,
+                         z_object=float(np.median(z_obj)) if z_obj.size else None,
+                         accuracy=answers.get(name, 0) / max(1, len(ks)), answers=answers,
+                         confused_with=wrong[0] if wrong else None)
+    return out
+
+
+def ece_floor(rel: dict, draws: int = 2000, seed: int = 5) -> dict | None:
+    """The ECE a perfectly calibrated answerer would show on these touches: its sampling noise.
+
+    Each touch right with probability equal to its confidence (the bin's mean confidence, for
+    each of its ``n`` touches), binned as :func:`host.recognition.reliability` bins; the median and
+    the 90th percentile over ``draws``.  An ECE bar below this floor cannot be judged on so few touches.
+    """
+    rows = [r for r in rel["rows"] if r["n"]]
+    if not rows:
+        return None
+    n_all = sum(r["n"] for r in rows)
+    rng = np.random.default_rng(seed)
+    eces = np.zeros(draws)
+    for r in rows:
+        acc = rng.binomial(r["n"], r["confidence"], size=draws) / r["n"]
+        eces += r["n"] / n_all * np.abs(acc - r["confidence"])
+    return {"median": float(np.median(eces)), "p90": float(np.quantile(eces, 0.9)), "n": n_all}

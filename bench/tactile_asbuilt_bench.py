@@ -14,13 +14,17 @@ emulated chips (precision board, 2 s of heating); its raw record is cached
 heating (the first ``t`` s of the record: heating is causal).
 
 Recognition: the set's likelihood per object is a Gaussian in ln e (and ln α where the small head
-measured it) of variance ``T(t) (u² + spread²)``; ``u`` is the answer's stated u, which for the
-calibrated chain already carries the calibration's model-form floor (``u_e_parts``).  The
-temperature ``T(t)`` and the open-set ``z_crit(t)`` are fitted per head and per contact time
-(:func:`host.recognition.calibrate`) by two-fold cross-fitting: the touches of even specimen index
-calibrate the set that answers the odd ones and vice versa -- no touch is answered by a set fitted
-on it.  The fitted values are reported (they are what an object set's ``contact_calibration``
-directive stores).
+measured it), centred on what the object *reads* -- its ln e plus the probe's bias at that contact
+time, ``bias_ln + bias_slope (ln e - ln 1000)`` -- with variance ``T(t) (u² + spread²)``; ``u`` is
+the answer's stated u, which for the calibrated chain already carries the calibration's model-form
+floor (``u_e_parts``).  A touch whose chain fitted poorly (its e withheld by the seam) is named
+from the chain's e at the fitted width ``poor_fit_ln(t)``.  The bias, ``T(t)``, the open-set
+``z_crit(t)`` and ``poor_fit_ln(t)`` are fitted per head and per contact time
+(:func:`host.recognition.calibrate` with ``bias=True``) leave-one-probe-out: the touches of the
+other drawn probes calibrate the set that names this probe's touches (the evaluation split); the
+same sets naming the touches they were fitted on give the calibration split, reported beside it,
+and the evaluation split without the bias term is the ablation.  The fitted values are reported
+(they are what an object set's ``contact_calibration`` directives store).
 
 Reported per head and contact time: object and class accuracy of the in-set touches, the Bayes rate
 of the set (e alone; each object at the median u the calibrated probe states for it at that
@@ -47,12 +51,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from _common import write_block, write_json
+from _common import ROOT, write_block, write_json
 import _asbuilt_touches as A
 from _objects import HELD_OUT_FAR, IN_SET
-from _recognition import bayes_ceiling, confusion_matrix, in_set_reliability
+from _recognition import bayes_ceiling, confusion_matrix, diagnosis, ece_floor, in_set_reliability
 from edge.recognition import BROAD_LN, ObjectSet, measured_alpha
-from edge.recognition.fields import BROAD_FLAGS
+from edge.recognition.fields import BROAD_FLAGS, POOR_FIT_FLAG
 from host.recognition import Touches, calibrate, classify_touches
 
 CONTACTS_S = (0.5, 1.0, 2.0)
@@ -138,8 +142,11 @@ def estimate_head(head: str, recs, meta) -> dict:
                 try:
                     d = estimate_touch(A.truncated(r, ct), ctx[m["probe"]]).to_dict()
                     e, u = d["effusivity_W_s05_m2K"], d["effusivity_W_s05_m2K_u"]
-                    row.update(method=d["method"], flags=list(d["flags"]),
-                               chain_flags=(d.get("sensor_chain") or {}).get("flags"))
+                    chain = d.get("sensor_chain") or {}
+                    row.update(method=d["method"], flags=list(d["flags"]), chain_flags=chain.get("flags"))
+                    if e is None and POOR_FIT_FLAG in d["flags"] and (chain.get("effusivity_W_s05_m2K") or 0) > 0:
+                        # Withheld by the seam; recognition may still name it from the chain's e (poor_fit_ln).
+                        row.update(e_chain=float(chain["effusivity_W_s05_m2K"]), poor_fit=True)
                     if e is not None and u is not None and e > 0:
                         row.update(e=float(e), u_ln_e=float(u) / float(e), u_ln_e_stated=float(u) / float(e))
                         if BROAD_FLAGS & set(d["flags"]):   # named as the device names it (recognition_fields)
@@ -153,33 +160,59 @@ def estimate_head(head: str, recs, meta) -> dict:
     return {"calibrations": cals, "rows": rows, "estimate_s": time.perf_counter() - t0}
 
 
-def touches_of(rows, names, ct) -> Touches:
-    rs = [r for r in rows if r["contact_s"] == ct]
+def touches_of(rows, names, ct=None) -> Touches:
+    """The rows at contact time ``ct`` (None: all) as Touches; a withheld poor_fit answer carries its chain's e."""
+    rs = [r for r in rows if ct is None or r["contact_s"] == ct]
     col = lambda k: np.array([r[k] for r in rs], float)  # noqa: E731
+    poor = np.array([bool(r.get("poor_fit")) for r in rs])
+    e = np.array([r["e_chain"] if r.get("poor_fit") else r["e"] for r in rs], float)
     return Touches(np.array([names.index(r["name"]) for r in rs], int), np.array([BOARD] * len(rs)),
-                   col("contact_s"), col("e_true"), col("e"), col("u_ln_e"), tuple(names),
-                   col("alpha"), col("u_ln_alpha"), col("corr"))
+                   col("contact_s"), col("e_true"), e, col("u_ln_e"), tuple(names),
+                   col("alpha"), col("u_ln_alpha"), col("corr"), poor)
 
 
-def cross_fit(oset: ObjectSet, t: Touches, j: np.ndarray, broad: np.ndarray):
-    """Two-fold: the set fitted on the in-set touches of one specimen parity answers the other parity.
+def cross_fit(oset: ObjectSet, t: Touches, fold: np.ndarray, broad: np.ndarray, *, bias: bool = True):
+    """Leave-one-probe-out: the set fitted on the in-set touches of the other drawn probes answers this probe's.
 
+    No touch is answered by a set fitted on its own probe (the evaluation split); the same sets
+    also answer the touches they were fitted on (the calibration split, reported beside it).
     Touches named with a widened u (``broad``: the calibrated path refused them, BROAD_FLAGS) are
     answered but not fitted on: their width is fixed by the rule, not by the probe's stated u.
+    ``bias``: the fit includes the probe's bias of ln e and poor_fit_ln (host.recognition.calibrate).
     """
     recs: list = [None] * t.e.size
-    fits = []
+    cal_idx, cal_recs, fits, sets = [], [], [], {}
     in_set = np.array([t.names[i] in oset for i in t.obj])
-    for fold in (0, 1):
-        fit_on = in_set & (j % 2 == fold) & t.ok & ~broad
-        cal, rep = calibrate(oset, BOARD, sim=t.select(fit_on))
-        fits.append({"temperature": rep["temperature"], "z_crit": rep["z_crit"], "touches": rep["touches"],
-                     "alpha_u_growth": rep["alpha_u_growth"]})
-        ans = (j % 2 != fold)
-        sub = t.select(ans)
-        for k, rec in zip(np.flatnonzero(ans), classify_touches(cal, sub)):
+    for f in sorted(set(fold.tolist())):
+        fit_on = in_set & (fold != f) & t.ok & ~broad
+        cal, rep = calibrate(oset, BOARD, sim=t.select(fit_on), bias=bias)
+        sets[f] = cal
+        fits.append({"held_out_probe": f, **{k: rep.get(k) for k in (
+            "temperature", "z_crit", "touches", "bias_ln", "bias_slope", "poor_fit_ln", "poor_fit_touches")}})
+        for k, rec in zip(np.flatnonzero(fold == f), classify_touches(cal, t.select(fold == f))):
             recs[k] = rec
-    return recs, fits
+        own = np.flatnonzero(fold != f)
+        cal_idx += own.tolist()
+        cal_recs += classify_touches(cal, t.select(own))
+    return recs, (np.array(cal_idx, int), cal_recs), fits, sets
+
+
+def strict_fit(oset: ObjectSet, t: Touches, fold: np.ndarray, broad: np.ndarray) -> list:
+    """The evaluation split made stricter: a touch is named by a set fitted on other probes *and* other objects.
+
+    Does the bias line generalise to an object it was not fitted on (a user's new object)?
+    """
+    recs: list = [None] * t.e.size
+    in_set = np.array([t.names[i] in oset for i in t.obj])
+    for f in sorted(set(fold.tolist())):
+        # Out-of-set touches (o = -1) by the set fitted on every in-set object of the other probes.
+        for o in [-1] + sorted(set(t.obj[in_set].tolist())):
+            fit_on = in_set & (fold != f) & (t.obj != o) & t.ok & ~broad
+            cal, _ = calibrate(oset, BOARD, sim=t.select(fit_on), bias=True)
+            ans = (fold == f) & ((t.obj == o) if o >= 0 else ~in_set)
+            for k, rec in zip(np.flatnonzero(ans), classify_touches(cal, t.select(ans))):
+                recs[k] = rec
+    return recs
 
 
 def evaluate(oset: ObjectSet, t: Touches, recs, out_names, u_fisher: dict) -> dict:
@@ -190,7 +223,8 @@ def evaluate(oset: ObjectSet, t: Touches, recs, out_names, u_fisher: dict) -> di
     n_in = sum(n in oset for n in truth)
     mean = lambda a: float(np.mean(a)) if len(a) else None  # noqa: E731
     u_of, n_of = {}, {}
-    for k in a_in:
+    stated = [k for k in a_in if not t.poor_fit[k]]   # a named poor_fit touch has no stated u, and no answered e
+    for k in stated:
         u_of.setdefault(truth[k], []).append(float(t.u_ln_e[k]))
     n_of = {k: len(v) for k, v in u_of.items()}
     u_of = {k: float(np.median(v)) for k, v in u_of.items()}
@@ -199,7 +233,7 @@ def evaluate(oset: ObjectSet, t: Touches, recs, out_names, u_fisher: dict) -> di
     w_all = {n: 1 for n in oset.names}
     bayes_att, bayes_att_cls = bayes_ceiling(oset, {n: u_fisher[n] for n in oset.names}, w_all)
     err = {}
-    for k in a_in:
+    for k in stated:
         err.setdefault(truth[k], []).append(float(t.e[k] / t.e_true[k] - 1.0))
     return dict(
         touches_in=n_in, answered_in=len(a_in), touches_out=sum(n in out_names for n in truth),
@@ -217,28 +251,39 @@ def evaluate(oset: ObjectSet, t: Touches, recs, out_names, u_fisher: dict) -> di
         confusion=confusion_matrix(oset, t, recs))
 
 
-def until_decided(oset, rows, names, fits_by_ct) -> dict:
+def _classify_row(s: ObjectSet, r: dict):
+    """One row's recognition by a fitted set, as recognition_fields would name it (None: nothing to name by)."""
+    if r.get("poor_fit"):
+        return s.classify(r["e_chain"], s.poor_fit_ln) if s.poor_fit_ln > 0 else None
+    if not math.isfinite(r["e"]):
+        return None
+    return s.classify(r["e"], r["u_ln_e"])
+
+
+def until_decided(oset, rows, names, sets_by_ct) -> dict:
     """Emulation: heating stops at the first grid time whose accepted answer's posterior reaches DECIDE_P.
 
     Each grid time's answer is the same touch's record cut there, recognised by the set calibrated
-    at the nearest fitted contact time (fold of the other parity); never before 0.5 s (the chain's
-    fit needs FIT_START + 0.2 s after contact, and 0.5 s is the shortest window calibrated).
+    at the nearest fitted contact time on the other probes (the evaluation split); never before
+    0.5 s (the chain's fit needs FIT_START + 0.2 s after contact, and 0.5 s is the shortest window
+    calibrated).
     """
     by = {}
     for r in rows:
         by.setdefault((r["name"], r["j"]), {})[r["contact_s"]] = r
-    out = {"decided_s": [], "correct": [], "fixed_1s": [], "fixed_2s": []}
+    out = {"decided_s": [], "correct": []}
     for (name, j), per in by.items():
         if name not in oset:
             continue
         stop, ans = None, None
         for ct in DECIDE_GRID_S:
             r = per.get(ct)
-            if r is None or not math.isfinite(r["e"]):
+            if r is None:
                 continue
-            fit = fits_by_ct[min(fits_by_ct, key=lambda c: abs(c - ct))][1 - j % 2]
-            s = oset.with_calibration(temperature=fit["temperature"], z_crit=fit["z_crit"])
-            rec = s.classify(r["e"], r["u_ln_e"])
+            s = sets_by_ct[min(sets_by_ct, key=lambda c: abs(math.log(c / ct)))][r["probe"]]
+            rec = _classify_row(s, r)
+            if rec is None:
+                continue
             ans = rec.object
             if rec.accepted and rec.object_posterior >= DECIDE_P:
                 stop = ct
@@ -249,27 +294,57 @@ def until_decided(oset, rows, names, fits_by_ct) -> dict:
             "share_stopped_before_2s": float(np.mean(np.array(out["decided_s"]) < 2.0)), "n": len(out["correct"])}
 
 
-def recognise_head(head: str, est: dict, objects, out_objs, board: str = "precision") -> dict:
+def installable_set(est: dict, objects, path) -> dict:
+    """The set a user of this probe design would install: fitted on every probe's touches, written as CSV.
+
+    :func:`host.recognition.calibrate_by_contact` with the bias, on the in-set touches at
+    CONTACTS_S of all drawn probes (those named with a widened u left out, as in the fits above);
+    the device applies its ``#@ ...@1s`` directives (``ObjectSet.at_contact``) and nothing else.
+    """
+    from host.recognition import calibrate_by_contact
+
+    oset = ObjectSet(IN_SET, label="tactile")
+    rows = [r for r in est["rows"] if r["contact_s"] in CONTACTS_S and r["name"] in oset
+            and not (r.get("u_ln_e_stated") is not None and r["u_ln_e"] != r["u_ln_e_stated"])]
+    cal, rep = calibrate_by_contact(oset, BOARD, sim=touches_of(rows, [o.name for o in objects]), bias=True)
+    path.write_text(cal.to_csv_text())
+    return {"path": str(path.relative_to(ROOT)), "by_contact_s": rep["by_contact_s"]}
+
+
+def recognise_head(head: str, est: dict, objects, out_objs, board: str = "precision") -> tuple[dict, dict]:
+    """Per contact time: the evaluation split's scores, the calibration split's, the no-bias ablation, the diagnosis."""
     from host.objects import attainable_u_ln_e
 
     names = [o.name for o in objects]
     out_names = [o.name for o in out_objs]
     oset = ObjectSet(IN_SET, label="tactile")
-    res, fits_by_ct = {}, {}
+    res, sets_by_ct = {}, {}
     for ct in CONTACTS_S:
         rows = [r for r in est["rows"] if r["contact_s"] == ct]
         t = touches_of(rows, names, ct)
-        j = np.array([r["j"] for r in rows])
+        fold = np.array([r["probe"] for r in rows])
         broad = np.array([r.get("u_ln_e_stated") is not None and r["u_ln_e"] != r["u_ln_e_stated"] for r in rows])
-        recs, fits = cross_fit(oset, t, j, broad)
-        fits_by_ct[ct] = fits
+        recs, (ci, crecs), fits, sets = cross_fit(oset, t, fold, broad)
+        sets_by_ct[ct] = sets
         sT, sq = BOARD_NOISE[board]
         u_fisher = attainable_u_ln_e(oset, ct, probe=head, sigma_T_K=sT, sigma_q_W_m2=sq)
-        res[str(ct)] = {**evaluate(oset, t, recs, out_names, u_fisher), "fits": fits,
-                        "refused": sum(not math.isfinite(r["e"]) for r in rows),
+        ev = evaluate(oset, t, recs, out_names, u_fisher)
+        cal_split = evaluate(oset, t.select(ci), crecs, out_names, u_fisher)
+        plain, _, _, _ = cross_fit(oset, t, fold, broad, bias=False)
+        no_bias = evaluate(oset, t, plain, out_names, u_fisher)
+        strict = evaluate(oset, t, strict_fit(oset, t, fold, broad), out_names, u_fisher)
+        keys = ("object_accuracy", "class_accuracy", "in_set_accepted", "out_rejected")
+        res[str(ct)] = {**ev, "fits": fits,
+                        "calibration_split": {**{k: cal_split[k] for k in keys}, "ece": cal_split["rel_object"]["ece"]},
+                        "no_bias": {**{k: no_bias[k] for k in keys}, "ece": no_bias["rel_object"]["ece"]},
+                        "object_held_out": {**{k: strict[k] for k in keys}, "ece": strict["rel_object"]["ece"]},
+                        "ece_floor": ece_floor(ev["rel_object"]),
+                        "diagnosis": diagnosis(oset, t, recs),
+                        "refused": int(sum(not math.isfinite(r["e"]) and not r.get("poor_fit") for r in rows)),
+                        "poor_fit_named": int(sum(bool(r.get("poor_fit")) for r in rows)),
                         "calibration_refused": int(broad.sum()),
                         "methods": {m: sum(r["method"] == m for r in rows) for m in {r["method"] for r in rows}}}
-    return {"by_contact_s": res}
+    return {"by_contact_s": res}, sets_by_ct
 
 
 # -- report ---------------------------------------------------------------------------------------
@@ -287,16 +362,38 @@ def head_lines(head: str, h: dict) -> list[str]:
                                         f"{'passed' if c['self_check_passed'] else 'failed (forced)'}"
                                         if c.get("refused") is None else f"refused ({c['refused'][:90]})")
                      for p, c in h["calibrations"].items()) + ")", "",
+         "Evaluation split (each probe's touches named by the set fitted on the other probes):", "",
          "| contact | object acc | Bayes rate | class acc | class Bayes | in-set accepted | out-of-set rejected | "
-         "ECE object | ECE class | no estimate / calibrated path refused | T, z_crit (folds) |",
-         "|---|---|---|---|---|---|---|---|---|---|---|"]
+         "ECE object (floor) | ECE class | no estimate / calibrated path refused / named from a poor_fit chain |",
+         "|---|---|---|---|---|---|---|---|---|---|"]
     for ct, r in R.items():
-        f = r["fits"]
+        fl = r.get("ece_floor") or {}
         L.append(f"| {float(ct):g} s | {pct(r['object_accuracy'], 1)} % | {pct(r['bayes_object'], 1)} % | "
                  f"{pct(r['class_accuracy'], 1)} % | {pct(r['bayes_class'], 1)} % | {pct(r['in_set_accepted'], 1)} % | "
-                 f"{pct(r['out_rejected'], 1)} % | {pct(r['rel_object']['ece'], 1)} % | "
-                 f"{pct(r['rel_class']['ece'], 1)} % | {r['refused']} / {r.get('calibration_refused', 0)} | "
-                 + ", ".join(f"{x['temperature']:.2f}/{x['z_crit']:.2f}" for x in f) + " |")
+                 f"{pct(r['out_rejected'], 1)} % | {pct(r['rel_object']['ece'], 1)} % ({pct(fl.get('median'), 1)}) | "
+                 f"{pct(r['rel_class']['ece'], 1)} % | {r['refused']} / {r.get('calibration_refused', 0)} / "
+                 f"{r.get('poor_fit_named', 0)} |")
+    L += ["", "ECE floor: the median ECE a perfectly calibrated answerer shows on this many touches at these "
+          "confidences (`_recognition.ece_floor`). Both splits; the evaluation split with the touched object also "
+          "left out of the fit (out-of-set touches as in the evaluation split), and without the bias term:", "",
+          "| contact | split | object | class | in-set accepted | out-of-set rejected | ECE object |",
+          "|---|---|---|---|---|---|---|"]
+    for ct, r in R.items():
+        for label, x in (("evaluation", {**r, "ece": r["rel_object"]["ece"]}),
+                         ("calibration (in-sample)", r["calibration_split"]),
+                         ("evaluation, the object also held out of the fit", r["object_held_out"]),
+                         ("evaluation, no bias term", r["no_bias"])):
+            L.append(f"| {float(ct):g} s | {label} | {pct(x['object_accuracy'], 1)} % | "
+                     f"{pct(x['class_accuracy'], 1)} % | {pct(x['in_set_accepted'], 1)} % | "
+                     f"{pct(x['out_rejected'], 1)} % | {pct(x['ece'], 1)} % |")
+    L += ["", "Fitted terms per contact time (`host.recognition.calibrate(bias=True)`, on the probes other than "
+          "the one named; per held-out probe: T / z_crit / bias of ln e at e = 1000 / its slope per unit ln e / "
+          "poor_fit_ln):", ""]
+    for ct, r in R.items():
+        L.append(f"* {float(ct):g} s: " + "; ".join(
+            f"probe {x['held_out_probe']}: {x['temperature']:.2f} / {x['z_crit']:.2f} / "
+            f"{100 * (x['bias_ln'] or 0):+.1f} % / "
+            f"{100 * (x['bias_slope'] or 0):+.1f} % / {x['poor_fit_ln'] or 0:.2f}" for x in r["fits"]))
     L += ["", "Bayes rate with the u the calibrated probe states (median per object): "
           + ", ".join(f"{float(c):g} s {pct(R[c]['bayes_object_stated_u'], 1)} % (class "
                       f"{pct(R[c]['bayes_class_stated_u'], 1)} %)" for c in R) + ".", "",
@@ -314,19 +411,48 @@ def head_lines(head: str, h: dict) -> list[str]:
         row = [R[c]["rel_object"]["rows"][b] for c in R]
         L.append(f"| {row[0]['lo']:.2f}-{row[0]['hi']:.2f} | " + " | ".join(
             f"{x['n']} | {pct(x['confidence'])} | {pct(x['accuracy'])}" for x in row) + " |")
-    cm = R["1.0"]["confusion"]
-    short = [str(i + 1) for i in range(len(cm["cols"]) - 2)] + ["u", "r"]
-    L += ["", "Confusion at 1 s (rows: touched; columns: the set's objects in order, u = unknown, r = refused):", "",
-          "| touched | " + " | ".join(short) + " |", "|---|" + "---|" * len(short)]
-    for i, (name, row) in enumerate(zip(cm["rows"], cm["counts"])):
-        tag = f"{i + 1} {name}" if i < len(IN_SET) else f"(out) {name}"
-        L.append(f"| {tag} | " + " | ".join(str(x) if x else "." for x in row) + " |")
+    L += diagnosis_lines(R)
+    for ct in ("1.0", "2.0"):
+        cm = R[ct]["confusion"]
+        short = [str(i + 1) for i in range(len(cm["cols"]) - 2)] + ["u", "r"]
+        L += ["", f"Confusion at {float(ct):g} s (rows: touched; columns: the set's objects in order, u = unknown, "
+              "r = refused):", "", "| touched | " + " | ".join(short) + " |", "|---|" + "---|" * len(short)]
+        for i, (name, row) in enumerate(zip(cm["rows"], cm["counts"])):
+            tag = f"{i + 1} {name}" if i < len(IN_SET) else f"(out) {name}"
+            L.append(f"| {tag} | " + " | ".join(str(x) if x else "." for x in row) + " |")
+    inst = h.get("installable_set")
+    if inst:
+        L += ["", f"The set fitted on all {h['n_probes']} probes, as a user of this probe design would install it "
+              f"(the object set of `estimate`'s --objects; the device applies its per-contact-time directives): `{inst['path']}`."]
     d = h.get("until_decided")
     if d:
         L += ["", f"Until decided (emulated on the record's prefixes, stop at an accepted posterior ≥ {DECIDE_P}): "
               f"median decision {d['median_decision_s']:.2f} s, accuracy {pct(d['accuracy'], 1)} % "
               f"(fixed 1 s {pct(R['1.0']['object_accuracy'], 1)} %, fixed 2 s {pct(R['2.0']['object_accuracy'], 1)} %), "
               f"{pct(d['share_stopped_before_2s'])} % stopped before 2 s."]
+    return L
+
+
+def diagnosis_lines(R: dict) -> list[str]:
+    """The per-object table: the estimate's bias and z-scores at each contact time, and what the touches were named."""
+    sgn = lambda x, nd=1: "–" if x is None else f"{100 * x:+.{nd}f}"  # noqa: E731
+    f2 = lambda x: "–" if x is None else f"{x:.1f}"  # noqa: E731
+    L = ["", "Per object (evaluation split): bias = median ln(e / e_true of the specimen) of the answers with a "
+         "stated u, %; rms z = rms of that error over the stated u; z obj = median distance from the object's own "
+         "ln e in units sqrt(u² + spread²), before the fitted bias; acc and the most frequent wrong answer:", "",
+         "| object | " + " | ".join(f"{float(c):g} s: bias / rms z / z obj / acc / wrong" for c in R) + " |",
+         "|---|" + "---|" * len(R)]
+    for o in IN_SET:
+        cells = []
+        for c in R:
+            d = R[c]["diagnosis"].get(o.name)
+            if d is None:
+                cells.append("–")
+                continue
+            w = d["confused_with"]
+            cells.append(f"{sgn(d['bias'])} / {f2(d['rms_z'])} / {f2(d['z_object'])} / {pct(d['accuracy'])} % / "
+                         + (f"{w[0]} {w[1]}" if w else "–"))
+        L.append(f"| {o.name} | " + " | ".join(cells) + " |")
     return L
 
 
@@ -337,26 +463,39 @@ def bar_lines(res: dict) -> list[str]:
     R = h["recognition"]["by_contact_s"]
     L = [f"Bars (paper probe, precision board; this run: {res.get('board', 'precision')} board): object / class / "
          "in-set accepted / out-of-set rejected, ECE ≤ 3 %:", ""]
+    ok = lambda x, b: "met" if x is not None and x >= b else "NOT met"  # noqa: E731
+
+    def reach(bar, bayes):   # a bar above what the set allows at the attainable u cannot be met by any rule
+        if bayes is None or bar <= bayes:
+            return ""
+        return f"; above the set's Bayes rate {pct(bayes, 1)} %: unreachable"
+
     for ct, (bo, bc, bi, bx) in BARS.items():
         r = R[ct]
-        ok = lambda x, b: "met" if x is not None and x >= b else "NOT met"  # noqa: E731
         extra = ""
         if ct == "1.0" and r["bayes_object"] is not None:
             extra = (f", within 3 points of the Bayes rate {pct(r['bayes_object'], 1)} %: "
                      f"{'met' if r['object_accuracy'] >= r['bayes_object'] - 0.03 else 'NOT met'}")
         L.append(f"* {float(ct):g} s: object {pct(r['object_accuracy'], 1)} % (≥ {pct(bo)}: {ok(r['object_accuracy'], bo)}"
-                 f"{extra}), class {pct(r['class_accuracy'], 1)} % ({ok(r['class_accuracy'], bc)}), in-set accepted "
+                 f"{reach(bo, r['bayes_object'])}{extra}), class {pct(r['class_accuracy'], 1)} % "
+                 f"({ok(r['class_accuracy'], bc)}{reach(bc, r['bayes_class'])}), in-set accepted "
                  f"{pct(r['in_set_accepted'], 1)} % ({ok(r['in_set_accepted'], bi)}), out-of-set rejected "
                  f"{pct(r['out_rejected'], 1)} % ({ok(r['out_rejected'], bx)})")
-    L.append("* ECE (object): " + ", ".join(f"{float(c):g} s {pct(R[c]['rel_object']['ece'], 1)} % "
-                                            f"({'met' if R[c]['rel_object']['ece'] <= 0.03 else 'NOT met'})" for c in R))
+    L.append("* ECE (object; in brackets the median ECE a perfectly calibrated answerer shows on as many touches, "
+             "`_recognition.ece_floor`: a bar below it cannot be judged at this size): "
+             + ", ".join(f"{float(c):g} s {pct(R[c]['rel_object']['ece'], 1)} % "
+                         f"({pct((R[c].get('ece_floor') or {}).get('median'), 1)} %; "
+                         f"{'met' if R[c]['rel_object']['ece'] <= 0.03 else 'NOT met'})" for c in R))
     for c in R:
         big = [b for b in R[c]["rel_object"]["rows"] if b["n"] >= 20]
         off = [b for b in big if abs(b["accuracy"] - b["confidence"]) > 0.05]
+        # A bin's accuracy is binomial: its sd sqrt(p (1 - p) / n) is what ±5 points must be read against.
         L.append(f"* reliability at {float(c):g} s, bins with ≥ 20 touches within ±5 points: "
                  + ("met" if not off else "NOT met (" + ", ".join(
                      f"{b['lo']:.2f}-{b['hi']:.2f}: confidence {pct(b['confidence'])} %, right {pct(b['accuracy'])} %"
-                     f" of {b['n']}" for b in off) + ")") + f" ({len(big)} such bins)")
+                     f" of {b['n']}, binomial sd "
+                     f"{pct(math.sqrt(b['confidence'] * (1 - b['confidence']) / b['n']))} points"
+                     for b in off) + ")") + f" ({len(big)} such bins)")
     return L
 
 
@@ -393,9 +532,9 @@ def main() -> None:
         present = [o for o in objects if any(m.get("name") == o.name for m in meta)]
         h = {"n_probes": len({m["probe"] for m in meta}), "calibrations": {str(k): v for k, v in est["calibrations"].items()},
              "sim_s": info.get("sim_s"), "estimate_s": est["estimate_s"], "rows": est["rows"]}
-        h["recognition"] = recognise_head(head, est, present, out_objs, args.board)
-        fits = {float(c): r["fits"] for c, r in h["recognition"]["by_contact_s"].items()}
-        h["until_decided"] = until_decided(ObjectSet(IN_SET), est["rows"], [o.name for o in present], fits)
+        h["recognition"], sets_by_ct = recognise_head(head, est, present, out_objs, args.board)
+        h["installable_set"] = installable_set(est, present, A.CACHE.parent / f"tactile_asbuilt_objects_{head}{suffix}.csv")
+        h["until_decided"] = until_decided(ObjectSet(IN_SET), est["rows"], [o.name for o in present], sets_by_ct)
         res["heads"][head] = h
         for line in head_lines(head, h):
             print(line)
@@ -407,10 +546,11 @@ def main() -> None:
     sims = ", ".join(f"{hd} {h['sim_s'] / 60:.0f} min" for hd, h in res["heads"].items() if h.get("sim_s"))
     L = [f"Generated by `{cmd.strip()}` ({res['bench_s'] / 60:.1f} min, load {res['load_avg_1min']:.1f}; "
          f"the simulation pass that made the cached records: {sims or '–'}; "
-         "JSON in `bench/results/tactile_asbuilt.json`). Drawn as-built probes, each calibrated on its own "
+         f"JSON in `bench/results/tactile_asbuilt{'' if args.board == 'precision' else '_' + args.board}.json`). "
+         "Drawn as-built probes, each calibrated on its own "
          f"references; hand touches (R_c ≤ {args.rc_max:g} m²K/W, object ±2 K, contact 0.5–3 s before heating), "
          f"{args.touches} specimens per object (5 % spread), 14 in-set objects and {len(out_objs)} outside the set; "
-         "temperature and z_crit per contact time, two-fold cross-fitted.", ""]
+         "bias, temperature, z_crit and poor_fit_ln per contact time, fitted leave-one-probe-out.", ""]
     L += bar_lines(res) + [""]
     for head, h in res["heads"].items():
         L += head_lines(head, h) + [""]

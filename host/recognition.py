@@ -98,11 +98,16 @@ class Touches:
     alpha: Optional[np.ndarray] = None
     u_ln_alpha: Optional[np.ndarray] = None
     corr: Optional[np.ndarray] = None
+    #: Touches whose ``e`` is a poorly fitted chain's (withheld from the answer): named with the set's
+    #: ``poor_fit_ln`` instead of ``u_ln_e`` (:func:`classify_touches`), never fitted on as stated.
+    poor_fit: Optional[np.ndarray] = None
 
     def __post_init__(self) -> None:
         for name in ("alpha", "u_ln_alpha", "corr"):
             if getattr(self, name) is None:
                 setattr(self, name, np.full(self.e.shape, np.nan))
+        if self.poor_fit is None:
+            self.poor_fit = np.zeros(self.e.shape, bool)
 
     @property
     def ok(self) -> np.ndarray:
@@ -122,12 +127,13 @@ class Touches:
 
     def without_alpha(self) -> "Touches":
         """The same touches with their measured α dropped (recognition on e alone)."""
-        return Touches(self.obj, self.instrument, self.contact_time_s, self.e_true, self.e, self.u_ln_e, self.names)
+        return Touches(self.obj, self.instrument, self.contact_time_s, self.e_true, self.e, self.u_ln_e, self.names,
+                       poor_fit=self.poor_fit)
 
     def select(self, mask) -> "Touches":
         m = np.asarray(mask)
         return Touches(self.obj[m], self.instrument[m], self.contact_time_s[m], self.e_true[m], self.e[m],
-                       self.u_ln_e[m], self.names, self.alpha[m], self.u_ln_alpha[m], self.corr[m])
+                       self.u_ln_e[m], self.names, self.alpha[m], self.u_ln_alpha[m], self.corr[m], self.poor_fit[m])
 
 
 def library_estimator() -> Estimator:
@@ -428,10 +434,17 @@ def reliability(confidence, correct, bins: Sequence[float] = RELIABILITY_BINS) -
 
 
 def classify_touches(object_set: ObjectSet, touches: Touches) -> list[Recognition | None]:
-    """Recognition of every touch (None where the estimator refused), with its α where it measured one."""
+    """Recognition of every touch (None where the estimator refused), with its α where it measured one.
+
+    A ``poor_fit`` touch is named with the set's ``poor_fit_ln`` (None when the set has none), as
+    :func:`edge.recognition.recognition_fields` names it on the device.
+    """
     out = []
-    for e, u, a, ua, r in zip(touches.e, touches.u_ln_e, touches.alpha, touches.u_ln_alpha, touches.corr):
-        if not math.isfinite(e):
+    for e, u, a, ua, r, poor in zip(touches.e, touches.u_ln_e, touches.alpha, touches.u_ln_alpha, touches.corr,
+                                    touches.poor_fit):
+        if poor:   # as recognition_fields names a withheld poor_fit chain e: at the set's width, or not at all
+            u = object_set.poor_fit_ln if object_set.poor_fit_ln > 0 else math.nan
+        if not (math.isfinite(e) and math.isfinite(u)):
             out.append(None)
             continue
         kw = {"alpha": float(a), "u_ln_alpha": float(ua), "corr": float(r)} if math.isfinite(a) else {}
@@ -439,34 +452,92 @@ def classify_touches(object_set: ObjectSet, touches: Touches) -> list[Recognitio
     return out
 
 
+#: Floor on a touch's u(ln e) in the bias fit's weights: a metal's 2 % or a glass's 1.6 % should not
+#: let a handful of touches set the line for everything.
+BIAS_U_FLOOR_LN = 0.02
+#: Smallest ``poor_fit_ln`` a fit returns: a few poorly fitted touches that happen to sit on their
+#: object must not make the next one look precise.
+POOR_FIT_LN_FLOOR = 0.1
+
+
+def fit_bias(object_set: ObjectSet, touches: Touches) -> tuple[float, float]:
+    """The probe's bias of ln e, ``(bias_ln, bias_slope)``: weighted least squares of ln(e / e_true) on ln e_true.
+
+    Against each touch's own specimen (``e_true``), so the specimen spread is not in it; weights
+    ``1 / (u² + BIAS_U_FLOOR_LN²)``.  Only touches answered with their stated u (not ``poor_fit``).
+    The line is about :data:`edge.recognition.objects.BIAS_REF_E_W_s05_m2K`: ``bias_ln`` is the bias there.
+    """
+    from edge.recognition.objects import BIAS_REF_E_W_s05_m2K  # noqa: PLC0415
+
+    m = touches.ok & ~touches.poor_fit & np.isfinite(touches.u_ln_e)
+    if int(m.sum()) < 3:
+        return 0.0, 0.0
+    x = np.log(touches.e_true[m]) - math.log(BIAS_REF_E_W_s05_m2K)
+    y = np.log(touches.e[m] / touches.e_true[m])
+    sw = 1.0 / np.sqrt(touches.u_ln_e[m] ** 2 + BIAS_U_FLOOR_LN ** 2)
+    if np.ptp(x) < 0.5:   # one object (or a tight cluster): a level, no slope
+        return float(np.sum(sw ** 2 * y) / np.sum(sw ** 2)), 0.0
+    coef = np.linalg.lstsq(np.column_stack([sw, sw * x]), sw * y, rcond=None)[0]
+    return float(coef[0]), float(coef[1])
+
+
+def fit_poor_fit_ln(object_set: ObjectSet, touches: Touches, true_index) -> float:
+    """``poor_fit_ln``: the scatter of poorly fitted chain e's about what their objects read, at the set's T.
+
+    ``sqrt(mean(d²) / T - mean(spread²))`` over the ``poor_fit`` touches (d: ln e minus the true
+    object's expected reading, its bias included), at least :data:`POOR_FIT_LN_FLOOR`; 0 (such
+    touches name nothing) when there are none.
+    """
+    m = touches.poor_fit & touches.ok
+    if not m.any():
+        return 0.0
+    ti = np.asarray(true_index, int)[m]
+    d2 = (np.log(touches.e[m]) - object_set.ln_e[ti]) ** 2
+    v = float(np.mean(d2)) / object_set.temperature - float(np.mean(object_set.spread[ti] ** 2))
+    return float(max(POOR_FIT_LN_FLOOR, math.sqrt(max(v, 0.0))))
+
+
 def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequence[float] = CONTACT_TIMES_S,
               touches: int = 10, seed: int = 1000, acceptance: float | None = None,
-              sim: Touches | None = None) -> tuple[ObjectSet, dict]:
+              sim: Touches | None = None, bias: bool = False) -> tuple[ObjectSet, dict]:
     """Fit the temperature and z_crit of ``object_set`` on held-out simulated touches of its own objects.
 
     Returns the calibrated set (same objects) and a report: the fitted
     scalars, and the closed-set reliability before and after. ``sim`` reuses
     touches already simulated (objects named as in the set). ``acceptance``
     (default :func:`acceptance_target` of the number of touches) is the share
-    of these touches z_crit must accept.
+    of these touches z_crit must accept.  ``bias``: first fit the probe's bias of ln e
+    (:func:`fit_bias`; touches of *other* probes than the ones the set will name, ISSUE #37),
+    then T and z_crit about the biased centres, and ``poor_fit_ln`` on the ``poor_fit`` touches.
     """
     sim = sim or simulate_touches(object_set.objects, instruments=(instrument,), contact_times_s=contact_times_s,
                                   touches=touches, seed=seed)
     sim = sim.select(sim.ok)
+    poor = sim.select(sim.poor_fit)
+    sim = sim.select(~sim.poor_fit)
     ti = _true_index(object_set, sim.names, sim.obj)
     ln_e, u, alpha = np.log(sim.e), sim.u_ln_e, sim.alpha_terms()
     growth = fit_alpha_u_growth(object_set, sim, ti)   # first: how far a measured alpha's u can be trusted
-    object_set = object_set.with_calibration(alpha_u_growth=growth)
+    changes = {"alpha_u_growth": growth}
+    if bias:
+        changes["bias_ln"], changes["bias_slope"] = fit_bias(object_set, sim)
+    object_set = object_set.with_calibration(**changes)
     t = fit_temperature(object_set, ln_e, u, ti, alpha=alpha)
     acceptance = acceptance_target(ti.size) if acceptance is None else acceptance
     z = fit_z_crit(object_set, ln_e, u, acceptance=acceptance, temperature=t, alpha=alpha)
     q, hld, _ = object_set.log_terms(ln_e, u, **alpha)
     report = dict(instrument=instrument, touches=int(ti.size), temperature=t, z_crit=z, acceptance=acceptance,
-                  alpha_u_growth=growth, alpha_touches=int(np.isfinite(sim.alpha).sum()))
+                  alpha_u_growth=growth, alpha_touches=int(np.isfinite(sim.alpha).sum()),
+                  bias_ln=object_set.bias_ln, bias_slope=object_set.bias_slope)
     for label, temp in (("before", object_set.temperature), ("after", t)):
         p = object_set.posteriors(q, hld, temperature=temp)
         report[f"reliability_{label}"] = reliability(p.max(axis=1), p.argmax(axis=1) == ti)
-    return object_set.with_calibration(temperature=t, z_crit=z), report
+    out = object_set.with_calibration(temperature=t, z_crit=z)
+    if bias:
+        pf = fit_poor_fit_ln(out, poor, _true_index(out, poor.names, poor.obj))
+        report.update(poor_fit_ln=pf, poor_fit_touches=int(poor.e.size))
+        out = out.with_calibration(poor_fit_ln=pf)
+    return out, report
 
 
 #: Fewest answered touches at one contact time for a per-contact-time fit (fewer: the all-times fit serves it).
@@ -475,26 +546,28 @@ MIN_CONTACT_TOUCHES = 20
 
 def calibrate_by_contact(object_set: ObjectSet, instrument: str, *,
                          contact_times_s: Sequence[float] = CONTACT_TIMES_S, touches: int = 10, seed: int = 1000,
-                         sim: Touches | None = None) -> tuple[ObjectSet, dict]:
+                         sim: Touches | None = None, bias: bool = False) -> tuple[ObjectSet, dict]:
     """:func:`calibrate` over all contact times (the set's scalars) and at each one (its ``contact_calibration``).
 
     A short touch's stated u understates its scatter by another factor than a long one's (ISSUE
     #37: at 1 s answers given 0.61 were right 40 % of the time), so the temperature and the
     open-set z_crit are fitted per contact time on the touches of that time; the device names a
     touch with the entry nearest its heating time (:meth:`ObjectSet.at_contact`).  A contact time
-    with fewer than :data:`MIN_CONTACT_TOUCHES` answered touches gets no entry.
+    with fewer than :data:`MIN_CONTACT_TOUCHES` answered touches gets no entry.  ``bias``: each entry
+    carries the probe's bias of ln e at that contact time and ``poor_fit_ln`` too (:func:`calibrate`).
     """
     sim = sim or simulate_touches(object_set.objects, instruments=(instrument,), contact_times_s=contact_times_s,
                                   touches=touches, seed=seed)
-    cal, report = calibrate(object_set, instrument, sim=sim)
+    cal, report = calibrate(object_set, instrument, sim=sim, bias=bias)
+    keys = ("temperature", "z_crit") + (("bias_ln", "bias_slope", "poor_fit_ln") if bias else ())
     table, per = {}, {}
     for ct in sorted({float(c) for c in sim.contact_time_s}):
         sub = sim.select(np.isclose(sim.contact_time_s, ct))
         if int(sub.ok.sum()) < MIN_CONTACT_TOUCHES:
             continue
-        _, rep = calibrate(cal, instrument, sim=sub)
-        table[ct] = {"temperature": rep["temperature"], "z_crit": rep["z_crit"]}
-        per[str(ct)] = {k: rep[k] for k in ("touches", "temperature", "z_crit", "acceptance")}
+        _, rep = calibrate(cal, instrument, sim=sub, bias=bias)
+        table[ct] = {k: rep[k] for k in keys}
+        per[str(ct)] = {k: rep[k] for k in ("touches", "acceptance") + keys}
         per[str(ct)]["ece_after"] = rep["reliability_after"]["ece"]
     return cal.with_contact_calibration(table), {**report, "by_contact_s": per}
 

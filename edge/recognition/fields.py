@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import math
 from typing import Mapping
 
 from edge.recognition.object_set import ObjectSet
 from edge.recognition.touch import BROAD_LN
 
-__all__ = ["RESULT_KEYS", "LIBRARY_SET", "BROAD_FLAGS", "recognition_fields"]
+__all__ = ["RESULT_KEYS", "LIBRARY_SET", "BROAD_FLAGS", "POOR_FIT_FLAG", "recognition_fields"]
 
 #: Keys :func:`recognition_fields` adds to a result (``estimate --json``, the device's records).
 RESULT_KEYS = ("object_set", "object", "object_posterior", "class", "class_posterior", "unknown_posterior",
@@ -29,6 +30,33 @@ def _broadened(estimate: Mapping) -> dict:
         return dict(estimate)
     u_ln = float(u) / float(e) if u is not None and float(u) >= 0 else 0.0
     return {**estimate, "effusivity_W_s05_m2K_u": float(e) * max(u_ln, BROAD_LN)}
+
+
+#: The flag of an answer whose calibrated chain fitted poorly (its e withheld by the seam, ISSUE #34).
+POOR_FIT_FLAG = "poor_fit"
+
+
+def _from_poor_fit_chain(object_set: ObjectSet, estimate: Mapping) -> Mapping:
+    """The estimate with the poorly fitted chain's e in place of the withheld one, at the set's ``poor_fit_ln``.
+
+    The seam withholds a poor_fit chain's e as a *number* (on hand touches of foam it reads tens of
+    percent high), but it still places the object: foam's 40 read as 70 is nowhere near cardboard's
+    110 or a wood's 320 (ISSUE #37).  Used only by a set that carries a fitted ``poor_fit_ln`` (the
+    scatter of such answers about their objects, host.recognition.fit_poor_fit_ln); otherwise, and
+    without a chain e, the estimate unchanged (it names no object).
+    """
+    chain = estimate.get("sensor_chain")
+    if (object_set.poor_fit_ln <= 0 or estimate.get("effusivity_W_s05_m2K") is not None
+            or POOR_FIT_FLAG not in set(estimate.get("flags") or ()) or not isinstance(chain, Mapping)):
+        return estimate
+    try:
+        e = float(chain.get("effusivity_W_s05_m2K"))
+    except (TypeError, ValueError):
+        return estimate
+    if not (math.isfinite(e) and e > 0):
+        return estimate
+    return {**estimate, "effusivity_W_s05_m2K": e, "effusivity_W_s05_m2K_u": e * object_set.poor_fit_ln,
+            "method": "sensor_chain", "fit": None}
 
 
 def recognition_fields(object_set: ObjectSet, estimate: Mapping, *, set_name: str | None = None,
@@ -63,13 +91,16 @@ def recognition_fields(object_set: ObjectSet, estimate: Mapping, *, set_name: st
         posterior, each ``{"name", "posterior"}``). Without an effusivity
         (no estimate) the names and posteriors are None and ``candidates`` empty (the seam reports
         ``object`` as ``"unknown"``).  An answer flagged with one of :data:`BROAD_FLAGS` is named
-        with its u(ln e) widened to :data:`edge.recognition.touch.BROAD_LN`.
+        with its u(ln e) widened to :data:`edge.recognition.touch.BROAD_LN`; one whose e the seam
+        withheld for a poorly fitted chain is named from the chain's e where the set says how far
+        to trust it (``poor_fit_ln``, :func:`_from_poor_fit_chain`).
     """
     out: dict = {"object_set": object_set.label if set_name is None else set_name, "object": None,
                  "object_posterior": None, "class": None, "class_posterior": None, "unknown_posterior": None,
                  "candidates": []}
     if BROAD_FLAGS & set(estimate.get("flags") or ()):
         estimate = _broadened(estimate)
+    estimate = _from_poor_fit_chain(object_set.at_contact(contact_time_s), estimate)
     r = object_set.classify_estimate(estimate, top=top, contact_time_s=contact_time_s)
     if r is None:
         return out

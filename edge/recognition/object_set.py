@@ -13,9 +13,12 @@ covariance
 
     T * (C_meas + diag(spread_i^2 + calibration_ln^2, spread_i^2))
 
-where ``C_meas`` is the measurement's covariance of (ln e, ln α) (their
-correlation included: a short touch fixes e = k / sqrt(α) much better than
-α, and the two errors are correlated) and ``T`` is the set's *temperature*:
+about what the object *reads* on this probe at this contact time: its ln e plus the probe's
+fitted bias ``bias_ln + bias_slope (ln e_i - ln e_ref)`` (0 unless fitted: a calibrated paper
+probe reads woods and polymers 4-11 % high at 1 s, ISSUE #37), where
+``C_meas`` is the measurement's covariance of (ln e, ln α) (their correlation
+included: a short touch fixes e = k / sqrt(α) much better than α, and the two
+errors are correlated) and ``T`` is the set's *temperature*:
 one scale on every variance, fitted on the host on held-out simulated
 touches (host/recognition.py) so that a posterior of 0.9 is right about 90 %
 of the time. The specimen spread is read as independent lognormal spreads of
@@ -71,7 +74,8 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from edge.physics.materials import load_materials
-from edge.recognition.objects import (CONTACT_DIRECTIVES, DEFAULT_PRIOR_UNKNOWN, DEFAULT_SPREAD_REL, DEFAULT_Z_CRIT,
+from edge.recognition.objects import (BIAS_REF_E_W_s05_m2K, CONTACT_DIRECTIVES, DEFAULT_PRIOR_UNKNOWN,
+                                      DEFAULT_SPREAD_REL, DEFAULT_Z_CRIT,
                                       DIRECTIVES, UNKNOWN, UNKNOWN_LN_E_SPAN, KnownObject, contact_key, parse_csv)
 from edge.recognition.stats import p_crit_of, tail_p, z_of_p
 from edge.recognition.touch import BROAD_LN, DEFAULT_ALPHA_U_GROWTH, effective_u_ln_alpha, measured_alpha
@@ -180,19 +184,30 @@ class ObjectSet:
         Prior probability that a touched object is none of these.
     alpha_u_growth : float
         A measured α's uncertainty is used as ``u (1 + a u)`` (see :func:`effective_u_ln_alpha`).
+    bias_ln, bias_slope : float
+        The probe's bias of ln e at this contact time, ``bias_ln + bias_slope (ln e - ln e_ref)``
+        (``e_ref`` :data:`~edge.recognition.objects.BIAS_REF_E_W_s05_m2K`): every object is expected
+        to *read* its ln e plus that (``ln_e``; its own e is ``ln_e_nominal``).  Fitted on the host on
+        touches of probes other than the one it is used with (host.recognition.fit_bias, ISSUE #37:
+        at 1 s the calibrated paper probe reads woods and polymers 5-10 % high, metals low).
+    poor_fit_ln : float
+        Standard deviation of ln e (before the temperature) with which a touch whose calibrated
+        chain fitted poorly -- its e withheld from the answer -- still names an object from the
+        chain's e (:func:`~edge.recognition.fields.recognition_fields`); 0: it names none.
     contact_calibration : mapping, optional
-        ``{contact time s: {"temperature": T, "z_crit": z}}``: the calibration fitted at each contact
-        time (a short touch's u is understated differently from a long one's, ISSUE #37); a touch is
-        named with the entry nearest its heating time in ln t (:meth:`at_contact`), the scalars above
-        when there is none.  Stored as ``#@ temperature@1s = ...`` directives.
+        ``{contact time s: {"temperature": T, "z_crit": z, ...}}`` (any of ``CONTACT_DIRECTIVES``):
+        the calibration fitted at each contact time (a short touch's u is understated differently
+        from a long one's, and its estimate biased differently, ISSUE #37); a touch is named with
+        the entry nearest its heating time in ln t (:meth:`at_contact`), the scalars above when
+        there is none.  Stored as ``#@ temperature@1s = ...`` directives.
     label : str
         Where the set came from (messages only).
     """
 
     def __init__(self, objects: Iterable[KnownObject], *, temperature: float = 1.0, z_crit: float = DEFAULT_Z_CRIT,
                  calibration_ln: float = 0.0, prior_unknown: float = DEFAULT_PRIOR_UNKNOWN,
-                 alpha_u_growth: float = DEFAULT_ALPHA_U_GROWTH,
-                 contact_calibration: Mapping[float, Mapping[str, float]] | None = None,
+                 alpha_u_growth: float = DEFAULT_ALPHA_U_GROWTH, bias_ln: float = 0.0, bias_slope: float = 0.0,
+                 poor_fit_ln: float = 0.0, contact_calibration: Mapping[float, Mapping[str, float]] | None = None,
                  label: str = "<memory>") -> None:
         objs = tuple(objects)
         if not objs:
@@ -209,6 +224,9 @@ class ObjectSet:
         self.calibration_ln = check_value(DIRECTIVES["calibration_ln"], calibration_ln, "calibration_ln")
         self.prior_unknown = check_value(DIRECTIVES["prior_unknown"], prior_unknown, "prior_unknown")
         self.alpha_u_growth = check_value(DIRECTIVES["alpha_u_growth"], alpha_u_growth, "alpha_u_growth")
+        self.bias_ln = check_value(DIRECTIVES["bias_ln"], bias_ln, "bias_ln")
+        self.bias_slope = check_value(DIRECTIVES["bias_slope"], bias_slope, "bias_slope")
+        self.poor_fit_ln = check_value(DIRECTIVES["poor_fit_ln"], poor_fit_ln, "poor_fit_ln")
         self.contact_calibration = _contact_table(contact_calibration)
         self._at: dict[float, ObjectSet] = {}
         self.label = label
@@ -217,10 +235,16 @@ class ObjectSet:
         self.classes = tuple(o.recognition_class for o in objs)
         self.class_names = tuple(dict.fromkeys(self.classes))
         self._class_index = np.array([self.class_names.index(c) for c in self.classes])
-        self.ln_e = np.log([o.e_W_s05_m2K for o in objs])
+        self.ln_e_nominal = np.log([o.e_W_s05_m2K for o in objs])
+        #: What each object is expected to read (its ln e plus the probe's fitted bias): the likelihood's centre.
+        self.ln_e = self.ln_e_nominal + self.bias_of(self.ln_e_nominal)
         self.spread = np.array([o.spread_rel for o in objs], float)
         self.has_props = np.array([o.has_properties for o in objs])
         self.ln_alpha = np.log([o.alpha_m2_s if o.has_properties else 1.0 for o in objs])
+
+    def bias_of(self, ln_e):
+        """The probe's fitted bias of ln e at these ln e (``bias_ln + bias_slope (ln e - ln e_ref)``)."""
+        return self.bias_ln + self.bias_slope * (np.asarray(ln_e, float) - math.log(BIAS_REF_E_W_s05_m2K))
 
     # -- construction --------------------------------------------------------------
     @classmethod

@@ -10,7 +10,9 @@ CSV format
 ----------
 Lines whose first non-blank character is ``#`` and blank lines are comments,
 except *directives* ``#@ key = value`` (``temperature``, ``z_crit``,
-``calibration_ln``, ``prior_unknown``, ``alpha_u_growth``: the calibration stored with the set). The first
+``calibration_ln``, ``prior_unknown``, ``alpha_u_growth``, ``bias_ln``, ``bias_slope``, ``poor_fit_ln``:
+the calibration stored with the set; all but ``prior_unknown`` and ``alpha_u_growth`` may also be given
+per contact time, ``#@ bias_ln@1s = 0.05``). The first
 other line is the header: ``name``, ``class``, and either ``k_W_mK``,
 ``rho_kg_m3``, ``c_J_kgK`` or ``e_W_s05_m2K`` (both groups may be present;
 each row fills exactly one of them), and optionally ``spread_rel``,
@@ -33,7 +35,8 @@ from edge.recognition.touch import DEFAULT_ALPHA_U_GROWTH
 from edge.schema import Field, SchemaError, check_keys, check_value
 
 __all__ = ["UNKNOWN", "DEFAULT_SPREAD_REL", "DEFAULT_Z_CRIT", "DEFAULT_PRIOR_UNKNOWN", "UNKNOWN_LN_E_SPAN", "COLUMNS",
-           "DIRECTIVES", "CONTACT_DIRECTIVES", "contact_key", "Issue", "ObjectSetError", "KnownObject", "parse_csv"]
+           "DIRECTIVES", "BIAS_REF_E_W_s05_m2K", "CONTACT_DIRECTIVES", "contact_key", "Issue", "ObjectSetError",
+           "KnownObject", "parse_csv"]
 
 #: The answer when the touched object is none of the set's.
 UNKNOWN = "unknown"
@@ -73,7 +76,15 @@ DIRECTIVES: dict[str, Field] = {
                            lo=0.0, hi=1.0, lo_open=True, hi_open=True),
     "alpha_u_growth": Field("float", DEFAULT_ALPHA_U_GROWTH, "growth a of a measured alpha's uncertainty, "
                             "u (1 + a u) (fitted on held-out touches)", lo=0.0, hi=100.0),
+    "bias_ln": Field("float", 0.0, "the probe's bias of ln e at BIAS_REF_E_W_s05_m2K (fitted on held-out "
+                     "touches of other probes)", lo=-2.0, hi=2.0),
+    "bias_slope": Field("float", 0.0, "change of that bias per unit ln e", lo=-2.0, hi=2.0),
+    "poor_fit_ln": Field("float", 0.0, "sd of ln e with which a withheld poor_fit chain e names an object "
+                         "(0: such a touch names none)", lo=0.0, hi=3.0),
 }
+#: Effusivity (W s^0.5/(m^2 K)) at which ``bias_ln`` is the bias: mid-range (the polymers and woods a
+#: short touch reads worst lie a unit of ln e below it, the metals three above).
+BIAS_REF_E_W_s05_m2K = 1000.0
 
 
 # -- errors ----------------------------------------------------------------------------
@@ -223,8 +234,8 @@ def parse_csv(text: str, label: str) -> tuple[list[KnownObject], dict]:
 
 
 #: Directives that may be given per contact time (``#@ temperature@0.5s = ...``).
-CONTACT_DIRECTIVES = ("temperature", "z_crit")
-_CONTACT_KEY = re.compile(r"^(temperature|z_crit)@([0-9]*\.?[0-9]+)s$")
+CONTACT_DIRECTIVES = ("temperature", "z_crit", "calibration_ln", "bias_ln", "bias_slope", "poor_fit_ln")
+_CONTACT_KEY = re.compile(r"^(" + "|".join(CONTACT_DIRECTIVES) + r")@([0-9]*\.?[0-9]+)s$")
 
 
 def _contact_key(key: str) -> tuple[str, float] | None:

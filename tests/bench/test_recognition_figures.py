@@ -1,0 +1,57 @@
+"""The tactile bench's diagnosis figures (bench/_recognition.py): the ECE's sampling floor, the per-object table."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+BENCH = Path(__file__).resolve().parents[2] / "bench"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def bench_on_path():
+    sys.path.insert(0, str(BENCH))
+    yield
+    sys.path.remove(str(BENCH))
+
+
+def test_the_ece_floor_is_what_a_calibrated_answerer_shows_and_falls_with_the_touches():
+    from _recognition import ece_floor
+    from host.recognition import reliability
+
+    def floor(n):
+        conf = np.full(n, 0.7)
+        return ece_floor(reliability(conf, np.arange(n) % 10 < 7))["median"]
+
+    small, big = floor(40), floor(4000)
+    assert 0.03 < small < 0.1 and big < 0.01 and small > 3 * big   # ~ sqrt(p (1 - p) / n)
+    # Simulated calibrated answers at 140 touches: their ECE sits near the floor, not near 0.
+    rng = np.random.default_rng(1)
+    conf = rng.uniform(0.3, 1.0, 140)
+    eces = [reliability(conf, rng.random(140) < conf)["ece"] for _ in range(200)]
+    rel = reliability(conf, rng.random(140) < conf)
+    assert abs(np.median(eces) - ece_floor(rel)["median"]) < 0.025
+
+
+def test_the_diagnosis_reports_a_bias_against_each_touchs_own_specimen():
+    from _recognition import diagnosis
+    from edge.recognition import KnownObject, ObjectSet
+    from host.recognition import Touches, classify_touches
+
+    s = ObjectSet([KnownObject("a", "polymer", 300.0), KnownObject("b", "polymer", 340.0),
+                   KnownObject("c", "metal", 20000.0)])
+    rng = np.random.default_rng(2)
+    n = 300
+    ti = rng.integers(0, 3, n)
+    e_true = np.exp(s.ln_e[ti] + 0.05 * rng.standard_normal(n))
+    e = e_true * math.exp(0.08) * np.exp(0.02 * rng.standard_normal(n))   # reads 8 % high
+    t = Touches(ti, np.full(n, "x"), np.full(n, 1.0), e_true, e, np.full(n, 0.02), s.names)
+    d = diagnosis(s, t, classify_touches(s, t))
+    assert d["a"]["bias"] == pytest.approx(0.08, abs=0.01) and d["a"]["rms_z"] > 3
+    assert d["a"]["confused_with"][0] == "b"            # a touch of a slides up onto b
+    assert set(d["c"]["answers"]) <= {"c", "unknown"}    # far from the others: 8 % high only risks "unknown"
+    assert sum(d["a"]["answers"].values()) == d["a"]["n"]
