@@ -288,6 +288,10 @@ def _mean_abs_normal(d: np.ndarray, sd: np.ndarray) -> np.ndarray:
     return out
 
 
+def _signed_root(x: float) -> float:
+    return math.copysign(math.sqrt(abs(x)), x)
+
+
 def debiased_ece(confidence, correct, bins=RELIABILITY_BINS) -> dict:
     """Binned calibration error with its sampling bias removed (Kumar, Liang & Ma 2019, "Verified
     uncertainty calibration").
@@ -312,7 +316,7 @@ def debiased_ece(confidence, correct, bins=RELIABILITY_BINS) -> dict:
     conf = np.asarray(confidence, float)
     ok = np.asarray(correct, float)
     if conf.size == 0:
-        return {"plug_in": None, "debiased": None, "debiased_l1": None, "n": 0}
+        return {"plug_in": None, "debiased": None, "debiased_sq": None, "debiased_l1": None, "n": 0}
     edges = np.asarray(bins, float)
     which = np.clip(np.searchsorted(edges, conf, side="right") - 1, 0, edges.size - 2)
     n_b = np.bincount(which, minlength=edges.size - 1).astype(float)
@@ -324,7 +328,7 @@ def debiased_ece(confidence, correct, bins=RELIABILITY_BINS) -> dict:
     var_b = c_b * (1.0 - c_b) / n_b[used]
     l2 = float(np.sum(w_b * (gap ** 2 - var_b)))
     return {"plug_in": float(np.sum(w_b * np.abs(gap))),
-            "debiased": math.copysign(math.sqrt(abs(l2)), l2),
+            "debiased": _signed_root(l2), "debiased_sq": l2,
             "debiased_l1": float(np.sum(w_b * (2.0 * np.abs(gap) - _mean_abs_normal(gap, np.sqrt(var_b))))),
             "n": int(conf.size)}
 
@@ -335,7 +339,11 @@ def ece_interval(confidence, correct, group=None, *, draws: int = 1000, seed: in
 
     Each draw resamples the groups (``group``: the drawn probe of each touch; None: one group) with
     replacement, then the touches within each drawn group with replacement, and recomputes
-    :func:`debiased_ece`.  The percentile interval at ``level``; with three probes the group level is
+    :func:`debiased_ece`.  The plug-in's interval is the percentile one.  The debiased estimate's is
+    taken on its square (``debiased_sq``) and centred on the estimate: a resample's bins carry the
+    resampling noise on top of the data's, so its debiased square sits about one ``σ_b²`` too high
+    and the percentile interval would be shifted up by that bias; the draws give the spread only
+    (``debiased_sq + q − mean``), then the signed root.  With three probes the group level is
     coarse, so the touch-only interval is returned beside it.
     """
     conf = np.asarray(confidence, float)
@@ -343,6 +351,7 @@ def ece_interval(confidence, correct, group=None, *, draws: int = 1000, seed: in
     g = np.zeros(conf.size, int) if group is None else np.unique(np.asarray(group), return_inverse=True)[1]
     members = [np.flatnonzero(g == k) for k in range(int(g.max()) + 1 if g.size else 0)]
     rng = np.random.default_rng(seed)
+    point = debiased_ece(conf, ok, bins)
     out = {}
     for label, by_group in (("touches", False), ("probes_and_touches", True)):
         plug, deb = np.empty(draws), np.empty(draws)
@@ -350,8 +359,9 @@ def ece_interval(confidence, correct, group=None, *, draws: int = 1000, seed: in
             gs = rng.integers(0, len(members), len(members)) if by_group else np.arange(len(members))
             idx = np.concatenate([rng.choice(members[k], members[k].size) for k in gs])
             r = debiased_ece(conf[idx], ok[idx], bins)
-            plug[d], deb[d] = r["plug_in"], r["debiased"]
+            plug[d], deb[d] = r["plug_in"], r["debiased_sq"]
         q = [(1.0 - level) / 2.0, (1.0 + level) / 2.0]
         out[label] = {"plug_in": [float(x) for x in np.quantile(plug, q)],
-                      "debiased": [float(x) for x in np.quantile(deb, q)]}
-    return {**debiased_ece(conf, ok, bins), "interval": out, "level": level, "draws": draws}
+                      "debiased": [_signed_root(point["debiased_sq"] + float(x) - float(deb.mean()))
+                                   for x in np.quantile(deb, q)]}
+    return {**point, "interval": out, "level": level, "draws": draws}

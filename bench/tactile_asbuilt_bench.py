@@ -33,8 +33,10 @@ reliability table, the confusion matrix at 1 s, the e error (median per object) 
 until-decided emulation against the fixed 1- and 2-s answers.
 
 Run:  python bench/tactile_asbuilt_bench.py [--heads paper small-heater] [--touches 10] [--probes 3]
-      [--reuse] [--update-readme]
+      [--reuse] [--update-readme] [--extend N]
 ``--reuse`` re-estimates the cached records (a new calibration or estimator: no re-simulation).
+``--extend N`` adds N specimens per object on the same drawn probes, in a cache file of its own
+(``tactile_asbuilt_<head>_ext.npz``, touches only; ``--reuse`` reads it beside the first pass's).
 Writes bench/results/tactile_asbuilt.json; --update-readme the ``tactile-asbuilt-bench`` block of
 docs/results.md.
 """
@@ -402,6 +404,12 @@ def pct(x, nd=0):
 BARS = {"1.0": (0.93, 0.96, 0.93, 0.85), "2.0": (0.98, 0.98, 0.95, 0.95)}
 
 
+def specimens(res: dict) -> str:
+    """Specimens per object over the heads run (the first pass's ``--touches`` plus any ``--extend`` passes)."""
+    n = sorted({c for h in res["heads"].values() for c in h.get("touches_per_object", {}).values()})
+    return "–" if not n else str(n[0]) if len(n) == 1 else f"{n[0]}–{n[-1]}"
+
+
 def ece_judged(r: dict) -> str:
     """The debiased ECE, its interval over probes and touches, and the verdict on the 0.03 bar."""
     ce = r.get("calibration_error")
@@ -602,7 +610,8 @@ def main() -> None:
             A.save_records(path, recs, meta, info)
         est = estimate_head(head, recs, meta)
         present = [o for o in objects if any(m.get("name") == o.name for m in meta)]
-        h = {"n_probes": len({m["probe"] for m in meta}), "calibrations": {str(k): v for k, v in est["calibrations"].items()},
+        per_obj = {o.name: sum(m.get("kind") == "touch" and m.get("name") == o.name for m in meta) for o in present}
+        h = {"touches_per_object": per_obj, "n_probes": len({m["probe"] for m in meta}), "calibrations": {str(k): v for k, v in est["calibrations"].items()},
              "sim_s": info.get("sim_s"), "estimate_s": est["estimate_s"], "rows": est["rows"]}
         h["recognition"], sets_by_ct = recognise_head(head, est, present, out_objs, args.board)
         h["installable_set"] = installable_set(est, present, A.CACHE.parent / f"tactile_asbuilt_objects_{head}{suffix}.csv")
@@ -621,7 +630,7 @@ def main() -> None:
          f"JSON in `bench/results/tactile_asbuilt{'' if args.board == 'precision' else '_' + args.board}.json`). "
          "Drawn as-built probes, each calibrated on its own "
          f"references; hand touches (R_c ≤ {args.rc_max:g} m²K/W, object ±2 K, contact 0.5–3 s before heating), "
-         f"{args.touches} specimens per object (5 % spread), 14 in-set objects and {len(out_objs)} outside the set; "
+         f"{specimens(res)} specimens per object (5 % spread), 14 in-set objects and {len(out_objs)} outside the set; "
          "bias, temperature, z_crit and poor_fit_ln per contact time, fitted leave-one-probe-out.", ""]
     L += bar_lines(res) + [""]
     for head, h in res["heads"].items():
