@@ -144,8 +144,12 @@ class AxiFitter:
     def __init__(self, geometry: ProbeGeometry, t_s, *, sigma_T_K: float = 0.01, sigma_q_W_m2: float = 0.5,
                  nuisance: str = "power", fit_contact: bool = False, contact_resistance_m2K_W: float = 0.0,
                  thickness_m: float | None = None, back: str = "infinite", identifiable_u_rel: float = 0.30,
-                 model: AxisymModel | None = None) -> None:
+                 model: AxisymModel | None = None, offset=None) -> None:
         self.geometry = geometry
+        #: Extra linear nuisance columns (the object's temperature offset, edge.estimation.probe_estimate's
+        #: ObjectOffset): ``offset.columns(k, alpha, R_c, jac)`` -> (XT (m, nT), Xq (m, nq), dXT, dXq), per
+        #: unit of each nuisance, with d/d(ln k, ln alpha, R_c) (npar, m, n) when ``jac``; None: none.
+        self.offset = offset
         self.t_s = finite_array("t_s", t_s)
         self.model = model if model is not None else AxisymModel(geometry, self.t_s)
         if self.model.t_s.shape != self.t_s.shape or not np.allclose(self.model.t_s, self.t_s):
@@ -202,6 +206,8 @@ class AxiFitter:
         theta; its derivative enters the Jacobian exactly (ds from the normal equation).
         """
         mT, mq, dmT, dmq = self._weighted(theta, P0, jac)
+        if self.offset is not None:
+            return self._residual_offset(theta, yT, yq, mT, mq, dmT, dmq, jac)
         if self.nuisance == "power":
             m, y = np.concatenate([mT, mq]), np.concatenate([yT, yq])
             mm = float(m @ m)
@@ -219,6 +225,66 @@ class AxiFitter:
             return r, s, None
         ds = (dmq @ yq - 2.0 * s * (dmq @ mq)) / mm
         return r, s, -np.concatenate([dmT, ds[:, None] * mq[None, :] + s * dmq], axis=1).T
+
+    def _offset_columns(self, theta: np.ndarray, jac: bool):
+        """The offset's weighted columns (m, n) and their theta-derivatives (npar, m, n) or None."""
+        XT, Xq, dXT, dXq = self.offset.columns(math.exp(theta[0]), math.exp(theta[1]), self._R(theta), jac)
+        X = np.concatenate([XT / self.sigma_T, Xq / self.sigma_q], axis=1)
+        if not jac:
+            return X, None
+        dX = np.concatenate([dXT / self.sigma_T, dXq / self.sigma_q], axis=2)[:theta.size]
+        if theta.size == 3:
+            dX[2] *= _RC_UNIT
+        return X, dX
+
+    def _design(self, theta, mT, mq, dmT, dmq, jac: bool):
+        """Columns [heater (power scale), offset's ...] (n, 1 + m) and d(columns)/d theta (npar, n, 1 + m)."""
+        X, dX = self._offset_columns(theta, jac)
+        if getattr(self.offset, "tcr", False):
+            # A column made from the heater's own (the heater's TCR under the contact transient).
+            x, dx = self.offset.tcr_columns(math.exp(theta[0]), math.exp(theta[1]), self._R(theta), mT, mq,
+                                            dmT, dmq, jac)
+            X = np.concatenate([X, x[None, :]])
+            if jac:
+                dX = np.concatenate([dX, dx[:, None, :]], axis=1)
+        A = np.concatenate([np.concatenate([mT, mq])[:, None], X.T], axis=1)
+        if not jac:
+            return A, None
+        dm = np.concatenate([dmT, dmq], axis=1)
+        return A, np.concatenate([dm[:, :, None], np.transpose(dX, (0, 2, 1))], axis=2)
+
+    def _with_prior(self, A, dA, y):
+        """The offset's prior on its nuisances as extra rows (``offset.prior(beta)`` -> rows, targets)."""
+        prior = getattr(self.offset, "prior", None)
+        if prior is None:
+            return A, dA, y
+        rows, targets = prior(np.linalg.lstsq(A, y, rcond=None)[0])
+        A = np.concatenate([A, rows])
+        y = np.concatenate([y, targets])
+        if dA is not None:
+            dA = np.concatenate([dA, np.zeros((dA.shape[0],) + rows.shape)], axis=1)
+        return A, dA, y
+
+    def _residual_offset(self, theta, yT, yq, mT, mq, dmT, dmq, jac: bool):
+        """Variable projection with the power scale and the offset's linear nuisances (Kaufman's Jacobian).
+
+        The linear coefficients minimise the residual in closed form at every theta; the Jacobian is
+        the projected ``-(I - A A^+) dA beta`` (Kaufman 1975), which converges like the exact one.
+        """
+        if self.nuisance != "power":
+            raise ValueError("the object offset is fitted with the power scale as the nuisance")
+        y = np.concatenate([yT, yq])
+        A, dA = self._design(theta, mT, mq, dmT, dmq, jac)
+        A, dA, y = self._with_prior(A, dA, y)
+        Q, _ = np.linalg.qr(A)
+        beta = np.linalg.lstsq(A, y, rcond=None)[0]
+        r = y - A @ beta
+        self._beta = beta
+        if not jac:
+            return r, float(beta[0]), None
+        D = np.einsum("pnm,m->np", dA, beta)          # (n, npar)
+        D = D - Q @ (Q.T @ D)
+        return r, float(beta[0]), -D
 
     def _clip(self, theta: np.ndarray) -> np.ndarray:
         th = theta.copy()
@@ -246,6 +312,7 @@ class AxiFitter:
             self.model = keep
         scale_T = s if self.nuisance == "power" else 1.0
         dy = np.concatenate([scale_T * (other[0] - base[0]), s * (other[1] - base[1])])
+        dy = np.concatenate([dy, np.zeros(J.shape[0] - dy.size)])   # the offset's prior rows (none: 0)
         return (covariance_ln_k_alpha(J.T @ J) @ (J.T @ dy))[:2]
 
     # -- the fit
@@ -319,7 +386,16 @@ class AxiFitter:
         npar = theta.size
         # Full Jacobian of the weighted model at the solution: ln k, ln alpha (, R_c), scale.
         mT, mq, dmT, dmq = self._weighted(theta, P0, True)
-        if self.nuisance == "power":
+        if self.offset is not None:
+            # Full Jacobian: theta's columns through every linear term, then the power scale and the
+            # offset's nuisances -- their covariance with ln k and ln alpha enters every u.
+            A, dA = self._design(theta, mT, mq, dmT, dmq, True)
+            A, dA, y_all = self._with_prior(A, dA, np.concatenate([yT, yq]))
+            beta = np.linalg.lstsq(A, y_all, rcond=None)[0]
+            s = float(beta[0])
+            J = np.concatenate([np.einsum("pnm,m->np", dA, beta), A], axis=1)
+            self.offset_beta = beta[1:].copy()
+        elif self.nuisance == "power":
             J = np.concatenate([np.concatenate([s * dmT, s * dmq], axis=1).T,
                                 np.concatenate([mT, mq])[:, None]], axis=1)
         else:
@@ -341,12 +417,15 @@ class AxiFitter:
         # The fit's response to the flux record scaled by (1 + eps): d beta / d eps = (J^T J)^-1 J^T dy,
         # with the same (vanishing) regularisation as the covariance.
         dy = np.concatenate([np.zeros_like(yT), yq])
+        dy = np.concatenate([dy, np.zeros(J.shape[0] - dy.size)])   # the offset's prior rows (none: 0)
         self._final = (theta.copy(), float(s), P0, J)
         d_beta = covariance_ln_k_alpha(J.T @ J) @ (J.T @ dy)
         sens = {"k": float(d_beta[0]), "alpha": float(d_beta[1]), "effusivity": float(d_beta[0] - 0.5 * d_beta[1])}
         k, a = math.exp(theta[0]), math.exp(theta[1])
         e = k / math.sqrt(a)
-        u_scale = math.sqrt(max(cov[-1, -1], 0.0))
+        u_scale = math.sqrt(max(cov[npar, npar], 0.0))
+        if self.offset is not None:
+            self.offset_cov = cov[npar + 1:, npar + 1:].copy()
         R = max(theta[2], 0.0) * _RC_UNIT if self.fit_contact else self.R_c0
         u_R = math.sqrt(max(cov[2, 2], 0.0)) * _RC_UNIT if self.fit_contact else 0.0
         # Relative u of a log-normal quantity ~ u of its ln (exactly so to first order).

@@ -91,6 +91,9 @@ class AxiMethod(_Method):
     """The small heater's axisymmetric fit (:class:`edge.estimation.probe_estimate.AxiEstimator`)."""
 
     kind = "axisym"
+    #: The seam passes the raw record and its baseline (``record=``, ``baseline=``): a hand touch's object
+    #: offset is fitted on the samples before heater-on too.
+    takes_record = True
     sensor_chain = False
     running = "refit"
     measures_alpha = True
@@ -106,7 +109,8 @@ class AxiMethod(_Method):
         self.axi.prepare(t_s)
 
     def __call__(self, t_s, dT_K, q_W_m2, power_W: float | None, method: str = "default", *,
-                 calibration: Any = None, thickness_m: float | None = None, back: str = "infinite") -> dict:
+                 calibration: Any = None, thickness_m: float | None = None, back: str = "infinite",
+                 record: Any = None, baseline: tuple[float, float] | None = None) -> dict:
         # The installed calibration of this probe head replaces the datasheet's probe (flux scale and its u;
         # when it identified them, the sensing layer and the substrate, edge.calibration.axi), and such
         # answers fit the touch's contact resistance: a hand touch's is unknown, and 1e-5 m^2K/W alone put
@@ -121,8 +125,14 @@ class AxiMethod(_Method):
             # A calibration that identified the probe as built (an older one calibrated the flux scale only,
             # and its answers stay as they were).
             flux.update(calibrated=probe, fit_contact=True)
+        pre = None
+        if record is not None and baseline is not None and None not in baseline:
+            # A hand touch: the object met the probe at another temperature before heating (ISSUE #34: the
+            # contact transient of an object up to 3 K off dominated the 5-s errors); its offset is fitted.
+            from edge.estimation.object_offset import pre_heating  # noqa: PLC0415
+            pre = pre_heating(record, *baseline)
         d = self.axi.estimate(t_s, dT_K, q_W_m2, power_W=power_W, thickness_m=thickness_m, back=back,
-                              T_resolution_K=self.T_resolution_K, **flux)
+                              T_resolution_K=self.T_resolution_K, pre=pre, **flux)
         if cal is not None:
             d["calibration_sha256"] = cal.sha256
         return d

@@ -46,12 +46,14 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from edge.checks import finite_array, one_of, strictly_increasing
+from edge.estimation import object_offset as OO
 from edge.estimation.axifit import AxiFitter
+from edge.estimation.object_offset import ObjectOffset, PreHeating
 from edge.estimation.estimate import FLUX_CALIBRATION_U_REL, MIN_SNR, Estimator
 from edge.physics.geometry import ProbeGeometry, get_probe
 from edge.physics.solids import Solid
@@ -214,6 +216,52 @@ class AxiEstimator:
             S[:, i] = -fitter.model_response(m) / _CAL_STEP
         return S, np.array(C, float)
 
+    def _offset_stack_variance(self, fitter, offset, geometry, calibrated=None) -> np.ndarray:
+        """Covariance (2 x 2) of (ln k, ln alpha) from the offset kernel's stack: known to the calibration's
+        covariance when it identified the stack, else to :data:`STACK_TOLERANCE`.
+
+        Linearised as :meth:`~edge.estimation.axifit.AxiFitter.model_response`: the records' change when the
+        kernel's stack is off by one tolerance (the fitted offset times the kernel's change, in noise units)
+        moves the fit by ``(J^T J)^-1 J^T dy``.
+        """
+        from edge.estimation.design import covariance_ln_k_alpha  # noqa: PLC0415
+        from edge.physics.contact_offset import ContactKernel  # noqa: PLC0415
+
+        theta, _s, _P0, J = fitter._final
+        k, alpha = math.exp(theta[0]), math.exp(theta[1])
+        R = fitter._R(theta)
+        e = k / math.sqrt(alpha)
+        dT = float(fitter.offset_beta[2])
+        base = offset._g(e, R)
+        kern = offset.kernel
+        geo = self.geometry if geometry is None else geometry
+        inv = covariance_ln_k_alpha(J.T @ J)
+        cols = {}
+        for i, tol in OO.STACK_TOLERANCE.items():
+            if i >= 3 and geo.substrate is None:
+                continue
+            if calibrated is not None and OO.OFFSET_STACK_FROM_CALIBRATION:
+                tol = _CAL_STEP
+            dp = np.zeros(len(CALIBRATED))
+            dp[i] = tol
+            other = ContactKernel(geometry_at(geo, dp), kern.tau_T_s, kern.tau_q_s)
+            T1, q1, _ = other.transforms(e, R)
+            g1 = other.inversion.invert(np.stack([T1, q1]))
+            nT, nq = offset.n_T, offset.n_q
+            dy = np.concatenate([dT * (g1[0][:nT] - base[0][:nT]) / fitter.sigma_T,
+                                 dT * (g1[1][nT:nT + nq] - base[1][nT:nT + nq]) / fitter.sigma_q])
+            dy = np.concatenate([dy, np.zeros(J.shape[0] - dy.size)])
+            cols[i] = (inv @ (J.T @ dy))[:2] / tol
+        idx = sorted(cols)
+        if not idx:
+            return np.zeros((2, 2))
+        S = np.stack([cols[i] for i in idx], axis=1)
+        if calibrated is not None and OO.OFFSET_STACK_FROM_CALIBRATION:
+            C = np.asarray(calibrated[1], float)[np.ix_(idx, idx)]
+        else:
+            C = np.diag([OO.STACK_TOLERANCE[i] ** 2 for i in idx])
+        return S @ C @ S.T
+
     def prepare(self, t_s) -> None:
         """Build the model for the grid a touch will be estimated on (its prefixes then reuse it)."""
         t = strictly_increasing("t_s", finite_array("t_s", t_s, min_len=4))
@@ -222,7 +270,8 @@ class AxiEstimator:
     def estimate(self, t_s, dT_K, q_W_m2, *, power_W: float | None = None, thickness_m: float | None = None,
                  back: str = "infinite", T_resolution_K: float = 0.0, flux_scale: float = 1.0,
                  flux_u_rel: float | None = None, u_rel_floor: float = 0.0,
-                 calibrated: tuple[np.ndarray, np.ndarray] | None = None, fit_contact: bool | None = None) -> dict:
+                 calibrated: tuple[np.ndarray, np.ndarray] | None = None, fit_contact: bool | None = None,
+                 pre: PreHeating | None = None) -> dict:
         """Estimate from one record (times from heater-on; thermocouple rise, flux-sensor reading).
 
         Parameters
@@ -246,6 +295,10 @@ class AxiEstimator:
             substrate) and every answer's u carries the covariance (the flux scale's entry replaces
             ``flux_u_rel``); default the datasheet's probe.
         fit_contact : fit the contact resistance (default: the constructor's choice).
+        pre : the touch's samples before heater-on (:func:`pre_heating`): the object's temperature offset
+            is then fitted as a linear nuisance (:class:`ObjectOffset`) on them and the heating grid,
+            and its covariance enters every u (``fit["object_offset_K"]``); default: none (an object at
+            the probe's temperature, as before).
 
         Returns
         -------
@@ -278,7 +331,9 @@ class AxiEstimator:
                "corr_k_alpha": None, "fit": None}
         if t.size < 4:
             raise ValueError(f"need at least 4 samples after heater-on, got {t.size}")
-        why = _signal_check(T, q, T_resolution_K)
+        # With an object offset the heating records carry its contact transient too (a colder object makes
+        # the thermocouple fall): the heater's own signal is judged after the fit, on the records less it.
+        why = None if pre is not None else _signal_check(T, q, T_resolution_K)
         if why is not None:
             out["flags"].append(str(why))
             return out
@@ -289,12 +344,42 @@ class AxiEstimator:
         # in the foam's effusivity moved nickel's e by -63 / +69 %, issue #34), and the sensing layer's
         # thickness and k set what both sensors see (+-10 % of either: chi^2 per point ~1000 on a drawn probe).
         geometry = None if calibrated is None else geometry_at(self.geometry, calibrated[0])
+        offset = None
+        if pre is not None:
+            # A hand touch: the object's temperature offset, the probe's temperature and the flux zero are
+            # linear nuisances over the pre-heating samples and the heating grid (the heater's model is 0
+            # before heater-on). The first samples of the grid are dropped: the grid's (0, 0) anchor assumes
+            # a flat baseline, which a contact transient is not.
+            from edge.physics.contact_offset import ContactKernel  # noqa: PLC0415
+
+            late = t >= OO.OFFSET_GRID_START_s
+            t, T, q = t[late], T[late], q[late]
+            tau = t - pre.contact_t_s
+            dt = float(np.min(np.diff(t))) if t.size > 1 else 0.0
+            grid_k = np.rint(t / dt).astype(int) if dt > 0 else None
+            if grid_k is not None and not (np.allclose(grid_k * dt, t, atol=1e-3 * dt) and grid_k[0] >= 1):
+                grid_k = None     # not a uniform grid from heater-on: no TCR column
+            tau_h = None if grid_k is None or not OO.OFFSET_TCR else dt * np.arange(grid_k[-1] + 1) - pre.contact_t_s
+            kernel = ContactKernel(self.geometry if geometry is None else geometry,
+                                   np.concatenate([pre.tau_T_s, tau]), np.concatenate([pre.tau_q_s, tau]), tau_h)
+            offset = ObjectOffset(kernel, pre.t_s.size, None if tau_h is None else grid_k)
+            t = np.concatenate([pre.t_s, t])
+            T = np.concatenate([pre.dT_K, T])
+            q = np.concatenate([pre.q_W_m2 * flux_scale, q])
         model = self._model(t, geometry)
         fitter = AxiFitter(model.geometry, t, sigma_T_K=sigma_T, sigma_q_W_m2=self.sigma_q_W_m2,
                            thickness_m=thickness_m, back=back if thickness_m is not None else "infinite",
                            identifiable_u_rel=self.identifiable_u_rel,
-                           fit_contact=self.fit_contact if fit_contact is None else bool(fit_contact), model=model)
+                           fit_contact=self.fit_contact if fit_contact is None else bool(fit_contact), model=model,
+                           offset=offset)
         f = fitter.fit(T, q, power_W=power_W)
+        if offset is not None:
+            XT, Xq, _, _ = offset.columns(f.fit_k_W_mK, f.fit_alpha_m2_s, f.contact_resistance_m2K_W, False)
+            b, n_pre = fitter.offset_beta[:3], pre.t_s.size
+            why = _signal_check((T - b @ XT)[n_pre:], (q - b @ Xq)[n_pre:], T_resolution_K)
+            if why is not None:
+                out["flags"].append(str(why))
+                return out
         # The fit scales its covariance by chi^2/dof. Below 1 (sensors quieter than the noise they are
         # weighted by) that would state k and alpha better than the sensors' specified noise allows, and
         # the residual no longer measures what it cannot see: the record's time stamps and the model's
@@ -307,6 +392,14 @@ class AxiEstimator:
                     "u_rel_k": _num(f.u_rel["k"]), "u_rel_alpha": _num(f.u_rel["alpha"]),
                     "u_rel_effusivity": _num(u_le_fit), "chi2_reduced": _num(f.chi2_reduced),
                     "iterations": f.iterations, "converged": f.converged, "power_scale": _num(f.scale)}
+        if offset is not None:
+            b, C = fitter.offset_beta, fitter.offset_cov
+            fit_info["object_offset_K"] = _num(float(b[2]))
+            fit_info["object_offset_K_u"] = _num(inflate * math.sqrt(max(float(C[2, 2]), 0.0)))
+            fit_info["contact_t_s"] = pre.contact_t_s
+            if offset.tcr:
+                # -alpha_R dT_obj (times the power scale): the heater's TCR as the contact transient moved it.
+                fit_info["tcr_offset"] = _num(float(b[-1]))
         out["fit"] = fit_info
         out["corr_k_alpha"] = _num(f.corr_k_alpha)
         flags: list[str] = []
@@ -338,6 +431,13 @@ class AxiEstimator:
         # model's, AxiFitter.model_response), so its covariance is S C S^T.
         S, C = self._calibration_sensitivity(fitter, f, t, calibrated, sens, u_flux)
         V = S @ C @ S.T
+        if offset is not None and f.converged:
+            # The offset's kernel is the stack the calibration identified, which it identified without the
+            # heater's TCR (a drawn probe's substrate came out 67 % off in k and still re-measured its
+            # references): its sensing layer and substrate are taken as known to their datasheet tolerances.
+            V_off = self._offset_stack_variance(fitter, offset, geometry, calibrated)
+            V = V + V_off
+            out["fit"]["u_rel_offset_stack"] = {"k": _num(math.sqrt(V_off[0, 0])), "alpha": _num(math.sqrt(V_off[1, 1]))}
         V_e = V[0, 0] - V[0, 1] + 0.25 * V[1, 1]
         u_le = math.sqrt(u_le_fit ** 2 + V_e)
         u_lk = math.sqrt(u_rel["k"] ** 2 + V[0, 0])

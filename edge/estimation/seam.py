@@ -404,7 +404,8 @@ def estimate_touch(record: TouchRecord, context: SeamContext, *,
     else:
         m = context.method_for(record.probe, T_res)
         d = m(g_t, g_dT, g_q, record.power_W, record.method, calibration=cal, thickness_m=context.thickness_m,
-              back=context.back)
+              back=context.back, **({"record": record, "baseline": (cond.T0_C, cond.q_offset_W_m2)}
+                                    if getattr(m, "takes_record", False) else {}))
     model_sha = getattr(context.estimator, "sha256", None)
     est = method_estimate(d, record.probe, model_sha, thickness)
     est = replace(est, flags=tuple(seq_flags) + est.flags + (() if cal is not None else (Flag.UNCALIBRATED,)))

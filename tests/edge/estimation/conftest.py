@@ -21,3 +21,21 @@ def quick_bundle(tmp_path_factory):
 @pytest.fixture(scope="module")
 def est(quick_bundle):
     return Estimator.from_bundle(quick_bundle[1])
+
+
+@pytest.fixture(scope="session")
+def estimator():
+    """The shipped bundle's estimator (the seam's tests; session-scoped, so the modules share one)."""
+    from edge.estimation.estimate import pipeline_golden_check
+    from edge.model.bundle import load_bundle
+    from thermotouch_models import DEFAULT_BUNDLE
+
+    return Estimator.from_bundle(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
+
+
+@pytest.fixture(scope="session")
+def records():
+    """The seam's records (tests/support/seam_records.py), simulated once for the contract and the refusals."""
+    from tests.support.seam_records import seam_records
+
+    return seam_records()
