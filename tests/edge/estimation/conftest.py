@@ -24,16 +24,6 @@ def est(quick_bundle):
 
 
 @pytest.fixture(scope="session")
-def estimator():
-    """The shipped bundle's estimator (the seam's tests; session-scoped, so the modules share one)."""
-    from edge.estimation.estimate import pipeline_golden_check
-    from edge.model.bundle import load_bundle
-    from thermotouch_models import DEFAULT_BUNDLE
-
-    return Estimator.from_bundle(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
-
-
-@pytest.fixture(scope="session")
 def records():
     """The seam's records (tests/support/seam_records.py), simulated once for the contract and the refusals."""
     from tests.support.seam_records import seam_records
