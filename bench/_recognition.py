@@ -13,7 +13,7 @@ import numpy as np
 
 from _objects import HELD_OUT, HELD_OUT_FAR, HELD_OUT_NEAR, IN_SET
 from edge.recognition import UNKNOWN, ObjectSet
-from host.recognition import reliability
+from host.recognition import RELIABILITY_BINS, reliability
 
 
 def ideal_set(objects=IN_SET) -> ObjectSet:
@@ -155,15 +155,27 @@ def evaluate(oset: ObjectSet, touches, recs) -> dict:
     )
 
 
-def in_set_reliability(oset: ObjectSet, touches, recs, *, of_class: bool = False) -> dict:
-    """Reliability of the answers to in-set touches (confidence: the answer's posterior; "unknown" is wrong)."""
+def in_set_answers(oset: ObjectSet, touches, recs, *, of_class: bool = False):
+    """The answered in-set touches: their indices, confidences (the answer's posterior) and rightness.
+
+    "unknown" is a wrong answer; a touch with nothing to name by (None) is left out.
+    """
     names = touches.names
     cls_of = {o.name: o.recognition_class for o in oset.objects}
     idx = [i for i in range(len(recs)) if recs[i] is not None and names[touches.obj[i]] in oset]
     if of_class:
-        return reliability([recs[i].class_posterior for i in idx],
-                           [recs[i].cls == cls_of[names[touches.obj[i]]] for i in idx])
-    return reliability([recs[i].object_posterior for i in idx], [recs[i].object == names[touches.obj[i]] for i in idx])
+        conf = [recs[i].class_posterior for i in idx]
+        ok = [recs[i].cls == cls_of[names[touches.obj[i]]] for i in idx]
+    else:
+        conf = [recs[i].object_posterior for i in idx]
+        ok = [recs[i].object == names[touches.obj[i]] for i in idx]
+    return np.array(idx, int), np.asarray(conf, float), np.asarray(ok, bool)
+
+
+def in_set_reliability(oset: ObjectSet, touches, recs, *, of_class: bool = False) -> dict:
+    """Reliability of the answers to in-set touches (confidence: the answer's posterior; "unknown" is wrong)."""
+    _, conf, ok = in_set_answers(oset, touches, recs, of_class=of_class)
+    return reliability(conf, ok)
 
 
 def confusion_matrix(oset: ObjectSet, touches, recs) -> dict:
@@ -263,3 +275,93 @@ def ece_floor(rel: dict, draws: int = 2000, seed: int = 5) -> dict | None:
         acc = rng.binomial(r["n"], r["confidence"], size=draws) / r["n"]
         eces += r["n"] / n_all * np.abs(acc - r["confidence"])
     return {"median": float(np.median(eces)), "p90": float(np.quantile(eces, 0.9)), "n": n_all}
+
+
+def _mean_abs_normal(d: np.ndarray, sd: np.ndarray) -> np.ndarray:
+    """``E|X|`` for ``X ~ N(d, sd²)`` (folded normal mean; ``|d|`` where ``sd`` is 0)."""
+    d, sd = np.asarray(d, float), np.asarray(sd, float)
+    out = np.abs(d).astype(float)
+    m = sd > 0
+    z = d[m] / sd[m]
+    erf = np.vectorize(math.erf)
+    out[m] = sd[m] * math.sqrt(2.0 / math.pi) * np.exp(-0.5 * z ** 2) + d[m] * erf(z / math.sqrt(2.0))
+    return out
+
+
+def _signed_root(x: float) -> float:
+    return math.copysign(math.sqrt(abs(x)), x)
+
+
+def debiased_ece(confidence, correct, bins=RELIABILITY_BINS) -> dict:
+    """Binned calibration error with its sampling bias removed (Kumar, Liang & Ma 2019, "Verified
+    uncertainty calibration").
+
+    The plug-in ``Σ w_b |ȳ_b − c̄_b|`` is biased upward: a bin's accuracy ``ȳ_b`` carries binomial
+    noise of variance ``σ_b² = c̄_b (1 − c̄_b) / n_b`` and ``|·|`` turns noise into gap.  Kumar et
+    al.'s ℓ2 estimator ``Σ w_b ((ȳ_b − c̄_b)² − σ_b²)`` is unbiased for the squared calibration
+    error; ``debiased`` is its signed square root (a root-mean-square gap, ≥ the ℓ1 ECE for the
+    same bins, so ``debiased ≤ 0.03`` judges the bar conservatively; negative when the touches
+    scatter less than a calibrated answerer's would).  Their ℓ1 correction, subtracting each bin's
+    expected excess ``E|N(ȳ_b − c̄_b, σ_b²)| − |ȳ_b − c̄_b|``, removes only part of the bias (about
+    half at a few hundred touches: the excess is evaluated at the noisy gap): ``debiased_l1``.
+    ``σ_b²`` uses the bin's mean confidence, the variance under the hypothesis being tested (a
+    calibrated bin), so a bin all right or all wrong is still corrected.
+
+    Returns
+    -------
+    dict
+        ``plug_in`` (the ECE as :func:`host.recognition.reliability` computes it), ``debiased``,
+        ``debiased_l1`` and ``n``.
+    """
+    conf = np.asarray(confidence, float)
+    ok = np.asarray(correct, float)
+    if conf.size == 0:
+        return {"plug_in": None, "debiased": None, "debiased_sq": None, "debiased_l1": None, "n": 0}
+    edges = np.asarray(bins, float)
+    which = np.clip(np.searchsorted(edges, conf, side="right") - 1, 0, edges.size - 2)
+    n_b = np.bincount(which, minlength=edges.size - 1).astype(float)
+    used = n_b > 0
+    c_b = np.bincount(which, conf, minlength=edges.size - 1)[used] / n_b[used]
+    y_b = np.bincount(which, ok, minlength=edges.size - 1)[used] / n_b[used]
+    w_b = n_b[used] / conf.size
+    gap = y_b - c_b
+    var_b = c_b * (1.0 - c_b) / n_b[used]
+    l2 = float(np.sum(w_b * (gap ** 2 - var_b)))
+    return {"plug_in": float(np.sum(w_b * np.abs(gap))),
+            "debiased": _signed_root(l2), "debiased_sq": l2,
+            "debiased_l1": float(np.sum(w_b * (2.0 * np.abs(gap) - _mean_abs_normal(gap, np.sqrt(var_b))))),
+            "n": int(conf.size)}
+
+
+def ece_interval(confidence, correct, group=None, *, draws: int = 1000, seed: int = 7, level: float = 0.95,
+                 bins=RELIABILITY_BINS) -> dict:
+    """Bootstrap interval of the plug-in and the debiased ECE over touches (and over groups: probes).
+
+    Each draw resamples the groups (``group``: the drawn probe of each touch; None: one group) with
+    replacement, then the touches within each drawn group with replacement, and recomputes
+    :func:`debiased_ece`.  The plug-in's interval is the percentile one.  The debiased estimate's is
+    taken on its square (``debiased_sq``) and centred on the estimate: a resample's bins carry the
+    resampling noise on top of the data's, so its debiased square sits about one ``σ_b²`` too high
+    and the percentile interval would be shifted up by that bias; the draws give the spread only
+    (``debiased_sq + q − mean``), then the signed root.  With three probes the group level is
+    coarse, so the touch-only interval is returned beside it.
+    """
+    conf = np.asarray(confidence, float)
+    ok = np.asarray(correct, bool)
+    g = np.zeros(conf.size, int) if group is None else np.unique(np.asarray(group), return_inverse=True)[1]
+    members = [np.flatnonzero(g == k) for k in range(int(g.max()) + 1 if g.size else 0)]
+    rng = np.random.default_rng(seed)
+    point = debiased_ece(conf, ok, bins)
+    out = {}
+    for label, by_group in (("touches", False), ("probes_and_touches", True)):
+        plug, deb = np.empty(draws), np.empty(draws)
+        for d in range(draws):
+            gs = rng.integers(0, len(members), len(members)) if by_group else np.arange(len(members))
+            idx = np.concatenate([rng.choice(members[k], members[k].size) for k in gs])
+            r = debiased_ece(conf[idx], ok[idx], bins)
+            plug[d], deb[d] = r["plug_in"], r["debiased_sq"]
+        q = [(1.0 - level) / 2.0, (1.0 + level) / 2.0]
+        out[label] = {"plug_in": [float(x) for x in np.quantile(plug, q)],
+                      "debiased": [_signed_root(point["debiased_sq"] + float(x) - float(deb.mean()))
+                                   for x in np.quantile(deb, q)]}
+    return {**point, "interval": out, "level": level, "draws": draws}

@@ -55,3 +55,35 @@ def test_the_diagnosis_reports_a_bias_against_each_touchs_own_specimen():
     assert d["a"]["confused_with"][0] == "b"            # a touch of a slides up onto b
     assert set(d["c"]["answers"]) <= {"c", "unknown"}    # far from the others: 8 % high only risks "unknown"
     assert sum(d["a"]["answers"].values()) == d["a"]["n"]
+
+
+def test_the_debiased_ece_is_near_zero_for_calibrated_answers_and_the_gap_for_over_confident_ones():
+    from _recognition import debiased_ece
+
+    rng = np.random.default_rng(3)
+    plug, deb, over = [], [], []
+    for _ in range(300):
+        conf = rng.uniform(0.3, 1.0, 300)
+        plug.append(debiased_ece(conf, rng.random(300) < conf)["plug_in"])
+        deb.append(debiased_ece(conf, rng.random(300) < conf)["debiased"])
+        # Over-confident by 0.10 everywhere: right with probability confidence - 0.10.
+        over.append(debiased_ece(conf, rng.random(300) < conf - 0.10)["debiased"])
+    assert np.median(plug) > 0.03                     # the plug-in's upward bias at 300 touches
+    assert abs(np.mean(deb)) < 0.01                   # the debiased estimate is centred on 0
+    assert abs(np.mean(over) - 0.10) < 0.015          # ... and on the true gap when there is one
+    assert np.mean(over) > np.mean(deb) + 0.07
+
+
+def test_the_ece_interval_covers_the_truth_and_resamples_by_probe():
+    from _recognition import ece_interval
+
+    rng = np.random.default_rng(4)
+    conf = rng.uniform(0.3, 1.0, 400)
+    probe = np.arange(400) % 3
+    calibrated = ece_interval(conf, rng.random(400) < conf, probe, draws=200)
+    lo, hi = calibrated["interval"]["touches"]["debiased"]
+    assert lo < 0.0 < hi and lo < calibrated["debiased"] < hi
+    over = ece_interval(conf, rng.random(400) < conf - 0.15, probe, draws=200)
+    lo, hi = over["interval"]["probes_and_touches"]["debiased"]
+    assert lo < 0.15 < hi + 0.01 and lo > 0.06        # a 0.15 gap is told from 0.03 at 400 touches
+    assert over["plug_in"] >= over["debiased"]
