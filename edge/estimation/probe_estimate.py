@@ -271,7 +271,7 @@ class AxiEstimator:
                  back: str = "infinite", T_resolution_K: float = 0.0, flux_scale: float = 1.0,
                  flux_u_rel: float | None = None, u_rel_floor: float = 0.0,
                  calibrated: tuple[np.ndarray, np.ndarray] | None = None, fit_contact: bool | None = None,
-                 pre: PreHeating | None = None) -> dict:
+                 pre: PreHeating | None = None, heater_tcr_per_K: float = 0.0) -> dict:
         """Estimate from one record (times from heater-on; thermocouple rise, flux-sensor reading).
 
         Parameters
@@ -299,6 +299,8 @@ class AxiEstimator:
             is then fitted as a linear nuisance (:class:`ObjectOffset`) on them and the heating grid,
             and its covariance enters every u (``fit["object_offset_K"]``); default: none (an object at
             the probe's temperature, as before).
+        heater_tcr_per_K : the heater film's TCR (1/K) its calibration identified: the model carries the
+            power's droop under the film's own heating (:mod:`edge.physics.heater_tcr`); 0: none.
 
         Returns
         -------
@@ -372,6 +374,7 @@ class AxiEstimator:
                            identifiable_u_rel=self.identifiable_u_rel,
                            fit_contact=self.fit_contact if fit_contact is None else bool(fit_contact), model=model,
                            offset=offset)
+        fitter.heater_tcr_per_K = float(heater_tcr_per_K)
         f = fitter.fit(T, q, power_W=power_W)
         if offset is not None:
             XT, Xq, _, _ = offset.columns(f.fit_k_W_mK, f.fit_alpha_m2_s, f.contact_resistance_m2K_W, False)
