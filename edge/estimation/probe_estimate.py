@@ -435,9 +435,9 @@ class AxiEstimator:
         S, C = self._calibration_sensitivity(fitter, f, t, calibrated, sens, u_flux)
         V = S @ C @ S.T
         if offset is not None and f.converged:
-            # The offset's kernel is the stack the calibration identified, which it identified without the
-            # heater's TCR (a drawn probe's substrate came out 67 % off in k and still re-measured its
-            # references): its sensing layer and substrate are taken as known to their datasheet tolerances.
+            # The offset's kernel is the stack the calibration identified; the calibration states that stack's u
+            # too small (OO.OFFSET_STACK_FROM_CALIBRATION): its sensing layer and substrate are taken as known to
+            # their datasheet tolerances.
             V_off = self._offset_stack_variance(fitter, offset, geometry, calibrated)
             V = V + V_off
             out["fit"]["u_rel_offset_stack"] = {"k": _num(math.sqrt(V_off[0, 0])), "alpha": _num(math.sqrt(V_off[1, 1]))}
