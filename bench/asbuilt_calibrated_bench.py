@@ -35,6 +35,13 @@ touch's window, power and sample interval with R_c and the object's
 temperature as nuisance parameters), the calibrations refused and why, and
 each probe's references re-measured after calibration (rel. error and z).
 
+``--attribute`` (ISSUE #34 item 1): on the drawn probes of ``--seeds`` (default 2 and 6) the same hand
+touches of :data:`ATTRIBUTE_SOLIDS` are made again with one thing switched off at a time
+(:data:`ATTRIBUTE_VARIANTS`: R_c = 0, the object near the probe's temperature, contact at heater-on,
+the walk-through's calibration replaced by the probe's true as-built chain, the nominal probe, the
+touch sampled at 50 Hz instead of 10) and the median |error| per class and window is tabulated
+(bench/results/asbuilt_calibrated_attribution.json).
+
 Run:  python bench/asbuilt_calibrated_bench.py [--probes 8] [--solids 20] [--touches 3] [--update-readme]
 Writes bench/results/asbuilt_calibrated.json (and with --update-readme the block
 ``asbuilt-calibrated-bench`` in docs/results.md).  Small sizes while developing:
@@ -88,12 +95,16 @@ def hand_scene(head: str, obj, draw_seed: int, seed: int, *, R_c: float, offset_
                                object=ObjectSpec(solid=obj, back="insulated", thickness_m=0.1, label=label))
 
 
-def armed_touch(scene, store, workdir: str, *, heat_s: float, settle_s: float, arm_s: float = 10.0):
-    """One armed touch through the device's sequence and estimate path (sequence_rig with MEASURE's arm)."""
+def armed_touch(scene, store, workdir: str, *, heat_s: float, settle_s: float, arm_s: float = 10.0,
+                rate_Hz: float | None = None):
+    """One armed touch through the device's sequence and estimate path (sequence_rig with MEASURE's arm).
+
+    ``rate_Hz``: another sample rate than the configuration's (the attribution's finely sampled touch).
+    """
     from firmware_sim.rigs.sequence_rig import sequence_run
 
-    out, _, _ = sequence_run(scene, store, workdir, {"measurement": {"contact_time_s": heat_s}},
-                             arm_s=arm_s, settle_s=settle_s)
+    m = {"contact_time_s": heat_s} | ({} if rate_Hz is None else {"sample_rate_Hz": rate_Hz})
+    out, _, _ = sequence_run(scene, store, workdir, {"measurement": m}, arm_s=arm_s, settle_s=settle_s)
     return out
 
 
@@ -171,6 +182,120 @@ def calibrate_probe(head: str, draw_seed: int, n_touches: int, store, workdir: s
         remeasured.append({"name": n, "rel": e / e_refs[j] - 1.0, "z": z})
     out["remeasured"] = remeasured
     return out
+
+#: --attribute: what each simplification of the hand touch / probe does to the answer (ISSUE #34 item 1).
+ATTRIBUTE_SOLIDS = ("cork_board", "balsa", "hdpe", "epdm", "soda_lime_plate_glass", "aluminium", "copper")
+#: Variant -> (hand-touch overrides, probe drawn?, calibration: "walk" the walk-through's, "true" the as-built truth);
+#: a "rate_Hz" override samples the touch that fast instead of the device's 10 Hz.
+#: An object at the probe's own temperature is never detected by the armed touch (no contact step): 0.3 K off.
+ATTRIBUTE_VARIANTS = {
+    "as bench": ({}, True, "walk"),
+    "R_c = 0": ({"R_c": 0.0}, True, "walk"),
+    "object 0.3 K off": ({"offset_K": 0.3}, True, "walk"),
+    "contact at heater-on": ({"lead_s": 0.0}, True, "walk"),
+    "true as-built calibration": ({}, True, "true"),
+    "nominal probe, datasheet chain": ({}, False, "true"),
+    "true cal., R_c = 0, object 0.3 K off": ({"R_c": 0.0, "offset_K": 0.3}, True, "true"),
+    "true cal., sampled at 50 Hz": ({"rate_Hz": 50.0}, True, "true"),
+}
+
+
+def true_calibration(head: str, draw_seed: int | None, like, scene=None):
+    """``like`` (a fitted calibration) with the chain the probe was really built with and no floor.
+
+    The thermopile reads its square's mean sensitivity (the map's gradients are linear about its centre:
+    mean 1), so the flux scale is nominal / true sensitivity.
+    """
+    from edge.estimation.sensor_chain import SensorChainCalibration
+    from firmware_sim.asbuilt import Nominal, draw_as_built
+
+    nom = Nominal.of(head, scene)
+    base = SensorChainCalibration()
+    rho_c = base.k_W_mK / base.alpha_m2_s
+    if draw_seed is None:
+        return dataclasses.replace(like, chain=dataclasses.replace(base, tc_tau_s=nom.thermocouple_time_constant_s),
+                                   u_rel_floor=0.0)
+    ab = draw_as_built(head, draw_seed, scene)
+    chain = SensorChainCalibration(sensing_thickness_m=ab.sensing_thickness_m, k_W_mK=ab.sensing_k_W_mK,
+                                   alpha_m2_s=ab.sensing_k_W_mK / rho_c, tc_tau_s=ab.thermocouple_time_constant_s,
+                                   flux_scale=nom.flux_sensitivity_V_per_W_m2 / ab.flux_sensitivity_V_per_W_m2)
+    return dataclasses.replace(like, chain=chain, u_rel_floor=0.0)
+
+
+def attribute(seeds: list[int], n_touches: int, solids=ATTRIBUTE_SOLIDS, windows=(1.0, 2.0)) -> dict:
+    """Switch off one thing at a time on the same hand touches: which one makes the answer right."""
+    from thermotouch_models import DEFAULT_BUNDLE
+
+    from edge.estimation.estimate import pipeline_golden_check
+    from edge.estimation.seam import estimate_touch
+    from edge.model.bundle import load_bundle
+    from edge.physics.materials import load_materials
+    from firmware_sim.rigs.sequence_rig import OneBundleStore
+    from host.cli.common import seam_context
+
+    head, spec = "paper", HEADS["paper"]
+    lib = load_materials()
+    store = OneBundleStore(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
+    workdir = tempfile.mkdtemp(prefix="asbuilt-cal-attr-")
+    rows = []
+    t0 = time.perf_counter()
+    for draw_seed in seeds:
+        rng = np.random.default_rng([TOUCH_SEED, draw_seed])
+        c = calibrate_probe(head, draw_seed, n_touches, store, workdir, rng)
+        walk = c["cal"]
+        print(f"draw {draw_seed}: calibrated ({time.perf_counter() - t0:.0f} s)", flush=True)
+        for si, name in enumerate(solids):
+            obj = lib.get(name)
+            h0 = _hand(rng)
+            for vname, (over, drawn, which) in ATTRIBUTE_VARIANTS.items():
+                h = {**h0, **{k: v for k, v in over.items() if k != "rate_Hz"}}
+                ds = draw_seed if drawn else None
+                sc = hand_scene(head, obj.solid, draw_seed, 5000 + 131 * draw_seed + si, heat_s=spec["heat_s"],
+                                label=name, **h)
+                if not drawn:
+                    sc = dataclasses.replace(sc, as_built=None)
+                settle = max(h["lead_s"], 0.0)
+                out = armed_touch(sc, store, workdir, heat_s=spec["heat_s"], settle_s=settle, rate_Hz=over.get("rate_Hz"))
+                cal = walk if which == "walk" else true_calibration(head, ds, walk, sc)
+                row = {"probe": draw_seed, "solid": name, "class": obj.cls, "variant": vname, **h,
+                       "status": str(out.status)}
+                rec = out.touch
+                for w in windows:
+                    if rec is None:
+                        row[f"err_{w:g}"] = None
+                        continue
+                    ctx = seam_context(None, method=rec.method, calibration=cal)
+                    try:
+                        d = estimate_touch(cut(rec, w), ctx).to_dict()
+                    except ValueError:
+                        d = {}
+                    e, u = d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u")
+                    row[f"err_{w:g}"] = None if e is None else e / obj.solid.effusivity_W_s05_m2K - 1.0
+                    row[f"u_{w:g}"] = None if e is None or u is None else u / e
+                rows.append(row)
+                print(f"  {draw_seed} {name:22s} {vname:36s} " + " ".join(
+                    f"{w:g}s {_pct(row.get(f'err_{w:g}'))} (u {_pct(row.get(f'u_{w:g}'), '.1f')})" for w in windows),
+                    flush=True)
+    return {"seeds": seeds, "solids": list(solids), "windows_s": list(windows), "rows": rows,
+            "wall_s": time.perf_counter() - t0}
+
+
+def attribution_table(res: dict) -> str:
+    """Median |error| per variant and solid class, per window (the attribution of ISSUE #34 item 1)."""
+    rows, windows = res["rows"], res["windows_s"]
+    classes = sorted({r["class"] for r in rows}, key=lambda c: min(
+        i for i, r in enumerate(rows) if r["class"] == c))
+    head = "| variant | window | " + " | ".join(classes) + " |"
+    lines = [head, "|" + "---|" * (2 + len(classes))]
+    for v in ATTRIBUTE_VARIANTS:
+        for w in windows:
+            cells = []
+            for cls in classes:
+                errs = [abs(r[f"err_{w:g}"]) for r in rows if r["variant"] == v and r["class"] == cls
+                        and r.get(f"err_{w:g}") is not None]
+                cells.append(_pct(statistics.median(errs), ".1f") if errs else "–")
+            lines.append(f"| {v} | {w:g} s | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def attainable_u(head: str, obj, window_s: float, power_W: float, dt_s: float, R_c: float, lead_s: float
@@ -367,6 +492,21 @@ def merge(parts: list[str]) -> dict:
     return out
 
 
+def _attribution_block() -> str:
+    """The last ``--attribute`` run's table (bench/results/asbuilt_calibrated_attribution.json), if there is one."""
+    import json
+
+    from _common import RESULTS
+
+    path = RESULTS / "asbuilt_calibrated_attribution.json"
+    if not path.exists():
+        return ""
+    res = json.loads(path.read_text())
+    return ("\n\nAttribution (`python bench/asbuilt_calibrated_bench.py --attribute --seeds "
+            + " ".join(map(str, res["seeds"])) + "`; drawn probes " + ", ".join(map(str, res["seeds"]))
+            + ", the same hand touches with one thing switched off; median |error| of e):\n\n" + attribution_table(res))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--probes", type=int, default=8, help="drawn probes per head (default 8)")
@@ -378,7 +518,14 @@ def main() -> None:
                     help="only these drawn probes (a part of a run split over processes; see --merge)")
     ap.add_argument("--merge", nargs="+", default=None, metavar="TAG",
                     help="combine the results of runs with these --tag's (disjoint --seeds) into one")
+    ap.add_argument("--attribute", action="store_true",
+                    help="the attribution table: one simplification at a time on the same hand touches")
     args = ap.parse_args()
+    if args.attribute:
+        res = attribute(args.seeds or [1, 2], args.touches)
+        print(attribution_table(res))
+        print("wrote", write_json("asbuilt_calibrated_attribution" + (f"_{args.tag}" if args.tag else ""), res))
+        return
     if min(args.probes, args.solids, args.touches) < 1:
         sys.exit("--probes, --solids and --touches must be >= 1")
     if args.merge:
@@ -397,7 +544,7 @@ def main() -> None:
                     f"{res['wall_s']:.0f} s wall (`python bench/asbuilt_calibrated_bench.py --update-readme`; "
                     "run here as two processes over seeds 1-4 and 5-8, `--seeds ... --tag ...`, then "
                     "`--merge TAG TAG --update-readme`). "
-                    f"{res['conditions']}.\n\n" + text)
+                    f"{res['conditions']}.\n\n" + text + _attribution_block())
 
 
 if __name__ == "__main__":

@@ -42,7 +42,7 @@ from edge.schema import Field, SchemaError, check_table
 
 __all__ = ["CalibrationError", "PARAMETERS", "ProbeCalibration", "ReferenceFit", "FORMAT", "SCHEMA_VERSION",
            "FLUX_SCALE_BOUNDS", "COVARIANCE_PRIOR_FACTOR", "check_plausible", "parse_created_utc", "identifiability",
-           "DETERMINED_SHRINK"]
+           "DETERMINED_SHRINK", "extrapolation_rates"]
 
 FORMAT = "thermotouch-calibration"
 SCHEMA_VERSION = 1
@@ -78,6 +78,10 @@ ADVICE = {
     "ln_sensing_k_W_mK": "touch an insulating foam (or record the probe in air before each touch): the layer's heat "
                          "capacity then shows apart from its resistance, and with it its conductivity",
 }
+#: A reference touch that got no answer from the calibration fitted without it counts, in the extrapolation
+#: rate (:func:`extrapolation_rates`), as a miss of this (ln e): the model-form term then takes the
+#: same span to grow by it.
+UNANSWERED_MISS = 0.5
 #: created_utc's format (as model manifests: the order of updates).
 TIME_FORMAT = "%Y-%m-%dT%H:%M:%SZ"
 
@@ -238,6 +242,27 @@ class ProbeCalibration:
         """Relative standard uncertainty of :attr:`flux_scale` (u of ``ln_flux_scale``)."""
         return self.u_of("ln_flux_scale")
 
+    def model_form_u_rel(self, e_W_s05_m2K: float) -> float:
+        """The calibration's model-form term of u(e)/e at effusivity ``e``: its floor, and beyond its references
+        the extrapolation the leave-one-out check measured.
+
+        The references pin the chain where they lie; a solid below the lowest (a wood, a foam) or above
+        the highest (copper) leans on the chain's layer terms the references could not separate (the
+        sensitivity, the layer's depth and k trade off).  How far that carries is what the self-check
+        saw when it left the lowest (highest) reference out and re-measured it from the others: its
+        rms relative miss over the ln-e distance it was extrapolated is the rate, per unit of ln e, at
+        which the model-form term grows outside the references (:func:`extrapolation_rates`).  Within
+        the references' span it is the floor alone.  Never below the floor; 0 only for a calibration
+        without a self-check whose references all re-measured exactly.
+        """
+        u = float(self.u_rel_floor)
+        rates = extrapolation_rates(self)
+        if rates is None or not (e_W_s05_m2K > 0 and math.isfinite(e_W_s05_m2K)):
+            return u
+        (e_lo, r_lo), (e_hi, r_hi) = rates
+        ext = r_lo * max(0.0, math.log(e_lo / e_W_s05_m2K)) + r_hi * max(0.0, math.log(e_W_s05_m2K / e_hi))
+        return float(math.hypot(u, ext))
+
     # -- storage ---------------------------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         c = self.chain
@@ -365,6 +390,37 @@ def check_plausible(cal: ProbeCalibration) -> None:
             raise CalibrationError(f"covariance: {name}'s variance {v:.3g} is wider than its datasheet prior "
                                    f"{v0:.3g}; a calibration can only narrow it")
     parse_created_utc(cal.created_utc)
+
+
+def extrapolation_rates(cal: "ProbeCalibration") -> tuple[tuple[float, float], tuple[float, float]] | None:
+    """((e_lowest, rate below it), (e_highest, rate above it)) from the self-check's leave-one-out misses.
+
+    The rate at an end is the rms of ln(e_remeasured / e_ref) over the end reference's touches (each
+    re-measured by the calibration fitted without that reference), over ln of the ratio to the next
+    reference's e (how far the held-out calibration extrapolated).  A touch that got no answer counts
+    as a miss of :data:`UNANSWERED_MISS`.  None without a self-check of at least two references.
+    """
+    sc = cal.self_check or {}
+    by: dict[str, list[float]] = {}
+    e_of: dict[str, float] = {}
+    for m in sc.get("misses") or ():
+        try:
+            name, e_ref = str(m["name"]), float(m["e_ref_W_s05_m2K"])
+        except (KeyError, TypeError, ValueError):
+            continue
+        rel = m.get("rel_miss")
+        miss = UNANSWERED_MISS if rel is None or not (rel > -1.0) else abs(math.log1p(float(rel)))
+        by.setdefault(name, []).append(min(miss, UNANSWERED_MISS))
+        e_of[name] = e_ref
+    if len(e_of) < 2 or not all(v > 0 for v in e_of.values()):
+        return None
+    order = sorted(e_of, key=e_of.get)
+
+    def rate(end: str, nxt: str) -> float:
+        d = abs(math.log(e_of[nxt] / e_of[end]))
+        rms = math.sqrt(sum(x * x for x in by[end]) / len(by[end]))
+        return rms / d if d > 0 else 0.0
+    return (e_of[order[0]], rate(order[0], order[1])), (e_of[order[-1]], rate(order[-1], order[-2]))
 
 
 def _canonical(d: dict[str, Any]) -> bytes:

@@ -11,7 +11,9 @@ the quadrature sum of
 * the calibration's part: the covariance of theta (flux scale, sensing
   depth, bead lag, layer conductivity) pushed through the fit by finite
   differences (four more fits; the perturbed kernels are cached) -- for R_c and T_obj0 too;
-* the calibration's transfer floor (the scatter left on its references);
+* the calibration's model-form term: its floor (the scatter left on its references and their
+  leave-one-out misses), growing outside the references' span of e at the rate the leave-one-out
+  check measured (:meth:`edge.calibration.model.ProbeCalibration.model_form_u_rel`);
 * without a contact recorded in air, the change of e between fitting from
   0.3 s and from 1.0 s after the record's start (the probe's state at the
   record's start is not the uniform one the model assumes);
@@ -49,7 +51,7 @@ from edge.physics.probe import (FLUX_SENSITIVITY_U_REL, SENSING_K_U_REL, SENSING
                                THERMOCOUPLE_TAU_U_s)
 from edge.status import Flag
 
-__all__ = ["estimate_from_contact", "uniform_record", "alpha_prior", "lateral_profile", "LateralProfile", "POOR_FIT",
+__all__ = ["estimate_from_contact", "contact_fraction", "uniform_record", "alpha_prior", "lateral_profile", "LateralProfile", "POOR_FIT",
            "FIT_START_s", "DatasheetChain"]
 
 #: Normalised residual (rms residual / noise measured in air) above which the chain does not describe the record.
@@ -353,11 +355,11 @@ def contact_lost_at(t_from_contact: np.ndarray, phi_W_m2: np.ndarray, t_heat_s: 
 
 
 #: Where within the record's first interval the contact may lie (fractions of a sample after sample 0),
-#: tried by :func:`_contact_fraction` on a refined grid.
+#: tried by :func:`contact_fraction` on a refined grid.
 CONTACT_FRACTIONS = (0.0, 0.2, 0.4, 0.6, 0.8)
 
 
-def _contact_fraction(tt, TT, qq, chain, breaks, noise_T: float) -> tuple[float, float]:
+def contact_fraction(tt, TT, qq, chain, breaks, noise_T: float) -> tuple[float, float]:
     """Where, within its first interval, the contact happened, and u(ln e) from not knowing it better.
 
     :func:`find_contact` names the last sample in air; the contact lies anywhere in the interval that
@@ -438,8 +440,8 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
     breaks = (-float(t[i0]),) if t[i0] < 0 else ()
     a = PROBES[cal.probe].heater_radius_m if heater_radius_m is None else float(heater_radius_m)
 
-    # Where within its first interval the contact happened (a refined grid only; see _contact_fraction).
-    frac, u_instant = _contact_fraction(tt, TT, qq, cal.chain, breaks, noise_T) if c.recorded_in_air else (0.0, 0.0)
+    # Where within its first interval the contact happened (a refined grid only; see contact_fraction).
+    frac, u_instant = contact_fraction(tt, TT, qq, cal.chain, breaks, noise_T) if c.recorded_in_air else (0.0, 0.0)
 
     def fit(chain, disk, start=FIT_START_s):
         return fit_sensor_chain(tt, TT, qq, calibration=chain, fit_start_s=start, noise_T_K=noise_T,
@@ -534,7 +536,11 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
             u_contact = abs(math.log(r_late.e_W_s05_m2K / r.e_W_s05_m2K))
     else:
         u_contact = u_instant
-    u_rel = math.sqrt(u_fit**2 + u_cal**2 + cal.u_rel_floor**2 + u_contact**2 + u_lat**2)
+    # The calibration's model-form term at this e: its floor, growing outside the references' span by
+    # the rate its leave-one-out check measured (ProbeCalibration.model_form_u_rel; the datasheet chain: 0).
+    model_form = getattr(cal, "model_form_u_rel", None)
+    u_floor = float(model_form(e)) if model_form is not None else float(cal.u_rel_floor)
+    u_rel = math.sqrt(u_fit**2 + u_cal**2 + u_floor**2 + u_contact**2 + u_lat**2)
     # R_c leans on the first second after contact, where the smoothing of theta_b (a bias-variance
     # choice) bends the storage term most: the change of R_c without it is part of R_c's uncertainty.
     r_raw = fit_sensor_chain(tt, TT, qq, calibration=cal.chain, fit_start_s=FIT_START_s, noise_T_K=noise_T,
@@ -546,7 +552,7 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
     # e counts as determined only when it survives the calibration's model-form floor (ISSUE #34): a
     # forced calibration whose references missed by tens of per cent determines nothing, however
     # well the touch itself fitted.  (What the touch's own u does to "determined" is unchanged.)
-    e_determined = cal.u_rel_floor < E_DETERMINED_U_REL
+    e_determined = u_floor < E_DETERMINED_U_REL
     determined = (["e"] if e_determined else []) + ["T_obj0"] + (["R_c"] if u_Rc <= R_C_RESOLVED_m2K_W else [])
     lateral: dict[str, Any] = {}
     if lat is not None:
@@ -562,7 +568,7 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
     return {
         "effusivity_W_s05_m2K": e,
         "effusivity_W_s05_m2K_u": e * u_rel,
-        "u_e_parts": {"fit": u_fit, "calibration": u_cal, "floor": cal.u_rel_floor, "contact": u_contact,
+        "u_e_parts": {"fit": u_fit, "calibration": u_cal, "floor": u_floor, "contact": u_contact,
                       "lateral": u_lat},
         "lateral_correction": (e / r1d.e_W_s05_m2K - 1.0) if disk is not None else 0.0,
         "fit_end_t_s": float(t[i0] + tt[-1]),

@@ -411,15 +411,15 @@ def face_flux(t_s, T_tc_C, q_m_W_m2, calibration: SensorChainCalibration = Senso
 def chain_design(t_s, T_tc_C, q_m_W_m2, calibration: SensorChainCalibration = SensorChainCalibration(), *,
                  T_probe0_C: float | None = None, fit_start_s: float = 0.3,
                  breaks_s: tuple[float, ...] = (), disk: tuple[float, float] | None = None,
-                 smooth_growth: int = SMOOTH_GROWTH) -> tuple[np.ndarray, np.ndarray]:
+                 smooth_growth: int = SMOOTH_GROWTH, contact_frac: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """The first-pass linear model of :func:`fit_sensor_chain` on its fitted samples: ``y ~ X @ (dT_obj0, R_c, 1/e)``.
 
     For calibration, where e is known and the chain's parameters are sought: (X, y), X of shape (m, 3)
     with columns 1, phi_face and Duhamel(phi_face), each through the bead lag.  ``smooth_growth``:
-    see :data:`SMOOTH_GROWTH`.
+    see :data:`SMOOTH_GROWTH`; ``contact_frac``: see :func:`fit_sensor_chain`.
     """
     c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, T_probe0_C, fit_start_s, breaks_s,
-                 smooth_growth=smooth_growth)
+                 smooth_growth=smooth_growth, contact_frac=contact_frac)
     phi = c.phiA - _apply(c.KB, c.theta)
     X = _lag(np.column_stack((np.ones_like(c.t), phi, _response(phi, c.dt, disk))), c.dt, calibration.tc_tau_s)
     return X[c.fit], c.y[c.fit]

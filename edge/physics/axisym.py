@@ -63,6 +63,8 @@ computed from their integral representation).
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -223,6 +225,54 @@ def _sh_ratio(g, u, L):
 # The model
 
 
+#: Probe parts of the last few models built (everything a model's set-up computes), by geometry,
+#: times and quadrature: a new estimator, a design table, a restarted daemon on the same probe and
+#: grid take them instead of recomputing the same arrays (the set-up is most of a cold fit's cost).
+#: No model writes into these arrays (its variants -- :meth:`AxisymModel.with_substrate`,
+#: :meth:`AxisymModel.head` -- replace attributes, never modify them in place).
+_PARTS: OrderedDict = OrderedDict()
+_PARTS_MAX = 4
+_PARTS_LOCK = threading.Lock()
+
+
+def _parts_key(geometry: ProbeGeometry, t_s, quadrature: tuple, nodes) -> tuple | None:
+    """The key of a model's probe parts, or None where it has none (unhashable or invalid inputs:
+    the set-up then builds, and reports, as ever)."""
+    try:
+        t = np.asarray(t_s, dtype=float)
+        nd = None if nodes is None else tuple(np.asarray(a, dtype=float).tobytes() for a in nodes)
+        key = (geometry, t.shape, t.tobytes(), quadrature, nd)
+        hash(key)
+    except (TypeError, ValueError):
+        return None
+    return key
+
+
+def _cached_parts(key: tuple | None) -> dict | None:
+    if key is None:
+        return None
+    with _PARTS_LOCK:
+        parts = _PARTS.get(key)
+        if parts is not None:
+            _PARTS.move_to_end(key)
+        return parts
+
+
+def _keep_parts(key: tuple | None, model: "AxisymModel") -> None:
+    if key is None:
+        return
+    parts = dict(model.__dict__)
+    # The times as the key has them: the caller keeps its own array (and may reuse it).
+    inv = model.inversion
+    t = inv.t_s.copy()
+    parts["inversion"] = HyperbolicInversion(t_s=t, s=inv.s, matrix=inv.matrix)
+    parts["t_s"] = t
+    with _PARTS_LOCK:
+        _PARTS[key] = parts
+        while len(_PARTS) > _PARTS_MAX:
+            _PARTS.popitem(last=False)
+
+
 @dataclass(frozen=True)
 class Responses:
     """Unit-step responses per watt of heater power on the model's time grid."""
@@ -251,6 +301,11 @@ class AxisymModel:
                  depth_decades: float = 10.0, taper: float = 0.25, low_levels: int = 8,
                  nodes: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         g = geometry
+        key = _parts_key(g, t_s, (n_laplace, per_panel, depth_decades, taper, low_levels), nodes)
+        parts = _cached_parts(key)
+        if parts is not None:
+            self.__dict__.update(parts)
+            return
         self.geometry = g
         self.inversion = HyperbolicInversion.build(t_s, n_laplace)
         self.t_s = self.inversion.t_s
@@ -293,12 +348,17 @@ class AxisymModel:
         self._kgs = sm.k_W_mK * gs
         self._Ts = _tanh(gs * L)
         self._Ss = _sech(gs * L)
+        # Per-object terms that depend on the sensing layer only (the same products transforms forms).
+        self._kgsTs = self._kgs * self._Ts
+        self._dYdn_num = self._kgs * self._kgs * (1.0 - self._Ts * self._Ts)
+        self._Ts_kgs = self._Ts / self._kgs
         z0, z1 = g.sensor_depth_m
         u0, u1 = L - z0, L - z1
         dz = z1 - z0
         self._qa = sm.k_W_mK * (_ch_ratio(gs, u0, L) - _ch_ratio(gs, u1, L)) / dz
         self._qb = (_sh_ratio(gs, u0, L) - _sh_ratio(gs, u1, L)) / (gs * dz)
         self.n_nodes = int(gh.size)
+        _keep_parts(key, self)
 
     def _set_substrate(self, substrate: Solid | None, thickness_m: float) -> None:
         """The heater's terms that the substrate above it sets (an insulated top over ``thickness_m``)."""
@@ -362,7 +422,8 @@ class AxisymModel:
         ``Y_o = Y / (1 + R_c Y)``), so one derivative of the kernels with respect to ``Y_o``
         serves all three parameters: an exact Jacobian for about half a model evaluation.
         """
-        go = np.sqrt(self._p / alpha_m2_s + self._z2)
+        p_a = self._p / alpha_m2_s
+        go = np.sqrt(p_a + self._z2)
         Y = k_W_mK * go
         fin = not (back == "infinite" or thickness_m is None)
         if fin:
@@ -371,9 +432,10 @@ class AxisymModel:
         R = contact_resistance_m2K_W
         Yo = Y / (1.0 + R * Y) if R != 0.0 else Y
         kgs, Ts = self._kgs, self._Ts
-        den = 1.0 + Ts * Yo / kgs                       # sensing layer seen from below
-        dd = kgs + Ts * Yo
-        Ydn = kgs * (kgs * Ts + Yo) / dd                # admittance under the heater
+        TsYo = Ts * Yo
+        den = 1.0 + TsYo / kgs                          # sensing layer seen from below
+        dd = kgs + TsYo
+        Ydn = kgs * (self._kgsTs + Yo) / dd             # admittance under the heater
         hd = self._B + self._C * Ydn
         r = self._num / (hd * den)                      # heater-bottom temperature / den
         kT = r * self._Ss
@@ -383,13 +445,13 @@ class AxisymModel:
         if not derivatives:
             return T, q
         # d/dYo of the kernels.
-        dYdn = kgs * kgs * (1.0 - Ts * Ts) / (dd * dd)
-        dlnr = -(self._C * dYdn / hd + (Ts / kgs) / den)
+        dYdn = self._dYdn_num / (dd * dd)
+        dlnr = -(self._C * dYdn / hd + self._Ts_kgs / den)
         dkT = kT * dlnr
         dkq = r * (dlnr * kq_base + self._qb)
         # dYo/dtheta for theta = ln k, ln alpha, R_c.
         dYo_dY = 1.0 / (1.0 + R * Y) ** 2 if R != 0.0 else 1.0
-        dgo = -0.5 * (self._p / alpha_m2_s) / go       # d go / d ln alpha
+        dgo = -0.5 * p_a / go                          # d go / d ln alpha
         if not fin:
             dY_dgo = k_W_mK
         elif back == "fixed":

@@ -35,12 +35,12 @@ from __future__ import annotations
 
 import hashlib
 import math
-import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
 
+from firmware_sim.rz.blocktri import BlockTridiagonal, clear_row_cache
 from firmware_sim.rz.footprint import depth_weights, off_axis_weights
 from firmware_sim.rz.grid import Grid
 
@@ -55,169 +55,7 @@ _BDF2_C = (1.0 - _GAMMA) ** 2 / (_GAMMA * (2.0 - _GAMMA))
 
 
 # ----------------------------------------------------------------------------------------------
-# Linear algebra
-
-
-class BlockTridiagonal:
-    """Factor of a symmetric block-tridiagonal matrix with diagonal off-diagonal blocks.
-
-    ``A = tridiag(diag(b_j), D_j, diag(b_{j+1}))``: ``D_j`` (m x m, here
-    tridiagonal) the couplings inside a block row, ``b_j`` (m,) the coupling
-    between block rows ``j-1`` and ``j``.  Block elimination
-    ``S_0 = D_0, S_j = D_j - diag(b_j) S_{j-1}^{-1} diag(b_j)``; the inverses
-    ``G_j = S_j^{-1}`` are kept dense, so a solve is two sweeps of one
-    mat-vec per block row (:meth:`_plan`).  The matrix is symmetrically scaled to a unit
-    diagonal first, which keeps the explicit inverses accurate when the
-    conductances span many decades (foam to aluminium, micrometre to
-    centimetre cells).
-
-    Parameters
-    ----------
-    diag : ndarray, (n, m)
-        Main diagonal.
-    off_in : ndarray, (n, m - 1)
-        Off-diagonal inside each block (entry ``[j, i]`` couples i, i+1).
-    off_between : ndarray, (n - 1, m)
-        Coupling between block rows j and j+1 (entry ``[j, i]``).
-    """
-
-    def __init__(self, diag: np.ndarray, off_in: np.ndarray, off_between: np.ndarray) -> None:
-        n, m = diag.shape
-        if np.any(diag <= 0):
-            raise ValueError("matrix diagonal must be positive (SPD system)")
-        s = 1.0 / np.sqrt(diag)
-        self.scale = s
-        a_in = off_in * s[:, :-1] * s[:, 1:]
-        b = off_between * s[:-1] * s[1:]
-        # Unknowns past the last coupled one of a block row (the grid's inactive cells beyond a
-        # layer's radius: no coupling at all) are their own solution, x = rhs / diag; the dense
-        # work is kept to the leading coupled part of each block (often half the grid's width,
-        # or none at all), which the block elimination sees unchanged.
-        coupled = np.zeros((n, m), dtype=bool)
-        coupled[:, :-1] |= a_in != 0
-        coupled[:, 1:] |= a_in != 0
-        coupled[:-1] |= b != 0
-        coupled[1:] |= b != 0
-        width = np.where(coupled.any(axis=1), m - np.argmax(coupled[:, ::-1], axis=1), 0)
-        G = []
-        prev, w_prev = None, 0
-        for j in range(n):
-            w = int(width[j])
-            idx = np.arange(w)
-            S = np.zeros((w, w))
-            S[idx, idx] = 1.0
-            S[idx[:-1], idx[1:]] = a_in[j, : max(w - 1, 0)]
-            S[idx[1:], idx[:-1]] = a_in[j, : max(w - 1, 0)]
-            if prev is not None:
-                # Only the leading min(w, w_prev) unknowns of the two rows can be coupled.
-                c = min(w, w_prev)
-                bj = b[j - 1, :c]
-                S[:c, :c] -= bj[:, None] * prev[:c, :c] * bj[None, :]
-            if w:
-                prev = np.linalg.inv(S)
-                # Symmetrise: S_j is symmetric, its computed inverse only to round-off.
-                prev = 0.5 * (prev + prev.T)
-            else:
-                prev = S
-            w_prev = w
-            G.append(prev)
-        self.n, self.m = n, m
-        self._plan(G, width, b)
-
-    def _plan(self, G: list[np.ndarray], width: np.ndarray, b: np.ndarray) -> None:
-        """Per-row operands of the two sweeps, laid out for few NumPy calls per row.
-
-        The sweeps run on one work vector holding, per block row j with coupled width w_j,
-        a slot ``F_j`` (the right-hand side, later the solution ``x_j``) followed by a slot
-        ``Z_j`` (the forward sweep's ``z_j``):
-
-        * forward, ``z_j = G_j (f_j - b_j z_{j-1})``: the coupling subtracted from ``f_j`` in
-          place, then one mat-vec;
-        * back, ``x_j = z_j - (G_j diag(b_{j+1})) x_{j+1}``: a mat-vec with that product,
-          formed once, and a subtraction, writing ``x_j`` over ``f_j`` (no longer needed).
-
-        A row's cost is its NumPy calls as much as its flops: five calls where the elimination
-        written out takes nine.  Two dense blocks a row, as many bytes as the elimination reads:
-        the solve streams them from memory, and on the larger grids a third block (folding the
-        forward coupling into an augmented matrix, one call fewer) was slower, not faster.
-        """
-        n = self.n
-        w = [int(x) for x in width]
-        f_at, pos = [], 0
-        for j in range(n):
-            f_at.append(pos)
-            pos += 2 * w[j]
-        self._size = pos
-        fwd, back = [], []
-        for j in range(n):
-            if not w[j]:
-                continue
-            wp = w[j - 1] if j else 0
-            # Only the leading min(w_j, w_{j-1}) unknowns of the two rows are coupled.
-            c = min(w[j], wp)
-            fwd.append((G[j], f_at[j], f_at[j] + w[j], b[j - 1, :c].copy() if c else None, f_at[j - 1] + wp))
-        for j in range(n - 1, -1, -1):
-            if not w[j]:
-                continue
-            F, Z = f_at[j], f_at[j] + w[j]
-            wn = w[j + 1] if j < n - 1 else 0
-            if wn:
-                c = min(w[j], wn)
-                N = np.zeros((w[j], wn))
-                N[:, :c] = G[j][:, :c] * b[j, :c]
-                back.append((N, f_at[j + 1], Z, F))
-            else:
-                back.append((None, 0, Z, F))
-        self._fwd, self._back = fwd, back
-        # Where each row's coupled unknowns sit in the (n, m) field and in the work vector.
-        self._field_idx = np.concatenate([j * self.m + np.arange(w[j]) for j in range(n)]).astype(np.intp)
-        self._work_idx = np.concatenate([f_at[j] + np.arange(w[j]) for j in range(n)]).astype(np.intp)
-        self.nbytes = sum(e[0].nbytes for e in fwd) + sum(e[0].nbytes for e in back if e[0] is not None)
-        # Work vectors and their per-row views, one set per thread (factors are shared between
-        # solvers, and worlds may step in different threads).
-        self._local = threading.local()
-
-    def _views(self) -> tuple[np.ndarray, list, list]:
-        loc = self._local
-        views = getattr(loc, "views", None)
-        if views is None:
-            buf = np.empty(self._size)
-            fwd = []
-            for G, f, z, bj, zp in self._fwd:
-                w = z - f
-                if bj is None:
-                    fwd.append((G, buf[f:z], buf[z:z + w], None, None, None, None))
-                else:
-                    c = bj.size
-                    fwd.append((G, buf[f:z], buf[z:z + w], bj, buf[zp:zp + c], buf[f:f + c], np.empty(c)))
-            back = []
-            for N, xn, z, f in self._back:
-                w = z - f
-                back.append((N, None if N is None else buf[xn:xn + N.shape[1]], buf[z:z + w], buf[f:f + w],
-                             np.empty(w)))
-            views = loc.views = (buf, fwd, back)
-        return views
-
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
-        """Solve ``A x = rhs`` for ``rhs`` of shape (n, m); returns a new (n, m) array."""
-        buf, fwd, back = self._views()
-        f = (rhs * self.scale).reshape(-1)
-        buf[self._work_idx] = f[self._field_idx]
-        dot, multiply, subtract = np.dot, np.multiply, np.subtract
-        for G, fj, zj, bj, z_prev, fj_c, tmp in fwd:
-            if bj is not None:
-                multiply(bj, z_prev, out=tmp)
-                subtract(fj_c, tmp, out=fj_c)
-            dot(G, fj, out=zj)
-        for N, xn, z, out, tmp in back:
-            if N is None:
-                out[:] = z
-            else:
-                dot(N, xn, out=tmp)
-                subtract(z, tmp, out=out)
-        # Uncoupled unknowns keep f (scaled twice: rhs / diag).
-        f[self._field_idx] = buf[self._work_idx]
-        return f.reshape(self.n, self.m) * self.scale
+# Shared factors
 
 
 #: Factors shared by every solver of the same matrix (worlds rebuilt for the same probe, scene and
@@ -227,8 +65,9 @@ _FACTOR_CACHE_BYTES = 128 * 2**20  # ~20 factors of 6.6 MB (the paper probe's 12
 
 
 def clear_factor_cache() -> None:
-    """Forget the shared factors (a benchmark that times a cold start calls it first)."""
+    """Forget the shared factors and block rows (a benchmark that times a cold start calls it first)."""
     _FACTOR_CACHE.clear()
+    clear_row_cache()
 
 
 def _factor(diag: np.ndarray, off_in: np.ndarray, off_between: np.ndarray) -> BlockTridiagonal:
@@ -488,6 +327,7 @@ class Solver:
         self.g_t = grid.g_b_W_K * grid.t_b_K   # ambient forcing vector g
         self.probes = _probes(grid) if grid.meta.get("sensor_radius_m") is not None else None
         self._rest_key, self._rest = None, None
+        self._g_sum_of, self._g_sum = None, 0.0     # sum of the forcing, per forcing array (_loss)
         self._first_active = int(np.flatnonzero(grid.active)[0])
 
     # -- rest
@@ -544,7 +384,10 @@ class Solver:
 
     def _loss(self, T: np.ndarray) -> float:
         """Heat flow (W) out through the outer surfaces, ``sum g (T - T_inf)``."""
-        return float(np.sum(self.op.gb * T) - np.sum(self.g_t))
+        g = self.g_t
+        if self._g_sum_of is not g:     # (a step response swaps in a zero forcing)
+            self._g_sum_of, self._g_sum = g, np.sum(g)
+        return float(np.sum(self.op.gb * T) - self._g_sum)
 
     def _read(self, T: np.ndarray) -> np.ndarray:
         return self.probes.read(T, self.g_t) if self.probes is not None else np.zeros(3)

@@ -40,6 +40,7 @@ def touch(model, name, rng, t=T5):
                              READS_HIGH * q + 0.5 * rng.standard_normal(t.size))
 
 
+@pytest.mark.slow  # six simulated reference touches, a calibration fit and eight estimates: 1.7 s
 def test_the_scale_is_recovered_and_the_calibrated_probe_measures_closer(axi, model):
     rng = np.random.default_rng(11)
     refs = [touch(model, n, rng) for n in ("pmma", "pyroceram", "aisi_304") for _ in range(2)]

@@ -93,3 +93,49 @@ def test_garbage_is_refused_in_one_line(data, needle):
     with pytest.raises(CalibrationError, match=needle) as exc:
         ProbeCalibration.from_json(data)
     assert "\n" not in str(exc.value)
+
+
+def _checked(misses) -> ProbeCalibration:
+    sc = {"method": "leave-one-reference-out", "misses": [
+        {"name": n, "e_ref_W_s05_m2K": e, "e_W_s05_m2K": None if rel is None else e * (1 + rel), "u_rel": 0.03,
+         "rel_miss": rel, "z": None} for n, e, rel in misses]}
+    import dataclasses
+
+    return dataclasses.replace(_cal(), self_check=sc)
+
+
+def test_the_model_form_term_is_the_floor_within_the_references_and_grows_outside_them():
+    """Outside the references' span of e the term grows at the rate the leave-one-out check measured:
+    the end reference's rms miss over the ln-e distance its held-out calibration extrapolated."""
+    import math
+
+    from edge.calibration.model import extrapolation_rates
+
+    cal = _checked([("pmma", 558.0, 0.04), ("pmma", 558.0, -0.02), ("pyroceram", 2892.0, 0.01),
+                    ("aisi_304", 7493.0, -0.05)])
+    (e_lo, r_lo), (e_hi, r_hi) = extrapolation_rates(cal)
+    rms_lo = math.sqrt((math.log(1.04) ** 2 + math.log(0.98) ** 2) / 2)
+    assert (e_lo, e_hi) == (558.0, 7493.0)
+    assert r_lo == pytest.approx(rms_lo / math.log(2892.0 / 558.0))
+    assert r_hi == pytest.approx(-math.log(0.95) / math.log(7493.0 / 2892.0))
+    # Within the span: the floor alone.
+    for e in (558.0, 1500.0, 7493.0):
+        assert cal.model_form_u_rel(e) == pytest.approx(cal.u_rel_floor)
+    # A cork (e 92) and copper (e 36 000): the floor and the extrapolation in quadrature, growing with distance.
+    assert cal.model_form_u_rel(92.0) == pytest.approx(math.hypot(0.012, r_lo * math.log(558.0 / 92.0)))
+    assert cal.model_form_u_rel(36000.0) == pytest.approx(math.hypot(0.012, r_hi * math.log(36000.0 / 7493.0)))
+    assert cal.model_form_u_rel(40.0) > cal.model_form_u_rel(92.0) > cal.model_form_u_rel(300.0) > 0.012
+    # It survives the file: the term is read from the stored self-check.
+    assert ProbeCalibration.from_json(cal.to_json()).model_form_u_rel(92.0) == cal.model_form_u_rel(92.0)
+
+
+def test_without_a_self_check_the_term_is_the_floor_and_an_unanswered_end_reference_widens_it():
+    from edge.calibration.model import UNANSWERED_MISS, extrapolation_rates
+
+    assert _cal().model_form_u_rel(50.0) == 0.012 and extrapolation_rates(_cal()) is None
+    lost = _checked([("pmma", 558.0, None), ("pyroceram", 2892.0, 0.0), ("aisi_304", 7493.0, 0.0)])
+    (_, r_lo), (_, r_hi) = extrapolation_rates(lost)
+    import math
+
+    assert r_lo == pytest.approx(UNANSWERED_MISS / math.log(2892.0 / 558.0)) and r_hi == 0.0
+    assert lost.model_form_u_rel(92.0) > 0.3      # a calibration that could not reach pmma says so on a cork

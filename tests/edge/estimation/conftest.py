@@ -21,3 +21,11 @@ def quick_bundle(tmp_path_factory):
 @pytest.fixture(scope="module")
 def est(quick_bundle):
     return Estimator.from_bundle(quick_bundle[1])
+
+
+@pytest.fixture(scope="session")
+def records():
+    """The seam's records (tests/support/seam_records.py), simulated once for the contract and the refusals."""
+    from tests.support.seam_records import seam_records
+
+    return seam_records()

@@ -16,14 +16,11 @@ import dataclasses
 import json
 import math
 
-import numpy as np
 import pytest
 
 from edge.estimation.record import TouchRecord
 from edge.estimation.result import QUANTITIES, RESULT_KEYS, Estimate
 from edge.estimation.seam import BLOCKERS, SeamContext, TooFewSamples, estimate_touch
-from edge.physics.axisym import AxisymModel
-from edge.physics.geometry import PROBES
 from edge.recognition import ObjectSet
 from edge.service.config import Config
 from edge.status import Flag
@@ -33,68 +30,6 @@ from tests.support.cli import rounded as _rounded
 #: Keys a method's details may add after RESULT_KEYS.
 DETAIL_KEYS = {"fit", "sensor_chain", "default_method", "decision", "object_error"}
 VALUES = {"e": "effusivity_W_s05_m2K", "k": "k_W_mK", "alpha": "alpha_m2_s"}
-
-
-@pytest.fixture(scope="module")
-def estimator():
-    from edge.estimation.estimate import Estimator, pipeline_golden_check
-    from edge.model.bundle import load_bundle
-    from thermotouch_models import DEFAULT_BUNDLE
-
-    return Estimator.from_bundle(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
-
-
-def _paper_record(effusivity: float, contact: bool = True) -> TouchRecord:
-    """A touch of the paper probe through the device's sequence on the simulated rig (its TouchRecord)."""
-    from tests.support.daemons import make_sequence
-
-    _, _, seq, params = make_sequence(effusivity=effusivity, contact=contact)
-    try:
-        out = seq.run(params)
-    finally:
-        seq.close()
-    assert out.touch is not None
-    return out.touch
-
-
-def _small_record(solid, seed: int) -> TouchRecord:
-    """A small-heater touch: 0.5 s of baseline, 3 s of heating at 50 Hz from the axisymmetric model."""
-    g = PROBES["small-heater"]
-    rng = np.random.default_rng(seed)
-    rate = 50.0
-    t_heat = np.arange(1, 151) / rate
-    T, q = AxisymModel(g, t_heat).signals(solid.k_W_mK, solid.alpha_m2_s)
-    t = np.concatenate((np.arange(-25, 0) / rate, t_heat))
-    T = np.concatenate((np.zeros(25), T)) + 22.0 + 0.01 * rng.standard_normal(t.size)
-    q = np.concatenate((np.zeros(25), q)) + 0.5 * rng.standard_normal(t.size)
-    return TouchRecord(probe="small-heater", t_s=t, T_C=T, q_W_m2=q, power_W=g.nominal_power_W, heater_on_s=3.0,
-                       sample_rate_Hz=rate, baseline_s=0.5)
-
-
-def _faithful_record(solid) -> TouchRecord:
-    """A paper-probe touch on the faithful world, armed: 2 s in air and on the object before heating."""
-    from firmware_sim.rigs.contact_record import ContactTouch, record_touch
-
-    touch = ContactTouch(solid, 1e-5, 0.0, lead_s=1.0, heat_s=3.0)
-    r = record_touch(touch, seed=3)
-    return TouchRecord(probe="paper", t_s=r["t_s"], T_C=r["T_C"], q_W_m2=r["q_W_m2"], power_W=5.0,
-                       heater_on_s=touch.heat_s, sample_rate_Hz=1.0 / float(r["t_s"][1] - r["t_s"][0]),
-                       baseline_s=0.5, arm_s=touch.pre_s + touch.lead_s)
-
-
-@pytest.fixture(scope="module")
-def records():
-    from edge.physics.materials import load_materials
-
-    lib = load_materials()
-    return {
-        "paper/faithful_pmma": _faithful_record(lib.get("pmma").solid),
-        "paper/glass": _paper_record(1400.0),
-        "paper/pmma": _paper_record(570.0),
-        "paper/air": _paper_record(1400.0, contact=False),
-        "small/glass": _small_record(lib.get("tempered_glass").solid, 1),
-        "small/pmma": _small_record(lib.get("pmma").solid, 2),
-    }
 
 
 def _paths():

@@ -5,12 +5,11 @@ import pytest
 from edge.estimation.seam import SeamContext, estimate_touch
 from edge.recognition import ObjectSet
 from edge.service.config import Config
-from tests.edge.estimation.test_seam_contract import estimator, records  # noqa: F401 - the shared fixtures
 from tests.support.calibrations import sample_calibration
 
 
 @pytest.mark.parametrize("rec_name", ["paper/faithful_pmma", "paper/glass", "paper/pmma", "paper/air"])
-def test_calibration_refused_exactly_when_the_chain_did_not_answer(estimator, records, rec_name):  # noqa: F811
+def test_calibration_refused_exactly_when_the_chain_did_not_answer(estimator, records, rec_name):
     record = records[rec_name]
     ctx = SeamContext(estimator=estimator, calibration=sample_calibration(probe="paper"),
                       object_set=ObjectSet.from_library(), object_set_name="library",
@@ -24,14 +23,14 @@ def test_calibration_refused_exactly_when_the_chain_did_not_answer(estimator, re
         assert chain.get("error") or chain.get("flags"), chain
 
 
-def test_the_faithful_touch_is_answered_by_the_chain_and_a_1d_touch_is_refused(estimator, records):  # noqa: F811
+def test_the_faithful_touch_is_answered_by_the_chain_and_a_1d_touch_is_refused(estimator, records):
     ctx = SeamContext(estimator=estimator, calibration=sample_calibration(probe="paper"),
                       object_set=ObjectSet.from_library(), object_set_name="library", thresholds=Config().measurement)
     assert estimate_touch(records["paper/faithful_pmma"], ctx).method == "sensor_chain"
     assert "calibration_refused" in estimate_touch(records["paper/glass"], ctx).to_dict()["flags"]
 
 
-def test_a_touch_made_during_the_record_that_the_chain_cannot_fit_gets_no_answer(estimator, records,  # noqa: F811
+def test_a_touch_made_during_the_record_that_the_chain_cannot_fit_gets_no_answer(estimator, records,
                                                                                   monkeypatch):
     # The contact is in the record (the probe was in air first): the 1-D fallback's premise, a probe
     # resting on the object before heater-on, fails. If the chain that models the contact does not fit

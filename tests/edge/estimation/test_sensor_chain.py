@@ -165,3 +165,28 @@ def test_disk_fitter_point_is_the_full_fits_e_and_residual():
         assert pt.rms_residual_K == pytest.approx(full.rms_residual_K, rel=1e-9)
         assert pt.residual_inflation == pytest.approx(full.residual_inflation, rel=1e-9)
         assert pt.n_fitted == full.n_fitted
+
+
+@pytest.mark.parametrize("frac", [0.0, 0.4, 0.8])
+def test_chain_design_models_the_contact_instant_the_fit_does(frac):
+    """The calibration fits through chain_design, the estimator through fit_sensor_chain: at any contact
+    instant within the first (refined) interval both must be the same linear model, or a calibration
+    fitted with one contact instant is applied to touches modelled with another (ISSUE #34)."""
+    from edge.estimation.sensor_chain import chain_design
+
+    rng = np.random.default_rng(11)
+    t = np.arange(0.0, 4.0, 0.1)                       # the device's 10 Hz: refined to 20 ms
+    q = np.where(t > 1.0, 2500.0, 600.0)
+    q[0] = 0.0                                         # the last sample in air
+    cal = SensorChainCalibration(tc_tau_s=0.01)
+    T = simulate_chain(t, q, e_W_s05_m2K=700.0, R_c_m2K_W=1e-5, T_obj0_C=23.0, T_probe0_C=25.0, calibration=cal,
+                       ) + 0.003 * rng.standard_normal(t.size)
+    kw = dict(calibration=cal, fit_start_s=0.3, breaks_s=(1.0,))
+    X, y = chain_design(t, T, q, contact_frac=frac, **kw)
+    p = np.linalg.lstsq(X, y, rcond=None)[0]
+    r = fit_sensor_chain(t, T, q, contact_frac=frac, **kw)
+    assert 1.0 / p[2] == pytest.approx(r.e_W_s05_m2K, rel=1e-6)
+    assert p[1] == pytest.approx(r.R_c_m2K_W, rel=1e-6, abs=1e-12)
+    # ... and the contact instant changes the model (it is not ignored).
+    X0, _ = chain_design(t, T, q, contact_frac=0.0 if frac else 0.6, **kw)
+    assert not np.allclose(X0[-30:], X[-30:])

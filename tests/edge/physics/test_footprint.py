@@ -16,6 +16,7 @@ def test_area_in_disk_matches_the_worlds_quadrant_decomposition(sensor):
     assert np.allclose(area_in_disk(r, sensor.bounds_m), sensor.disk_moments(r), rtol=0, atol=1e-14)
 
 
+@pytest.mark.slow  # the reference sums the world's weights over 20 000 rings: 1.5 s a case
 @pytest.mark.parametrize("offset_m", [(0.0, 0.0), (5e-4, -5e-4)])
 def test_rectangle_weights_match_the_worlds_ring_weights(offset_m):
     s = SquareSensor(offset_x_m=offset_m[0], offset_y_m=offset_m[1])

@@ -4,11 +4,10 @@ where the active set carries a fitted poor_fit_ln (ISSUE #37; the refusal itself
 from edge.estimation.seam import SeamContext, estimate_touch
 from edge.recognition import ObjectSet
 from edge.service.config import Config
-from tests.edge.estimation.test_seam_contract import estimator  # noqa: F401 - the shared fixture
 from tests.support.calibrations import sample_calibration
 
 
-def test_a_poor_fit_touch_is_named_from_the_chains_e_by_a_set_that_carries_poor_fit_ln(estimator,  # noqa: F811
+def test_a_poor_fit_touch_is_named_from_the_chains_e_by_a_set_that_carries_poor_fit_ln(estimator,
                                                                                          monkeypatch):
     import edge.estimation.chain_estimate as chain_estimate
     from edge.estimation.record import TouchRecord

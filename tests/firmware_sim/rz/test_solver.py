@@ -169,3 +169,51 @@ def test_the_rest_state_follows_the_forcing_a_step_response_swaps_in():
     finally:
         s.g_t = saved
     assert s._at_rest(s.initial_field(300.0), 0.0) and not s._at_rest(np.zeros(s.grid.shape), 0.0)
+
+
+def _eliminated_afresh(system):
+    """The factor of ``system`` with no shared block rows to take (every inverse computed)."""
+    from firmware_sim.rz import blocktri
+
+    saved = dict(blocktri._ROW_CACHE)
+    blocktri.clear_row_cache()
+    try:
+        return S.BlockTridiagonal(*system)
+    finally:
+        blocktri.clear_row_cache()
+        for k, v in saved.items():
+            blocktri._keep_row(k, v)
+
+
+def test_a_factor_that_takes_another_configurations_leading_rows_solves_bit_for_bit_as_a_fresh_one():
+    """Block rows shared between factors (a probe's rows, on another object or in air) are the very
+    inverses the elimination would compute: the solve is the same to the last bit, and a change in
+    any number a row depends on (a later row's, a row's width) is never answered from another."""
+    from firmware_sim.rz import blocktri
+
+    rng = np.random.default_rng(6)
+    base = _system(rng, n=10, m=8, short_rows=(0, 1, 2))
+    other = [a.copy() for a in base]
+    other[0][6:] += 0.25                  # another object under the same probe rows
+    other[2][6:] *= 1.5
+    narrow = [base[0][:5, :4].copy(), base[1][:5, :3].copy(), base[2][:4, :4].copy()]   # "in air": fewer rows, narrower
+    narrow[0][-1] += 0.1
+    wider = [a.copy() for a in base]
+    wider[1][1, 3] = -0.5                 # row 1 couples one more unknown: its width changes
+    blocktri.clear_row_cache()
+    first = S.BlockTridiagonal(*base)
+    n_rows = len(blocktri._ROW_CACHE)
+    rhs = rng.normal(size=(10, 8))
+    for system in (other, narrow, wider, base):
+        shared = S.BlockTridiagonal(*system)
+        fresh = _eliminated_afresh(system)
+        r = rhs[: system[0].shape[0], : system[0].shape[1]]
+        assert np.array_equal(shared.solve(r), fresh.solve(r))
+        ref = np.linalg.solve(_dense(*system), r.reshape(-1)).reshape(r.shape)
+        np.testing.assert_allclose(shared.solve(r), ref, rtol=1e-12, atol=1e-13)
+    # Each later system added only the rows from its first change on: the other object its rows 6-9,
+    # the narrow one its rows 3-4 (row 3 narrower), the wider one rows 1-9, the base again none.
+    assert n_rows == 10 and len(blocktri._ROW_CACHE) == 10 + 4 + 2 + 9
+    assert first.solve(rhs) is not None
+    S.clear_factor_cache()
+    assert len(blocktri._ROW_CACHE) == 0

@@ -5,15 +5,17 @@ from __future__ import annotations
 import base64
 import json
 import re
+import zlib
+from contextlib import redirect_stderr, redirect_stdout
 from dataclasses import replace
+from io import StringIO
 
 import pytest
 
 from edge.calibration.model import ProbeCalibration, ReferenceFit
 from host.cli.main import main
-from host.lab_pdf import layout_pages, write_pdf
 from host.lab_plots import MAX_TOUCH_FIGURES, check_plot, figure_touches
-from host.lab_report import report_blocks, report_title, touch_figures
+from host.lab_report import report_title
 from host.lab_series import SeriesFileError, load_series
 
 SAMPLE = "Glass <B33>"
@@ -26,18 +28,39 @@ def run(capsys, *argv):
     return code, out, err
 
 
+#: A stream object's dictionary (not reaching back past the previous object's end) and the start of its data.
+_STREAM = re.compile(rb"obj\s*<<((?:(?!endobj).)*?)>>\s*stream\r?\n", re.S)
+
+
+def _content_streams(raw: bytes):
+    """The PDF's streams other than images, inflated where they are Flate-compressed (the default output).
+
+    Images are skipped: their bytes hold no text, and scanning them for text arrays is most of the cost.
+    """
+    pos = 0
+    while (m := _STREAM.search(raw, pos)) is not None:
+        end = raw.find(b"endstream", m.end())
+        assert end > 0, "a stream without its end"
+        pos = end + len(b"endstream")
+        if b"/Subtype /Image" in m.group(1):
+            continue
+        data = raw[m.end():end]
+        yield zlib.decompress(data) if b"/FlateDecode" in m.group(1) else data
+
+
 def pdf_text(raw: bytes) -> str:
-    """The text of an uncompressed Matplotlib PDF: each TJ array's glyph strings joined (kerning dropped).
+    """The text of a Matplotlib PDF (compressed or not): each TJ array's glyph strings joined (kerning dropped).
 
     Matplotlib's text shaping sets "fi", "fl", "ff" as ligature glyphs in a font of their own (another
     text run): the needles searched here avoid those letter pairs.
     """
     out = []
     # An array is strings "(...)" (which may hold an unescaped "]") and kerning numbers; matched element by
-    # element so that a "[" in image data fails at once instead of scanning the file for "] TJ".
-    for arr in re.findall(rb"\[((?:\((?:\\.|[^\\)])*\)|[^\](])*)\]\s*TJ", raw):
-        out.append(b"".join(re.findall(rb"\(((?:\\.|[^\\)])*)\)", arr)).replace(b"\\(", b"(").replace(b"\\)", b")")
-                   .decode("latin-1"))
+    # element so that a "[" elsewhere fails at once instead of scanning the stream for "] TJ".
+    for stream in _content_streams(raw):
+        for arr in re.findall(rb"\[((?:\((?:\\.|[^\\)])*\)|[^\](])*)\]\s*TJ", stream):
+            out.append(b"".join(re.findall(rb"\(((?:\\.|[^\\)])*)\)", arr)).replace(b"\\(", b"(")
+                       .replace(b"\\)", b")").decode("latin-1"))
     return "\n".join(out)
 
 
@@ -67,11 +90,38 @@ def test_the_series_file_keeps_what_each_touch_figure_needs(sim_series):
     assert doc["calibration"] is None   # the simulated glass_15V probe has none installed
 
 
-def test_the_report_has_one_identified_figure_per_touch_and_the_pdf_the_same_content(capsys, tmp_path, sim_series):
-    html_path, pdf_path = tmp_path / "r.html", tmp_path / "r.pdf"
-    code, out, err = run(capsys, "report", sim_series, "--out", html_path, "--pdf", pdf_path)
+@pytest.fixture(scope="module")
+def sim_report(sim_series):
+    """``report`` of the series with ``--pdf``, run once for this module's tests, as a user runs it.
+
+    The blocks and pages the command laid out are kept (a spy on ``layout_pages``) so that the tests
+    compare the PDF with what the command meant to draw without drawing every figure again.
+    """
+    import host.lab_pdf as lab_pdf
+
+    d = sim_series.parent
+    html_path, pdf_path = d / "r.html", d / "r.htm.pdf"   # alike but different names are accepted
+    laid_out = []
+    real = lab_pdf.layout_pages
+
+    def spy(title, blocks, footer=""):
+        blocks = list(blocks)
+        pages = real(title, blocks, footer)
+        laid_out.append((title, blocks, footer, len(pages)))
+        return pages
+
+    out, err = StringIO(), StringIO()
+    with pytest.MonkeyPatch.context() as mp, redirect_stdout(out), redirect_stderr(err):
+        mp.setattr(lab_pdf, "layout_pages", spy)
+        code = main(["report", str(sim_series), "--out", str(html_path), "--pdf", str(pdf_path)])
+    return {"code": code, "out": out.getvalue(), "err": err.getvalue(), "html": html_path, "pdf": pdf_path,
+            "laid_out": laid_out}
+
+
+def test_the_report_has_one_identified_figure_per_touch_and_the_pdf_the_same_content(sim_series, sim_report):
+    code, out, err = sim_report["code"], sim_report["out"], sim_report["err"]
     assert code == 0, err
-    html = html_path.read_text()
+    html = sim_report["html"].read_text()
     doc = json.loads(sim_series.read_text())
     imgs = re.findall(r'<img alt="([^"]*)" src="data:image/png;base64,([A-Za-z0-9+/=]+)"', html)
     # The summary plot of the N readings, then one figure per touch, titled with its measurement.
@@ -82,22 +132,20 @@ def test_the_report_has_one_identified_figure_per_touch_and_the_pdf_the_same_con
         assert "model " + t["model_sha256"][:12] in alt and "calibration none" in alt and "4.5 W" in alt
         assert f"{t['answer']['method']} method" in alt
     assert "Each answered touch: (a) heat flux" in html
-    # The PDF: the pages the layout makes, with the report's title, sample and each touch's title as text.
-    raw = pdf_path.read_bytes()
-    assert raw.startswith(b"%PDF") and f"PDF ({pdf_pages(raw)} pages)" in out
+    # The PDF (compressed, as written by default): the pages the layout made, with the report's title, sample
+    # and each touch's title as text, and the same figures as the HTML.
+    raw = sim_report["pdf"].read_bytes()
+    assert raw.startswith(b"%PDF") and b"/FlateDecode" in raw and f"PDF ({pdf_pages(raw)} pages)" in out
     loaded = load_series(sim_series)
-    figures = touch_figures(loaded)
-    blocks = report_blocks(loaded, source_name="s.json", generated_utc="now", software_version="x", figures=figures)
-    pages = layout_pages(report_title(loaded), blocks, "series s.json")
-    assert pdf_pages(raw) == len(pages) >= 3
-    plain = tmp_path / "plain.pdf"
-    write_pdf(plain, pages, title=report_title(loaded), compress=False)
-    text = pdf_text(plain.read_bytes())
-    assert pdf_pages(plain.read_bytes()) == pdf_pages(raw)
+    [(title, blocks, footer, n_pages)] = sim_report["laid_out"]
+    assert title == report_title(loaded) and footer == "series s.json"
+    assert pdf_pages(raw) == n_pages >= 3
+    text = pdf_text(raw)
     for needle in (f"Measurement report: {SAMPLE}", "A. Smith", "Touches", "Device and probe", "Quality",
-                   f"measurement {loaded['touches'][0]['measurement_id']},", f"page 1 of {len(pages)}"):
+                   f"measurement {loaded['touches'][0]['measurement_id']},", f"page 1 of {n_pages}"):
         assert needle in text, needle
-    assert sum(b[0] == "png" for b in blocks) == 1 + N
+    pngs = [b[1] for b in blocks if b[0] == "png"]
+    assert len(pngs) == 1 + N and pngs[1:] == [base64.b64decode(b64) for _, b64 in imgs[1:]]
 
 
 def _calibration(tmp_path):
@@ -131,11 +179,11 @@ def test_the_certificate_pdf_lists_references_values_residuals_who_when_device(c
         assert needle in text, needle
 
 
-def test_pdf_and_out_must_differ_and_an_existing_pdf_needs_overwrite(capsys, tmp_path, sim_series):
+def test_pdf_and_out_must_differ_and_an_existing_pdf_needs_overwrite(capsys, tmp_path, sim_series, sim_report):
+    # The module's report run wrote r.html and r.htm.pdf: names alike but different are accepted.
+    assert sim_report["code"] == 0 and sim_report["pdf"].exists(), sim_report["err"]
     same = tmp_path / "r.pdf"
-    code, _, err = run(capsys, "report", sim_series, "--out", tmp_path / "r.html", "--pdf", tmp_path / "r.htm.pdf")
-    assert code == 0, err
-    code, _, err = run(capsys, "report", sim_series, "--out", tmp_path / "x.html", "--pdf", tmp_path / "r.htm.pdf")
+    code, _, err = run(capsys, "report", sim_series, "--out", tmp_path / "x.html", "--pdf", sim_report["pdf"])
     assert code == 2 and "exists" in err and not (tmp_path / "x.html").exists()
     code, _, err = run(capsys, "report", sim_series, "--out", tmp_path / "y.html", "--pdf", same.with_suffix(".txt"))
     assert code == 2
