@@ -11,7 +11,10 @@ substrate foam rho c             +-15 % (uniform)            fitted: ``ln rhoc_s
 sensing layer thickness and k    +-5 % each (1 sigma)        fitted: ``ln L``, ``ln k_s`` (the thermopile
                                                              spans the layer; its rho c kept)
 heater power (R at temperature,  free                        fitted per touch (a linear scale, eliminated in
-TCR, lead losses)                                            closed form as in the estimate); reported
+lead losses)                                                 closed form as in the estimate); reported
+heater film's TCR                U 0.001-0.004 /K            fitted: ``alpha_R`` (its self-heating droop,
+                                                             :mod:`edge.physics.heater_tcr`); left out, the
+                                                             stack bent to absorb it (substrate k +67 %)
 contact of each reference touch  R_c >= 0                    fitted per touch (the references' T records)
 the references' k and alpha      their certificates          fitted with their stated u as priors
 sensor footprint (square)        its drawing                 read exactly (:mod:`edge.physics.footprint`)
@@ -49,8 +52,10 @@ import numpy as np
 from edge.calibration.fit import check_reference
 from edge.calibration.model import CalibrationError, ProbeCalibration, ReferenceFit
 from edge.physics.probe import FLUX_SENSITIVITY_U_REL, SENSING_K_U_REL, SENSING_THICKNESS_U_REL
+from edge.estimation.object_offset import HEATER_TCR_PER_K
 from edge.estimation.probe_estimate import CALIBRATED, geometry_at
 from edge.physics.axisym import AxisymModel
+from edge.physics.heater_tcr import droop_transforms
 
 __all__ = ["AxiReferenceTouch", "fit_flux_scale", "GLOBALS", "PRIOR_SD", "ITERATIONS"]
 
@@ -64,6 +69,11 @@ PRIOR_SD = (FLUX_SENSITIVITY_U_REL, SENSING_THICKNESS_U_REL, SENSING_K_U_REL, 0.
             0.15 / math.sqrt(3.0))
 #: A parameter is "determined" by the references when its posterior u is below this share of the prior's.
 DETERMINED_RATIO = 0.5
+#: The heater's TCR is iterated in this unit (1/K) after the globals; its prior: the film heaters' range
+#: (edge.estimation.object_offset.HEATER_TCR_PER_K), uniform.
+_TCR_UNIT = 1e-3
+_TCR_PRIOR = (0.5 * sum(HEATER_TCR_PER_K) / _TCR_UNIT,
+              (HEATER_TCR_PER_K[1] - HEATER_TCR_PER_K[0]) / math.sqrt(12.0) / _TCR_UNIT)
 _RC_UNIT = 1e-5          # m^2 K/W: each touch's contact resistance is iterated in this unit
 _RC_PRIOR_SD = 3.0       # in _RC_UNIT: a careful reference touch (paste, pressed) stays within ~3e-5
 _FD = 1e-4               # finite-difference step (ln units and _RC_UNIT)
@@ -99,12 +109,14 @@ class _Problem:
             keep = (t > 0) & (t >= t[-1] / 250.0)
             self.touches.append((tc, t[keep], np.asarray(tc.dT_K, float)[keep] / estimator.sigma_T_K,
                                  np.asarray(tc.q_W_m2, float)[keep] / estimator.sigma_q_W_m2))
-        self.n_glob = len(GLOBALS)
+        # The globals, then the heater's TCR (index len(GLOBALS), in _TCR_UNIT): global to the probe.
+        self.n_glob = len(GLOBALS) + 1
         self.n_ref = 2 * len(self.refs)
         self.n = self.n_glob + self.n_ref + len(touches)
         p0 = np.zeros(self.n)
         sd = np.full(self.n, np.inf)
-        sd[:self.n_glob] = PRIOR_SD
+        sd[:len(GLOBALS)] = PRIOR_SD
+        p0[len(GLOBALS)], sd[len(GLOBALS)] = _TCR_PRIOR
         for i, name in enumerate(self.refs):
             tc = next(t for t in touches if t.name == name)
             p0[self.n_glob + 2 * i] = math.log(tc.k_W_mK)
@@ -134,16 +146,26 @@ class _Problem:
         a = math.exp(p[self.n_glob + 2 * i + 1])
         R = max(p[self.n_glob + self.n_ref + j], 0.0) * _RC_UNIT
         T, q = m.transforms(k, a, contact_resistance_m2K_W=R)
-        mT, mq = m.inversion.invert(np.stack([T, q]))
         P0 = self.g.nominal_power_W
-        return P0 * mT / self.est.sigma_T_K, P0 * mq / self.est.sigma_q_W_m2 / math.exp(p[0])
+        # The heater's self-heating droop (its TCR): P0 (1 - alpha_R P0 h(t)) into the same responses.
+        xT, xq, _ = droop_transforms(m, k, a, T, q, contact_resistance_m2K_W=R)
+        mT, mq, dT, dq = m.inversion.invert(np.stack([T, q, xT, xq]))
+        wT, wq = P0 / self.est.sigma_T_K, P0 / self.est.sigma_q_W_m2 / math.exp(p[0])
+        # Per unit power scale (touch_residual multiplies the droop by the scale once more: power squared).
+        c = P0 * p[len(GLOBALS)] * _TCR_UNIT
+        return wT * mT, wq * mq, -c * wT * dT, -c * wq * dq
 
     def touch_residual(self, j: int, p: np.ndarray) -> tuple[np.ndarray, float]:
         """Weighted residual of touch ``j`` with its power scale projected out, and that scale."""
         _, _, yT, yq = self.touches[j]
-        mT, mq = self._touch_model(j, p)
-        m, y = np.concatenate([mT, mq]), np.concatenate([yT, yq])
-        s = float(m @ y) / float(m @ m)
+        mT, mq, xT, xq = self._touch_model(j, p)
+        m0, x, y = np.concatenate([mT, mq]), np.concatenate([xT, xq]), np.concatenate([yT, yq])
+        # The droop goes with the power squared: y = s m0 + s^2 x; s by fixed-point projections (x is a few %).
+        s = 1.0
+        for _ in range(3):
+            m = m0 + s * x
+            s = float(m @ y) / float(m @ m)
+        m = m0 + s * x
         return y - s * m, s
 
     def depends(self, j: int, i: int) -> bool:
@@ -182,7 +204,8 @@ class _Problem:
     def clip(self, p: np.ndarray) -> np.ndarray:
         p = p.copy()
         p[self.n_glob + self.n_ref:] = np.maximum(p[self.n_glob + self.n_ref:], 0.0)
-        p[:self.n_glob] = np.clip(p[:self.n_glob], -0.5, 0.5)
+        p[:len(GLOBALS)] = np.clip(p[:len(GLOBALS)], -0.5, 0.5)
+        p[len(GLOBALS)] = min(max(p[len(GLOBALS)], -5.0), 20.0)
         return p
 
     def solve(self) -> tuple[np.ndarray, np.ndarray, float, int]:
@@ -278,20 +301,23 @@ def fit_flux_scale(estimator, touches: list[AxiReferenceTouch], *, min_reference
     ident = _identifiability(p, cov, prob.refs)
     geo = geometry_at(estimator.geometry, p)
     scales = [prob.touch_residual(j, p)[1] for j in range(len(touches))]
-    n_g, n_r = prob.n_glob, prob.n_ref
+    n_g, n_r = len(GLOBALS), prob.n_ref
+    tcr = float(p[n_g] * _TCR_UNIT)
+    u_tcr = float(math.sqrt(max(cov[n_g, n_g], 0.0)) * _TCR_UNIT)
     head = {"sensing_thickness_m": float(geo.sensing_thickness_m), "sensing_k_W_mK": float(geo.sensing.k_W_mK)} | (
         {} if geo.substrate is None else {"substrate_k_W_mK": float(geo.substrate.k_W_mK),
                                           "substrate_rho_c_J_m3K": float(geo.substrate.rho_kg_m3 * geo.substrate.c_J_kgK)}) | {
             "covariance": [[float(c) for c in row] for row in cov[:n_g, :n_g]],
             "power_scale": [float(s) for s in scales],
-            "contact_resistance_m2K_W": [float(max(x, 0.0) * _RC_UNIT) for x in p[n_g + n_r:]],
+            "contact_resistance_m2K_W": [float(max(x, 0.0) * _RC_UNIT) for x in p[prob.n_glob + n_r:]],
+            "heater_tcr_per_K": tcr, "heater_tcr_per_K_u": u_tcr,
             "chi2_per_point": chi2, "iterations": iterations} | ident
     u_x = math.sqrt(max(cov[0, 0], 0.0))
     refs: dict[str, list] = {}
     resolved = 0
     for tc in touches:
         d = estimator.estimate(tc.t_s, tc.dT_K, tc.q_W_m2, flux_scale=math.exp(p[0]), flux_u_rel=u_x,
-                               calibrated=(p[:n_g], cov[:n_g, :n_g]), fit_contact=True)
+                               calibrated=(p[:n_g], cov[:n_g, :n_g]), fit_contact=True, heater_tcr_per_K=tcr)
         # Whether the record resolves k and alpha: the fit's own u (the calibration's part of an answer's u
         # is what the references leave open, not what this record can tell).
         fit = d.get("fit") or {}

@@ -185,6 +185,19 @@ class AxiFitter:
         self.n_evals += 1
         out = self.model.transforms(math.exp(theta[0]), math.exp(theta[1]), thickness_m=self.thickness_m,
                                     back=self.back, contact_resistance_m2K_W=self._R(theta), derivatives=jac)
+        tcr = getattr(self, "heater_tcr_per_K", 0.0)
+        if tcr:
+            # The heater's self-heating droop (edge.physics.heater_tcr): its TCR, calibrated, is known. The
+            # droop's own theta-derivatives (through H) are second order and left out of the Jacobian.
+            from edge.physics.heater_tcr import droop_transforms  # noqa: PLC0415
+
+            xT, xq, H = droop_transforms(self.model, math.exp(theta[0]), math.exp(theta[1]), out[0], out[1],
+                                         thickness_m=self.thickness_m, back=self.back,
+                                         contact_resistance_m2K_W=self._R(theta))
+            c = tcr * P0
+            pH = self.model.inversion.s * H
+            out = (out[0] - c * xT, out[1] - c * xq) + (
+                () if not jac else (out[2] - c * pH * out[2], out[3] - c * pH * out[3]))
         w = np.array([P0 / self.sigma_T, P0 / self.sigma_q])
         inv = self.model.inversion
         m = inv.invert(np.stack(out[:2])) * w[:, None]

@@ -271,7 +271,7 @@ class AxiEstimator:
                  back: str = "infinite", T_resolution_K: float = 0.0, flux_scale: float = 1.0,
                  flux_u_rel: float | None = None, u_rel_floor: float = 0.0,
                  calibrated: tuple[np.ndarray, np.ndarray] | None = None, fit_contact: bool | None = None,
-                 pre: PreHeating | None = None) -> dict:
+                 pre: PreHeating | None = None, heater_tcr_per_K: float = 0.0) -> dict:
         """Estimate from one record (times from heater-on; thermocouple rise, flux-sensor reading).
 
         Parameters
@@ -299,6 +299,8 @@ class AxiEstimator:
             is then fitted as a linear nuisance (:class:`ObjectOffset`) on them and the heating grid,
             and its covariance enters every u (``fit["object_offset_K"]``); default: none (an object at
             the probe's temperature, as before).
+        heater_tcr_per_K : the heater film's TCR (1/K) its calibration identified: the model carries the
+            power's droop under the film's own heating (:mod:`edge.physics.heater_tcr`); 0: none.
 
         Returns
         -------
@@ -372,6 +374,7 @@ class AxiEstimator:
                            identifiable_u_rel=self.identifiable_u_rel,
                            fit_contact=self.fit_contact if fit_contact is None else bool(fit_contact), model=model,
                            offset=offset)
+        fitter.heater_tcr_per_K = float(heater_tcr_per_K)
         f = fitter.fit(T, q, power_W=power_W)
         if offset is not None:
             XT, Xq, _, _ = offset.columns(f.fit_k_W_mK, f.fit_alpha_m2_s, f.contact_resistance_m2K_W, False)
@@ -432,9 +435,9 @@ class AxiEstimator:
         S, C = self._calibration_sensitivity(fitter, f, t, calibrated, sens, u_flux)
         V = S @ C @ S.T
         if offset is not None and f.converged:
-            # The offset's kernel is the stack the calibration identified, which it identified without the
-            # heater's TCR (a drawn probe's substrate came out 67 % off in k and still re-measured its
-            # references): its sensing layer and substrate are taken as known to their datasheet tolerances.
+            # The offset's kernel is the stack the calibration identified; the calibration states that stack's u
+            # too small (OO.OFFSET_STACK_FROM_CALIBRATION): its sensing layer and substrate are taken as known to
+            # their datasheet tolerances.
             V_off = self._offset_stack_variance(fitter, offset, geometry, calibrated)
             V = V + V_off
             out["fit"]["u_rel_offset_stack"] = {"k": _num(math.sqrt(V_off[0, 0])), "alpha": _num(math.sqrt(V_off[1, 1]))}

@@ -463,6 +463,26 @@ class AxisymModel:
         dq = np.stack([(dkq * d) @ self._w_q for d in dtheta])
         return T, q, dT, dq
 
+    def heater_transform(self, k_W_mK: float, alpha_m2_s: float, *, thickness_m: float | None = None,
+                         back: str = "infinite", contact_resistance_m2K_W: float = 0.0) -> np.ndarray:
+        """Laplace transform (n_p,) of the heater film's mean temperature over its disk per watt (step).
+
+        The film's resistance follows its temperature (its TCR, :mod:`edge.physics.heater_tcr`); the
+        film is thin, so its mean is its bottom face's, averaged over the disk (``2 J1(zeta a) / (zeta a)``).
+        """
+        w = getattr(self, "_w_h", None)
+        if w is None:
+            a = self.geometry.heater_radius_m
+            zeta, wz = self.nodes
+            disk = a * bessel_j(1, zeta * a) / zeta
+            w = self._w_h = wz * zeta * disk * 2.0 * bessel_j(1, zeta * a) / (zeta * a)
+        Y = self.object_admittance(k_W_mK, alpha_m2_s, thickness_m, back)
+        R = contact_resistance_m2K_W
+        Yo = Y / (1.0 + R * Y) if R != 0.0 else Y
+        kgs, Ts = self._kgs, self._Ts
+        Ydn = kgs * (kgs * Ts + Yo) / (kgs + Ts * Yo)
+        return (self._num / (self._B + self._C * Ydn)) @ w
+
     def responses(self, k_W_mK: float, alpha_m2_s: float, *, thickness_m: float | None = None,
                   back: str = "infinite", contact_resistance_m2K_W: float = 0.0) -> Responses:
         """Thermocouple and flux-sensor step responses per watt at the model's times."""

@@ -54,8 +54,13 @@ def test_the_scale_is_recovered_and_the_calibrated_probe_measures_closer(axi, mo
     # re-measure within their stated u, the answer's and the reference's (as the self-check judges them;
     # on AISI 304 the answer's is ~2-4 %: R_c trades against e on a metal).
     geo = calibrated_params(cal)
+    # The heater's TCR it identified goes with it (edge.estimation.methods hands it to every estimate); here
+    # the world has none and the references say so (0.6e-3 +- 0.4e-3 /K against a 1-4e-3 prior).
+    tcr = cal.head_model["heater_tcr_per_K"]
+    assert tcr < 3 * cal.head_model["heater_tcr_per_K_u"]
     for tc in refs:
-        d = axi.estimate(tc.t_s, tc.dT_K, tc.q_W_m2, flux_scale=f, flux_u_rel=u, calibrated=geo, fit_contact=True)
+        d = axi.estimate(tc.t_s, tc.dT_K, tc.q_W_m2, flux_scale=f, flux_u_rel=u, calibrated=geo, fit_contact=True,
+                         heater_tcr_per_K=tcr)
         e, u_e = d["effusivity_W_s05_m2K"], d["effusivity_W_s05_m2K_u"]
         assert abs(np.log(e * np.sqrt(tc.alpha_m2_s) / tc.k_W_mK)) < 2.0 * np.hypot(u_e / e, tc.u_rel_k), tc.name
     assert all(abs(x) < 0.04 for r in cal.references for x in r.rel_errors)
@@ -68,7 +73,8 @@ def test_the_scale_is_recovered_and_the_calibrated_probe_measures_closer(axi, mo
     # touches tell about the sensor; the flux scale alone had halved the error).
     glass = touch(model, "borofloat_33", rng)
     raw = axi.estimate(glass.t_s, glass.dT_K, glass.q_W_m2)
-    fixed = axi.estimate(glass.t_s, glass.dT_K, glass.q_W_m2, flux_scale=f, flux_u_rel=u, calibrated=geo)
+    fixed = axi.estimate(glass.t_s, glass.dT_K, glass.q_W_m2, flux_scale=f, flux_u_rel=u, calibrated=geo,
+                         heater_tcr_per_K=tcr)
     err_raw, err_fixed = (abs(np.log(d["k_W_mK"] / glass.k_W_mK)) for d in (raw, fixed))
     assert err_fixed < 0.6 * err_raw and err_fixed < 3 * fixed["k_W_mK_u"] / fixed["k_W_mK"]
     assert fixed["fit"]["flux_scale"] == f and fixed["fit"]["flux_u_rel"] == u
@@ -133,3 +139,33 @@ def test_the_calibrations_covariance_enters_the_answers_u(axi, model):
     # The flux-only entry reproduces the datasheet path's u (the flux scale's column is the data's response).
     plain = axi.estimate(g.t_s, g.dT_K, g.q_W_m2, flux_scale=f, flux_u_rel=0.01)
     assert tight["k_W_mK_u"] == pytest.approx(plain["k_W_mK_u"], rel=1e-6)
+
+
+def test_the_heaters_tcr_is_identified_and_the_stack_stays_the_probes(axi, model):
+    """References touched by a heater whose film has a TCR of 3e-3/K (its power droops as it heats): the
+    calibration recovers the TCR within its u and leaves the datasheet stack where it is (without the TCR in
+    its model it bent the stack to absorb the droop: a drawn probe's substrate k +51 %)."""
+    from edge.estimation.probe_estimate import CALIBRATED
+    from edge.physics.heater_tcr import droop_transforms
+
+    tcr, P0 = 3.0e-3, G.nominal_power_W
+    rng = np.random.default_rng(21)
+    refs = []
+    for name in ("pmma", "pyroceram", "aisi_304"):
+        s = load_materials().get(name).solid
+        T, q = model.transforms(s.k_W_mK, s.alpha_m2_s)
+        xT, xq, _ = droop_transforms(model, s.k_W_mK, s.alpha_m2_s, T, q)
+        mT, mq, dT, dq = model.inversion.invert(np.stack([T, q, xT, xq]))
+        for _ in range(2):
+            refs.append(AxiReferenceTouch(name, s.k_W_mK, s.alpha_m2_s, 0.02, T5,
+                                          P0 * (mT - tcr * P0 * dT) + 0.01 * rng.standard_normal(T5.size),
+                                          READS_HIGH * P0 * (mq - tcr * P0 * dq) + 0.5 * rng.standard_normal(T5.size)))
+    cal = fit_flux_scale(axi, refs)
+    hm = cal.head_model
+    assert abs(hm["heater_tcr_per_K"] - tcr) < 3 * hm["heater_tcr_per_K_u"] and hm["heater_tcr_per_K_u"] < 0.5e-3
+    u = np.sqrt(np.diag(hm["covariance"]))
+    assert abs(hm["values"][0] + np.log(READS_HIGH)) < 3 * u[0]
+    for i in range(1, len(CALIBRATED)):
+        assert abs(hm["values"][i]) < 3 * u[i], CALIBRATED[i]
+    # An answer with this calibration carries the droop (methods.py hands the estimate the TCR).
+    assert all(abs(x) < 0.02 for r in cal.references for x in r.rel_errors)
