@@ -328,6 +328,25 @@ class AxiFitter:
         dy = np.concatenate([dy, np.zeros(J.shape[0] - dy.size)])   # the offset's prior rows (none: 0)
         return (covariance_ln_k_alpha(J.T @ J) @ (J.T @ dy))[:2]
 
+    def tcr_response(self, d_tcr_per_K: float) -> np.ndarray:
+        """d(ln k, ln alpha) when the heater's TCR is ``d_tcr_per_K`` off the one fitted with, at the last fit.
+
+        Linearised as :meth:`model_response`: the records' change is the droop's (its column times the step,
+        ``edge.physics.heater_tcr``), the fit's response ``(J^T J)^-1 J^T dy``.
+        """
+        theta, s, P0, J = self._final
+        keep = getattr(self, "heater_tcr_per_K", 0.0)
+        base = self._weighted_eval(theta, P0, False)
+        try:
+            self.heater_tcr_per_K = keep + float(d_tcr_per_K)
+            other = self._weighted_eval(theta, P0, False)
+        finally:
+            self.heater_tcr_per_K = keep
+        scale_T = s if self.nuisance == "power" else 1.0
+        dy = np.concatenate([scale_T * (other[0] - base[0]), s * (other[1] - base[1])])
+        dy = np.concatenate([dy, np.zeros(J.shape[0] - dy.size)])
+        return (covariance_ln_k_alpha(J.T @ J) @ (J.T @ dy))[:2]
+
     # -- the fit
     def fit(self, T_K, q_W_m2, *, power_W: float | None = None, prior: Prior | None = None,
             start: tuple[float, float] | None = None, max_iter: int = 30) -> AxiFit:

@@ -127,6 +127,7 @@ class AxiMethod(_Method):
             flux.update(calibrated=probe, fit_contact=True)
             # The heater's TCR it identified (its self-heating droop, edge.physics.heater_tcr).
             flux["heater_tcr_per_K"] = float((cal.head_model or {}).get("heater_tcr_per_K") or 0.0)
+            flux["heater_tcr_per_K_u"] = float((cal.head_model or {}).get("heater_tcr_per_K_u") or 0.0)
         pre = None
         if record is not None and baseline is not None and None not in baseline:
             # A hand touch: the object met the probe at another temperature before heating (ISSUE #34: the

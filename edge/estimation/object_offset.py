@@ -112,8 +112,14 @@ class ObjectOffset:
     """
 
     names = ("probe_temperature_K", "flux_zero_W_m2", "object_offset_K")
-    def __init__(self, kernel, n_pre: int = 0, grid_k=None) -> None:
+    def __init__(self, kernel, n_pre: int = 0, grid_k=None,
+                 tcr_prior_per_K: tuple[float, float] | None = None) -> None:
         self.kernel = kernel
+        #: The TCR's prior (mean, standard u; 1/K): the calibration's alpha_R +- u when it identified one,
+        #: else the film heaters' range (:data:`HEATER_TCR_PER_K`, uniform).
+        lo, hi = HEATER_TCR_PER_K
+        self.tcr_prior_per_K = ((0.5 * (lo + hi), (hi - lo) / math.sqrt(12.0)) if tcr_prior_per_K is None
+                                else (float(tcr_prior_per_K[0]), float(tcr_prior_per_K[1])))
         self.n_T = kernel.n_T
         self.n_q = kernel.n_q
         #: The heater's TCR: the contact transient moves the heater film's temperature, so its resistance
@@ -127,13 +133,13 @@ class ObjectOffset:
         self.grid_k = None if grid_k is None else np.asarray(grid_k, int)
 
     def prior(self, beta: np.ndarray):
-        """The TCR coefficient's prior given the offset: -alpha_R dT_obj, alpha_R in :data:`HEATER_TCR_PER_K`.
+        """The TCR coefficient's prior given the offset: -alpha_R dT_obj, alpha_R from :attr:`tcr_prior_per_K`.
 
         One row over the linear coefficients (power scale, probe temperature, flux zero, offset, TCR):
         ``(c + alpha_mid dT) / (alpha_sd |dT|)`` with dT the unconstrained fit's (its scale, held fixed).
         """
-        lo, hi = HEATER_TCR_PER_K
-        mid, sd = 0.5 * (lo + hi), (hi - lo) / math.sqrt(12.0)
+        mid, sd = self.tcr_prior_per_K
+        sd = max(sd, 1e-6)   # a calibrated alpha_R known "exactly" would make the row singular
         width = sd * max(abs(float(beta[3])), 0.05)
         row = np.zeros((1, beta.size))
         row[0, 3], row[0, -1] = mid / width, 1.0 / width

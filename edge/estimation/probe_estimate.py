@@ -271,7 +271,8 @@ class AxiEstimator:
                  back: str = "infinite", T_resolution_K: float = 0.0, flux_scale: float = 1.0,
                  flux_u_rel: float | None = None, u_rel_floor: float = 0.0,
                  calibrated: tuple[np.ndarray, np.ndarray] | None = None, fit_contact: bool | None = None,
-                 pre: PreHeating | None = None, heater_tcr_per_K: float = 0.0) -> dict:
+                 pre: PreHeating | None = None, heater_tcr_per_K: float = 0.0,
+                 heater_tcr_per_K_u: float = 0.0) -> dict:
         """Estimate from one record (times from heater-on; thermocouple rise, flux-sensor reading).
 
         Parameters
@@ -301,6 +302,9 @@ class AxiEstimator:
             the probe's temperature, as before).
         heater_tcr_per_K : the heater film's TCR (1/K) its calibration identified: the model carries the
             power's droop under the film's own heating (:mod:`edge.physics.heater_tcr`); 0: none.
+        heater_tcr_per_K_u : its standard uncertainty (1/K) as the calibration stated it: the fit's response
+            to it enters every u, and with ``pre`` it is the offset's TCR cross term's prior (with
+            ``heater_tcr_per_K``) instead of the film heaters' datasheet range.
 
         Returns
         -------
@@ -318,6 +322,9 @@ class AxiEstimator:
         if not (math.isfinite(flux_scale) and flux_scale > 0):
             raise ValueError(f"flux_scale must be finite and > 0, got {flux_scale!r}")
         u_flux = FLUX_CALIBRATION_U_REL if flux_u_rel is None else float(flux_u_rel)
+        u_tcr = float(heater_tcr_per_K_u)
+        if not (math.isfinite(u_tcr) and u_tcr >= 0):
+            raise ValueError(f"heater_tcr_per_K_u must be finite and >= 0, got {heater_tcr_per_K_u!r}")
         if not (math.isfinite(u_flux) and u_flux >= 0):
             raise ValueError(f"flux_u_rel must be finite and >= 0, got {flux_u_rel!r}")
         floor = float(u_rel_floor)
@@ -364,7 +371,8 @@ class AxiEstimator:
             tau_h = None if grid_k is None or not OO.OFFSET_TCR else dt * np.arange(grid_k[-1] + 1) - pre.contact_t_s
             kernel = ContactKernel(self.geometry if geometry is None else geometry,
                                    np.concatenate([pre.tau_T_s, tau]), np.concatenate([pre.tau_q_s, tau]), tau_h)
-            offset = ObjectOffset(kernel, pre.t_s.size, None if tau_h is None else grid_k)
+            tcr_prior = (float(heater_tcr_per_K), u_tcr) if heater_tcr_per_K > 0 else None
+            offset = ObjectOffset(kernel, pre.t_s.size, None if tau_h is None else grid_k, tcr_prior)
             t = np.concatenate([pre.t_s, t])
             T = np.concatenate([pre.dT_K, T])
             q = np.concatenate([pre.q_W_m2 * flux_scale, q])
@@ -441,6 +449,12 @@ class AxiEstimator:
             V_off = self._offset_stack_variance(fitter, offset, geometry, calibrated)
             V = V + V_off
             out["fit"]["u_rel_offset_stack"] = {"k": _num(math.sqrt(V_off[0, 0])), "alpha": _num(math.sqrt(V_off[1, 1]))}
+        if u_tcr > 0 and heater_tcr_per_K > 0 and f.converged:
+            # The calibrated TCR's own u: the fit holds alpha_R fixed, so its error moves k and alpha by the
+            # fit's linearised response to the droop it implies (AxiFitter.tcr_response).
+            g = fitter.tcr_response(u_tcr)
+            V = V + np.outer(g, g)
+            out["fit"]["u_rel_heater_tcr"] = {"k": _num(abs(float(g[0]))), "alpha": _num(abs(float(g[1])))}
         V_e = V[0, 0] - V[0, 1] + 0.25 * V[1, 1]
         u_le = math.sqrt(u_le_fit ** 2 + V_e)
         u_lk = math.sqrt(u_rel["k"] ** 2 + V[0, 0])
