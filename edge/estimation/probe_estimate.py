@@ -442,19 +442,25 @@ class AxiEstimator:
         # model's, AxiFitter.model_response), so its covariance is S C S^T.
         S, C = self._calibration_sensitivity(fitter, f, t, calibrated, sens, u_flux)
         V = S @ C @ S.T
-        if offset is not None and f.converged:
+        # The stack's and the TCR's parts are linearised at the fit's last point whether or not it converged:
+        # a fit that stopped short still states e, and left without them its u was the noise's alone (3 of the
+        # 6 e misses of 39 calibrated 5-s touches at R_c <= 3e-5 were such fits, |z| 2.1-4.5; asbuilt_small_bench).
+        if offset is not None:
             # The offset's kernel is the stack the calibration identified; the calibration states that stack's u
             # too small (OO.OFFSET_STACK_FROM_CALIBRATION): its sensing layer and substrate are taken as known to
             # their datasheet tolerances.
             V_off = self._offset_stack_variance(fitter, offset, geometry, calibrated)
-            V = V + V_off
-            out["fit"]["u_rel_offset_stack"] = {"k": _num(math.sqrt(V_off[0, 0])), "alpha": _num(math.sqrt(V_off[1, 1]))}
-        if u_tcr > 0 and heater_tcr_per_K > 0 and f.converged:
+            if np.all(np.isfinite(V_off)):
+                V = V + V_off
+                out["fit"]["u_rel_offset_stack"] = {"k": _num(math.sqrt(V_off[0, 0])),
+                                                    "alpha": _num(math.sqrt(V_off[1, 1]))}
+        if u_tcr > 0 and heater_tcr_per_K > 0:
             # The calibrated TCR's own u: the fit holds alpha_R fixed, so its error moves k and alpha by the
             # fit's linearised response to the droop it implies (AxiFitter.tcr_response).
             g = fitter.tcr_response(u_tcr)
-            V = V + np.outer(g, g)
-            out["fit"]["u_rel_heater_tcr"] = {"k": _num(abs(float(g[0]))), "alpha": _num(abs(float(g[1])))}
+            if np.all(np.isfinite(g)):
+                V = V + np.outer(g, g)
+                out["fit"]["u_rel_heater_tcr"] = {"k": _num(abs(float(g[0]))), "alpha": _num(abs(float(g[1])))}
         V_e = V[0, 0] - V[0, 1] + 0.25 * V[1, 1]
         u_le = math.sqrt(u_le_fit ** 2 + V_e)
         u_lk = math.sqrt(u_rel["k"] ** 2 + V[0, 0])
