@@ -451,6 +451,10 @@ class AxiFitter:
         dy = np.concatenate([np.zeros_like(yT), yq])
         dy = np.concatenate([dy, np.zeros(J.shape[0] - dy.size)])   # the offset's prior rows (none: 0)
         self._final = (theta.copy(), float(s), P0, J)
+        #: What the fit had still to go (the Gauss-Newton step to the linearised optimum, its ln k, ln alpha
+        #: first): ~0 at a converged fit; for one that stopped short, a part of its answers' u.
+        self.remaining_step = (covariance_ln_k_alpha(J.T @ J) @ (J.T @ r) if r.size == J.shape[0]
+                               else np.full(J.shape[1], np.nan))
         d_beta = covariance_ln_k_alpha(J.T @ J) @ (J.T @ dy)
         sens = {"k": float(d_beta[0]), "alpha": float(d_beta[1]), "effusivity": float(d_beta[0] - 0.5 * d_beta[1])}
         k, a = math.exp(theta[0]), math.exp(theta[1])

@@ -461,6 +461,12 @@ class AxiEstimator:
             if np.all(np.isfinite(g)):
                 V = V + np.outer(g, g)
                 out["fit"]["u_rel_heater_tcr"] = {"k": _num(abs(float(g[0]))), "alpha": _num(abs(float(g[1])))}
+        step = fitter.remaining_step[:2]
+        if not f.converged and np.all(np.isfinite(step)):
+            # A fit that stopped short is off its optimum by about the step it had still to go, which its
+            # covariance (the curvature there) does not state: 2 of the 5 e misses left at 5 s, R_c <= 3e-5.
+            V = V + np.outer(step, step)
+            out["fit"]["remaining_step"] = {"ln_k": _num(float(step[0])), "ln_alpha": _num(float(step[1]))}
         V_e = V[0, 0] - V[0, 1] + 0.25 * V[1, 1]
         u_le = math.sqrt(u_le_fit ** 2 + V_e)
         u_lk = math.sqrt(u_rel["k"] ** 2 + V[0, 0])

@@ -105,3 +105,11 @@ def test_a_fit_that_stopped_short_still_carries_the_offset_stacks_u(axi, rng, mo
     assert stack["k"] > 0 and stack["alpha"] > 0
     assert d["k_W_mK_u"] / d["k_W_mK"] >= stack["k"] or "k" in d["from_prior"]
     assert d["effusivity_W_s05_m2K_u"] / d["effusivity_W_s05_m2K"] > d["fit"]["u_rel_effusivity"]
+    # ... and the step it had still to go: the full fit's answer lies within what the short one states.
+    step = d["fit"]["remaining_step"]
+    assert abs(step["ln_k"] - 0.5 * step["ln_alpha"]) <= d["effusivity_W_s05_m2K_u"] / d["effusivity_W_s05_m2K"]
+    monkeypatch.setattr(AxiFitter, "fit", fit)
+    full = axi.estimate(t, dT, q, pre=pre)
+    assert "not_converged" not in full["flags"]
+    assert abs(math.log(full["effusivity_W_s05_m2K"] / d["effusivity_W_s05_m2K"])) < (
+        2 * d["effusivity_W_s05_m2K_u"] / d["effusivity_W_s05_m2K"])
