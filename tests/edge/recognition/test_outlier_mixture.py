@@ -1,4 +1,4 @@
-"""The likelihood's outlier component: ε = 0 is the Gaussian bit for bit; directives; the mixture's shape (ISSUE #37)."""
+"""The likelihood's outlier component: ε = 0 is the Gaussian bit for bit; directives; its shape (ISSUE #37)."""
 
 import math
 
