@@ -21,7 +21,13 @@ included: a short touch fixes e = k / sqrt(α) much better than α, and the two
 errors are correlated) and ``T`` is the set's *temperature*:
 one scale on every variance, fitted on the host on held-out simulated
 touches (host/recognition.py) so that a posterior of 0.9 is right about 90 %
-of the time. The specimen spread is read as independent lognormal spreads of
+of the time. With ``outlier_weight`` ε > 0 each object's likelihood is a two-component mixture,
+``(1 - ε) N(core) + ε N(core with σ_out² added to the variance of ln e)`` (``outlier_ln`` σ_out,
+fitted per contact time beside T, host.recognition.fit_outlier): a short touch's estimator
+failures (foam read 2x, aluminium 0.4x, ISSUE #37) sit in the broad component instead of
+pulling T up for every touch; ε = 0 is the Gaussian alone, bit for bit.  The open-set test
+stays on the core Gaussian (its z_crit is fitted for the in-set acceptance whatever the tail).
+The specimen spread is read as independent lognormal spreads of
 e and α. (ln e, ln α) carries everything a touch measures: k = e sqrt(α)
 adds nothing. A measured
 α's stated u enters as ``u (1 + a u)`` (``alpha_u_growth``, fitted on the
@@ -74,7 +80,8 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from edge.physics.materials import load_materials
-from edge.recognition.objects import (BIAS_REF_E_W_s05_m2K, CONTACT_DIRECTIVES, DEFAULT_PRIOR_UNKNOWN,
+from edge.recognition.objects import (BIAS_REF_E_W_s05_m2K, CONTACT_DIRECTIVES, DEFAULT_OUTLIER_LN,
+                                      DEFAULT_PRIOR_UNKNOWN,
                                       DEFAULT_SPREAD_REL, DEFAULT_Z_CRIT,
                                       DIRECTIVES, UNKNOWN, UNKNOWN_LN_E_SPAN, KnownObject, contact_key, parse_csv)
 from edge.recognition.stats import p_crit_of, tail_p, z_of_p
@@ -194,6 +201,9 @@ class ObjectSet:
         Standard deviation of ln e (before the temperature) with which a touch whose calibrated
         chain fitted poorly -- its e withheld from the answer -- still names an object from the
         chain's e (:func:`~edge.recognition.fields.recognition_fields`); 0: it names none.
+    outlier_weight, outlier_ln : float
+        Weight ε and extra sd of ln e σ_out of the likelihood's outlier component (module
+        docstring); ε = 0 (default): the Gaussian alone.
     contact_calibration : mapping, optional
         ``{contact time s: {"temperature": T, "z_crit": z, ...}}`` (any of ``CONTACT_DIRECTIVES``):
         the calibration fitted at each contact time (a short touch's u is understated differently
@@ -207,7 +217,8 @@ class ObjectSet:
     def __init__(self, objects: Iterable[KnownObject], *, temperature: float = 1.0, z_crit: float = DEFAULT_Z_CRIT,
                  calibration_ln: float = 0.0, prior_unknown: float = DEFAULT_PRIOR_UNKNOWN,
                  alpha_u_growth: float = DEFAULT_ALPHA_U_GROWTH, bias_ln: float = 0.0, bias_slope: float = 0.0,
-                 poor_fit_ln: float = 0.0, contact_calibration: Mapping[float, Mapping[str, float]] | None = None,
+                 poor_fit_ln: float = 0.0, outlier_weight: float = 0.0, outlier_ln: float = DEFAULT_OUTLIER_LN,
+                 contact_calibration: Mapping[float, Mapping[str, float]] | None = None,
                  label: str = "<memory>") -> None:
         objs = tuple(objects)
         if not objs:
@@ -227,6 +238,8 @@ class ObjectSet:
         self.bias_ln = check_value(DIRECTIVES["bias_ln"], bias_ln, "bias_ln")
         self.bias_slope = check_value(DIRECTIVES["bias_slope"], bias_slope, "bias_slope")
         self.poor_fit_ln = check_value(DIRECTIVES["poor_fit_ln"], poor_fit_ln, "poor_fit_ln")
+        self.outlier_weight = check_value(DIRECTIVES["outlier_weight"], outlier_weight, "outlier_weight")
+        self.outlier_ln = check_value(DIRECTIVES["outlier_ln"], outlier_ln, "outlier_ln")
         self.contact_calibration = _contact_table(contact_calibration)
         self._at: dict[float, ObjectSet] = {}
         self.label = label
@@ -312,7 +325,10 @@ class ObjectSet:
 
     def to_csv_text(self) -> str:
         """The set as CSV, with its calibration as ``#@`` directives (round-trips through :meth:`from_csv_text`)."""
-        lines = ["# ThermoTouch object set"] + [f"#@ {k} = {v!r}" for k, v in self.calibration.items()]
+        # The outlier directives only when there is an outlier component: a set without one writes what it did.
+        skip = () if self.outlier_weight > 0 else ("outlier_weight", "outlier_ln")
+        lines = ["# ThermoTouch object set"] + [f"#@ {k} = {v!r}" for k, v in self.calibration.items()
+                                                if k not in skip]
         lines += [f"#@ {contact_key(k, t)} = {v!r}" for t, entry in self.contact_calibration.items()
                   for k, v in entry.items()]
         header = ["name", "class", "k_W_mK", "rho_kg_m3", "c_J_kgK", "e_W_s05_m2K", "spread_rel", "source", "note"]
@@ -337,7 +353,7 @@ class ObjectSet:
         return f"ObjectSet({len(self)} objects from {self.label}, T={self.temperature:.3g}, z_crit={self.z_crit:.3g})"
 
     # -- likelihood ----------------------------------------------------------------
-    def log_terms(self, ln_e, u_ln_e, *, ln_alpha=None, u_ln_alpha=None, corr=None):
+    def log_terms(self, ln_e, u_ln_e, *, ln_alpha=None, u_ln_alpha=None, corr=None, extra_var_ln_e=0.0):
         """Untempered terms of every object's log-likelihood, for one or many touches.
 
         Parameters
@@ -348,6 +364,9 @@ class ObjectSet:
             A measured ln α, its standard uncertainty and the correlation of the
             ln e and ln α errors (default 0). NaN in ``ln_alpha`` marks a touch
             without α (its rows are the e-only terms).
+        extra_var_ln_e : float
+            Added to every object's (untempered) variance of ln e: the outlier component's
+            ``outlier_ln² / T`` (:meth:`outlier_terms`).
 
         Returns
         -------
@@ -362,6 +381,8 @@ class ObjectSet:
         x = np.asarray(ln_e, float)[..., None]
         u = np.asarray(u_ln_e, float)[..., None]
         var_e = u ** 2 + self.spread ** 2 + self.calibration_ln ** 2
+        if extra_var_ln_e:
+            var_e = var_e + extra_var_ln_e
         de = x - self.ln_e
         q_e = de ** 2 / var_e
         hld_e = 0.5 * np.log(var_e)
@@ -387,10 +408,31 @@ class ObjectSet:
         dof = dof_e + props
         return q, hld, dof
 
-    def posteriors(self, q, half_logdet, *, temperature: float | None = None) -> np.ndarray:
-        """Closed-set posteriors over the objects (equal priors) from :meth:`log_terms` at a temperature."""
+    def outlier_terms(self, ln_e, u_ln_e, *, temperature: float | None = None, outlier_ln: float | None = None,
+                      **alpha):
+        """:meth:`log_terms` of the outlier component at a temperature: σ_out² added to the tempered var of ln e."""
         t = self.temperature if temperature is None else temperature
+        s = self.outlier_ln if outlier_ln is None else outlier_ln
+        return self.log_terms(ln_e, u_ln_e, extra_var_ln_e=s ** 2 / t, **alpha)
+
+    @staticmethod
+    def mixture_log_weight(lw_core, lw_out, outlier_weight: float) -> np.ndarray:
+        """``log((1 - ε) exp(lw_core) + ε exp(lw_out))``, element-wise: the one definition of the mixture."""
+        return np.logaddexp(math.log1p(-outlier_weight) + np.asarray(lw_core),
+                            math.log(outlier_weight) + np.asarray(lw_out))
+
+    def posteriors(self, q, half_logdet, *, temperature: float | None = None, outlier=None,
+                   outlier_weight: float | None = None) -> np.ndarray:
+        """Closed-set posteriors over the objects (equal priors) from :meth:`log_terms` at a temperature.
+
+        ``outlier``: ``(q, half_logdet)`` of :meth:`outlier_terms` (at the same temperature), mixed
+        in with weight ``outlier_weight`` (default the set's); without it, or at weight 0, the Gaussian.
+        """
+        t = self.temperature if temperature is None else temperature
+        eps = self.outlier_weight if outlier_weight is None else outlier_weight
         lw = -0.5 * np.asarray(q) / t - np.asarray(half_logdet)
+        if outlier is not None and eps > 0:
+            lw = self.mixture_log_weight(lw, -0.5 * np.asarray(outlier[0]) / t - np.asarray(outlier[1]), eps)
         lw = lw - lw.max(axis=-1, keepdims=True)
         w = np.exp(lw)
         return w / w.sum(axis=-1, keepdims=True)
@@ -429,6 +471,13 @@ class ObjectSet:
         n_terms = 1 + (alpha is not None)
         lw_obj = (math.log((1.0 - self.prior_unknown) / len(self)) - 0.5 * d2 - hld
                   - n_terms * (_LN_SQRT_2PI + 0.5 * math.log(t)))
+        if self.outlier_weight > 0:   # the core and a broad component with the same centre and prior
+            q_o, hld_o, _ = self.outlier_terms(
+                math.log(e), u_ln_e, ln_alpha=None if alpha is None else math.log(alpha), u_ln_alpha=u_ln_alpha,
+                corr=corr)
+            const = math.log((1.0 - self.prior_unknown) / len(self)) - n_terms * (_LN_SQRT_2PI + 0.5 * math.log(t))
+            lw_obj = self.mixture_log_weight(const - 0.5 * d2 - hld, const - 0.5 * q_o / t - hld_o,
+                                             self.outlier_weight)
         lw_unk = math.log(self.prior_unknown) - math.log(UNKNOWN_LN_E_SPAN)
         if alpha is not None:
             ua = float(effective_u_ln_alpha(u_ln_alpha, self.alpha_u_growth))

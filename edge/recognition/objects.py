@@ -10,7 +10,8 @@ CSV format
 ----------
 Lines whose first non-blank character is ``#`` and blank lines are comments,
 except *directives* ``#@ key = value`` (``temperature``, ``z_crit``,
-``calibration_ln``, ``prior_unknown``, ``alpha_u_growth``, ``bias_ln``, ``bias_slope``, ``poor_fit_ln``:
+``calibration_ln``, ``prior_unknown``, ``alpha_u_growth``, ``bias_ln``, ``bias_slope``, ``poor_fit_ln``,
+``outlier_weight``, ``outlier_ln``:
 the calibration stored with the set; all but ``prior_unknown`` and ``alpha_u_growth`` may also be given
 per contact time, ``#@ bias_ln@1s = 0.05``). The first
 other line is the header: ``name``, ``class``, and either ``k_W_mK``,
@@ -34,8 +35,8 @@ from edge.physics.materials import (C_RANGE_J_KGK, CLASSES, K_RANGE_W_MK, RECOGN
 from edge.recognition.touch import DEFAULT_ALPHA_U_GROWTH
 from edge.schema import Field, SchemaError, check_keys, check_value
 
-__all__ = ["UNKNOWN", "DEFAULT_SPREAD_REL", "DEFAULT_Z_CRIT", "DEFAULT_PRIOR_UNKNOWN", "UNKNOWN_LN_E_SPAN", "COLUMNS",
-           "DIRECTIVES", "BIAS_REF_E_W_s05_m2K", "CONTACT_DIRECTIVES", "contact_key", "Issue", "ObjectSetError",
+__all__ = ["UNKNOWN", "DEFAULT_SPREAD_REL", "DEFAULT_Z_CRIT", "DEFAULT_PRIOR_UNKNOWN", "DEFAULT_OUTLIER_LN",
+           "UNKNOWN_LN_E_SPAN", "COLUMNS", "DIRECTIVES", "BIAS_REF_E_W_s05_m2K", "CONTACT_DIRECTIVES", "contact_key", "Issue", "ObjectSetError",
            "KnownObject", "parse_csv"]
 
 #: The answer when the touched object is none of the set's.
@@ -50,6 +51,9 @@ _E_RANGE = (math.sqrt(K_RANGE_W_MK[0] * RHO_C_RANGE_J_M3K[0]), math.sqrt(K_RANGE
 UNKNOWN_LN_E_SPAN = math.log(_E_RANGE[1] / _E_RANGE[0])
 #: Prior probability that a touched object is outside the set, before the user says otherwise.
 DEFAULT_PRIOR_UNKNOWN = 0.05
+#: Extra sd of ln e of the likelihood's outlier component before one is fitted (only used when
+#: ``outlier_weight`` > 0): a short touch's failures read e a factor 1.5-2.5 off (ISSUE #37).
+DEFAULT_OUTLIER_LN = 0.7
 _PROPS = ("k_W_mK", "rho_kg_m3", "c_J_kgK")
 
 #: The CSV columns and their schema (values arrive as text and are converted first).
@@ -81,6 +85,9 @@ DIRECTIVES: dict[str, Field] = {
     "bias_slope": Field("float", 0.0, "change of that bias per unit ln e", lo=-2.0, hi=2.0),
     "poor_fit_ln": Field("float", 0.0, "sd of ln e with which a withheld poor_fit chain e names an object "
                          "(0: such a touch names none)", lo=0.0, hi=3.0),
+    "outlier_weight": Field("float", 0.0, "weight eps of the likelihood's broad outlier component (estimator "
+                            "failures; 0: the Gaussian alone)", lo=0.0, hi=0.5),
+    "outlier_ln": Field("float", DEFAULT_OUTLIER_LN, "extra sd of ln e of that outlier component", lo=0.01, hi=5.0),
 }
 #: Effusivity (W s^0.5/(m^2 K)) at which ``bias_ln`` is the bias: mid-range (the polymers and woods a
 #: short touch reads worst lie a unit of ln e below it, the metals three above).
@@ -234,7 +241,8 @@ def parse_csv(text: str, label: str) -> tuple[list[KnownObject], dict]:
 
 
 #: Directives that may be given per contact time (``#@ temperature@0.5s = ...``).
-CONTACT_DIRECTIVES = ("temperature", "z_crit", "calibration_ln", "bias_ln", "bias_slope", "poor_fit_ln")
+CONTACT_DIRECTIVES = ("temperature", "z_crit", "calibration_ln", "bias_ln", "bias_slope", "poor_fit_ln",
+                      "outlier_weight", "outlier_ln")
 _CONTACT_KEY = re.compile(r"^(" + "|".join(CONTACT_DIRECTIVES) + r")@([0-9]*\.?[0-9]+)s$")
 
 
