@@ -144,8 +144,10 @@ class AxiFitter:
     def __init__(self, geometry: ProbeGeometry, t_s, *, sigma_T_K: float = 0.01, sigma_q_W_m2: float = 0.5,
                  nuisance: str = "power", fit_contact: bool = False, contact_resistance_m2K_W: float = 0.0,
                  thickness_m: float | None = None, back: str = "infinite", identifiable_u_rel: float = 0.30,
-                 model: AxisymModel | None = None, offset=None) -> None:
+                 model: AxisymModel | None = None, offset=None, heater_tcr_per_K: float = 0.0) -> None:
         self.geometry = geometry
+        #: The heater film's TCR (1/K) the model's power droops with (edge.physics.heater_tcr); 0: none.
+        self.heater_tcr_per_K = float(heater_tcr_per_K)
         #: Extra linear nuisance columns (the object's temperature offset, edge.estimation.probe_estimate's
         #: ObjectOffset): ``offset.columns(k, alpha, R_c, jac)`` -> (XT (m, nT), Xq (m, nq), dXT, dXq), per
         #: unit of each nuisance, with d/d(ln k, ln alpha, R_c) (npar, m, n) when ``jac``; None: none.
@@ -185,17 +187,16 @@ class AxiFitter:
         self.n_evals += 1
         out = self.model.transforms(math.exp(theta[0]), math.exp(theta[1]), thickness_m=self.thickness_m,
                                     back=self.back, contact_resistance_m2K_W=self._R(theta), derivatives=jac)
-        tcr = getattr(self, "heater_tcr_per_K", 0.0)
+        tcr = self.heater_tcr_per_K
         if tcr:
             # The heater's self-heating droop (edge.physics.heater_tcr): its TCR, calibrated, is known. The
             # droop's own theta-derivatives (through H) are second order and left out of the Jacobian.
             from edge.physics.heater_tcr import droop_transforms  # noqa: PLC0415
 
-            xT, xq, H = droop_transforms(self.model, math.exp(theta[0]), math.exp(theta[1]), out[0], out[1],
-                                         thickness_m=self.thickness_m, back=self.back,
-                                         contact_resistance_m2K_W=self._R(theta))
+            xT, xq, pH = droop_transforms(self.model, math.exp(theta[0]), math.exp(theta[1]), out[0], out[1],
+                                          thickness_m=self.thickness_m, back=self.back,
+                                          contact_resistance_m2K_W=self._R(theta))
             c = tcr * P0
-            pH = self.model.inversion.s * H
             out = (out[0] - c * xT, out[1] - c * xq) + (
                 () if not jac else (out[2] - c * pH * out[2], out[3] - c * pH * out[3]))
         w = np.array([P0 / self.sigma_T, P0 / self.sigma_q])
@@ -315,18 +316,7 @@ class AxiFitter:
         scale, minus the fitted model's, in noise units) moves the fit by ``(J^T J)^-1 J^T dy``.  Divided
         by a parameter step it is the fit's sensitivity to that parameter of the probe.
         """
-        theta, s, P0, J = self._final
-        base = self._weighted_eval(theta, P0, False)
-        keep = self.model
-        try:
-            self.model = model
-            other = self._weighted_eval(theta, P0, False)
-        finally:
-            self.model = keep
-        scale_T = s if self.nuisance == "power" else 1.0
-        dy = np.concatenate([scale_T * (other[0] - base[0]), s * (other[1] - base[1])])
-        dy = np.concatenate([dy, np.zeros(J.shape[0] - dy.size)])   # the offset's prior rows (none: 0)
-        return (covariance_ln_k_alpha(J.T @ J) @ (J.T @ dy))[:2]
+        return self._response_to("model", model)
 
     def tcr_response(self, d_tcr_per_K: float) -> np.ndarray:
         """d(ln k, ln alpha) when the heater's TCR is ``d_tcr_per_K`` off the one fitted with, at the last fit.
@@ -334,16 +324,27 @@ class AxiFitter:
         Linearised as :meth:`model_response`: the records' change is the droop's (its column times the step,
         ``edge.physics.heater_tcr``), the fit's response ``(J^T J)^-1 J^T dy``.
         """
-        theta, s, P0, J = self._final
-        keep = getattr(self, "heater_tcr_per_K", 0.0)
+        return self._response_to("heater_tcr_per_K", self.heater_tcr_per_K + float(d_tcr_per_K))
+
+    def _response_to(self, attribute: str, value) -> np.ndarray:
+        """d(ln k, ln alpha) when the records follow this fitter with ``attribute`` set to ``value``, at the last fit."""
+        theta, s, P0, _J = self._final
         base = self._weighted_eval(theta, P0, False)
+        keep = getattr(self, attribute)
         try:
-            self.heater_tcr_per_K = keep + float(d_tcr_per_K)
+            setattr(self, attribute, value)
             other = self._weighted_eval(theta, P0, False)
         finally:
-            self.heater_tcr_per_K = keep
+            setattr(self, attribute, keep)
         scale_T = s if self.nuisance == "power" else 1.0
-        dy = np.concatenate([scale_T * (other[0] - base[0]), s * (other[1] - base[1])])
+        return self.response(np.concatenate([scale_T * (other[0] - base[0]), s * (other[1] - base[1])]))
+
+    def response(self, dy: np.ndarray) -> np.ndarray:
+        """d(ln k, ln alpha) of the last fit when its records (in noise units) change by ``dy``: ``(J^T J)^-1 J^T dy``.
+
+        ``dy`` covers the records only; the offset's prior rows, if any, do not change (zeros).
+        """
+        J = self._final[3]
         dy = np.concatenate([dy, np.zeros(J.shape[0] - dy.size)])
         return (covariance_ln_k_alpha(J.T @ J) @ (J.T @ dy))[:2]
 
@@ -453,9 +454,9 @@ class AxiFitter:
         self._final = (theta.copy(), float(s), P0, J)
         #: What the fit had still to go (the Gauss-Newton step to the linearised optimum, its ln k, ln alpha
         #: first): ~0 at a converged fit; for one that stopped short, a part of its answers' u.
-        self.remaining_step = (covariance_ln_k_alpha(J.T @ J) @ (J.T @ r) if r.size == J.shape[0]
-                               else np.full(J.shape[1], np.nan))
-        d_beta = covariance_ln_k_alpha(J.T @ J) @ (J.T @ dy)
+        inv_JtJ = covariance_ln_k_alpha(J.T @ J)
+        self.remaining_step = inv_JtJ @ (J.T @ r) if r.size == J.shape[0] else np.full(J.shape[1], np.nan)
+        d_beta = inv_JtJ @ (J.T @ dy)
         sens = {"k": float(d_beta[0]), "alpha": float(d_beta[1]), "effusivity": float(d_beta[0] - 0.5 * d_beta[1])}
         k, a = math.exp(theta[0]), math.exp(theta[1])
         e = k / math.sqrt(a)

@@ -220,14 +220,13 @@ class AxiEstimator:
         """Covariance (2 x 2) of (ln k, ln alpha) from the offset kernel's stack: known to the calibration's
         covariance when it identified the stack, else to :data:`STACK_TOLERANCE`.
 
-        Linearised as :meth:`~edge.estimation.axifit.AxiFitter.model_response`: the records' change when the
+        Linearised as :meth:`~edge.estimation.axifit.AxiFitter.response`: the records' change when the
         kernel's stack is off by one tolerance (the fitted offset times the kernel's change, in noise units)
         moves the fit by ``(J^T J)^-1 J^T dy``.
         """
-        from edge.estimation.design import covariance_ln_k_alpha  # noqa: PLC0415
         from edge.physics.contact_offset import ContactKernel  # noqa: PLC0415
 
-        theta, _s, _P0, J = fitter._final
+        theta = fitter._final[0]
         k, alpha = math.exp(theta[0]), math.exp(theta[1])
         R = fitter._R(theta)
         e = k / math.sqrt(alpha)
@@ -235,7 +234,6 @@ class AxiEstimator:
         base = offset._g(e, R)
         kern = offset.kernel
         geo = self.geometry if geometry is None else geometry
-        inv = covariance_ln_k_alpha(J.T @ J)
         cols = {}
         for i, tol in OO.STACK_TOLERANCE.items():
             if i >= 3 and geo.substrate is None:
@@ -250,8 +248,7 @@ class AxiEstimator:
             nT, nq = offset.n_T, offset.n_q
             dy = np.concatenate([dT * (g1[0][:nT] - base[0][:nT]) / fitter.sigma_T,
                                  dT * (g1[1][nT:nT + nq] - base[1][nT:nT + nq]) / fitter.sigma_q])
-            dy = np.concatenate([dy, np.zeros(J.shape[0] - dy.size)])
-            cols[i] = (inv @ (J.T @ dy))[:2] / tol
+            cols[i] = fitter.response(dy) / tol
         idx = sorted(cols)
         if not idx:
             return np.zeros((2, 2))
@@ -381,8 +378,7 @@ class AxiEstimator:
                            thickness_m=thickness_m, back=back if thickness_m is not None else "infinite",
                            identifiable_u_rel=self.identifiable_u_rel,
                            fit_contact=self.fit_contact if fit_contact is None else bool(fit_contact), model=model,
-                           offset=offset)
-        fitter.heater_tcr_per_K = float(heater_tcr_per_K)
+                           offset=offset, heater_tcr_per_K=heater_tcr_per_K)
         f = fitter.fit(T, q, power_W=power_W)
         if offset is not None:
             XT, Xq, _, _ = offset.columns(f.fit_k_W_mK, f.fit_alpha_m2_s, f.contact_resistance_m2K_W, False)

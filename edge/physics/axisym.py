@@ -211,6 +211,17 @@ def _sech(z):
     return 2.0 * e / (1.0 + e * e)
 
 
+def insulated_layer_admittance(k_W_mK: float, gamma, thickness_m: float):
+    """Admittance ``k gamma tanh(gamma d)`` of a layer with an insulated far side (the substrate above the heater)."""
+    return k_W_mK * gamma * _tanh(gamma * thickness_m)
+
+
+def series_contact(Y, contact_resistance_m2K_W: float):
+    """The admittance ``Y / (1 + R_c Y)`` an object of admittance ``Y`` presents through a contact resistance."""
+    R = contact_resistance_m2K_W
+    return Y / (1.0 + R * Y) if R != 0.0 else Y
+
+
 def _ch_ratio(g, u, L):
     """cosh(g u) / cosh(g L) for 0 <= u <= L."""
     return (np.exp(g * (u - L)) + np.exp(-g * (u + L))) / (1.0 + np.exp(-2.0 * g * L))
@@ -367,7 +378,7 @@ class AxisymModel:
             Yup = np.zeros_like(kgh)
         else:
             gf = np.sqrt(self._p / substrate.alpha_m2_s + self._z2)
-            Yup = substrate.k_W_mK * gf * _tanh(gf * thickness_m)
+            Yup = insulated_layer_admittance(substrate.k_W_mK, gf, thickness_m)
         # theta at the heater's bottom = theta_p * num / (B + C Ydn)  (see module docstring).
         self._num = theta_p * (kgh * Th + Yup * (1.0 - Sh))
         self._B = Yup + kgh * Th
@@ -430,12 +441,10 @@ class AxisymModel:
             t = _tanh(go * thickness_m)
             Y = Y / t if back == "fixed" else Y * t
         R = contact_resistance_m2K_W
-        Yo = Y / (1.0 + R * Y) if R != 0.0 else Y
-        kgs, Ts = self._kgs, self._Ts
-        TsYo = Ts * Yo
+        Yo = series_contact(Y, R)
+        kgs = self._kgs
+        TsYo, dd, Ydn = self._under_heater(Yo)
         den = 1.0 + TsYo / kgs                          # sensing layer seen from below
-        dd = kgs + TsYo
-        Ydn = kgs * (self._kgsTs + Yo) / dd             # admittance under the heater
         hd = self._B + self._C * Ydn
         r = self._num / (hd * den)                      # heater-bottom temperature / den
         kT = r * self._Ss
@@ -476,12 +485,15 @@ class AxisymModel:
             zeta, wz = self.nodes
             disk = a * bessel_j(1, zeta * a) / zeta
             w = self._w_h = wz * zeta * disk * 2.0 * bessel_j(1, zeta * a) / (zeta * a)
-        Y = self.object_admittance(k_W_mK, alpha_m2_s, thickness_m, back)
-        R = contact_resistance_m2K_W
-        Yo = Y / (1.0 + R * Y) if R != 0.0 else Y
-        kgs, Ts = self._kgs, self._Ts
-        Ydn = kgs * (kgs * Ts + Yo) / (kgs + Ts * Yo)
+        Yo = series_contact(self.object_admittance(k_W_mK, alpha_m2_s, thickness_m, back), contact_resistance_m2K_W)
+        Ydn = self._under_heater(Yo)[2]
         return (self._num / (self._B + self._C * Ydn)) @ w
+
+    def _under_heater(self, Yo):
+        """(Ts Yo, kgs + Ts Yo, Ydn): the admittance under the heater through the sensing layer onto ``Yo``."""
+        TsYo = self._Ts * Yo
+        dd = self._kgs + TsYo
+        return TsYo, dd, self._kgs * (self._kgsTs + Yo) / dd
 
     def responses(self, k_W_mK: float, alpha_m2_s: float, *, thickness_m: float | None = None,
                   back: str = "infinite", contact_resistance_m2K_W: float = 0.0) -> Responses:

@@ -30,15 +30,10 @@ from __future__ import annotations
 import numpy as np
 
 from edge.checks import finite_array, finite_nonnegative, finite_positive
-from edge.physics.axisym import HyperbolicInversion
+from edge.physics.axisym import HyperbolicInversion, insulated_layer_admittance, series_contact
 from edge.physics.geometry import ProbeGeometry
 
 __all__ = ["ContactKernel", "probe_admittance"]
-
-
-def _tanh(z):
-    e = np.exp(-2.0 * z)
-    return (1.0 - e) / (1.0 + e)
 
 
 def _layer_over(k: float, g: np.ndarray, d: float, Y_top: np.ndarray) -> np.ndarray:
@@ -56,7 +51,7 @@ def probe_admittance(geometry: ProbeGeometry, p: np.ndarray) -> np.ndarray:
         Y = np.zeros_like(p)
     else:
         gf = np.sqrt(p / g.substrate.alpha_m2_s)
-        Y = g.substrate.k_W_mK * gf * _tanh(gf * g.substrate_thickness_m)
+        Y = insulated_layer_admittance(g.substrate.k_W_mK, gf, g.substrate_thickness_m)
     hm = g.heater_material
     Y = _layer_over(hm.k_W_mK, np.sqrt(p / hm.alpha_m2_s), g.heater_thickness_m, Y)
     return Y   # the sensing layer is added by ContactKernel (its depth profile is read there)
@@ -98,9 +93,7 @@ class ContactKernel:
 
     def transforms(self, e_W_s05_m2K: float, contact_resistance_m2K_W: float = 0.0):
         """Laplace transforms (n_p,) of the thermocouple's, the flux sensor's and the heater film's response."""
-        Y = e_W_s05_m2K * self._sqrt_p
-        R = contact_resistance_m2K_W
-        Yo = Y / (1.0 + R * Y) if R != 0.0 else Y
+        Yo = series_contact(e_W_s05_m2K * self._sqrt_p, contact_resistance_m2K_W)
         k, g, L = self._k_s, self._g_s, self._L
         kg = k * g
         rho = (kg - self._Y_heater) / (kg + self._Y_heater)

@@ -22,7 +22,7 @@ __all__ = ["droop_transforms"]
 def droop_transforms(model, k_W_mK: float, alpha_m2_s: float, T: np.ndarray, q: np.ndarray, *,
                      thickness_m: float | None = None, back: str = "infinite",
                      contact_resistance_m2K_W: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(p T H, p q H, H): the droop's columns' transforms per unit ``alpha_R P0^2`` and the film's H.
+    """(p T H, p q H, p H): the droop's columns' transforms per unit ``alpha_R P0^2`` and their common factor.
 
     ``T``, ``q``: the thermocouple's and flux sensor's step-response transforms per watt on ``model``'s
     contour (:meth:`~edge.physics.axisym.AxisymModel.transforms`).
@@ -30,4 +30,4 @@ def droop_transforms(model, k_W_mK: float, alpha_m2_s: float, T: np.ndarray, q: 
     H = model.heater_transform(k_W_mK, alpha_m2_s, thickness_m=thickness_m, back=back,
                                contact_resistance_m2K_W=contact_resistance_m2K_W)
     pH = model.inversion.s * H
-    return pH * T, pH * q, H
+    return pH * T, pH * q, pH
