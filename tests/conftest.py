@@ -14,6 +14,7 @@ import importlib
 import os
 import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 from host.blas import limit_blas_threads, set_blas_env
@@ -50,6 +51,12 @@ def _scratch_in_memory(root: Path = Path("/dev/shm"), need_bytes: int = 2 * 2**3
     if free < need_bytes or not os.access(root, os.W_OK):
         return None
     os.environ["PYTEST_DEBUG_TEMPROOT"] = str(root)  # read when the first tmp_path is made; workers inherit it
+    # What the code under test makes with ``tempfile`` (each simulated device's PWM sysfs tree, the
+    # simulator's work directories, the kill-point templates) goes there too, for the same reason.
+    scratch = root / f"thermotouch-tests-{os.getuid()}"
+    scratch.mkdir(mode=0o700, exist_ok=True)
+    os.environ["TMPDIR"] = str(scratch)
+    tempfile.tempdir = None  # forget a temp dir chosen before this ran
     return str(root)
 
 
