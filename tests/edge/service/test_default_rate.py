@@ -1,4 +1,4 @@
-"""The default sample rate: 50 Hz where the converters deliver it, their own rate where they do not (issue #34 item 5)."""
+"""The default sample rate: 50 Hz where the converters deliver it, their own rate elsewhere (issue #34 item 5)."""
 
 from __future__ import annotations
 
