@@ -301,13 +301,16 @@ def attribution_table(res: dict) -> str:
     return "\n".join(lines)
 
 
-def attainable_u(head: str, obj, window_s: float, power_W: float, dt_s: float, R_c: float, lead_s: float
-                 ) -> float | None:
-    """``thermotouch design --hand``'s attainable u(e): R_c (at the touch's) and the object's temperature unknown."""
+def attainable_u(head: str, obj, window_s: float, power_W: float, dt_s: float, R_c: float, lead_s: float,
+                 nuisances: bool = True) -> float | None:
+    """``thermotouch design --hand``'s attainable u(e): R_c (at the touch's) and the object's temperature unknown.
+
+    ``nuisances=False``: both known (the touch-only bound without the hand touch's unknowns).
+    """
     from edge.estimation.design import attainable
 
-    d = attainable(obj, window_s, probe=head, power_W=power_W, dt_s=dt_s, fit_contact=True,
-                   contact_resistance_m2K_W=R_c, fit_object_temperature=True, contact_lead_s=lead_s)
+    d = attainable(obj, window_s, probe=head, power_W=power_W, dt_s=dt_s, fit_contact=nuisances,
+                   contact_resistance_m2K_W=R_c, fit_object_temperature=nuisances, contact_lead_s=lead_s)
     return d.u_rel_effusivity if math.isfinite(d.u_rel_effusivity) else None
 
 
@@ -379,11 +382,18 @@ def run(n_probes: int, n_solids: int, n_touches: int, seeds: list[int] | None = 
                     if key not in att_cache:
                         att_cache[key] = attainable_u(head, obj.solid, w, rec.power_W, 1.0 / rec.sample_rate_Hz,
                                                       h["R_c"], h["lead_s"])
+                        att_cache[key + ("known",)] = attainable_u(head, obj.solid, w, rec.power_W,
+                                                                   1.0 / rec.sample_rate_Hz, h["R_c"], h["lead_s"],
+                                                                   nuisances=False)
                     rows.append({"head": head, "probe": draw_seed, "solid": name, "class": obj.cls, **h,
                                  "status": str(out.status), "window_s": w, "e_true": e_true, "e": e, "u_e": u,
                                  "err": None if e is None else e / e_true - 1.0, "flags": d.get("flags"),
                                  "method": d.get("method"), "calibration_sha256": d.get("calibration_sha256"),
-                                 "u_e_parts": d.get("u_e_parts"), "attainable_u_rel": att_cache[key]})
+                                 "u_e_parts": d.get("u_e_parts"), "attainable_u_rel": att_cache[key],
+                                 "u_e_fit_noise": (d.get("sensor_chain") or {}).get("u_e_fit_noise"),
+                                 "u_e_fit_noise_nuisance_known":
+                                     (d.get("sensor_chain") or {}).get("u_e_fit_noise_nuisance_known"),
+                                 "attainable_u_rel_no_nuisance": att_cache[key + ("known",)]})
                 r2 = rows[-1]
                 print(f"  {name:26s} Rc {h['R_c']:.1e} off {h['offset_K']:+.1f} lead {h['lead_s']:.1f}: "
                       + " ".join(f"{r['window_s']:g}s {_pct(r.get('err'))}" for r in rows[-len(spec['windows_s']):])

@@ -44,8 +44,8 @@ from typing import Any, Callable
 import numpy as np
 
 from edge.estimation.contact import find_contact
-from edge.estimation.sensor_chain import (REFINE_DT_s, DiskFitter, SensorChainCalibration, chain_theta, chain_with_theta,
-                                          face_flux, fit_sensor_chain)
+from edge.estimation.sensor_chain import (DiskFitter, SensorChainCalibration, chain_theta, chain_with_theta,
+                                          face_flux, fit_sensor_chain, refine_factor)
 from edge.physics.geometry import PROBES
 from edge.physics.probe import (FLUX_SENSITIVITY_U_REL, SENSING_K_U_REL, SENSING_THICKNESS_U_REL,
                                THERMOCOUPLE_TAU_U_s)
@@ -354,11 +354,6 @@ def contact_lost_at(t_from_contact: np.ndarray, phi_W_m2: np.ndarray, t_heat_s: 
     return None if hit.size == 0 else float(t[on[hit[0]]])
 
 
-#: Where within the record's first interval the contact may lie (fractions of a sample after sample 0),
-#: tried by :func:`contact_fraction` on a refined grid.
-CONTACT_FRACTIONS = (0.0, 0.2, 0.4, 0.6, 0.8)
-
-
 def contact_fraction(tt, TT, qq, chain, breaks, noise_T: float) -> tuple[float, float]:
     """Where, within its first interval, the contact happened, and u(ln e) from not knowing it better.
 
@@ -366,15 +361,18 @@ def contact_fraction(tt, TT, qq, chain, breaks, noise_T: float) -> tuple[float, 
     follows (ISSUE #34 item 5).  On the device's 10-Hz hand touches it lay 90 ms after that sample, and
     with the object 1 K off the probe the chain, starting the object's response there, read macor
     -8 % and Ti-6Al-4V -8.5 % at 1 s of heating (-3 % at 2 s).  On a record the chain runs refined
-    (:data:`edge.estimation.sensor_chain.REFINE_DT_s`) each of :data:`CONTACT_FRACTIONS` is fitted
+    (:data:`edge.estimation.sensor_chain.REFINE_DT_s`) each candidate instant is fitted
     (1-D, one pass) and the one the record fits best is taken; the change of ln e to its neighbours,
     for an instant uniform between them, is its standard uncertainty.  Records sampled finely enough
-    are not refined: the contact is then within a sample of 20 ms and is taken at 0.
+    are not refined (:func:`edge.estimation.sensor_chain.refine_factor`): the contact is then taken at 0.
+    Every fine point of the interval is tried (k / m, k = 0 .. m - 1: at 50 Hz on the 5-ms grid 0, 5,
+    10, 15 ms after the sample).
     """
-    if float(tt[1] - tt[0]) <= REFINE_DT_s * (1 + 1e-9):
+    m = refine_factor(float(tt[1] - tt[0]))
+    if m == 1:
         return 0.0, 0.0
     got = []
-    for f in CONTACT_FRACTIONS:
+    for f in (k / m for k in range(m)):
         try:
             r = fit_sensor_chain(tt, TT, qq, calibration=chain, fit_start_s=FIT_START_s, noise_T_K=noise_T,
                                  breaks_s=breaks, contact_frac=f)
@@ -570,6 +568,9 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
         "effusivity_W_s05_m2K_u": e * u_rel,
         "u_e_parts": {"fit": u_fit, "calibration": u_cal, "floor": u_floor, "contact": u_contact,
                       "lateral": u_lat},
+        # The fit's part on the stated noise alone, nuisances (T_obj0, R_c) fitted and known: what of
+        # u_e_parts["fit"] is noise, nuisance and residual excess (bench/asbuilt_calibrated_bench.py).
+        "u_e_fit_noise": r.u_ln_e_noise, "u_e_fit_noise_nuisance_known": r.u_ln_e_noise_nuisance_known,
         "lateral_correction": (e / r1d.e_W_s05_m2K - 1.0) if disk is not None else 0.0,
         "fit_end_t_s": float(t[i0] + tt[-1]),
         "contact_resistance_m2K_W": r.R_c_m2K_W,

@@ -64,7 +64,8 @@ MethodFn = Callable[..., Mapping[str, Any]]
 #: chain's parts of u(e) become the answer's ``u_e_parts`` when its e is the answer).
 CHAIN_KEEP = ("contact_lost_t_s", "effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "contact_resistance_m2K_W",
               "contact_resistance_m2K_W_u", "object_temperature0", "object_temperature0_u", "contact_t_s",
-              "contact_detected", "normalised_residual", "flags", "determined", "alpha_m2_s", "alpha_m2_s_u", "k_W_mK", "k_W_mK_u")
+              "contact_detected", "normalised_residual", "flags", "determined", "alpha_m2_s", "alpha_m2_s_u", "k_W_mK", "k_W_mK_u",
+              "u_e_fit_noise", "u_e_fit_noise_nuisance_known")
 #: Keys of the method's own answer kept under ``default_method`` once the chain's is the answer.
 DEFAULT_METHOD_KEYS = ("effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u", "alpha_m2_s",
                        "alpha_m2_s_u", "material", "material_confidence", "method")

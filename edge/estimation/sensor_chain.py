@@ -49,7 +49,7 @@ from edge.physics.laplace import talbot_invert
 from edge.physics.probe import DEFAULT_STACK
 
 __all__ = ["DiskFitter", "ProfilePoint", "SensorChainCalibration", "SensorChainResult", "chain_design", "chain_theta", "chain_with_theta", "face_flux",
-           "fit_sensor_chain", "simulate_chain"]
+           "fit_sensor_chain", "refine_factor", "simulate_chain"]
 
 
 @dataclass(frozen=True)
@@ -122,6 +122,11 @@ class SensorChainResult:
     n_iterations: int
     n_fitted: int = 0              # samples the least squares weighted
     residual_inflation: float = 1.0   # (1 + rho) / (1 - rho) of the residuals' lag-1 autocorrelation rho
+    #: u(ln e) the stated white thermocouple noise alone gives with (T_obj0, R_c) fitted alongside: the
+    #: fit's u without its residual's excess over that noise (u(e) / e is this times
+    #: sqrt(s^2 inflation) / noise); and the same with T_obj0 and R_c known (their cost: the ratio).
+    u_ln_e_noise: float = math.nan
+    u_ln_e_noise_nuisance_known: float = math.nan
 
 
 @lru_cache(maxsize=8)
@@ -305,11 +310,27 @@ class _Prepared:
 #: reading rises as sqrt(t), so at the device's 10 Hz the first interval's input was wrong by a sixth
 #: of a sample's flux and e came out -10 % at 0.5 s, -1.4 % at 1 s of heating (-13 / -5.5 / -2 % at
 #: 0.5 / 1 / 2 s with the object 2 K off the probe), noise-free, on the faithful world's 1-D limit
-#: (ISSUE #34 item 5: the short-window errors).  Sampled coarser than this, the record is refined to
-#: a grid this fine: a step at contact, a sqrt rise from heater-on over the interval holding it, linear
-#: elsewhere; only the recorded samples are fitted.  Refined: -1 / -0.7 / -0.5 % (object 0.5 K off) and
-#: +0.0 / -0.4 / -0.4 % (2 K off) on those records.
-REFINE_DT_s = 0.02
+#: (ISSUE #34 item 5: the short-window errors).  Sampled coarser than this, the record is refined
+#: (by :func:`refine_factor`): a step at contact, a sqrt rise from heater-on over the interval holding
+#: it, linear elsewhere; only the recorded samples are fitted.  Refined to 20 ms at 10 Hz:
+#: -1 / -0.7 / -0.5 % (object 0.5 K off) and +0.0 / -0.4 / -0.4 % (2 K off) on those records.
+#: 5 ms (was 20 ms, under which the precision board's 50-Hz records ran unrefined, the contact taken
+#: at a sample): the contact instant within the 20-ms interval then matters at 0.5-1 s of heating
+#: (ISSUE #34 item 5; bench/asbuilt_calibrated_bench.py, see its results' ``refine`` note).
+REFINE_DT_s = 0.005
+#: At most this many fine steps per recorded interval: a 10-Hz record keeps the 20-ms grid it was
+#: validated on (and its cost); a 50-Hz one runs at 5 ms.
+MAX_REFINE = 5
+
+
+def refine_factor(dt_s: float, refine_dt_s: float | None = REFINE_DT_s) -> int:
+    """Fine steps per recorded interval ``dt_s`` (1: the record runs on its own samples).
+
+    ceil(dt / refine_dt_s), at most :data:`MAX_REFINE`; None: 1.
+    """
+    if refine_dt_s is None:
+        return 1
+    return min(MAX_REFINE, max(1, int(math.ceil(dt_s / refine_dt_s - 1e-9))))
 
 
 def _refine(t: np.ndarray, x: np.ndarray, m: int, breaks_s: tuple[float, ...], k: int = 0) -> np.ndarray:
@@ -350,7 +371,7 @@ def _prepare(t_s, T_tc_C, q_m_W_m2, cal: SensorChainCalibration, T_probe0_C, fit
         # a 0.7-s touch without its contact in air asked for the late fit from 1 s).
         raise ValueError(f"fit_start_s = {fit_start_s:g} s leaves fewer than 4 samples to fit (the record ends "
                          f"{t[-1] - t[0]:.3g} s after contact)")
-    m = 1 if refine_dt_s is None else max(1, int(math.ceil(dt / refine_dt_s - 1e-9)))
+    m = refine_factor(dt, refine_dt_s)
     recorded = np.ones(t.size, dtype=bool)
     if m > 1:
         # The contact lies within the record's first interval, ``contact_frac`` of it after sample 0: the
@@ -524,6 +545,12 @@ def _result(Xl: np.ndarray, y: np.ndarray, fit: np.ndarray, p: np.ndarray, Tp0: 
     sdd = np.outer(sd, sd)
     corr = np.divide(cov, sdd, out=np.zeros_like(cov), where=sdd > 0)
     inv_e, u_inv_e = p[2], sd[2]
+    # The same covariance on the stated noise alone (no residual excess, no inflation), nuisances free
+    # and known: which part of the fit's u is noise, which the nuisances, which the residual's excess.
+    unit = np.linalg.pinv(Xs.T @ Xs) / np.outer(scale, scale)
+    u_noise = noise_T_K * math.sqrt(max(float(unit[2, 2]), 0.0)) / abs(inv_e) if inv_e else math.inf
+    g2 = float(Xf[:, 2] @ Xf[:, 2])
+    u_known = noise_T_K / math.sqrt(g2) / abs(inv_e) if inv_e and g2 > 0 else math.inf
     e = 1.0 / inv_e if inv_e > 0 else float("inf")
     u_e = u_inv_e / inv_e**2 if inv_e > 0 else float("inf")
     rms = math.sqrt(float(r @ r) / m)
@@ -532,7 +559,8 @@ def _result(Xl: np.ndarray, y: np.ndarray, fit: np.ndarray, p: np.ndarray, Tp0: 
         R_c_m2K_W=float(p[1]), u_R_c_m2K_W=float(sd[1]),
         T_obj0_C=float(Tp0 + p[0]), u_T_obj0_C=float(sd[0]),
         correlation=corr, normalised_residual=rms / noise_T_K, rms_residual_K=rms, n_iterations=n_iterations,
-        n_fitted=int(m), residual_inflation=float(infl),
+        n_fitted=int(m), residual_inflation=float(infl), u_ln_e_noise=float(u_noise),
+        u_ln_e_noise_nuisance_known=float(u_known),
     )
 
 
