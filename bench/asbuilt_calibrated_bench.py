@@ -427,7 +427,80 @@ def _stats(rs: list[dict]) -> dict:
             "p90_abs_err": float(np.percentile(err, 90)) if err else None,
             "cov95": sum(cover) / len(cover) if cover else None,
             "median_u_rel": statistics.median(r["u_e"] / r["e"] for r in ans) if ans else None,
-            "median_attainable_u_rel": statistics.median(att) if att else None}
+            "median_attainable_u_rel": statistics.median(att) if att else None,
+            "median_attainable_with_calibration_u_rel": _median(_with_calibration(r) for r in chain),
+            "u_parts": _u_parts(chain)}
+
+
+def _median(xs) -> float | None:
+    got = [float(x) for x in xs if x is not None and math.isfinite(x)]
+    return statistics.median(got) if got else None
+
+
+def _with_calibration(r: dict) -> float | None:
+    """The touch-only attainable u(e) with the calibration's parts added (its covariance and its model-form
+    floor): a touch cannot beat the calibration it is answered through."""
+    p, att = r.get("u_e_parts") or {}, r.get("attainable_u_rel")
+    if att is None or "calibration" not in p:
+        return None
+    return math.sqrt(att ** 2 + p["calibration"] ** 2 + p.get("floor", 0.0) ** 2)
+
+
+#: The stated u(e)'s parts tabulated by :func:`decomposition_table`: key in the row -> its meaning.
+U_PARTS = {"stated": "stated u(e)", "fit": "fit (as stated)", "noise": "noise alone, nuisances fitted",
+           "noise_known": "noise alone, nuisances known", "residual_factor": "fit / noise alone",
+           "calibration": "calibration covariance", "floor": "calibration model-form floor",
+           "contact": "contact instant", "lateral": "lateral (disk, window)",
+           "attainable": "attainable (design, R_c and T_obj unknown)",
+           "attainable_known": "attainable, R_c and T_obj known",
+           "attainable_with_calibration": "attainable with the calibration's parts"}
+
+
+def _u_parts(chain: list[dict]) -> dict:
+    """Medians over the calibrated chain's answers of the parts of their stated u(e) (relative)."""
+    def part(r, k):
+        p = r.get("u_e_parts") or {}
+        if k == "stated":
+            return r["u_e"] / r["e"]
+        if k == "noise":
+            return r.get("u_e_fit_noise")
+        if k == "noise_known":
+            return r.get("u_e_fit_noise_nuisance_known")
+        if k == "residual_factor":
+            n = r.get("u_e_fit_noise")
+            return p["fit"] / n if n and "fit" in p else None
+        if k == "attainable":
+            return r.get("attainable_u_rel")
+        if k == "attainable_known":
+            return r.get("attainable_u_rel_no_nuisance")
+        if k == "attainable_with_calibration":
+            return _with_calibration(r)
+        return p.get(k)
+    return {k: _median(part(r, k) for r in chain) for k in U_PARTS}
+
+
+def decomposition_table(summary: dict, windows=("1", "2")) -> str:
+    """What the calibrated chain's stated u(e) is made of at ``windows`` (s), per class, against the design's bound.
+
+    Medians over the chain's answers; parts are relative standard uncertainties summed in quadrature
+    in the stated u (fit, calibration, floor, contact, lateral); "noise alone" is the fit's u on the
+    air-measured thermocouple noise without the residual's excess (with T_obj0 and R_c fitted, and
+    known), "fit / noise alone" the residual's excess (model error and flux noise the fit absorbs).
+    """
+    cols = list(U_PARTS)
+    lines = ["| head | window | class | " + " | ".join(U_PARTS[c] for c in cols) + " |",
+             "|---|---|---|" + "---|" * len(cols)]
+    for head, s in summary.items():
+        for w in windows:
+            ws = s["windows"].get(w)
+            if ws is None:
+                continue
+            for cls, c in [("all", ws["all"])] + list(ws["classes"].items()):
+                up = c.get("u_parts") or {}
+                cells = [("–" if up.get(k) is None else f"{up[k]:.1f}×") if k == "residual_factor"
+                         else _pct(up.get(k), ".2f") for k in cols]
+                lines.append(f"| {head} | {w} s | {cls} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def summarise(rows: list[dict], probes: list[dict]) -> dict:
@@ -464,17 +537,22 @@ def table(summary: dict) -> str:
                          f"{al['answered']} / {al['through_calibration']} / {al['n']} | {_pct(al['median_u_rel'], '.1f')} | "
                          f"{_pct(al['median_attainable_u_rel'], '.1f')} |")
     lines += ["", "| head | window | class | touches (calibration refused) | median \\|error\\| | 95 % coverage | "
-              "median stated u | median attainable u | error / attainable |", "|---|---|---|---|---|---|---|---|---|"]
+              "median stated u | median attainable u | error / attainable | attainable with calibration | "
+              "error / that |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     for head, s in summary.items():
         for w, ws in s["windows"].items():
             for cls, c in ws["classes"].items():
                 ratio = (None if c["median_abs_err"] is None or not c["median_attainable_u_rel"]
                          else c["median_abs_err"] / c["median_attainable_u_rel"])
+                awc = c.get("median_attainable_with_calibration_u_rel")
+                ratio_c = None if c["median_abs_err"] is None or not awc else c["median_abs_err"] / awc
                 lines.append(f"| {head} | {w} s | {cls} | {c['n']} ({c['calibration_refused']}) | "
                              f"{_pct(c['median_abs_err'], '.1f')} | "
                              f"{_pct(c['cov95'], '.0f')} | {_pct(c['median_u_rel'], '.1f')} | "
-                             f"{_pct(c['median_attainable_u_rel'], '.1f')} | {'–' if ratio is None else f'{ratio:.1f}'} |")
-    lines.append("")
+                             f"{_pct(c['median_attainable_u_rel'], '.1f')} | {'–' if ratio is None else f'{ratio:.1f}'} | "
+                             f"{_pct(awc, '.1f')} | {'–' if ratio_c is None else f'{ratio_c:.1f}'} |")
+    lines += ["", "What the calibrated chain's stated u(e) is made of (medians over its answers; "
+              "`decomposition_table`):", "", decomposition_table(summary), ""]
     for head, s in summary.items():
         floors = [f for f in s["floors"] if f is not None]
         lines.append(f"{head}: {s['refused']} of {s['probes']} calibrations refused by their self-check"

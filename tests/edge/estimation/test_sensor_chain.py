@@ -190,3 +190,38 @@ def test_chain_design_models_the_contact_instant_the_fit_does(frac):
     # ... and the contact instant changes the model (it is not ignored).
     X0, _ = chain_design(t, T, q, contact_frac=0.0 if frac else 0.6, **kw)
     assert not np.allclose(X0[-30:], X[-30:])
+
+
+def test_refine_factor_runs_50_hz_at_5_ms_and_keeps_10_hz_on_its_20_ms_grid():
+    """ISSUE #34 item 5: the 50-Hz precision board's contact instant is placed within its 20-ms interval."""
+    from edge.estimation.sensor_chain import MAX_REFINE, refine_factor
+
+    assert refine_factor(0.1) == MAX_REFINE == 5          # 10 Hz: 20 ms, as validated before
+    assert refine_factor(0.02) == 4                       # 50 Hz: 5 ms
+    assert refine_factor(0.005) == 1 and refine_factor(0.02, None) == 1
+
+
+def test_the_fits_noise_part_is_the_white_noise_bound_and_the_storage_term_adds_to_it():
+    """u_ln_e_noise is the fit's u on the stated noise alone: the scatter of ln e when white noise enters
+    the record only (the design fixed, as in the Fisher bound of edge.estimation.design).  The
+    thermocouple's noise also enters the storage term (errors in variables), so the real fit scatters
+    more, and its stated u (residual, lag-1 inflation) is what covers that; knowing the nuisances
+    (T_obj0, R_c) can only lower the noise part."""
+    from edge.estimation.sensor_chain import chain_design
+
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 1.5, 0.02)
+    q = np.where(t > 0.5, 2500.0, 600.0)
+    cal = SensorChainCalibration()
+    T = simulate_chain(t, q, e_W_s05_m2K=600.0, R_c_m2K_W=2e-5, T_obj0_C=23.0, T_probe0_C=25.0, calibration=cal)
+    sigma, kw = 0.005, dict(calibration=cal, breaks_s=(0.5,))
+    X, y = chain_design(t, T, q, T_probe0_C=25.0, **kw)
+    fixed = [np.linalg.lstsq(X, y + sigma * rng.standard_normal(y.size), rcond=None)[0][2] for _ in range(200)]
+    got = [fit_sensor_chain(t, T + sigma * rng.standard_normal(t.size), q, smooth_s=0.0, noise_T_K=sigma,
+                            T_probe0_C=25.0, **kw) for _ in range(100)]
+    u_noise = float(np.median([r.u_ln_e_noise for r in got]))
+    assert u_noise == pytest.approx(float(np.std(np.log(fixed))), rel=0.2)
+    scatter = float(np.std([np.log(r.e_W_s05_m2K) for r in got]))
+    assert scatter > 1.3 * u_noise
+    assert float(np.median([r.u_e_W_s05_m2K / r.e_W_s05_m2K for r in got])) == pytest.approx(scatter, rel=0.3)
+    assert all(r.u_ln_e_noise_nuisance_known <= r.u_ln_e_noise for r in got)
