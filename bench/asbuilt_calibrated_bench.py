@@ -447,7 +447,8 @@ def _with_calibration(r: dict) -> float | None:
 
 
 #: The stated u(e)'s parts tabulated by :func:`decomposition_table`: key in the row -> its meaning.
-U_PARTS = {"stated": "stated u(e)", "fit": "fit (as stated)", "noise": "noise alone, nuisances fitted",
+U_PARTS = {"error": "median \\|error\\|", "error_within_probe": "\\|error\\| less the probe's median",
+           "stated": "stated u(e)", "fit": "fit (as stated)", "noise": "noise alone, nuisances fitted",
            "noise_known": "noise alone, nuisances known", "residual_factor": "fit / noise alone",
            "calibration": "calibration covariance", "floor": "calibration model-form floor",
            "contact": "contact instant", "lateral": "lateral (disk, window)",
@@ -457,11 +458,16 @@ U_PARTS = {"stated": "stated u(e)", "fit": "fit (as stated)", "noise": "noise al
 
 
 def _u_parts(chain: list[dict]) -> dict:
-    """Medians over the calibrated chain's answers of the parts of their stated u(e) (relative)."""
+    """Medians over the calibrated chain's answers of the parts of their stated u(e) (relative) and of their errors."""
     def part(r, k):
         p = r.get("u_e_parts") or {}
         if k == "stated":
             return r["u_e"] / r["e"]
+        if k == "error":
+            return abs(r["err"])
+        if k == "error_within_probe":
+            x = r.get("err_within_probe")
+            return None if x is None else abs(x)
         if k == "noise":
             return r.get("u_e_fit_noise")
         if k == "noise_known":
@@ -503,6 +509,19 @@ def decomposition_table(summary: dict, windows=("1", "2")) -> str:
     return "\n".join(lines)
 
 
+def _within_probe(rows: list[dict]) -> list[dict]:
+    """``rows`` (one window) each with ``err_within_probe``: its ln error less its probe's median over the
+    calibrated chain's answers.  What one probe's calibration puts on all its touches is then gone: the
+    calibration's share of the error is the difference between the two medians."""
+    offset = {}
+    for p in {r["probe"] for r in rows}:
+        got = [math.log1p(r["err"]) for r in rows if r["probe"] == p and r.get("err") is not None
+               and r.get("method") == "sensor_chain"]
+        offset[p] = statistics.median(got) if got else None
+    return [r | {"err_within_probe": None if r.get("err") is None or offset[r["probe"]] is None
+                 else math.log1p(r["err"]) - offset[r["probe"]]} for r in rows]
+
+
 def summarise(rows: list[dict], probes: list[dict]) -> dict:
     out: dict = {}
     for head, spec in HEADS.items():
@@ -516,7 +535,7 @@ def summarise(rows: list[dict], probes: list[dict]) -> dict:
                    "floors": [None if p["calibration"] is None else p["calibration"]["u_rel_floor"] for p in hp],
                    "windows": {}}
         for w in spec["windows_s"]:
-            rw = [r for r in rows if r["head"] == head and r["window_s"] == w]
+            rw = _within_probe([r for r in rows if r["head"] == head and r["window_s"] == w])
             ws = {"low_Rc": _stats([r for r in rw if r["R_c"] <= RC_SPLIT]), "all": _stats(rw), "classes": {}}
             for cls in sorted({r["class"] for r in rw}):
                 ws["classes"][cls] = _stats([r for r in rw if r["class"] == cls])
