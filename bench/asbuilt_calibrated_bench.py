@@ -35,6 +35,13 @@ touch's window, power and sample interval with R_c and the object's
 temperature as nuisance parameters), the calibrations refused and why, and
 each probe's references re-measured after calibration (rel. error and z).
 
+The ``--merge`` summary also tabulates what the calibrated chain's stated u(e) is made of at 1 and 2 s
+(:func:`decomposition_table`): the fit's part (and within it the white-noise part, with the nuisances
+T_obj0 and R_c fitted and known), the calibration's covariance and model-form floor, the contact
+instant, the lateral part, against the design's bound with and without the nuisances and with the
+calibration's parts added; and the median |error| beside the median |error| less each probe's median
+(what one probe's calibration puts on all its touches removed: the calibration's share of the error).
+
 ``--attribute`` (ISSUE #34 item 1): on the drawn probes of ``--seeds`` (default 2 and 6) the same hand
 touches of :data:`ATTRIBUTE_SOLIDS` are made again with one thing switched off at a time
 (:data:`ATTRIBUTE_VARIANTS`: R_c = 0, the object near the probe's temperature, contact at heater-on,

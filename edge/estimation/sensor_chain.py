@@ -315,8 +315,10 @@ class _Prepared:
 #: it, linear elsewhere; only the recorded samples are fitted.  Refined to 20 ms at 10 Hz:
 #: -1 / -0.7 / -0.5 % (object 0.5 K off) and +0.0 / -0.4 / -0.4 % (2 K off) on those records.
 #: 5 ms (was 20 ms, under which the precision board's 50-Hz records ran unrefined, the contact taken
-#: at a sample): the contact instant within the 20-ms interval then matters at 0.5-1 s of heating
-#: (ISSUE #34 item 5; bench/asbuilt_calibrated_bench.py, see its results' ``refine`` note).
+#: at a sample): on the calibrated hand-touch bench (bench/asbuilt_calibrated_bench.py, 8 drawn paper
+#: probes x 20 solids) the median |e error| where R_c <= 3e-5 went 3.3 -> 2.9 % at 0.5 s (90th
+#: percentile 11.8 -> 8.7 %), 1.8 -> 1.7 % at 1 s, 1.2 -> 1.3 % at 2 s (p90 2.7 -> 2.4 %); the chain's
+#: estimate costs ~2x the CPU on a 50-Hz record (0.015 -> 0.03 s).
 REFINE_DT_s = 0.005
 #: At most this many fine steps per recorded interval: a 10-Hz record keeps the 20-ms grid it was
 #: validated on (and its cost); a 50-Hz one runs at 5 ms.
