@@ -148,6 +148,8 @@ def _load(path: Path) -> Cached:
 
 #: Set by ``--reuse``: a touch missing from the cache is an error, not a simulation.
 REUSE_ONLY = False
+#: The switches the run was made with (``--offset-stack``, ``--no-model-form``): written with its results.
+CONFIG: dict = {}
 
 
 def run_touch(sc, store, workdir: str, key: str) -> Cached:
@@ -457,6 +459,7 @@ def finish(probes: list[dict], solids: list[str], n_ref: int, wall_s: float, upd
     """Summarise, print, write the JSON (and the docs block)."""
     summary = summarise(probes)
     res = {"probes": len(probes), "solids": solids, "references": list(REFERENCES), "ref_touches": n_ref,
+           "config": CONFIG,
            "heat_s": HEAT_S, "short_s": list(SHORT_S), "wall_s": wall_s, "load_avg_1min": os.getloadavg()[0],
            "summary": summary, "per_probe": probes}
     text = table(summary, len(probes), len(solids), n_ref)
@@ -485,13 +488,30 @@ def main() -> None:
     ap.add_argument("--merge", nargs="+", metavar="PART_JSON", help="summarise --part runs instead of touching")
     ap.add_argument("--simulate-only", action="store_true",
                     help="only fill the touch cache (bench/results/cache/asbuilt_small/), estimate nothing")
+    ap.add_argument("--offset-stack", choices=("calibration", "datasheet"), default="calibration",
+                    help="the offset kernel's stack known to the calibration's covariance (default) or to the "
+                         "datasheet's tolerances (edge.estimation.object_offset.OFFSET_STACK_FROM_CALIBRATION)")
+    ap.add_argument("--no-model-form", action="store_true",
+                    help="calibrate without the drawing's model-form terms (edge.calibration.axi.MODEL_FORM)")
+    ap.add_argument("--no-reference-floor", action="store_true",
+                    help="calibrate without the references' shifts as the model-form floor "
+                         "(edge.calibration.axi.REFERENCE_FLOOR)")
     ap.add_argument("--reuse", action="store_true",
                     help="re-estimate the cached touches (new estimator or calibration code; no simulation)")
     args = ap.parse_args()
     global REUSE_ONLY
     REUSE_ONLY = args.reuse
+    import edge.calibration.axi as axi_cal
+    import edge.estimation.object_offset as oo
+    oo.OFFSET_STACK_FROM_CALIBRATION = args.offset_stack == "calibration"
+    axi_cal.MODEL_FORM = not args.no_model_form
+    axi_cal.REFERENCE_FLOOR = not args.no_reference_floor
+    CONFIG.update(offset_stack=args.offset_stack, model_form=not args.no_model_form,
+                  reference_floor=not args.no_reference_floor)
     if args.merge:
         parts = [json.loads(Path(f).read_text()) for f in args.merge]
+        CONFIG.clear()
+        CONFIG.update(parts[0].get("config") or {})
         probes = sorted((p for part in parts for p in part["per_probe"]), key=lambda p: p["probe"])
         finish(probes, parts[0]["solids"], parts[0]["ref_touches"], sum(p["wall_s"] for p in probes), args.update_docs)
         return
@@ -516,7 +536,7 @@ def main() -> None:
         probes.append(p)
         if args.part_out:   # after every probe: a run cut short keeps what it has
             Path(args.part_out).write_text(json.dumps({"solids": solids, "ref_touches": args.ref_touches,
-                                                       "per_probe": probes}))
+                                                       "config": CONFIG, "per_probe": probes}))
     if args.part or args.simulate_only:
         return
     finish(probes, solids, args.ref_touches, time.perf_counter() - t0, args.update_docs)
