@@ -21,7 +21,7 @@ sensor footprint (square)        its drawing                 read exactly (:mod:
 sensor's sides, its offset and   +-0.2 mm, +-0.5 mm;         not identified by three references (the
 the thermocouple's distance      within 0.5 mm               read-out is even in the offset): carried as
 from the axis                                                model-form terms of the covariance
-                                                             (:data:`MODEL_FORM_TOLERANCES`)
+                                                             (:data:`~edge.estimation.probe_estimate.MODEL_FORM_TOLERANCES`)
 sensitivity map, thermocouple    +-5 %; ms                   not modelled; what they leave is the
 lag                                                          leave-one-out model-form floor
 ===============================  ==========================  =============================================
@@ -34,7 +34,7 @@ records against the model, weighted by the sensors' noise, with the touch's powe
 Priors are rows of the least-squares problem.  The Jacobian is by finite differences (the model is a
 few array operations per evaluation).  The covariance is ``(J^T J)^-1`` with the data rows scaled by
 the residual's own scatter where it exceeds the noise (model error the references show), plus the
-model-form terms: for each drawing tolerance the fit does not identify (:data:`MODEL_FORM_TOLERANCES`),
+model-form terms: for each drawing tolerance the fit does not identify (:data:`~edge.estimation.probe_estimate.MODEL_FORM_TOLERANCES`),
 the fit's linear response ``(J^T J)^-1 J^T dr`` to the residuals' change ``dr`` when the probe's model
 has that dimension off by its rms effect (Type B, as GUM treats an influence quantity left unfitted).
 Without them the identified flux scale and sensing layer were off their drawn values by 2.6-3.4 x their
@@ -61,7 +61,7 @@ from edge.calibration.fit import check_reference
 from edge.calibration.model import CalibrationError, ProbeCalibration, ReferenceFit
 from edge.physics.probe import FLUX_SENSITIVITY_U_REL, SENSING_K_U_REL, SENSING_THICKNESS_U_REL
 from edge.estimation.object_offset import HEATER_TCR_PER_K
-from edge.estimation.probe_estimate import CALIBRATED, geometry_at
+from edge.estimation.probe_estimate import CALIBRATED, MODEL_FORM_TOLERANCES, geometry_at, perturbed_geometry
 from edge.physics.axisym import AxisymModel
 from edge.physics.heater_tcr import droop_transforms
 
@@ -86,39 +86,9 @@ _TCR_PRIOR = (0.5 * sum(HEATER_TCR_PER_K) / _TCR_UNIT,
 _RC_UNIT = 1e-5          # m^2 K/W: each touch's contact resistance is iterated in this unit
 _RC_PRIOR_SD = 3.0       # in _RC_UNIT: a careful reference touch (paste, pressed) stays within ~3e-5
 _FD = 1e-4               # finite-difference step (ln units and _RC_UNIT)
-#: The drawing's tolerances the fit does not identify, as model-form terms of the calibration's covariance:
-#: name -> (ProbeGeometry change, the dimension's size at which its effect is the effect's rms over the
-#: tolerance). The sides (+-0.2 mm each, uniform) act linearly: a / sqrt 3. The sensor's offset from the
-#: heater's axis (+-0.5 mm in x and y, uniform) acts through the read-out's even response, ~ (x^2 + y^2),
-#: whose rms over the tolerance is a^2 sqrt(28/45): taken at x = y = a (sqrt(28/45) / 2)^(1/2) = 0.63 a, where
-#: x^2 + y^2 is that rms. The thermocouple within 0.5 mm of the axis (uniform
-#: over the disk): T(r) is even in r, r^2 uniform on [0, R^2], its rms R^2 / sqrt 3: r = R 3^(-1/4).
-MODEL_FORM_TOLERANCES = {
-    "sensor_side_x_m": ("side_x", 0.2e-3 / math.sqrt(3.0)),
-    "sensor_side_y_m": ("side_y", 0.2e-3 / math.sqrt(3.0)),
-    "sensor_offset_m": ("offset", 0.5e-3 * math.sqrt(math.sqrt(28.0 / 45.0) / 2.0)),
-    "thermocouple_r_m": ("thermocouple", 0.5e-3 * 3.0 ** -0.25),
-}
 #: Carry the model-form terms (False: the covariance of the fit alone, as before; bench
 #: ``--no-model-form`` compares).
 MODEL_FORM = True
-
-
-def _perturbed(geometry, what: str, size_m: float):
-    """The probe ``geometry`` with one drawing dimension off by ``size_m`` (:data:`MODEL_FORM_TOLERANCES`)."""
-    from dataclasses import replace  # noqa: PLC0415
-
-    sq = geometry.sensor_square_m
-    if what in ("side_x", "side_y", "offset") and sq is None:
-        return None    # an equal-area disk read-out: the square's dimensions are not in the model
-    if what == "side_x":
-        return replace(geometry, sensor_square_m=(sq[0] + size_m, sq[1]))
-    if what == "side_y":
-        return replace(geometry, sensor_square_m=(sq[0], sq[1] + size_m))
-    if what == "offset":
-        ox, oy = geometry.sensor_offset_m
-        return replace(geometry, sensor_offset_m=(ox + size_m, oy + size_m))
-    return replace(geometry, thermocouple_r_m=geometry.thermocouple_r_m + size_m)
 
 
 @dataclass(frozen=True)
@@ -301,7 +271,7 @@ class _Problem:
         JtJ_inv = np.linalg.pinv(J.T @ J)
         out = {}
         for name, (what, size) in MODEL_FORM_TOLERANCES.items():
-            g = _perturbed(self.g, what, size)
+            g = perturbed_geometry(self.g, what, size)
             if g is None:
                 continue
             other = _Problem(self.est, [tc for tc, *_ in self.touches], geometry=g, nodes_from=self)

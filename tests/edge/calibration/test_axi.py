@@ -47,7 +47,9 @@ def test_the_scale_is_recovered_and_the_calibrated_probe_measures_closer(axi, mo
     cal = fit_flux_scale(axi, refs)
     assert cal.probe == "small-heater" and cal.calibrated
     f, u = cal.chain.flux_scale, cal.u_theta[0]
-    assert abs(np.log(f * READS_HIGH)) < 3 * u and u < 0.01
+    # u carries the drawing's unfitted tolerances (sensor sides, offset, thermocouple radius: ~1 % of flux
+    # scale, edge.estimation.probe_estimate.MODEL_FORM_TOLERANCES), which six touches cannot narrow.
+    assert abs(np.log(f * READS_HIGH)) < 3 * u and u < 0.015
     assert ProbeCalibration.from_json(cal.to_json()) == cal
     assert {r.name for r in cal.references} == {"pmma", "pyroceram", "aisi_304"}
     # The calibrated path fits each touch's contact resistance (a hand touch's is unknown): the references
@@ -229,3 +231,14 @@ def test_references_the_fit_must_bend_beyond_their_u_set_the_model_form_floor(ax
     shifts = cal.head_model["reference_shift_ln_e"]
     assert set(shifts) == {"pmma", "pyroceram", "aisi_304"}
     assert 0.005 < cal.u_rel_floor < 0.12, (cal.u_rel_floor, shifts)
+    # A held-out solid touched by the same probe: the answer carries each term's net effect on its own touch
+    # (the calibration's shift partly makes up for the offset square there too), so its u is below the
+    # parameters' shifts read alone, and it still holds the truth.
+    glass = touch(world, "borofloat_33", rng)
+    kw = dict(flux_scale=cal.flux_scale, flux_u_rel=cal.flux_u_rel, calibrated=calibrated_params(cal),
+              heater_tcr_per_K=hm["heater_tcr_per_K"])
+    net = axi.estimate(glass.t_s, glass.dT_K, glass.q_W_m2, model_form=hm["model_form"], **kw)
+    shifts_only = axi.estimate(glass.t_s, glass.dT_K, glass.q_W_m2, **kw)
+    assert set(net["fit"]["u_rel_model_form"]) == {"k", "alpha"}
+    assert net["k_W_mK_u"] < shifts_only["k_W_mK_u"] and net["k_W_mK"] == shifts_only["k_W_mK"]
+    assert abs(np.log(net["k_W_mK"] / glass.k_W_mK)) < 1.96 * net["k_W_mK_u"] / net["k_W_mK"]
