@@ -173,7 +173,7 @@ def test_the_heaters_tcr_is_identified_and_the_stack_stays_the_probes(axi, model
     assert all(abs(x) < 0.02 for r in cal.references for x in r.rel_errors)
 
 
-@pytest.mark.slow  # one calibration fit on six noisy touches of an as-built world: ~2 s
+@pytest.mark.slow  # one calibration fit on six noisy touches of an as-built world and two estimates: ~2.5 s
 def test_the_drawings_unfitted_tolerances_widen_the_calibrations_u_to_cover_them(axi):
     """References touched by a probe whose square sensor sits 0.4 mm off the heater's axis in x and y and is
     0.2 mm wider (inside the drawing's tolerances; the fit's model is the datasheet's, centred): the fit bends
@@ -181,7 +181,8 @@ def test_the_drawings_unfitted_tolerances_widen_the_calibrations_u_to_cover_them
     layer) outside 2.5 u; with them (edge.calibration.axi.MODEL_FORM_TOLERANCES) it covers it."""
     from dataclasses import replace
 
-    from edge.calibration.axi import GLOBALS, MODEL_FORM_TOLERANCES
+    from edge.calibration.axi import GLOBALS
+    from edge.estimation.probe_estimate import MODEL_FORM_TOLERANCES
 
     world = AxisymModel(replace(G, sensor_square_m=(G.sensor_square_m[0] + 0.2e-3, G.sensor_square_m[1]),
                                 sensor_offset_m=(0.4e-3, 0.4e-3)), T5)
@@ -199,6 +200,17 @@ def test_the_drawings_unfitted_tolerances_widen_the_calibrations_u_to_cover_them
     assert np.all(z < 2.0), dict(zip(GLOBALS, z))
     # The chain's covariance (what every answer's u carries) is the widened one.
     assert cal.u_theta[0] == pytest.approx(u[0], rel=1e-9)
+    # A held-out solid touched by the same probe: the answer carries each term's net effect on its own touch
+    # (the calibration's shift partly makes up for the offset square there too), so its u is below the
+    # parameters' shifts read alone, and it still holds the truth.
+    glass = touch(world, "borofloat_33", rng)
+    kw = dict(flux_scale=cal.flux_scale, flux_u_rel=cal.flux_u_rel, calibrated=calibrated_params(cal),
+              heater_tcr_per_K=hm["heater_tcr_per_K"])
+    net = axi.estimate(glass.t_s, glass.dT_K, glass.q_W_m2, model_form=hm["model_form"], **kw)
+    shifts_only = axi.estimate(glass.t_s, glass.dT_K, glass.q_W_m2, **kw)
+    assert set(net["fit"]["u_rel_model_form"]) == {"k", "alpha"}
+    assert net["k_W_mK_u"] < shifts_only["k_W_mK_u"] and net["k_W_mK"] == shifts_only["k_W_mK"]
+    assert abs(np.log(net["k_W_mK"] / glass.k_W_mK)) < 1.96 * net["k_W_mK_u"] / net["k_W_mK"]
 
 
 def test_a_touch_is_kept_only_when_its_declared_reference_explains_it_best(axi, model):
@@ -231,14 +243,3 @@ def test_references_the_fit_must_bend_beyond_their_u_set_the_model_form_floor(ax
     shifts = cal.head_model["reference_shift_ln_e"]
     assert set(shifts) == {"pmma", "pyroceram", "aisi_304"}
     assert 0.005 < cal.u_rel_floor < 0.12, (cal.u_rel_floor, shifts)
-    # A held-out solid touched by the same probe: the answer carries each term's net effect on its own touch
-    # (the calibration's shift partly makes up for the offset square there too), so its u is below the
-    # parameters' shifts read alone, and it still holds the truth.
-    glass = touch(world, "borofloat_33", rng)
-    kw = dict(flux_scale=cal.flux_scale, flux_u_rel=cal.flux_u_rel, calibrated=calibrated_params(cal),
-              heater_tcr_per_K=hm["heater_tcr_per_K"])
-    net = axi.estimate(glass.t_s, glass.dT_K, glass.q_W_m2, model_form=hm["model_form"], **kw)
-    shifts_only = axi.estimate(glass.t_s, glass.dT_K, glass.q_W_m2, **kw)
-    assert set(net["fit"]["u_rel_model_form"]) == {"k", "alpha"}
-    assert net["k_W_mK_u"] < shifts_only["k_W_mK_u"] and net["k_W_mK"] == shifts_only["k_W_mK"]
-    assert abs(np.log(net["k_W_mK"] / glass.k_W_mK)) < 1.96 * net["k_W_mK_u"] / net["k_W_mK"]
