@@ -96,7 +96,8 @@ def touch_scene(name: str, draw_seed: int, seed: int, *, R_c: float, offset_K: f
 
 #: The ``--offset-stack datasheet`` run on the same cache (the offset kernel's stack at the datasheet's
 #: tolerances, the rest as the default), quoted in the docs block.
-COMPARE_DATASHEET = "`--offset-stack datasheet` (PENDING)."
+COMPARE_DATASHEET = ("`--offset-stack datasheet` (the offset kernel's stack at the datasheet's tolerances) k 7.9 %, "
+                     "α 20.9 %, determined 11 %, coverage 99 / 100 / 97 %.")
 #: Bumped when a touch's simulation changes (scene, draw, hand parameters): the cache key carries it.
 BENCH_VERSION = 1
 CACHE_DIR = Path(__file__).resolve().parent / "results" / "cache" / "asbuilt_small"
