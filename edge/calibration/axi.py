@@ -21,7 +21,7 @@ sensor footprint (square)        its drawing                 read exactly (:mod:
 sensor's sides, its offset and   +-0.2 mm, +-0.5 mm;         not identified by three references (the
 the thermocouple's distance      within 0.5 mm               read-out is even in the offset): carried as
 from the axis                                                model-form terms of the covariance
-                                                             (:data:`~edge.estimation.probe_estimate.MODEL_FORM_TOLERANCES`)
+                                                             (probe_estimate.MODEL_FORM_TOLERANCES)
 sensitivity map, thermocouple    +-5 %; ms                   not modelled; what they leave is the
 lag                                                          leave-one-out model-form floor
 ===============================  ==========================  =============================================
@@ -34,9 +34,10 @@ records against the model, weighted by the sensors' noise, with the touch's powe
 Priors are rows of the least-squares problem.  The Jacobian is by finite differences (the model is a
 few array operations per evaluation).  The covariance is ``(J^T J)^-1`` with the data rows scaled by
 the residual's own scatter where it exceeds the noise (model error the references show), plus the
-model-form terms: for each drawing tolerance the fit does not identify (:data:`~edge.estimation.probe_estimate.MODEL_FORM_TOLERANCES`),
-the fit's linear response ``(J^T J)^-1 J^T dr`` to the residuals' change ``dr`` when the probe's model
-has that dimension off by its rms effect (Type B, as GUM treats an influence quantity left unfitted).
+model-form terms: for each drawing tolerance the fit does not identify
+(:data:`~edge.estimation.probe_estimate.MODEL_FORM_TOLERANCES`), the fit's linear response
+``(J^T J)^-1 J^T dr`` to the residuals' change ``dr`` when the probe's model has that dimension off by
+its rms effect (Type B, as GUM treats an influence quantity left unfitted).
 Without them the identified flux scale and sensing layer were off their drawn values by 2.6-3.4 x their
 stated u over 7 drawn probes (bench/asbuilt_small_bench.py).
 

@@ -81,11 +81,13 @@ _CAL_STEP = 1e-3
 
 #: The drawing's tolerances the fit does not identify, as model-form terms of the calibration's covariance:
 #: name -> (ProbeGeometry change, the dimension's size at which its effect is the effect's rms over the
-#: tolerance). The calibration (edge.calibration.axi) carries the fit's response to each; an answer
-#: carries what is left of it on its own touch (:meth:`AxiEstimator._model_form_variance`). The sides
-#: (+-0.2 mm each, uniform) act linearly: a / sqrt 3. The sensor's offset from the heater's axis (+-0.5 mm in x and y, uniform) acts through the read-out's even response, ~ (x^2 + y^2),
-#: whose rms over the tolerance is a^2 sqrt(28/45): taken at x = y = a (sqrt(28/45) / 2)^(1/2) = 0.63 a, where
-#: x^2 + y^2 is that rms. The thermocouple within 0.5 mm of the axis (uniform over the disk): T(r) is even in r, r^2 uniform on [0, R^2], its rms R^2 / sqrt 3: r = R 3^(-1/4).
+#: tolerance). The calibration (edge.calibration.axi) carries the fit's response to each; an answer carries
+#: what is left of it on its own touch (:meth:`AxiEstimator._model_form_variance`). The sides (+-0.2 mm
+#: each, uniform) act linearly: a / sqrt 3. The sensor's offset from the heater's axis (+-0.5 mm in x and
+#: y, uniform) acts through the read-out's even response, ~ (x^2 + y^2), whose rms over the tolerance is
+#: a^2 sqrt(28/45): taken at x = y = a (sqrt(28/45) / 2)^(1/2) = 0.63 a, where x^2 + y^2 is that rms. The
+#: thermocouple within 0.5 mm of the axis (uniform over the disk): T(r) is even in r, r^2 uniform on
+#: [0, R^2], its rms R^2 / sqrt 3: r = R 3^(-1/4).
 MODEL_FORM_TOLERANCES = {
     "sensor_side_x_m": ("side_x", 0.2e-3 / math.sqrt(3.0)),
     "sensor_side_y_m": ("side_y", 0.2e-3 / math.sqrt(3.0)),
