@@ -118,6 +118,23 @@ def sim_report(sim_series):
             "laid_out": laid_out}
 
 
+def test_a_report_from_a_simulated_series(sim_series, sim_report):
+    """The report of a series a simulated probe measured (moved here from test_report.py: the module's series
+    and report serve it, instead of simulating and reporting another 3-touch series)."""
+    assert sim_report["code"] == 0, sim_report["err"]
+    html = sim_report["html"].read_text()
+    doc = json.loads(sim_series.read_text())
+    m = re.search(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', html)
+    assert m, "no embedded PNG"
+    png = base64.b64decode(m.group(1))
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000
+    assert "Measurement report: Glass &lt;B33&gt;" in html and "simulated probe, scene glass_15V" in html
+    for t in doc["touches"]:
+        assert t["started_utc"] in html
+    e = doc["summary"]["quantities"]["effusivity_W_s05_m2K"]
+    assert f"RSD {e['rsd'] * 100:.2f} %" in html and f"{N} of {N} touches answered" in html
+
+
 def test_the_report_has_one_identified_figure_per_touch_and_the_pdf_the_same_content(sim_series, sim_report):
     code, out, err = sim_report["code"], sim_report["out"], sim_report["err"]
     assert code == 0, err

@@ -14,7 +14,8 @@ from host.device import simulated_probe
 from host.ros.bridge import ANSWER_KEYS, key_values
 from tests.host.ros.support import live_ros_unavailable
 
-pytestmark = [pytest.mark.hil, pytest.mark.skipif(live_ros_unavailable() is not None,
+# slow: a live rclpy node around a simulated probe's touch (1.3 s); test_ros_bag.py's mapping tests stay fast.
+pytestmark = [pytest.mark.hil, pytest.mark.slow, pytest.mark.skipif(live_ros_unavailable() is not None,
                                                   reason=str(live_ros_unavailable()))]
 WAIT_s = 20.0
 
