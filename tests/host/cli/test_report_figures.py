@@ -20,6 +20,9 @@ from host.lab_series import SeriesFileError, load_series
 
 SAMPLE = "Glass <B33>"
 N = 3
+#: The tests on the module's simulated series are slow (its N simulated touches, and their report drawing a
+#: figure per touch and a PDF: 1.5 s); the figure and PDF tests on hand-made input stay in the fast tier.
+ON_SIM_SERIES = pytest.mark.slow
 
 
 def run(capsys, *argv):
@@ -78,6 +81,7 @@ def sim_series(tmp_path_factory):
     return path
 
 
+@ON_SIM_SERIES
 def test_the_series_file_keeps_what_each_touch_figure_needs(sim_series):
     doc = json.loads(sim_series.read_text())
     for t in doc["touches"]:
@@ -118,6 +122,7 @@ def sim_report(sim_series):
             "laid_out": laid_out}
 
 
+@ON_SIM_SERIES
 def test_a_report_from_a_simulated_series(sim_series, sim_report):
     """The report of a series a simulated probe measured (moved here from test_report.py: the module's series
     and report serve it, instead of simulating and reporting another 3-touch series)."""
@@ -135,6 +140,7 @@ def test_a_report_from_a_simulated_series(sim_series, sim_report):
     assert f"RSD {e['rsd'] * 100:.2f} %" in html and f"{N} of {N} touches answered" in html
 
 
+@ON_SIM_SERIES
 def test_the_report_has_one_identified_figure_per_touch_and_the_pdf_the_same_content(sim_series, sim_report):
     code, out, err = sim_report["code"], sim_report["out"], sim_report["err"]
     assert code == 0, err
@@ -196,6 +202,7 @@ def test_the_certificate_pdf_lists_references_values_residuals_who_when_device(c
         assert needle in text, needle
 
 
+@ON_SIM_SERIES
 def test_pdf_and_out_must_differ_and_an_existing_pdf_needs_overwrite(capsys, tmp_path, sim_series, sim_report):
     # The module's report run wrote r.html and r.htm.pdf: names alike but different are accepted.
     assert sim_report["code"] == 0 and sim_report["pdf"].exists(), sim_report["err"]
@@ -235,6 +242,7 @@ def test_a_bad_plot_entry_is_named(plot, words):
         check_plot(plot, "touches[0].plot", SeriesFileError)
 
 
+@ON_SIM_SERIES
 def test_a_series_file_with_a_bad_plot_is_one_line_exit_2(capsys, tmp_path, sim_series):
     doc = json.loads(sim_series.read_text())
     doc["touches"][1]["plot"]["series"]["raw_T_C"] = doc["touches"][1]["plot"]["series"]["raw_T_C"][:-1]
