@@ -63,10 +63,12 @@ def test_a_service_call_runs_a_touch_and_its_answer_reaches_a_subscriber(tmp_pat
             assert _wait(lambda: got["answer"])
         finally:
             executor.shutdown()
+            # The spinner leaves its loop before the context goes: on a loaded machine it was still
+            # between two waits when try_shutdown ran, and its next wait set raised in the thread.
+            spinner.join(WAIT_s)
             node.destroy_node()
             robot.destroy_node()
             rclpy.try_shutdown(context=ctx)
-            spinner.join(5.0)
     assert response.success, response.message
     reply = json.loads(response.message)
     kv = key_values(got["answer"][-1])
