@@ -39,8 +39,9 @@ each probe's references re-measured after calibration (rel. error and z).
 touches of :data:`ATTRIBUTE_SOLIDS` are made again with one thing switched off at a time
 (:data:`ATTRIBUTE_VARIANTS`: R_c = 0, the object near the probe's temperature, contact at heater-on,
 the walk-through's calibration replaced by the probe's true as-built chain, the nominal probe, the
-touch sampled at 50 Hz instead of 10) and the median |error| per class and window is tabulated
-(bench/results/asbuilt_calibrated_attribution.json).
+touch sampled at 10 Hz (the default before 50 Hz) or at 200 Hz instead of the configured 50) and the
+median |error| per class and window is tabulated (bench/results/asbuilt_calibrated_attribution.json;
+``--seeds 2 --tag a`` and ``--seeds 6 --tag b`` in parallel, then ``--attribute --merge a b``).
 
 Run:  python bench/asbuilt_calibrated_bench.py [--probes 8] [--solids 20] [--touches 3] [--update-readme]
 Writes bench/results/asbuilt_calibrated.json (and with --update-readme the block
@@ -186,7 +187,8 @@ def calibrate_probe(head: str, draw_seed: int, n_touches: int, store, workdir: s
 #: --attribute: what each simplification of the hand touch / probe does to the answer (ISSUE #34 item 1).
 ATTRIBUTE_SOLIDS = ("cork_board", "balsa", "hdpe", "epdm", "soda_lime_plate_glass", "aluminium", "copper")
 #: Variant -> (hand-touch overrides, probe drawn?, calibration: "walk" the walk-through's, "true" the as-built truth);
-#: a "rate_Hz" override samples the touch that fast instead of the device's 10 Hz.
+#: a "rate_Hz" override samples the touch at that rate instead of the configured one (50 Hz: the
+#: precision board's default; 10 Hz was the default before it).
 #: An object at the probe's own temperature is never detected by the armed touch (no contact step): 0.3 K off.
 ATTRIBUTE_VARIANTS = {
     "as bench": ({}, True, "walk"),
@@ -196,7 +198,8 @@ ATTRIBUTE_VARIANTS = {
     "true as-built calibration": ({}, True, "true"),
     "nominal probe, datasheet chain": ({}, False, "true"),
     "true cal., R_c = 0, object 0.3 K off": ({"R_c": 0.0, "offset_K": 0.3}, True, "true"),
-    "true cal., sampled at 50 Hz": ({"rate_Hz": 50.0}, True, "true"),
+    "true cal., sampled at 10 Hz": ({"rate_Hz": 10.0}, True, "true"),
+    "true cal., sampled at 200 Hz": ({"rate_Hz": 200.0}, True, "true"),
 }
 
 
@@ -222,7 +225,7 @@ def true_calibration(head: str, draw_seed: int | None, like, scene=None):
     return dataclasses.replace(like, chain=chain, u_rel_floor=0.0)
 
 
-def attribute(seeds: list[int], n_touches: int, solids=ATTRIBUTE_SOLIDS, windows=(1.0, 2.0)) -> dict:
+def attribute(seeds: list[int], n_touches: int, solids=ATTRIBUTE_SOLIDS, windows=(0.5, 1.0, 2.0)) -> dict:
     """Switch off one thing at a time on the same hand touches: which one makes the answer right."""
     from thermotouch_models import DEFAULT_BUNDLE
 
@@ -522,7 +525,16 @@ def main() -> None:
                     help="the attribution table: one simplification at a time on the same hand touches")
     args = ap.parse_args()
     if args.attribute:
-        res = attribute(args.seeds or [1, 2], args.touches)
+        if args.merge:   # parts over disjoint --seeds: their rows, one table
+            import json
+
+            from _common import RESULTS
+
+            got = [json.loads((RESULTS / f"asbuilt_calibrated_attribution_{p}.json").read_text()) for p in args.merge]
+            res = {**got[0], "seeds": [s for g in got for s in g["seeds"]], "rows": [r for g in got for r in g["rows"]],
+                   "wall_s": max(g["wall_s"] for g in got)}
+        else:
+            res = attribute(args.seeds or [1, 2], args.touches)
         print(attribution_table(res))
         print("wrote", write_json("asbuilt_calibrated_attribution" + (f"_{args.tag}" if args.tag else ""), res))
         return

@@ -234,6 +234,10 @@ class SequentialDecision:
 REFIT_MAX_SHARE = 0.2
 
 
+#: Float rounding of sample times against a refit's due time (s).
+_DUE_TOLERANCE_s = 1e-6
+
+
 class RefitCadence:
     """When the next refit of a running decision is due.
 
@@ -270,7 +274,9 @@ class RefitCadence:
 
     def due(self, t_s: float) -> bool:
         """True when a refit is due at heating time ``t_s``."""
-        return t_s >= max(self.next_s, self.min_time_s)
+        # To within a microsecond: where the sample period is every_s (10 Hz and 0.1 s), 0.3 + 0.1 lands
+        # just past the sample at 0.4 and every other refit was skipped.
+        return t_s >= max(self.next_s, self.min_time_s) - _DUE_TOLERANCE_s
 
     def run(self, t_s: float, fit: Callable[[], Any]) -> Any:
         """Run ``fit()`` at heating time ``t_s`` and schedule the next refit from its duration."""

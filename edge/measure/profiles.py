@@ -21,11 +21,13 @@ class Profile:
     name: str
     contact_time_s: float
     summary: str
-    #: Sampling rate the profile asks for (Hz); the device caps it at what its converters deliver
+    #: Sampling rate the profile asks for (Hz), or None: the configured ``[measurement] sample_rate_Hz``
+    #: (50 Hz by default: the one source of the paper probe's rate, so a profile that does not need
+    #: another one never restates it). The device caps either at what its converters deliver
     #: (edge.hw.chips.max_sample_rate_Hz): the precision board (ADS122C04, two single-shot
-    #: conversions of ~1 ms at 1000 SPS per sample) samples the quick profile at 50 Hz, 25 samples in
-    #: 0.5 s; the reference board's MCP9600 converts every 80 ms at 16 bit, so it stays at 12.5 Hz.
-    sample_rate_Hz: float = 10.0
+    #: conversions of ~1 ms at 1000 SPS per sample) samples at 50 Hz, 25 samples in 0.5 s; the
+    #: reference board's MCP9600 converts every 80 ms at 16 bit, so it stays at 12.5 Hz.
+    sample_rate_Hz: float | None = None
 
 
 PROFILES = {
@@ -41,8 +43,8 @@ PROFILES = {
 #: from the record's departure from the 1-D shape, which grows with the heat's reach sqrt(alpha t)
 #: against the 5-mm heater radius: its design (``thermotouch design --table``, README "Speed and
 #: accuracy by probe") assumes 20-ms samples and reaches a few per cent on k and alpha at 5 s, while
-#: 1 s leaves alpha at 32-81 % on every class. 20 samples of a 2-s touch at 10 Hz (the 1-D default)
-#: do not resolve alpha even in the bound.
+#: 1 s leaves alpha at 32-81 % on every class. 20 samples of a 2-s touch at 10 Hz (a configured
+#: rate below the default) do not resolve alpha even in the bound, so it asks 50 Hz itself.
 PROBE_PROFILES = {
     "small-heater": Profile("small-heater", 5.0, "5 s touch at 50 Hz: k and alpha of the small-heater probe",
                             sample_rate_Hz=50.0),
@@ -78,10 +80,15 @@ def probe_settings(probe: str, sensors: Any, longest_contact_s: float | None = N
     Returns
     -------
     dict or None
-        ``{"contact_time_s": ..., "sample_rate_Hz": ...}``, or None for a probe without its own profile.
+        ``{"contact_time_s": ..., "sample_rate_Hz": ...}`` (no rate when the profile keeps the configured
+        one), or None for a probe without its own profile.
     """
     prof = probe_profile(probe)
     if prof is None:
         return None
     contact = prof.contact_time_s if longest_contact_s is None else min(prof.contact_time_s, longest_contact_s)
-    return {"contact_time_s": contact, "sample_rate_Hz": min(prof.sample_rate_Hz, max_sample_rate_Hz(sensors))}
+    rate = prof.sample_rate_Hz
+    out = {"contact_time_s": contact}
+    if rate is not None:
+        out["sample_rate_Hz"] = min(rate, max_sample_rate_Hz(sensors))
+    return out

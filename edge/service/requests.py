@@ -59,7 +59,7 @@ def measure_params(config: Config, max_power_W: float, *, power_W: float | None 
     contact_time_s : float, optional
         Heating time; default ``measurement.contact_time_s``.
     sample_rate_Hz : float, optional
-        Sampling rate; default ``measurement.sample_rate_Hz``. A request above
+        Sampling rate; default ``measurement.sample_rate_Hz``. A rate above
         :func:`max_sample_rate_Hz` of the fitted converters is capped there
         (the record's ``sample_rate_Hz`` is the rate used).
     until_decided : bool
@@ -96,9 +96,9 @@ def measure_params(config: Config, max_power_W: float, *, power_W: float | None 
     if contact > h.max_duty * h.duty_window_s:
         raise CommandError(ErrorCode.BAD_ARGUMENT, f"contact_time_s={contact} exceeds the duty limit "
                            f"heater.max_duty x duty_window_s = {h.max_duty * h.duty_window_s:g} s", "contact_time_s")
-    rate = m.sample_rate_Hz
-    if sample_rate_Hz is not None:
-        rate = min(float(sample_rate_Hz), max_sample_rate_Hz(config.sensors))
+    # The configured rate and a request alike: faster reads would only repeat a conversion.
+    rate = min(m.sample_rate_Hz if sample_rate_Hz is None else float(sample_rate_Hz),
+               max_sample_rate_Hz(config.sensors))
     shortest = min_contact_time_s(rate)
     if contact < shortest:
         # Refused before heating: too short to estimate, and too short to judge the heater by.

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import pytest
 
+from edge.hw.chips import max_sample_rate_Hz
 from edge.hw.drivers.ads1115 import ADS1115
 from edge.hw.drivers.ads122c04 import ADS122C04
 from edge.hw.drivers.mcp9600 import MCP9600
@@ -118,7 +119,7 @@ def test_a_thermocouple_converter_frozen_mid_heating_stops_the_heater_and_nothin
     assert d.measure()["status"] == "ok"
     t1 = sim.now()
     sim.add_touch(t1, 6.0, press_trigger=False)
-    period = 1.0 / cfg.measurement.sample_rate_Hz
+    period = 1.0 / min(cfg.measurement.sample_rate_Hz, max_sample_rate_Hz(cfg.sensors))   # the rate sampled
     # Heater on after the cool-down and the baseline (as the first touch: 0.5 s after it began);
     # frozen a second into the heating, for a few seconds.
     t_freeze = t1 + cfg.measurement.cooldown_s + cfg.measurement.baseline_s + 1.0

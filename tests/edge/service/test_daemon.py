@@ -411,8 +411,9 @@ def test_console_script_without_hardware_fails_cleanly(tmp_path, caplog):
 
 def test_series_pages_fit_the_payload_bound_and_reassemble_exactly(tmp_path):
     rig = make_rig()
-    with running(tmp_path, rig=rig, measurement={"sample_rate_Hz": 50.0}) as (c, d, _, nm):
-        mid = c.measure(contact_time_s=2.0)["measurement_id"]
+    # The rig's MCP9600 converts at 12.5 Hz, the cap of any configured rate: 8 s of heating give > 100 samples.
+    with running(tmp_path, rig=rig) as (c, d, _, nm):
+        mid = c.measure(contact_time_s=8.0)["measurement_id"]
         stored = d.history.get(mid, series=True)
         whole = c.series(mid)
         assert stored["raw_t_s"].size > 100 and stored["grid_t_s"].size > 50

@@ -28,7 +28,9 @@ OFFICE = b"name,class,k_W_mK,rho_kg_m3,c_J_kgK\ndesk,wood,0.15,600,1700\nchair,p
 @contextlib.contextmanager
 def running(tmp_path, rig=None):
     rig = rig or make_rig()
-    cfg = sim_config(tmp_path)
+    # Pinned at 10 Hz: MEASURE until_decided below stops at the decision's 4th sample, 0.4 s; at the
+    # rig's 12.5 Hz that is 0.32 s, where the stopped record's own estimate can fall outside the set.
+    cfg = sim_config(tmp_path, measurement={"sample_rate_Hz": 10.0})
     with NullModem() as nm, serial.Serial(nm.device_port, timeout=0.05) as port:
         with DaemonThread(cfg, rig.board, port, estimator=FakeEstimator(rig.parts)) as dt:
             with DeviceClient(nm.host_port, timeout_s=5.0) as client:
