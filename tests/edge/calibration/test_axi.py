@@ -143,6 +143,7 @@ def test_the_calibrations_covariance_enters_the_answers_u(axi, model):
     assert tight["k_W_mK_u"] == pytest.approx(plain["k_W_mK_u"], rel=1e-6)
 
 
+@pytest.mark.slow  # six droop-simulated reference touches and a calibration fit: 1.8 s (the refusals above stay fast)
 def test_the_heaters_tcr_is_identified_and_the_stack_stays_the_probes(axi, model):
     """References touched by a heater whose film has a TCR of 3e-3/K (its power droops as it heats): the
     calibration recovers the TCR within its u and leaves the datasheet stack where it is (without the TCR in
