@@ -162,10 +162,11 @@ def pytest_collection(session):
 def pytest_collection_modifyitems(session, config, items):
     """Modules with a ``slow`` test run first, each module kept together, the rest in file order.
 
-    pytest-xdist's ``load`` schedule hands the workers runs of consecutive tests and, as the
-    queue empties, smaller ones: a long test near the end of the collection leaves the other
-    worker idle for its whole length.  Longest first (the classic schedule for identical
-    machines) puts the short tests at the end, where they fill the gaps.  Keeping a module's
+    pytest-xdist hands each worker a queue of consecutive tests in advance: a long test near the
+    end of the collection leaves the other worker idle for its whole length.  Longest first (the
+    classic schedule for identical machines) puts the short tests at the end, where they fill the
+    gaps; the ``worksteal`` schedule (pyproject.toml) lets a worker that ran out take half of the
+    other's queue, so the run ends on both workers together.  Keeping a module's
     tests together keeps its module-scoped fixtures built once per worker.  The order is the
     same on every worker (a stable sort of the collection), as xdist requires.
     """

@@ -128,6 +128,7 @@ class AxiMethod(_Method):
             # The heater's TCR it identified (its self-heating droop, edge.physics.heater_tcr).
             flux["heater_tcr_per_K"] = float((cal.head_model or {}).get("heater_tcr_per_K") or 0.0)
             flux["heater_tcr_per_K_u"] = float((cal.head_model or {}).get("heater_tcr_per_K_u") or 0.0)
+            flux["model_form"] = (cal.head_model or {}).get("model_form")
         pre = None
         if record is not None and baseline is not None and None not in baseline:
             # A hand touch: the object met the probe at another temperature before heating (ISSUE #34: the

@@ -59,7 +59,8 @@ from edge.physics.geometry import ProbeGeometry, get_probe
 from edge.physics.solids import Solid
 from edge.status import Flag
 
-__all__ = ["AxiEstimator", "QUANTITIES", "CALIBRATED", "geometry_at", "calibrated_params"]
+__all__ = ["AxiEstimator", "QUANTITIES", "CALIBRATED", "geometry_at", "calibrated_params", "MODEL_FORM_TOLERANCES",
+           "perturbed_geometry"]
 
 #: Names of the quantities in ``determined`` / ``from_prior``.
 QUANTITIES = ("e", "k", "alpha")
@@ -76,6 +77,41 @@ MAX_TIME_SPAN = 250.0
 CALIBRATED = ("ln_flux_scale", "ln_sensing_thickness_m", "ln_sensing_k_W_mK", "ln_substrate_k", "ln_substrate_rho_c")
 #: Step (in ln) of the finite differences that carry the calibration's covariance into an answer.
 _CAL_STEP = 1e-3
+
+
+#: The drawing's tolerances the fit does not identify, as model-form terms of the calibration's covariance:
+#: name -> (ProbeGeometry change, the dimension's size at which its effect is the effect's rms over the
+#: tolerance). The calibration (edge.calibration.axi) carries the fit's response to each; an answer carries
+#: what is left of it on its own touch (:meth:`AxiEstimator._model_form_variance`). The sides (+-0.2 mm
+#: each, uniform) act linearly: a / sqrt 3. The sensor's offset from the heater's axis (+-0.5 mm in x and
+#: y, uniform) acts through the read-out's even response, ~ (x^2 + y^2), whose rms over the tolerance is
+#: a^2 sqrt(28/45): taken at x = y = a (sqrt(28/45) / 2)^(1/2) = 0.63 a, where x^2 + y^2 is that rms. The
+#: thermocouple within 0.5 mm of the axis (uniform over the disk): T(r) is even in r, r^2 uniform on
+#: [0, R^2], its rms R^2 / sqrt 3: r = R 3^(-1/4).
+MODEL_FORM_TOLERANCES = {
+    "sensor_side_x_m": ("side_x", 0.2e-3 / math.sqrt(3.0)),
+    "sensor_side_y_m": ("side_y", 0.2e-3 / math.sqrt(3.0)),
+    "sensor_offset_m": ("offset", 0.5e-3 * math.sqrt(math.sqrt(28.0 / 45.0) / 2.0)),
+    "thermocouple_r_m": ("thermocouple", 0.5e-3 * 3.0 ** -0.25),
+}
+
+
+def perturbed_geometry(geometry, what: str, size_m: float):
+    """The probe ``geometry`` with one drawing dimension off by ``size_m`` (:data:`MODEL_FORM_TOLERANCES`).
+
+    None where the dimension is not in the model (an equal-area disk read-out has no square).
+    """
+    sq = geometry.sensor_square_m
+    if what in ("side_x", "side_y", "offset") and sq is None:
+        return None    # an equal-area disk read-out: the square's dimensions are not in the model
+    if what == "side_x":
+        return replace(geometry, sensor_square_m=(sq[0] + size_m, sq[1]))
+    if what == "side_y":
+        return replace(geometry, sensor_square_m=(sq[0], sq[1] + size_m))
+    if what == "offset":
+        ox, oy = geometry.sensor_offset_m
+        return replace(geometry, sensor_offset_m=(ox + size_m, oy + size_m))
+    return replace(geometry, thermocouple_r_m=geometry.thermocouple_r_m + size_m)
 
 
 def geometry_at(geometry: ProbeGeometry, p) -> ProbeGeometry:
@@ -216,6 +252,42 @@ class AxiEstimator:
             S[:, i] = -fitter.model_response(m) / _CAL_STEP
         return S, np.array(C, float)
 
+    def _model_form_variance(self, fitter, t, calibrated, S, C, model_form: dict):
+        """(C less the model-form terms, their covariance (2 x 2) of (ln k, ln alpha) on this touch).
+
+        A drawing dimension off by its rms (:data:`MODEL_FORM_TOLERANCES`) moved the calibration by ``-d``
+        (``model_form[name]``, the truth's parameters minus the calibrated ones), so this answer is off by
+        ``S d`` through the parameters and by ``-model_response`` of the probe with that dimension: the
+        calibration's shift partly makes up for the dimension on the touch too (both absorb the same
+        misread flux), which ``S d`` alone would state as if it added (on insulators at 5 s that put
+        u(k) at ~25 %, the calibration's shift of the sensing layer read through their strong
+        sensitivity to it). A term without a geometry change here keeps ``S d`` alone.
+        """
+        C = np.array(C, float)
+        n = len(CALIBRATED)
+        base = geometry_at(self.geometry, calibrated[0])
+        V = np.zeros((2, 2))
+        seen: dict = {}
+        for name, d in model_form.items():
+            spec = MODEL_FORM_TOLERANCES.get(name)
+            d = np.asarray(d, float)[:n]
+            if spec is None or d.size != n or not np.all(np.isfinite(d)):
+                continue
+            C = C - np.outer(d, d)
+            g = perturbed_geometry(base, *spec)
+            direct = np.zeros(2)
+            if g is not None:
+                # A square's sides read the same in an axisymmetric field: one model for both.
+                key = (None if g.sensor_square_m is None else tuple(sorted(g.sensor_square_m)),
+                       tuple(sorted(g.sensor_offset_m)), g.thermocouple_r_m)
+                if key not in seen:
+                    seen[key] = -fitter.model_response(self._model(t, g, fitter.model.nodes))
+                direct = seen[key]
+            err = S @ d + direct
+            if np.all(np.isfinite(err)):
+                V = V + np.outer(err, err)
+        return C, V
+
     def _offset_stack_variance(self, fitter, offset, geometry, calibrated=None) -> np.ndarray:
         """Covariance (2 x 2) of (ln k, ln alpha) from the offset kernel's stack: known to the calibration's
         covariance when it identified the stack, else to :data:`STACK_TOLERANCE`.
@@ -269,7 +341,7 @@ class AxiEstimator:
                  flux_u_rel: float | None = None, u_rel_floor: float = 0.0,
                  calibrated: tuple[np.ndarray, np.ndarray] | None = None, fit_contact: bool | None = None,
                  pre: PreHeating | None = None, heater_tcr_per_K: float = 0.0,
-                 heater_tcr_per_K_u: float = 0.0) -> dict:
+                 heater_tcr_per_K_u: float = 0.0, model_form: dict | None = None) -> dict:
         """Estimate from one record (times from heater-on; thermocouple rise, flux-sensor reading).
 
         Parameters
@@ -302,6 +374,10 @@ class AxiEstimator:
         heater_tcr_per_K_u : its standard uncertainty (1/K) as the calibration stated it: the fit's response
             to it enters every u, and with ``pre`` it is the offset's TCR cross term's prior (with
             ``heater_tcr_per_K``) instead of the film heaters' datasheet range.
+        model_form : the calibration's model-form terms (``head_model["model_form"]``: per
+            :data:`MODEL_FORM_TOLERANCES` name, the calibrated parameters' shift it explains), which its
+            covariance ``calibrated[1]`` includes: with them the answer's u carries each term's net effect on
+            this touch (:meth:`_model_form_variance`) instead of its shift of the parameters alone.
 
         Returns
         -------
@@ -437,7 +513,13 @@ class AxiEstimator:
         # parameters off by delta (the flux scale's column from the data's response, the others from the
         # model's, AxiFitter.model_response), so its covariance is S C S^T.
         S, C = self._calibration_sensitivity(fitter, f, t, calibrated, sens, u_flux)
+        V_mf = None
+        if model_form and S.shape[1] == len(CALIBRATED):
+            C, V_mf = self._model_form_variance(fitter, t, calibrated, S, C, model_form)
         V = S @ C @ S.T
+        if V_mf is not None:
+            V = V + V_mf
+            out["fit"]["u_rel_model_form"] = {"k": _num(math.sqrt(V_mf[0, 0])), "alpha": _num(math.sqrt(V_mf[1, 1]))}
         # The stack's and the TCR's parts are linearised at the fit's last point whether or not it converged:
         # a fit that stopped short still states e, and left without them its u was the noise's alone (3 of the
         # 6 e misses of 39 calibrated 5-s touches at R_c <= 3e-5 were such fits, |z| 2.1-4.5; asbuilt_small_bench).

@@ -284,6 +284,50 @@ def _keep_parts(key: tuple | None, model: "AxisymModel") -> None:
             _PARTS.popitem(last=False)
 
 
+#: The model's arrays one object's transforms are computed from (see :meth:`AxisymModel.transforms`).
+_TRANSFORM_PARTS = ("_p", "_z2", "_kgs", "_Ts", "_Ss", "_kgsTs", "_Ts_kgs", "_dYdn_num", "_num", "_B", "_C",
+                    "_qa", "_qb", "_w_T", "_w_q")
+#: Transforms already computed, by the very arrays of the model and the object's exact numbers.  A
+#: record is estimated more than once with the same model parts -- the device's answer, then
+#: ``thermotouch estimate`` on its export, a calibration's re-measurement, a running answer's refits
+#: from the same start -- and two of three calls of a suite's fits repeat one already made.  An
+#: entry holds the arrays it was computed from, so their ids in its key cannot be reused while it
+#: lives (no model writes into them, see :data:`_PARTS`); a hit returns copies, the same bits.
+_TRANSFORMS: OrderedDict = OrderedDict()
+_TRANSFORMS_MAX = 512
+
+
+def _transforms_key(model: "AxisymModel", args: tuple) -> tuple:
+    """(key, the model's arrays); key None where an argument is unhashable (an array: no memo)."""
+    parts = tuple(getattr(model, name) for name in _TRANSFORM_PARTS)
+    key = tuple(map(id, parts)) + args
+    try:
+        hash(key)
+    except TypeError:
+        return None, parts
+    return key, parts
+
+
+def _cached_transforms(key: tuple | None, parts: tuple):
+    if key is None:
+        return None
+    with _PARTS_LOCK:
+        hit = _TRANSFORMS.get(key)
+        if hit is None or any(a is not b for a, b in zip(hit[0], parts)):
+            return None
+        _TRANSFORMS.move_to_end(key)
+    return tuple(x.copy() for x in hit[1])
+
+
+def _keep_transforms(key: tuple | None, parts: tuple, out: tuple) -> None:
+    if key is None:
+        return
+    with _PARTS_LOCK:
+        _TRANSFORMS[key] = (parts, tuple(x.copy() for x in out))
+        while len(_TRANSFORMS) > _TRANSFORMS_MAX:
+            _TRANSFORMS.popitem(last=False)
+
+
 @dataclass(frozen=True)
 class Responses:
     """Unit-step responses per watt of heater power on the model's time grid."""
@@ -432,7 +476,19 @@ class AxisymModel:
         and R_c.  The object enters only through its admittance Y (and R_c through
         ``Y_o = Y / (1 + R_c Y)``), so one derivative of the kernels with respect to ``Y_o``
         serves all three parameters: an exact Jacobian for about half a model evaluation.
+        Computed once per model parts and arguments (:data:`_TRANSFORMS`).
         """
+        key, parts = _transforms_key(self, (k_W_mK, alpha_m2_s, thickness_m, back, contact_resistance_m2K_W,
+                                            bool(derivatives)))
+        out = _cached_transforms(key, parts)
+        if out is None:
+            out = self._transforms(k_W_mK, alpha_m2_s, thickness_m, back, contact_resistance_m2K_W, derivatives)
+            _keep_transforms(key, parts, out)
+        return out
+
+    def _transforms(self, k_W_mK: float, alpha_m2_s: float, thickness_m: float | None, back: str,
+                    contact_resistance_m2K_W: float, derivatives: bool):
+        """:meth:`transforms`, computed."""
         p_a = self._p / alpha_m2_s
         go = np.sqrt(p_a + self._z2)
         Y = k_W_mK * go

@@ -95,6 +95,7 @@ from edge.physics.solids import Solid
 from firmware_sim.drive import HeaterDrive
 from firmware_sim.heater_faults import WORLD_FAULTS, active
 from firmware_sim.rz.heater import FilmHeater
+from firmware_sim.rz.history import interpolate
 from firmware_sim.asbuilt import as_built_for_scene
 from firmware_sim.rz.configs import AsBuilt, Geometry, GridConfig, build_config, geometry_for_probe
 from firmware_sim.rz.solver import axis_value
@@ -605,28 +606,12 @@ class FaithfulWorld(SensorSignals, FilmHeater):
     def _interp(self, ts: np.ndarray, names: Sequence[str]) -> dict[str, np.ndarray]:
         if ts.size == 0:
             return {n: np.zeros(0) for n in names} | {"y": np.zeros(0)}
-        if np.any(~(ts >= 0.0)):
+        # A chip's one sample: checked and reached on the scalar, not with array calls.
+        last = ts.reshape(-1)[0] if ts.size == 1 else ts.max()
+        if (not last >= 0.0) if ts.size == 1 else np.any(~(ts >= 0.0)):
             raise ValueError(f"t_s must be >= 0, got {ts[~(ts >= 0.0)][0]!r}")
-        self._advance_to(float(ts.max()))
-        n = self._state.n_hist
-        h = self._h
-        t = h["t"][:n]
-        i = np.clip(np.searchsorted(t, ts, side="right") - 1, 0, n - 1)
-        j = np.minimum(i + 1, n - 1)
-        span = t[j] - t[i]
-        w = np.where(span > 0, (ts - t[i]) / np.where(span > 0, span, 1.0), 0.0)
-        out = {name: h[name][:n][i] + w * (h[name][:n][j] - h[name][:n][i]) for name in names}
-        # The lag, exactly on the piecewise-linear temperature.
-        T0, T1 = h["T_tc"][:n][i], h["T_tc"][:n][j]
-        y0 = h["y"][:n][i]
-        if self.tau > 0:
-            dt = ts - t[i]
-            m = np.where(span > 0, (T1 - T0) / np.where(span > 0, span, 1.0), 0.0)
-            Tt = T0 + m * dt
-            out["y"] = Tt - m * self.tau + (y0 - T0 + m * self.tau) * np.exp(-dt / self.tau)
-        else:
-            out["y"] = T0 + w * (T1 - T0)
-        return out
+        self._advance_to(float(last))
+        return interpolate(self._h, self._state.n_hist, ts, names, self.tau)
 
     def state(self, t_s: float) -> WorldState:
         """The world at virtual time ``t_s`` (>= 0)."""

@@ -309,9 +309,13 @@ class Solver:
     rannacher_steps : int
         For ``"cn"``: backward-Euler half steps at the start (and after a
         :meth:`run` begins from a new state), 0 for plain CN.
+    probes : Probes, optional
+        The grid's read-out weights when already built (another solver of the same grid
+        has them: they depend on the grid only).
     """
 
-    def __init__(self, grid: Grid, dt_s: float, scheme: str = "trbdf2", rannacher_steps: int = 2) -> None:
+    def __init__(self, grid: Grid, dt_s: float, scheme: str = "trbdf2", rannacher_steps: int = 2,
+                 probes: Probes | None = None) -> None:
         if scheme not in SCHEMES:
             raise ValueError(f"scheme must be one of {SCHEMES}, got {scheme!r}")
         if not (dt_s > 0 and math.isfinite(dt_s)):
@@ -325,7 +329,9 @@ class Solver:
         self.fac = self.op.factor(1.0 / self.tau)
         self._Ct = self.op.cap / self.tau
         self.g_t = grid.g_b_W_K * grid.t_b_K   # ambient forcing vector g
-        self.probes = _probes(grid) if grid.meta.get("sensor_radius_m") is not None else None
+        if probes is None and grid.meta.get("sensor_radius_m") is not None:
+            probes = _probes(grid)
+        self.probes = probes
         self._rest_key, self._rest = None, None
         self._g_sum_of, self._g_sum = None, 0.0     # sum of the forcing, per forcing array (_loss)
         self._first_active = int(np.flatnonzero(grid.active)[0])

@@ -137,8 +137,13 @@ def test_the_device_and_its_host_tools_never_see_the_draws():
     files = [p for d in ("edge", "host") for p in (ROOT / d).rglob("*.py")]
     assert len(files) > 50
     for p in files:
-        assert not any(m == "firmware_sim.asbuilt" or m.startswith("firmware_sim.asbuilt.") for m in _imports(p)), p
-        assert "firmware_sim.asbuilt" not in p.read_text() and "draw_as_built" not in p.read_text(), p
+        text = p.read_text()
+        assert "firmware_sim.asbuilt" not in text and "draw_as_built" not in text, p
+        # Every spelling of an import of the module (``from firmware_sim import asbuilt`` too) has "asbuilt" in
+        # its text: only such files need parsing (the parse of every file was most of this test's 0.7 s).
+        if "asbuilt" in text:
+            assert not any(m == "firmware_sim.asbuilt" or m.startswith("firmware_sim.asbuilt.")
+                           for m in _imports(p)), p
 
 
 def test_as_built_is_frozen_and_checked():

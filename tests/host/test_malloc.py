@@ -33,6 +33,7 @@ def _measure() -> None:
     print(json.dumps({"on": on, "before": before, "inside": inside}))
 
 
+@pytest.mark.slow  # a fresh interpreter that faults in large arrays: 0.45 s; the argument checks stay fast
 @pytest.mark.skipif(not available(), reason="the C library has no mallopt (not glibc)")
 def test_freed_large_blocks_are_reused_inside_the_block():
     # A fresh process: malloc's thresholds are process state, and a test worker that already trained a

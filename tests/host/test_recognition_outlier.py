@@ -8,6 +8,9 @@ import pytest
 from edge.recognition import KnownObject, ObjectSet
 from host.recognition import Touches, calibrate, fit_outlier, fit_temperature, reliability
 
+#: slow: each test fits the mixture over thousands of drawn touches (0.7-1.1 s).
+pytestmark = pytest.mark.slow
+
 OSET = ObjectSet([KnownObject(f"o{i}", "polymer", 300.0 * math.exp(0.25 * i)) for i in range(8)])
 U_LN = 0.08
 

@@ -25,6 +25,8 @@ from firmware_sim.scene.files import read_scene
 
 SEEDS = (1, 2, 3, 4)
 RATES_Hz = (10.0, 50.0)
+#: 16 simulated touches through the device's sequence: the full tier (tests/conftest.py).
+pytestmark = pytest.mark.slow
 #: Agreement asked beyond the noise: the spline resampling's own difference between the two grids.
 RESAMPLING_REL = 2e-3
 

@@ -100,6 +100,7 @@ def _heavy_bundle(tmp_path):
     return path, total
 
 
+@pytest.mark.slow  # building and compressing the 56 MB bundle: 0.5 s; the zip bomb and lying-header refusals stay fast
 def test_valid_but_heavy_bundle_is_refused_before_inflating(heavy_bundle, monkeypatch):
     path, total = heavy_bundle
     assert total > 56e6 and (path / "arrays.npz").stat().st_size < 1e6
@@ -112,6 +113,7 @@ def test_valid_but_heavy_bundle_is_refused_before_inflating(heavy_bundle, monkey
     assert inflated.n < 64 * 1024
 
 
+@pytest.mark.slow  # the heavy bundle and a daemon run
 def test_heavy_upload_is_refused_and_the_old_model_keeps_serving(tmp_path, heavy_bundle):
     import hashlib
 

@@ -20,6 +20,9 @@ from host.lab_series import SeriesFileError, load_series
 
 SAMPLE = "Glass <B33>"
 N = 3
+#: The tests on the module's simulated series are slow (its N simulated touches, and their report drawing a
+#: figure per touch and a PDF: 1.5 s); the figure and PDF tests on hand-made input stay in the fast tier.
+ON_SIM_SERIES = pytest.mark.slow
 
 
 def run(capsys, *argv):
@@ -78,6 +81,7 @@ def sim_series(tmp_path_factory):
     return path
 
 
+@ON_SIM_SERIES
 def test_the_series_file_keeps_what_each_touch_figure_needs(sim_series):
     doc = json.loads(sim_series.read_text())
     for t in doc["touches"]:
@@ -118,6 +122,25 @@ def sim_report(sim_series):
             "laid_out": laid_out}
 
 
+@ON_SIM_SERIES
+def test_a_report_from_a_simulated_series(sim_series, sim_report):
+    """The report of a series a simulated probe measured (moved here from test_report.py: the module's series
+    and report serve it, instead of simulating and reporting another 3-touch series)."""
+    assert sim_report["code"] == 0, sim_report["err"]
+    html = sim_report["html"].read_text()
+    doc = json.loads(sim_series.read_text())
+    m = re.search(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', html)
+    assert m, "no embedded PNG"
+    png = base64.b64decode(m.group(1))
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000
+    assert "Measurement report: Glass &lt;B33&gt;" in html and "simulated probe, scene glass_15V" in html
+    for t in doc["touches"]:
+        assert t["started_utc"] in html
+    e = doc["summary"]["quantities"]["effusivity_W_s05_m2K"]
+    assert f"RSD {e['rsd'] * 100:.2f} %" in html and f"{N} of {N} touches answered" in html
+
+
+@ON_SIM_SERIES
 def test_the_report_has_one_identified_figure_per_touch_and_the_pdf_the_same_content(sim_series, sim_report):
     code, out, err = sim_report["code"], sim_report["out"], sim_report["err"]
     assert code == 0, err
@@ -179,6 +202,7 @@ def test_the_certificate_pdf_lists_references_values_residuals_who_when_device(c
         assert needle in text, needle
 
 
+@ON_SIM_SERIES
 def test_pdf_and_out_must_differ_and_an_existing_pdf_needs_overwrite(capsys, tmp_path, sim_series, sim_report):
     # The module's report run wrote r.html and r.htm.pdf: names alike but different are accepted.
     assert sim_report["code"] == 0 and sim_report["pdf"].exists(), sim_report["err"]
@@ -218,6 +242,7 @@ def test_a_bad_plot_entry_is_named(plot, words):
         check_plot(plot, "touches[0].plot", SeriesFileError)
 
 
+@ON_SIM_SERIES
 def test_a_series_file_with_a_bad_plot_is_one_line_exit_2(capsys, tmp_path, sim_series):
     doc = json.loads(sim_series.read_text())
     doc["touches"][1]["plot"]["series"]["raw_T_C"] = doc["touches"][1]["plot"]["series"]["raw_T_C"][:-1]
