@@ -216,8 +216,10 @@ def table() -> str:
           "identify (ISSUE #34), and the rows after them those probes calibrated by the walk-through and touched by "
           "hand (R_c up to 1e-4 m²K/W, the object up to 3 K off the probe, contact 0.5-3 s before heating).",
           "", "The paper probe's calibrated hand touches by class of solid and heating time: median |error| of e "
-          "(in brackets the attainable u, the Fisher limit of that touch from `thermotouch design`; foam: the "
-          "calibrated chain cannot fit it and gives no answer):", "", short_window_table(ac)]
+          "(in brackets the attainable u: the Fisher limit of that touch alone from `thermotouch design`, R_c and "
+          "the object's temperature unknown, at the record's sample rate; the last columns add the calibration's "
+          "own u -- its covariance and model-form floor as the calibrated chain states them -- which no touch "
+          "through that calibration can beat; \"no answer\": the chain gave none):", "", short_window_table(ac)]
     return "\n".join(L)
 
 
