@@ -96,6 +96,27 @@ def test_touch_after_touch_in_a_sim_session_and_ready(tmp_path):
         sim.close()
 
 
+def test_readiness_polls_no_faster_than_the_converters_deliver(tmp_path):
+    from edge.hw.chips import max_sample_rate_Hz
+
+    sim, d = _daemon("pmma_15V", tmp_path, {"measurement": {"sample_rate_Hz": 200.0}})
+    try:
+        cap_Hz = max_sample_rate_Hz(d.config.sensors)
+        assert cap_Hz < 200.0  # the scene's converters are slower than the configured rate
+        reads = []
+        real = d.sensors.read
+        d.sensors.read = lambda: reads.append(1) or real()
+        step_s, span_s = 0.005, 1.0
+        for _ in range(int(round(span_s / step_s))):
+            sim.advance(step_s)
+            d._cmd_status({})
+        # One reading per conversion the converters deliver (+1: the first poll), not one per STATUS.
+        assert 0.8 * span_s * cap_Hz <= len(reads) <= span_s * cap_Hz + 1, (len(reads), cap_Hz)
+    finally:
+        d.close()
+        sim.close()
+
+
 def test_no_contact_scene_is_still_flagged(tmp_path):
     sim, d = _daemon("pmma_15V_no_contact", tmp_path)
     try:
