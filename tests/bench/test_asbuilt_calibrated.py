@@ -3,21 +3,15 @@
 from __future__ import annotations
 
 import math
-import sys
-from pathlib import Path
 
 import pytest
-
-BENCH = Path(__file__).resolve().parents[2] / "bench"
 
 
 @pytest.fixture(scope="module")
 def bench():
-    sys.path.insert(0, str(BENCH))
-    import asbuilt_calibrated_bench
+    import asbuilt_calibrated_bench  # bench/ is on the path: tests/bench/conftest.py
 
-    yield asbuilt_calibrated_bench
-    sys.path.remove(str(BENCH))
+    return asbuilt_calibrated_bench
 
 
 def _row(probe, err, cls="glass", **kw):

@@ -1,22 +1,16 @@
 """bench/_asbuilt_touches: a record cut to a shorter heating, and the cache of raw records, round-trip exactly."""
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from edge.estimation.record import TouchRecord
 
-BENCH = Path(__file__).resolve().parents[2] / "bench"
-
 
 @pytest.fixture(scope="module")
 def A():
-    sys.path.insert(0, str(BENCH))
-    import _asbuilt_touches
-    yield _asbuilt_touches
-    sys.path.remove(str(BENCH))
+    import _asbuilt_touches  # bench/ is on the path: tests/bench/conftest.py
+
+    return _asbuilt_touches
 
 
 def _rec(dts=True):

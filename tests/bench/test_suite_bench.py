@@ -2,23 +2,15 @@
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
 
 import pytest
-
-BENCH = Path(__file__).resolve().parents[2] / "bench"
 
 
 @pytest.fixture(scope="module")
 def suite_bench():
-    sys.path.insert(0, str(BENCH))
-    try:
-        import suite_bench
+    import suite_bench  # bench/ is on the path: tests/bench/conftest.py
 
-        yield suite_bench
-    finally:
-        sys.path.remove(str(BENCH))
+    return suite_bench
 
 
 def _run(tier, wall_s, load=0.4, n=100):
