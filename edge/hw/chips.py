@@ -73,6 +73,7 @@ __all__ = [
     "chip_settings",
     "thermocouple_resolution_K",
     "max_sample_rate_Hz",
+    "sample_rate_Hz",
 ]
 
 #: Role: the thermocouple, read as a hot-junction temperature (°C).
@@ -432,3 +433,13 @@ def max_sample_rate_Hz(sensors_cfg: Any) -> float:
     """
     spec, st = _thermocouple_chip(sensors_cfg)
     return spec.sample_rate_limit_Hz(st)
+
+
+def sample_rate_Hz(sensors_cfg: Any, asked_Hz: float) -> float:
+    """The rate a touch samples at when ``asked_Hz`` is asked (configured or requested), Hz.
+
+    Capped at :func:`max_sample_rate_Hz` of the ``[sensors]`` section's converters: a faster read
+    would only repeat a conversion. The one place MEASURE, the profiles, the idle readiness poll
+    and the simulator's rigs take their rate from.
+    """
+    return min(float(asked_Hz), max_sample_rate_Hz(sensors_cfg))

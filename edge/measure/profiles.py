@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from edge.hw.chips import max_sample_rate_Hz
+from edge.hw.chips import sample_rate_Hz
 
 
 @dataclass(frozen=True)
@@ -90,5 +90,5 @@ def probe_settings(probe: str, sensors: Any, longest_contact_s: float | None = N
     rate = prof.sample_rate_Hz
     out = {"contact_time_s": contact}
     if rate is not None:
-        out["sample_rate_Hz"] = min(rate, max_sample_rate_Hz(sensors))
+        out["sample_rate_Hz"] = sample_rate_Hz(sensors, rate)
     return out

@@ -78,7 +78,7 @@ from edge.estimation.record import TouchRecord
 from edge.estimation.result import Estimate
 from edge.estimation.seam import SeamContext, estimate_touch
 from edge.hw.board import Board
-from edge.hw.chips import max_sample_rate_Hz
+from edge.hw.chips import sample_rate_Hz
 from edge.hw.drivers.button import Button
 from edge.hw.drivers.heater import Heater, HeaterError, HeaterOffError
 from edge.hw.faults import SensorFault
@@ -361,7 +361,7 @@ class Daemon(FaultKeeping, StatusCommands, HistoryCommands, ConfigCommands, Mode
         now = self.board.clock.monotonic()
         # At the rate a MEASURE samples (requests.measure_params caps it alike): a faster poll of a
         # slow converter (the reference board's MCP9600, 12.5 Hz) only re-reads its last conversion.
-        rate_Hz = min(self.config.measurement.sample_rate_Hz, max_sample_rate_Hz(self.config.sensors))
+        rate_Hz = sample_rate_Hz(self.config.sensors, self.config.measurement.sample_rate_Hz)
         if now - self.readiness.last_t < 1.0 / rate_Hz:
             return
         try:

@@ -22,6 +22,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from edge.hw import chips
 from edge.hw.chips import max_sample_rate_Hz  # the MEASURE rate cap, re-exported for callers
 from edge.physics.probe import heater_power_W
 from edge.measure.sequence import MeasurementParams
@@ -97,8 +98,7 @@ def measure_params(config: Config, max_power_W: float, *, power_W: float | None 
         raise CommandError(ErrorCode.BAD_ARGUMENT, f"contact_time_s={contact} exceeds the duty limit "
                            f"heater.max_duty x duty_window_s = {h.max_duty * h.duty_window_s:g} s", "contact_time_s")
     # The configured rate and a request alike: faster reads would only repeat a conversion.
-    rate = min(m.sample_rate_Hz if sample_rate_Hz is None else float(sample_rate_Hz),
-               max_sample_rate_Hz(config.sensors))
+    rate = chips.sample_rate_Hz(config.sensors, m.sample_rate_Hz if sample_rate_Hz is None else sample_rate_Hz)
     shortest = min_contact_time_s(rate)
     if contact < shortest:
         # Refused before heating: too short to estimate, and too short to judge the heater by.

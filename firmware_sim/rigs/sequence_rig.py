@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-from edge.hw.chips import max_sample_rate_Hz
+from edge.hw.chips import sample_rate_Hz
 from edge.hw.drivers.heater import Heater
 from edge.measure.sensors import make_sensors, thermocouple_resolution_K
 from edge.measure.sequence import MeasurementParams, MeasurementSequence
@@ -79,7 +79,7 @@ def sequence_run(scene: Any, store: Any, workdir: str, overrides: Mapping[str, M
         try:
             out = seq.run(MeasurementParams(**{"power_W": h.power_W, "contact_time_s": m.contact_time_s,
                                                "baseline_s": m.baseline_s,
-                                               "sample_rate_Hz": min(m.sample_rate_Hz, max_sample_rate_Hz(cfg.sensors)),
+                                               "sample_rate_Hz": sample_rate_Hz(cfg.sensors, m.sample_rate_Hz),
                                                "cooldown_s": 0.0, **params}))
         finally:
             seq.close()

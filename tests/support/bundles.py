@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import io
 import json
@@ -122,3 +123,18 @@ def broken_copy(src, dst: Path, how: str):
     extra = {k: v for k, v in src_b.manifest.items() if k not in ("files", "schema_version")}
     extra["model_version"] = f"{src_b.model_version}-{how}"
     return B.write_bundle(dst, arrays, golden, extra, golden_check=pipeline_golden_check)
+
+
+@functools.lru_cache(maxsize=None)
+def shipped_small_heater_estimator():
+    """The small-heater probe's estimator on the shipped bundle (its library is the prior), built once per process.
+
+    Shared by the small-heater estimate tests; nothing in them writes into it.
+    """
+    from edge.estimation.estimate import Estimator, pipeline_golden_check
+    from edge.estimation.probe_estimate import AxiEstimator
+    from edge.model.bundle import load_bundle
+    from thermotouch_models import DEFAULT_BUNDLE
+
+    return AxiEstimator(Estimator.from_bundle(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check)),
+                        "small-heater")

@@ -12,7 +12,7 @@ import numpy as np
 
 from edge.estimation.seam import SeamContext, TouchEstimator
 from edge.service.config import Config
-from edge.hw.chips import max_sample_rate_Hz
+from edge.hw.chips import sample_rate_Hz
 from edge.hw.drivers.heater import Heater
 from edge.measure.sensors import make_sensors
 from edge.measure.sequence import MeasurementParams, MeasurementSequence
@@ -89,7 +89,7 @@ def make_sequence(rig=None, *, cfg: Config | None = None, estimator=None, sensor
                               Limits(cfg.heater.max_on_time_s, cfg.heater.over_temperature_C), hook, cfg.measurement)
     m = cfg.measurement
     params = MeasurementParams(power_W=cfg.heater.power_W, contact_time_s=m.contact_time_s, baseline_s=m.baseline_s,
-                               sample_rate_Hz=min(m.sample_rate_Hz, max_sample_rate_Hz(cfg.sensors)),
+                               sample_rate_Hz=sample_rate_Hz(cfg.sensors, m.sample_rate_Hz),
                                cooldown_s=m.cooldown_s)
     return rig, heater, seq, params
 

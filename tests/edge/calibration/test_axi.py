@@ -7,12 +7,11 @@ import pytest
 
 from edge.calibration.axi import AxiReferenceTouch, fit_flux_scale
 from edge.calibration.model import CalibrationError, ProbeCalibration
-from edge.estimation.estimate import Estimator, pipeline_golden_check
-from edge.estimation.probe_estimate import AxiEstimator, calibrated_params
-from edge.model.bundle import load_bundle
+from edge.estimation.probe_estimate import calibrated_params
 from edge.physics.axisym import AxisymModel
 from edge.physics.geometry import PROBES
 from edge.physics.materials import load_materials
+from tests.support.bundles import shipped_small_heater_estimator
 
 G = PROBES["small-heater"]
 T5 = np.arange(251) * 0.02
@@ -22,10 +21,7 @@ READS_HIGH = 1.03
 
 @pytest.fixture(scope="module")
 def axi():
-    from thermotouch_models import DEFAULT_BUNDLE
-
-    return AxiEstimator(Estimator.from_bundle(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check)),
-                        "small-heater")
+    return shipped_small_heater_estimator()
 
 
 @pytest.fixture(scope="module")

@@ -7,13 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from edge.estimation.estimate import Estimator, pipeline_golden_check
 from edge.estimation.object_offset import HEATER_TCR_PER_K, ObjectOffset
-from edge.estimation.probe_estimate import AxiEstimator
-from edge.model.bundle import load_bundle
 from edge.physics.axisym import AxisymModel
 from edge.physics.geometry import PROBES
 from edge.physics.solids import Solid
+from tests.support.bundles import shipped_small_heater_estimator
 
 G = PROBES["small-heater"]
 PMMA = Solid(0.185, 1178.35, 1429.0)
@@ -21,10 +19,7 @@ PMMA = Solid(0.185, 1178.35, 1429.0)
 
 @pytest.fixture(scope="module")
 def axi():
-    from thermotouch_models import DEFAULT_BUNDLE
-
-    return AxiEstimator(Estimator.from_bundle(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check)),
-                        "small-heater")
+    return shipped_small_heater_estimator()
 
 
 @pytest.fixture(scope="module")

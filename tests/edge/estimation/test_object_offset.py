@@ -8,14 +8,12 @@ import numpy as np
 import pytest
 
 import edge.estimation.object_offset as PE
-from edge.estimation.estimate import Estimator, pipeline_golden_check
 from edge.estimation.object_offset import PreHeating
-from edge.estimation.probe_estimate import AxiEstimator
-from edge.model.bundle import load_bundle
 from edge.physics.axisym import AxisymModel
 from edge.physics.contact_offset import ContactKernel
 from edge.physics.geometry import PROBES
 from edge.physics.solids import Solid
+from tests.support.bundles import shipped_small_heater_estimator
 
 G = PROBES["small-heater"]
 PMMA = Solid(0.185, 1178.35, 1429.0)
@@ -24,10 +22,7 @@ DT_S = 0.02
 
 @pytest.fixture(scope="module")
 def axi():
-    from thermotouch_models import DEFAULT_BUNDLE
-
-    return AxiEstimator(Estimator.from_bundle(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check)),
-                        "small-heater")
+    return shipped_small_heater_estimator()
 
 
 def hand_touch(solid, offset_K, lead_s, rng, heat_s=5.0):
