@@ -13,13 +13,16 @@ thermocouple position and lag, heater resistance, TCR and leads -- none of it to
    self-check and the model-form floor (:func:`host.calibration.checked_calibration` with
    :func:`host.calibration.seam_remeasure` on each record's context, ``host.cli.calibrate._contexts``).
    A refused calibration is noted and written with ``force`` (as ``--force`` would).
-2. **Held-out hand touches** -- ``--solids`` library solids from foam to copper, none a reference: R_c
+2. **Held-out hand touches** -- ``--solids`` library solids from foam to copper, none a reference, each
+   touch a fresh specimen (e and alpha drawn around the library's values with a 5 % spread, independent,
+   lognormal: :func:`_asbuilt_touches.specimen`, the convention of bench/tactile_asbuilt_bench.py; seeded
+   per probe, solid and touch): the library describes the material, not the specimen. R_c
    uniform in [0, 1e-4] m^2K/W, object - probe uniform in [-3, 3] K, contact 0.5-3 s before heating,
    5 s of heating; each record answered through the one estimate path (:func:`edge.estimation.seam.
    estimate_touch`) with the calibration, and with the first 1 s and 2 s of its heating (the same record
    cut at heater-off: what a 1-s or 2-s touch records), and without the calibration (the "before").
 
-Scoring: error against the solid's library values; 95 % coverage ``|ln(v / true)| <= 1.96 u/v`` over
+Scoring: error against the specimen's true values (recorded in each row); 95 % coverage ``|ln(v / true)| <= 1.96 u/v`` over
 all touches (where the touch did not determine k or alpha its answer is the prior's, with the prior's
 interval, and counts as such); medians where R_c <= 3e-5; the share of touches that determined k and
 alpha; every probe's references re-measured (e, k, alpha of each reference touch, with the final
@@ -52,11 +55,13 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 from _common import write_block, write_json
 
 import numpy as np  # noqa: E402
 
+from _asbuilt_touches import specimen  # noqa: E402
 from asbuilt_bench import scene_for, solid  # noqa: E402
 
 REFERENCES = ("pmma", "pyroceram", "aisi_304")
@@ -86,12 +91,32 @@ def solids_for(n: int) -> list[str]:
     return [SOLIDS[i] for i in idx]
 
 
-def touch_scene(name: str, draw_seed: int, seed: int, *, R_c: float, offset_K: float, lead_s: float):
-    """A drawn probe's touch of ``name``: contact ``lead_s`` before 5 s of heating, R_c, object offset."""
+def touch_scene(name: str, draw_seed: int, seed: int, *, R_c: float, offset_K: float, lead_s: float,
+                specimen_solid=None):
+    """A drawn probe's touch of ``name``: contact ``lead_s`` before 5 s of heating, R_c, object offset.
+
+    ``specimen_solid``: the touched specimen's :class:`~edge.physics.solids.Solid` (None: the library's).
+    """
     sc = scene_for("small-heater", name, draw_seed, seed)
     touch = dataclasses.replace(sc.touch, start_s=0.5, length_s=lead_s + HEAT_S + 0.8, contact_lead_s=lead_s,
                                 contact_resistance_m2K_W=R_c, object_offset_K=offset_K)
-    return dataclasses.replace(sc, touch=touch, contact_resistance_m2K_W=R_c)
+    obj = sc.object if specimen_solid is None else dataclasses.replace(sc.object, solid=specimen_solid)
+    return dataclasses.replace(sc, touch=touch, object=obj, contact_resistance_m2K_W=R_c)
+
+
+#: A held-out touch's specimen: ln e and ln alpha each drawn around the library's values with this spread
+#: (independent; bench/tactile_asbuilt_bench.py's specimens use the same 5 %).
+SPECIMEN_SPREAD_REL = 0.05
+
+
+def held_out_specimen(name: str, draw_seed: int, j: int):
+    """The specimen of held-out touch ``j`` of ``name`` on drawn probe ``draw_seed`` (seeded per probe/solid/touch).
+
+    Its own generator (not the hand draw's), so the hand draws are those of the library-solid bench.
+    """
+    s = solid(name)
+    obj = SimpleNamespace(e_W_s05_m2K=s.effusivity_W_s05_m2K, alpha_m2_s=s.alpha_m2_s, spread_rel=SPECIMEN_SPREAD_REL)
+    return specimen(obj, rng_for(draw_seed, 1000 + j))
 
 
 #: The ``--offset-stack datasheet`` run on the same cache (the offset kernel's stack at the datasheet's
@@ -99,7 +124,10 @@ def touch_scene(name: str, draw_seed: int, seed: int, *, R_c: float, offset_K: f
 COMPARE_DATASHEET = ("`--offset-stack datasheet` (the offset kernel's stack at the datasheet's tolerances) k 7.9 %, "
                      "α 20.9 %, determined 11 %, coverage 99 / 100 / 97 %.")
 #: Bumped when a touch's simulation changes (scene, draw, hand parameters): the cache key carries it.
-BENCH_VERSION = 1
+#: 2: held-out touches are specimens (:func:`held_out_specimen`); the reference touches did not change
+#: and keep their key (:data:`REFERENCE_VERSION`).
+BENCH_VERSION = 2
+REFERENCE_VERSION = 1
 CACHE_DIR = Path(__file__).resolve().parent / "results" / "cache" / "asbuilt_small"
 _GRID = ("grid_t_s", "grid_dT_K", "grid_q_W_m2")
 
@@ -117,7 +145,8 @@ class Cached:
 
 
 def cache_path(key: str) -> Path:
-    return CACHE_DIR / f"v{BENCH_VERSION}_{key}.npz"
+    """A touch's npz: reference touches (``_ref_`` keys) under :data:`REFERENCE_VERSION`, the rest :data:`BENCH_VERSION`."""
+    return CACHE_DIR / f"v{REFERENCE_VERSION if '_ref_' in key else BENCH_VERSION}_{key}.npz"
 
 
 def _save(path: Path, o: Cached) -> None:
@@ -262,7 +291,8 @@ def run_probe(draw_seed: int, solids: list[str], n_ref: int, store, workdir: str
             g = rng_for(draw_seed, j)
             hand = {"R_c": float(g.uniform(0.0, 1e-4)), "offset_K": float(g.uniform(-3.0, 3.0)),
                     "lead_s": float(g.uniform(0.5, 3.0))}
-            run_touch(touch_scene(name, draw_seed, 9000 + 97 * draw_seed + j, **hand), store, workdir,
+            run_touch(touch_scene(name, draw_seed, 9000 + 97 * draw_seed + j, **hand,
+                                  specimen_solid=held_out_specimen(name, draw_seed, j)), store, workdir,
                       f"d{draw_seed}_{name}_{j}")
         print(f"draw {draw_seed}: {len(solids) + len(REFERENCES) * n_ref} touches cached "
               f"({time.perf_counter() - t0:.0f} s)", flush=True)
@@ -294,17 +324,18 @@ def run_probe(draw_seed: int, solids: list[str], n_ref: int, store, workdir: str
         g = rng_for(draw_seed, j)
         hand = {"R_c": float(g.uniform(0.0, 1e-4)), "offset_K": float(g.uniform(-3.0, 3.0)),
                 "lead_s": float(g.uniform(0.5, 3.0))}
-        sc = touch_scene(name, draw_seed, 9000 + 97 * draw_seed + j, **hand)
+        s = held_out_specimen(name, draw_seed, j)
+        sc = touch_scene(name, draw_seed, 9000 + 97 * draw_seed + j, **hand, specimen_solid=s)
         o = run_touch(sc, store, workdir, f"d{draw_seed}_{name}_{j}")
-        s = solid(name)
+        truth = {"true_k_W_mK": s.k_W_mK, "true_alpha_m2_s": s.alpha_m2_s, "true_e_W_s05_m2K": s.effusivity_W_s05_m2K}
         rec = o.touch
         for heat in (HEAT_S, *SHORT_S):
             d = None if rec is None else answer(rec if heat == HEAT_S else cut(rec, heat), cal_ctx.get(
                 rec.method) or seam_context(None, calibration=cal, method=rec.method))
-            rows.append({"probe": draw_seed, "solid": name, "heat_s": heat, **hand, "calibrated": True,
+            rows.append({"probe": draw_seed, "solid": name, "heat_s": heat, **hand, **truth, "calibrated": True,
                          "status": str(o.status), **score(d, s)})
         d0 = None if rec is None else answer(rec, seam_context(None, method=rec.method))
-        rows.append({"probe": draw_seed, "solid": name, "heat_s": HEAT_S, **hand, "calibrated": False,
+        rows.append({"probe": draw_seed, "solid": name, "heat_s": HEAT_S, **hand, **truth, "calibrated": False,
                      "status": str(o.status), **score(d0, s)})
         r5 = rows[-4]
         print(f"  draw {draw_seed} {name:26s} R_c {hand['R_c']:.1e} dT {hand['offset_K']:+.1f} K: "
