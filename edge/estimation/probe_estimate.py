@@ -60,7 +60,7 @@ from edge.physics.solids import Solid
 from edge.status import Flag
 
 __all__ = ["AxiEstimator", "QUANTITIES", "CALIBRATED", "geometry_at", "calibrated_params", "MODEL_FORM_TOLERANCES",
-           "perturbed_geometry"]
+           "perturbed_geometry", "k_alpha_posterior"]
 
 #: Names of the quantities in ``determined`` / ``from_prior``.
 QUANTITIES = ("e", "k", "alpha")
@@ -169,6 +169,50 @@ def _signal_check(T: np.ndarray, q: np.ndarray, T_resolution_K: float) -> Flag |
 #: 5.5, the lightest foams ~28 (the ``[measurement] no_contact_e_W_s05_m2K`` default); the
 #: small-heater fit gives 2.4-2.6 for a probe in air on the simulator.
 NO_CONTACT_E_W_s05_m2K = 12.0
+
+
+def k_alpha_posterior(ln_k: float, ln_alpha: float, V, ln_rho_c: float, u_ln_rho_c: float):
+    """The fit's (ln k, ln alpha) combined with the library's prior on ln rho c given e: precision-weighted.
+
+    The library's prior given e (:meth:`edge.estimation.identification.Library.prior_rho_c`) states
+    ln rho c = ln k - ln alpha; e = k / sqrt(alpha) comes from this very touch, so the prior adds
+    precision along ln rho c alone (``H^T H / u^2``, ``H = [1, -1]``) and is flat along e (weighting its
+    e in again would count the touch twice). Posterior precision ``V^-1 + H^T H / u^2``, written in its
+    update form so that a flat fit (``V`` unbounded along ln rho c) needs no inverse.
+
+    Parameters
+    ----------
+    ln_k, ln_alpha : float
+        The fit's estimate.
+    V : array_like, shape (2, 2)
+        Its full covariance (fit, calibration, model-form terms, floor).
+    ln_rho_c, u_ln_rho_c : float
+        The prior's mean and standard deviation of ln rho c given the touch's e.
+
+    Returns
+    -------
+    x : ndarray, shape (2,)
+        Posterior (ln k, ln alpha).
+    V_post : ndarray, shape (2, 2)
+        Its covariance.
+    data_share : float
+        The fit's share of the posterior's precision of ln rho c (1: the data alone, 0: the prior alone);
+        above 1/2 the posterior's variance of ln rho c is below half the prior's.
+    """
+    V = np.asarray(V, dtype=float)
+    x = np.array([ln_k, ln_alpha], dtype=float)
+    H = np.array([1.0, -1.0])
+    VH = V @ H
+    s_fit = float(H @ VH)                      # the fit's variance of ln rho c
+    s_pri = float(u_ln_rho_c) ** 2
+    S = s_fit + s_pri
+    if not S > 0:
+        return x, V.copy(), 1.0
+    K = VH / S
+    x_post = x + K * (ln_rho_c - float(H @ x))
+    V_post = V - np.outer(K, VH)
+    V_post = 0.5 * (V_post + V_post.T)
+    return x_post, V_post, s_pri / S
 
 
 class AxiEstimator:
@@ -576,7 +620,32 @@ class AxiEstimator:
             reasons.append(f"u(k) {100 * u_lk:.0f} % >= {100 * thr:.0f} %")
         if not u_la < thr:
             reasons.append(f"u(alpha) {100 * u_la:.0f} % >= {100 * thr:.0f} %")
-        if reasons:
+        corr = out["corr_k_alpha"]
+        V_fit = None
+        if reasons and corr is not None and all(math.isfinite(v) and v > 0 for v in (k, alpha, u_lk, u_la)):
+            V_fit = np.array([[u_lk ** 2, corr * u_lk * u_la], [corr * u_lk * u_la, u_la ** 2]])
+        if reasons and V_fit is not None:
+            # Informative but not decisive: the fit's (ln k, ln alpha) weighted with the library's ln rho c
+            # given e (k_alpha_posterior), instead of the prior alone that threw the fit's k and alpha away.
+            ln_rc, u_ln_rc, outside = est.library.prior_rho_c(e, u_le)
+            x, Vp, share = k_alpha_posterior(math.log(k), math.log(alpha), V_fit, ln_rc, u_ln_rc)
+            k, alpha = math.exp(x[0]), math.exp(x[1])
+            u_lk, u_la = math.sqrt(max(Vp[0, 0], 0.0)), math.sqrt(max(Vp[1, 1], 0.0))
+            if u_lk * u_la > 0:
+                out["corr_k_alpha"] = _num(max(-1.0, min(1.0, Vp[0, 1] / (u_lk * u_la))))
+            out["fit"]["k_alpha_posterior"] = {"data_share": _num(share), "fit_k_W_mK": _num(f.fit_k_W_mK),
+                                               "fit_alpha_m2_s": _num(f.fit_alpha_m2_s)}
+            if outside:
+                flags.append(str(Flag.OUTSIDE_TRAINING_RANGE))
+            if share > 0.5:
+                # The data dominate: the posterior's variance of ln rho c is below half the prior's.
+                determined += ["k", "alpha"]
+            else:
+                flags.append(str(Flag.K_ALPHA_FROM_PRIOR))
+                out["from_prior"] = ["k", "alpha"]
+                out["prior_reason"] = ("the touch did not resolve k and alpha (" + "; ".join(reasons)
+                                       + f"): the posterior with the library's prior, data share {share:.2f}")
+        elif reasons:
             # k and alpha together: one without the other would not satisfy e = k / sqrt(alpha).
             k, u_lk, alpha, u_la, outside = est.library.k_alpha_given_e(e, u_le)
             if outside:
