@@ -192,7 +192,7 @@ def k_alpha_posterior(ln_k: float, ln_alpha: float, V, ln_rho_c: float, u_ln_rho
     Returns
     -------
     x : ndarray, shape (2,)
-        Posterior (ln k, ln alpha).
+        Posterior (ln k, ln alpha): the posterior's ln rho c at the fit's ln e.
     V_post : ndarray, shape (2, 2)
         Its covariance.
     data_share : float
@@ -209,7 +209,11 @@ def k_alpha_posterior(ln_k: float, ln_alpha: float, V, ln_rho_c: float, u_ln_rho
     if not S > 0:
         return x, V.copy(), 1.0
     K = VH / S
-    x_post = x + K * (ln_rho_c - float(H @ x))
+    # The mean's rho c is the posterior's; its e stays the touch's (the answer's e, k and alpha satisfy
+    # e = k / sqrt(alpha), as the prior alone did): the update moves along rho c only, e = G x fixed.
+    ln_rc_post = float(H @ (x + K * (ln_rho_c - float(H @ x))))
+    ln_e = float(x[0] - 0.5 * x[1])
+    x_post = np.array([2.0 * ln_e - ln_rc_post, 2.0 * ln_e - 2.0 * ln_rc_post])
     V_post = V - np.outer(K, VH)
     V_post = 0.5 * (V_post + V_post.T)
     return x_post, V_post, s_pri / S
