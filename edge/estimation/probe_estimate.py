@@ -632,12 +632,14 @@ class AxiEstimator:
             # Informative but not decisive: the fit's (ln k, ln alpha) weighted with the library's ln rho c
             # given e (k_alpha_posterior), instead of the prior alone that threw the fit's k and alpha away.
             ln_rc, u_ln_rc, outside = est.library.prior_rho_c(e, u_le)
+            u_fit = {"k": _num(u_lk), "alpha": _num(u_la)}     # the fit's full u before the prior
             x, Vp, share = k_alpha_posterior(math.log(k), math.log(alpha), V_fit, ln_rc, u_ln_rc)
             k, alpha = math.exp(x[0]), math.exp(x[1])
             u_lk, u_la = math.sqrt(max(Vp[0, 0], 0.0)), math.sqrt(max(Vp[1, 1], 0.0))
             if u_lk * u_la > 0:
                 out["corr_k_alpha"] = _num(max(-1.0, min(1.0, Vp[0, 1] / (u_lk * u_la))))
-            out["fit"]["k_alpha_posterior"] = {"data_share": _num(share), "fit_k_W_mK": _num(f.fit_k_W_mK),
+            out["fit"]["k_alpha_posterior"] = {"data_share": _num(share), "u_rel_fit": u_fit,
+                                               "fit_k_W_mK": _num(f.fit_k_W_mK),
                                                "fit_alpha_m2_s": _num(f.fit_alpha_m2_s)}
             if outside:
                 flags.append(str(Flag.OUTSIDE_TRAINING_RANGE))
