@@ -543,6 +543,9 @@ def main() -> None:
     ap.add_argument("--no-reference-floor", action="store_true",
                     help="calibrate without the references' shifts as the model-form floor "
                          "(edge.calibration.axi.REFERENCE_FLOOR)")
+    ap.add_argument("--no-posterior", action="store_true",
+                    help="where a touch did not determine k and alpha, answer the library's prior given e alone "
+                         "instead of the fit weighted with it (edge.estimation.probe_estimate.K_ALPHA_POSTERIOR)")
     ap.add_argument("--reuse", action="store_true",
                     help="re-estimate the cached touches (new estimator or calibration code; no simulation)")
     args = ap.parse_args()
@@ -550,11 +553,13 @@ def main() -> None:
     REUSE_ONLY = args.reuse
     import edge.calibration.axi as axi_cal
     import edge.estimation.object_offset as oo
+    import edge.estimation.probe_estimate as pe
     oo.OFFSET_STACK_FROM_CALIBRATION = args.offset_stack == "calibration"
     axi_cal.MODEL_FORM = not args.no_model_form
     axi_cal.REFERENCE_FLOOR = not args.no_reference_floor
+    pe.K_ALPHA_POSTERIOR = not args.no_posterior
     CONFIG.update(offset_stack=args.offset_stack, model_form=not args.no_model_form,
-                  reference_floor=not args.no_reference_floor)
+                  reference_floor=not args.no_reference_floor, k_alpha_posterior=not args.no_posterior)
     if args.merge:
         parts = [json.loads(Path(f).read_text()) for f in args.merge]
         CONFIG.clear()

@@ -11,10 +11,18 @@ quantity, whether the touch determined it or it came from the prior:
 * ``determined``: the quantities (``"e"``, ``"k"``, ``"alpha"``) whose
   relative standard uncertainty from the fit is below
   ``identifiable_u_rel`` (30 %, the fitter's threshold);
-* ``from_prior``: those that came from the library prior instead -- k and
-  alpha together (k = e^2 / rho c, alpha = e^2 / (rho c)^2 with ln rho c
-  from the library given e, exactly as the 1-D default method), flagged
-  ``k_alpha_from_prior`` with a ``prior_reason``: never a silent switch;
+* ``from_prior``: k and alpha (together) where the fit alone left either above
+  the threshold: the answer then holds the library's prior on ln rho c given e
+  (:meth:`~edge.estimation.identification.Library.prior_rho_c`, the one prior of
+  the 1-D default method).  Where the fit has a covariance the answer is the
+  fit's (ln k, ln alpha) weighted with that prior (:func:`k_alpha_posterior`:
+  precision-weighted along ln rho c, the touch's e kept; the fit's own u
+  before the prior in ``fit.k_alpha_posterior.u_rel_fit``, the data's share of
+  the precision in ``data_share``); without one, the prior given e alone
+  (:meth:`~edge.estimation.identification.Library.k_alpha_given_e`, the
+  posterior's limit for a flat fit).  Either way flagged ``k_alpha_from_prior``
+  with a ``prior_reason``: never a silent switch, and never called determined
+  (``determined`` is the data's alone);
 * ``corr_k_alpha``: the fit's correlation of ln k and ln alpha (k and alpha
   are anti-correlated on short touches: the record constrains e = k/sqrt(alpha)
   much better than either).
@@ -169,6 +177,12 @@ def _signal_check(T: np.ndarray, q: np.ndarray, T_resolution_K: float) -> Flag |
 #: 5.5, the lightest foams ~28 (the ``[measurement] no_contact_e_W_s05_m2K`` default); the
 #: small-heater fit gives 2.4-2.6 for a probe in air on the simulator.
 NO_CONTACT_E_W_s05_m2K = 12.0
+
+
+#: The small heater's k and alpha where the fit alone did not determine them: the fit weighted with the
+#: library's prior (:func:`k_alpha_posterior`, True) or the prior given e alone (False, the switch before it;
+#: bench/asbuilt_small_bench.py ``--no-posterior`` measures both on one cache).
+K_ALPHA_POSTERIOR = True
 
 
 def k_alpha_posterior(ln_k: float, ln_alpha: float, V, ln_rho_c: float, u_ln_rho_c: float):
@@ -626,7 +640,7 @@ class AxiEstimator:
             reasons.append(f"u(alpha) {100 * u_la:.0f} % >= {100 * thr:.0f} %")
         corr = out["corr_k_alpha"]
         V_fit = None
-        if reasons and corr is not None and all(math.isfinite(v) and v > 0 for v in (k, alpha, u_lk, u_la)):
+        if reasons and K_ALPHA_POSTERIOR and corr is not None and all(math.isfinite(v) and v > 0 for v in (k, alpha, u_lk, u_la)):
             V_fit = np.array([[u_lk ** 2, corr * u_lk * u_la], [corr * u_lk * u_la, u_la ** 2]])
         if reasons and V_fit is not None:
             # Informative but not decisive: the fit's (ln k, ln alpha) weighted with the library's ln rho c
@@ -643,14 +657,12 @@ class AxiEstimator:
                                                "fit_alpha_m2_s": _num(f.fit_alpha_m2_s)}
             if outside:
                 flags.append(str(Flag.OUTSIDE_TRAINING_RANGE))
-            if share > 0.5:
-                # The data dominate: the posterior's variance of ln rho c is below half the prior's.
-                determined += ["k", "alpha"]
-            else:
-                flags.append(str(Flag.K_ALPHA_FROM_PRIOR))
-                out["from_prior"] = ["k", "alpha"]
-                out["prior_reason"] = ("the touch did not resolve k and alpha (" + "; ".join(reasons)
-                                       + f"): the posterior with the library's prior, data share {share:.2f}")
+            # Not determined, however large the data's share: the fit's own u (u_rel_fit) is what the data
+            # determined, and it is above the threshold; the prior narrowed the answer, which the flag says.
+            flags.append(str(Flag.K_ALPHA_FROM_PRIOR))
+            out["from_prior"] = ["k", "alpha"]
+            out["prior_reason"] = ("the touch did not resolve k and alpha (" + "; ".join(reasons)
+                                   + f"): the fit weighted with the library's prior given e, data share {share:.2f}")
         elif reasons:
             # k and alpha together: one without the other would not satisfy e = k / sqrt(alpha).
             k, u_lk, alpha, u_la, outside = est.library.k_alpha_given_e(e, u_le)
