@@ -313,12 +313,13 @@ def run_probe(draw_seed: int, solids: list[str], n_ref: int, store, workdir: str
     for n, u_ref, o in zip(names, lib_u, outs):
         d = answer(o.touch, cal_ctx[o.touch.method])
         sc = score(d, solid(n))
-        ok = {}
+        ok, z = {}, {}
         for q in ("e", "k", "alpha"):
             err, u = sc[f"err_{q}"], sc[f"u_{q}"]
             u_r = u_ref if q != "alpha" else 2.0 * u_ref
-            ok[q] = None if err is None or u is None else bool(abs(math.log1p(err)) <= Z95 * math.hypot(u, u_r))
-        refs.append({"reference": n, **sc, "within_u": ok})
+            z[q] = None if err is None or u is None else abs(math.log1p(err)) / math.hypot(u, u_r)
+            ok[q] = None if z[q] is None else bool(z[q] <= Z95)
+        refs.append({"reference": n, **sc, "within_u": ok, "z": z})
     rows = []
     for j, name in enumerate(solids):
         g = rng_for(draw_seed, j)
@@ -391,6 +392,9 @@ def summarise(probes: list[dict]) -> dict:
     out["probes_all_references_within_u"] = sum(
         bool(p["references"]) and all(x["within_u"][q] for x in p["references"] for q in ("e", "k", "alpha"))
         for p in probes)
+    # Per probe: the largest |z| of its references' re-measures (e, k, alpha; within u: <= 1.96).
+    out["references_max_z"] = {str(p["probe"]): max((v for x in p["references"] for v in (x.get("z") or {}).values()
+                                                      if v is not None), default=None) for p in probes}
     out["refused"] = sum(p["calibration"]["refused"] is not None for p in probes)
     out["floors"] = [p["calibration"]["u_rel_floor"] for p in probes if p["calibration"]["u_rel_floor"] is not None]
     out["failed"] = sum("error" in p["calibration"] for p in probes)
@@ -466,7 +470,9 @@ def table(summary: dict, n_probes: int, n_solids: int, n_ref: int) -> str:
     ru = summary["references_within_u"]
     lines += ["", f"References re-measured within their u after calibration (e / k / α, over all reference touches): "
               f"{f(ru['e'], '.0f')} / {f(ru['k'], '.0f')} / {f(ru['alpha'], '.0f')} %; probes with every reference "
-              f"touch within u: {summary['probes_all_references_within_u']} of {n_probes}; self-check refused "
+              f"touch within u: {summary['probes_all_references_within_u']} of {n_probes} (per probe the largest "
+              "|z| = |ln(value / reference)| / u, 1.96 within: " + ", ".join(
+                  "–" if z is None else f"{z:.1f}" for z in summary["references_max_z"].values()) + "); self-check refused "
               f"{summary['refused'] - summary['failed']} of {n_probes} (written forced), fit failed "
               f"{summary['failed']}; model-form floors "
               + ", ".join(f"{100 * x:.1f}" for x in summary["floors"]) + " %.",
@@ -543,6 +549,9 @@ def main() -> None:
     ap.add_argument("--no-reference-floor", action="store_true",
                     help="calibrate without the references' shifts as the model-form floor "
                          "(edge.calibration.axi.REFERENCE_FLOOR)")
+    ap.add_argument("--no-remeasure-floor", action="store_true",
+                    help="calibrate without raising the floor until every reference touch re-measures within its u "
+                         "(edge.calibration.axi.REMEASURE_FLOOR)")
     ap.add_argument("--no-posterior", action="store_true",
                     help="where a touch did not determine k and alpha, answer the library's prior given e alone "
                          "instead of the fit weighted with it (edge.estimation.probe_estimate.K_ALPHA_POSTERIOR)")
@@ -558,8 +567,10 @@ def main() -> None:
     axi_cal.MODEL_FORM = not args.no_model_form
     axi_cal.REFERENCE_FLOOR = not args.no_reference_floor
     pe.K_ALPHA_POSTERIOR = not args.no_posterior
+    axi_cal.REMEASURE_FLOOR = not args.no_remeasure_floor
     CONFIG.update(offset_stack=args.offset_stack, model_form=not args.no_model_form,
-                  reference_floor=not args.no_reference_floor, k_alpha_posterior=not args.no_posterior)
+                  reference_floor=not args.no_reference_floor, k_alpha_posterior=not args.no_posterior,
+                  remeasure_floor=not args.no_remeasure_floor)
     if args.merge:
         parts = [json.loads(Path(f).read_text()) for f in args.merge]
         CONFIG.clear()
