@@ -441,7 +441,33 @@ def stack_identified(probes: list[dict]) -> dict:
     return out
 
 
-def table(summary: dict, n_probes: int, n_solids: int, n_ref: int) -> str:
+def _switches(config: dict) -> str:
+    """The run's non-default switches as its command line would have them."""
+    flags = [("--no-posterior", not config.get("k_alpha_posterior", True)),
+             ("--no-remeasure-floor", not config.get("remeasure_floor", True)),
+             ("--no-model-form", not config.get("model_form", True)),
+             ("--no-reference-floor", not config.get("reference_floor", True)),
+             ("--offset-stack datasheet", config.get("offset_stack", "calibration") == "datasheet")]
+    return " ".join(f"`{n}`" for n, on in flags if on) or "the defaults"
+
+
+def compare_line(other: dict) -> str:
+    """One sentence: another run on the same cache (``--compare``: its merged JSON), 5 s, R_c <= 3e-5 and all."""
+    def f(x, fmt=".1f"):
+        return "–" if x is None else f"{100 * x:{fmt}}"
+
+    def row(s):
+        return (f"k {f(s['k']['median_abs_err'])} %, α {f(s['alpha']['median_abs_err'])} %, e "
+                f"{f(s['e']['median_abs_err'])} %, 95 % coverage k / α / e {f(s['k']['cov95'], '.0f')} / "
+                f"{f(s['alpha']['cov95'], '.0f')} / {f(s['e']['cov95'], '.0f')} %, k and α determined "
+                f"{f(s['determined_k_alpha'], '.0f')} %")
+    sm = other["summary"]
+    return (f"{_switches(other.get('config') or {})} on the same cache, calibrated, 5 s: R_c <= 3e-5 "
+            f"({sm['calibrated/5s/rc_le_3e-5']['touches']} touches) {row(sm['calibrated/5s/rc_le_3e-5'])}; all "
+            f"{sm['calibrated/5s/all']['touches']}: {row(sm['calibrated/5s/all'])}.")
+
+
+def table(summary: dict, n_probes: int, n_solids: int, n_ref: int, compare: dict | None = None) -> str:
     def f(x, fmt=".1f"):
         return "–" if x is None else f"{100 * x:{fmt}}"
     lines = [f"{n_probes} drawn small-heater probes, each calibrated (3 references x {n_ref} careful 5-s touches, "
@@ -476,9 +502,19 @@ def table(summary: dict, n_probes: int, n_solids: int, n_ref: int) -> str:
               f"{summary['refused'] - summary['failed']} of {n_probes} (written forced), fit failed "
               f"{summary['failed']}; model-form floors "
               + ", ".join(f"{100 * x:.1f}" for x in summary["floors"]) + " %.",
-              "", "Read with care: the held-out solids are library materials, so where a touch did not determine k "
-              "and α its answer is the library prior given e, close to the truth for them (the rows 'k, α "
-              "determined' are the touches that determined both). The small-heater fit models a hand touch's object "
+              "", "Read with care: every held-out touch is a fresh specimen, its e and α each drawn "
+              f"{100 * SPECIMEN_SPREAD_REL:.0f} % (lognormal, independent) around the library's values and scored "
+              "against the specimen (on the library's own materials, as before, the library's prior given e was "
+              "near-exact and the bench could not judge the prior against the data). Where a touch's fit alone did "
+              "not determine k and α (the fit's own u of either >= 30 %), its answer is "
+              + ("the fit weighted with the library's prior on ln ρc given e (edge.estimation.probe_estimate."
+                 "k_alpha_posterior: precision-weighted along ρc, the touch's e kept; the fit's own u and the data's "
+                 "share in fit.k_alpha_posterior)" if CONFIG.get("k_alpha_posterior", True) else
+                 "the library's k and α given e")
+              + ", flagged k_alpha_from_prior and not counted as determined (the rows 'k, α determined' are the "
+              "touches whose fit determined both). "
+              + ("" if compare is None else "The other answer to those touches: " + compare_line(compare) + " ")
+              + "The small-heater fit models a hand touch's object "
               "offset (edge/physics/contact_offset.py: the 1-D contact response of the calibrated stack; the probe's "
               "temperature, the flux zero, the offset and the heater TCR's cross term as linear nuisances over the "
               "samples from contact to heater-off, their covariance in every u; edge/estimation/object_offset.py) and "
@@ -492,14 +528,16 @@ def table(summary: dict, n_probes: int, n_solids: int, n_ref: int) -> str:
               "dimension, AxiEstimator._model_form_variance); the references' shifts beyond their certificates are "
               "its model-form floor (edge.calibration.axi.reference_floor: on probes 2 and 5, squares 0.46-0.6 mm off "
               "the axis, the fit moved all three references by -2 to -7.5 % in e and held-out e read 4-5 % low with a "
-              "stated u of 1.7 %); the offset's kernel takes its stack at the calibration's covariance "
+              "stated u of 1.7 %), raised where a reference touch re-measured by the written calibration would still "
+              "land outside its u (remeasure_floor: the shifts' rms beyond the certificates, added in quadrature, "
+              "had left probe 5's AISI 304 at -7.7 % against a u of 3.4 %); the offset's kernel takes its stack at the calibration's covariance "
               "(OFFSET_STACK_FROM_CALIBRATION). A metal reference whose datasheet fit lands on another minimum (probe "
               "3's AISI 304: e 1125) is kept when its declared reference explains it best (it was refused: fit "
               "failed 1). Every calibrated answer's u also carries the calibrated TCR's own u (the fit's linearised "
               "response to it, AxiFitter.tcr_response; the calibrated alpha_R +- u is the offset's TCR cross-term "
               "prior), and a fit that stopped short (not_converged) keeps the stack's and the TCR's parts of u and "
-              "adds the Gauss-Newton step it had still to go (AxiFitter.remaining_step). Switches on the same cache, "
-              "5 s, R_c <= 3e-5 (coverage over all touches): `--no-model-form` k 4.2 %, α 6.3 %, determined 72 %, "
+              "adds the Gauss-Newton step it had still to go (AxiFitter.remaining_step). Switches measured on the "
+              "library-solid cache (before the specimen spread), 5 s, R_c <= 3e-5 (coverage over all touches): `--no-model-form` k 4.2 %, α 6.3 %, determined 72 %, "
               "95 % coverage k / α / e 91 / 96 / 74 %; " + COMPARE_DATASHEET + " What it leaves: k's median sits "
               "on the touches the records did not determine (a large object offset, or an insulator whose u(k) the "
               "calibrated TCR's u and the offset kernel's stack keep above the threshold; their answer is the "
@@ -508,17 +546,20 @@ def table(summary: dict, n_probes: int, n_solids: int, n_ref: int) -> str:
     return "\n".join(lines)
 
 
-def finish(probes: list[dict], solids: list[str], n_ref: int, wall_s: float, update_docs: bool) -> None:
-    """Summarise, print, write the JSON (and the docs block)."""
+def finish(probes: list[dict], solids: list[str], n_ref: int, wall_s: float, update_docs: bool,
+           compare: dict | None = None, out_name: str = "asbuilt_small") -> None:
+    """Summarise, print, write the JSON (and the docs block); ``compare``: another run's merged JSON, quoted."""
     summary = summarise(probes)
     res = {"probes": len(probes), "solids": solids, "references": list(REFERENCES), "ref_touches": n_ref,
-           "config": CONFIG,
+           "config": CONFIG, "bench_version": BENCH_VERSION, "specimen_spread_rel": SPECIMEN_SPREAD_REL,
            "heat_s": HEAT_S, "short_s": list(SHORT_S), "wall_s": wall_s, "load_avg_1min": os.getloadavg()[0],
            "summary": summary, "per_probe": probes}
-    text = table(summary, len(probes), len(solids), n_ref)
+    if compare is not None:
+        res["compare"] = {"config": compare.get("config"), "line": compare_line(compare)}
+    text = table(summary, len(probes), len(solids), n_ref, compare)
     print(text)
     print(f"wall {wall_s:.0f} s, load {res['load_avg_1min']:.1f}")
-    print("wrote", write_json("asbuilt_small", res))
+    print("wrote", write_json(out_name, res))
     if update_docs:
         args = f"--probes {len(probes)} --solids {len(solids)} --ref-touches {n_ref}"
         print("wrote", write_block("asbuilt-small", text + f"\n\n`python bench/asbuilt_small_bench.py {args} "
@@ -539,6 +580,11 @@ def main() -> None:
                     help="only drawn probes FIRST..LAST, written to --part-out (to run the probes in two processes)")
     ap.add_argument("--part-out", help="JSON file of a --part run")
     ap.add_argument("--merge", nargs="+", metavar="PART_JSON", help="summarise --part runs instead of touching")
+    ap.add_argument("--compare", metavar="JSON",
+                    help="a merged run with other switches on the same cache (bench/results/asbuilt_small_*.json): "
+                         "quoted as one line under the table")
+    ap.add_argument("--out-name", default="asbuilt_small",
+                    help="the results JSON's name (bench/results/NAME.json); the docs block is the same either way")
     ap.add_argument("--simulate-only", action="store_true",
                     help="only fill the touch cache (bench/results/cache/asbuilt_small/), estimate nothing")
     ap.add_argument("--offset-stack", choices=("calibration", "datasheet"), default="calibration",
@@ -576,7 +622,9 @@ def main() -> None:
         CONFIG.clear()
         CONFIG.update(parts[0].get("config") or {})
         probes = sorted((p for part in parts for p in part["per_probe"]), key=lambda p: p["probe"])
-        finish(probes, parts[0]["solids"], parts[0]["ref_touches"], sum(p["wall_s"] for p in probes), args.update_docs)
+        compare = json.loads(Path(args.compare).read_text()) if args.compare else None
+        finish(probes, parts[0]["solids"], parts[0]["ref_touches"], sum(p["wall_s"] for p in probes), args.update_docs,
+               compare, args.out_name)
         return
     if args.probes < 1 or args.solids < 1 or args.ref_touches < 1:
         sys.exit("--probes, --solids and --ref-touches must be >= 1")
