@@ -528,9 +528,8 @@ def table(summary: dict, n_probes: int, n_solids: int, n_ref: int, compare: dict
               "dimension, AxiEstimator._model_form_variance); the references' shifts beyond their certificates are "
               "its model-form floor (edge.calibration.axi.reference_floor: on probes 2 and 5, squares 0.46-0.6 mm off "
               "the axis, the fit moved all three references by -2 to -7.5 % in e and held-out e read 4-5 % low with a "
-              "stated u of 1.7 %), raised where a reference touch re-measured by the written calibration would still "
-              "land outside its u (remeasure_floor: the shifts' rms beyond the certificates, added in quadrature, "
-              "had left probe 5's AISI 304 at -7.7 % against a u of 3.4 %); the offset's kernel takes its stack at the calibration's covariance "
+              "stated u of 1.7 %), raised where a reference touch re-measured by the calibration's own fit would land "
+              "outside its u (remeasure_floor; 0 on all 8 probes here, see the end); the offset's kernel takes its stack at the calibration's covariance "
               "(OFFSET_STACK_FROM_CALIBRATION). A metal reference whose datasheet fit lands on another minimum (probe "
               "3's AISI 304: e 1125) is kept when its declared reference explains it best (it was refused: fit "
               "failed 1). Every calibrated answer's u also carries the calibrated TCR's own u (the fit's linearised "
@@ -538,11 +537,16 @@ def table(summary: dict, n_probes: int, n_solids: int, n_ref: int, compare: dict
               "prior), and a fit that stopped short (not_converged) keeps the stack's and the TCR's parts of u and "
               "adds the Gauss-Newton step it had still to go (AxiFitter.remaining_step). Switches measured on the "
               "library-solid cache (before the specimen spread), 5 s, R_c <= 3e-5 (coverage over all touches): `--no-model-form` k 4.2 %, α 6.3 %, determined 72 %, "
-              "95 % coverage k / α / e 91 / 96 / 74 %; " + COMPARE_DATASHEET + " What it leaves: k's median sits "
-              "on the touches the records did not determine (a large object offset, or an insulator whose u(k) the "
-              "calibrated TCR's u and the offset kernel's stack keep above the threshold; their answer is the "
-              "library's k given e), and on metals with a large R_c the contact kernel misses by ~0.01 K over the "
-              "pre-heating window, which moves e."]
+              "95 % coverage k / α / e 91 / 96 / 74 %; " + COMPARE_DATASHEET + " What it leaves (measured with the posterior on this cache; the switch's numbers in "
+              "brackets): two of the 47 5-s touches at R_c <= 3e-5 miss k outside 95 %, metals whose fit was not "
+              "decisive (aluminium +14 % with u 7 %, copper -53 % with u 14 %); at 2 s α is worse than the switch's "
+              "(18.5 [15.2] %) and k's coverage 89 [91] %; the uncalibrated answers' k / α coverage falls to 76 / 82 "
+              "[92 / 96] % (the datasheet probe's fit is biased and the posterior weights it); on metals with a large "
+              "R_c the contact kernel misses by ~0.01 K over the pre-heating window, which moves e; and probe 5's "
+              "AISI 304 re-measures at -7.7 % against a u of 3.4 % (z 2.0): remeasure_floor judges the calibration's "
+              "own re-measure (fit_contact, heating only), which states that touch within its u, not the estimate "
+              "path's answer (the object-offset fit over the pre-heating samples, host.calibration."
+              "checked_calibration's final re-measure), whose u is smaller."]
     return "\n".join(lines)
 
 
@@ -565,7 +569,8 @@ def finish(probes: list[dict], solids: list[str], n_ref: int, wall_s: float, upd
         print("wrote", write_block("asbuilt-small", text + f"\n\n`python bench/asbuilt_small_bench.py {args} "
                                    "--simulate-only` fills the touch cache (bench/results/cache/asbuilt_small/, "
                                    f"~30 min), then `python bench/asbuilt_small_bench.py {args} --reuse "
-                                   f"--update-docs` re-estimates it ({wall_s / 60:.0f} min of calibration and "
+                                   f"--update-docs [--compare bench/results/asbuilt_small_switch.json]` (the "
+                                   "other answer's run: `--no-posterior --out-name asbuilt_small_switch`) re-estimates it ({wall_s / 60:.0f} min of calibration and "
                                    "estimation; also in parts: `--part A B --part-out F`, then `--merge`; shared "
                                    "machine)."))
 
