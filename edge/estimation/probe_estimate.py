@@ -14,11 +14,11 @@ quantity, whether the touch determined it or it came from the prior:
 * ``from_prior``: k and alpha (together) where the fit alone left either above
   the threshold: the answer then holds the library's prior on ln rho c given e
   (:meth:`~edge.estimation.identification.Library.prior_rho_c`, the one prior of
-  the 1-D default method).  Where the fit has a covariance the answer is the
-  fit's (ln k, ln alpha) weighted with that prior (:func:`k_alpha_posterior`:
+  the 1-D default method).  On a calibrated probe (``calibrated``) whose fit
+  has a covariance the answer is the fit's (ln k, ln alpha) weighted with that prior (:func:`k_alpha_posterior`:
   precision-weighted along ln rho c, the touch's e kept; the fit's own u
   before the prior in ``fit.k_alpha_posterior.u_rel_fit``, the data's share of
-  the precision in ``data_share``); without one, the prior given e alone
+  the precision in ``data_share``); otherwise the prior given e alone
   (:meth:`~edge.estimation.identification.Library.k_alpha_given_e`, the
   posterior's limit for a flat fit).  Either way flagged ``k_alpha_from_prior``
   with a ``prior_reason``: never a silent switch, and never called determined
@@ -640,7 +640,10 @@ class AxiEstimator:
             reasons.append(f"u(alpha) {100 * u_la:.0f} % >= {100 * thr:.0f} %")
         corr = out["corr_k_alpha"]
         V_fit = None
-        if reasons and K_ALPHA_POSTERIOR and corr is not None and all(math.isfinite(v) and v > 0 for v in (k, alpha, u_lk, u_la)):
+        # Only on a calibrated probe: its fit's covariance carries the calibration's and the drawing's terms; the
+        # datasheet probe's fit is biased beyond its u (uncalibrated, the posterior's k / alpha intervals held
+        # the truth on 76 / 82 % of bench/asbuilt_small_bench.py's 160 5-s touches, the prior's on 92 / 96 %).
+        if reasons and K_ALPHA_POSTERIOR and calibrated is not None and corr is not None and all(math.isfinite(v) and v > 0 for v in (k, alpha, u_lk, u_la)):
             V_fit = np.array([[u_lk ** 2, corr * u_lk * u_la], [corr * u_lk * u_la, u_la ** 2]])
         if reasons and V_fit is not None:
             # Informative but not decisive: the fit's (ln k, ln alpha) weighted with the library's ln rho c

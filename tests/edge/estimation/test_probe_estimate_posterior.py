@@ -64,9 +64,14 @@ def test_a_touch_the_fit_did_not_resolve_is_the_fit_weighted_with_the_prior_neve
     rng = np.random.default_rng(3)
     T, q = T + 0.01 * rng.standard_normal(t.size), q + 0.5 * rng.standard_normal(t.size)
     axi = shipped_small_heater_estimator()
-    post = axi.estimate(t, T, q)
+    # A calibrated probe (the posterior needs the calibration's terms in the fit's u): here the datasheet's,
+    # known to 0.1 %.
+    cal = (np.zeros(len(pe.CALIBRATED)), np.diag(np.full(len(pe.CALIBRATED), 1e-6)))
+    post = axi.estimate(t, T, q, calibrated=cal)
+    # Uncalibrated, the datasheet probe's fit is not weighted in: the prior given e, as the switch.
+    assert "k_alpha_posterior" not in axi.estimate(t, T, q)["fit"]
     monkeypatch.setattr(pe, "K_ALPHA_POSTERIOR", False)
-    prior = axi.estimate(t, T, q)
+    prior = axi.estimate(t, T, q, calibrated=cal)
     assert post["effusivity_W_s05_m2K"] == prior["effusivity_W_s05_m2K"]
     for d in (post, prior):
         assert d["determined"] == ["e"] and d["from_prior"] == ["k", "alpha"]
