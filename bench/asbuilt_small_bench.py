@@ -509,7 +509,9 @@ def table(summary: dict, n_probes: int, n_solids: int, n_ref: int, compare: dict
               "not determine k and α (the fit's own u of either >= 30 %), its answer is "
               + ("the fit weighted with the library's prior on ln ρc given e (edge.estimation.probe_estimate."
                  "k_alpha_posterior: precision-weighted along ρc, the touch's e kept; the fit's own u and the data's "
-                 "share in fit.k_alpha_posterior)" if CONFIG.get("k_alpha_posterior", True) else
+                 "share in fit.k_alpha_posterior; calibrated answers only: uncalibrated, the datasheet probe's fit "
+                 "is biased beyond its u and the answer is the library's k and α given e)"
+                 if CONFIG.get("k_alpha_posterior", True) else
                  "the library's k and α given e")
               + ", flagged k_alpha_from_prior and not counted as determined (the rows 'k, α determined' are the "
               "touches whose fit determined both). "
@@ -540,8 +542,8 @@ def table(summary: dict, n_probes: int, n_solids: int, n_ref: int, compare: dict
               "95 % coverage k / α / e 91 / 96 / 74 %; " + COMPARE_DATASHEET + " What it leaves (measured with the posterior on this cache; the switch's numbers in "
               "brackets): two of the 47 5-s touches at R_c <= 3e-5 miss k outside 95 %, metals whose fit was not "
               "decisive (aluminium +14 % with u 7 %, copper -53 % with u 14 %); at 2 s α is worse than the switch's "
-              "(18.5 [15.2] %) and k's coverage 89 [91] %; the uncalibrated answers' k / α coverage falls to 76 / 82 "
-              "[92 / 96] % (the datasheet probe's fit is biased and the posterior weights it); on metals with a large "
+              "(18.5 [15.2] %) and k's coverage 89 [91] % (weighting uncalibrated answers too had cut their k / α "
+              "coverage from 92 / 96 to 76 / 82 %); on metals with a large "
               "R_c the contact kernel misses by ~0.01 K over the pre-heating window, which moves e; and probe 5's "
               "AISI 304 re-measures at -7.7 % against a u of 3.4 % (z 2.0): remeasure_floor judges the calibration's "
               "own re-measure (fit_contact, heating only), which states that touch within its u, not the estimate "
