@@ -208,6 +208,8 @@ class GridConfig:
                 # disk (the equal-area disk by default: exactly 1 W; a larger disk, e.g. for the 1-D
                 # limit, is a larger film at the same power density).
                 self.src = self.grid.volume_source_W("heater", self.grid.meta["heater_radius_m"], self.q_v_per_W)
+                # Read-only: the step memo (firmware_sim.rz.stepmemo) digests it once per solver, not per step.
+                self.src.flags.writeable = False
         return s
 
 
