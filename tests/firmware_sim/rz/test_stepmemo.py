@@ -5,6 +5,8 @@ field); a world replaying a touch the process has marched gets the very same rec
 no factor.
 """
 
+from collections import OrderedDict
+
 import numpy as np
 import pytest
 
@@ -25,10 +27,14 @@ def _solver(scheme="trbdf2", dt_s=0.01):
 
 
 @pytest.fixture
-def cold():
-    S.clear_factor_cache()
-    yield
-    S.clear_factor_cache()
+def cold(monkeypatch):
+    """Empty memo, factor and row caches for the test; the process's own are put back after it."""
+    monkeypatch.setattr(M, "_MEMO", OrderedDict())
+    for name in ("_bytes", "_hits", "_misses"):
+        monkeypatch.setattr(M, name, 0)
+    monkeypatch.setattr(S, "_FACTOR_CACHE", OrderedDict())
+    monkeypatch.setattr(B, "_ROW_CACHE", OrderedDict())
+    monkeypatch.setattr(B, "_row_bytes", 0)
 
 
 @pytest.mark.parametrize("scheme", ["trbdf2", "be"])
@@ -113,8 +119,8 @@ def test_a_replayed_touch_is_recalled_bit_for_bit_without_a_factor(cold, name, m
         init(self, *a, **k)
 
     monkeypatch.setattr(B.BlockTridiagonal, "__init__", counting)
-    S._FACTOR_CACHE.clear()
-    B.clear_row_cache()
+    monkeypatch.setattr(S, "_FACTOR_CACHE", OrderedDict())
+    monkeypatch.setattr(B, "_ROW_CACHE", OrderedDict())
     again = _touch(name)
     # Every step recalled: nothing factored, nothing solved, and the same record to the last bit.
     assert built == [] and M.memo_stats()["misses"] == solved
