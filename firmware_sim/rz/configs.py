@@ -201,7 +201,9 @@ class GridConfig:
             if len(self.solvers) >= 8:  # the main step, the start-up sub-steps and a few partial ones
                 self.solvers.pop(next(k for k in self.solvers if k != (self.main_dt, "trbdf2")))
             # The read-out weights depend on the grid only: every step's solver shares the first's.
-            s = Solver(self.grid, dt, scheme, probes=next(iter(self.solvers.values())).probes if self.solvers else None)
+            # Factored at its first solve: a step the process has taken before is recalled, not solved.
+            s = Solver(self.grid, dt, scheme, probes=next(iter(self.solvers.values())).probes if self.solvers else None,
+                       factor_now=False)
             self.solvers[key] = s
             if self.src is None:
                 # Per watt of electrical power: the film's power density q_v = P / (A L) over the heated

@@ -315,10 +315,13 @@ class Solver:
     probes : Probes, optional
         The grid's read-out weights when already built (another solver of the same grid
         has them: they depend on the grid only).
+    factor_now : bool
+        Factor here (default); False defers it to the first solve (:attr:`fac`), which a world
+        whose steps are all recalled (:mod:`firmware_sim.rz.stepmemo`) never makes.
     """
 
     def __init__(self, grid: Grid, dt_s: float, scheme: str = "trbdf2", rannacher_steps: int = 2,
-                 probes: Probes | None = None) -> None:
+                 probes: Probes | None = None, *, factor_now: bool = True) -> None:
         if scheme not in SCHEMES:
             raise ValueError(f"scheme must be one of {SCHEMES}, got {scheme!r}")
         if not (dt_s > 0 and math.isfinite(dt_s)):
@@ -329,7 +332,9 @@ class Solver:
         # One matrix C/tau + K per scheme: BE tau = dt; CN tau = dt/2 (also the BE half step);
         # TR-BDF2 tau = gamma dt / 2 = w dt for both stages.
         self.tau = {"be": dt_s, "cn": 0.5 * dt_s, "trbdf2": 0.5 * _GAMMA * dt_s}[scheme]
-        self._fac: BlockTridiagonal | None = None    # built at the first solve (fac)
+        self._fac: BlockTridiagonal | None = None
+        if factor_now:
+            self._fac = self.op.factor(1.0 / self.tau)
         self._Ct = self.op.cap / self.tau
         self.g_t = grid.g_b_W_K * grid.t_b_K   # ambient forcing vector g
         self.g_t.flags.writeable = False        # swapped (step_response), never edited: its digest is kept
@@ -344,11 +349,7 @@ class Solver:
 
     @property
     def fac(self) -> BlockTridiagonal:
-        """The factor of ``C / tau + K``, built (or taken from the shared cache) at its first use.
-
-        A world whose steps are all recalled (:mod:`firmware_sim.rz.stepmemo`) never solves, so it
-        never pays for a factorisation.
-        """
+        """The factor of ``C / tau + K`` (built, or taken from the shared cache, at its first use if deferred)."""
         fac = self._fac
         if fac is None:
             fac = self._fac = self.op.factor(1.0 / self.tau)
