@@ -338,8 +338,10 @@ class Solver:
         self._Ct = self.op.cap / self.tau
         self.g_t = grid.g_b_W_K * grid.t_b_K   # ambient forcing vector g
         self.g_t.flags.writeable = False        # swapped (step_response), never edited: its digest is kept
-        self._key_of, self._key_base = None, b""    # digest of what a step reads, per forcing array (_step_key)
-        self._src_of, self._src_key = None, b""     # digest of the last read-only source pattern
+        # (array, digest) pairs, each replaced whole (worlds may step in other threads): what a step
+        # reads for this forcing array, and the last read-only source pattern (_step_key).
+        self._key_base: tuple = (None, b"")
+        self._src_key: tuple = (None, b"")
         if probes is None and grid.meta.get("sensor_radius_m") is not None:
             probes = _probes(grid)
         self.probes = probes
@@ -526,7 +528,8 @@ class Solver:
         read-only, :class:`firmware_sim.rz.configs.GridConfig`).
         """
         g = self.g_t
-        if self._key_of is not g or g.flags.writeable:
+        of, base = self._key_base
+        if of is not g or g.flags.writeable:
             h = hashlib.sha256()
             op = self.op
             h.update(f"{self.scheme} {self.dt!r} {self.tau!r} {self.grid.shape}".encode())
@@ -534,18 +537,15 @@ class Solver:
                 a = np.ascontiguousarray(a)
                 h.update(f"{a.dtype.str}{a.shape}".encode())
                 h.update(a.data)
-            self._key_of, self._key_base = g, h.digest()
-        src = source_W
-        if src is not self._src_of:
+            base = h.digest()
+            self._key_base = (g, base)
+        of, src_key = self._src_key
+        if source_W is not of:
             src = np.ascontiguousarray(source_W, dtype=float)
-            sk = hashlib.sha256(repr(src.shape).encode())
-            sk.update(src.data)
+            src_key = hashlib.sha256(repr(src.shape).encode() + src.tobytes()).digest()
             if isinstance(source_W, np.ndarray) and not source_W.flags.writeable and source_W.base is None:
-                self._src_of, self._src_key = source_W, sk.digest()
-            src_key = sk.digest()
-        else:
-            src_key = self._src_key
-        h = hashlib.sha256(self._key_base)
+                self._src_key = (source_W, src_key)
+        h = hashlib.sha256(base)
         h.update(src_key)
         h.update(struct.pack("<d", amplitude))
         h.update(np.ascontiguousarray(T).data)   # row-major bytes: a field's values, whatever its layout
