@@ -38,6 +38,8 @@ calibration) with Talbot and cached.
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -129,15 +131,57 @@ class SensorChainResult:
     u_ln_e_noise_nuisance_known: float = math.nan
 
 
-@lru_cache(maxsize=8)
+#: Ramp responses already inverted, by (dt, sensing layer): R(i dt) for i = 1 .. n of the longest grid
+#: asked for.  Talbot's inversion is per time, so a shorter grid's kernels are a prefix of a longer one's
+#: (the same numbers), and a longer grid inverts only its new times.  A calibration's touches (one sample
+#: rate, different lengths) and a touch's candidate contact instants (grids one fine step shorter each)
+#: then share one inversion per chain: keyed by (n, ...) with 8 entries, a walk-through's nine touches
+#: evicted each other, and every Gauss-Newton trial re-inverted every touch's kernels.
+_KERNELS: OrderedDict = OrderedDict()
+_KERNELS_MAX = 64
+_KERNELS_LOCK = threading.Lock()
+
+
+def _ramp_kernels(key: tuple, n: int, dt_s: float, ramp) -> tuple[np.ndarray, ...]:
+    """Kernels K_1 .. K_n (read-only) of the ramp responses ``ramp(t)`` (a tuple of arrays), kept per ``key``.
+
+    K_m = (R(m dt) - R((m-1) dt)) / dt with R(0) = 0; see :data:`_KERNELS`.
+    """
+    with _KERNELS_LOCK:
+        hit = _KERNELS.get(key)
+        if hit is not None:
+            _KERNELS.move_to_end(key)
+    if hit is None or hit[0][0].size < n:
+        have = 0 if hit is None else hit[0][0].size
+        # dt * i for i = have + 1 .. n: the same times as dt * arange(1, n + 1)[have:].
+        new = ramp(dt_s * np.arange(have + 1, n + 1))
+        entry = []
+        for j, Rn in enumerate(new):
+            R_prev = np.zeros(1) if hit is None else hit[0][j][-1:]
+            R = np.real(Rn)
+            K = np.diff(np.concatenate((R_prev, R))) / dt_s
+            if hit is not None:
+                R, K = np.concatenate((hit[0][j], R)), np.concatenate((hit[1][j], K))
+            R.flags.writeable = False
+            K.flags.writeable = False
+            entry.append((R, K))
+        hit = (tuple(r for r, _ in entry), tuple(k for _, k in entry))
+        with _KERNELS_LOCK:
+            old = _KERNELS.get(key)
+            if old is None or old[0][0].size < n:
+                _KERNELS[key] = hit
+                _KERNELS.move_to_end(key)
+            while len(_KERNELS) > _KERNELS_MAX:
+                _KERNELS.popitem(last=False)
+    return tuple(K[:n] for K in hit[1])
+
+
 def _slab_kernels(n: int, dt_s: float, L_m: float, k_W_mK: float, alpha_m2_s: float):
     """Convolution kernels g_A, g_B (length n) of A(s) and B(s) for inputs linear between samples.
 
     For x linear between samples with x(0) = 0, y_i = sum_j (x_j - x_{j-1}) K_{i-j+1} with
-    K_m = (R(m dt) - R((m-1) dt)) / dt, R the ramp response L^-1[H / s^2].
+    K_m = (R(m dt) - R((m-1) dt)) / dt, R the ramp response L^-1[H / s^2] (kept: :data:`_KERNELS`).
     """
-    t = dt_s * np.arange(1, n + 1)
-
     def F(s):
         g = np.sqrt(s / alpha_m2_s)
         gL = g * L_m
@@ -147,14 +191,8 @@ def _slab_kernels(n: int, dt_s: float, L_m: float, k_W_mK: float, alpha_m2_s: fl
         B = k_W_mK * g * (1.0 - ex) / (1.0 + ex)
         return A / s**2, B / s**2
 
-    RA, RB = talbot_invert(F, t)
-    out = []
-    for R in (RA, RB):
-        R = np.concatenate(([0.0], np.real(R)))
-        K = np.diff(R) / dt_s      # K_1 .. K_n
-        K.flags.writeable = False
-        out.append(K)
-    return tuple(out)
+    key = ("slab", float(dt_s), float(L_m), float(k_W_mK), float(alpha_m2_s))
+    return _ramp_kernels(key, int(n), float(dt_s), lambda t: talbot_invert(F, t))
 
 
 _erfc = np.frompyfunc(math.erfc, 1, 1)
