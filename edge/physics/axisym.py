@@ -328,6 +328,10 @@ def _keep_transforms(key: tuple | None, parts: tuple, out: tuple) -> None:
             _TRANSFORMS.popitem(last=False)
 
 
+#: Substrate variants kept per model (:meth:`AxisymModel.with_substrate`).
+_VARIANTS_MAX = 8
+
+
 @dataclass(frozen=True)
 class Responses:
     """Unit-step responses per watt of heater power on the model's time grid."""
@@ -434,11 +438,22 @@ class AxisymModel:
         A calibration identifies the as-built substrate (:mod:`edge.calibration.axi`): only the heater's
         three substrate terms are recomputed, a few array operations instead of a model's set-up.
         """
-        m = object.__new__(AxisymModel)
-        m.__dict__.update(self.__dict__)
         th = self.geometry.substrate_thickness_m if thickness_m is None else finite_positive("thickness_m", thickness_m)
-        m.geometry = replace(self.geometry, substrate=substrate, substrate_thickness_m=th)
-        m._set_substrate(substrate, th)
+        # Kept per model (a few): a calibration asks one sensing layer's model for the same substrate on
+        # every touch and finite-difference column, and the same variant's arrays also let the transforms'
+        # memo (keyed by their ids) answer a repeated object.
+        variants = self.__dict__.setdefault("_variants", OrderedDict())
+        key = (substrate, float(th))
+        m = variants.get(key)
+        if m is None:
+            m = object.__new__(AxisymModel)
+            m.__dict__.update(self.__dict__)
+            m.__dict__.pop("_variants")          # its own variants are its own
+            m.geometry = replace(self.geometry, substrate=substrate, substrate_thickness_m=th)
+            m._set_substrate(substrate, th)
+            variants[key] = m
+            while len(variants) > _VARIANTS_MAX:
+                variants.popitem(last=False)
         return m
 
     def head(self, n: int) -> "AxisymModel":
@@ -452,6 +467,7 @@ class AxisymModel:
             raise ValueError(f"n must be in 1..{self.t_s.size}, got {n}")
         m = object.__new__(AxisymModel)
         m.__dict__.update(self.__dict__)
+        m.__dict__.pop("_variants", None)        # variants on the whole grid are not this prefix's
         inv = self.inversion
         m.inversion = HyperbolicInversion(t_s=inv.t_s[:n], s=inv.s, matrix=inv.matrix[:n])
         m.t_s = m.inversion.t_s

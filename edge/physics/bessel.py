@@ -6,9 +6,21 @@ footprint's weights (:mod:`edge.physics.footprint`).
 
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
+
 import numpy as np
 
 __all__ = ["bessel_j"]
+
+#: Values already computed, by order and the arguments' exact bytes.  The same arguments come back: every
+#: axisymmetric model on a probe's Hankel nodes (a calibration's finite differences build dozens, one per
+#: sensing layer) asks for its heater disk's and thermocouple's J_n(zeta a) on the same nodes.
+_MEMO: OrderedDict = OrderedDict()
+_MEMO_MAX = 64
+#: Arguments larger than this are not kept (a footprint's (nodes x rings) table: computed once per footprint).
+_MEMO_MAX_SIZE = 8192
+_MEMO_LOCK = threading.Lock()
 
 
 def bessel_j(n: int, x: np.ndarray) -> np.ndarray:
@@ -30,6 +42,25 @@ def bessel_j(n: int, x: np.ndarray) -> np.ndarray:
     if n not in (0, 1):
         raise ValueError(f"n must be 0 or 1, got {n}")
     x = np.asarray(x, dtype=float)
+    if x.size > _MEMO_MAX_SIZE:
+        return _bessel_j(n, x)
+    key = (n, x.shape, x.tobytes())
+    with _MEMO_LOCK:
+        hit = _MEMO.get(key)
+        if hit is not None:
+            _MEMO.move_to_end(key)
+    if hit is None:
+        hit = _bessel_j(n, x)
+        hit.flags.writeable = False
+        with _MEMO_LOCK:
+            _MEMO[key] = hit
+            while len(_MEMO) > _MEMO_MAX:
+                _MEMO.popitem(last=False)
+    return hit.copy()
+
+
+def _bessel_j(n: int, x: np.ndarray) -> np.ndarray:
+    """:func:`bessel_j`, computed (``x`` a float array)."""
     flat = x.reshape(-1)
     order = np.argsort(np.abs(flat), kind="stable")
     xs = flat[order]
