@@ -6,21 +6,18 @@ footprint's weights (:mod:`edge.physics.footprint`).
 
 from __future__ import annotations
 
-import threading
-from collections import OrderedDict
-
 import numpy as np
+
+from edge.physics.memo import BoundedMemo
 
 __all__ = ["bessel_j"]
 
 #: Values already computed, by order and the arguments' exact bytes.  The same arguments come back: every
 #: axisymmetric model on a probe's Hankel nodes (a calibration's finite differences build dozens, one per
 #: sensing layer) asks for its heater disk's and thermocouple's J_n(zeta a) on the same nodes.
-_MEMO: OrderedDict = OrderedDict()
-_MEMO_MAX = 64
+_MEMO = BoundedMemo(64)
 #: Arguments larger than this are not kept (a footprint's (nodes x rings) table: computed once per footprint).
 _MEMO_MAX_SIZE = 8192
-_MEMO_LOCK = threading.Lock()
 
 
 def bessel_j(n: int, x: np.ndarray) -> np.ndarray:
@@ -44,18 +41,7 @@ def bessel_j(n: int, x: np.ndarray) -> np.ndarray:
     x = np.asarray(x, dtype=float)
     if x.size > _MEMO_MAX_SIZE:
         return _bessel_j(n, x)
-    key = (n, x.shape, x.tobytes())
-    with _MEMO_LOCK:
-        hit = _MEMO.get(key)
-        if hit is not None:
-            _MEMO.move_to_end(key)
-    if hit is None:
-        hit = _bessel_j(n, x)
-        hit.flags.writeable = False
-        with _MEMO_LOCK:
-            _MEMO[key] = hit
-            while len(_MEMO) > _MEMO_MAX:
-                _MEMO.popitem(last=False)
+    hit = _MEMO((n, x.shape, x.tobytes()), lambda: _bessel_j(n, x))
     return hit.copy()
 
 
