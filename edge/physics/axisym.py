@@ -175,6 +175,9 @@ def hankel_nodes(geometry: ProbeGeometry, *, per_panel: int = 4, depth_decades: 
 
 
 _WEIGHTS: dict = {}
+#: Footprints' weights kept (a few floats per node each): 8 were evicted within one small-heater calibration,
+#: whose sensing-layer trials each bring their own nodes, and each cost ~0.3 s of Bessel tables.
+_WEIGHTS_MAX = 64
 
 
 def sensor_weights(geometry: ProbeGeometry, zeta: np.ndarray) -> np.ndarray:
@@ -190,7 +193,7 @@ def sensor_weights(geometry: ProbeGeometry, zeta: np.ndarray) -> np.ndarray:
     key = (float(sx), float(sy), float(ox), float(oy), zeta.tobytes())
     w = _WEIGHTS.get(key)
     if w is None:
-        if len(_WEIGHTS) >= 8:
+        if len(_WEIGHTS) >= _WEIGHTS_MAX:
             _WEIGHTS.pop(next(iter(_WEIGHTS)))
         w = _WEIGHTS[key] = rectangle_weights(zeta, sx, sy, ox, oy)
         w.flags.writeable = False
@@ -449,6 +452,7 @@ class AxisymModel:
             m = object.__new__(AxisymModel)
             m.__dict__.update(self.__dict__)
             m.__dict__.pop("_variants")          # its own variants are its own
+            m.__dict__.pop("_last_hd", None)     # another substrate: another heater
             m.geometry = replace(self.geometry, substrate=substrate, substrate_thickness_m=th)
             m._set_substrate(substrate, th)
             variants[key] = m
@@ -468,6 +472,7 @@ class AxisymModel:
         m = object.__new__(AxisymModel)
         m.__dict__.update(self.__dict__)
         m.__dict__.pop("_variants", None)        # variants on the whole grid are not this prefix's
+        m.__dict__.pop("_last_hd", None)
         inv = self.inversion
         m.inversion = HyperbolicInversion(t_s=inv.t_s[:n], s=inv.s, matrix=inv.matrix[:n])
         m.t_s = m.inversion.t_s
@@ -518,6 +523,9 @@ class AxisymModel:
         TsYo, dd, Ydn = self._under_heater(Yo)
         den = 1.0 + TsYo / kgs                          # sensing layer seen from below
         hd = self._B + self._C * Ydn
+        # The heater's transform of the same object divides by the same hd: kept for it (the droop's
+        # column asks right after, heater_tcr.droop_transforms).
+        self._last_hd = ((k_W_mK, alpha_m2_s, thickness_m, back, contact_resistance_m2K_W), hd)
         r = self._num / (hd * den)                      # heater-bottom temperature / den
         kT = r * self._Ss
         kq_base = self._qa + Yo * self._qb
@@ -551,12 +559,27 @@ class AxisymModel:
         The film's resistance follows its temperature (its TCR, :mod:`edge.physics.heater_tcr`); the
         film is thin, so its mean is its bottom face's, averaged over the disk (``2 J1(zeta a) / (zeta a)``).
         """
+        # Kept with the transforms (:data:`_TRANSFORMS`): a calibration's droop column asks for it at every
+        # evaluation of a touch, most of them (another touch's or a global's column) at an object already seen.
+        key, parts = _transforms_key(self, ("heater", k_W_mK, alpha_m2_s, thickness_m, back, contact_resistance_m2K_W))
+        out = _cached_transforms(key, parts)
+        if out is None:
+            out = (self._heater_transform(k_W_mK, alpha_m2_s, thickness_m, back, contact_resistance_m2K_W),)
+            _keep_transforms(key, parts, out)
+        return out[0]
+
+    def _heater_transform(self, k_W_mK: float, alpha_m2_s: float, thickness_m: float | None, back: str,
+                          contact_resistance_m2K_W: float) -> np.ndarray:
+        """:meth:`heater_transform`, computed."""
         w = getattr(self, "_w_h", None)
         if w is None:
             a = self.geometry.heater_radius_m
             zeta, wz = self.nodes
             disk = a * bessel_j(1, zeta * a) / zeta
             w = self._w_h = wz * zeta * disk * 2.0 * bessel_j(1, zeta * a) / (zeta * a)
+        last = getattr(self, "_last_hd", None)
+        if last is not None and last[0] == (k_W_mK, alpha_m2_s, thickness_m, back, contact_resistance_m2K_W):
+            return (self._num / last[1]) @ w
         Yo = series_contact(self.object_admittance(k_W_mK, alpha_m2_s, thickness_m, back), contact_resistance_m2K_W)
         Ydn = self._under_heater(Yo)[2]
         return (self._num / (self._B + self._C * Ydn)) @ w
