@@ -49,7 +49,8 @@ from edge.physics.laplace import talbot_invert
 from edge.physics.memo import BoundedMemo
 from edge.physics.probe import DEFAULT_STACK
 
-__all__ = ["DiskFitter", "ProfilePoint", "SensorChainCalibration", "SensorChainResult", "chain_design", "chain_theta", "chain_with_theta", "face_flux",
+__all__ = ["DiskFitter", "ProfilePoint", "SensorChainCalibration", "SensorChainResult", "chain_design", "chain_point", "chain_theta",
+           "chain_with_theta", "face_flux",
            "fit_sensor_chain", "refine_factor", "simulate_chain"]
 
 
@@ -565,6 +566,23 @@ def fit_sensor_chain(t_s, T_tc_C, q_m_W_m2, *, T_probe0_C: float | None = None,
         # one over the contact transient's first samples, which the model cannot resolve.
         theta = np.where(fit, X @ p, theta)
     return _result(Xl, y, fit, p, c.Tp0, noise_T_K, it + 1)
+
+
+def chain_point(t_s, T_tc_C, q_m_W_m2, *, calibration: SensorChainCalibration = SensorChainCalibration(),
+                fit_start_s: float = 0.3, breaks_s: tuple[float, ...] = (), contact_frac: float = 0.0) -> ProfilePoint:
+    """e and the rms residual of :func:`fit_sensor_chain` (one pass, 1-D) without its covariance.
+
+    The same numbers as the full fit's ``e_W_s05_m2K`` and ``rms_residual_K``: for a search over
+    candidates that compares only those (the contact instant, :func:`edge.estimation.chain_estimate.contact_fraction`).
+    """
+    c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, None, fit_start_s, breaks_s, contact_frac=contact_frac)
+    phi = c.phiA - _applied(c.kkey, 1, c.KB, c.theta)
+    Xl = _lag(np.column_stack((np.ones_like(c.t), phi, _response(phi, c.dt, None))), c.dt, calibration.tc_tau_s)
+    p = _lstsq(Xl, c.y, c.fit)
+    r = c.y[c.fit] - Xl[c.fit] @ p
+    inv_e = p[2]
+    return ProfilePoint(float(1.0 / inv_e if inv_e > 0 else float("inf")), math.sqrt(float(r @ r) / r.size),
+                        int(r.size), math.nan)
 
 
 def _unit_scale(Xf: np.ndarray) -> np.ndarray:
