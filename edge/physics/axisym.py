@@ -225,14 +225,16 @@ def series_contact(Y, contact_resistance_m2K_W: float):
     return Y / (1.0 + R * Y) if R != 0.0 else Y
 
 
-def _ch_ratio(g, u, L):
-    """cosh(g u) / cosh(g L) for 0 <= u <= L."""
-    return (np.exp(g * (u - L)) + np.exp(-g * (u + L))) / (1.0 + np.exp(-2.0 * g * L))
+def _ch_sh_ratios(g, u, L, den=None):
+    """(cosh(g u) / cosh(g L), sinh(g u) / cosh(g L)) for 0 <= u <= L.
 
-
-def _sh_ratio(g, u, L):
-    """sinh(g u) / cosh(g L) for 0 <= u <= L."""
-    return (np.exp(g * (u - L)) - np.exp(-g * (u + L))) / (1.0 + np.exp(-2.0 * g * L))
+    Both from the same two exponentials over the same denominator ``1 + exp(-2 g L)`` (pass ``den`` to
+    share it between depths): a model's set-up forms them on every (p, zeta) node.
+    """
+    if den is None:
+        den = 1.0 + np.exp(-2.0 * g * L)
+    a, b = np.exp(g * (u - L)), np.exp(-g * (u + L))
+    return (a + b) / den, (a - b) / den
 
 
 # ----------------------------------------------------------------------------------------------
@@ -417,8 +419,10 @@ class AxisymModel:
         z0, z1 = g.sensor_depth_m
         u0, u1 = L - z0, L - z1
         dz = z1 - z0
-        self._qa = sm.k_W_mK * (_ch_ratio(gs, u0, L) - _ch_ratio(gs, u1, L)) / dz
-        self._qb = (_sh_ratio(gs, u0, L) - _sh_ratio(gs, u1, L)) / (gs * dz)
+        den = 1.0 + np.exp(-2.0 * gs * L)
+        (ch0, sh0), (ch1, sh1) = _ch_sh_ratios(gs, u0, L, den), _ch_sh_ratios(gs, u1, L, den)
+        self._qa = sm.k_W_mK * (ch0 - ch1) / dz
+        self._qb = (sh0 - sh1) / (gs * dz)
         self.n_nodes = int(gh.size)
         _keep_parts(key, self)
 
