@@ -333,8 +333,9 @@ def _keep_transforms(key: tuple | None, parts: tuple, out: tuple) -> None:
             _TRANSFORMS.popitem(last=False)
 
 
-#: Substrate variants kept per model (:meth:`AxisymModel.with_substrate`).
-_VARIANTS_MAX = 8
+#: Substrate variants kept per model (:meth:`AxisymModel.with_substrate`): the point and its two substrate
+#: columns and a trial; ~0.65 MB each on the small-heater probe.
+_VARIANTS_MAX = 4
 
 
 @dataclass(frozen=True)
