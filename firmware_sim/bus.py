@@ -216,8 +216,8 @@ class SimBus:
             if not isinstance(address, int) or not 0 <= address <= 0x7F:
                 raise _oserror(_errno.EINVAL)
             t = self._now()
-            has_read = any(kind == "r" for kind, _ in segments)
-            for f in self._faults:
+            faults = self._faults
+            for f in faults:
                 if not f.active(t, address):
                     continue
                 if f.kind == "stuck":
@@ -230,11 +230,13 @@ class SimBus:
             if dev is None:
                 self._record(t, address, what, "nack")
                 raise _oserror(self.nack_errno)
-            for f in self._faults:
-                if f.kind == "flaky" and f.active(t, address) and (has_read or not f.reads_only):
-                    if self.rng.random() < f.probability:
-                        self._record(t, address, what, "flaky")
-                        raise _oserror(f.err)
+            if faults:
+                has_read = any(kind == "r" for kind, _ in segments)
+                for f in faults:
+                    if f.kind == "flaky" and f.active(t, address) and (has_read or not f.reads_only):
+                        if self.rng.random() < f.probability:
+                            self._record(t, address, what, "flaky")
+                            raise _oserror(f.err)
             out: list[bytes] = []
             nbytes = 0
             for kind, arg in segments:

@@ -24,6 +24,7 @@ Emulated (datasheet sections in brackets):
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Callable
 
@@ -44,6 +45,14 @@ from edge.hw.regmaps.ads122c04 import (
 _EPS = 1e-9
 _MAX_BACKLOG = 64
 _MUX_LABELS = {v: k for k, v in MUX.items()}
+
+
+@functools.lru_cache(maxsize=None)
+def _times_for(config1: int) -> tuple[float, float]:
+    """(single-shot, continuous) conversion times for a CONFIG1 value (asked on every bus access)."""
+    dr = min((config1 >> 5) & 0x7, 6)
+    turbo = bool(config1 & 0x10)
+    return conversion_time_s(dr, turbo, True), conversion_time_s(dr, turbo, False)
 
 
 class ADS122C04Emulator(Freezable):
@@ -99,9 +108,7 @@ class ADS122C04Emulator(Freezable):
         return bool(self.regs[1] & 0x08)
 
     def _times(self) -> tuple[float, float]:
-        dr = min((self.regs[1] >> 5) & 0x7, 6)
-        turbo = bool(self.regs[1] & 0x10)
-        return conversion_time_s(dr, turbo, True), conversion_time_s(dr, turbo, False)
+        return _times_for(self.regs[1])
 
     def _start(self, now: float) -> None:
         self._running = True
@@ -194,4 +201,4 @@ class ADS122C04Emulator(Freezable):
     def i2c_read(self, n: int) -> bytes:
         self._catch_up()
         r = self._response or b"\xff"
-        return bytes(r[i % len(r)] for i in range(n))
+        return r[:n] if n <= len(r) else (r * (n // len(r) + 1))[:n]   # the response repeats
