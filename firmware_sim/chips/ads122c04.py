@@ -55,6 +55,13 @@ def _times_for(config1: int) -> tuple[float, float]:
     return conversion_time_s(dr, turbo, True), conversion_time_s(dr, turbo, False)
 
 
+@functools.lru_cache(maxsize=None)
+def _crc_mode(config2: int) -> str:
+    """RDATA's integrity bytes for a CONFIG2 value ("off" for the reserved code too)."""
+    mode = REGISTERS.CONFIG2.get(config2, "CRC")
+    return mode if mode in ("inverted", "crc16") else "off"
+
+
 class ADS122C04Emulator(Freezable):
     """Emulated ADS122C04 (the driver is :class:`edge.hw.drivers.ads122c04.ADS122C04`).
 
@@ -179,9 +186,7 @@ class ADS122C04Emulator(Freezable):
                 self._running = False
             elif cmd & 0xF0 == 0x10:                     # RDATA
                 dcnt = bool(self.regs[2] & 0x40)
-                crc_mode = REGISTERS.CONFIG2.get(self.regs[2], "CRC")
-                if crc_mode not in ("inverted", "crc16"):
-                    crc_mode = "off"
+                crc_mode = _crc_mode(self.regs[2])
                 self._response = rdata_frame(self.data, self.counter if dcnt else None, crc_mode)
                 self.regs[2] &= 0x7F                     # result read: DRDY cleared
             elif cmd & 0xF0 == 0x20:                     # RREG

@@ -84,6 +84,26 @@ def _drdy(config2: int) -> bool:
     return bool(REGISTERS.CONFIG2.get(config2, "DRDY"))
 
 
+@functools.lru_cache(maxsize=256)
+def _frame(config2: int) -> tuple[bool, str, int]:
+    """RDATA's frame for a CONFIG2 value: (data counter on, integrity mode, bytes to read)."""
+    dcnt = bool(REGISTERS.CONFIG2.get(config2, "DCNT"))
+    crc_mode = REGISTERS.CONFIG2.get(config2, "CRC")
+    n = 3 + (1 if dcnt else 0)
+    n += {"inverted": n, "crc16": 2}.get(crc_mode, 0)
+    return dcnt, crc_mode, n
+
+
+@functools.lru_cache(maxsize=256)
+def _gain(config0: int) -> int:
+    return REGISTERS.CONFIG0.get(config0, "GAIN")
+
+
+@functools.lru_cache(maxsize=256)
+def _internal_vref(config1: int) -> bool:
+    return REGISTERS.CONFIG1.get(config1, "VREF") == "internal"
+
+
 class _IntegrityError(OSError):
     """RDATA bytes failed the inverted-data / CRC check."""
 
@@ -191,7 +211,7 @@ class ADS122C04(I2CDevice):
 
     @property
     def gain(self) -> int:
-        return REGISTERS.CONFIG0.get(self._regs[0], "GAIN")
+        return _gain(self._regs[0])
 
     @property
     def continuous(self) -> bool:
@@ -209,10 +229,7 @@ class ADS122C04(I2CDevice):
 
     def read_data_code(self) -> int:
         """RDATA: the latest 24-bit two's-complement result (checks CRC if enabled)."""
-        dcnt = bool(REGISTERS.CONFIG2.get(self._regs[2], "DCNT"))
-        crc_mode = REGISTERS.CONFIG2.get(self._regs[2], "CRC")
-        n = 3 + (1 if dcnt else 0)
-        n += {"inverted": n, "crc16": 2}.get(crc_mode, 0)
+        dcnt, crc_mode, n = _frame(self._regs[2])
 
         def xfer() -> int:
             raw = bytes(self.bus.read_i2c_block_data(self.address, CMD_RDATA, n))
@@ -260,7 +277,7 @@ class ADS122C04(I2CDevice):
         return code
 
     def _vref(self) -> float:
-        return INTERNAL_VREF_V if REGISTERS.CONFIG1.get(self._regs[1], "VREF") == "internal" else self.vref_V
+        return INTERNAL_VREF_V if _internal_vref(self._regs[1]) else self.vref_V
 
     def read_voltage_V(self, mux: str | None = None, gain: int | None = None) -> float:
         """Single conversion of ``mux`` at ``gain`` (unchanged if None), in volts."""
