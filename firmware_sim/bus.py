@@ -408,18 +408,18 @@ class SimBus:
             raise _oserror(_errno.EINVAL)
         groups: list[tuple[int, list]] = []
         for msg in i2c_msgs:
-            for attr in ("addr", "flags", "len", "buf"):
-                if not hasattr(msg, attr):
-                    raise TypeError(f"i2c_rdwr expects smbus2.i2c_msg objects, got {type(msg).__name__}")
-            if not groups or groups[-1][0] != msg.addr:
-                groups.append((msg.addr, []))
+            try:
+                addr, _, _, _ = msg.addr, msg.flags, msg.len, msg.buf
+            except AttributeError:
+                raise TypeError(f"i2c_rdwr expects smbus2.i2c_msg objects, got {type(msg).__name__}") from None
+            if not groups or groups[-1][0] != addr:
+                groups.append((addr, []))
             groups[-1][1].append(msg)
         for addr, msgs in groups:
             segs = [("r", m.len) if m.flags & I2C_M_RD else ("w", ctypes.string_at(m.buf, m.len))
                     for m in msgs]
-            results = iter(self._transfer(addr, segs, "i2c_rdwr " + " ".join(
-                f"{'R' if m.flags & I2C_M_RD else 'W'}{m.len}" for m in msgs)))
-            for m in msgs:
-                if m.flags & I2C_M_RD:
-                    data = next(results)
-                    ctypes.memmove(m.buf, data, m.len)
+            what = " ".join([f"{'R' if kind == 'r' else 'W'}{m.len}" for (kind, _), m in zip(segs, msgs)])
+            results = iter(self._transfer(addr, segs, "i2c_rdwr " + what))
+            for (kind, _), m in zip(segs, msgs):
+                if kind == "r":
+                    ctypes.memmove(m.buf, next(results), m.len)
