@@ -264,6 +264,12 @@ def _dir_watch() -> _DirWatch | None:
     return _WATCH
 
 
+def _drop_watch() -> None:
+    """Stop using this process's inotify instance: every sync reads its files again."""
+    global _WATCH
+    _WATCH = None
+
+
 def _forget_watch(w: _Watched) -> None:
     watch = _dir_watch() if w.wds else None
     if watch is not None and w.pid == os.getpid():
@@ -556,7 +562,11 @@ class SimPwmTree:
             return False
         if w.pid != os.getpid():            # a forked child's inherited tree: watch it from here
             w.pid, w.wds, w.dirty = os.getpid(), set(), True
-        watch.poll()
+        try:
+            watch.poll()
+        except OSError:                     # the instance is gone (its fd closed under us): read from now on
+            _drop_watch()
+            return False
         if not w.dirty:
             return True
         w.dirty = False

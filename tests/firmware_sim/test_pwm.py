@@ -278,6 +278,25 @@ def test_a_forked_childs_raw_write_reaches_the_parents_tree_and_its_own(watched_
     assert tree.state().duty_ns == 300
 
 
+def test_a_lost_inotify_instance_falls_back_to_reading_every_file(monkeypatch):
+    monkeypatch.setattr(pwm_mod, "_WATCH", None)       # this test's own instance (the process's is kept)
+    monkeypatch.setattr(pwm_mod, "_WATCH_PID", None)
+    watch = pwm_mod._dir_watch()
+    if watch is None:
+        pytest.skip("no inotify here")
+    tree = SimPwmTree(VirtualClock(), chips={0: 2})
+    try:
+        exported(tree)
+        tree.io.write(ch(tree, "period"), "1000")
+        tree.clock.advance(0.01)
+        os.close(watch.fd)                               # closed under it
+        ch(tree, "duty_cycle").write_text("600\n")
+        tree.clock.advance(0.01)
+        assert tree.state().duty_ns == 600 and pwm_mod._dir_watch() is None
+    finally:
+        tree.close()
+
+
 # ---- the edge driver on the simulated tree
 
 
