@@ -129,6 +129,8 @@ class SimBus:
         self._faults: list[_Fault] = []
         self._lock = threading.RLock()
         self._open = True
+        self._tick_clock: object = object()     # the clock _tick was looked up on (none yet)
+        self._tick = None
         self.bus_id = bus
         #: counts of "ok", "nack", "stuck", "flaky" transactions
         self.stats: Counter = Counter()
@@ -194,7 +196,10 @@ class SimBus:
     def _transfer(self, address: int, segments: Sequence[tuple[str, object]], what: str) -> list[bytes]:
         """One bus transaction (START ... STOP) of write ("w", bytes) and read
         ("r", n) segments to one address; returns the read results."""
-        tick = getattr(self.clock, "bus_transaction", None)
+        clock = self.clock
+        if clock is not self._tick_clock:   # looked up once per clock (a failed getattr costs a caught exception)
+            self._tick_clock, self._tick = clock, getattr(clock, "bus_transaction", None)
+        tick = self._tick
         try:
             out, nbytes = self._exchange(address, segments, what)
         except OSError as e:
