@@ -30,7 +30,9 @@ def test_each_test_gets_its_own_cpu_seconds_and_tier_and_the_files_are_summed(py
     result = pytester.runpytest_inprocess("-p", "tests.support.cpu_times", f"--cpu-times={prefix}",
                                           "-p", "no:cacheprovider")
     result.assert_outcomes(passed=3)
-    rows = {ln.split("\t")[0]: ln.split("\t")[1:] for ln in (pytester.path / "cpu.main.tsv").read_text().splitlines()}
+    # One file, named for the process (``main``, or the xdist worker whose environment the run inherited).
+    (written,) = pytester.path.glob("cpu.*.tsv")
+    rows = {ln.split("\t")[0]: ln.split("\t")[1:] for ln in written.read_text().splitlines()}
     assert float(rows["#process"][1]) > 0
     assert rows["test_a.py::test_busy"][0] == "slow" and rows["test_a.py::test_idle"][0] == "fast"
     busy, idle = float(rows["test_a.py::test_busy"][1]), float(rows["test_a.py::test_idle"][1])
