@@ -69,8 +69,10 @@ def per_file(prefix: str, tier: str | None = None) -> dict[str, float]:
     sums: dict[str, float] = defaultdict(float)
     for path in Path(prefix).parent.glob(Path(prefix).name + ".*.tsv"):
         for line in path.read_text(encoding="utf-8").splitlines():
+            if line.startswith("#"):
+                continue   # the process's total
             node, t, cpu = line.split("\t")
-            if not node.startswith("#") and tier in (None, t):
+            if tier in (None, t):
                 sums[node.split("::")[0]] += float(cpu)
     return dict(sums)
 
