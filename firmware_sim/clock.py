@@ -37,16 +37,17 @@ class VirtualClock:
 
     def now(self) -> float:
         """Current simulated time in seconds."""
-        with self._lock:
-            return self._t
+        # No lock: reading one attribute is atomic, and advance() replaces it in one store; the lock
+        # would only order this read before or after an advance, which the caller cannot tell apart.
+        return self._t
 
-    def monotonic(self) -> float:
-        """Alias of :meth:`now`, with the signature of ``time.monotonic``."""
-        return self.now()
+    #: Alias of :meth:`now`, with the signature of ``time.monotonic`` (the same function: the drivers
+    #: and the sequence call it several times a sample).
+    monotonic = now
 
     def monotonic_ns(self) -> int:
         """Current simulated time in integer nanoseconds."""
-        return int(round(self.now() * 1e9))
+        return int(round(self._t * 1e9))
 
     def advance(self, dt_s: float) -> float:
         """Move simulated time forward by ``dt_s`` seconds; return the new time."""

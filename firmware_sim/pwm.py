@@ -20,7 +20,9 @@ of it. Writes reach that state by two routes:
    behaves exactly as on a Pi. This is the route the simulated board uses.
 2. **Raw file writes** (plain ``open().write()``, shell scripts, code that
    bypasses the seam) are picked up by :meth:`SimPwmTree.sync`, which runs on
-   every virtual-clock advance and before every ``io`` call. An invalid
+   every virtual-clock advance and before every ``io`` call (on Linux it reads
+   the files only when inotify saw a change in the tree since its last read:
+   :class:`_DirWatch`). An invalid
    value is reverted and recorded in :attr:`SimPwmTree.violations` (it never
    reaches the simulated hardware). Limitation: several raw writes between
    two syncs are judged as one combined change, so their *order* (e.g.
@@ -42,8 +44,10 @@ The effective output over time, for the thermal world, is
 from __future__ import annotations
 
 import bisect
+import ctypes
 import errno as _errno
 import os
+import struct
 import shutil
 import tempfile
 import threading
@@ -135,6 +139,144 @@ class SimSysfsIO:
 
 
 
+class _Watched:
+    """One tree's side of :class:`_DirWatch`: whether its files may have changed since its last read."""
+
+    __slots__ = ("dirty", "wds", "pid", "closed")
+
+    def __init__(self) -> None:
+        self.dirty = True           # nothing read yet
+        self.wds: set[int] = set()
+        self.pid = os.getpid()
+        self.closed = False
+
+
+class _DirWatch:
+    """Linux inotify on the trees' directories, one instance per process shared by its trees.
+
+    A sync read seven files (three syscalls each) on every clock advance, 50 us of the ~400 us a
+    simulated sample cost; the raw writes it looks for are rare. The kernel queues an event in the
+    write itself, so "no event since the last read" means no file changed: a sync then reads none.
+    Any event (ours included), a queue overflow or a watch the kernel dropped marks the tree for a
+    full read, which re-adds its watches first (a write after that is an event, one before is read).
+    """
+
+    _IN_MODIFY, _IN_ATTRIB, _IN_CLOSE_WRITE = 0x2, 0x4, 0x8
+    _IN_MOVED_FROM, _IN_MOVED_TO, _IN_CREATE, _IN_DELETE = 0x40, 0x80, 0x100, 0x200
+    _IN_DELETE_SELF, _IN_MOVE_SELF = 0x400, 0x800
+    _IN_Q_OVERFLOW, _IN_IGNORED = 0x4000, 0x8000
+    _MASK = (_IN_MODIFY | _IN_ATTRIB | _IN_CLOSE_WRITE | _IN_MOVED_FROM | _IN_MOVED_TO | _IN_CREATE
+             | _IN_DELETE | _IN_DELETE_SELF | _IN_MOVE_SELF)
+    _IN_NONBLOCK, _IN_CLOEXEC = 0o4000, 0o2000000
+    _EVENT = struct.Struct("iIII")
+
+    def __init__(self) -> None:
+        libc = ctypes.CDLL(None, use_errno=True)
+        self._add = libc.inotify_add_watch
+        self._add.argtypes = (ctypes.c_int, ctypes.c_char_p, ctypes.c_uint32)
+        self._rm = libc.inotify_rm_watch
+        self._rm.argtypes = (ctypes.c_int, ctypes.c_int)
+        fd = libc.inotify_init1(self._IN_NONBLOCK | self._IN_CLOEXEC)
+        if fd < 0:
+            raise OSError(ctypes.get_errno(), "inotify_init1 failed")
+        self.fd = fd
+        self.pid = os.getpid()
+        # Re-entrant: a tree's finalizer (forget) may run from the garbage collector inside poll.
+        self._lock = threading.RLock()
+        self._owners: dict[int, set[_Watched]] = {}
+
+    def add(self, w: _Watched, path: Path) -> bool:
+        """Watch directory ``path`` for ``w``; False if it cannot be (missing)."""
+        with self._lock:
+            wd = self._add(self.fd, os.fsencode(path), self._MASK)
+            if wd < 0:
+                return False
+            w.wds.add(wd)
+            self._owners.setdefault(wd, set()).add(w)
+            return True
+
+    def poll(self) -> None:
+        """Mark the trees whose directories saw an event since the last poll."""
+        with self._lock:
+            while True:
+                try:
+                    buf = os.read(self.fd, 65536)
+                except BlockingIOError:
+                    return
+                off = 0
+                while off + 16 <= len(buf):
+                    wd, mask, _cookie, n = self._EVENT.unpack_from(buf, off)
+                    off += 16 + n
+                    if mask & self._IN_Q_OVERFLOW:
+                        for ws in self._owners.values():
+                            for w in ws:
+                                w.dirty = True
+                        continue
+                    for w in list(self._owners.get(wd, ())):
+                        w.dirty = True
+                        if mask & self._IN_IGNORED:
+                            w.wds.discard(wd)
+                    if mask & self._IN_IGNORED:
+                        self._owners.pop(wd, None)
+
+    def forget(self, w: _Watched) -> None:
+        """Drop ``w``'s watches (those no other tree shares)."""
+        with self._lock:
+            w.closed = True
+            for wd in w.wds:
+                ws = self._owners.get(wd)
+                if ws is not None:
+                    ws.discard(w)
+                    if not ws:
+                        del self._owners[wd]
+                        self._rm(self.fd, wd)
+            w.wds.clear()
+
+
+_WATCH: _DirWatch | None = None
+_WATCH_PID: int | None = None     # the process _WATCH was tried in (None: never)
+_WATCH_LOCK = threading.Lock()
+
+
+def _dir_watch() -> _DirWatch | None:
+    """This process's :class:`_DirWatch` (None where inotify is unavailable: every sync reads)."""
+    global _WATCH, _WATCH_PID, _WATCH_LOCK
+    pid = os.getpid()
+    if _WATCH_PID == pid:
+        return _WATCH
+    if _WATCH_PID is not None:
+        # A forked child: the inherited instance is the parent's (reading it would take the parent's
+        # events), and the inherited lock may have been held by a thread that does not exist here.
+        _WATCH_LOCK = threading.Lock()
+        if _WATCH is not None:
+            try:
+                os.close(_WATCH.fd)
+            except OSError:
+                pass
+            _WATCH = None
+    with _WATCH_LOCK:
+        if _WATCH_PID != pid:
+            try:
+                _WATCH = _DirWatch()
+            except (OSError, AttributeError):   # not Linux, or out of inotify instances
+                _WATCH = None
+            _WATCH_PID = pid
+    return _WATCH
+
+
+def _drop_watch() -> None:
+    """Stop using this process's inotify instance: every sync reads its files again."""
+    global _WATCH
+    _WATCH = None
+
+
+def _forget_watch(w: _Watched) -> None:
+    watch = _dir_watch() if w.wds else None
+    if watch is not None and w.pid == os.getpid():
+        watch.forget(w)
+    w.closed = True
+
+
 def _remove_tree(root: str, owner_pid: int) -> None:
     """Remove a simulated sysfs tree, in the process that created it only."""
     if os.getpid() == owner_pid:
@@ -182,6 +324,8 @@ class SimPwmTree:
         self._cleanup = (weakref.finalize(self, _remove_tree, str(self.root), os.getpid())
                          if self._owns_root else None)
         self._lock = threading.RLock()
+        self._watched = _Watched()
+        self._unwatch = weakref.finalize(self, _forget_watch, self._watched)
         self._npwm = chips
         self._mirror: dict[Path, str] = {}
         # sync() runs on every clock step and bus transfer: its paths are built once, not per call.
@@ -250,6 +394,7 @@ class SimPwmTree:
 
     def close(self) -> None:
         """Remove the tree if this object created it (idempotent)."""
+        self._unwatch()
         if self._cleanup is not None:
             self._cleanup()
 
@@ -384,6 +529,8 @@ class SimPwmTree:
         ``t_s`` is the time stamp for accepted changes (default: now).
         """
         with self._lock:
+            if self._unchanged():
+                return
             t = self.clock.now() if t_s is None else float(t_s)
             for chip in self._npwm:
                 _, (export, unexport, npwm) = self._files(chip, None)
@@ -404,6 +551,31 @@ class SimPwmTree:
             for key, ch in self._channels.items():
                 if ch.exported:
                     self._sync_channel(key, t)
+
+    def _unchanged(self) -> bool:
+        """Whether no file of the tree can have changed since the last full read (:class:`_DirWatch`).
+
+        False re-adds the watches before the caller reads: a write after that is an event.
+        """
+        watch, w = _dir_watch(), self._watched
+        if watch is None or w.closed:
+            return False
+        if w.pid != os.getpid():            # a forked child's inherited tree: watch it from here
+            w.pid, w.wds, w.dirty = os.getpid(), set(), True
+        try:
+            watch.poll()
+        except OSError:                     # the instance is gone (its fd closed under us): read from now on
+            _drop_watch()
+            return False
+        if not w.dirty:
+            return True
+        w.dirty = False
+        dirs = [self.chip_dir(chip) for chip in self._npwm]
+        dirs += [self._files(*key)[0] for key, ch in self._channels.items() if ch.exported]
+        for d in dirs:
+            if not watch.add(w, d):
+                w.dirty = True              # missing (the read recreates a channel's): read again next time
+        return False
 
     def _files(self, chip: int, channel: int | None) -> tuple[Path, tuple[tuple[str, Path], ...]]:
         """A directory and its watched files (cached: Path arithmetic dominated sync())."""

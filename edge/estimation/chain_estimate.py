@@ -44,7 +44,7 @@ from typing import Any, Callable
 import numpy as np
 
 from edge.estimation.contact import find_contact
-from edge.estimation.sensor_chain import (DiskFitter, SensorChainCalibration, chain_theta, chain_with_theta,
+from edge.estimation.sensor_chain import (DiskFitter, SensorChainCalibration, chain_point, chain_theta, chain_with_theta,
                                           face_flux, fit_sensor_chain, refine_factor)
 from edge.physics.geometry import PROBES
 from edge.physics.probe import (FLUX_SENSITIVITY_U_REL, SENSING_K_U_REL, SENSING_THICKNESS_U_REL,
@@ -374,8 +374,8 @@ def contact_fraction(tt, TT, qq, chain, breaks, noise_T: float) -> tuple[float, 
     got = []
     for f in (k / m for k in range(m)):
         try:
-            r = fit_sensor_chain(tt, TT, qq, calibration=chain, fit_start_s=FIT_START_s, noise_T_K=noise_T,
-                                 breaks_s=breaks, contact_frac=f)
+            # e and the residual only: the candidates are compared on nothing else (chain_point).
+            r = chain_point(tt, TT, qq, calibration=chain, fit_start_s=FIT_START_s, breaks_s=breaks, contact_frac=f)
         except ValueError:
             continue
         if r.e_W_s05_m2K > 0 and math.isfinite(r.e_W_s05_m2K) and math.isfinite(r.rms_residual_K):

@@ -46,10 +46,11 @@ import numpy as np
 from edge.physics.fluxmodel import duhamel_apply
 from edge.physics.integrators import causal_convolution
 from edge.physics.laplace import talbot_invert
+from edge.physics.memo import BoundedMemo
 from edge.physics.probe import DEFAULT_STACK
 
-__all__ = ["DiskFitter", "ProfilePoint", "SensorChainCalibration", "SensorChainResult", "chain_design", "chain_theta", "chain_with_theta", "face_flux",
-           "fit_sensor_chain", "refine_factor", "simulate_chain"]
+__all__ = ["DiskFitter", "ProfilePoint", "SensorChainCalibration", "SensorChainResult", "chain_design", "chain_point", "chain_theta",
+           "chain_with_theta", "face_flux", "fit_sensor_chain", "refine_factor", "simulate_chain"]
 
 
 @dataclass(frozen=True)
@@ -129,15 +130,42 @@ class SensorChainResult:
     u_ln_e_noise_nuisance_known: float = math.nan
 
 
-@lru_cache(maxsize=8)
+#: Ramp responses R(i dt), i = 1 .. n of the longest grid asked for, by (dt, layer).  Talbot inverts per time:
+#: a shorter grid's kernels are a longer one's prefix (same numbers), a longer grid inverts only its new times.
+#: A calibration's touches and a touch's candidate contact instants share one inversion per chain (keyed by
+#: n with 8 entries, a walk-through's nine touches evicted each other at every Gauss-Newton trial).
+_KERNELS = BoundedMemo(64)
+
+
+def _ramp_kernels(key: tuple, n: int, dt_s: float, ramp) -> tuple[np.ndarray, ...]:
+    """Kernels K_1 .. K_n (read-only) of the ramp responses ``ramp(t)`` (a tuple of arrays), kept per ``key``.
+
+    K_m = (R(m dt) - R((m-1) dt)) / dt with R(0) = 0; see :data:`_KERNELS`.
+    """
+    hit = _KERNELS.get(key)
+    if hit is None or hit[0][0].size < n:
+        have = 0 if hit is None else hit[0][0].size
+        # dt * i for i = have + 1 .. n: the same times as dt * arange(1, n + 1)[have:].
+        new = ramp(dt_s * np.arange(have + 1, n + 1))
+        Rs, Ks = [], []
+        for j, Rn in enumerate(new):
+            R_prev = np.zeros(1) if hit is None else hit[0][j][-1:]
+            R = np.real(Rn)
+            K = np.diff(np.concatenate((R_prev, R))) / dt_s
+            if hit is not None:
+                R, K = np.concatenate((hit[0][j], R)), np.concatenate((hit[1][j], K))
+            Rs.append(R)
+            Ks.append(K)
+        hit = _KERNELS.put(key, (tuple(Rs), tuple(Ks)))
+    return tuple(K[:n] for K in hit[1])
+
+
 def _slab_kernels(n: int, dt_s: float, L_m: float, k_W_mK: float, alpha_m2_s: float):
     """Convolution kernels g_A, g_B (length n) of A(s) and B(s) for inputs linear between samples.
 
     For x linear between samples with x(0) = 0, y_i = sum_j (x_j - x_{j-1}) K_{i-j+1} with
-    K_m = (R(m dt) - R((m-1) dt)) / dt, R the ramp response L^-1[H / s^2].
+    K_m = (R(m dt) - R((m-1) dt)) / dt, R the ramp response L^-1[H / s^2] (kept: :data:`_KERNELS`).
     """
-    t = dt_s * np.arange(1, n + 1)
-
     def F(s):
         g = np.sqrt(s / alpha_m2_s)
         gL = g * L_m
@@ -147,14 +175,8 @@ def _slab_kernels(n: int, dt_s: float, L_m: float, k_W_mK: float, alpha_m2_s: fl
         B = k_W_mK * g * (1.0 - ex) / (1.0 + ex)
         return A / s**2, B / s**2
 
-    RA, RB = talbot_invert(F, t)
-    out = []
-    for R in (RA, RB):
-        R = np.concatenate(([0.0], np.real(R)))
-        K = np.diff(R) / dt_s      # K_1 .. K_n
-        K.flags.writeable = False
-        out.append(K)
-    return tuple(out)
+    key = ("slab", float(dt_s), float(L_m), float(k_W_mK), float(alpha_m2_s))
+    return _ramp_kernels(key, int(n), float(dt_s), lambda t: talbot_invert(F, t))
 
 
 _erfc = np.frompyfunc(math.erfc, 1, 1)
@@ -303,6 +325,7 @@ class _Prepared:
     KB: np.ndarray
     theta: np.ndarray      # first-pass theta_b: the measured thermocouple, its bead lag undone
     stride: int = 1        # the record's samples are every stride-th of the (refined) grid
+    kkey: tuple = ()       # (dt, L, k, alpha) of the slab kernels (see _applied)
 
 
 #: Largest step (s) of the grid the chain's convolutions run on.  Their kernels take every input as
@@ -379,24 +402,52 @@ def _prepare(t_s, T_tc_C, q_m_W_m2, cal: SensorChainCalibration, T_probe0_C, fit
         # The contact lies within the record's first interval, ``contact_frac`` of it after sample 0: the
         # refined record starts at that instant (the last fine point in air).
         k = min(max(int(round(contact_frac * m)), 0), m - 1)
-        T, q = _refine(t, T, m, breaks_s, k)[k:], _refine(t, q, m, breaks_s, k)[k:]
+        T, q = _refined(t, T, m, breaks_s, k), _refined(t, q, m, breaks_s, k)
         dt = dt / m
         t = t[0] + dt * np.arange(T.size)
         recorded = (np.arange(t.size) + k) % m == 0
         breaks_s = tuple(b - k * dt for b in breaks_s)
     Tp0 = float(T[0]) if T_probe0_C is None else float(T_probe0_C)
-    KA, KB = _slab_kernels(t.size, dt, cal.sensing_thickness_m, cal.k_W_mK, cal.alpha_m2_s)
+    kkey = (float(dt), float(cal.sensing_thickness_m), float(cal.k_W_mK), float(cal.alpha_m2_s))
+    KA, KB = _slab_kernels(t.size, *kkey)
     y = T - Tp0
+    breaks = tuple(int(round(b / dt)) for b in breaks_s)
+    theta = _memo(("theta", y.tobytes(), dt, float(cal.tc_tau_s), int(round(smooth_s / dt)), breaks, smooth_growth),
+                  lambda: _theta_b(y, dt, cal.tc_tau_s, int(round(smooth_s / dt)), breaks, smooth_growth))
+    return _Prepared(t, y, ((t - t[0]) >= fit_start_s) & recorded, dt, Tp0, _applied(kkey, 0, KA, q), KB, theta, m,
+                     kkey)
+
+
+def _theta_b(y: np.ndarray, dt: float, tau_s: float, h: int, breaks: tuple[int, ...], growth: int) -> np.ndarray:
+    """First-pass theta_b: the measured thermocouple ``y`` (from the probe's temperature at contact), its bead
+    lag undone, smoothed (:func:`_smooth_from_contact`)."""
     # The measured thermocouple stands in for theta_b (the bead lag and noise only enter
     # through the small storage term B).
     theta = y.copy()
-    if cal.tc_tau_s > 0:
+    if tau_s > 0:
         # The bead lags the junction: undo it (theta = y + tau dy/dt) for the storage term only.
-        theta = y + cal.tc_tau_s * np.gradient(y, dt)
+        theta = y + tau_s * np.gradient(y, dt)
         theta[0] = 0.0
-    breaks = tuple(int(round(b / dt)) for b in breaks_s)
-    theta = _smooth_from_contact(theta, int(round(smooth_s / dt)), breaks, smooth_growth)
-    return _Prepared(t, y, ((t - t[0]) >= fit_start_s) & recorded, dt, Tp0, _apply(KA, q), KB, theta, m)
+    return _smooth_from_contact(theta, h, breaks, growth)
+
+
+#: Pieces of a design by their exact inputs (read-only, the same numbers): a calibration rebuilds every touch's
+#: design per trial of the probe's parameters, and the refined record depends on none, theta_b on the bead
+#: lag, the A-term on the flux scale and layer, the storage term on the layer and lag.
+_memo = BoundedMemo(256)
+#: Whole designs (:func:`chain_design`) by their exact inputs.
+_DESIGNS = BoundedMemo(128)
+
+
+def _refined(t: np.ndarray, x: np.ndarray, m: int, breaks_s: tuple[float, ...], k: int) -> np.ndarray:
+    """``_refine(t, x, m, breaks_s, k)[k:]``, kept (:data:`_memo`)."""
+    return _memo(("refine", t.tobytes(), x.tobytes(), m, tuple(breaks_s), k),
+                 lambda: _refine(t, x, m, breaks_s, k)[k:])
+
+
+def _applied(kkey: tuple, which: int, K: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``_apply(K, x)`` for the slab kernel ``which`` (0: A, 1: B) of :func:`_slab_kernels` ``(x.size, *kkey)``, kept."""
+    return _memo(("apply", which, kkey, x.tobytes()), lambda: _apply(K, x))
 
 
 def _disk_loss(phi: np.ndarray, dt: float, disk) -> np.ndarray | None:
@@ -428,7 +479,7 @@ def face_flux(t_s, T_tc_C, q_m_W_m2, calibration: SensorChainCalibration = Senso
     the probe leave the object -- the face flux then falls to about nothing while the heater runs.
     """
     c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, None, 0.0, breaks_s)
-    return (c.phiA - _apply(c.KB, c.theta))[::c.stride]
+    return (c.phiA - _applied(c.kkey, 1, c.KB, c.theta))[::c.stride]
 
 
 def chain_design(t_s, T_tc_C, q_m_W_m2, calibration: SensorChainCalibration = SensorChainCalibration(), *,
@@ -441,11 +492,18 @@ def chain_design(t_s, T_tc_C, q_m_W_m2, calibration: SensorChainCalibration = Se
     with columns 1, phi_face and Duhamel(phi_face), each through the bead lag.  ``smooth_growth``:
     see :data:`SMOOTH_GROWTH`; ``contact_frac``: see :func:`fit_sensor_chain`.
     """
-    c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, T_probe0_C, fit_start_s, breaks_s,
-                 smooth_growth=smooth_growth, contact_frac=contact_frac)
-    phi = c.phiA - _apply(c.KB, c.theta)
-    X = _lag(np.column_stack((np.ones_like(c.t), phi, _response(phi, c.dt, disk))), c.dt, calibration.tc_tau_s)
-    return X[c.fit], c.y[c.fit]
+    key = ("design", *(np.asarray(x, dtype=np.float64).tobytes() for x in (t_s, T_tc_C, q_m_W_m2)), calibration,
+           T_probe0_C, fit_start_s, tuple(breaks_s), None if disk is None else tuple(disk), smooth_growth, contact_frac)
+
+    def design() -> tuple[np.ndarray, np.ndarray]:
+        c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, T_probe0_C, fit_start_s, breaks_s,
+                     smooth_growth=smooth_growth, contact_frac=contact_frac)
+        phi = c.phiA - _applied(c.kkey, 1, c.KB, c.theta)
+        X = _lag(np.column_stack((np.ones_like(c.t), phi, _response(phi, c.dt, disk))), c.dt, calibration.tc_tau_s)
+        return X[c.fit], c.y[c.fit]
+    # Kept (read-only): a calibration's leave-one-out refits and its second pass start from designs it
+    # has built already (43 % of the self-check tests' designs were repeats).
+    return _DESIGNS(key, design)
 
 
 def fit_sensor_chain(t_s, T_tc_C, q_m_W_m2, *, T_probe0_C: float | None = None,
@@ -503,7 +561,7 @@ def fit_sensor_chain(t_s, T_tc_C, q_m_W_m2, *, T_probe0_C: float | None = None,
     t, y, fit, dt, cal = c.t, c.y, c.fit, c.dt, calibration
     theta = c.theta
     for it in range(max(1, n_iterations)):
-        phi = c.phiA - _apply(c.KB, theta)
+        phi = c.phiA - (_applied(c.kkey, 1, c.KB, theta) if it == 0 else _apply(c.KB, theta))
         X = np.column_stack((np.ones_like(t), phi, _response(phi, dt, disk)))
         Xl = _lag(X, dt, cal.tc_tau_s)
         p = _lstsq(Xl, y, fit)
@@ -512,6 +570,20 @@ def fit_sensor_chain(t_s, T_tc_C, q_m_W_m2, *, T_probe0_C: float | None = None,
         # one over the contact transient's first samples, which the model cannot resolve.
         theta = np.where(fit, X @ p, theta)
     return _result(Xl, y, fit, p, c.Tp0, noise_T_K, it + 1)
+
+
+def chain_point(t_s, T_tc_C, q_m_W_m2, *, calibration: SensorChainCalibration = SensorChainCalibration(),
+                fit_start_s: float = 0.3, breaks_s: tuple[float, ...] = (), contact_frac: float = 0.0) -> ProfilePoint:
+    """:func:`fit_sensor_chain`'s e and rms residual (one pass, 1-D; the same numbers) without its covariance:
+    for a search comparing only those (the contact instant, :func:`edge.estimation.chain_estimate.contact_fraction`)."""
+    c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, None, fit_start_s, breaks_s, contact_frac=contact_frac)
+    phi = c.phiA - _applied(c.kkey, 1, c.KB, c.theta)
+    Xl = _lag(np.column_stack((np.ones_like(c.t), phi, _response(phi, c.dt, None))), c.dt, calibration.tc_tau_s)
+    p = _lstsq(Xl, c.y, c.fit)
+    r = c.y[c.fit] - Xl[c.fit] @ p
+    inv_e = p[2]
+    return ProfilePoint(float(1.0 / inv_e if inv_e > 0 else float("inf")), math.sqrt(float(r @ r) / r.size),
+                        int(r.size), math.nan)
 
 
 def _unit_scale(Xf: np.ndarray) -> np.ndarray:
@@ -594,7 +666,7 @@ class DiskFitter:
         c = _prepare(t_s, T_tc_C, q_m_W_m2, calibration, T_probe0_C, fit_start_s, breaks_s, smooth_s,
                      contact_frac=contact_frac)
         self._c, self._tau, self._noise = c, calibration.tc_tau_s, float(noise_T_K)
-        self._phi = c.phiA - _apply(c.KB, c.theta)
+        self._phi = c.phiA - _applied(c.kkey, 1, c.KB, c.theta)
         self._X1 = _lag(np.column_stack((np.ones_like(c.t), self._phi, duhamel_apply(self._phi, c.dt))),
                         c.dt, self._tau)
         # Orthonormal basis of the fixed columns (T_obj0, R_c) on the fitted samples, and the record

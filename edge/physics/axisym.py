@@ -175,6 +175,9 @@ def hankel_nodes(geometry: ProbeGeometry, *, per_panel: int = 4, depth_decades: 
 
 
 _WEIGHTS: dict = {}
+#: Footprints' weights kept (a few floats per node each): 8 were evicted within one small-heater calibration,
+#: whose sensing-layer trials each bring their own nodes, and each cost ~0.3 s of Bessel tables.
+_WEIGHTS_MAX = 64
 
 
 def sensor_weights(geometry: ProbeGeometry, zeta: np.ndarray) -> np.ndarray:
@@ -190,7 +193,7 @@ def sensor_weights(geometry: ProbeGeometry, zeta: np.ndarray) -> np.ndarray:
     key = (float(sx), float(sy), float(ox), float(oy), zeta.tobytes())
     w = _WEIGHTS.get(key)
     if w is None:
-        if len(_WEIGHTS) >= 8:
+        if len(_WEIGHTS) >= _WEIGHTS_MAX:
             _WEIGHTS.pop(next(iter(_WEIGHTS)))
         w = _WEIGHTS[key] = rectangle_weights(zeta, sx, sy, ox, oy)
         w.flags.writeable = False
@@ -222,14 +225,16 @@ def series_contact(Y, contact_resistance_m2K_W: float):
     return Y / (1.0 + R * Y) if R != 0.0 else Y
 
 
-def _ch_ratio(g, u, L):
-    """cosh(g u) / cosh(g L) for 0 <= u <= L."""
-    return (np.exp(g * (u - L)) + np.exp(-g * (u + L))) / (1.0 + np.exp(-2.0 * g * L))
+def _ch_sh_ratios(g, u, L, den=None):
+    """(cosh(g u) / cosh(g L), sinh(g u) / cosh(g L)) for 0 <= u <= L.
 
-
-def _sh_ratio(g, u, L):
-    """sinh(g u) / cosh(g L) for 0 <= u <= L."""
-    return (np.exp(g * (u - L)) - np.exp(-g * (u + L))) / (1.0 + np.exp(-2.0 * g * L))
+    Both from the same two exponentials over the same denominator ``1 + exp(-2 g L)`` (pass ``den`` to
+    share it between depths): a model's set-up forms them on every (p, zeta) node.
+    """
+    if den is None:
+        den = 1.0 + np.exp(-2.0 * g * L)
+    a, b = np.exp(g * (u - L)), np.exp(-g * (u + L))
+    return (a + b) / den, (a - b) / den
 
 
 # ----------------------------------------------------------------------------------------------
@@ -328,6 +333,11 @@ def _keep_transforms(key: tuple | None, parts: tuple, out: tuple) -> None:
             _TRANSFORMS.popitem(last=False)
 
 
+#: Substrate variants kept per model (:meth:`AxisymModel.with_substrate`): the point and its two substrate
+#: columns and a trial; ~0.65 MB each on the small-heater probe.
+_VARIANTS_MAX = 4
+
+
 @dataclass(frozen=True)
 class Responses:
     """Unit-step responses per watt of heater power on the model's time grid."""
@@ -410,8 +420,10 @@ class AxisymModel:
         z0, z1 = g.sensor_depth_m
         u0, u1 = L - z0, L - z1
         dz = z1 - z0
-        self._qa = sm.k_W_mK * (_ch_ratio(gs, u0, L) - _ch_ratio(gs, u1, L)) / dz
-        self._qb = (_sh_ratio(gs, u0, L) - _sh_ratio(gs, u1, L)) / (gs * dz)
+        den = 1.0 + np.exp(-2.0 * gs * L)
+        (ch0, sh0), (ch1, sh1) = _ch_sh_ratios(gs, u0, L, den), _ch_sh_ratios(gs, u1, L, den)
+        self._qa = sm.k_W_mK * (ch0 - ch1) / dz
+        self._qb = (sh0 - sh1) / (gs * dz)
         self.n_nodes = int(gh.size)
         _keep_parts(key, self)
 
@@ -434,11 +446,23 @@ class AxisymModel:
         A calibration identifies the as-built substrate (:mod:`edge.calibration.axi`): only the heater's
         three substrate terms are recomputed, a few array operations instead of a model's set-up.
         """
-        m = object.__new__(AxisymModel)
-        m.__dict__.update(self.__dict__)
         th = self.geometry.substrate_thickness_m if thickness_m is None else finite_positive("thickness_m", thickness_m)
-        m.geometry = replace(self.geometry, substrate=substrate, substrate_thickness_m=th)
-        m._set_substrate(substrate, th)
+        # Kept per model (a few): a calibration asks one sensing layer's model for the same substrate on
+        # every touch and finite-difference column, and the same variant's arrays also let the transforms'
+        # memo (keyed by their ids) answer a repeated object.
+        variants = self.__dict__.setdefault("_variants", OrderedDict())
+        key = (substrate, float(th))
+        m = variants.get(key)
+        if m is None:
+            m = object.__new__(AxisymModel)
+            m.__dict__.update(self.__dict__)
+            m.__dict__.pop("_variants")          # its own variants are its own
+            m.__dict__.pop("_last_hd", None)     # another substrate: another heater
+            m.geometry = replace(self.geometry, substrate=substrate, substrate_thickness_m=th)
+            m._set_substrate(substrate, th)
+            variants[key] = m
+            while len(variants) > _VARIANTS_MAX:
+                variants.popitem(last=False)
         return m
 
     def head(self, n: int) -> "AxisymModel":
@@ -452,6 +476,8 @@ class AxisymModel:
             raise ValueError(f"n must be in 1..{self.t_s.size}, got {n}")
         m = object.__new__(AxisymModel)
         m.__dict__.update(self.__dict__)
+        m.__dict__.pop("_variants", None)        # variants on the whole grid are not this prefix's
+        m.__dict__.pop("_last_hd", None)
         inv = self.inversion
         m.inversion = HyperbolicInversion(t_s=inv.t_s[:n], s=inv.s, matrix=inv.matrix[:n])
         m.t_s = m.inversion.t_s
@@ -502,6 +528,9 @@ class AxisymModel:
         TsYo, dd, Ydn = self._under_heater(Yo)
         den = 1.0 + TsYo / kgs                          # sensing layer seen from below
         hd = self._B + self._C * Ydn
+        # The heater's transform of the same object divides by the same hd: kept for it (the droop's
+        # column asks right after, heater_tcr.droop_transforms).
+        self._last_hd = ((k_W_mK, alpha_m2_s, thickness_m, back, contact_resistance_m2K_W), hd)
         r = self._num / (hd * den)                      # heater-bottom temperature / den
         kT = r * self._Ss
         kq_base = self._qa + Yo * self._qb
@@ -535,12 +564,27 @@ class AxisymModel:
         The film's resistance follows its temperature (its TCR, :mod:`edge.physics.heater_tcr`); the
         film is thin, so its mean is its bottom face's, averaged over the disk (``2 J1(zeta a) / (zeta a)``).
         """
+        # Kept with the transforms (:data:`_TRANSFORMS`): a calibration's droop column asks for it at every
+        # evaluation of a touch, most of them (another touch's or a global's column) at an object already seen.
+        key, parts = _transforms_key(self, ("heater", k_W_mK, alpha_m2_s, thickness_m, back, contact_resistance_m2K_W))
+        out = _cached_transforms(key, parts)
+        if out is None:
+            out = (self._heater_transform(k_W_mK, alpha_m2_s, thickness_m, back, contact_resistance_m2K_W),)
+            _keep_transforms(key, parts, out)
+        return out[0]
+
+    def _heater_transform(self, k_W_mK: float, alpha_m2_s: float, thickness_m: float | None, back: str,
+                          contact_resistance_m2K_W: float) -> np.ndarray:
+        """:meth:`heater_transform`, computed."""
         w = getattr(self, "_w_h", None)
         if w is None:
             a = self.geometry.heater_radius_m
             zeta, wz = self.nodes
             disk = a * bessel_j(1, zeta * a) / zeta
             w = self._w_h = wz * zeta * disk * 2.0 * bessel_j(1, zeta * a) / (zeta * a)
+        last = getattr(self, "_last_hd", None)
+        if last is not None and last[0] == (k_W_mK, alpha_m2_s, thickness_m, back, contact_resistance_m2K_W):
+            return (self._num / last[1]) @ w
         Yo = series_contact(self.object_admittance(k_W_mK, alpha_m2_s, thickness_m, back), contact_resistance_m2K_W)
         Ydn = self._under_heater(Yo)[2]
         return (self._num / (self._B + self._C * Ydn)) @ w

@@ -8,7 +8,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from edge.physics.memo import BoundedMemo
+
 __all__ = ["bessel_j"]
+
+#: Values already computed, by order and the arguments' exact bytes.  The same arguments come back: every
+#: axisymmetric model on a probe's Hankel nodes (a calibration's finite differences build dozens, one per
+#: sensing layer) asks for its heater disk's and thermocouple's J_n(zeta a) on the same nodes.
+_MEMO = BoundedMemo(64)
+#: Arguments larger than this are not kept (a footprint's (nodes x rings) table: computed once per footprint).
+_MEMO_MAX_SIZE = 8192
 
 
 def bessel_j(n: int, x: np.ndarray) -> np.ndarray:
@@ -30,6 +39,14 @@ def bessel_j(n: int, x: np.ndarray) -> np.ndarray:
     if n not in (0, 1):
         raise ValueError(f"n must be 0 or 1, got {n}")
     x = np.asarray(x, dtype=float)
+    if x.size > _MEMO_MAX_SIZE:
+        return _bessel_j(n, x)
+    hit = _MEMO((n, x.shape, x.tobytes()), lambda: _bessel_j(n, x))
+    return hit.copy()
+
+
+def _bessel_j(n: int, x: np.ndarray) -> np.ndarray:
+    """:func:`bessel_j`, computed (``x`` a float array)."""
     flat = x.reshape(-1)
     order = np.argsort(np.abs(flat), kind="stable")
     xs = flat[order]

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from edge.checks import finite_array, finite_nonnegative, one_of
+from edge.physics.memo import BoundedMemo
 from edge.physics.probe import ProbeStack
 from edge.physics.solids import Solid
 
@@ -72,13 +73,18 @@ def probe_transfer(
     return theta_f, Y * theta_f
 
 
-def talbot_invert(F, t_s: np.ndarray, M: int = _M_TALBOT) -> np.ndarray:
-    """Inverse Laplace transform of ``F`` at times ``t_s`` > 0 (fixed Talbot).
+#: Contours already built, by M and the times' bytes: the nodes and weights depend on the times only, and a
+#: fit inverts one grid's kernels for every trial of its parameters (the sensor chain's slab kernels).
+_CONTOURS = BoundedMemo(4)
 
-    ``F`` maps a complex array of s values to an array of the same shape
-    (or a tuple of them, inverted together).
-    """
-    t = np.asarray(t_s, dtype=float)
+
+def _talbot_contour(t: np.ndarray, M: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(r, s, gamma) of the fixed Talbot contour at times ``t``: nodes s (n_t, M) and weights gamma (read-only)."""
+    return _CONTOURS((M, t.shape, t.tobytes()), lambda: _contour(t, M))
+
+
+def _contour(t: np.ndarray, M: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_talbot_contour`, computed."""
     k = np.arange(1, M)
     theta = k * np.pi / M
     cot = 1.0 / np.tan(theta)
@@ -90,6 +96,17 @@ def talbot_invert(F, t_s: np.ndarray, M: int = _M_TALBOT) -> np.ndarray:
     gamma = np.empty((t.size, M), dtype=complex)
     gamma[:, 0] = 0.5 * np.exp(r * t)
     gamma[:, 1:] = np.exp(t[:, None] * s[:, 1:]) * (1.0 + 1j * sigma)
+    return r, s, gamma
+
+
+def talbot_invert(F, t_s: np.ndarray, M: int = _M_TALBOT) -> np.ndarray:
+    """Inverse Laplace transform of ``F`` at times ``t_s`` > 0 (fixed Talbot).
+
+    ``F`` maps a complex array of s values to an array of the same shape
+    (or a tuple of them, inverted together).
+    """
+    t = np.asarray(t_s, dtype=float)
+    r, s, gamma = _talbot_contour(t, M)
     vals = F(s)
     single = not isinstance(vals, tuple)
     if single:

@@ -24,6 +24,7 @@ Emulated (datasheet sections in brackets):
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Callable
 
@@ -44,6 +45,21 @@ from edge.hw.regmaps.ads122c04 import (
 _EPS = 1e-9
 _MAX_BACKLOG = 64
 _MUX_LABELS = {v: k for k, v in MUX.items()}
+
+
+@functools.lru_cache(maxsize=None)
+def _times_for(config1: int) -> tuple[float, float]:
+    """(single-shot, continuous) conversion times for a CONFIG1 value (asked on every bus access)."""
+    dr = min((config1 >> 5) & 0x7, 6)
+    turbo = bool(config1 & 0x10)
+    return conversion_time_s(dr, turbo, True), conversion_time_s(dr, turbo, False)
+
+
+@functools.lru_cache(maxsize=None)
+def _crc_mode(config2: int) -> str:
+    """RDATA's integrity bytes for a CONFIG2 value ("off" for the reserved code too)."""
+    mode = REGISTERS.CONFIG2.get(config2, "CRC")
+    return mode if mode in ("inverted", "crc16") else "off"
 
 
 class ADS122C04Emulator(Freezable):
@@ -99,9 +115,7 @@ class ADS122C04Emulator(Freezable):
         return bool(self.regs[1] & 0x08)
 
     def _times(self) -> tuple[float, float]:
-        dr = min((self.regs[1] >> 5) & 0x7, 6)
-        turbo = bool(self.regs[1] & 0x10)
-        return conversion_time_s(dr, turbo, True), conversion_time_s(dr, turbo, False)
+        return _times_for(self.regs[1])
 
     def _start(self, now: float) -> None:
         self._running = True
@@ -172,9 +186,7 @@ class ADS122C04Emulator(Freezable):
                 self._running = False
             elif cmd & 0xF0 == 0x10:                     # RDATA
                 dcnt = bool(self.regs[2] & 0x40)
-                crc_mode = REGISTERS.CONFIG2.get(self.regs[2], "CRC")
-                if crc_mode not in ("inverted", "crc16"):
-                    crc_mode = "off"
+                crc_mode = _crc_mode(self.regs[2])
                 self._response = rdata_frame(self.data, self.counter if dcnt else None, crc_mode)
                 self.regs[2] &= 0x7F                     # result read: DRDY cleared
             elif cmd & 0xF0 == 0x20:                     # RREG
@@ -194,4 +206,4 @@ class ADS122C04Emulator(Freezable):
     def i2c_read(self, n: int) -> bytes:
         self._catch_up()
         r = self._response or b"\xff"
-        return bytes(r[i % len(r)] for i in range(n))
+        return r[:n] if n <= len(r) else (r * (n // len(r) + 1))[:n]   # the response repeats

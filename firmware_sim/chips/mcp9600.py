@@ -40,8 +40,10 @@ keep what they held -- while the interface answers as usual.
 
 from __future__ import annotations
 
+import functools
 import math
-from typing import Callable
+from types import MappingProxyType
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -67,6 +69,12 @@ def _temp_code(t_C: float, lsb_C: float = 0.0625) -> int:
     code = max(-0x8000, min(0x7FFF, code))
     return code & 0xFFFF
 
+
+
+@functools.lru_cache(maxsize=64)
+def _device_config(value: int) -> Mapping[str, Any]:
+    """DEVICE_CONFIG's fields for ``value`` (asked several times on every bus access; read only)."""
+    return MappingProxyType(REGISTERS.DEVICE_CONFIG.decode(value))
 
 class MCP9600Emulator(Freezable):
     """Emulated MCP9600 (the driver is :class:`edge.hw.drivers.mcp9600.MCP9600`).
@@ -123,7 +131,7 @@ class MCP9600Emulator(Freezable):
 
     # -- configuration helpers ------------------------------------------------------
     def _dev(self, field: str):
-        return REGISTERS.DEVICE_CONFIG.get(self.regs[0x06], field)
+        return _device_config(self.regs[0x06])[field]
 
     def _t_hot(self) -> float:
         return CONVERSION_TIME_s[self._dev("ADC_RESOLUTION")]

@@ -13,6 +13,7 @@ material data and probe constants).
 * :mod:`firmware_sim.rz.solver` -- banded block solver, BE / CN / TR-BDF2
   stepping, thermocouple and flux-sensor read-outs, energy ledger, unit-step
   responses and their superposition.
+* :mod:`firmware_sim.rz.stepmemo` -- steps already taken in this process, recalled bit for bit;
 * :mod:`firmware_sim.rz.footprint` -- the thermopile's real square (offset,
   sensitivity map) as exact radial weights of the read-out.
 

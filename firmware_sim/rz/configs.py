@@ -201,13 +201,17 @@ class GridConfig:
             if len(self.solvers) >= 8:  # the main step, the start-up sub-steps and a few partial ones
                 self.solvers.pop(next(k for k in self.solvers if k != (self.main_dt, "trbdf2")))
             # The read-out weights depend on the grid only: every step's solver shares the first's.
-            s = Solver(self.grid, dt, scheme, probes=next(iter(self.solvers.values())).probes if self.solvers else None)
+            # Factored at its first solve: a step the process has taken before is recalled, not solved.
+            s = Solver(self.grid, dt, scheme, probes=next(iter(self.solvers.values())).probes if self.solvers else None,
+                       factor_now=False)
             self.solvers[key] = s
             if self.src is None:
                 # Per watt of electrical power: the film's power density q_v = P / (A L) over the heated
                 # disk (the equal-area disk by default: exactly 1 W; a larger disk, e.g. for the 1-D
                 # limit, is a larger film at the same power density).
                 self.src = self.grid.volume_source_W("heater", self.grid.meta["heater_radius_m"], self.q_v_per_W)
+                # Read-only: the step memo (firmware_sim.rz.stepmemo) digests it once per solver, not per step.
+                self.src.flags.writeable = False
         return s
 
 

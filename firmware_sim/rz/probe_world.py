@@ -62,6 +62,11 @@ step swing the face flux negative; the sub-steps also resolve the fast
 start of the contact transient).  Four more factorisations per
 configuration, cached.
 
+Every step goes through :meth:`firmware_sim.rz.solver.Solver.step`, which recalls a step the
+process has already taken from the same field with the same inputs
+(:mod:`firmware_sim.rz.stepmemo`: the same bits, no solve; a configuration's factors are built
+at its first real solve), so a touch replayed by a later test or a restarted daemon costs no solves.
+
 Outputs between records (step and sub-step ends) are linear
 interpolations; the thermocouple lag is integrated exactly on that
 piecewise-linear temperature.  A query at a switch instant gets the value

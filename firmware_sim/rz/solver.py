@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import struct
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -43,6 +44,7 @@ import numpy as np
 from firmware_sim.rz.blocktri import BlockTridiagonal, clear_row_cache
 from firmware_sim.rz.footprint import depth_weights, off_axis_weights
 from firmware_sim.rz.grid import Grid
+from firmware_sim.rz.stepmemo import clear_step_memo, keep, recall
 
 __all__ = ["BlockTridiagonal", "clear_factor_cache", "Probes", "Record", "Solver", "steady_state", "axis_value", "SCHEMES"]
 
@@ -65,9 +67,10 @@ _FACTOR_CACHE_BYTES = 128 * 2**20  # ~20 factors of 6.6 MB (the paper probe's 12
 
 
 def clear_factor_cache() -> None:
-    """Forget the shared factors and block rows (a benchmark that times a cold start calls it first)."""
+    """Forget the shared factors, block rows and memoised steps (a benchmark that times a cold start calls it first)."""
     _FACTOR_CACHE.clear()
     clear_row_cache()
+    clear_step_memo()
 
 
 def _factor(diag: np.ndarray, off_in: np.ndarray, off_between: np.ndarray) -> BlockTridiagonal:
@@ -312,10 +315,13 @@ class Solver:
     probes : Probes, optional
         The grid's read-out weights when already built (another solver of the same grid
         has them: they depend on the grid only).
+    factor_now : bool
+        Factor here (default); False defers it to the first solve (:attr:`fac`), which a world
+        whose steps are all recalled (:mod:`firmware_sim.rz.stepmemo`) never makes.
     """
 
     def __init__(self, grid: Grid, dt_s: float, scheme: str = "trbdf2", rannacher_steps: int = 2,
-                 probes: Probes | None = None) -> None:
+                 probes: Probes | None = None, *, factor_now: bool = True) -> None:
         if scheme not in SCHEMES:
             raise ValueError(f"scheme must be one of {SCHEMES}, got {scheme!r}")
         if not (dt_s > 0 and math.isfinite(dt_s)):
@@ -326,15 +332,30 @@ class Solver:
         # One matrix C/tau + K per scheme: BE tau = dt; CN tau = dt/2 (also the BE half step);
         # TR-BDF2 tau = gamma dt / 2 = w dt for both stages.
         self.tau = {"be": dt_s, "cn": 0.5 * dt_s, "trbdf2": 0.5 * _GAMMA * dt_s}[scheme]
-        self.fac = self.op.factor(1.0 / self.tau)
+        self._fac: BlockTridiagonal | None = None
+        if factor_now:
+            self._fac = self.op.factor(1.0 / self.tau)
         self._Ct = self.op.cap / self.tau
         self.g_t = grid.g_b_W_K * grid.t_b_K   # ambient forcing vector g
+        self.g_t.flags.writeable = False        # swapped (step_response), never edited: its digest is kept
+        # (array, digest) pairs, each replaced whole (worlds may step in other threads): what a step
+        # reads for this forcing array, and the last read-only source pattern (_step_key).
+        self._key_base: tuple = (None, b"")
+        self._src_key: tuple = (None, b"")
         if probes is None and grid.meta.get("sensor_radius_m") is not None:
             probes = _probes(grid)
         self.probes = probes
         self._rest_key, self._rest = None, None
         self._g_sum_of, self._g_sum = None, 0.0     # sum of the forcing, per forcing array (_loss)
         self._first_active = int(np.flatnonzero(grid.active)[0])
+
+    @property
+    def fac(self) -> BlockTridiagonal:
+        """The factor of ``C / tau + K`` (built, or taken from the shared cache, at its first use if deferred)."""
+        fac = self._fac
+        if fac is None:
+            fac = self._fac = self.op.factor(1.0 / self.tau)
+        return fac
 
     # -- rest
     def _rest_range(self) -> tuple[float, float] | None:
@@ -483,12 +504,52 @@ class Solver:
 
         The same arithmetic as one step of :meth:`run` (and the same numbers, bit for bit),
         without its per-call records: a world that steps once per call pays for the step only.
-        For ``"cn"`` the step is a plain CN step (no Rannacher start).
+        For ``"cn"`` the step is a plain CN step (no Rannacher start).  A step this process has
+        taken before from the same field with the same inputs is recalled, not solved
+        (:mod:`firmware_sim.rz.stepmemo`: the stored result of the same arithmetic, so the same bits).
         """
         T = np.array(T_K, dtype=float) * self.grid.active
-        T, _, lost = self._advance(T, amplitude * source_W + self.g_t, self._loss(T), False,
-                                   self._at_rest(T, amplitude))
-        return T, self.dt * amplitude * float(np.sum(source_W)), lost
+        key = self._step_key(T, source_W, float(amplitude))
+        hit = recall(key)
+        if hit is not None:
+            return hit
+        T1, _, lost = self._advance(T, amplitude * source_W + self.g_t, self._loss(T), False,
+                                    self._at_rest(T, amplitude))
+        e_in = self.dt * amplitude * float(np.sum(source_W))
+        keep(key, T1, e_in, lost)
+        return T1, e_in, lost
+
+    def _step_key(self, T: np.ndarray, source_W: np.ndarray, amplitude: float) -> bytes:
+        """SHA-256 of everything :meth:`step` reads: the solver's arrays and step, forcing, source, amplitude, field.
+
+        The grid's arrays are digested at the first step (a grid is not edited once its solver is
+        built: the factor would not follow either); the forcing whenever the solver's forcing array
+        is another one, or every step if it is writeable; the source pattern likewise (a world's is
+        read-only, :class:`firmware_sim.rz.configs.GridConfig`).
+        """
+        g = self.g_t
+        of, base = self._key_base
+        if of is not g or g.flags.writeable:
+            h = hashlib.sha256()
+            op = self.op
+            h.update(f"{self.scheme} {self.dt!r} {self.tau!r} {self.grid.shape}".encode())
+            for a in (op.cap, op.k_diag, op.gr, op.gz, op.gb, self.grid.active, g):
+                a = np.ascontiguousarray(a)
+                h.update(f"{a.dtype.str}{a.shape}".encode())
+                h.update(a.data)
+            base = h.digest()
+            self._key_base = (g, base)
+        of, src_key = self._src_key
+        if source_W is not of:
+            src = np.ascontiguousarray(source_W, dtype=float)
+            src_key = hashlib.sha256(repr(src.shape).encode() + src.tobytes()).digest()
+            if isinstance(source_W, np.ndarray) and not source_W.flags.writeable and source_W.base is None:
+                self._src_key = (source_W, src_key)
+        h = hashlib.sha256(base)
+        h.update(src_key)
+        h.update(struct.pack("<d", amplitude))
+        h.update(np.ascontiguousarray(T).data)   # row-major bytes: a field's values, whatever its layout
+        return h.digest()
 
     # -- linear building blocks
     def heater_source_W(self, power_W: float = 1.0) -> np.ndarray:

@@ -8,6 +8,7 @@ import pytest
 
 from edge.hw.sysfs_pwm import OsSysfsIO, PwmError, SysfsPwm
 from firmware_sim.clock import VirtualClock
+import firmware_sim.pwm as pwm_mod
 from firmware_sim.pwm import SimPwmTree
 
 
@@ -205,6 +206,95 @@ def test_raw_invalid_write_is_reverted_and_recorded(tree):
     (tree.chip_dir(0) / "export").write_text("7\n")
     clock.advance(0.1)
     assert len(tree.violations) == 2 and tree.violations[1].value == "7"
+
+
+@pytest.fixture(params=["inotify", "reading"])
+def watched_tree(request, monkeypatch):
+    """A tree whose syncs skip unchanged files (inotify), and one whose syncs read them all."""
+    if request.param == "reading":
+        monkeypatch.setattr(pwm_mod, "_dir_watch", lambda: None)
+    elif pwm_mod._dir_watch() is None:
+        pytest.skip("no inotify here")
+    t = SimPwmTree(VirtualClock(), chips={0: 2})
+    yield t
+    t.close()
+
+
+def test_raw_writes_after_many_quiet_syncs_are_seen_whatever_the_route(watched_tree):
+    tree = watched_tree
+    clock = tree.clock
+    exported(tree)
+    tree.io.write(ch(tree, "period"), "1000")
+    for _ in range(5):
+        clock.advance(0.01)          # quiet steps: nothing changed
+    ch(tree, "duty_cycle").write_text("400\n")                   # in place
+    clock.advance(0.01)
+    assert tree.state().duty_ns == 400
+    for _ in range(3):
+        clock.advance(0.01)
+    tmp = tree.channel_dir(0, 0) / ".enable.tmp"                 # a replacement by rename
+    tmp.write_text("1\n")
+    os.replace(tmp, ch(tree, "enable"))
+    clock.advance(0.01)
+    assert tree.state().enabled
+    t_rm = clock.now()
+    for name in ("period", "duty_cycle", "enable", "polarity"):    # the channel's directory removed
+        ch(tree, name).unlink()
+    tree.channel_dir(0, 0).rmdir()
+    clock.advance(0.01)   # removed files read as empty values: refused, recorded, and the files restored
+    assert [ch(tree, n).read_text() for n in ("period", "duty_cycle", "enable")] == ["1000\n", "400\n", "1\n"]
+    assert {v.t_s for v in tree.violations} == {t_rm}
+    for _ in range(3):
+        clock.advance(0.01)
+    ch(tree, "duty_cycle").write_text("5000\n")                  # and still watched afterwards
+    clock.advance(0.01)
+    assert ch(tree, "duty_cycle").read_text() == "400\n" and tree.violations[-1].value == "5000\n"
+    (tree.chip_dir(0) / "export").write_text("1\n")             # the chip's own files
+    clock.advance(0.01)
+    assert tree.is_exported(0, 1)
+    ch(tree, "period", 1).write_text("3000\n")                   # a channel exported by a raw write
+    clock.advance(0.01)
+    assert tree.state(0, 1).period_ns == 3000
+
+
+def test_a_forked_childs_raw_write_reaches_the_parents_tree_and_its_own(watched_tree):
+    tree = watched_tree
+    exported(tree)
+    tree.io.write(ch(tree, "period"), "1000")
+    tree.clock.advance(0.01)
+    pid = os.fork()
+    if pid == 0:   # the child syncs its inherited copy of the tree, then writes a raw value
+        code = 1
+        try:
+            tree.clock.advance(0.01)
+            ch(tree, "duty_cycle").write_text("300\n")
+            tree.clock.advance(0.01)
+            code = 0 if tree.state().duty_ns == 300 else 2
+        finally:
+            os._exit(code)
+    _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0
+    tree.clock.advance(0.01)
+    assert tree.state().duty_ns == 300
+
+
+def test_a_lost_inotify_instance_falls_back_to_reading_every_file(monkeypatch):
+    monkeypatch.setattr(pwm_mod, "_WATCH", None)       # this test's own instance (the process's is kept)
+    monkeypatch.setattr(pwm_mod, "_WATCH_PID", None)
+    watch = pwm_mod._dir_watch()
+    if watch is None:
+        pytest.skip("no inotify here")
+    tree = SimPwmTree(VirtualClock(), chips={0: 2})
+    try:
+        exported(tree)
+        tree.io.write(ch(tree, "period"), "1000")
+        tree.clock.advance(0.01)
+        os.close(watch.fd)                               # closed under it
+        ch(tree, "duty_cycle").write_text("600\n")
+        tree.clock.advance(0.01)
+        assert tree.state().duty_ns == 600 and pwm_mod._dir_watch() is None
+    finally:
+        tree.close()
 
 
 # ---- the edge driver on the simulated tree

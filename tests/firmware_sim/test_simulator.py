@@ -90,7 +90,14 @@ def bracket(values_at, t_read, t_conv):
     return np.minimum(a, b), np.maximum(a, b)
 
 
-@pytest.mark.parametrize("name", PAPER_SCENES)
+#: The fast tier's paper scenes: one per material, the weakest signal (8 V on PMMA), the largest flux (25 V on
+#: aluminium) and a middle one. The other six differ from these only in supply voltage and noise seed (the
+#: shipped files, diffed), so they take the same code path; they run in the full tier.
+FAST_PAPER_SCENES = ("pmma_8V", "glass_15V", "alu_25V")
+
+
+@pytest.mark.parametrize("name", [n if n in FAST_PAPER_SCENES else pytest.param(n, marks=pytest.mark.slow)
+                                  for n in PAPER_SCENES])
 def test_two_second_touch_on_each_paper_scene_matches_the_physics(name):
     sim = load_scene(name)
     sc = sim.scene

@@ -10,7 +10,9 @@ from host.gate import MARGINS, Comparison, compare, evaluate, evaluation_touches
 from tests.support.bundles import broken_copy
 from thermotouch_models import DEFAULT_BUNDLE
 
-pytestmark = pytest.mark.slow  # the full recipe is trained once (test_a_seeded_retrain_...)
+#: The tests on the shipped bundle's evaluation (90 simulated touches, and the full recipe retrained once in
+#: test_a_seeded_retrain_...) are slow; the statistics and the verdicts above them run in the fast tier.
+slow = pytest.mark.slow
 
 
 def test_equal_errors_give_a_zero_interval():
@@ -75,6 +77,7 @@ def shipped_eval():
     return evaluate(load_bundle(DEFAULT_BUNDLE, pipeline_golden_check), "mcp9600")
 
 
+@slow
 def test_evaluation_set_is_fixed_and_the_same_bundle_passes(shipped_eval):
     assert len(evaluation_touches("mcp9600")) == 90
     again = evaluate(load_bundle(DEFAULT_BUNDLE, pipeline_golden_check), "mcp9600")
@@ -83,6 +86,7 @@ def test_evaluation_set_is_fixed_and_the_same_bundle_passes(shipped_eval):
     assert "verdict" in format_report(cmp)
 
 
+@slow
 @pytest.mark.parametrize("how, refused_on", [("permuted_names", {"name_e"}),
                                              ("negated_output", {"paper_e", "paper_k_vs_prior"})])
 def test_broken_bundles_are_refused(tmp_path, shipped_eval, how, refused_on):
@@ -92,6 +96,7 @@ def test_broken_bundles_are_refused(tmp_path, shipped_eval, how, refused_on):
     assert judge(METRICS, bad["means"], cmp)
 
 
+@slow
 @pytest.mark.filterwarnings("ignore:lbfgs failed to converge")
 def test_a_seeded_retrain_of_the_shipped_recipe_passes_the_gate(tmp_path, monkeypatch, shipped_eval):
     from host.train import train_bundle

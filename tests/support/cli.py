@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
+
 from host.cli.main import main
 
-__all__ = ["run", "one_line_error", "rounded"]
+__all__ = ["run", "run_captured", "one_line_error", "rounded"]
 
 
 def run(capsys, *argv):
@@ -12,6 +15,18 @@ def run(capsys, *argv):
     code = main([str(a) for a in argv])   # paths as the shell would pass them
     out, err = capsys.readouterr()
     return code, out, err
+
+
+def run_captured(*argv):
+    """:func:`run` without pytest's ``capsys``, for module-scoped fixtures that run a command once.
+
+    ``thermotouch`` writes through ``sys.stdout``/``sys.stderr`` as looked up at call time, so
+    redirecting them catches exactly what ``capsys`` would.
+    """
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main([str(a) for a in argv])
+    return code, out.getvalue(), err.getvalue()
 
 
 def one_line_error(err: str) -> str:

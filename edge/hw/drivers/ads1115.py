@@ -22,6 +22,7 @@ cannot tell a frozen converter from a steady input.
 
 from __future__ import annotations
 
+import functools
 import time
 from typing import Callable
 
@@ -35,6 +36,26 @@ from edge.hw.regmaps.ads1115 import (
     fsr_for_code,
     code_to_volts,
 )
+
+
+# A single shot's register arithmetic depends only on the cached CONFIG and the input, the same every
+# sample of a touch: memoised (the map stays the one statement of the bits).
+@functools.lru_cache(maxsize=256)
+def _single_shot(config: int, mux: str | None) -> tuple[int, int, float]:
+    """(CONFIG kept, CONFIG written with OS=1, conversion time s) for a single shot of ``mux``."""
+    cfg = config if mux is None else REGISTERS.CONFIG.encode(config, MUX=mux)
+    cfg = REGISTERS.CONFIG.encode(cfg, MODE="single", OS=0)
+    return cfg, REGISTERS.CONFIG.encode(cfg, OS=1), 1.0 / REGISTERS.CONFIG.get(cfg, "DR")
+
+
+@functools.lru_cache(maxsize=256)
+def _done(config: int) -> bool:
+    return bool(REGISTERS.CONFIG.get(config, "OS"))    # OS reads 0 while converting
+
+
+@functools.lru_cache(maxsize=256)
+def _fsr_V(config: int) -> float:
+    return fsr_for_code(REGISTERS.CONFIG.field("PGA").raw(config))
 
 
 class ADS1115(I2CDevice):
@@ -98,7 +119,7 @@ class ADS1115(I2CDevice):
 
     @property
     def fsr_V(self) -> float:
-        return fsr_for_code(REGISTERS.CONFIG.field("PGA").raw(self._config))
+        return _fsr_V(self._config)
 
     @property
     def data_rate_sps(self) -> int:
@@ -113,18 +134,14 @@ class ADS1115(I2CDevice):
 
     def read_single_shot_code(self, mux: str | None = None, timeout_s: float | None = None) -> int:
         """Start one conversion (OS=1), wait 1/DR, poll OS, read the code."""
-        cfg = self._config
-        if mux is not None:
-            cfg = REGISTERS.CONFIG.encode(cfg, MUX=mux)
-        cfg = REGISTERS.CONFIG.encode(cfg, MODE="single", OS=0)
+        cfg, start, t_conv = _single_shot(self._config, mux)
         self._config = cfg
-        t_conv = 1.0 / self.data_rate_sps
         if timeout_s is None:
             timeout_s = 3.0 * t_conv + 0.01
-        self.write_register("CONFIG", REGISTERS.CONFIG.encode(cfg, OS=1))
+        self.write_register("CONFIG", start)
         self.sleep(t_conv)
         waited = t_conv
-        while not REGISTERS.CONFIG.get(self.read_register("CONFIG"), "OS"):  # OS reads 0 while converting
+        while not _done(self.read_register("CONFIG")):  # OS reads 0 while converting
             if waited >= timeout_s:
                 raise self.fault("timeout", f"converter stuck: single shot not done (CONFIG.OS) after "
                                             f"{timeout_s:.4f} s, one takes {t_conv:.4f} s")

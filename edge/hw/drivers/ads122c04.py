@@ -21,6 +21,7 @@ the chip.
 from __future__ import annotations
 
 import errno
+import functools
 import time
 from typing import Callable
 
@@ -46,6 +47,61 @@ from edge.hw.regmaps.ads122c04 import (
     temperature_code_to_C,
     rdata_frame,
 )
+
+
+# The register arithmetic of a conversion depends only on register values and arguments, and a touch
+# asks the same few each sample: memoised (the map stays the one statement of the bits).
+@functools.lru_cache(maxsize=256)
+def _timing(config1: int) -> tuple[float, float, bool]:
+    """(single-shot, continuous) conversion time and whether continuous, for a CONFIG1 value."""
+    c1 = REGISTERS.CONFIG1
+    dr = min(c1.get(config1, "DR"), 6)    # codes 6 and 7 are both 1000 SPS
+    turbo = c1.get(config1, "MODE") == "turbo"
+    return (conversion_time_s(dr, turbo, single_shot=True), conversion_time_s(dr, turbo, single_shot=False),
+            c1.get(config1, "CM") == "continuous")
+
+
+@functools.lru_cache(maxsize=256)
+def _input(config0: int, mux: str | None, gain: int | None) -> int:
+    """CONFIG0 with ``mux`` and ``gain`` (unchanged if None; no PGA bypass above gain 4)."""
+    r0 = config0
+    if mux is not None:
+        r0 = REGISTERS.CONFIG0.encode(r0, MUX=mux)
+    if gain is not None:
+        r0 = REGISTERS.CONFIG0.encode(r0, GAIN=gain)
+        if gain > 4:  # PGA cannot be bypassed above gain 4
+            r0 = REGISTERS.CONFIG0.encode(r0, PGA_BYPASS=0)
+    return r0
+
+
+@functools.lru_cache(maxsize=256)
+def _with_ts(config1: int, on: bool) -> int:
+    return REGISTERS.CONFIG1.encode(config1, TS=int(on))
+
+
+@functools.lru_cache(maxsize=256)
+def _drdy(config2: int) -> bool:
+    return bool(REGISTERS.CONFIG2.get(config2, "DRDY"))
+
+
+@functools.lru_cache(maxsize=256)
+def _frame(config2: int) -> tuple[bool, str, int]:
+    """RDATA's frame for a CONFIG2 value: (data counter on, integrity mode, bytes to read)."""
+    dcnt = bool(REGISTERS.CONFIG2.get(config2, "DCNT"))
+    crc_mode = REGISTERS.CONFIG2.get(config2, "CRC")
+    n = 3 + (1 if dcnt else 0)
+    n += {"inverted": n, "crc16": 2}.get(crc_mode, 0)
+    return dcnt, crc_mode, n
+
+
+@functools.lru_cache(maxsize=256)
+def _gain(config0: int) -> int:
+    return REGISTERS.CONFIG0.get(config0, "GAIN")
+
+
+@functools.lru_cache(maxsize=256)
+def _internal_vref(config1: int) -> bool:
+    return REGISTERS.CONFIG1.get(config1, "VREF") == "internal"
 
 
 class _IntegrityError(OSError):
@@ -155,35 +211,25 @@ class ADS122C04(I2CDevice):
 
     @property
     def gain(self) -> int:
-        return REGISTERS.CONFIG0.get(self._regs[0], "GAIN")
-
-    @property
-    def _turbo(self) -> bool:
-        return REGISTERS.CONFIG1.get(self._regs[1], "MODE") == "turbo"
-
-    @property
-    def _dr_code(self) -> int:
-        return min(REGISTERS.CONFIG1.get(self._regs[1], "DR"), 6)  # codes 6 and 7 are both 1000 SPS
+        return _gain(self._regs[0])
 
     @property
     def continuous(self) -> bool:
-        return REGISTERS.CONFIG1.get(self._regs[1], "CM") == "continuous"
+        return _timing(self._regs[1])[2]
 
     @property
     def conversion_time_s(self) -> float:
-        return conversion_time_s(self._dr_code, self._turbo, single_shot=not self.continuous)
+        single, cont, continuous = _timing(self._regs[1])
+        return cont if continuous else single
 
     # -- data -------------------------------------------------------------------
     def data_ready(self) -> bool:
         """DRDY bit of CONFIG2 (set on a new result, cleared by reading it)."""
-        return bool(REGISTERS.CONFIG2.get(self.read_register(2), "DRDY"))
+        return _drdy(self.read_register(2))
 
     def read_data_code(self) -> int:
         """RDATA: the latest 24-bit two's-complement result (checks CRC if enabled)."""
-        dcnt = bool(REGISTERS.CONFIG2.get(self._regs[2], "DCNT"))
-        crc_mode = REGISTERS.CONFIG2.get(self._regs[2], "CRC")
-        n = 3 + (1 if dcnt else 0)
-        n += {"inverted": n, "crc16": 2}.get(crc_mode, 0)
+        dcnt, crc_mode, n = _frame(self._regs[2])
 
         def xfer() -> int:
             raw = bytes(self.bus.read_i2c_block_data(self.address, CMD_RDATA, n))
@@ -231,29 +277,22 @@ class ADS122C04(I2CDevice):
         return code
 
     def _vref(self) -> float:
-        return INTERNAL_VREF_V if REGISTERS.CONFIG1.get(self._regs[1], "VREF") == "internal" else self.vref_V
+        return INTERNAL_VREF_V if _internal_vref(self._regs[1]) else self.vref_V
 
     def read_voltage_V(self, mux: str | None = None, gain: int | None = None) -> float:
         """Single conversion of ``mux`` at ``gain`` (unchanged if None), in volts."""
-        r0 = self._regs[0]
-        if mux is not None:
-            r0 = REGISTERS.CONFIG0.encode(r0, MUX=mux)
-        if gain is not None:
-            r0 = REGISTERS.CONFIG0.encode(r0, GAIN=gain)
-            if gain > 4:  # PGA cannot be bypassed above gain 4
-                r0 = REGISTERS.CONFIG0.encode(r0, PGA_BYPASS=0)
-        self._write_if_changed(0, r0)
-        self._write_if_changed(1, REGISTERS.CONFIG1.encode(self._regs[1], TS=0))
+        self._write_if_changed(0, _input(self._regs[0], mux, gain))
+        self._write_if_changed(1, _with_ts(self._regs[1], False))
         return code_to_volts(self._check(self.convert()), self.gain, self._vref())
 
     def read_temperature_C(self) -> float:
         """Internal temperature sensor (TS=1), 0.03125 °C resolution."""
         r1 = self._regs[1]
-        self._write_if_changed(1, REGISTERS.CONFIG1.encode(r1, TS=1))
+        self._write_if_changed(1, _with_ts(r1, True))
         try:
             return temperature_code_to_C(self.convert() & 0xFFFFFF)
         finally:
-            self._write_if_changed(1, REGISTERS.CONFIG1.encode(r1, TS=0))
+            self._write_if_changed(1, _with_ts(r1, False))
 
     def read_thermocouple_emf_V(self, mux: str = "AIN0_AIN1", gain: int = 128) -> float:
         """Thermocouple EMF (V); ±16 mV full scale at gain 128 with the internal reference."""

@@ -85,14 +85,16 @@ class I2CDevice:
 
     def _retry(self, what: str, fn: Callable[[], T]) -> T:
         """Run bus transaction ``fn`` with bounded retries; OSError -> SensorFault."""
+        try:
+            return fn()     # the first try, outside the loop: every transaction of every sample passes here
+        except OSError as exc:
+            last: OSError | None = exc
         delay = self.backoff_s
-        last: OSError | None = None
-        for attempt in range(self.attempts):
-            if attempt:
-                self.retries += 1
-                if delay > 0:
-                    self.sleep(delay)
-                delay *= 2.0
+        for _ in range(1, self.attempts):
+            self.retries += 1
+            if delay > 0:
+                self.sleep(delay)
+            delay *= 2.0
             try:
                 return fn()
             except OSError as exc:

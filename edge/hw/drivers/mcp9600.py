@@ -36,9 +36,11 @@ the hot junction by less than one LSB (0.0625 °C) -- only the chip's own
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass
-from typing import Callable
+from types import MappingProxyType
+from typing import Any, Callable, Mapping
 
 from edge.hw.drivers.i2c_base import I2CDevice
 from edge.hw.registers import Register
@@ -70,6 +72,12 @@ class MCP9600Reading:
     delta_C: float
     cold_C: float
     status: dict
+
+
+@functools.lru_cache(maxsize=256)
+def _status(value: int) -> Mapping[str, Any]:
+    """STATUS's fields for ``value`` (read every sample; the same few values all touch)."""
+    return MappingProxyType(REGISTERS.STATUS.decode(value))
 
 
 class MCP9600(I2CDevice):
@@ -179,7 +187,7 @@ class MCP9600(I2CDevice):
 
     # -- status ----------------------------------------------------------------
     def read_status(self) -> dict:
-        return REGISTERS.STATUS.decode(self._read_reg(REGISTERS.STATUS))
+        return dict(_status(self._read_reg(REGISTERS.STATUS)))   # a copy: the caller's to keep
 
     def clear_flags(self) -> None:
         """Clear the TH-update and burst-complete flags (write 0 to them)."""

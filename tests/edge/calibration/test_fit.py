@@ -19,7 +19,7 @@ from edge.calibration.model import CalibrationError, ProbeCalibration
 from edge.estimation.chain_estimate import estimate_from_contact
 from edge.estimation.sensor_chain import SensorChainCalibration, simulate_chain
 
-pytestmark = pytest.mark.slow
+#: The fits are slow; the refusals before any fit run in the fast tier too.
 
 DT = 0.05
 TRUE = SensorChainCalibration(sensing_thickness_m=0.43e-3, tc_tau_s=0.06, flux_scale=1 / 1.04)
@@ -56,6 +56,7 @@ def _refs():
     return out
 
 
+@pytest.mark.slow
 def test_fit_recovers_the_as_built_chain_and_beats_the_datasheet_on_an_unseen_solid():
     cal = fit_calibration(_refs(), created_utc="test")
     assert cal.calibrated and cal.probe == "paper"
@@ -91,6 +92,7 @@ def test_touches_that_disagree_on_a_references_value_are_refused():
         fit_calibration([a, bad, c])
 
 
+@pytest.mark.slow
 def test_the_nominal_prior_keeps_an_unresolvable_parameter_at_its_datasheet_spread():
     # Two polymers-only references (no metal): the bead lag is barely seen; its u stays near the prior's.
     refs = []
@@ -115,6 +117,7 @@ def _noisy_refs(noise_T_K: float, seed0: int):
     return out
 
 
+@pytest.mark.slow
 def test_the_noise_bias_correction_undoes_most_of_the_depth_pull_of_a_noisy_thermocouple():
     # A noisy thermocouple pulls the fitted sensing depth low (errors in variables through the storage
     # term); the correction measures that pull on the chain's own records and undoes most of it.  The
@@ -130,6 +133,7 @@ def test_the_noise_bias_correction_undoes_most_of_the_depth_pull_of_a_noisy_ther
     assert np.all(cal.u_theta >= raw.u_theta * (1 - 1e-12))
 
 
+@pytest.mark.slow
 def test_noise_free_records_come_back_unbiased_with_or_without_the_noise_bias_correction():
     # ISSUE #34 item 6: on records the chain describes and no noise, neither the fit nor the correction
     # may move the answer: both calibrations agree to 1e-3 in every parameter and re-measure every
@@ -150,6 +154,7 @@ def test_noise_free_records_come_back_unbiased_with_or_without_the_noise_bias_co
         assert all(abs(x) < 0.005 for r in cal.references for x in r.rel_errors), cal.references
 
 
+@pytest.mark.slow
 def test_a_calibration_is_reproducible_and_the_correction_is_optional():
     # Seeded noise: the same touches give the same calibration, byte for byte (one pair is enough to see it).
     refs = _refs()
@@ -161,6 +166,7 @@ def test_a_calibration_is_reproducible_and_the_correction_is_optional():
             fit_calibration(refs, noise_bias_draws=bad)
 
 
+@pytest.mark.slow
 def test_a_failing_noise_bias_correction_is_a_calibration_error(monkeypatch):
     import edge.calibration.fit as fit_mod
 

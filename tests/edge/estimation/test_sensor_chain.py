@@ -225,3 +225,25 @@ def test_the_fits_noise_part_is_the_white_noise_bound_and_the_storage_term_adds_
     assert scatter > 1.3 * u_noise
     assert float(np.median([r.u_e_W_s05_m2K / r.e_W_s05_m2K for r in got])) == pytest.approx(scatter, rel=0.3)
     assert all(r.u_ln_e_noise_nuisance_known <= r.u_ln_e_noise for r in got)
+
+
+def test_chain_point_is_the_full_fits_e_and_residual_and_repeats_are_the_same_numbers():
+    """chain_point (the contact-instant search's fit) answers the full fit's e and rms residual exactly,
+    and a second evaluation -- from the kept kernels and design pieces -- the same bits as the first."""
+    from edge.estimation.sensor_chain import _KERNELS, chain_point
+
+    rng = np.random.default_rng(7)
+    t = np.arange(0.0, 6.0, 0.1)
+    q = np.where(t > 1.0, 2500.0, 0.0) * (1 - np.exp(-np.clip(t - 1.0, 0, None) / 0.3))
+    cal = SensorChainCalibration(tc_tau_s=0.05)
+    T = simulate_chain(t, q, e_W_s05_m2K=900.0, R_c_m2K_W=2e-5, T_obj0_C=25.0, T_probe0_C=25.0, calibration=cal)
+    T = T + 0.005 * rng.standard_normal(t.size)
+    for frac in (0.0, 0.2, 0.6):
+        full = fit_sensor_chain(t, T, q, calibration=cal, breaks_s=(1.0,), contact_frac=frac)
+        pt = chain_point(t, T, q, calibration=cal, breaks_s=(1.0,), contact_frac=frac)
+        assert pt.e_W_s05_m2K == full.e_W_s05_m2K
+        assert pt.rms_residual_K == full.rms_residual_K
+        assert pt.n_fitted == full.n_fitted
+        _KERNELS.clear()   # computed afresh: a shorter grid's kernels are a prefix of a longer one's
+        again = fit_sensor_chain(t, T, q, calibration=cal, breaks_s=(1.0,), contact_frac=frac)
+        assert again.e_W_s05_m2K == full.e_W_s05_m2K and again.R_c_m2K_W == full.R_c_m2K_W

@@ -20,7 +20,8 @@ from host.records import write_series
 from tests.support.records import recorded_touch
 from tests.support.cli import run
 
-pytestmark = pytest.mark.slow
+#: The tests that record, fit or measure are slow (the faithful world's touches, a calibration fit); the
+#: refusals (hand-made records refused before any fit, a walk-through that finds no touch) run in the fast tier.
 
 AS_BUILT = AsBuilt(sensing_thickness_m=0.424e-3, flux_sensitivity_V_per_W_m2=0.56e-6 * 1.04,
                    thermocouple_time_constant_s=0.06)
@@ -59,6 +60,7 @@ def record_files(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_fit_then_estimate_with_the_calibration_beats_the_datasheet(capsys, records, tmp_path):
     cal = tmp_path / "cal.json"
     args = []
@@ -128,6 +130,7 @@ def test_calibration_for_another_probe_is_refused(capsys, record_files, tmp_path
     assert code == 2 and "small-heater" in err and math.isfinite(1.0)
 
 
+@pytest.mark.slow
 def test_walk_through_on_the_simulator_touches_each_reference_fits_writes_and_installs(capsys, tmp_path):
     # alu_20V_faithful: an as-built probe (thermopile +3 %, layer 3 % thinner, 4 % more conductive, a
     # 20-ms bead) on the precision board, dry contact. Each reference is that scene with the reference
@@ -157,6 +160,7 @@ def test_walk_through_without_a_touch_stops_with_nothing_written_or_installed(ca
     assert code == 0 and json.loads(shown)["calibrated"] is False
 
 
+@pytest.mark.slow
 def test_small_heater_calibration_fits_the_flux_scale_and_estimate_uses_it(capsys, tmp_path):
     import numpy as np
 
@@ -202,6 +206,7 @@ def test_small_heater_calibration_fits_the_flux_scale_and_estimate_uses_it(capsy
     assert code == 2 and len(err.strip().splitlines()) == 1 and not (tmp_path / "x.json").exists()
 
 
+@pytest.mark.slow
 def test_a_small_heater_calibration_installed_on_the_device_is_applied_to_its_measurements(capsys, tmp_path):
     from tests.support.calibrations import sample_calibration
 

@@ -20,7 +20,7 @@ from firmware_sim.rigs.contact_record import ContactTouch, one_d_geometry
 from firmware_sim.rz.probe_world import AsBuilt
 from host.records import write_series
 from tests.support.records import recorded_touch
-from tests.support.cli import run
+from tests.support.cli import run, run_captured
 
 pytestmark = pytest.mark.slow
 
@@ -63,9 +63,20 @@ GOOD = (("pmma", "pmma"), ("pyroceram", "pyroceram"), ("aisi_304", "aisi_304"))
 UNEXPLAINED = (("pmma", "pmma"), ("pyroceram", "borofloat_33"), ("aisi_304", "aisi_304"))
 
 
-def test_the_reported_re_measurement_is_what_estimate_answers_with_the_written_calibration(capsys, records, tmp_path):
-    cal = tmp_path / "cal.json"
-    code, out, err = run(capsys, "calibrate", *_args(records, GOOD), "--out", str(cal))
+@pytest.fixture(scope="module")
+def good(records, tmp_path_factory):
+    """``calibrate`` on the three right references: (exit code, stdout, stderr, the file written).
+
+    Run once for the module: two tests read this very calibration (the re-measurement it reports, and
+    what three references determine against two), and its fit with a leave-one-out self-check is
+    the module's largest cost.
+    """
+    cal = tmp_path_factory.mktemp("good") / "cal.json"
+    return (*run_captured("calibrate", *_args(records, GOOD), "--out", str(cal)), cal)
+
+
+def test_the_reported_re_measurement_is_what_estimate_answers_with_the_written_calibration(capsys, records, good):
+    code, out, err, cal = good
     assert code == 0, err
     d = json.loads(cal.read_text())
     check = d["self_check"]
@@ -160,7 +171,7 @@ def test_references_touched_at_the_probes_temperature_are_fitted_not_an_internal
 
 
 def test_what_the_references_cannot_identify_is_written_flagged_with_the_reference_that_would(capsys, records,
-                                                                                              tmp_path):
+                                                                                              good, tmp_path):
     # ISSUE #34 item 1: a calibration on two references leaves part of the probe to the datasheet prior;
     # the file and the screen say which part and what to add -- never written silently.
     cal = tmp_path / "cal.json"
@@ -173,8 +184,7 @@ def test_what_the_references_cannot_identify_is_written_flagged_with_the_referen
     assert all(0 < x <= 1.5 for x in ident["u_over_prior"].values()) and ident["advice"]
     assert "to determine the rest" in out and "determined" in out
     # The three references determine more of the probe than two.
-    full = tmp_path / "full.json"
-    code, out, err = run(capsys, "calibrate", *_args(records, GOOD), "--out", str(full))
+    code, out, err, full = good
     assert code == 0, err
     ident3 = json.loads(full.read_text())["self_check"]["identifiability"]
     assert len(ident3["determined"]) >= len(ident["determined"])

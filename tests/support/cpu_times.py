@@ -1,0 +1,94 @@
+"""Per-test CPU seconds, a pytest plugin for comparing the suite's cost on a shared machine.
+
+``--durations`` reports wall time, which on a loaded two-core machine says more about the other
+processes than about the test. This plugin records, for each test, the CPU time (user + system)
+its process spent over the test's setup, call and teardown, its own and that of the children it
+waited for (a forked kill-point child, a CLI subprocess)::
+
+    python -m pytest -n 2 -p tests.support.cpu_times --cpu-times=/tmp/cpu -m "not slow"
+    python -m tests.support.cpu_times /tmp/cpu            # per-file sums, costliest first
+    python -m tests.support.cpu_times /tmp/cpu --tier fast
+
+Each process (an xdist worker, or the only one) writes ``<prefix>.<worker>.tsv``: node id, tier
+(``slow``/``fast``) and CPU seconds per line, and a ``#process`` line with the process's total.
+What a test leaves to others is not its own: the daemon threads it started are in its process and
+counted, but a fork server's children (tests/support/daemon_proc.py) are counted when the server is
+waited for, at the teardown of the last test of its module that uses it. Not a benchmark: a test
+that shares a module fixture pays for it only where the fixture is built.
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import pytest
+
+#: This session's rows (node id, tier, CPU seconds), on its config: a pytest run inside a test (pytester)
+#: keeps its own.
+_ROWS = pytest.StashKey[list]()
+
+
+def _cpu_s() -> float:
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+def pytest_addoption(parser):
+    parser.addoption("--cpu-times", metavar="PREFIX", default=None,
+                     help="write each test's CPU seconds to PREFIX.<worker>.tsv (tests/support/cpu_times.py)")
+
+
+def pytest_configure(config):
+    config.stash[_ROWS] = []
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    t0 = _cpu_s()
+    yield
+    item.config.stash[_ROWS].append((item.nodeid, "slow" if item.get_closest_marker("slow") else "fast",
+                                     _cpu_s() - t0))
+
+
+def pytest_sessionfinish(session):
+    prefix, rows = session.config.getoption("--cpu-times"), session.config.stash[_ROWS]
+    if not prefix or not rows:
+        return
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+    with open(f"{prefix}.{worker}.tsv", "w", encoding="utf-8") as f:
+        f.write(f"#process\t\t{_cpu_s():.3f}\n")
+        f.writelines(f"{node}\t{tier}\t{cpu:.4f}\n" for node, tier, cpu in rows)
+
+
+def per_file(prefix: str, tier: str | None = None) -> dict[str, float]:
+    """CPU seconds per test file from the files ``prefix`` names (``tier``: ``fast``/``slow``/None for both)."""
+    sums: dict[str, float] = defaultdict(float)
+    for path in Path(prefix).parent.glob(Path(prefix).name + ".*.tsv"):
+        for line in path.read_text(encoding="utf-8").splitlines():
+            if line.startswith("#"):
+                continue   # the process's total
+            node, t, cpu = line.split("\t")
+            if tier in (None, t):
+                sums[node.split("::")[0]] += float(cpu)
+    return dict(sums)
+
+
+def main(argv: list[str]) -> int:
+    if not argv or argv[0].startswith("-"):
+        print("usage: python -m tests.support.cpu_times PREFIX [--tier fast|slow] [--top N]", file=sys.stderr)
+        return 2
+    tier = argv[argv.index("--tier") + 1] if "--tier" in argv else None
+    top = int(argv[argv.index("--top") + 1]) if "--top" in argv else 30
+    sums = per_file(argv[0], tier)
+    for name, cpu in sorted(sums.items(), key=lambda kv: -kv[1])[:top]:
+        print(f"{cpu:7.2f}  {name}")
+    print(f"{sum(sums.values()):7.2f}  all tests ({len(sums)} files)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
