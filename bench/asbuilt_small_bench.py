@@ -572,7 +572,8 @@ def finish(probes: list[dict], solids: list[str], n_ref: int, wall_s: float, upd
                                    "--simulate-only` fills the touch cache (bench/results/cache/asbuilt_small/, "
                                    f"~30 min), then `python bench/asbuilt_small_bench.py {args} --reuse "
                                    f"--update-docs [--compare bench/results/asbuilt_small_switch.json]` (the "
-                                   "other answer's run: `--no-posterior --out-name asbuilt_small_switch`) re-estimates it ({wall_s / 60:.0f} min of calibration and "
+                                   "other answer's run: `--no-posterior --out-name asbuilt_small_switch`) "
+                                   f"re-estimates it ({wall_s / 60:.0f} min of calibration and "
                                    "estimation; also in parts: `--part A B --part-out F`, then `--merge`; shared "
                                    "machine)."))
 

@@ -60,6 +60,7 @@ import numpy as np
 
 from edge.calibration.fit import check_reference
 from edge.calibration.model import CalibrationError, ProbeCalibration, ReferenceFit
+from edge.calibration.selfcheck import REFERENCE_Z, remeasure_floor  # noqa: F401  (REFERENCE_Z: re-exported)
 from edge.physics.probe import FLUX_SENSITIVITY_U_REL, SENSING_K_U_REL, SENSING_THICKNESS_U_REL
 from edge.estimation.object_offset import HEATER_TCR_PER_K
 from edge.estimation.probe_estimate import CALIBRATED, MODEL_FORM_TOLERANCES, geometry_at, perturbed_geometry
@@ -335,38 +336,6 @@ def reference_floor(prob: _Problem, p: np.ndarray) -> float:
 #: Raise the floor until every reference touch re-measures within its u (:func:`remeasure_floor`; False: the
 #: shifts' rms alone, as before; bench ``--no-remeasure-floor`` compares).
 REMEASURE_FLOOR = True
-#: The z a reference touch, re-measured by the calibration that is written, may reach against its u (the
-#: answer's and the certificate's in quadrature): 95 %, two-sided, as every interval the device states.
-REFERENCE_Z = 1.96
-
-
-def remeasure_floor(misses) -> float:
-    """The floor under which every reference touch, re-measured by the calibration written, lands within its u.
-
-    :func:`reference_floor` alone did not cover its own references: it takes the fit's shift of each
-    reference beyond its certificate linearly (``|shift| - u``) and averages it over the references, while an
-    answer adds the floor and the certificate in quadrature, and the touch's own scatter adds to the shift
-    (drawn probe 5 of bench/asbuilt_small_bench.py: shifts -3.9 / -5.0 / -6.6 % against certificates of
-    3 / 2 / 2 % gave a floor of 2.5 %, and its AISI 304 touch re-measured at -8.0 % in ln e against
-    1.96 x hypot(3.4, 2.0) = 7.8 %). Here: the smallest ``f`` with ``|m| <= REFERENCE_Z sqrt(u^2 + f^2 + u_c^2)``
-    for every touch.
-
-    Parameters
-    ----------
-    misses : iterable of (float, float, float)
-        Per reference touch: ln(e re-measured / e certificate), the re-measure's relative u of e without a
-        floor, and the certificate's relative u.
-
-    Returns
-    -------
-    float
-        The floor (relative u of e, k and alpha), 0 when every touch lands within its u, at most 1.
-    """
-    need = [(m / REFERENCE_Z) ** 2 - u * u - u_c * u_c for m, u, u_c in misses
-            if all(math.isfinite(x) for x in (m, u, u_c))]
-    return float(min(math.sqrt(max([0.0, *need])), 1.0))
-
-
 def _identifiability(p: np.ndarray, cov: np.ndarray, refs: list[str]) -> dict:
     n = len(GLOBALS)
     u = np.sqrt(np.maximum(np.diag(cov)[:n], 0.0))
