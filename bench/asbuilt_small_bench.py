@@ -409,6 +409,17 @@ _STACK = (("ln_flux_scale", "flux_sensitivity_rel", "inverse"), ("ln_sensing_thi
           ("ln_substrate_rho_c", "substrate_rho_c_rel", "ln"), ("heater_tcr_per_K", "heater_tcr_per_K", "abs"))
 
 
+def two_s_line(summary: dict, compare: dict | None) -> str:
+    """α and k at 2 s (R_c <= 3e-5) from this run's summary, the other answer's in brackets."""
+    def get(sm, q, what):
+        v = (sm or {}).get("calibrated/2s/rc_le_3e-5", {}).get(q, {}).get(what)
+        return "–" if v is None else f"{100 * v:.1f}" if what == "median_abs_err" else f"{100 * v:.0f}"
+    other = (compare or {}).get("summary")
+    return (f"α {get(summary, 'alpha', 'median_abs_err')} [{get(other, 'alpha', 'median_abs_err')}] %, k "
+            f"{get(summary, 'k', 'median_abs_err')} [{get(other, 'k', 'median_abs_err')}] %, k's coverage "
+            f"{get(summary, 'k', 'cov95')} [{get(other, 'k', 'cov95')}] %")
+
+
 def stack_identified(probes: list[dict]) -> dict:
     """Per calibrated parameter: the identified minus the drawn value and its z (identified u) over the probes.
 
@@ -498,7 +509,7 @@ def table(summary: dict, n_probes: int, n_solids: int, n_ref: int, compare: dict
               f"{f(ru['e'], '.0f')} / {f(ru['k'], '.0f')} / {f(ru['alpha'], '.0f')} %; probes with every reference "
               f"touch within u: {summary['probes_all_references_within_u']} of {n_probes} (per probe the largest "
               "|z| = |ln(value / reference)| / u, 1.96 within: " + ", ".join(
-                  "–" if z is None else f"{z:.1f}" for z in summary["references_max_z"].values()) + "); self-check refused "
+                  "–" if z is None else f"{z:.2f}" for z in summary["references_max_z"].values()) + "); self-check refused "
               f"{summary['refused'] - summary['failed']} of {n_probes} (written forced), fit failed "
               f"{summary['failed']}; model-form floors "
               + ", ".join(f"{100 * x:.1f}" for x in summary["floors"]) + " %.",
@@ -531,7 +542,10 @@ def table(summary: dict, n_probes: int, n_solids: int, n_ref: int, compare: dict
               "its model-form floor (edge.calibration.axi.reference_floor: on probes 2 and 5, squares 0.46-0.6 mm off "
               "the axis, the fit moved all three references by -2 to -7.5 % in e and held-out e read 4-5 % low with a "
               "stated u of 1.7 %), raised where a reference touch re-measured by the calibration's own fit would land "
-              "outside its u (remeasure_floor; 0 on all 8 probes here, see the end); the offset's kernel takes its stack at the calibration's covariance "
+              "outside its u (edge.calibration.selfcheck.remeasure_floor), and again where the written calibration's own "
+              "answer through the estimate path would (host.calibration.checked_calibration: the object-offset fit "
+              "over the pre-heating samples states a smaller u than the fit's own re-measure; probe 5's AISI 304 was at "
+              "z 2.0 there, its floor 2.5 -> 2.7 %); the offset's kernel takes its stack at the calibration's covariance "
               "(OFFSET_STACK_FROM_CALIBRATION). A metal reference whose datasheet fit lands on another minimum (probe "
               "3's AISI 304: e 1125) is kept when its declared reference explains it best (it was refused: fit "
               "failed 1). Every calibrated answer's u also carries the calibrated TCR's own u (the fit's linearised "
@@ -541,14 +555,10 @@ def table(summary: dict, n_probes: int, n_solids: int, n_ref: int, compare: dict
               "library-solid cache (before the specimen spread), 5 s, R_c <= 3e-5 (coverage over all touches): `--no-model-form` k 4.2 %, α 6.3 %, determined 72 %, "
               "95 % coverage k / α / e 91 / 96 / 74 %; " + COMPARE_DATASHEET + " What it leaves (measured with the posterior on this cache; the switch's numbers in "
               "brackets): two of the 47 5-s touches at R_c <= 3e-5 miss k outside 95 %, metals whose fit was not "
-              "decisive (aluminium +14 % with u 7 %, copper -53 % with u 14 %); at 2 s α is worse than the switch's "
-              "(18.5 [15.2] %) and k's coverage 89 [91] % (weighting uncalibrated answers too had cut their k / α "
+              "decisive (aluminium +14 % with u 7 %, copper -53 % with u 14 %); at 2 s, R_c <= 3e-5, "
+              + two_s_line(summary, compare) + " (weighting uncalibrated answers too had cut their k / α "
               "coverage from 92 / 96 to 76 / 82 %); on metals with a large "
-              "R_c the contact kernel misses by ~0.01 K over the pre-heating window, which moves e; and probe 5's "
-              "AISI 304 re-measures at -7.7 % against a u of 3.4 % (z 2.0): remeasure_floor judges the calibration's "
-              "own re-measure (fit_contact, heating only), which states that touch within its u, not the estimate "
-              "path's answer (the object-offset fit over the pre-heating samples, host.calibration."
-              "checked_calibration's final re-measure), whose u is smaller."]
+              "R_c the contact kernel misses by ~0.01 K over the pre-heating window, which moves e."]
     return "\n".join(lines)
 
 
