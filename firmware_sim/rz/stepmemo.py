@@ -19,60 +19,50 @@ dropped first once the stored fields exceed :data:`MEMO_BYTES`.
 from __future__ import annotations
 
 import threading
-from collections import OrderedDict
 
 import numpy as np
+
+from edge.physics.memo import BoundedMemo
 
 __all__ = ["MEMO_BYTES", "clear_step_memo", "recall", "keep", "memo_stats"]
 
 #: Bytes of stored fields kept (about 2000 steps of the small-heater probe's contact grid).
 MEMO_BYTES = 160 * 2**20
 
-_MEMO: OrderedDict[bytes, tuple[np.ndarray, float, float]] = OrderedDict()
-_LOCK = threading.Lock()   # worlds step in the test's thread and in simulated daemons' threads
-_bytes = 0
+_MEMO = BoundedMemo(max_entries=2**31, max_bytes=MEMO_BYTES)
+_LOCK = threading.Lock()   # the counters: worlds step in the test's thread and in simulated daemons' threads
 _hits = 0
 _misses = 0
 
 
 def clear_step_memo() -> None:
     """Forget every stored step (a benchmark that times a cold start calls it, with the factors)."""
-    global _bytes, _hits, _misses
+    global _hits, _misses
+    _MEMO.clear()
     with _LOCK:
-        _MEMO.clear()
-        _bytes = _hits = _misses = 0
+        _hits = _misses = 0
 
 
 def memo_stats() -> dict[str, int]:
     """Entries, stored bytes, hits and misses since the last clear."""
     with _LOCK:
-        return {"entries": len(_MEMO), "bytes": _bytes, "hits": _hits, "misses": _misses}
+        return {"entries": len(_MEMO), "bytes": _MEMO.nbytes, "hits": _hits, "misses": _misses}
 
 
 def recall(key: bytes) -> tuple[np.ndarray, float, float] | None:
     """The step stored under ``key`` as ``(a copy of the new field, heat in J, heat lost J)``, or None."""
     global _hits, _misses
+    hit = _MEMO.get(key)
     with _LOCK:
-        hit = _MEMO.get(key)
         if hit is None:
             _misses += 1
             return None
         _hits += 1
-        _MEMO.move_to_end(key)
     T, e_in, lost = hit
     return T.copy(), e_in, lost
 
 
 def keep(key: bytes, T: np.ndarray, e_in: float, lost: float) -> None:
     """Store a step's result under ``key`` (a private, read-only copy of the field)."""
-    global _bytes
-    T = T.copy()
-    T.flags.writeable = False
-    with _LOCK:
-        if key in _MEMO:
-            return
-        _MEMO[key] = (T, e_in, lost)
-        _bytes += T.nbytes
-        while _bytes > MEMO_BYTES and len(_MEMO) > 1:
-            _, (old, _, _) = _MEMO.popitem(last=False)
-            _bytes -= old.nbytes
+    if _MEMO.get(key) is None:
+        _MEMO.put(key, (T.copy(), e_in, lost))

@@ -49,3 +49,16 @@ def test_bessel_memo_returns_the_computed_values_as_a_private_copy():
     again = bessel_j(1, x)
     assert again[0] == 0.0
     assert np.array_equal(again[1:], first[1:])
+
+
+def test_a_byte_capped_memo_keeps_at_most_its_bytes_and_always_the_newest():
+    m = BoundedMemo(100, max_bytes=3 * 80)
+    for i in range(5):
+        m.put((i,), (np.full(10, float(i)), 1.5))        # 80 bytes of array per entry; the float adds none
+    assert len(m) == 3 and m.nbytes == 240 and m.get((0,)) is None and m.get((4,))[0][0] == 4.0
+    m.put((4,), (np.zeros(10), 0.0))                     # a replaced entry is counted once
+    assert len(m) == 3 and m.nbytes == 240
+    m.put(("big",), np.zeros(100))                       # larger than the cap: kept alone, not dropped
+    assert len(m) == 1 and m.nbytes == 800
+    m.clear()
+    assert len(m) == 0 and m.nbytes == 0

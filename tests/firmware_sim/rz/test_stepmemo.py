@@ -13,6 +13,7 @@ import pytest
 from firmware_sim.clock import VirtualClock
 from firmware_sim.rz import blocktri as B
 from firmware_sim.rz import solver as S
+from edge.physics.memo import BoundedMemo
 from firmware_sim.rz import stepmemo as M
 from firmware_sim.rz.probe_world import FaithfulWorld
 from firmware_sim.scene.files import read_scene
@@ -29,8 +30,8 @@ def _solver(scheme="trbdf2", dt_s=0.01):
 @pytest.fixture
 def cold(monkeypatch):
     """Empty memo, factor and row caches for the test; the process's own are put back after it."""
-    monkeypatch.setattr(M, "_MEMO", OrderedDict())
-    for name in ("_bytes", "_hits", "_misses"):
+    monkeypatch.setattr(M, "_MEMO", BoundedMemo(2**31, M.MEMO_BYTES))
+    for name in ("_hits", "_misses"):
         monkeypatch.setattr(M, name, 0)
     monkeypatch.setattr(S, "_FACTOR_CACHE", OrderedDict())
     monkeypatch.setattr(B, "_ROW_CACHE", OrderedDict())
@@ -89,6 +90,7 @@ def test_any_other_input_is_solved_not_recalled(cold):
 def test_the_memo_stays_within_its_bytes(cold, monkeypatch):
     s = _solver()
     monkeypatch.setattr(M, "MEMO_BYTES", 3 * s.grid.active.size * 8)
+    monkeypatch.setattr(M._MEMO, "max_bytes", M.MEMO_BYTES)
     T = s.initial_field(25.0, 22.0)
     for _ in range(6):
         T, _, _ = s.step(T, s.heater_source_W(), 1.0)
