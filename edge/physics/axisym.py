@@ -73,6 +73,7 @@ from edge.checks import finite_array, finite_nonnegative, finite_positive, one_o
 from edge.physics.bessel import bessel_j
 from edge.physics.footprint import rectangle_weights
 from edge.physics.geometry import ProbeGeometry
+from edge.physics.memo import BoundedMemo
 from edge.physics.solids import Solid
 
 __all__ = ["bessel_j", "HyperbolicInversion", "hankel_nodes", "sensor_weights", "AxisymModel", "Responses"]
@@ -450,7 +451,7 @@ class AxisymModel:
         # Kept per model (a few): a calibration asks one sensing layer's model for the same substrate on
         # every touch and finite-difference column, and the same variant's arrays also let the transforms'
         # memo (keyed by their ids) answer a repeated object.
-        variants = self.__dict__.setdefault("_variants", OrderedDict())
+        variants = self.__dict__.setdefault("_variants", BoundedMemo(_VARIANTS_MAX))
         key = (substrate, float(th))
         m = variants.get(key)
         if m is None:
@@ -460,9 +461,7 @@ class AxisymModel:
             m.__dict__.pop("_last_hd", None)     # another substrate: another heater
             m.geometry = replace(self.geometry, substrate=substrate, substrate_thickness_m=th)
             m._set_substrate(substrate, th)
-            variants[key] = m
-            while len(variants) > _VARIANTS_MAX:
-                variants.popitem(last=False)
+            variants.put(key, m)
         return m
 
     def head(self, n: int) -> "AxisymModel":
