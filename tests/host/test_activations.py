@@ -6,12 +6,26 @@ import warnings
 
 import numpy as np
 import pytest
-from sklearn.neural_network import MLPRegressor, _base
 
 from host.activations import sklearn_fast_tanh, tanh_derivative_inplace, tanh_inplace
 
 # The fits here are a few iterations long on purpose (what is under test is the swap, not the fit).
 pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+
+
+_STOCK: dict = {}
+
+
+def _sklearn():
+    """scikit-learn's ``MLPRegressor`` and the module holding its activation tables.
+
+    Imported when a test needs them, not at collection (1.2 s in every xdist worker, most of
+    which never run a test here); the stock tanh derivative is noted on the first import.
+    """
+    from sklearn.neural_network import MLPRegressor, _base
+
+    _STOCK.setdefault("tanh_derivative", _base.DERIVATIVES["tanh"])
+    return MLPRegressor, _base
 
 
 def _ours(x):
@@ -42,6 +56,7 @@ def test_works_in_place_on_a_2d_block():
 
 
 def test_the_swap_is_used_by_fit_and_undone_on_exit_and_on_error():
+    MLPRegressor, _base = _sklearn()
     stock, stock_d = _base.ACTIVATIONS["tanh"], _base.DERIVATIVES["tanh"]
     calls = [0]
 
@@ -64,6 +79,7 @@ def test_the_swap_is_used_by_fit_and_undone_on_exit_and_on_error():
 
 
 def test_predict_after_the_fit_uses_numpys_tanh_like_the_device():
+    MLPRegressor, _base = _sklearn()
     x = np.linspace(-2, 2, 50).reshape(-1, 1)
     with sklearn_fast_tanh():
         m = MLPRegressor(hidden_layer_sizes=(7,), activation="tanh", solver="lbfgs", max_iter=50,
@@ -73,6 +89,7 @@ def test_predict_after_the_fit_uses_numpys_tanh_like_the_device():
 
 
 def test_nested_or_foreign_entries_are_left_alone(monkeypatch):
+    _, _base = _sklearn()
     stock = _base.ACTIVATIONS["tanh"]
     with sklearn_fast_tanh() as outer, sklearn_fast_tanh() as inner:
         assert outer and not inner
@@ -89,11 +106,10 @@ def test_nested_or_foreign_entries_are_left_alone(monkeypatch):
         assert not on
 
 
-_stock_derivative = _base.DERIVATIVES["tanh"]
-
-
 def test_the_derivative_is_scikit_learns_to_the_bit():
     # Its swap and restoring: test_the_swap_is_used_by_fit_and_undone_on_exit_and_on_error.
+    _sklearn()
+    _stock_derivative = _STOCK["tanh_derivative"]
     rng = np.random.default_rng(3)
     Z = np.tanh(rng.standard_normal((300, 17)) * 3)
     delta = rng.standard_normal(Z.shape)
@@ -104,6 +120,8 @@ def test_the_derivative_is_scikit_learns_to_the_bit():
 
 def test_a_fit_with_the_swapped_derivative_is_the_same_fit_to_the_bit():
     # Only the activation swapped, against both: the derivative changes no bit of the weights.
+    MLPRegressor, _base = _sklearn()
+    _stock_derivative = _STOCK["tanh_derivative"]
     x = np.linspace(-2, 2, 60).reshape(-1, 1)
 
     def fit():

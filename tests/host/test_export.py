@@ -3,9 +3,6 @@ import warnings
 
 import numpy as np
 import pytest
-from sklearn.decomposition import PCA
-from sklearn.exceptions import ConvergenceWarning
-from sklearn.neural_network import MLPRegressor
 
 from edge.estimation.mlp import MLP
 from edge.estimation.estimate import mlp_golden_check
@@ -17,6 +14,11 @@ from host.export import export_paper_model, mlp_arrays_from_sklearn, pca_arrays_
 @pytest.fixture(scope="module")
 def trained():
     """Paper-shaped pipeline on synthetic data: 8 ln-features -> z-score -> PCA(2) -> MLP(100, 20)."""
+    # scikit-learn is imported where it is used (1.2 s): every xdist worker collects this module.
+    from sklearn.decomposition import PCA
+    from sklearn.exceptions import ConvergenceWarning
+    from sklearn.neural_network import MLPRegressor
+
     rng = np.random.default_rng(0)
     u = np.exp(rng.normal(size=(120, 8)) + np.linspace(0, 1, 8))
     lx = np.log(u)
@@ -95,6 +97,10 @@ def test_extra_golden_must_be_declared(tmp_path, trained):
 
 
 def test_export_refusals(tmp_path, trained):
+    from sklearn.decomposition import PCA
+    from sklearn.exceptions import ConvergenceWarning
+    from sklearn.neural_network import MLPRegressor
+
     mlp, pca, pre, p = trained
     with pytest.raises(ValueError, match="coefs_"):
         mlp_arrays_from_sklearn(MLPRegressor())

@@ -12,12 +12,17 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-pytest.importorskip("matplotlib")
-
-from host.plot_data import identification, touch_identity, touch_plot_data  # noqa: E402
-from host.plots import TouchFigure, mpl_config_dir  # noqa: E402
+from host.plot_data import identification, touch_identity, touch_plot_data
+from host.plots import TouchFigure, mpl_config_dir
 
 slow = pytest.mark.slow   # the figures are drawn and written (a few tenths of a second each)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _needs_matplotlib():
+    """Skip without matplotlib; imported when a test here runs, not when every worker collects."""
+    pytest.importorskip("matplotlib")
+
 
 IDENT = {"measurement_id": 17, "started_utc": "2026-11-27T12:34:56.789+00:00", "power_W": 4.5,
          "contact_time_s": 2.0, "model_sha256": "8e9c1c83d364" + "0" * 52, "calibration_sha256": None}

@@ -7,11 +7,16 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-pytest.importorskip("matplotlib")
-
-from host.plots import PlotError, PlotProcess, TouchFigure, plot_touch  # noqa: E402
+from host.plots import PlotError, PlotProcess, TouchFigure, plot_touch
 
 pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _needs_matplotlib():
+    """Skip without matplotlib; imported when a test here runs, not when every worker collects."""
+    pytest.importorskip("matplotlib")
+
 
 PNG = b"\x89PNG"
 

@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 
 from edge.physics.materials import MaterialLibrary, load_materials
-from host.train import train_bundle
 
 NAMES = ("pmma", "tempered_glass", "aisi_304", "cork_board", "granite", "oak_cross_grain", "aluminium_alloy",
          "platinum", "plywood", "fused_silica")
@@ -13,6 +12,8 @@ NAMES = ("pmma", "tempered_glass", "aisi_304", "cork_board", "granite", "oak_cro
 @pytest.mark.slow  # two retrains
 @pytest.mark.filterwarnings("ignore:lbfgs failed to converge")
 def test_same_seed_same_arrays_even_with_the_training_set_regenerated(tmp_path, monkeypatch):
+    from host.train import train_bundle  # scikit-learn, 1.2 s: not at collection in every worker
+
     lib = load_materials()
     small = MaterialLibrary([lib.get(n) for n in NAMES])
     arrays = []

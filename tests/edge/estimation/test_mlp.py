@@ -2,13 +2,16 @@ import warnings
 
 import numpy as np
 import pytest
-from sklearn.exceptions import ConvergenceWarning
-from sklearn.neural_network import MLPRegressor
 
 from edge.estimation.mlp import ACTIVATION_CODES, MLP
 
 
-def _fit(activation: str, hidden=(100, 20), seed: int = 0, n_in: int = 2) -> MLPRegressor:
+def _fit(activation: str, hidden=(100, 20), seed: int = 0, n_in: int = 2) -> "MLPRegressor":  # noqa: F821
+    # scikit-learn (1.2 s to import, SciPy's stats the most of it) only where a test fits: every
+    # xdist worker imports every test module to collect, most never run one of these.
+    from sklearn.exceptions import ConvergenceWarning
+    from sklearn.neural_network import MLPRegressor
+
     rng = np.random.default_rng(seed)
     X = rng.normal(size=(80, n_in))
     y = np.sin(X[:, 0]) + 0.5 * X[:, -1] ** 2 + 0.1 * rng.normal(size=80)

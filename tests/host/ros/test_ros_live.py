@@ -15,9 +15,17 @@ from host.ros.bridge import ANSWER_KEYS, key_values
 from tests.host.ros.support import live_ros_unavailable
 
 # slow: a live rclpy node around a simulated probe's touch (1.3 s); test_ros_bag.py's mapping tests stay fast.
-pytestmark = [pytest.mark.hil, pytest.mark.slow, pytest.mark.skipif(live_ros_unavailable() is not None,
-                                                  reason=str(live_ros_unavailable()))]
+pytestmark = [pytest.mark.hil, pytest.mark.slow]
 WAIT_s = 20.0
+
+
+@pytest.fixture(autouse=True)
+def _live_ros():
+    """Skip where rclpy cannot run here: asked when a test here runs, not when every worker collects
+    (the question imports rclpy and starts a context)."""
+    why = live_ros_unavailable()
+    if why is not None:
+        pytest.skip(why)
 
 
 def _wait(cond, timeout_s=WAIT_s):
