@@ -159,19 +159,21 @@ def pytest_collection(session):
     return None
 
 
+@pytest.hookimpl(trylast=True)  # after -m/-k deselection: the slices are sized on what runs
 def pytest_collection_modifyitems(session, config, items):
-    """Modules with a ``slow`` test run first, each module kept together, the rest in file order.
+    """Each xdist worker's first share of the tests starts with its share of the slow modules.
 
-    pytest-xdist hands each worker a queue of consecutive tests in advance: a long test near the
-    end of the collection leaves the other worker idle for its whole length.  Longest first (the
-    classic schedule for identical machines) puts the short tests at the end, where they fill the
-    gaps; the ``worksteal`` schedule (pyproject.toml) lets a worker that ran out take half of the
-    other's queue, so the run ends on both workers together.  Keeping a module's
-    tests together keeps its module-scoped fixtures built once per worker.  The order is the
-    same on every worker (a stable sort of the collection), as xdist requires.
+    See tests/support/schedule.py: long tests first on every worker and quick ones at the end, where
+    they fill the gaps (the classic longest-first schedule), and the ``worksteal`` schedule
+    (pyproject.toml) lets a worker that ran out take the back half of the other's queue, so the run
+    ends on both workers together.  The order is the same on every worker (a function of the
+    collection and the worker count), as xdist requires.
     """
-    slow_modules = {item.module for item in items if item.get_closest_marker("slow") is not None}
-    items.sort(key=lambda item: item.module not in slow_modules)
+    from tests.support.schedule import long_first_slices
+
+    n = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1") or 1)
+    items[:] = long_first_slices(items, n, module_of=lambda item: item.module,
+                                 is_slow=lambda item: item.get_closest_marker("slow") is not None)
 
 
 def pytest_collection_finish(session):

@@ -1,0 +1,57 @@
+"""The order the suite's tests are handed to the xdist workers in: each worker's share long-first.
+
+pytest-xdist's ``worksteal`` schedule (pyproject.toml) first hands worker i the i-th of n consecutive
+slices of the collection (``len(rest) // (n - i)`` tests each), then lets a worker that ran out take
+the back half of the longest queue left.  Putting every module with a ``slow`` test first (the
+order before this one) gave them all to the first slice: the other worker ran the quick tests, then
+stole the slow ones one half-queue at a time, and the run ended on a long test (a 6-s demo) with the
+other worker idle.  Here each slice starts with its share of the slow modules (every n-th, in
+collection order) and is filled up with the quick ones: every worker starts long, a steal takes
+quick tests from a queue's back, and the run ends on quick tests.  A module's tests stay together
+(its module-scoped fixtures are built once per worker) except where a slice boundary or a steal
+cuts a quick module.  ``tests/conftest.py`` (``pytest_collection_modifyitems``) uses it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Hashable, Sequence
+from typing import TypeVar
+
+T = TypeVar("T")
+
+
+def slice_sizes(n_items: int, n_workers: int) -> list[int]:
+    """How many tests xdist's first hand-out gives each worker (its ``len(rest) // (n - i)``)."""
+    sizes, rest = [], n_items
+    for i in range(n_workers):
+        sizes.append(rest // (n_workers - i))
+        rest -= sizes[-1]
+    return sizes
+
+
+def long_first_slices(items: Sequence[T], n_workers: int, module_of: Callable[[T], Hashable],
+                      is_slow: Callable[[T], bool]) -> list[T]:
+    """``items`` reordered: slice i holds every n-th slow module, then quick modules up to its size.
+
+    Modules (``module_of``) keep their collection order and their tests' order; a module is slow if
+    one of its tests is (``is_slow``).  With one worker (or none) the slow modules simply go first.
+    The same input gives the same order, as xdist requires of every worker's collection.
+    """
+    modules: dict[Hashable, list[T]] = {}
+    for item in items:
+        modules.setdefault(module_of(item), []).append(item)
+    slow = [m for m, its in modules.items() if any(is_slow(i) for i in its)]
+    slow_set = set(slow)
+    quick = [i for m, its in modules.items() if m not in slow_set for i in its]
+    if n_workers < 2:
+        return [i for m in slow for i in modules[m]] + quick
+    out: list[T] = []
+    boundary = 0
+    for w, size in enumerate(slice_sizes(len(items), n_workers)):
+        boundary += size
+        for m in slow[w::n_workers]:
+            out.extend(modules[m])
+        take = max(0, boundary - len(out))   # a slice already past its size (slow modules) takes none
+        out.extend(quick[:take])
+        del quick[:take]
+    return out + quick

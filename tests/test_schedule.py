@@ -1,0 +1,48 @@
+"""The order the suite hands its tests to xdist workers in (tests/support/schedule.py)."""
+
+from tests.support.schedule import long_first_slices, slice_sizes
+
+
+def _items(spec: str) -> list[tuple[str, int, bool]]:
+    """``"a:3s b:2"``: module a with 3 tests (slow), module b with 2 quick ones -> (module, i, slow)."""
+    out = []
+    for part in spec.split():
+        name, rest = part.split(":")
+        slow = rest.endswith("s")
+        out += [(name, i, slow) for i in range(int(rest.rstrip("s")))]
+    return out
+
+
+def _order(items, n):
+    return long_first_slices(items, n, module_of=lambda it: it[0], is_slow=lambda it: it[2])
+
+
+def test_slice_sizes_are_xdists_first_hand_out():
+    assert slice_sizes(10, 2) == [5, 5] and slice_sizes(11, 2) == [5, 6] and slice_sizes(10, 3) == [3, 3, 4]
+    assert sum(slice_sizes(2566, 4)) == 2566 and slice_sizes(0, 2) == [0, 0]
+
+
+def test_each_slice_starts_with_its_share_of_the_slow_modules_then_quick_ones():
+    items = _items("q1:4 s1:2s q2:3 s2:3s s3:1s q3:5")
+    order = _order(items, 2)
+    assert sorted(order) == sorted(items)                      # a permutation: nothing lost or doubled
+    first, second = order[:9], order[9:]                       # xdist hands out 9 and 9
+    # Slow modules alternate (s1, s3 to the first slice; s2 to the second), each at its slice's front.
+    assert [m for m, _, _ in first[:3]] == ["s1", "s1", "s3"] and first[3:] == items[:4] + items[6:8]
+    assert [m for m, _, _ in second[:3]] == ["s2"] * 3 and [m for m, _, _ in second[3:]] == ["q2"] + ["q3"] * 5
+    # A module's tests keep their order; the quick modules keep the collection's.
+    assert [i for m, i, _ in order if m == "q3"] == list(range(5))
+
+
+def test_no_slow_module_or_one_worker_keeps_the_old_order():
+    quick = _items("a:3 b:4 c:1")
+    assert _order(quick, 2) == quick and _order(quick, 3) == quick
+    mixed = _items("a:2 b:1s c:2 d:2s")
+    assert [m for m, _, _ in _order(mixed, 1)] == ["b", "d", "d", "a", "a", "c", "c"]
+    assert [m for m, _, _ in _order(mixed, 0)] == ["b", "d", "d", "a", "a", "c", "c"]
+
+
+def test_slow_modules_larger_than_a_slice_push_the_quick_ones_behind():
+    items = _items("s1:6s q:2 s2:1s")
+    order = _order(items, 2)                                    # slices of 4 and 5
+    assert [m for m, _, _ in order] == ["s1"] * 6 + ["s2", "q", "q"]
