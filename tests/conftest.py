@@ -62,7 +62,6 @@ def _scratch_in_memory(root: Path = Path("/dev/shm"), need_bytes: int = 2 * 2**3
 
 _scratch_in_memory()
 
-import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 
@@ -130,6 +129,10 @@ def _shared_simulated_records(tmp_path_factory):
 
 @pytest.fixture
 def rng():
+    # NumPy imported here, not at the top: the xdist controller loads this file before it starts
+    # the workers and never needs NumPy (0.1 s before the first worker starts).
+    import numpy as np
+
     return np.random.default_rng(12345)
 
 
