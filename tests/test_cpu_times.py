@@ -22,7 +22,7 @@ def test_idle():
 
 
 def test_each_test_gets_its_own_cpu_seconds_and_tier_and_the_files_are_summed(pytester):
-    from tests.support.cpu_times import main, per_file
+    from tests.support.cpu_times import main, per_file, startup
 
     pytester.makepyfile(test_a=BUSY, test_b="def test_other():\n    assert True\n")
     pytester.makeini("[pytest]\nmarkers =\n    slow: slow\n")
@@ -33,7 +33,8 @@ def test_each_test_gets_its_own_cpu_seconds_and_tier_and_the_files_are_summed(py
     # One file, named for the process (``main``, or the xdist worker whose environment the run inherited).
     (written,) = pytester.path.glob("cpu.*.tsv")
     rows = {ln.split("\t")[0]: ln.split("\t")[1:] for ln in written.read_text().splitlines()}
-    assert float(rows["#process"][1]) > 0
+    assert float(rows["#process"][1]) > float(rows["#startup"][1]) > 0
+    assert startup(str(prefix)) == {written.name[len("cpu."):-len(".tsv")]: float(rows["#startup"][1])}
     assert rows["test_a.py::test_busy"][0] == "slow" and rows["test_a.py::test_idle"][0] == "fast"
     busy, idle = float(rows["test_a.py::test_busy"][1]), float(rows["test_a.py::test_idle"][1])
     assert busy > idle >= 0   # 300 000 squares against an assert: CPU time, whatever the machine's load

@@ -10,7 +10,9 @@ waited for (a forked kill-point child, a CLI subprocess)::
     python -m tests.support.cpu_times /tmp/cpu --tier fast
 
 Each process (an xdist worker, or the only one) writes ``<prefix>.<worker>.tsv``: node id, tier
-(``slow``/``fast``) and CPU seconds per line, and a ``#process`` line with the process's total.
+(``slow``/``fast``) and CPU seconds per line, a ``#process`` line with the process's total and a
+``#startup`` line with what it had spent when its collection finished (imports, assertion
+rewriting, collecting: each worker's start-up, paid before the first test; ``main`` prints it).
 What a test leaves to others is not its own: the daemon threads it started are in its process and
 counted, but a fork server's children (tests/support/daemon_proc.py) are counted when the server is
 waited for, at the teardown of the last test of its module that uses it. Not a benchmark: a test
@@ -30,6 +32,8 @@ import pytest
 #: This session's rows (node id, tier, CPU seconds), on its config: a pytest run inside a test (pytester)
 #: keeps its own.
 _ROWS = pytest.StashKey[list]()
+#: The process's CPU seconds when its collection finished.
+_STARTUP = pytest.StashKey[float]()
 
 
 def _cpu_s() -> float:
@@ -44,6 +48,10 @@ def pytest_addoption(parser):
 
 def pytest_configure(config):
     config.stash[_ROWS] = []
+
+
+def pytest_collection_finish(session):
+    session.config.stash[_STARTUP] = _cpu_s()
 
 
 @pytest.hookimpl(hookwrapper=True)
@@ -61,6 +69,7 @@ def pytest_sessionfinish(session):
     worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
     with open(f"{prefix}.{worker}.tsv", "w", encoding="utf-8") as f:
         f.write(f"#process\t\t{_cpu_s():.3f}\n")
+        f.write(f"#startup\t\t{session.config.stash.get(_STARTUP, 0.0):.3f}\n")
         f.writelines(f"{node}\t{tier}\t{cpu:.4f}\n" for node, tier, cpu in rows)
 
 
@@ -77,6 +86,16 @@ def per_file(prefix: str, tier: str | None = None) -> dict[str, float]:
     return dict(sums)
 
 
+def startup(prefix: str) -> dict[str, float]:
+    """Each process's CPU seconds at the end of its collection, by worker name, from the files ``prefix`` names."""
+    out = {}
+    for path in sorted(Path(prefix).parent.glob(Path(prefix).name + ".*.tsv")):
+        for line in path.read_text(encoding="utf-8").splitlines():
+            if line.startswith("#startup\t"):
+                out[path.name[len(Path(prefix).name) + 1:-len(".tsv")]] = float(line.split("\t")[2])
+    return out
+
+
 def main(argv: list[str]) -> int:
     if not argv or argv[0].startswith("-"):
         print("usage: python -m tests.support.cpu_times PREFIX [--tier fast|slow] [--top N]", file=sys.stderr)
@@ -87,6 +106,8 @@ def main(argv: list[str]) -> int:
     for name, cpu in sorted(sums.items(), key=lambda kv: -kv[1])[:top]:
         print(f"{cpu:7.2f}  {name}")
     print(f"{sum(sums.values()):7.2f}  all tests ({len(sums)} files)")
+    for worker, cpu in startup(argv[0]).items():
+        print(f"{cpu:7.2f}  {worker}: start-up (CPU when its collection finished)")
     return 0
 
 
