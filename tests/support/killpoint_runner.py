@@ -10,6 +10,7 @@ operation's invariants on what it left; :func:`run_all` does both for every step
 from __future__ import annotations
 
 import gc
+import importlib
 import json
 import os
 import select
@@ -58,6 +59,11 @@ class Operation:
         None: each child's daemon opens its model store, as at start-up. A directory: operations
         that leave the model alone share one store, verified once (in the process the children
         are forked from) under this directory, which saves a third of a child's start.
+    faults : tuple of str
+        ``"module:function"`` names, each called with no argument first thing in every child (and
+        only there): a fault the harness's own tests put into the code under test (see
+        :mod:`tests.support.killpoint_faults`), so that their children too can be forked from a
+        fork server rather than inherit a monkeypatch of the test process.
     """
 
     name: str
@@ -68,6 +74,7 @@ class Operation:
     instrument: tuple[str, ...] = ()
     #: The daemon's start-up is the operation: instrument first, then build the daemon.
     startup: bool = False
+    faults: tuple[str, ...] = ()
     _store: Any = field(default=None, init=False, repr=False, compare=False)
     #: Where :meth:`spec` wrote the child side (set by :func:`dry_run` on a fork server).
     spec_path: Path | None = field(default=None, init=False, repr=False, compare=False)
@@ -91,7 +98,8 @@ class Operation:
                "requests": [[c.name, {k: {"bytes_hex": v.hex()} if isinstance(v, bytes) else v for k, v in a.items()}]
                             for c, a in self.requests],
                "store_root": None if self.store_root is None else str(self.store_root),
-               "instrument": list(self.instrument), "startup": self.startup}
+               "instrument": list(self.instrument), "startup": self.startup,
+               "faults": list(self.faults)}
         path.write_text(json.dumps(doc))
         return path
 
@@ -103,7 +111,7 @@ class Operation:
                                   for k, v in a.items()}) for c, a in doc["requests"]]
         return cls(doc["name"], Path(doc["template"]), requests, None,
                    None if doc["store_root"] is None else Path(doc["store_root"]), tuple(doc["instrument"]),
-                   doc["startup"])
+                   doc["startup"], tuple(doc["faults"]))
 
 
 @dataclass
@@ -123,6 +131,9 @@ _IN_SESSION = (Command.MODEL_CHUNK, Command.MODEL_COMMIT, Command.OBJECTS_CHUNK,
 
 
 def _child(op: Operation, point_dir: Path, n: int | None, trace_fd: int, host_fd: int) -> None:
+    for name in op.faults:
+        module, _, function = name.partition(":")
+        getattr(importlib.import_module(module), function)()
     steps = Steps(n, trace_fd)
     if op.startup:
         instrument_files(steps)
