@@ -110,8 +110,8 @@ def _serve_forks(ctl_fd: int) -> dict:
 
     Each request on the SOCK_SEQPACKET control socket is one JSON job plus the child's stdin, stdout
     and stderr as passed file descriptors. The server answers the child's pid at once and, when the
-    child ends, its exit status (``{"pid", "returncode"}``, as :attr:`subprocess.Popen.returncode`:
-    negative for a signal). Several children may run at a time (each watched through a pidfd); this
+    child ends, its exit status (``{"pid", "returncode", "cpu_s"}``, as :attr:`subprocess.Popen.returncode`:
+    negative for a signal; with the CPU seconds the child used). Several children may run at a time (each watched through a pidfd); this
     process stays single-threaded, so a fork never inherits a held lock.
 
     Two more jobs: ``{"prepare": "module:function", "arg": ...}`` calls the function in the server
@@ -127,8 +127,9 @@ def _serve_forks(ctl_fd: int) -> dict:
         for pidfd in [fd for fd in ready if fd is not ctl]:
             pid = running.pop(pidfd)
             os.close(pidfd)
-            _, status = os.waitpid(pid, 0)
-            ctl.send(json.dumps({"pid": pid, "returncode": os.waitstatus_to_exitcode(status)}).encode())
+            _, status, usage = os.wait4(pid, 0)
+            ctl.send(json.dumps({"pid": pid, "returncode": os.waitstatus_to_exitcode(status),
+                                 "cpu_s": usage.ru_utime + usage.ru_stime}).encode())
         if ctl not in ready:
             continue
         msg, fds, _, _ = socket.recv_fds(ctl, 1 << 16, 3)
@@ -269,6 +270,12 @@ class ForkServer:
     stderr=PIPE, text=True, env=env)``; ``run_code(code)`` for ``python -c code``.
     """
 
+    #: CPU seconds of the children collected so far, of every server of this process still open: they
+    #: are the server's children, not ours, so ``RUSAGE_CHILDREN`` sees them only once the server has
+    #: exited (then this drops by the closed server's share). :mod:`tests.support.cpu_times` adds it, so
+    #: that a test is charged its own children, not the test that happens to close the server.
+    children_cpu_s: float = 0.0
+
     def __init__(self) -> None:
         import subprocess
 
@@ -283,6 +290,8 @@ class ForkServer:
         self._live: dict[int, ForkedChild] = {}
         #: Exit statuses that came while waiting for something else, by pid.
         self._exits: dict[int, int] = {}
+        #: This server's share of :attr:`children_cpu_s`.
+        self._cpu_s = 0.0
 
     def _recv(self, timeout_s: float | None) -> dict:
         self._ctl.settimeout(timeout_s)
@@ -298,7 +307,12 @@ class ForkServer:
             msg = self._recv(max(deadline - time.monotonic(), 0.001))
             if "returncode" not in msg:
                 return msg
-            self._exits[msg["pid"]] = msg["returncode"]
+            self._exited(msg)
+
+    def _exited(self, msg: dict) -> None:
+        self._exits[msg["pid"]] = msg["returncode"]
+        self._cpu_s += msg["cpu_s"]
+        ForkServer.children_cpu_s += msg["cpu_s"]
 
     def _collect(self, child: ForkedChild, *, block: bool, timeout_s: float | None = None) -> None:
         import subprocess
@@ -313,7 +327,7 @@ class ForkServer:
                     raise subprocess.TimeoutExpired(f"forked child {child.pid}", timeout_s) from None
                 return
             assert "returncode" in msg, msg
-            self._exits[msg["pid"]] = msg["returncode"]
+            self._exited(msg)
         child.returncode = self._exits.pop(child.pid)
         self._live.pop(child.pid, None)
         if self._child is child:
@@ -385,6 +399,9 @@ class ForkServer:
                 if self._proc.poll() is None:
                     self._proc.kill()
                     self._proc.wait()
+                # Reaped: RUSAGE_CHILDREN now holds the server and all its children.
+                ForkServer.children_cpu_s -= self._cpu_s
+                self._cpu_s = 0.0
 
     def __enter__(self) -> "ForkServer":
         return self
