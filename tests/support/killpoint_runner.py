@@ -283,6 +283,17 @@ def _pump(running: list[_Running]) -> list[_Running]:
     return [r for r in running if not r.open_fds]
 
 
+def _pipe_step(arg: str, fds: list[int]) -> None:  # pragma: no cover - runs in the server's child
+    """A fork-server child for the server's own test: ``"send"`` writes a byte to ``fds[0]``; ``"relay"``
+    waits for a byte on ``fds[0]`` and passes it on to ``fds[1]``."""
+    status = EXIT_CRASHED
+    try:
+        write_all(fds[-1], b"x" if arg == "send" else os.read(fds[0], 1))
+        status = 0
+    finally:
+        os._exit(status)
+
+
 def _run_child(op: Operation, point_dir: Path, n: int | None, server: Any = None
                ) -> tuple[int, list[str], list[dict], str]:
     """Fork, run the operation (dying before step ``n``), return (exit code, trace, replies, stderr tail).

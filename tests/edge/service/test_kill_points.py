@@ -33,6 +33,7 @@ for it).
 
 from __future__ import annotations
 
+import os
 from collections import Counter
 
 import pytest
@@ -246,3 +247,21 @@ def test_a_failed_preparation_on_the_fork_server_is_reported_and_the_server_stil
     op = K.config_operation(root, keys=("heater.power_W",))
     trace, results = K.run_all(op, root, server=server)
     assert len(results) == len(trace) > 0 and not [r.problems for r in results if r.problems]
+
+
+def test_the_fork_server_runs_children_side_by_side(server):
+    """Two at a time, as run_all runs kill points: the first child waits for a byte that only the second
+    sends, which a server that waited for each child before forking the next would never fork."""
+    r1, w1 = os.pipe()
+    r2, w2 = os.pipe()
+    try:
+        first = server.start_call("tests.support.killpoint_runner:_pipe_step", "relay", [r1, w2])
+        second = server.start_call("tests.support.killpoint_runner:_pipe_step", "send", [w1])
+    finally:
+        for fd in (r1, w1, w2):
+            os.close(fd)
+    try:
+        assert os.read(r2, 1) == b"x"
+    finally:
+        os.close(r2)
+    assert (second.wait(), first.wait()) == (0, 0)
