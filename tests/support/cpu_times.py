@@ -12,8 +12,9 @@ waited for (a forked kill-point child, a CLI subprocess)::
 Each process (an xdist worker, or the only one) writes ``<prefix>.<worker>.tsv``: node id, tier
 (``slow``/``fast``) and CPU seconds per line, and a ``#process`` line with the process's total.
 What a test leaves to others is not its own: the daemon threads it started are in its process and
-counted, but a fork server's children (tests/support/daemon_proc.py) are counted when the server is
-waited for, at the teardown of the last test of its module that uses it. Not a benchmark: a test
+counted, and so are a fork server's children (tests/support/daemon_proc.py), as the server reports
+each one's end; the server's own CPU is counted when it is waited for, at the teardown of the last
+test of its module that uses it. Not a benchmark: a test
 that shares a module fixture pays for it only where the fixture is built.
 """
 
@@ -34,7 +35,9 @@ _ROWS = pytest.StashKey[list]()
 
 def _cpu_s() -> float:
     own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
-    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+    forked = sys.modules.get("tests.support.daemon_proc")  # a fork server's children, as they end
+    return (own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+            + (forked.ForkServer.children_cpu_s if forked else 0.0))
 
 
 def pytest_addoption(parser):
