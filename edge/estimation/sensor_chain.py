@@ -44,7 +44,7 @@ from functools import lru_cache
 import numpy as np
 
 from edge.physics.fluxmodel import duhamel_apply
-from edge.physics.integrators import causal_convolution
+from edge.physics.integrators import causal_convolution, causal_convolution_columns
 from edge.physics.laplace import talbot_invert
 from edge.physics.memo import BoundedMemo
 from edge.physics.probe import DEFAULT_STACK
@@ -228,7 +228,7 @@ def _lag(x: np.ndarray, dt_s: float, tau_s: float) -> np.ndarray:
     h = np.empty(n)
     h[0] = b
     h[1:] = (a * b + 1.0 - a - b) * p[:-1]
-    y = np.column_stack([causal_convolution(h, x[:, j]) for j in range(x.shape[1])]) - b * np.outer(p, x[0])
+    y = causal_convolution_columns(h, x) - b * np.outer(p, x[0])
     y[0] = 0.0
     return y
 

@@ -6,20 +6,21 @@ footprint ``S`` (area ``A``, uniform sensitivity) reads the area mean
     q_read = int_0^inf Q(zeta) W(zeta) zeta d zeta,    W(zeta) = (1/A) int_S J0(zeta |x|) dA.
 
 For the equal-area disk of radius b centred on the axis ``W = 2 J1(zeta b) / (zeta b)``
-(:class:`edge.physics.axisym.AxisymModel`'s former read-out).  For the real square it is computed
-here from the area ``A(r)`` of the footprint inside the disk of radius r about the axis:
-``int_S J0(zeta |x|) dA = int_0^R J0(zeta r) A'(r) dr``, integrated by parts (J0' = -J1)
+(:class:`edge.physics.axisym.AxisymModel`'s former read-out).  For the real rectangle
+(half-sides ``hx``, ``hy``, centre ``(cx, cy)``) the plane-wave form of J0,
+``J0(zeta |x|) = (1/2pi) int_0^2pi exp(i zeta (x cos th + y sin th)) d th``, makes the area
+integral separable, each side's in closed form:
 
-    W(zeta) = J0(zeta R) + (zeta / A) int_0^R J1(zeta r) A(r) dr,
+    W(zeta) = (1/2pi) int_0^2pi cos(zeta (cx cos th + cy sin th)) sinc(zeta hx cos th) sinc(zeta hy sin th) d th
 
-R the footprint's farthest corner.  ``A(r)`` is exact (:func:`area_in_disk`: per r, the
-footprint's chord lengths integrated in x between the points where the circle crosses the
-rectangle's sides, with the closed form of ``int sqrt(r^2 - x^2) dx``); ``A`` is C1 in r, so
-Gauss-Legendre panels between its breakpoints (the distances to the sides and to the corners) with
-a cosine clustering at both ends of each panel (``A''`` has inverse-square-root spikes where the
-circle touches a side) converge fast.  The world computes its read-out independently
-(``firmware_sim.rz.footprint``: the quadrant decomposition on its finite-volume rings); a test
-compares the two.
+(``sinc u = sin u / u``; the sine part cancels between th and th + pi).  The integrand is periodic and
+entire in th, so the trapezoid rule converges geometrically once its points exceed the
+integrand's bandwidth ``zeta R`` (R: the farthest corner's distance from the axis) by the margin :func:`edge.physics.bessel.bessel_j`
+uses: ~1e-16 (it was a Gauss-Legendre sum over r of J1(zeta r) times the area ``A(r)`` inside the
+disk of radius r, good to ~1e-10 and 30 times slower: a drawn probe's every footprint, and each of
+a calibration's model-form trials, builds one).  :func:`area_in_disk` (that ``A(r)``, exact) stays
+for the tests.  The world computes its read-out independently (``firmware_sim.rz.footprint``: the
+quadrant decomposition on its finite-volume rings); a test compares the two.
 
 Why it matters: the small heater's 10 x 10 mm square has its edge on the heater's edge (5 mm),
 where the flux changes fastest; its equal-area disk (5.64 mm) moves the read-out by per cents
@@ -32,9 +33,7 @@ import math
 
 import numpy as np
 
-from edge.physics.bessel import bessel_j
-
-__all__ = ["area_in_disk", "rectangle_weights", "breakpoints"]
+__all__ = ["area_in_disk", "rectangle_weights"]
 
 
 def _chord_integral(r: float, a: float, b: float) -> float:
@@ -82,24 +81,14 @@ def area_in_disk(r_m, bounds_m: tuple[float, float, float, float]) -> np.ndarray
     return out
 
 
-def breakpoints(bounds_m: tuple[float, float, float, float]) -> list[float]:
-    """Radii where ``A(r)`` changes form: the distances to the sides (where the axis projects onto them)
-    and to the corners."""
-    x0, x1, y0, y1 = bounds_m
-    pts = {0.0}
-    for x in (x0, x1):
-        if y0 <= 0.0 <= y1:
-            pts.add(abs(x))
-        for y in (y0, y1):
-            pts.add(math.hypot(x, y))
-    for y in (y0, y1):
-        if x0 <= 0.0 <= x1:
-            pts.add(abs(y))
-    return sorted(p for p in pts if p >= 0.0)
+#: Hankel variables per block of :func:`rectangle_weights` (each block takes the points its largest needs).
+_BLOCK = 64
+#: Trapezoid points beyond the integrand's bandwidth and its Airy transition (as in edge.physics.bessel).
+_MARGIN = 48
 
 
 def rectangle_weights(zeta, side_x_m: float, side_y_m: float, offset_x_m: float = 0.0,
-                      offset_y_m: float = 0.0, *, per_panel: int | None = None) -> np.ndarray:
+                      offset_y_m: float = 0.0) -> np.ndarray:
     """``W(zeta)``: the area mean of ``J0(zeta |x|)`` over the rectangle (see the module docstring).
 
     Parameters
@@ -110,33 +99,35 @@ def rectangle_weights(zeta, side_x_m: float, side_y_m: float, offset_x_m: float 
         The rectangle's sides (m).
     offset_x_m, offset_y_m : float
         Its centre's offset from the heater's axis (m).
-    per_panel : int, optional
-        Gauss-Legendre points per panel (default: enough for the fastest ``zeta`` given, ~8 per
-        half-period of J1 and at least 24).
+
+    Notes
+    -----
+    The zeta are taken in blocks by increasing ``|zeta|``, each with the trapezoid points its own
+    largest needs (``m = X + 10 X^(1/3) + 48``, ``X = |zeta| R``, R the farthest corner's distance, as in
+    :func:`edge.physics.bessel.bessel_j`): within 1e-15 (round-off) of the rule with 200 more points
+    (``tests/edge/physics/test_footprint.py``).
     """
     z = np.asarray(zeta, dtype=float)
     if not (side_x_m > 0 and side_y_m > 0):
         raise ValueError("sides must be > 0")
-    hx, hy = 0.5 * side_x_m, 0.5 * side_y_m
-    bounds = (offset_x_m - hx, offset_x_m + hx, offset_y_m - hy, offset_y_m + hy)
-    A = side_x_m * side_y_m
-    br = breakpoints(bounds)
-    R = br[-1]
-    zmax = float(np.max(np.abs(z))) if z.size else 0.0
-    u, wu = np.polynomial.legendre.leggauss(8)
-    r_nodes, r_w = [], []
-    for a, b in zip(br[:-1], br[1:]):
-        if b - a <= 1e-15:
-            continue
-        # Sub-panels of at most half a period of J1(zeta_max r), each with a cosine map clustering
-        # its nodes at both ends (the tangent points' square-root behaviour of A'').
-        n_sub = max(3, int(math.ceil(zmax * (b - a) / math.pi)) + 1) if per_panel is None else per_panel
-        edges = a + (b - a) * 0.5 * (1.0 - np.cos(np.pi * np.arange(n_sub + 1) / n_sub))
-        lo, hi = edges[:-1, None], edges[1:, None]
-        r_nodes.append((0.5 * (hi - lo) * u[None, :] + 0.5 * (hi + lo)).ravel())
-        r_w.append((0.5 * (hi - lo) * wu[None, :]).ravel())
-    r = np.concatenate(r_nodes)
-    w = np.concatenate(r_w)
-    Ar = area_in_disk(r, bounds)
-    J1 = bessel_j(1, z[:, None] * r[None, :])
-    return bessel_j(0, z * R) + z / A * (J1 @ (w * Ar))
+    hx, hy = 0.5 * float(side_x_m), 0.5 * float(side_y_m)
+    cx, cy = float(offset_x_m), float(offset_y_m)
+    # The integrand's bandwidth in th, per unit zeta: the farthest corner's distance R (a point at distance rho
+    # contributes the harmonics J_n(zeta rho) exp(i n th), negligible beyond n ~ zeta rho).
+    reach = math.hypot(abs(cx) + hx, abs(cy) + hy)
+    flat = z.reshape(-1)
+    order = np.argsort(np.abs(flat), kind="stable")
+    zs = flat[order]
+    res = np.empty(flat.size)
+    for i in range(0, zs.size, _BLOCK):
+        zb = zs[i:i + _BLOCK, None]
+        x = float(np.max(np.abs(zb))) * reach
+        m = int(x + 10.0 * x ** (1.0 / 3.0)) + _MARGIN
+        th = 2.0 * np.pi * (np.arange(m) + 0.5) / m
+        kx, ky = zb * np.cos(th), zb * np.sin(th)
+        # np.sinc is sin(pi u) / (pi u), finite at 0.
+        f = np.cos(kx * cx + ky * cy) * np.sinc(kx * (hx / np.pi)) * np.sinc(ky * (hy / np.pi))
+        res[i:i + _BLOCK] = np.mean(f, axis=1)
+    out = np.empty(flat.size)
+    out[order] = res
+    return out.reshape(z.shape)

@@ -228,6 +228,22 @@ def causal_convolution(g: np.ndarray, d: np.ndarray) -> np.ndarray:
     return np.fft.irfft(np.fft.rfft(g, size) * np.fft.rfft(d, size), size)[..., :n]
 
 
+def causal_convolution_columns(g: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """``causal_convolution(g, D[:, j])`` for every column j of ``D`` (n, m), one kernel ``g`` (n,).
+
+    The same numbers as the calls one by one (the same arithmetic per column), with the kernel's
+    transform taken once instead of once per column: the sensor chain lags three columns through one
+    bead kernel on every design a calibration builds (:func:`edge.estimation.sensor_chain._lag`).
+    """
+    n = g.shape[-1]
+    D = D[:n]
+    if n <= 512:   # causal_convolution's direct branch for one kernel
+        return np.column_stack([np.convolve(g, D[:, j])[:n] for j in range(D.shape[1])])
+    size = 1 << (2 * n - 1).bit_length()
+    G = np.fft.rfft(g, size)
+    return np.column_stack([np.fft.irfft(G * np.fft.rfft(D[:, j], size), size)[:n] for j in range(D.shape[1])])
+
+
 def explicit_dt_max(grid: Grid) -> float:
     """Largest stable forward-Euler step: min over cells of C_i / (G_{i-1} + G_i) (s)."""
     g_sum = grid.G.copy()

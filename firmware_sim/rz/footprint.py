@@ -59,8 +59,20 @@ def centred_square_area_in_disk(r_m: np.ndarray, side_m: float) -> np.ndarray:
     return np.where(r >= h * math.sqrt(2.0), side_m * side_m, a)   # the four segments overlap beyond the corners
 
 
-def _quadrant(X: np.ndarray, Y: np.ndarray, r: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Area and first moments (int x dA, int y dA) of {0<=x<=X, 0<=y<=Y, x^2+y^2<=r^2}, X, Y >= 0."""
+def _pow(x: np.ndarray, p: float) -> np.ndarray:
+    """``x ** p`` per element through the C library's ``pow``, as NumPy's float64 *scalars* compute it.
+
+    These weights were first computed one radius at a time (NumPy scalars, whose ``**`` calls
+    ``pow``); NumPy's array loop for ``**`` may use another implementation (a SIMD one) that
+    differs in the last bit.  Computing the powers this way keeps the vectorised weights, and
+    every world read-out built on them, bit for bit what they were.
+    """
+    flat = np.ravel(x)
+    return np.fromiter((math.pow(v, p) for v in flat.tolist()), float, flat.size).reshape(np.shape(x))
+
+
+def _quadrant(X: float, Y: float, r: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Area and first moments (int x dA, int y dA) of {0<=x<=X, 0<=y<=Y, x^2+y^2<=r^2}, X, Y >= 0, per radius r > 0."""
     xm = np.minimum(X, r)
     xc = np.sqrt(np.maximum(r * r - Y * Y, 0.0))   # sqrt(r^2 - x^2) >= Y for x <= xc
     xa = np.minimum(xm, xc)
@@ -69,11 +81,11 @@ def _quadrant(X: np.ndarray, Y: np.ndarray, r: float) -> tuple[np.ndarray, np.nd
         return 0.5 * (x * np.sqrt(np.maximum(r * r - x * x, 0.0)) + r * r * np.arcsin(np.clip(x / r, -1.0, 1.0)))
 
     def H(x):   # -int x sqrt(r^2 - x^2) dx
-        return np.maximum(r * r - x * x, 0.0) ** 1.5 / 3.0
+        return _pow(np.maximum(r * r - x * x, 0.0), 1.5) / 3.0
 
     area = Y * xa + G(xm) - G(xa)
     mx = 0.5 * Y * xa * xa + H(xa) - H(xm)
-    my = 0.5 * (Y * Y * xa + r * r * (xm - xa) - (xm ** 3 - xa ** 3) / 3.0)
+    my = 0.5 * (Y * Y * xa + r * r * (xm - xa) - (_pow(xm, 3.0) - _pow(xa, 3.0)) / 3.0)
     return area, mx, my
 
 
@@ -150,16 +162,16 @@ class SquareSensor:
         out = np.zeros(r.shape)
         c0 = 1.0 - self.gradient_x * self.offset_x_m / self.side_x_m - self.gradient_y * self.offset_y_m / self.side_y_m
         cx, cy = self.gradient_x / self.side_x_m, self.gradient_y / self.side_y_m
-        for n, rn in enumerate(r):
-            if rn <= 0:
-                continue
-            tot = 0.0
-            # Signed quadrant decomposition: rect = S(x1,y1) - S(x0,y1) - S(x1,y0) + S(x0,y0).
-            for X, Y, sign in ((x1, y1, 1.0), (x0, y1, -1.0), (x1, y0, -1.0), (x0, y0, 1.0)):
-                a, mx, my = _quadrant(np.array(abs(X)), np.array(abs(Y)), float(rn))
-                sx, sy = math.copysign(1.0, X), math.copysign(1.0, Y)
-                tot += sign * (c0 * sx * sy * float(a) + cx * sy * float(mx) + cy * sx * float(my))
-            out[n] = tot
+        pos = r > 0
+        rp = r[pos]
+        tot = np.zeros(rp.shape)
+        # Signed quadrant decomposition: rect = S(x1,y1) - S(x0,y1) - S(x1,y0) + S(x0,y0).  All radii at once,
+        # in the same order of operations as one radius at a time (the same numbers, bit for bit).
+        for X, Y, sign in ((x1, y1, 1.0), (x0, y1, -1.0), (x1, y0, -1.0), (x0, y0, 1.0)):
+            a, mx, my = _quadrant(abs(X), abs(Y), rp)
+            sx, sy = math.copysign(1.0, X), math.copysign(1.0, Y)
+            tot += sign * (c0 * sx * sy * a + cx * sy * mx + cy * sx * my)
+        out[pos] = tot
         return out
 
     def ring_weights(self, r_faces_m: np.ndarray) -> np.ndarray:

@@ -14,8 +14,9 @@ Each process (an xdist worker, or the only one) writes ``<prefix>.<worker>.tsv``
 ``#startup`` line with what it had spent when its collection finished (imports, assertion
 rewriting, collecting: each worker's start-up, paid before the first test; ``main`` prints it).
 What a test leaves to others is not its own: the daemon threads it started are in its process and
-counted, but a fork server's children (tests/support/daemon_proc.py) are counted when the server is
-waited for, at the teardown of the last test of its module that uses it. Not a benchmark: a test
+counted, and so are a fork server's children (tests/support/daemon_proc.py), as the server reports
+each one's end; the server's own CPU is counted when it is waited for, at the teardown of the last
+test of its module that uses it. Not a benchmark: a test
 that shares a module fixture pays for it only where the fixture is built.
 """
 
@@ -38,7 +39,9 @@ _STARTUP = pytest.StashKey[float]()
 
 def _cpu_s() -> float:
     own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
-    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+    forked = sys.modules.get("tests.support.daemon_proc")  # a fork server's children, as they end
+    return (own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+            + (forked.ForkServer.children_cpu_s if forked else 0.0))
 
 
 def pytest_addoption(parser):

@@ -109,17 +109,29 @@ def _serve_forks(ctl_fd: int) -> dict:
     """Fork server loop: returns only in a forked child, with its job (``{"argv": [...]}`` or ``{"code": ...}``).
 
     Each request on the SOCK_SEQPACKET control socket is one JSON job plus the child's stdin, stdout
-    and stderr as passed file descriptors. The server answers the child's pid, waits for it, then
-    answers its exit status (as :attr:`subprocess.Popen.returncode`: negative for a signal). One
-    child at a time: this process stays single-threaded, so a fork never inherits a held lock.
+    and stderr as passed file descriptors. The server answers the child's pid at once and, when the
+    child ends, its exit status (``{"pid", "returncode", "cpu_s"}``, as :attr:`subprocess.Popen.returncode`:
+    negative for a signal; with the CPU seconds the child used). Several children may run at a time (each watched through a pidfd); this
+    process stays single-threaded, so a fork never inherits a held lock.
 
     Two more jobs: ``{"prepare": "module:function", "arg": ...}`` calls the function in the server
-    itself and answers ``{"ok": true}`` or ``{"error": traceback}`` (no child); ``{"call":
-    "module:function", "arg": ...}`` forks a child that calls ``function(arg, fds)`` with the passed
-    descriptors as they came, and must end the process itself (``os._exit`` or a signal).
+    itself and answers ``{"ok": true}`` or ``{"error": traceback}`` (no child; children already
+    running are not affected); ``{"call": "module:function", "arg": ...}`` forks a child that calls
+    ``function(arg, fds)`` with the passed descriptors as they came, and must end the process itself
+    (``os._exit`` or a signal).
     """
     ctl = socket.socket(fileno=ctl_fd)
+    running: dict[int, int] = {}  # pidfd -> pid of a child not yet reaped
     while True:
+        ready, _, _ = select.select([ctl, *running], [], [])
+        for pidfd in [fd for fd in ready if fd is not ctl]:
+            pid = running.pop(pidfd)
+            os.close(pidfd)
+            _, status, usage = os.wait4(pid, 0)
+            ctl.send(json.dumps({"pid": pid, "returncode": os.waitstatus_to_exitcode(status),
+                                 "cpu_s": usage.ru_utime + usage.ru_stime}).encode())
+        if ctl not in ready:
+            continue
         msg, fds, _, _ = socket.recv_fds(ctl, 1 << 16, 3)
         if not msg:  # the test process has gone
             os._exit(0)
@@ -139,6 +151,8 @@ def _serve_forks(ctl_fd: int) -> dict:
         pid = os.fork()
         if pid == 0:
             ctl.close()
+            for pidfd in running:  # the siblings' watches are the server's business
+                os.close(pidfd)
             if "call" in job:
                 try:
                     _function(job["call"])(job["arg"], list(fds))
@@ -153,9 +167,8 @@ def _serve_forks(ctl_fd: int) -> dict:
             return job
         for fd in fds:
             os.close(fd)
+        running[os.pidfd_open(pid)] = pid
         ctl.send(json.dumps({"pid": pid}).encode())
-        _, status = os.waitpid(pid, 0)
-        ctl.send(json.dumps({"pid": pid, "returncode": os.waitstatus_to_exitcode(status)}).encode())
 
 
 class _Pipe:
@@ -257,6 +270,12 @@ class ForkServer:
     stderr=PIPE, text=True, env=env)``; ``run_code(code)`` for ``python -c code``.
     """
 
+    #: CPU seconds of the children collected so far, of every server of this process still open: they
+    #: are the server's children, not ours, so ``RUSAGE_CHILDREN`` sees them only once the server has
+    #: exited (then this drops by the closed server's share). :mod:`tests.support.cpu_times` adds it, so
+    #: that a test is charged its own children, not the test that happens to close the server.
+    children_cpu_s: float = 0.0
+
     def __init__(self) -> None:
         import subprocess
 
@@ -265,7 +284,14 @@ class ForkServer:
                                        str(theirs.fileno())], pass_fds=(theirs.fileno(),),
                                       stdin=subprocess.DEVNULL)
         theirs.close()
+        #: The one daemon or code child (spawn, run_code): a later one ends it, as before.
         self._child: ForkedChild | None = None
+        #: Every child not yet collected (start_call's may run several at a time).
+        self._live: dict[int, ForkedChild] = {}
+        #: Exit statuses that came while waiting for something else, by pid.
+        self._exits: dict[int, int] = {}
+        #: This server's share of :attr:`children_cpu_s`.
+        self._cpu_s = 0.0
 
     def _recv(self, timeout_s: float | None) -> dict:
         self._ctl.settimeout(timeout_s)
@@ -274,18 +300,38 @@ class ForkServer:
             raise RuntimeError(f"the fork server died (status {self._proc.poll()})")
         return json.loads(msg)
 
+    def _reply(self, timeout_s: float) -> dict:
+        """The server's answer to the request just sent (exit statuses that come first are kept)."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            msg = self._recv(max(deadline - time.monotonic(), 0.001))
+            if "returncode" not in msg:
+                return msg
+            self._exited(msg)
+
+    def _exited(self, msg: dict) -> None:
+        self._exits[msg["pid"]] = msg["returncode"]
+        self._cpu_s += msg["cpu_s"]
+        ForkServer.children_cpu_s += msg["cpu_s"]
+
     def _collect(self, child: ForkedChild, *, block: bool, timeout_s: float | None = None) -> None:
         import subprocess
 
-        try:
-            reply = self._recv(timeout_s if block else 0.0)
-        except (socket.timeout, BlockingIOError):
-            if block:
-                raise subprocess.TimeoutExpired(f"forked child {child.pid}", timeout_s) from None
-            return
-        assert reply["pid"] == child.pid, reply
-        child.returncode = reply["returncode"]
-        self._child = None
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        while child.pid not in self._exits:
+            try:
+                left = None if deadline is None else max(deadline - time.monotonic(), 0.001)
+                msg = self._recv(left if block else 0.0)
+            except (socket.timeout, BlockingIOError):
+                if block:
+                    raise subprocess.TimeoutExpired(f"forked child {child.pid}", timeout_s) from None
+                return
+            assert "returncode" in msg, msg
+            self._exited(msg)
+        child.returncode = self._exits.pop(child.pid)
+        self._live.pop(child.pid, None)
+        if self._child is child:
+            self._child = None
 
     def spawn(self, tmp: Path | str, env: dict | None = None) -> ForkedChild:
         """A daemon process on ``tmp``, as ``python daemon_proc.py TMP`` (env: its environment)."""
@@ -303,25 +349,23 @@ class ForkServer:
     def prepare(self, function: str, arg) -> None:
         """Call ``function(arg)`` (``"module:function"``) in the server, so that every later child inherits
         what it did (imports, warmed-up state); its exception is raised here as a RuntimeError."""
-        if self._child is not None:
-            self.reap(self._child)
         self._ctl.send(json.dumps({"prepare": function, "arg": arg}).encode())
-        reply = self._recv(FORK_SERVER_TIMEOUT_s)
+        reply = self._reply(FORK_SERVER_TIMEOUT_s)
         if "error" in reply:
             raise RuntimeError(f"{function} failed in the fork server:\n{reply['error']}")
 
     def start_call(self, function: str, arg, fds: list[int]) -> ForkedChild:
         """A child that calls ``function(arg, fds)`` and ends itself; ``fds`` are passed (the caller closes its
-        copies). The child has no pipes of ours: ``stdout`` and ``stderr`` are None."""
-        return self._start({"call": function, "arg": arg}, fds)
+        copies). The child has no pipes of ours: ``stdout`` and ``stderr`` are None. Several may run at a
+        time: the caller waits for (or reaps) each."""
+        socket.send_fds(self._ctl, [json.dumps({"call": function, "arg": arg}).encode()], fds)
+        child = ForkedChild(self, self._reply(FORK_SERVER_TIMEOUT_s)["pid"], None, None)
+        self._live[child.pid] = child
+        return child
 
-    def _start(self, job: dict, fds: list[int] | None = None) -> ForkedChild:
-        if self._child is not None:  # a test that failed before waiting: end it, the server serves one at a time
+    def _start(self, job: dict) -> ForkedChild:
+        if self._child is not None:  # a test that failed before waiting: end it, a daemon child is one at a time
             self.reap(self._child)
-        if fds is not None:
-            socket.send_fds(self._ctl, [json.dumps(job).encode()], fds)
-            self._child = ForkedChild(self, self._recv(FORK_SERVER_TIMEOUT_s)["pid"], None, None)
-            return self._child
         pipes = [os.pipe() for _ in range(2)]
         devnull = os.open(os.devnull, os.O_RDONLY)
         try:
@@ -329,8 +373,9 @@ class ForkServer:
         finally:
             for fd in (devnull, pipes[0][1], pipes[1][1]):
                 os.close(fd)
-        pid = self._recv(FORK_SERVER_TIMEOUT_s)["pid"]
+        pid = self._reply(FORK_SERVER_TIMEOUT_s)["pid"]
         self._child = ForkedChild(self, pid, _Pipe(pipes[0][0]), _Pipe(pipes[1][0]))
+        self._live[pid] = self._child
         return self._child
 
     def reap(self, child: ForkedChild) -> None:
@@ -343,15 +388,20 @@ class ForkServer:
             child.close()
 
     def close(self) -> None:
-        if self._child is not None:
-            self.reap(self._child)
-        self._ctl.close()  # the server sees EOF and exits
         try:
-            self._proc.wait(FORK_SERVER_TIMEOUT_s)
+            for child in list(self._live.values()):
+                self.reap(child)
         finally:
-            if self._proc.poll() is None:
-                self._proc.kill()
-                self._proc.wait()
+            self._ctl.close()  # the server sees EOF and exits
+            try:
+                self._proc.wait(FORK_SERVER_TIMEOUT_s)
+            finally:
+                if self._proc.poll() is None:
+                    self._proc.kill()
+                    self._proc.wait()
+                # Reaped: RUSAGE_CHILDREN now holds the server and all its children.
+                ForkServer.children_cpu_s -= self._cpu_s
+                self._cpu_s = 0.0
 
     def __enter__(self) -> "ForkServer":
         return self

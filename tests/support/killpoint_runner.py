@@ -10,6 +10,7 @@ operation's invariants on what it left; :func:`run_all` does both for every step
 from __future__ import annotations
 
 import gc
+import importlib
 import json
 import os
 import select
@@ -58,6 +59,11 @@ class Operation:
         None: each child's daemon opens its model store, as at start-up. A directory: operations
         that leave the model alone share one store, verified once (in the process the children
         are forked from) under this directory, which saves a third of a child's start.
+    faults : tuple of str
+        ``"module:function"`` names, each called with no argument first thing in every child (and
+        only there): a fault the harness's own tests put into the code under test (see
+        :mod:`tests.support.killpoint_faults`), so that their children too can be forked from a
+        fork server rather than inherit a monkeypatch of the test process.
     """
 
     name: str
@@ -68,6 +74,7 @@ class Operation:
     instrument: tuple[str, ...] = ()
     #: The daemon's start-up is the operation: instrument first, then build the daemon.
     startup: bool = False
+    faults: tuple[str, ...] = ()
     _store: Any = field(default=None, init=False, repr=False, compare=False)
     #: Where :meth:`spec` wrote the child side (set by :func:`dry_run` on a fork server).
     spec_path: Path | None = field(default=None, init=False, repr=False, compare=False)
@@ -91,7 +98,8 @@ class Operation:
                "requests": [[c.name, {k: {"bytes_hex": v.hex()} if isinstance(v, bytes) else v for k, v in a.items()}]
                             for c, a in self.requests],
                "store_root": None if self.store_root is None else str(self.store_root),
-               "instrument": list(self.instrument), "startup": self.startup}
+               "instrument": list(self.instrument), "startup": self.startup,
+               "faults": list(self.faults)}
         path.write_text(json.dumps(doc))
         return path
 
@@ -103,7 +111,7 @@ class Operation:
                                   for k, v in a.items()}) for c, a in doc["requests"]]
         return cls(doc["name"], Path(doc["template"]), requests, None,
                    None if doc["store_root"] is None else Path(doc["store_root"]), tuple(doc["instrument"]),
-                   doc["startup"])
+                   doc["startup"], tuple(doc["faults"]))
 
 
 @dataclass
@@ -123,6 +131,9 @@ _IN_SESSION = (Command.MODEL_CHUNK, Command.MODEL_COMMIT, Command.OBJECTS_CHUNK,
 
 
 def _child(op: Operation, point_dir: Path, n: int | None, trace_fd: int, host_fd: int) -> None:
+    for name in op.faults:
+        module, _, function = name.partition(":")
+        getattr(importlib.import_module(module), function)()
     steps = Steps(n, trace_fd)
     if op.startup:
         instrument_files(steps)
@@ -180,6 +191,109 @@ def _point_in_server(arg: dict, fds: list[int]) -> None:  # pragma: no cover - r
     _child_process(_SERVER_OPS[arg["spec"]], Path(arg["point"]), arg["n"], trace_w, host_w, err_w)
 
 
+class _Running:
+    """One forked child (of this process or of a fork server) and the three pipes it writes: trace, host, stderr."""
+
+    def __init__(self, op: Operation, point_dir: Path, n: int | None, server: Any = None) -> None:
+        if server is not None and op.spec_path is None:
+            raise ValueError(f"{op.name}: not prepared on this fork server (run dry_run with it first)")
+        self.op, self.point, self.n = op, point_dir, n
+        trace_r, trace_w = os.pipe()
+        host_r, host_w = os.pipe()
+        err_r, err_w = os.pipe()
+        self.child = None
+        if server is None:
+            pid = os.fork()
+            if pid == 0:  # pragma: no cover - the child never returns into the test runner
+                # No cyclic collections in the child: one would walk (and so copy-on-write) the whole
+                # test process's heap, a large one in a worker that collected the suite. The child
+                # lives for one operation.
+                gc.disable()
+                for fd in (trace_r, host_r, err_r):
+                    os.close(fd)
+                _child_process(op, point_dir, n, trace_w, host_w, err_w)
+        else:
+            try:
+                self.child = server.start_call("tests.support.killpoint_runner:_point_in_server",
+                                               {"spec": str(op.spec_path), "point": str(point_dir), "n": n},
+                                               [trace_w, host_w, err_w])
+            except BaseException:
+                for fd in (trace_r, host_r, err_r, trace_w, host_w, err_w):
+                    os.close(fd)
+                raise
+            pid = self.child.pid
+        self.pid = pid
+        for fd in (trace_w, host_w, err_w):
+            os.close(fd)
+        self.fds = (trace_r, host_r, err_r)
+        self.bufs: dict[int, bytearray] = {fd: bytearray() for fd in self.fds}
+        self.open_fds = set(self.fds)
+        self.deadline = time.monotonic() + CHILD_TIMEOUT_s
+        self.t0 = time.perf_counter()
+        self.code: int | None = None
+
+    def read(self, fd: int) -> None:
+        chunk = os.read(fd, 65536)
+        if chunk:
+            self.bufs[fd] += chunk
+        else:
+            self.open_fds.discard(fd)
+
+    def kill_if_late(self) -> None:
+        if time.monotonic() > self.deadline:
+            os.kill(self.pid, signal.SIGKILL)  # our own child, hung: fail the point instead of the suite
+            raise TimeoutError(f"{self.op.name}: child for point {self.n} did not finish in {CHILD_TIMEOUT_s} s")
+
+    def finish(self) -> tuple[int, list[str], list[dict], str]:
+        """Close the pipes, wait for the child; (exit code, trace, replies, stderr tail)."""
+        for fd in self.fds:
+            os.close(fd)
+        self.open_fds.clear()
+        if self.child is None:
+            self.code = os.waitstatus_to_exitcode(os.waitpid(self.pid, 0)[1])
+        else:
+            self.code = self.child.wait()
+        trace_r, host_r, err_r = self.fds
+        trace = self.bufs[trace_r].decode().splitlines()
+        replies = [json.loads(line) for line in self.bufs[host_r].decode().splitlines()]
+        return self.code, trace, replies, self.bufs[err_r].decode()[-3000:]
+
+    def abandon(self) -> None:
+        """After a failure elsewhere: kill the child if it still runs, reap it, close the pipes."""
+        if self.code is not None:
+            return
+        try:
+            os.kill(self.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        self.finish()
+
+
+def _pump(running: list[_Running]) -> list[_Running]:
+    """Read whatever the running children wrote (waiting for the first bytes or end of file); return the
+    children whose pipes have all closed (the child is dead or about to be)."""
+    by_fd = {fd: r for r in running for fd in r.open_fds}
+    left = min(r.deadline for r in running) - time.monotonic()
+    ready, _, _ = select.select(list(by_fd), [], [], max(left, 0.0)) if by_fd else ([], [], [])
+    for fd in ready:
+        by_fd[fd].read(fd)
+    for r in running:
+        if r.open_fds:
+            r.kill_if_late()
+    return [r for r in running if not r.open_fds]
+
+
+def _pipe_step(arg: str, fds: list[int]) -> None:  # pragma: no cover - runs in the server's child
+    """A fork-server child for the server's own test: ``"send"`` writes a byte to ``fds[0]``; ``"relay"``
+    waits for a byte on ``fds[0]`` and passes it on to ``fds[1]``."""
+    status = EXIT_CRASHED
+    try:
+        write_all(fds[-1], b"x" if arg == "send" else os.read(fds[0], 1))
+        status = 0
+    finally:
+        os._exit(status)
+
+
 def _run_child(op: Operation, point_dir: Path, n: int | None, server: Any = None
                ) -> tuple[int, list[str], list[dict], str]:
     """Fork, run the operation (dying before step ``n``), return (exit code, trace, replies, stderr tail).
@@ -188,60 +302,14 @@ def _run_child(op: Operation, point_dir: Path, n: int | None, server: Any = None
     :class:`~tests.support.daemon_proc.ForkServer` the operation was prepared on (:func:`dry_run`);
     None: fork this process.
     """
-    if server is not None and op.spec_path is None:
-        raise ValueError(f"{op.name}: not prepared on this fork server (run dry_run with it first)")
-    trace_r, trace_w = os.pipe()
-    host_r, host_w = os.pipe()
-    err_r, err_w = os.pipe()
-    child = None
-    if server is None:
-        pid = os.fork()
-        if pid == 0:  # pragma: no cover - the child never returns into the test runner
-            # No cyclic collections in the child: one would walk (and so copy-on-write) the whole
-            # test process's heap, a large one in a worker that collected the suite. The child
-            # lives for one operation.
-            gc.disable()
-            for fd in (trace_r, host_r, err_r):
-                os.close(fd)
-            _child_process(op, point_dir, n, trace_w, host_w, err_w)
-    else:
-        try:
-            child = server.start_call("tests.support.killpoint_runner:_point_in_server",
-                                      {"spec": str(op.spec_path), "point": str(point_dir), "n": n},
-                                      [trace_w, host_w, err_w])
-        except BaseException:
-            for fd in (trace_r, host_r, err_r, trace_w, host_w, err_w):
-                os.close(fd)
-            raise
-        pid = child.pid
-    for fd in (trace_w, host_w, err_w):
-        os.close(fd)
-    bufs: dict[int, bytearray] = {trace_r: bytearray(), host_r: bytearray(), err_r: bytearray()}
-    open_fds = set(bufs)
-    deadline = time.monotonic() + CHILD_TIMEOUT_s
+    run = _Running(op, point_dir, n, server)
     try:
-        while open_fds:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                os.kill(pid, signal.SIGKILL)  # our own child, hung: fail the point instead of the suite
-                raise TimeoutError(f"{op.name}: child for point {n} did not finish in {CHILD_TIMEOUT_s} s")
-            ready, _, _ = select.select(list(open_fds), [], [], left)
-            for fd in ready:
-                chunk = os.read(fd, 65536)
-                if chunk:
-                    bufs[fd] += chunk
-                else:
-                    open_fds.discard(fd)
-    finally:
-        for fd in bufs:
-            os.close(fd)
-        if child is None:
-            code = os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
-        else:
-            code = child.wait()
-    trace = bufs[trace_r].decode().splitlines()
-    replies = [json.loads(line) for line in bufs[host_r].decode().splitlines()]
-    return code, trace, replies, bufs[err_r].decode()[-3000:]
+        while run.open_fds:
+            _pump([run])
+    except BaseException:
+        run.abandon()
+        raise
+    return run.finish()
 
 
 def _fresh_point(op: Operation, root: Path, tag: str) -> Path:
@@ -297,37 +365,68 @@ def dry_run(op: Operation, root: Path, server: Any = None) -> tuple[list[str], l
     return trace, replies
 
 
+def _judge(run: _Running, expected_step: str, keep: bool) -> PointResult:
+    """The restart check of a kill point whose child's pipes have closed."""
+    code, trace, replies, err = run.finish()
+    res = PointResult(run.n, expected_step, len(replies))
+    if code != -signal.SIGKILL:
+        res.problems.append(f"child was not killed at step {run.n} (exit code {code}): {err}")
+    elif trace != [expected_step]:
+        res.problems.append(f"child died at {trace}, the dry run had {expected_step!r} (not deterministic)")
+    else:
+        res.problems += run.op.check(run.point, replies)
+    if not keep:
+        shutil.rmtree(run.point.parent)
+    res.seconds = time.perf_counter() - run.t0
+    return res
+
+
 def kill_at(op: Operation, root: Path, n: int, expected_step: str, *, keep: bool = False,
             server: Any = None) -> PointResult:
     """Kill the operation right before step ``n``, restart, check; the point's directory
     (``root/<op>-k<n>/state``) is removed unless ``keep``. ``server``: as for :func:`dry_run`, which
     must have run on it first."""
-    t0 = time.perf_counter()
-    point = _fresh_point(op, root, f"k{n}")
-    code, trace, replies, err = _run_child(op, point, n, server)
-    res = PointResult(n, expected_step, len(replies))
-    if code != -signal.SIGKILL:
-        res.problems.append(f"child was not killed at step {n} (exit code {code}): {err}")
-    elif trace != [expected_step]:
-        res.problems.append(f"child died at {trace}, the dry run had {expected_step!r} (not deterministic)")
-    else:
-        res.problems += op.check(point, replies)
-    if not keep:
-        shutil.rmtree(point.parent)
-    res.seconds = time.perf_counter() - t0
-    return res
+    return _kill_points(op, root, [(n, expected_step)], lambda n: keep, server, jobs=1)[0]
+
+
+#: Kill points whose children run at a time. Each child is CPU-bound (its daemon's start and the
+#: operation up to the point, ~15-30 ms) and the test process checks a dead child's state meanwhile:
+#: two keep both cores of the machine busy when nothing else runs; more only queue.
+KILL_JOBS = 2
+
+
+def _kill_points(op: Operation, root: Path, points: list[tuple[int, str]], keep: Callable[[int], bool],
+                 server: Any, jobs: int) -> list[PointResult]:
+    """Kill at each (n, expected step) of ``points``, up to ``jobs`` children at a time; results in that order."""
+    todo = list(reversed(points))
+    running: list[_Running] = []
+    expected: dict[int, str] = dict(points)
+    results: dict[int, PointResult] = {}
+    try:
+        while todo or running:
+            while todo and len(running) < jobs:
+                n, _ = todo.pop()
+                running.append(_Running(op, _fresh_point(op, root, f"k{n}"), n, server))
+            for run in _pump(running):
+                running.remove(run)
+                results[run.n] = _judge(run, expected[run.n], keep(run.n))
+    except BaseException:
+        for run in running:
+            run.abandon()
+        raise
+    return [results[n] for n, _ in points]
 
 
 def run_all(op: Operation, root: Path, *, keep: Callable[[list[str]], Collection[int]] | None = None,
-            server: Any = None) -> tuple[list[str], list[PointResult]]:
-    """Dry run, then a kill before every step; returns (steps, results).
+            server: Any = None, jobs: int = KILL_JOBS) -> tuple[list[str], list[PointResult]]:
+    """Dry run, then a kill before every step, ``jobs`` children at a time; returns (steps, results).
 
     ``keep(steps)``: the points whose directories stay for a later look (a full restart), so that
     they need not be killed a second time. ``server``: as for :func:`dry_run`.
     """
     trace, _ = dry_run(op, root, server)
     kept = set(keep(trace)) if keep is not None else set()
-    return trace, [kill_at(op, root, i + 1, step, keep=i + 1 in kept, server=server) for i, step in enumerate(trace)]
+    return trace, _kill_points(op, root, list(enumerate(trace, 1)), kept.__contains__, server, jobs)
 
 
 @contextmanager

@@ -37,8 +37,12 @@ interpreter instead: the operation is rebuilt there from its description (:meth:
 warmed up once, and each child is its fork. A fork copies the forking process's page tables and
 its children fault in copies of what they touch, so forking from a test worker that has grown to
 hundreds of megabytes costs ~25 ms more a point than forking from the server. Children of the test
-process itself (no server) inherit whatever the test monkeypatched, which the harness's own
-"is it vacuous" tests need.
+process itself (no server) inherit whatever the test monkeypatched; on a server, the harness's own
+"is it vacuous" tests name their fault instead (:attr:`Operation.faults`,
+:mod:`tests.support.killpoint_faults`), which each child puts in before it starts.
+:func:`run_all` runs two children at a time (:data:`tests.support.killpoint_runner.KILL_JOBS`) and
+checks a dead child's state while the next runs: a point is CPU work (the child's daemon start and
+the operation up to the point, the test process's check), not waiting, so two keep both cores busy.
 SIGKILL does not drop the page cache, so tmpfs and a disk behave the same for these kills
 (power cuts are :mod:`tests.edge.model.test_store`'s business).
 

@@ -237,16 +237,23 @@ def test_a_touch_is_kept_only_when_its_declared_reference_explains_it_best(axi, 
     assert not _declared_explains_best(axi, swapped[1], swapped)
 
 
-@pytest.mark.slow  # one calibration fit: ~1.5 s
-def test_references_the_fit_must_bend_beyond_their_u_set_the_model_form_floor(axi, model):
-    """References whose certificates all read e 12 % high (a discrepancy no probe parameter explains within its
-    prior): the fit moves them beyond their u, and that excess is the calibration's floor in every answer's u."""
+@pytest.fixture(scope="module")
+def high_certificates(axi, model):
+    """(references, calibration): six touches whose certificates all read e 12 % high, and the calibration fitted
+    on them -- one fit for the two tests that read it (neither depends on a seed of its own)."""
     from dataclasses import replace
 
     rng = np.random.default_rng(15)
     refs = [replace(t, k_W_mK=1.12 * t.k_W_mK) for t in
             (touch(model, n, rng) for n in ("pmma", "pyroceram", "aisi_304") for _ in range(2))]
-    cal = fit_flux_scale(axi, refs)
+    return refs, fit_flux_scale(axi, refs)
+
+
+@pytest.mark.slow  # one calibration fit (shared with the re-measurement test below): ~1.5 s
+def test_references_the_fit_must_bend_beyond_their_u_set_the_model_form_floor(high_certificates):
+    """References whose certificates all read e 12 % high (a discrepancy no probe parameter explains within its
+    prior): the fit moves them beyond their u, and that excess is the calibration's floor in every answer's u."""
+    _, cal = high_certificates
     shifts = cal.head_model["reference_shift_ln_e"]
     assert set(shifts) == {"pmma", "pyroceram", "aisi_304"}
     assert 0.005 < cal.u_rel_floor < 0.12, (cal.u_rel_floor, shifts)
@@ -270,17 +277,12 @@ def test_the_remeasure_floor_is_the_least_that_puts_every_reference_touch_within
     assert remeasure_floor([(float("nan"), 0.01, 0.01)]) == 0.0  # a touch without an answer asks for nothing
 
 
-def test_a_written_calibration_covers_its_own_references_re_measured(axi, model):
+def test_a_written_calibration_covers_its_own_references_re_measured(axi, high_certificates):
     """The 12 %-high certificates again: whatever the fit bent, every reference touch re-measured by the written
     calibration lands within its u -- the answer's (with the floor) and the certificate's, at 95 %."""
-    from dataclasses import replace
-
     from edge.calibration.axi import REFERENCE_Z
 
-    rng = np.random.default_rng(15)
-    refs = [replace(t, k_W_mK=1.12 * t.k_W_mK) for t in
-            (touch(model, n, rng) for n in ("pmma", "pyroceram", "aisi_304") for _ in range(2))]
-    cal = fit_flux_scale(axi, refs)
+    refs, cal = high_certificates
     assert cal.u_rel_floor >= cal.head_model["remeasure_floor"] > 0.0
     geo, tcr = calibrated_params(cal), cal.head_model["heater_tcr_per_K"]
     for tc in refs:

@@ -222,3 +222,16 @@ def test_invalid_properties_name_the_argument(kwargs, name):
 def test_invalid_arguments_name_the_argument(args, kwargs, name):
     with pytest.raises(ValueError, match=name):
         simulate(GLASS, *args, **kwargs)
+
+
+@pytest.mark.parametrize("n", [40, 512, 513, 1500])   # both of causal_convolution's branches
+def test_one_kernel_over_columns_is_the_columns_one_by_one_bit_for_bit(n):
+    from edge.physics.integrators import causal_convolution, causal_convolution_columns
+
+    rng = np.random.default_rng(n)
+    g, D = rng.normal(size=n), rng.normal(size=(n, 3))
+    one_by_one = np.column_stack([causal_convolution(g, D[:, j]) for j in range(3)])
+    assert np.array_equal(causal_convolution_columns(g, D), one_by_one)
+    # and it is the convolution: out[i] = sum_{j <= i} g[i - j] d[j]
+    i = n - 1
+    assert causal_convolution_columns(g, D)[i, 1] == pytest.approx(float(g[i::-1] @ D[:i + 1, 1]), rel=1e-9)

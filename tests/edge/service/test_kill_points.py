@@ -22,8 +22,8 @@ the model store and the runtime overrides fresh, as the daemon does at start-up,
 * all: the heater's enable line is low once the child is dead (the pull-down of a released line).
 
 The children are forked from a small interpreter (:class:`tests.support.daemon_proc.ForkServer`),
-not from the test worker (cheaper per point); the two tests that check the harness itself fork
-from the test process, whose monkeypatched faults the children must inherit.
+not from the test worker (cheaper per point), two at a time; the tests that check the harness itself
+name their fault (:mod:`tests.support.killpoint_faults`) for the children to put in.
 
 A few points also get a full restart: a daemon started on the dead child's state reports no
 fault, keeps the heater off and measures again (on the directory that point's kill left, kept
@@ -33,10 +33,12 @@ for it).
 
 from __future__ import annotations
 
+import os
 from collections import Counter
 
 import pytest
 
+from tests.support import killpoint_faults as F
 from tests.support import killpoints as K
 from tests.support.daemon_proc import ForkServer
 
@@ -180,32 +182,25 @@ def test_object_set_upload_survives_kill_at_every_step(root, server, name):
     _restart_is_clean(root / f"{op.name}-k{n}" / "state")
 
 
-def test_a_half_done_object_set_install_is_caught(root, monkeypatch):
+def test_a_half_done_object_set_install_is_caught(root, server, monkeypatch):
     """The install checks are not vacuous: without the start-up that finishes a cut install, a set
     stored but never activated (the old store's behaviour) fails them."""
-    from edge.storage.objects_store import ObjectSetStore
-
-    monkeypatch.setattr(ObjectSetStore, "_finish_pending", lambda self: None)  # the check's restart runs here
+    F.no_pending_finish(monkeypatch.setattr)  # here, where the check's restart runs
     op = K.objects_operation(root, "bench")
-    trace, results = K.run_all(op, root)
+    op.faults = ("tests.support.killpoint_faults:no_pending_finish",)  # and in the children
+    trace, results = K.run_all(op, root, server=server)
     caught = [r for r in results if any("stored but not active" in p for p in r.problems)]
     assert caught and all(r.step.startswith("file") for r in caught), trace
 
 
-def test_a_signature_beside_the_wrong_bytes_is_caught(root, monkeypatch):
+def test_a_signature_beside_the_wrong_bytes_is_caught(root, server, monkeypatch):
     """... nor for signatures: a store that reads whichever signature file is newest, whatever bytes it
     signed, and never cleans (the old calibration store's one ``calibration.sig``), names the new signer
     beside the old calibration when killed between the two renames."""
-    from edge.security.keys import parse_signature
-    from edge.storage.calibration_store import CalibrationStore
-
-    def newest_signer(self):
-        sigs = sorted(self.root.glob("calibration.*.sig"), key=lambda p: p.stat().st_mtime_ns)
-        return parse_signature(sigs[-1].read_bytes())[0] if sigs else None
-
-    monkeypatch.setattr(CalibrationStore, "_clean", lambda self: None)  # inherited by the children
-    monkeypatch.setattr(CalibrationStore, "signed_by", newest_signer)
-    trace, results = K.run_all(K.calibration_operation(root), root)
+    F.newest_signature_wins(monkeypatch.setattr)
+    op = K.calibration_operation(root)
+    op.faults = ("tests.support.killpoint_faults:newest_signature_wins",)
+    trace, results = K.run_all(op, root, server=server)
     wrong = [r.step for r in results if any(p.startswith("signed_by") for p in r.problems)]
     assert wrong and "file\treplace .calibration.json.tmp# -> calibration.json" in wrong, trace
 
@@ -215,51 +210,32 @@ def test_enough_kill_points_in_all():
     assert sum(MIN_POINTS[k] for k in ("measure", "flash", "config")) >= 100
 
 
-def test_a_broken_operation_is_caught(root, monkeypatch):
+def test_a_broken_operation_is_caught(root, server):
     """The harness is not vacuous: an overrides file written in place (no temp, no rename) fails it."""
-    from edge.storage import durable
-
     op = K.config_operation(root, keys=("heater.power_W",))
-    def in_place(path, data):
-        # What the code would do without durable's temp-and-rename: truncate, then write in two parts.
-        with open(path, "wb") as f:
-            f.write(data[: len(data) // 2])
-            f.flush()
-            K.os.fsync(f.fileno())  # a step: the kill lands here with half the file written
-            f.write(data[len(data) // 2:])
-
-    monkeypatch.setattr(durable, "atomic_write_file", in_place)  # inherited by the forked children
-    trace, results = K.run_all(op, root)
+    op.faults = ("tests.support.killpoint_faults:overrides_written_in_place",)
+    trace, results = K.run_all(op, root, server=server)
     assert any(r.problems for r in results), trace
 
 
-def test_a_reply_before_the_commit_is_caught(root, monkeypatch):
+def test_a_reply_before_the_commit_is_caught(root, server):
     """The harness is not vacuous for the history either: a daemon that answers from an uncommitted
     transaction (the reply goes out, the COMMIT never happens) loses a confirmed measurement."""
-    from edge.storage.history import History
-
-    real_add = History.add
-
-    def add_without_commit(self, record):
-        db = self._db
-
-        class NoCommit:
-            def execute(self, sql, *args):
-                return None if sql.strip().upper() == "COMMIT" else db.execute(sql, *args)
-
-            def __getattr__(self, name):
-                return getattr(db, name)
-
-        self._db = NoCommit()
-        try:
-            return real_add(self, record)
-        finally:
-            self._db = db
-
-    monkeypatch.setattr(History, "add", add_without_commit)  # inherited by the forked children
     op = K.measure_operation(root, n_prior=0)
+    op.faults = ("tests.support.killpoint_faults:reply_before_commit",)
     with pytest.raises(AssertionError, match="confirmed to the host and is lost"):
-        K.run_all(op, root)
+        K.run_all(op, root, server=server)
+
+
+def test_a_fault_in_the_children_is_in_the_children_only(root, server):
+    """A fault named for an operation's children is not the fork server's: the same operation without it,
+    forked from the same server afterwards, survives every kill."""
+    broken = K.config_operation(root, keys=("heater.power_W",))
+    broken.faults = ("tests.support.killpoint_faults:overrides_written_in_place",)
+    _, results = K.run_all(broken, root, server=server)
+    assert any(r.problems for r in results)
+    trace, results = K.run_all(K.config_operation(root, keys=("heater.power_W",)), root, server=server)
+    assert len(results) == len(trace) > 0 and not [r.problems for r in results if r.problems]
 
 
 def test_a_failed_preparation_on_the_fork_server_is_reported_and_the_server_still_serves(root, server):
@@ -271,3 +247,21 @@ def test_a_failed_preparation_on_the_fork_server_is_reported_and_the_server_stil
     op = K.config_operation(root, keys=("heater.power_W",))
     trace, results = K.run_all(op, root, server=server)
     assert len(results) == len(trace) > 0 and not [r.problems for r in results if r.problems]
+
+
+def test_the_fork_server_runs_children_side_by_side(server):
+    """Two at a time, as run_all runs kill points: the first child waits for a byte that only the second
+    sends, which a server that waited for each child before forking the next would never fork."""
+    r1, w1 = os.pipe()
+    r2, w2 = os.pipe()
+    try:
+        first = server.start_call("tests.support.killpoint_runner:_pipe_step", "relay", [r1, w2])
+        second = server.start_call("tests.support.killpoint_runner:_pipe_step", "send", [w1])
+    finally:
+        for fd in (r1, w1, w2):
+            os.close(fd)
+    try:
+        assert os.read(r2, 1) == b"x"
+    finally:
+        os.close(r2)
+    assert (second.wait(), first.wait()) == (0, 0)

@@ -112,3 +112,38 @@ def test_the_thermocouple_off_the_axis_reads_an_even_profile_exactly():
         off_axis_weights(faces, 0.0)
     with pytest.raises(ValueError):
         off_axis_weights(faces, 5e-3)
+
+
+def _disk_moments_one_radius_at_a_time(s: SquareSensor, r_m: float) -> float:
+    """The weights as first written: NumPy float64 scalars, one radius at a time (the reference the
+    vectorised :meth:`SquareSensor.disk_moments` must reproduce bit for bit: the worlds read through it)."""
+    x0, x1, y0, y1 = s.bounds_m
+    r = float(r_m)
+    if r <= 0:
+        return 0.0
+    c0 = 1.0 - s.gradient_x * s.offset_x_m / s.side_x_m - s.gradient_y * s.offset_y_m / s.side_y_m
+    cx, cy = s.gradient_x / s.side_x_m, s.gradient_y / s.side_y_m
+    tot = 0.0
+    for X, Y, sign in ((x1, y1, 1.0), (x0, y1, -1.0), (x1, y0, -1.0), (x0, y0, 1.0)):
+        aX, aY = np.array(abs(X)), np.array(abs(Y))
+        xm = np.minimum(aX, r)
+        xa = np.minimum(xm, np.sqrt(np.maximum(r * r - aY * aY, 0.0)))
+        G = lambda x: 0.5 * (x * np.sqrt(np.maximum(r * r - x * x, 0.0))  # noqa: E731
+                             + r * r * np.arcsin(np.clip(x / r, -1.0, 1.0)))
+        H = lambda x: np.maximum(r * r - x * x, 0.0) ** 1.5 / 3.0  # noqa: E731
+        a = aY * xa + G(xm) - G(xa)
+        mx = 0.5 * aY * xa * xa + H(xa) - H(xm)
+        my = 0.5 * (aY * aY * xa + r * r * (xm - xa) - (xm ** 3 - xa ** 3) / 3.0)
+        sx, sy = math.copysign(1.0, X), math.copysign(1.0, Y)
+        tot += sign * (c0 * sx * sy * float(a) + cx * sy * float(mx) + cy * sx * float(my))
+    return tot
+
+
+@pytest.mark.parametrize("s", CASES)
+def test_all_radii_at_once_are_the_one_at_a_time_weights_bit_for_bit(s):
+    rng = np.random.default_rng(7)
+    r = np.concatenate([[-1e-3, 0.0, s.inner_radius_m, s.outer_radius_m, 2 * s.outer_radius_m],
+                        np.linspace(0.0, s.outer_radius_m * 1.05, 151), rng.uniform(0, 1.1 * s.outer_radius_m, 150)])
+    ref = np.array([_disk_moments_one_radius_at_a_time(s, x) for x in r])
+    assert np.array_equal(s.disk_moments(r), ref)
+    assert np.array_equal(s.disk_moments(r.reshape(2, -1)), ref.reshape(2, -1))
