@@ -54,6 +54,8 @@ from dataclasses import replace
 import numpy as np
 
 from _common import ROOT, write_block, write_json
+from _ece_growth import growth, growth_lines
+import _asbuilt_grow as G
 import _asbuilt_touches as A
 from _objects import HELD_OUT_FAR, IN_SET
 from _recognition import (bayes_ceiling, confusion_matrix, diagnosis, ece_floor, ece_interval, in_set_answers,
@@ -69,6 +71,8 @@ BOARD = "ads122c04"
 #: Gaussian alone, the ablation); set once by main.  On: at 0.5 s it took the plug-in ECE 8.7 -> 5.4 %
 #: with 1 and 2 s unchanged (ε fitted 0 there), ISSUE #37.
 OUTLIER = True
+#: Measure how the ECE interval narrows with the number of probes (bench/_ece_growth.py); ``--no-growth``: skip.
+GROWTH = True
 DEFAULT_OUT = ("ldpe_squeeze_bottle", "concrete_step", "ti_bike_frame", "cast_iron_pan")
 #: Noise (1 sigma) of T (K) and q (W/m^2) per board for the attainable u: the precision board's, and the
 #: reference board's converter steps (MCP9600 0.0625 K, ADS1115 ~14 W/m^2) as uniform rounding, step / sqrt(12).
@@ -114,49 +118,6 @@ def simulate_head(head: str, objects, touches: int, n_probes: int, rc_max: float
                          "e_true": sp.effusivity_W_s05_m2K, "alpha_true": sp.alpha_m2_s, **hand})
         print(f"{head}: {obj.name} touched ({time.perf_counter() - t0:.0f} s)", flush=True)
     return {"records": recs, "meta": meta, "sim_s": time.perf_counter() - t0}
-
-
-#: Seed offset of the touches an ``--extend`` pass adds: their specimens, hands and scene seeds are
-#: independent of the first pass's (``100 * i + j + 1``, j < 100) so the old records stay valid.
-EXTEND_SEED = 100_000
-
-
-def extend_head(head: str, objects, meta, extra: int, seed: int, rc_max: float, path,
-                board: str = "precision") -> None:
-    """Touch every object ``extra`` more times on the drawn probes of ``meta``; saved after each object.
-
-    The extension cache (``path``) holds touches only: the probes' references stay in the first
-    pass's cache, so calibration is unchanged.  Saving after each object lets a run cut short still
-    be read (``--reuse`` reads whatever objects it finished).
-    """
-    from thermotouch_models import DEFAULT_BUNDLE
-
-    from edge.estimation.estimate import pipeline_golden_check
-    from edge.model.bundle import load_bundle
-    from firmware_sim.rigs.sequence_rig import OneBundleStore
-
-    store = OneBundleStore(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
-    wd = tempfile.mkdtemp(prefix="tactile-asbuilt-ext-")
-    n_probes = len({m["probe"] for m in meta})
-    recs, new_meta, info = A.load_records(path) if path.exists() else ([], [], {})
-    # A later pass draws from its own stream (the number of touches already added keys it).
-    rng = np.random.default_rng([seed, len(head), EXTEND_SEED, len(new_meta)])
-    meta = list(meta) + new_meta
-    t0 = time.perf_counter() - (info.get("sim_s") or 0.0)
-    for i, obj in enumerate(objects):
-        j0 = 1 + max((m["j"] for m in meta if m.get("name") == obj.name and "j" in m), default=-1)
-        for j in range(j0, j0 + extra):
-            sp = A.specimen(obj, rng)
-            hand = A.hand_draw(rng, rc_max)
-            p = 1 + j % n_probes
-            sc = A.hand_scene(head, sp, p, EXTEND_SEED + 1000 * i + j, heat_s=HEAT_S, label=obj.name,
-                              board=board, **hand)
-            recs.append(A.simulate(sc, store, wd, HEAT_S))
-            new_meta.append({"kind": "touch", "probe": p, "name": obj.name, "j": j,
-                             "e_true": sp.effusivity_W_s05_m2K, "alpha_true": sp.alpha_m2_s, **hand})
-        A.save_records(path, recs, new_meta, {"sim_s": time.perf_counter() - t0, "argv": sys.argv[1:],
-                                              "objects_done": i + 1})
-        print(f"{head}: {obj.name} extended to {j0 + extra} ({time.perf_counter() - t0:.0f} s)", flush=True)
 
 
 def estimate_head(head: str, recs, meta) -> dict:
@@ -389,6 +350,9 @@ def recognise_head(head: str, est: dict, objects, out_objs, board: str = "precis
         # The ECE judged: plug-in, debiased, bootstrap interval over probes and touches (evaluation split).
         idx, conf, right = in_set_answers(oset, t, recs)
         ev["calibration_error"] = ece_interval(conf, right, fold[idx]) if idx.size else None
+        ev["answers"] = {"probe": fold[idx].tolist(), "confidence": conf.tolist(), "correct": right.tolist()}
+        if GROWTH and idx.size and np.unique(fold[idx]).size > 3:
+            ev["ece_growth"] = growth(fold[idx], conf, right)
         res[str(ct)] = {**ev, "fits": fits,
                         "calibration_split": {**{k: cal_split[k] for k in keys}, "ece": cal_split["rel_object"]["ece"]},
                         "no_bias": {**{k: no_bias[k] for k in keys}, "ece": no_bias["rel_object"]["ece"]},
@@ -593,9 +557,19 @@ def main() -> None:
                     help="add this many specimens per object to the cached records (own cache file, <head>_ext.npz)")
     ap.add_argument("--without-extension", action="store_true",
                     help="with --reuse: the first pass's records only (the numbers before an --extend pass)")
+    ap.add_argument("--add-probes", type=int, default=0,
+                    help="draw this many new probes, each calibrated on its own references (own cache file)")
+    ap.add_argument("--touches-per-probe", type=int, default=4, help="with --add-probes: touches of each object")
+    ap.add_argument("--first-probe", type=int, default=None,
+                    help="with --add-probes: the first new probe's number (default: after every cached probe)")
+    ap.add_argument("--part", default="1/1", help="with --add-probes: i/n, every n-th new probe from the i-th")
+    ap.add_argument("--merge-probes", action="store_true", help="join the --add-probes part files")
+    ap.add_argument("--without-probes", action="store_true",
+                    help="with --reuse: leave out the --add-probes probes (the numbers before them)")
+    ap.add_argument("--no-growth", action="store_true", help="skip the ECE-interval-against-size analysis")
     args = ap.parse_args()
-    global OUTLIER
-    OUTLIER = not args.no_outlier
+    global OUTLIER, GROWTH
+    OUTLIER, GROWTH = not args.no_outlier, not args.no_growth
     objects, out_objs = _objects(args.out)
     if args.objects:
         objects = IN_SET[:args.objects] + out_objs
@@ -608,14 +582,22 @@ def main() -> None:
         ext = path.with_name(path.stem + "_ext.npz")
         if args.extend:
             recs, meta, info = A.load_records(path)
-            extend_head(head, objects, meta, args.extend, args.seed, args.rc_max, ext, args.board)
+            G.extend_head(head, objects, meta, args.extend, args.seed, args.rc_max, ext, HEAT_S, args.board)
+            continue
+        if args.merge_probes:
+            print("merged:", [p.name for p in G.merge_probes(path)])
+            continue
+        if args.add_probes:
+            first = args.first_probe or 1 + max(m["probe"] for f in [path, *(f for f in G.probe_files(path) if "_part" not in f.stem)]
+                                                for m in A.load_records(f)[1])
+            part = tuple(int(x) for x in args.part.split("/"))
+            G.add_probes(head, objects, first, args.add_probes, args.touches_per_probe, part, args.seed,
+                         args.rc_max, path, HEAT_S, args.board)
             continue
         if args.reuse and path.exists():
-            recs, meta, info = A.load_records(path)
-            if ext.exists() and not args.without_extension:   # the touches an --extend pass added (same drawn probes, references above)
-                r2, m2, i2 = A.load_records(ext)
-                recs, meta = recs + r2, meta + m2
-                info = {**info, "sim_s": (info.get("sim_s") or 0.0) + (i2.get("sim_s") or 0.0)}
+            # The first pass's, its --extend touches and the complete --add-probes probes (each with its references).
+            recs, meta, info = G.load_all(path, [o.name for o in objects], extension=not args.without_extension,
+                                          probes=not args.without_probes)
         else:
             sim = simulate_head(head, objects, args.touches, args.probes, args.rc_max, args.seed, args.board)
             recs, meta, info = sim["records"], sim["meta"], {"sim_s": sim["sim_s"], "argv": sys.argv[1:]}
@@ -646,7 +628,10 @@ def main() -> None:
          "bias, temperature, z_crit and poor_fit_ln" + (" and the likelihood's outlier component (weight, width)"
                                                           if OUTLIER else "")
          + " per contact time, fitted leave-one-probe-out.", ""]
-    L += bar_lines(res) + [""]
+    L += bar_lines(res)
+    if "paper" in res["heads"]:
+        L += growth_lines(res["heads"]["paper"]["recognition"]["by_contact_s"])
+    L += [""]
     for head, h in res["heads"].items():
         L += head_lines(head, h) + [""]
     for line in bar_lines(res):
