@@ -188,8 +188,9 @@ def complete_probes(meta, names) -> set:
 def load_all(path, names, *, extension: bool = True, probes: bool = True) -> tuple[list, list, dict]:
     """The first pass's records, its ``--extend`` touches and every complete ``--add-probes`` probe's.
 
-    ``info`` sums the simulation's wall (``sim_s``) and, where recorded, CPU seconds; it lists the
-    probes left out because their run was cut short (``incomplete_probes``).
+    ``info`` sums the simulation's wall (``sim_s``) of the first pass and its extension, the added
+    probes' CPU seconds (``probes_cpu_s``; merged parts: summed) and lists the probes left out
+    because their run was cut short (``incomplete_probes``).
     """
     recs, meta, info = A.load_records(path)
     info = {**info, "files": [path.name]}
@@ -207,9 +208,11 @@ def load_all(path, names, *, extension: bool = True, probes: bool = True) -> tup
                 seen.add(key)
                 recs.append(r)
                 meta.append(m)
-        info["sim_s"] = (info.get("sim_s") or 0.0) + (i2.get("sim_s") or 0.0)
-        if i2.get("cpu_s") is not None:
-            info["probes_cpu_s"] = (info.get("probes_cpu_s") or 0.0) + i2["cpu_s"]
+        if "_probes" in f.stem:   # run in parallel parts at low priority: their CPU seconds say what they cost
+            info["probes_cpu_s"] = (info.get("probes_cpu_s") or 0.0) + (i2.get("cpu_s") or 0.0)
+            info["probes_wall_s"] = max(info.get("probes_wall_s") or 0.0, i2.get("sim_s") or 0.0)
+        else:
+            info["sim_s"] = (info.get("sim_s") or 0.0) + (i2.get("sim_s") or 0.0)
         info["files"].append(f.name)
     info["incomplete_probes"] = sorted(dropped)
     return recs, meta, info
