@@ -429,6 +429,14 @@ def fit_calibration(touches: list[ReferenceTouch], *, probe: str = "paper",
     for tc, tt, TT, qq, _, br, fr in segs:
         rr = fit_sensor_chain(tt, TT, qq, calibration=fitted.chain, fit_start_s=FIT_START_s, breaks_s=br,
                               contact_frac=fr)
+        if not (0.0 < rr.e_W_s05_m2K < math.inf and 0.0 <= rr.u_e_W_s05_m2K < math.inf):
+            # A reference the written chain cannot re-measure leaves the floor undefined (it was NaN, and
+            # the calibration's own check refused it with no word of why): the calibration cannot check
+            # itself on these touches, so it is refused, naming the touch.
+            raise CalibrationError(
+                f"reference {tc.name}: re-measured with the fitted chain its touch gives no finite e "
+                f"(e {rr.e_W_s05_m2K:.4g} +- {rr.u_e_W_s05_m2K:.4g}): too short or too noisy to check the "
+                f"calibration on; touch it longer")
         rel[tc.name].append(rr.e_W_s05_m2K / e_lib[tc.name] - 1.0)
         # The floor is what the chain does not describe: the re-measured e against the reference's e
         # as the calibration itself settled it (e_fit: library value moved within its uncertainty, which

@@ -176,3 +176,27 @@ def test_a_failing_noise_bias_correction_is_a_calibration_error(monkeypatch):
     monkeypatch.setattr(fit_mod, "simulate_chain", broken)
     with pytest.raises(CalibrationError, match="noise-bias correction failed"):
         fit_calibration(_refs(), noise_bias_draws=1)
+
+
+@pytest.mark.slow
+def test_a_reference_the_fitted_chain_cannot_re_measure_is_refused_by_name(monkeypatch):
+    # A 2-s walk-through touch on the faithful world re-measured to e = inf +- inf: the floor was NaN and the
+    # calibration was refused as "u_rel_floor: must be in [0, 1], got nan", naming nothing a user could act on.
+    import dataclasses
+
+    import edge.calibration.fit as fit_mod
+
+    real = fit_mod.fit_sensor_chain
+    remeasured = []
+
+    def no_answer_on_the_second_reference(t, T, q, **kw):
+        r = real(t, T, q, **kw)
+        if "contact_frac" in kw:    # the re-measure of each reference touch with the fitted chain, in order
+            remeasured.append(r)
+            if len(remeasured) == 2:
+                return dataclasses.replace(r, e_W_s05_m2K=math.inf, u_e_W_s05_m2K=math.inf)
+        return r
+
+    monkeypatch.setattr(fit_mod, "fit_sensor_chain", no_answer_on_the_second_reference)
+    with pytest.raises(CalibrationError, match=r"reference pyroceram: re-measured .* no finite e"):
+        fit_calibration(_refs(), noise_bias_draws=0)
