@@ -319,7 +319,9 @@ def recognise_at(task) -> tuple[dict, dict]:
     # The ECE judged: plug-in, debiased, bootstrap interval over probes and touches (evaluation split).
     idx, conf, right = in_set_answers(oset, t, recs)
     ev["calibration_error"] = ece_interval(conf, right, probe[idx]) if idx.size else None
-    ev["answers"] = {"probe": probe[idx].tolist(), "confidence": conf.tolist(), "correct": right.tolist()}
+    # The background ("unknown") mass beside each answer: an in-set touch's answer can never be right by it.
+    ev["answers"] = {"probe": probe[idx].tolist(), "confidence": conf.tolist(), "correct": right.tolist(),
+                     "unknown_posterior": [recs[i].unknown_posterior for i in idx]}
     if GROWTH and idx.size and np.unique(probe[idx]).size > 3:
         ev["ece_growth"] = growth(probe[idx], conf, right)
     res = {**ev, "fits": fits,
