@@ -605,6 +605,8 @@ def main() -> None:
         res["heads"][head] = h
         for line in head_lines(head, h):
             print(line)
+    if not res["heads"]:   # --extend / --add-probes / --merge-probes: caches written, nothing estimated
+        return
     res["bench_s"] = time.perf_counter() - t0
     res["load_avg_1min"] = os.getloadavg()[0]
     res["board"] = args.board
