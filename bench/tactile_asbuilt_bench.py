@@ -357,8 +357,9 @@ def ece_judged(r: dict) -> str:
     if not ce:
         return "–"
     lo, hi = ce["interval"]["probes_and_touches"]["debiased"]
+    tlo, thi = ce["interval"]["touches"]["debiased"]
     verdict = "met" if hi <= 0.03 else "NOT met" if lo > 0.03 else "undecided"
-    return f"{pct(ce['debiased'], 1)} % [{pct(lo, 1)}, {pct(hi, 1)}] ({verdict})"
+    return f"{pct(ce['debiased'], 1)} % [{pct(lo, 1)}, {pct(hi, 1)}] (touches only [{pct(tlo, 1)}, {pct(thi, 1)}]; {verdict})"
 
 
 def head_lines(head: str, h: dict) -> list[str]:
