@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -107,7 +108,10 @@ def save_records(path: Path, records: list[TouchRecord | None], meta: list[dict]
                 arrays[f"{n}{i}"] = getattr(r, n)
     arrays["json"] = np.array(json.dumps({"headers": heads, "meta": meta, "info": info}))
     path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, **arrays)
+    # Written beside and renamed into place: a run killed while saving leaves the last complete file.
+    tmp = path.with_name(path.stem + ".tmp.npz")
+    np.savez_compressed(tmp, **arrays)
+    os.replace(tmp, path)
 
 
 def load_records(path: Path) -> tuple[list[TouchRecord | None], list[dict], dict]:

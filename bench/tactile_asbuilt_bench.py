@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import multiprocessing
 import os
 import sys
 import tempfile
@@ -54,12 +55,14 @@ from dataclasses import replace
 import numpy as np
 
 from _common import ROOT, write_block, write_json
+from _ece_growth import growth, growth_lines
+import _asbuilt_grow as G
+from _asbuilt_estimate import estimate_head
 import _asbuilt_touches as A
 from _objects import HELD_OUT_FAR, IN_SET
 from _recognition import (bayes_ceiling, confusion_matrix, diagnosis, ece_floor, ece_interval, in_set_answers,
                           in_set_reliability)
-from edge.recognition import BROAD_LN, ObjectSet, measured_alpha
-from edge.recognition.fields import BROAD_FLAGS, POOR_FIT_FLAG
+from edge.recognition import ObjectSet
 from host.recognition import Touches, calibrate, classify_touches
 
 CONTACTS_S = (0.5, 1.0, 2.0)
@@ -69,6 +72,13 @@ BOARD = "ads122c04"
 #: Gaussian alone, the ablation); set once by main.  On: at 0.5 s it took the plug-in ECE 8.7 -> 5.4 %
 #: with 1 and 2 s unchanged (ε fitted 0 there), ISSUE #37.
 OUTLIER = True
+#: Probe -> fold of the evaluation split (``--folds K``: the probes dealt round-robin into K groups, each
+#: group's touches named by the set fitted on the others'); empty: leave-one-probe-out.  Set once by main.
+FOLD_OF: dict = {}
+#: The same for the stricter split that also leaves the touched object out (``--strict-folds``).
+STRICT_FOLD_OF: dict = {}
+#: Measure how the ECE interval narrows with the number of probes (bench/_ece_growth.py); ``--no-growth``: skip.
+GROWTH = True
 DEFAULT_OUT = ("ldpe_squeeze_bottle", "concrete_step", "ti_bike_frame", "cast_iron_pan")
 #: Noise (1 sigma) of T (K) and q (W/m^2) per board for the attainable u: the precision board's, and the
 #: reference board's converter steps (MCP9600 0.0625 K, ADS1115 ~14 W/m^2) as uniform rounding, step / sqrt(12).
@@ -114,100 +124,6 @@ def simulate_head(head: str, objects, touches: int, n_probes: int, rc_max: float
                          "e_true": sp.effusivity_W_s05_m2K, "alpha_true": sp.alpha_m2_s, **hand})
         print(f"{head}: {obj.name} touched ({time.perf_counter() - t0:.0f} s)", flush=True)
     return {"records": recs, "meta": meta, "sim_s": time.perf_counter() - t0}
-
-
-#: Seed offset of the touches an ``--extend`` pass adds: their specimens, hands and scene seeds are
-#: independent of the first pass's (``100 * i + j + 1``, j < 100) so the old records stay valid.
-EXTEND_SEED = 100_000
-
-
-def extend_head(head: str, objects, meta, extra: int, seed: int, rc_max: float, path,
-                board: str = "precision") -> None:
-    """Touch every object ``extra`` more times on the drawn probes of ``meta``; saved after each object.
-
-    The extension cache (``path``) holds touches only: the probes' references stay in the first
-    pass's cache, so calibration is unchanged.  Saving after each object lets a run cut short still
-    be read (``--reuse`` reads whatever objects it finished).
-    """
-    from thermotouch_models import DEFAULT_BUNDLE
-
-    from edge.estimation.estimate import pipeline_golden_check
-    from edge.model.bundle import load_bundle
-    from firmware_sim.rigs.sequence_rig import OneBundleStore
-
-    store = OneBundleStore(load_bundle(DEFAULT_BUNDLE, golden_check=pipeline_golden_check))
-    wd = tempfile.mkdtemp(prefix="tactile-asbuilt-ext-")
-    n_probes = len({m["probe"] for m in meta})
-    recs, new_meta, info = A.load_records(path) if path.exists() else ([], [], {})
-    # A later pass draws from its own stream (the number of touches already added keys it).
-    rng = np.random.default_rng([seed, len(head), EXTEND_SEED, len(new_meta)])
-    meta = list(meta) + new_meta
-    t0 = time.perf_counter() - (info.get("sim_s") or 0.0)
-    for i, obj in enumerate(objects):
-        j0 = 1 + max((m["j"] for m in meta if m.get("name") == obj.name and "j" in m), default=-1)
-        for j in range(j0, j0 + extra):
-            sp = A.specimen(obj, rng)
-            hand = A.hand_draw(rng, rc_max)
-            p = 1 + j % n_probes
-            sc = A.hand_scene(head, sp, p, EXTEND_SEED + 1000 * i + j, heat_s=HEAT_S, label=obj.name,
-                              board=board, **hand)
-            recs.append(A.simulate(sc, store, wd, HEAT_S))
-            new_meta.append({"kind": "touch", "probe": p, "name": obj.name, "j": j,
-                             "e_true": sp.effusivity_W_s05_m2K, "alpha_true": sp.alpha_m2_s, **hand})
-        A.save_records(path, recs, new_meta, {"sim_s": time.perf_counter() - t0, "argv": sys.argv[1:],
-                                              "objects_done": i + 1})
-        print(f"{head}: {obj.name} extended to {j0 + extra} ({time.perf_counter() - t0:.0f} s)", flush=True)
-
-
-def estimate_head(head: str, recs, meta) -> dict:
-    """Calibrate each probe on its references, then estimate every touch at each contact time."""
-    from edge.calibration.model import CalibrationError
-    from edge.estimation.seam import estimate_touch
-    from host.cli.common import seam_context
-
-    t0 = time.perf_counter()
-    probes = sorted({m["probe"] for m in meta})
-    cals, ctx = {}, {}
-    for p in probes:
-        refs = [(m["name"], r) for r, m in zip(recs, meta) if m["kind"] == "reference" and m["probe"] == p]
-        try:
-            cal, check = A.calibrate_records(head, refs)
-            cals[p] = {"sha256": cal.sha256, "u_rel_floor": cal.u_rel_floor, "forced": cal.forced,
-                       "self_check_passed": check.get("passed"), "refused": None}
-        except (CalibrationError, ValueError) as exc:
-            cal = None
-            cals[p] = {"refused": f"{type(exc).__name__}: {exc}"}
-        ctx[p] = seam_context(None, calibration=cal)
-        print(f"{head}: probe {p} calibration {cals[p]}", flush=True)
-    rows = []
-    for r, m in zip(recs, meta):
-        if m["kind"] != "touch":
-            continue
-        for ct in sorted(set(CONTACTS_S) | set(DECIDE_GRID_S)):
-            row = {**m, "contact_s": ct, "e": math.nan, "u_ln_e": math.nan, "alpha": math.nan,
-                   "u_ln_alpha": math.nan, "corr": math.nan, "method": None, "flags": [], "error": None}
-            if r is None:
-                row["error"] = "no record"
-            else:
-                try:
-                    d = estimate_touch(A.truncated(r, ct), ctx[m["probe"]]).to_dict()
-                    e, u = d["effusivity_W_s05_m2K"], d["effusivity_W_s05_m2K_u"]
-                    chain = d.get("sensor_chain") or {}
-                    row.update(method=d["method"], flags=list(d["flags"]), chain_flags=chain.get("flags"))
-                    if e is None and POOR_FIT_FLAG in d["flags"] and (chain.get("effusivity_W_s05_m2K") or 0) > 0:
-                        # Withheld by the seam; recognition may still name it from the chain's e (poor_fit_ln).
-                        row.update(e_chain=float(chain["effusivity_W_s05_m2K"]), poor_fit=True)
-                    if e is not None and u is not None and e > 0:
-                        row.update(e=float(e), u_ln_e=float(u) / float(e), u_ln_e_stated=float(u) / float(e))
-                        if BROAD_FLAGS & set(d["flags"]):   # named as the device names it (recognition_fields)
-                            row["u_ln_e"] = max(row["u_ln_e"], BROAD_LN)
-                        a = measured_alpha(d)
-                        if a is not None:
-                            row.update(alpha=a[0], u_ln_alpha=a[1], corr=a[2])
-                except ValueError as exc:
-                    row["error"] = f"{type(exc).__name__}: {exc}"
-            rows.append(row)
-    return {"calibrations": cals, "rows": rows, "estimate_s": time.perf_counter() - t0}
 
 
 def touches_of(rows, names, ct=None) -> Touches:
@@ -331,7 +247,7 @@ def until_decided(oset, rows, names, sets_by_ct) -> dict:
             r = per.get(ct)
             if r is None:
                 continue
-            s = sets_by_ct[min(sets_by_ct, key=lambda c: abs(math.log(c / ct)))][r["probe"]]
+            s = sets_by_ct[min(sets_by_ct, key=lambda c: abs(math.log(c / ct)))][FOLD_OF.get(r["probe"], r["probe"])]
             rec = _classify_row(s, r)
             if rec is None:
                 continue
@@ -363,43 +279,62 @@ def installable_set(est: dict, objects, path) -> dict:
     return {"path": str(path.relative_to(ROOT)), "by_contact_s": rep["by_contact_s"]}
 
 
-def recognise_head(head: str, est: dict, objects, out_objs, board: str = "precision") -> tuple[dict, dict]:
-    """Per contact time: the evaluation split's scores, the calibration split's, the no-bias ablation, the diagnosis."""
+def recognise_head(head: str, est: dict, objects, out_objs, board: str = "precision", jobs: int = 1
+                   ) -> tuple[dict, dict]:
+    """Per contact time: the evaluation split's scores, the calibration split's, the no-bias ablation, the diagnosis.
+
+    The contact times are independent: ``jobs`` > 1 recognises them in that many forked processes.
+    """
+    tasks = [(head, [r for r in est["rows"] if r["contact_s"] == ct], ct, [o.name for o in objects],
+              [o.name for o in out_objs], board) for ct in CONTACTS_S]
+    if jobs > 1:
+        with multiprocessing.get_context("fork").Pool(min(jobs, len(tasks))) as pool:
+            out = pool.map(recognise_at, tasks, chunksize=1)
+    else:
+        out = [recognise_at(x) for x in tasks]
+    return {"by_contact_s": {str(ct): r for ct, (r, _) in zip(CONTACTS_S, out)}}, \
+        {ct: sets for ct, (_, sets) in zip(CONTACTS_S, out)}
+
+
+def recognise_at(task) -> tuple[dict, dict]:
+    """One contact time's figures (recognise_head) and the evaluation split's fitted sets by fold."""
     from host.objects import attainable_u_ln_e
 
-    names = [o.name for o in objects]
-    out_names = [o.name for o in out_objs]
+    head, rows, ct, names, out_names, board = task
     oset = ObjectSet(IN_SET, label="tactile")
-    res, sets_by_ct = {}, {}
-    for ct in CONTACTS_S:
-        rows = [r for r in est["rows"] if r["contact_s"] == ct]
-        t = touches_of(rows, names, ct)
-        fold = np.array([r["probe"] for r in rows])
-        broad = np.array([r.get("u_ln_e_stated") is not None and r["u_ln_e"] != r["u_ln_e_stated"] for r in rows])
-        recs, (ci, crecs), fits, sets = cross_fit(oset, t, fold, broad)
-        sets_by_ct[ct] = sets
-        sT, sq = BOARD_NOISE[board]
-        u_fisher = attainable_u_ln_e(oset, ct, probe=head, sigma_T_K=sT, sigma_q_W_m2=sq)
-        ev = evaluate(oset, t, recs, out_names, u_fisher)
-        cal_split = evaluate(oset, t.select(ci), crecs, out_names, u_fisher)
-        plain, _, _, _ = cross_fit(oset, t, fold, broad, bias=False)
-        no_bias = evaluate(oset, t, plain, out_names, u_fisher)
-        strict = evaluate(oset, t, strict_fit(oset, t, fold, broad), out_names, u_fisher)
-        keys = ("object_accuracy", "class_accuracy", "in_set_accepted", "out_rejected")
-        # The ECE judged: plug-in, debiased, bootstrap interval over probes and touches (evaluation split).
-        idx, conf, right = in_set_answers(oset, t, recs)
-        ev["calibration_error"] = ece_interval(conf, right, fold[idx]) if idx.size else None
-        res[str(ct)] = {**ev, "fits": fits,
-                        "calibration_split": {**{k: cal_split[k] for k in keys}, "ece": cal_split["rel_object"]["ece"]},
-                        "no_bias": {**{k: no_bias[k] for k in keys}, "ece": no_bias["rel_object"]["ece"]},
-                        "object_held_out": {**{k: strict[k] for k in keys}, "ece": strict["rel_object"]["ece"]},
-                        "ece_floor": ece_floor(ev["rel_object"]),
-                        "diagnosis": diagnosis(oset, t, recs),
-                        "refused": int(sum(not math.isfinite(r["e"]) and not r.get("poor_fit") for r in rows)),
-                        "poor_fit_named": int(sum(bool(r.get("poor_fit")) for r in rows)),
-                        "calibration_refused": int(broad.sum()),
-                        "methods": {m: sum(r["method"] == m for r in rows) for m in {r["method"] for r in rows}}}
-    return {"by_contact_s": res}, sets_by_ct
+    t = touches_of(rows, names, ct)
+    probe = np.array([r["probe"] for r in rows])
+    fold = np.array([FOLD_OF.get(p, p) for p in probe])
+    broad = np.array([r.get("u_ln_e_stated") is not None and r["u_ln_e"] != r["u_ln_e_stated"] for r in rows])
+    recs, (ci, crecs), fits, sets = cross_fit(oset, t, fold, broad)
+    sT, sq = BOARD_NOISE[board]
+    u_fisher = attainable_u_ln_e(oset, ct, probe=head, sigma_T_K=sT, sigma_q_W_m2=sq)
+    ev = evaluate(oset, t, recs, out_names, u_fisher)
+    cal_split = evaluate(oset, t.select(ci), crecs, out_names, u_fisher)
+    plain, _, _, _ = cross_fit(oset, t, fold, broad, bias=False)
+    no_bias = evaluate(oset, t, plain, out_names, u_fisher)
+    sfold = np.array([STRICT_FOLD_OF.get(p, p) for p in probe])
+    strict = evaluate(oset, t, strict_fit(oset, t, sfold, broad), out_names, u_fisher)
+    keys = ("object_accuracy", "class_accuracy", "in_set_accepted", "out_rejected")
+    # The ECE judged: plug-in, debiased, bootstrap interval over probes and touches (evaluation split).
+    idx, conf, right = in_set_answers(oset, t, recs)
+    ev["calibration_error"] = ece_interval(conf, right, probe[idx]) if idx.size else None
+    # The background ("unknown") mass beside each answer: an in-set touch's answer can never be right by it.
+    ev["answers"] = {"probe": probe[idx].tolist(), "confidence": conf.tolist(), "correct": right.tolist(),
+                     "unknown_posterior": [recs[i].unknown_posterior for i in idx]}
+    if GROWTH and idx.size and np.unique(probe[idx]).size > 3:
+        ev["ece_growth"] = growth(probe[idx], conf, right)
+    res = {**ev, "fits": fits,
+           "calibration_split": {**{k: cal_split[k] for k in keys}, "ece": cal_split["rel_object"]["ece"]},
+           "no_bias": {**{k: no_bias[k] for k in keys}, "ece": no_bias["rel_object"]["ece"]},
+           "object_held_out": {**{k: strict[k] for k in keys}, "ece": strict["rel_object"]["ece"]},
+           "ece_floor": ece_floor(ev["rel_object"]),
+           "diagnosis": diagnosis(oset, t, recs),
+           "refused": int(sum(not math.isfinite(r["e"]) and not r.get("poor_fit") for r in rows)),
+           "poor_fit_named": int(sum(bool(r.get("poor_fit")) for r in rows)),
+           "calibration_refused": int(broad.sum()),
+           "methods": {m: sum(r["method"] == m for r in rows) for m in {r["method"] for r in rows}}}
+    return res, sets
 
 
 # -- report ---------------------------------------------------------------------------------------
@@ -422,8 +357,9 @@ def ece_judged(r: dict) -> str:
     if not ce:
         return "–"
     lo, hi = ce["interval"]["probes_and_touches"]["debiased"]
+    tlo, thi = ce["interval"]["touches"]["debiased"]
     verdict = "met" if hi <= 0.03 else "NOT met" if lo > 0.03 else "undecided"
-    return f"{pct(ce['debiased'], 1)} % [{pct(lo, 1)}, {pct(hi, 1)}] ({verdict})"
+    return f"{pct(ce['debiased'], 1)} % [{pct(lo, 1)}, {pct(hi, 1)}] (touches only [{pct(tlo, 1)}, {pct(thi, 1)}]; {verdict})"
 
 
 def head_lines(head: str, h: dict) -> list[str]:
@@ -462,7 +398,7 @@ def head_lines(head: str, h: dict) -> list[str]:
           "poor_fit_ln; with an outlier component, / its weight ε @ σ_out in ln e):", ""]
     for ct, r in R.items():
         L.append(f"* {float(ct):g} s: " + "; ".join(
-            f"probe {x['held_out_probe']}: {x['temperature']:.2f} / {x['z_crit']:.2f} / "
+            f"{'fold' if h.get('folds') else 'probe'} {x['held_out_probe']}: {x['temperature']:.2f} / {x['z_crit']:.2f} / "
             f"{100 * (x['bias_ln'] or 0):+.1f} % / "
             f"{100 * (x['bias_slope'] or 0):+.1f} % / {x['poor_fit_ln'] or 0:.2f}"
             + (f" / {x['outlier_weight']:.2f} @ {x['outlier_ln']:.1f}" if x.get("outlier_weight") else "")
@@ -529,6 +465,16 @@ def diagnosis_lines(R: dict) -> list[str]:
     return L
 
 
+def fold_text(h: dict) -> str:
+    """How the evaluation split's folds group the probes (``--folds``), for the README."""
+    k, ks = h["folds"], h["strict_folds"]
+    if not k and not ks:
+        return "leave-one-probe-out."
+    return (f"on the probes of the other folds ({k or 'one per probe,'} folds of the drawn probes, dealt round-robin; the split that also "
+            f"holds the object out: {ks or 'one per probe'} folds); in the lists below a fold stands where a "
+            "held-out probe stood.")
+
+
 def bar_lines(res: dict) -> list[str]:
     h = res["heads"].get("paper")
     if h is None:
@@ -570,6 +516,8 @@ def bar_lines(res: dict) -> list[str]:
                      f"{b['lo']:.2f}-{b['hi']:.2f}: confidence {pct(b['confidence'])} %, right {pct(b['accuracy'])} %"
                      f" of {b['n']}, binomial sd "
                      f"{pct(math.sqrt(b['confidence'] * (1 - b['confidence']) / b['n']))} points"
+                     + (", beyond 2 sd" if abs(b["accuracy"] - b["confidence"])
+                        > 2 * math.sqrt(b["confidence"] * (1 - b["confidence"]) / b["n"]) else "")
                      for b in off) + ")") + f" ({len(big)} such bins)")
     return L
 
@@ -593,9 +541,22 @@ def main() -> None:
                     help="add this many specimens per object to the cached records (own cache file, <head>_ext.npz)")
     ap.add_argument("--without-extension", action="store_true",
                     help="with --reuse: the first pass's records only (the numbers before an --extend pass)")
+    ap.add_argument("--add-probes", type=int, default=0,
+                    help="draw this many new probes, each calibrated on its own references (own cache file)")
+    ap.add_argument("--touches-per-probe", type=int, default=4, help="with --add-probes: touches of each object")
+    ap.add_argument("--first-probe", type=int, default=None,
+                    help="with --add-probes: the first new probe's number (default: after every cached probe)")
+    ap.add_argument("--part", default="1/1", help="with --add-probes: i/n, every n-th new probe from the i-th")
+    ap.add_argument("--merge-probes", action="store_true", help="join the --add-probes part files")
+    ap.add_argument("--without-probes", action="store_true",
+                    help="with --reuse: leave out the --add-probes probes (the numbers before them)")
+    ap.add_argument("--no-growth", action="store_true", help="skip the ECE-interval-against-size analysis")
+    ap.add_argument("--jobs", type=int, default=1, help="processes estimating (per probe) and recognising (per time)")
+    ap.add_argument("--folds", type=int, default=0, help="group the probes into this many folds (0: one per probe)")
+    ap.add_argument("--strict-folds", type=int, default=0, help="the same for the object-held-out split")
     args = ap.parse_args()
-    global OUTLIER
-    OUTLIER = not args.no_outlier
+    global OUTLIER, GROWTH
+    OUTLIER, GROWTH = not args.no_outlier, not args.no_growth
     objects, out_objs = _objects(args.out)
     if args.objects:
         objects = IN_SET[:args.objects] + out_objs
@@ -608,35 +569,54 @@ def main() -> None:
         ext = path.with_name(path.stem + "_ext.npz")
         if args.extend:
             recs, meta, info = A.load_records(path)
-            extend_head(head, objects, meta, args.extend, args.seed, args.rc_max, ext, args.board)
+            G.extend_head(head, objects, meta, args.extend, args.seed, args.rc_max, ext, HEAT_S, args.board)
+            continue
+        if args.merge_probes:
+            print("merged:", [p.name for p in G.merge_probes(path)])
+            continue
+        if args.add_probes:
+            first = args.first_probe or 1 + max(m["probe"] for f in [path, *(f for f in G.probe_files(path) if "_part" not in f.stem)]
+                                                for m in A.load_records(f)[1])
+            part = tuple(int(x) for x in args.part.split("/"))
+            G.add_probes(head, objects, first, args.add_probes, args.touches_per_probe, part, args.seed,
+                         args.rc_max, path, HEAT_S, args.board)
             continue
         if args.reuse and path.exists():
-            recs, meta, info = A.load_records(path)
-            if ext.exists() and not args.without_extension:   # the touches an --extend pass added (same drawn probes, references above)
-                r2, m2, i2 = A.load_records(ext)
-                recs, meta = recs + r2, meta + m2
-                info = {**info, "sim_s": (info.get("sim_s") or 0.0) + (i2.get("sim_s") or 0.0)}
+            # The first pass's, its --extend touches and the complete --add-probes probes (each with its references).
+            recs, meta, info = G.load_all(path, [o.name for o in objects], extension=not args.without_extension,
+                                          probes=not args.without_probes)
         else:
             sim = simulate_head(head, objects, args.touches, args.probes, args.rc_max, args.seed, args.board)
             recs, meta, info = sim["records"], sim["meta"], {"sim_s": sim["sim_s"], "argv": sys.argv[1:]}
             A.save_records(path, recs, meta, info)
-        est = estimate_head(head, recs, meta)
+        ps = sorted({m["probe"] for m in meta})
+        for table, k_folds in ((FOLD_OF, args.folds), (STRICT_FOLD_OF, args.strict_folds)):
+            table.clear()   # per head; fewer probes than folds: one probe per fold, as without --folds
+            table.update({p: 1 + k % k_folds for k, p in enumerate(ps)} if 0 < k_folds < len(ps) else {})
+        est = estimate_head(head, recs, meta, set(CONTACTS_S) | set(DECIDE_GRID_S), args.jobs)
         present = [o for o in objects if any(m.get("name") == o.name for m in meta)]
         per_obj = {o.name: sum(m.get("kind") == "touch" and m.get("name") == o.name for m in meta) for o in present}
         h = {"touches_per_object": per_obj, "n_probes": len({m["probe"] for m in meta}), "calibrations": {str(k): v for k, v in est["calibrations"].items()},
-             "sim_s": info.get("sim_s"), "estimate_s": est["estimate_s"], "rows": est["rows"]}
-        h["recognition"], sets_by_ct = recognise_head(head, est, present, out_objs, args.board)
+             "sim_s": info.get("sim_s"), "estimate_s": est["estimate_s"], "rows": est["rows"],
+             **{k: info.get(k) for k in ("probes_cpu_s", "probes_wall_s", "incomplete_probes", "files")}}
+        h["folds"], h["strict_folds"] = len(set(FOLD_OF.values())), len(set(STRICT_FOLD_OF.values()))
+        h["recognition"], sets_by_ct = recognise_head(head, est, present, out_objs, args.board, args.jobs)
         h["installable_set"] = installable_set(est, present, A.CACHE.parent / f"tactile_asbuilt_objects_{head}{suffix}.csv")
         h["until_decided"] = until_decided(ObjectSet(IN_SET), est["rows"], [o.name for o in present], sets_by_ct)
         res["heads"][head] = h
         for line in head_lines(head, h):
             print(line)
+    if not res["heads"]:   # --extend / --add-probes / --merge-probes: caches written, nothing estimated
+        return
     res["bench_s"] = time.perf_counter() - t0
     res["load_avg_1min"] = os.getloadavg()[0]
     res["board"] = args.board
     write_json("tactile_asbuilt" + ("" if args.board == "precision" else f"_{args.board}"), res)
     cmd = "python bench/tactile_asbuilt_bench.py " + " ".join(sys.argv[1:])
-    sims = ", ".join(f"{hd} {h['sim_s'] / 60:.0f} min" for hd, h in res["heads"].items() if h.get("sim_s"))
+    sims = ", ".join(f"{hd} {h['sim_s'] / 60:.0f} min" + (
+        f" + the added probes {h['probes_cpu_s'] / 60:.0f} CPU-min (parallel parts at nice 19, "
+        f"{h['probes_wall_s'] / 60:.0f} min wall on a shared machine)" if h.get("probes_cpu_s") else "")
+        for hd, h in res["heads"].items() if h.get("sim_s"))
     L = [f"Generated by `{cmd.strip()}` ({res['bench_s'] / 60:.1f} min, load {res['load_avg_1min']:.1f}; "
          f"the simulation pass that made the cached records: {sims or '–'}; "
          f"JSON in `bench/results/tactile_asbuilt{'' if args.board == 'precision' else '_' + args.board}.json`). "
@@ -645,8 +625,11 @@ def main() -> None:
          f"{specimens(res)} specimens per object (5 % spread), 14 in-set objects and {len(out_objs)} outside the set; "
          "bias, temperature, z_crit and poor_fit_ln" + (" and the likelihood's outlier component (weight, width)"
                                                           if OUTLIER else "")
-         + " per contact time, fitted leave-one-probe-out.", ""]
-    L += bar_lines(res) + [""]
+         + " per contact time, fitted " + fold_text(res["heads"].get("paper") or next(iter(res["heads"].values()))), ""]
+    L += bar_lines(res)
+    if "paper" in res["heads"]:
+        L += growth_lines(res["heads"]["paper"]["recognition"]["by_contact_s"])
+    L += [""]
     for head, h in res["heads"].items():
         L += head_lines(head, h) + [""]
     for line in bar_lines(res):
