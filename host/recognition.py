@@ -403,6 +403,35 @@ def fit_outlier(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, alpha: Mappi
     return {**best, "nll_gaussian": nll0}
 
 
+def fit_u_var_scale(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, alpha: Mapping | None = None,
+                    outlier: bool = False, bounds=(0.02, 100.0)) -> dict:
+    """The scale k on the stated u² of ln e alone (T = 1) minimising the true objects' NLL; with the outlier mixture.
+
+    T scales every variance, the objects' specimen spread too: where the spread dominates (a wood's
+    5 % against a 1-s touch's 3 %) a T < 1 narrows it, and touches between two close objects are
+    named over-confidently (ISSUE #37: 1-s answers at 0.46 right 21 %).  ``k u² = (sqrt(k) u)²``.
+    ``outlier``: k with ε, σ_out on the grids, kept only when it beats the Gaussian by AIC's ``2 / n``
+    (as :func:`fit_outlier`).  Returns ``u_var_scale``, ``outlier_weight``, ``outlier_ln``, ``nll``.
+    """
+    base = object_set.with_calibration(u_var_scale=1.0, temperature=1.0)
+    ln_e, u, ti, kw = np.asarray(ln_e, float), np.asarray(u_ln_e, float), np.asarray(true_index, int), alpha or {}
+    if ti.size == 0:
+        raise ValueError("no touches to fit on")
+
+    def fit(eps: float, s: float, rounds: int) -> dict:
+        def nll(log_k: float) -> float:
+            us = u * math.exp(0.5 * log_k)
+            q, hld, _ = base.log_terms(ln_e, us, **kw)
+            return _mixture_nll(base, q, hld, ln_e, us, ti, 1.0, eps, s, kw)
+        lk = _golden_min(nll, math.log(bounds[0]), math.log(bounds[1]), rounds=rounds)
+        return dict(u_var_scale=float(math.exp(lk)), outlier_weight=float(eps), outlier_ln=float(s), nll=nll(lk))
+
+    gauss = fit(0.0, float(base.outlier_ln), 50)
+    best = min([fit(e, s, 30) for e in OUTLIER_WEIGHTS for s in OUTLIER_LNS] if outlier else [gauss],
+               key=lambda c: c["nll"])
+    return {**(best if gauss["nll"] - best["nll"] > 2.0 / max(ti.size, 1) else gauss), "nll_gaussian": gauss["nll"]}
+
+
 def scatter_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, alpha: Mapping | None = None) -> float:
     """``mean(q_true / dof_true)``: the variance scale that makes the touches' scatter about their own object match the model."""
     q, _, dof = object_set.log_terms(np.asarray(ln_e, float), np.asarray(u_ln_e, float), **(alpha or {}))
@@ -549,8 +578,9 @@ def fit_bias(object_set: ObjectSet, touches: Touches) -> tuple[float, float]:
 def fit_poor_fit_ln(object_set: ObjectSet, touches: Touches, true_index) -> float:
     """``poor_fit_ln``: the scatter of poorly fitted chain e's about what their objects read, at the set's T.
 
-    ``sqrt(mean(d²) / T - mean(spread²))`` over the ``poor_fit`` touches (d: ln e minus the true
-    object's expected reading, its bias included), at least :data:`POOR_FIT_LN_FLOOR`; 0 (such
+    ``sqrt(mean(d²) / T - mean(spread²))``, at least :data:`POOR_FIT_LN_FLOOR`, over the ``poor_fit``
+    touches (d: ln e minus the true object's expected reading, its bias included), divided by
+    ``sqrt(k)`` (the set's ``u_var_scale``: the device scales this width as any stated u); 0 (such
     touches name nothing) when there are none.
     """
     m = touches.poor_fit & touches.ok
@@ -559,23 +589,24 @@ def fit_poor_fit_ln(object_set: ObjectSet, touches: Touches, true_index) -> floa
     ti = np.asarray(true_index, int)[m]
     d2 = (np.log(touches.e[m]) - object_set.ln_e[ti]) ** 2
     v = float(np.mean(d2)) / object_set.temperature - float(np.mean(object_set.spread[ti] ** 2))
-    return float(max(POOR_FIT_LN_FLOOR, math.sqrt(max(v, 0.0))))
+    return float(max(POOR_FIT_LN_FLOOR, math.sqrt(max(v, 0.0))) / math.sqrt(object_set.u_var_scale))
 
 
 def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequence[float] = CONTACT_TIMES_S,
               touches: int = 10, seed: int = 1000, acceptance: float | None = None,
-              sim: Touches | None = None, bias: bool = False, outlier: bool = False) -> tuple[ObjectSet, dict]:
+              sim: Touches | None = None, bias: bool = False, outlier: bool = False,
+              spread_fixed: bool = False) -> tuple[ObjectSet, dict]:
     """Fit the temperature and z_crit of ``object_set`` on held-out simulated touches of its own objects.
 
-    Returns the calibrated set (same objects) and a report: the fitted
-    scalars, and the closed-set reliability before and after. ``sim`` reuses
-    touches already simulated (objects named as in the set). ``acceptance``
-    (default :func:`acceptance_target` of the number of touches) is the share
+    Returns the calibrated set (same objects) and a report: the fitted scalars, and the closed-set
+    reliability before and after. ``sim`` reuses touches already simulated (objects named as in the
+    set). ``acceptance`` (default :func:`acceptance_target` of the number of touches) is the share
     of these touches z_crit must accept.  ``bias``: first fit the probe's bias of ln e
     (:func:`fit_bias`; touches of *other* probes than the ones the set will name, ISSUE #37),
     then T and z_crit about the biased centres, and ``poor_fit_ln`` on the ``poor_fit`` touches.
     ``outlier``: T jointly with the likelihood's outlier component (:func:`fit_outlier`; its
-    ``outlier_weight`` is 0 where the mixture does not earn its parameters).
+    ``outlier_weight`` is 0 where the mixture does not earn its parameters).  ``spread_fixed``: T = 1 and
+    the scale on the stated u alone fitted instead (:func:`fit_u_var_scale`; the spread is the objects').
     """
     sim = sim or simulate_touches(object_set.objects, instruments=(instrument,), contact_times_s=contact_times_s,
                                   touches=touches, seed=seed)
@@ -589,11 +620,14 @@ def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequen
     if bias:
         changes["bias_ln"], changes["bias_slope"] = fit_bias(object_set, sim)
     object_set = object_set.with_calibration(**changes)
-    t = fit_temperature(object_set, ln_e, u, ti, alpha=alpha)
-    mix = {}
-    if outlier:
-        fo = fit_outlier(object_set, ln_e, u, ti, alpha=alpha)
-        t, mix = fo["temperature"], {k: fo[k] for k in ("outlier_weight", "outlier_ln")}
+    if spread_fixed:   # T = 1: only what the probe states is rescaled
+        fu = fit_u_var_scale(object_set, ln_e, u, ti, alpha=alpha, outlier=outlier)
+        t, mix = 1.0, {k: fu[k] for k in ("u_var_scale", "outlier_weight", "outlier_ln")}
+        object_set = object_set.with_calibration(u_var_scale=fu["u_var_scale"])
+    else:
+        fo = fit_outlier(object_set, ln_e, u, ti, alpha=alpha) if outlier else {
+            "temperature": fit_temperature(object_set, ln_e, u, ti, alpha=alpha)}
+        t, mix = fo["temperature"], {k: fo[k] for k in ("outlier_weight", "outlier_ln") if k in fo}
     acceptance = acceptance_target(ti.size) if acceptance is None else acceptance
     z = fit_z_crit(object_set, ln_e, u, acceptance=acceptance, temperature=t, alpha=alpha)
     q, hld, _ = object_set.log_terms(ln_e, u, **alpha)
@@ -601,7 +635,7 @@ def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequen
                   alpha_u_growth=growth, alpha_touches=int(np.isfinite(sim.alpha).sum()),
                   bias_ln=object_set.bias_ln, bias_slope=object_set.bias_slope,
                   outlier_weight=mix.get("outlier_weight", object_set.outlier_weight),
-                  outlier_ln=mix.get("outlier_ln", object_set.outlier_ln))
+                  outlier_ln=mix.get("outlier_ln", object_set.outlier_ln), u_var_scale=object_set.u_var_scale)
     for label, temp, eps in (("before", object_set.temperature, object_set.outlier_weight),
                              ("after", t, report["outlier_weight"])):
         out_terms = object_set.outlier_terms(ln_e, u, temperature=temp, outlier_ln=report["outlier_ln"],
@@ -623,7 +657,7 @@ MIN_CONTACT_TOUCHES = 20
 def calibrate_by_contact(object_set: ObjectSet, instrument: str, *,
                          contact_times_s: Sequence[float] = CONTACT_TIMES_S, touches: int = 10, seed: int = 1000,
                          sim: Touches | None = None, bias: bool = False,
-                         outlier: bool = False) -> tuple[ObjectSet, dict]:
+                         outlier: bool = False, spread_fixed: bool = False) -> tuple[ObjectSet, dict]:
     """:func:`calibrate` over all contact times (the set's scalars) and at each one (its ``contact_calibration``).
 
     A short touch's stated u understates its scatter by another factor than a long one's (ISSUE
@@ -632,19 +666,20 @@ def calibrate_by_contact(object_set: ObjectSet, instrument: str, *,
     touch with the entry nearest its heating time (:meth:`ObjectSet.at_contact`).  A contact time
     with fewer than :data:`MIN_CONTACT_TOUCHES` answered touches gets no entry.  ``bias``: each entry
     carries the probe's bias of ln e at that contact time and ``poor_fit_ln`` too (:func:`calibrate`);
-    ``outlier``: and the likelihood's outlier component (``outlier_weight``, ``outlier_ln``).
+    ``outlier``: and the likelihood's outlier component (``outlier_weight``, ``outlier_ln``);
+    ``spread_fixed``: T = 1 and the scale on the stated u, ``u_var_scale``, fitted instead.
     """
     sim = sim or simulate_touches(object_set.objects, instruments=(instrument,), contact_times_s=contact_times_s,
                                   touches=touches, seed=seed)
-    cal, report = calibrate(object_set, instrument, sim=sim, bias=bias, outlier=outlier)
+    cal, report = calibrate(object_set, instrument, sim=sim, bias=bias, outlier=outlier, spread_fixed=spread_fixed)
     keys = (("temperature", "z_crit") + (("bias_ln", "bias_slope", "poor_fit_ln") if bias else ())
-            + (("outlier_weight", "outlier_ln") if outlier else ()))
+            + (("outlier_weight", "outlier_ln") if outlier else ()) + (("u_var_scale",) if spread_fixed else ()))
     table, per = {}, {}
     for ct in sorted({float(c) for c in sim.contact_time_s}):
         sub = sim.select(np.isclose(sim.contact_time_s, ct))
         if int(sub.ok.sum()) < MIN_CONTACT_TOUCHES:
             continue
-        _, rep = calibrate(cal, instrument, sim=sub, bias=bias, outlier=outlier)
+        _, rep = calibrate(cal, instrument, sim=sub, bias=bias, outlier=outlier, spread_fixed=spread_fixed)
         table[ct] = {k: rep[k] for k in keys}
         per[str(ct)] = {k: rep[k] for k in ("touches", "acceptance") + keys}
         per[str(ct)]["ece_after"] = rep["reliability_after"]["ece"]
