@@ -417,7 +417,8 @@ def head_lines(head: str, h: dict) -> list[str]:
                      f"{pct(x['out_rejected'], 1)} % | {pct(x['ece'], 1)} % |")
     L += ["", "Fitted terms per contact time (`host.recognition.calibrate(bias=True)`, on the probes other than "
           "the one named; per held-out probe: T / z_crit / bias of ln e at e = 1000 / its slope per unit ln e / "
-          "poor_fit_ln; with an outlier component, / its weight ε @ σ_out in ln e):", ""]
+          "poor_fit_ln (a stated u); with an outlier component, / its weight ε @ σ_out in ln e; / k, the scale on "
+          "the stated u² (`host.recognition.fit_u_var_scale`, its bounds 0.02-100)):", ""]
     for ct, r in R.items():
         L.append(f"* {float(ct):g} s: " + "; ".join(
             f"{'fold' if h.get('folds') else 'probe'} {x['held_out_probe']}: {x['temperature']:.2f} / {x['z_crit']:.2f} / "
@@ -657,8 +658,9 @@ def main() -> None:
          "Drawn as-built probes, each calibrated on its own "
          f"references; hand touches (R_c ≤ {args.rc_max:g} m²K/W, object ±2 K, contact 0.5–3 s before heating), "
          f"{specimens(res)} specimens per object (5 % spread), 14 in-set objects and {len(out_objs)} outside the set; "
-         "bias, temperature, z_crit and poor_fit_ln" + (" and the likelihood's outlier component (weight, width)"
-                                                          if OUTLIER else "")
+         "bias, " + ("the scale k on the stated u alone (T = 1, the objects' spread as stated)" if SPREAD_FIXED
+                     else "temperature") + ", z_crit and poor_fit_ln"
+         + (" and the likelihood's outlier component (weight, width)" if OUTLIER else "")
          + " per contact time, fitted " + fold_text(res["heads"].get("paper") or next(iter(res["heads"].values()))), ""]
     L += bar_lines(res)
     if "paper" in res["heads"]:
