@@ -182,7 +182,7 @@ def pytest_collection_modifyitems(session, config, items):
 
 def pytest_configure(config):
     config.addinivalue_line(
-        "markers", "shares_import(name): the test imports a library that costs ~0.5 s or more of CPU (scikit-learn, "
+        "markers", "shares_import(name): the test imports a library that costs ~0.5 s or more of CPU (scikit-learn, scipy.stats, "
         "matplotlib); the xdist schedule gives all such modules to one worker (tests/support/schedule.py)")
 
 
