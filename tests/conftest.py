@@ -176,7 +176,14 @@ def pytest_collection_modifyitems(session, config, items):
 
     n = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1") or 1)
     items[:] = long_first_slices(items, n, module_of=lambda item: item.module,
-                                 is_slow=lambda item: item.get_closest_marker("slow") is not None)
+                                 is_slow=lambda item: item.get_closest_marker("slow") is not None,
+                                 shares_import=lambda item: item.get_closest_marker("shares_import") is not None)
+
+
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers", "shares_import(name): the test imports a library that costs ~0.5 s or more of CPU (scikit-learn, scipy.stats, "
+        "matplotlib); the xdist schedule gives all such modules to one worker (tests/support/schedule.py)")
 
 
 def pytest_collection_finish(session):

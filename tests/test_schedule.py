@@ -46,3 +46,17 @@ def test_slow_modules_larger_than_a_slice_push_the_quick_ones_behind():
     items = _items("s1:6s q:2 s2:1s")
     order = _order(items, 2)                                    # slices of 4 and 5
     assert [m for m, _, _ in order] == ["s1"] * 6 + ["s2", "q", "q"]
+
+
+def test_modules_sharing_a_costly_import_lead_the_first_slice_together():
+    items = _items("q1:3 h1:2 s1:2s q2:3 h2:1s s2:2s q3:3")
+    order = long_first_slices(items, 2, module_of=lambda it: it[0], is_slow=lambda it: it[2],
+                              shares_import=lambda it: it[0].startswith("h"))
+    assert sorted(order) == sorted(items)
+    first, second = order[:8], order[8:]                        # xdist hands out 8 and 8
+    # h1 and h2 (one of them slow) first on one worker, then that slice's slow module, then quick ones.
+    assert [m for m, _, _ in first] == ["h1", "h1", "h2", "s1", "s1", "q1", "q1", "q1"]
+    assert [m for m, _, _ in second[:2]] == ["s2", "s2"]
+    # One worker: nothing to share, the order is the one without them.
+    assert long_first_slices(items, 1, module_of=lambda it: it[0], is_slow=lambda it: it[2],
+                             shares_import=lambda it: it[0].startswith("h")) == _order(items, 1)

@@ -7,6 +7,9 @@ from pathlib import Path
 
 import pytest
 
+# Importing the benches imports scikit-learn and matplotlib: one worker pays for them (tests/support/schedule.py).
+pytestmark = pytest.mark.shares_import("sklearn", "matplotlib")
+
 BENCH = Path(__file__).resolve().parents[2] / "bench"
 SCRIPTS = sorted(p.stem for p in BENCH.glob("*_bench.py"))
 

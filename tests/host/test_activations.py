@@ -10,7 +10,9 @@ import pytest
 from host.activations import sklearn_fast_tanh, tanh_derivative_inplace, tanh_inplace
 
 # The fits here are a few iterations long on purpose (what is under test is the swap, not the fit).
-pytestmark = pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+# scikit-learn: one worker pays for its import (tests/support/schedule.py).
+pytestmark = [pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning"),
+              pytest.mark.shares_import("sklearn")]
 
 
 _STOCK: dict = {}

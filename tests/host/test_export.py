@@ -10,6 +10,9 @@ from edge.model import bundle as B
 from edge.model.schema import ArraySpec, SCHEMAS
 from host.export import export_paper_model, mlp_arrays_from_sklearn, pca_arrays_from_sklearn
 
+# scikit-learn: one worker pays for its import (tests/support/schedule.py).
+pytestmark = pytest.mark.shares_import("sklearn")
+
 
 @pytest.fixture(scope="module")
 def trained():

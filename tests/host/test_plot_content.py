@@ -15,6 +15,9 @@ import pytest
 from host.plot_data import identification, touch_identity, touch_plot_data
 from host.plots import TouchFigure, mpl_config_dir
 
+# matplotlib: one worker pays for its import (tests/support/schedule.py).
+pytestmark = pytest.mark.shares_import("matplotlib")
+
 slow = pytest.mark.slow   # the figures are drawn and written (a few tenths of a second each)
 
 

@@ -5,6 +5,9 @@ import pytest
 
 from edge.estimation.mlp import ACTIVATION_CODES, MLP
 
+# scikit-learn: one worker pays for its import (tests/support/schedule.py).
+pytestmark = pytest.mark.shares_import("sklearn")
+
 
 def _fit(activation: str, hidden=(100, 20), seed: int = 0, n_in: int = 2) -> "MLPRegressor":  # noqa: F821
     # scikit-learn (1.2 s to import, SciPy's stats the most of it) only where a test fits: every

@@ -267,7 +267,10 @@ def _draw_rates(s, mean_ln_e, sd, u, n, seed):
     return sum(s.classify(math.exp(v), u).accepted for v in x) / n
 
 
-@pytest.mark.parametrize("z_crit, temperature", [(1.96, 1.0), (2.5, 1.0), (2.0, 1.5)])
+# 3000 draws classified one by one per case (0.16 s of CPU): z 2.5 is left to the full suite; 1.96 and the tempered
+# 2.0 x 1.5 keep the design rate's two factors in the fast tier.
+@pytest.mark.parametrize("z_crit, temperature",
+                         [(1.96, 1.0), pytest.param(2.5, 1.0, marks=pytest.mark.slow), (2.0, 1.5)])
 def test_false_reject_of_in_set_draws_matches_the_design_rate(z_crit, temperature):
     s = _set(("pmma", "polymer", 560, 0.05), ("glass", "glass", 1400, 0.05), ("steel", "alloy", 8000, 0.03),
              z_crit=z_crit, temperature=temperature)

@@ -175,6 +175,7 @@ def test_estimate_thickness_the_record_cannot_show_is_flagged(capsys, tmp_path):
     assert abs(d["k_W_mK"] / 0.185 - 1) < 2 * d["k_W_mK_u"] / d["k_W_mK"]
 
 
+@pytest.mark.shares_import("sklearn")  # host.train: one worker pays for the import (tests/support/schedule.py)
 def test_train_reprior_copies_the_network_and_refits_only_the_priors_spread(tmp_path, capsys):
     from edge.estimation.estimate import pipeline_golden_check
     from edge.model.bundle import load_bundle

@@ -15,6 +15,9 @@ from host.lab_series import series_document, touch_entry
 from host.lab_stats import VERDICTS
 from tests.support.cli import run, one_line_error
 
+# The report's plots import matplotlib: one worker pays for it (tests/support/schedule.py).
+pytestmark = pytest.mark.shares_import("matplotlib")
+
 SAMPLE = "Glass <B33> & 'co'"
 E = [1500.0, 1540.0, None, 1470.0]
 

@@ -18,6 +18,9 @@ from host.lab_plots import MAX_TOUCH_FIGURES, check_plot, figure_touches
 from host.lab_report import report_title
 from host.lab_series import SeriesFileError, load_series
 
+# The figures import matplotlib: one worker pays for it (tests/support/schedule.py).
+pytestmark = pytest.mark.shares_import("matplotlib")
+
 SAMPLE = "Glass <B33>"
 N = 3
 #: The tests on the module's simulated series are slow (its N simulated touches, and their report drawing a

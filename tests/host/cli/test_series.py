@@ -24,6 +24,9 @@ from host.lab_metadata import MAX_CHARS
 from host.lab_stats import TAIL, summarize
 from tests.support.cli import run, one_line_error
 
+# scipy.stats (0.8 s of CPU to import, as scikit-learn imports it too): one worker pays (tests/support/schedule.py).
+pytestmark = pytest.mark.shares_import("scipy.stats")
+
 SAMPLE = "Borofloat <B33> & co"
 N = 4
 
