@@ -620,6 +620,7 @@ def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequen
     if bias:
         changes["bias_ln"], changes["bias_slope"] = fit_bias(object_set, sim)
     object_set = object_set.with_calibration(**changes)
+    before = object_set        # the likelihood as the set had it: the reliability 'before' is judged with it
     if spread_fixed:   # T = 1: only what the probe states is rescaled
         fu = fit_u_var_scale(object_set, ln_e, u, ti, alpha=alpha, outlier=outlier)
         t, mix = 1.0, {k: fu[k] for k in ("u_var_scale", "outlier_weight", "outlier_ln")}
@@ -630,17 +631,16 @@ def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequen
         t, mix = fo["temperature"], {k: fo[k] for k in ("outlier_weight", "outlier_ln") if k in fo}
     acceptance = acceptance_target(ti.size) if acceptance is None else acceptance
     z = fit_z_crit(object_set, ln_e, u, acceptance=acceptance, temperature=t, alpha=alpha)
-    q, hld, _ = object_set.log_terms(ln_e, u, **alpha)
     report = dict(instrument=instrument, touches=int(ti.size), temperature=t, z_crit=z, acceptance=acceptance,
                   alpha_u_growth=growth, alpha_touches=int(np.isfinite(sim.alpha).sum()),
                   bias_ln=object_set.bias_ln, bias_slope=object_set.bias_slope,
                   outlier_weight=mix.get("outlier_weight", object_set.outlier_weight),
                   outlier_ln=mix.get("outlier_ln", object_set.outlier_ln), u_var_scale=object_set.u_var_scale)
-    for label, temp, eps in (("before", object_set.temperature, object_set.outlier_weight),
-                             ("after", t, report["outlier_weight"])):
-        out_terms = object_set.outlier_terms(ln_e, u, temperature=temp, outlier_ln=report["outlier_ln"],
-                                             **alpha)[:2] if eps > 0 else None
-        p = object_set.posteriors(q, hld, temperature=temp, outlier=out_terms, outlier_weight=eps)
+    for label, s_, temp, eps, w in (("before", before, before.temperature, before.outlier_weight, before.outlier_ln),
+                                    ("after", object_set, t, report["outlier_weight"], report["outlier_ln"])):
+        q, hld, _ = s_.log_terms(ln_e, u, **alpha)
+        out_terms = s_.outlier_terms(ln_e, u, temperature=temp, outlier_ln=w, **alpha)[:2] if eps > 0 else None
+        p = s_.posteriors(q, hld, temperature=temp, outlier=out_terms, outlier_weight=eps)
         report[f"reliability_{label}"] = reliability(p.max(axis=1), p.argmax(axis=1) == ti)
     out = object_set.with_calibration(temperature=t, z_crit=z, **mix)
     if bias:

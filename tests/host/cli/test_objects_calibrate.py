@@ -25,6 +25,10 @@ def test_calibrate_writes_the_fit_as_directives(capsys, tmp_path):
     s = ObjectSet.from_csv_text(written.read_text())
     assert s.names == ("window", "lid", "pan")
     assert s.temperature == rep["temperature"] and s.z_crit == rep["z_crit"] >= 1.96
+    # The specimen spread is the objects' own: T stays 1 and only the stated u is rescaled (ISSUE #37).
+    assert s.temperature == 1.0 and s.u_var_scale == rep["u_var_scale"] > 0
+    assert "#@ u_var_scale" in written.read_text() or rep["u_var_scale"] == 1.0
+    assert all(r["temperature"] == 1.0 and r["u_var_scale"] > 0 for r in rep["by_contact_s"].values())
     assert src.read_text() == KITCHEN  # the input is left alone
 
 
