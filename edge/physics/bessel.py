@@ -10,7 +10,7 @@ import numpy as np
 
 from edge.physics.memo import BoundedMemo
 
-__all__ = ["bessel_j"]
+__all__ = ["bessel_j", "trapezoid_points"]
 
 #: Values already computed, by order and the arguments' exact bytes.  The same arguments come back: every
 #: axisymmetric model on a probe's Hankel nodes (a calibration's finite differences build dozens, one per
@@ -18,6 +18,15 @@ __all__ = ["bessel_j"]
 _MEMO = BoundedMemo(64)
 #: Arguments larger than this are not kept (a footprint's (nodes x rings) table: computed once per footprint).
 _MEMO_MAX_SIZE = 8192
+
+
+def trapezoid_points(x_max: float) -> int:
+    """Trapezoid points over a period for ``exp(i x sin tau)``-type integrands up to bandwidth ``x_max``.
+
+    ``x_max + 10 x_max^(1/3) + 48``: past the Airy transition of the aliased ``J_m(x)``, so the rule is
+    good to round-off (~1e-15).  Shared by :func:`bessel_j` and :func:`edge.physics.footprint.rectangle_weights`.
+    """
+    return int(x_max + 10.0 * x_max ** (1.0 / 3.0)) + 48
 
 
 def bessel_j(n: int, x: np.ndarray) -> np.ndarray:
@@ -55,7 +64,7 @@ def _bessel_j(n: int, x: np.ndarray) -> np.ndarray:
     for i in range(0, xs.size, block):
         xb = xs[i:i + block]
         xm = float(np.max(np.abs(xb)))
-        m = int(xm + 10.0 * xm ** (1.0 / 3.0)) + 48  # past the Airy transition of J_m(x)
+        m = trapezoid_points(xm)
         k = -(-m // 4)  # quadrant points; 4 k >= m
         sin_tau = np.sin(0.5 * np.pi * (np.arange(k) + 0.5) / k)
         arg = xb[:, None] * sin_tau[None, :]

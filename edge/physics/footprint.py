@@ -33,6 +33,8 @@ import math
 
 import numpy as np
 
+from edge.physics.bessel import trapezoid_points
+
 __all__ = ["area_in_disk", "rectangle_weights"]
 
 
@@ -83,8 +85,6 @@ def area_in_disk(r_m, bounds_m: tuple[float, float, float, float]) -> np.ndarray
 
 #: Hankel variables per block of :func:`rectangle_weights` (each block takes the points its largest needs).
 _BLOCK = 64
-#: Trapezoid points beyond the integrand's bandwidth and its Airy transition (as in edge.physics.bessel).
-_MARGIN = 48
 
 
 def rectangle_weights(zeta, side_x_m: float, side_y_m: float, offset_x_m: float = 0.0,
@@ -103,8 +103,8 @@ def rectangle_weights(zeta, side_x_m: float, side_y_m: float, offset_x_m: float 
     Notes
     -----
     The zeta are taken in blocks by increasing ``|zeta|``, each with the trapezoid points its own
-    largest needs (``m = X + 10 X^(1/3) + 48``, ``X = |zeta| R``, R the farthest corner's distance, as in
-    :func:`edge.physics.bessel.bessel_j`): within 1e-15 (round-off) of the rule with 200 more points
+    largest needs (:func:`edge.physics.bessel.trapezoid_points` of ``X = |zeta| R``, R the farthest
+    corner's distance): within 1e-15 (round-off) of the rule with 200 more points
     (``tests/edge/physics/test_footprint.py``).
     """
     z = np.asarray(zeta, dtype=float)
@@ -122,7 +122,7 @@ def rectangle_weights(zeta, side_x_m: float, side_y_m: float, offset_x_m: float 
     for i in range(0, zs.size, _BLOCK):
         zb = zs[i:i + _BLOCK, None]
         x = float(np.max(np.abs(zb))) * reach
-        m = int(x + 10.0 * x ** (1.0 / 3.0)) + _MARGIN
+        m = trapezoid_points(x)
         th = 2.0 * np.pi * (np.arange(m) + 0.5) / m
         kx, ky = zb * np.cos(th), zb * np.sin(th)
         # np.sinc is sin(pi u) / (pi u), finite at 0.

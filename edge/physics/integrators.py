@@ -216,15 +216,24 @@ def _uniform_from_zero(t: np.ndarray) -> float | None:
     return dt if dt > 0 and float(np.max(np.abs(t - dt * np.arange(n)))) <= tol else None
 
 
+#: Kernels up to this many samples are convolved directly (np.convolve), longer ones through the FFT.
+_DIRECT_MAX = 512
+
+
+def _fft_size(n: int) -> int:
+    """The FFT length of a causal convolution of ``n`` samples: a power of two >= 2n - 1 (no wrap-around)."""
+    return 1 << (2 * n - 1).bit_length()
+
+
 def causal_convolution(g: np.ndarray, d: np.ndarray) -> np.ndarray:
     """out[..., i] = sum over j <= i of g[..., i - j] d[j], for i < g.shape[-1] (FFT when long)."""
     n = g.shape[-1]
     d = d[:n]
-    if n <= 512 and g.size <= 4 * n:
+    if n <= _DIRECT_MAX and g.size <= 4 * n:
         if g.ndim == 1:   # one kernel (the sensor chain's many small calls): no stacking round trip
             return np.convolve(g, d)[:n]
         return np.stack([np.convolve(row, d)[:n] for row in np.atleast_2d(g)]).reshape(g.shape)
-    size = 1 << (2 * n - 1).bit_length()
+    size = _fft_size(n)
     return np.fft.irfft(np.fft.rfft(g, size) * np.fft.rfft(d, size), size)[..., :n]
 
 
@@ -237,9 +246,9 @@ def causal_convolution_columns(g: np.ndarray, D: np.ndarray) -> np.ndarray:
     """
     n = g.shape[-1]
     D = D[:n]
-    if n <= 512:   # causal_convolution's direct branch for one kernel
+    if n <= _DIRECT_MAX:   # causal_convolution's direct branch for one kernel
         return np.column_stack([np.convolve(g, D[:, j])[:n] for j in range(D.shape[1])])
-    size = 1 << (2 * n - 1).bit_length()
+    size = _fft_size(n)
     G = np.fft.rfft(g, size)
     return np.column_stack([np.fft.irfft(G * np.fft.rfft(D[:, j], size), size)[:n] for j in range(D.shape[1])])
 
