@@ -334,8 +334,9 @@ def _keep_transforms(key: tuple | None, parts: tuple, out: tuple) -> None:
             _TRANSFORMS.popitem(last=False)
 
 
-#: Terms of the (p, zeta) grid by its numbers and one material's (read-only, the same bits): an object's
-#: gamma_o (its complex square root is most of a transform) and a substrate's admittance.  A calibration's
+#: Terms of the (p, zeta) grid by its numbers and one material's (read-only, the same bits): an object's or
+#: the sensing layer's gamma (its complex square root is most of a transform), a substrate's admittance, the
+#: heater film's terms.  A calibration's
 #: finite-difference columns of the probe's own parameters and of a reference's k or contact build other
 #: models on the same grid for the same objects: 55 % of the small-heater tests' transforms and 70 % of
 #: their substrate set-ups were of a grid and material seen before.  ~0.2 MB an entry on the small heater.
@@ -406,18 +407,22 @@ class AxisymModel:
 
         # Heater film (material h): gamma, k gamma, tanh, sech.
         hm = g.heater_material
-        gh = np.sqrt(p / hm.alpha_m2_s + z2)
-        kgh = hm.k_W_mK * gh
-        Th = _tanh(gh * g.heater_thickness_m)
-        Sh = _sech(gh * g.heater_thickness_m)
-        theta_p = q_v / (p * hm.k_W_mK * gh * gh)     # particular solution (per unit source shape)
-        self._heater = (kgh, Th, Sh, theta_p)
+
+        def heater() -> tuple[np.ndarray, ...]:
+            gh = np.sqrt(p / hm.alpha_m2_s + z2)
+            kgh = hm.k_W_mK * gh
+            Th = _tanh(gh * g.heater_thickness_m)
+            Sh = _sech(gh * g.heater_thickness_m)
+            theta_p = q_v / (p * hm.k_W_mK * gh * gh)     # particular solution (per unit source shape)
+            return kgh, Th, Sh, theta_p
+        # The same film on the same grid for every sensing layer a calibration tries (_GRID_TERMS).
+        self._heater = _GRID_TERMS(("heater", *self._grid_key(), hm, float(g.heater_thickness_m), q_v), heater)
         self._set_substrate(g.substrate, g.substrate_thickness_m)
 
         # Sensing layer (material s), thickness L; sensor depths u = L - z.
         sm = g.sensing
         L = g.sensing_thickness_m
-        gs = np.sqrt(p / sm.alpha_m2_s + z2)
+        gs = self._object_gamma_kept(sm.alpha_m2_s)[1]    # sqrt(p / alpha_s + zeta^2), kept by the grid
         self._kgs = sm.k_W_mK * gs
         self._Ts = _tanh(gs * L)
         self._Ss = _sech(gs * L)
@@ -432,7 +437,7 @@ class AxisymModel:
         (ch0, sh0), (ch1, sh1) = _ch_sh_ratios(gs, u0, L, den), _ch_sh_ratios(gs, u1, L, den)
         self._qa = sm.k_W_mK * (ch0 - ch1) / dz
         self._qb = (sh0 - sh1) / (gs * dz)
-        self.n_nodes = int(gh.size)
+        self.n_nodes = int(self._heater[0].size)
         _keep_parts(key, self)
 
     def _set_substrate(self, substrate: Solid | None, thickness_m: float) -> None:
@@ -499,10 +504,13 @@ class AxisymModel:
             key = self._grid_bytes = (self._p.tobytes(), self._z2.tobytes())
         return key
 
-    def _object_gamma(self, alpha_m2_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """(p / alpha, gamma_o = sqrt(p / alpha + zeta^2)) of an object of diffusivity ``alpha_m2_s``."""
-        p_a = self._p / alpha_m2_s
-        return p_a, np.sqrt(p_a + self._z2)
+    def _object_gamma_kept(self, alpha_m2_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """(p / alpha, gamma = sqrt(p / alpha + zeta^2)) of a layer or object of diffusivity ``alpha_m2_s``
+        (read-only, kept: :data:`_GRID_TERMS`)."""
+        def compute() -> tuple[np.ndarray, np.ndarray]:
+            p_a = self._p / alpha_m2_s
+            return p_a, np.sqrt(p_a + self._z2)
+        return _GRID_TERMS(("gamma", *self._grid_key(), float(alpha_m2_s)), compute)
 
     # -- object
     def object_admittance(self, k_W_mK: float, alpha_m2_s: float, thickness_m: float | None = None,
@@ -536,7 +544,7 @@ class AxisymModel:
     def _transforms(self, k_W_mK: float, alpha_m2_s: float, thickness_m: float | None, back: str,
                     contact_resistance_m2K_W: float, derivatives: bool):
         """:meth:`transforms`, computed."""
-        p_a, go = _GRID_TERMS(("object", *self._grid_key(), float(alpha_m2_s)), lambda: self._object_gamma(alpha_m2_s))
+        p_a, go = self._object_gamma_kept(alpha_m2_s)
         Y = k_W_mK * go
         fin = not (back == "infinite" or thickness_m is None)
         if fin:
