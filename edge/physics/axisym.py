@@ -339,8 +339,9 @@ def _keep_transforms(key: tuple | None, parts: tuple, out: tuple) -> None:
 #: heater film's terms.  A calibration's
 #: finite-difference columns of the probe's own parameters and of a reference's k or contact build other
 #: models on the same grid for the same objects: 55 % of the small-heater tests' transforms and 70 % of
-#: their substrate set-ups were of a grid and material seen before.  ~0.2 MB an entry on the small heater.
-_GRID_TERMS = BoundedMemo(48)
+#: their substrate set-ups were of a grid and material seen before.  ~0.2 MB an entry on the small heater
+#: (the film's four terms 0.9 MB); at most 8 MB in all (a calibration's iteration uses about 15 entries).
+_GRID_TERMS = BoundedMemo(48, max_bytes=8 * 2**20)
 
 #: Substrate variants kept per model (:meth:`AxisymModel.with_substrate`): the point and its two substrate
 #: columns and a trial; ~0.65 MB each on the small-heater probe.
