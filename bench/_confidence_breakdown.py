@@ -3,13 +3,14 @@
 An answer's printed posterior ``c`` leaves ``1 - c`` to the other hypotheses: the ``unknown``
 background (prior ``prior_unknown``, flat over ``UNKNOWN_LN_E_SPAN``), the runner-up object and
 the rest.  Per reliability bin of the in-set answers (evaluation split), :func:`breakdown` reports
-the mean confidence, the share right, and those three masses, for all answers and for the
+the mean confidence, the share right, and those masses, for all answers and for the
 sub-populations the likelihood treats differently (answers with a stated u; touches named from a
-poorly fitted chain at ``poor_fit_ln``).  Beside it, the *closed-set* confidence of the accepted
-answers (``c / (1 - unknown)``) against the same rightness: a diagnostic of the object terms
-alone, never what the device prints (the printed answer keeps the background's mass; a rejected
-in-set touch still counts wrong).  ISSUE #37: in-set answers between 0.6 and 0.95 were right
-5-13 points more often than they said; this splits how much of that is the background's mass.
+poorly fitted chain at ``poor_fit_ln``).  The printed confidence of an accepted answer is the
+closed-set posterior (given the touched object is one of the set's; the background's share is
+printed beside it); beside it, the *joint* confidence ``c (1 - unknown)`` that the device printed
+before (the background's mass folded into every object's posterior).  ISSUE #37: in-set answers
+between 0.6 and 0.95 were right 5-13 points more often than that joint confidence said; this table
+showed the background's mass to be most of it (a rejected in-set touch still counts wrong).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from host.recognition import RELIABILITY_BINS
 __all__ = ["breakdown", "breakdown_lines"]
 
 
-def _rows(conf, ok, unk, runner, closed, bins) -> list[dict]:
+def _rows(conf, ok, unk, runner, joint, bins) -> list[dict]:
     edges = np.asarray(bins, float)
     which = np.clip(np.searchsorted(edges, conf, side="right") - 1, 0, edges.size - 2)
     rows = []
@@ -32,12 +33,12 @@ def _rows(conf, ok, unk, runner, closed, bins) -> list[dict]:
         mean = (lambda a: float(np.mean(a[m])) if n else None)  # noqa: E731
         rows.append(dict(lo=float(edges[b]), hi=float(edges[b + 1]), n=n, confidence=mean(conf),
                          accuracy=mean(ok.astype(float)), unknown=mean(unk), runner_up=mean(runner),
-                         closed_set=mean(closed)))
+                         joint=mean(joint)))
     return rows
 
 
 def breakdown(oset, touches, recs, *, bins=RELIABILITY_BINS) -> dict:
-    """Per bin of the in-set answers' confidence: n, confidence, right, unknown / runner-up mass, closed-set confidence.
+    """Per bin of the in-set answers' confidence: n, confidence, right, unknown / runner-up mass, joint confidence.
 
     ``unknown``: the background's mass beside an object answer (0 for an ``unknown`` answer, whose
     confidence is that mass); ``runner_up``: the best object other than the answer.  Groups: ``all``, ``stated_u`` (named with the answer's stated u), ``poor_fit`` (named from a
@@ -50,12 +51,12 @@ def breakdown(oset, touches, recs, *, bins=RELIABILITY_BINS) -> dict:
     # The background's mass beside an object answer (a rejected answer's confidence is that mass itself).
     unk = np.where(accepted, [recs[i].unknown_posterior for i in idx], 0.0) if idx.size else np.zeros(0)
     runner = np.array([next((p for n, p in recs[i].candidates if n != recs[i].object), 0.0) for i in idx], float)
-    # Accepted answers without the background's mass; a rejected one keeps its own.
-    closed = np.where(accepted, conf / np.maximum(1.0 - unk, 1e-12), conf)
+    # Accepted answers with the background's mass folded in (what was printed before); a rejected one keeps its own.
+    joint = np.where(accepted, conf * (1.0 - unk), conf)
     poor = np.asarray(touches.poor_fit, bool)[idx] if idx.size else np.zeros(0, bool)
     groups = {"all": np.ones(idx.size, bool), "stated_u": ~poor, "poor_fit": poor}
     return {"unknown_share": float(unk.mean()) if unk.size else None,
-            "groups": {g: {"n": int(m.sum()), "rows": _rows(conf[m], ok[m], unk[m], runner[m], closed[m], bins)}
+            "groups": {g: {"n": int(m.sum()), "rows": _rows(conf[m], ok[m], unk[m], runner[m], joint[m], bins)}
                        for g, m in groups.items()}}
 
 
@@ -64,14 +65,14 @@ def _pct(x) -> str:
 
 
 def breakdown_lines(by_contact: dict) -> list[str]:
-    """The bench's table: per contact time and bin, conf / right / unknown / runner-up (n), and closed-set conf."""
+    """The bench's table: per contact time and bin, conf / right / unknown / runner-up (n), and the joint conf."""
     R = {c: r["confidence_breakdown"] for c, r in by_contact.items() if r.get("confidence_breakdown")}
     if not R:
         return []
     L = ["", "Where the in-set answers' missing confidence went (evaluation split; `bench/_confidence_breakdown.py`): "
-         "per bin, printed confidence / right / mean `unknown` mass / runner-up object's mass (n), then the "
-         "closed-set confidence `c / (1 - unknown)` of the same answers (a diagnostic, not printed). Mean `unknown` "
-         "mass over all answers: " + ", ".join(f"{float(c):g} s {100 * R[c]['unknown_share']:.1f} %" for c in R) + ".",
+         "per bin, printed (closed-set) confidence / right / mean `unknown` mass / runner-up object's mass (n), then "
+         "the joint confidence `c (1 - unknown)` of the same answers (the background's mass folded in: what was "
+         "printed before). Mean `unknown` mass beside the object answers: " + ", ".join(f"{float(c):g} s {100 * R[c]['unknown_share']:.1f} %" for c in R) + ".",
          "", "| group | bin | " + " | ".join(f"{float(c):g} s" for c in R) + " |", "|---|---|" + "---|" * len(R)]
     for g in ("all", "stated_u", "poor_fit"):
         rows = {c: R[c]["groups"][g]["rows"] for c in R}
@@ -81,7 +82,7 @@ def breakdown_lines(by_contact: dict) -> list[str]:
             for c in R:
                 x = rows[c][b]
                 cells.append("." if not x["n"] else f"{_pct(x['confidence'])}/{_pct(x['accuracy'])}/"
-                             f"{_pct(x['unknown'])}/{_pct(x['runner_up'])} ({x['n']}); closed {_pct(x['closed_set'])}")
+                             f"{_pct(x['unknown'])}/{_pct(x['runner_up'])} ({x['n']}); joint {_pct(x['joint'])}")
             L.append(f"| {g} (n {', '.join(str(R[c]['groups'][g]['n']) for c in R)}) | {row['lo']:.2f}-{row['hi']:.2f} | "
                      + " | ".join(cells) + " |")
     return L

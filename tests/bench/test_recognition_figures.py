@@ -79,7 +79,7 @@ def test_the_ece_interval_covers_the_truth_and_resamples_by_probe():
 
 
 def test_the_breakdown_tells_the_background_mass_from_the_objects_terms():
-    """Objects far apart, wide u: every answer right, its printed confidence short by the `unknown` mass alone."""
+    """Objects far apart, wide u: every answer right and said so (closed-set); the joint confidence short by the background."""
     from _confidence_breakdown import breakdown, breakdown_lines
     from edge.recognition import KnownObject, ObjectSet
     from host.recognition import Touches, classify_touches
@@ -98,13 +98,15 @@ def test_the_breakdown_tells_the_background_mass_from_the_objects_terms():
     rows = [r for r in b["groups"]["all"]["rows"] if r["n"]]
     right = sum(r["accuracy"] * r["n"] for r in rows) / n
     conf = sum(r["confidence"] * r["n"] for r in rows) / n
-    assert right > 0.98 and conf < right - 0.02                  # under-confident as printed ...
-    assert b["unknown_share"] == pytest.approx(right - conf, abs=0.02)   # ... by the background's mass
+    joint = sum(r["joint"] * r["n"] for r in rows) / n
+    assert right > 0.98 and conf > right - 0.01                  # calibrated as printed (closed-set) ...
+    assert joint < right - 0.02                                  # ... where the background folded in was under-confident
+    assert b["unknown_share"] == pytest.approx(conf - joint, abs=0.02)   # ... by the background's mass
     for r in rows:
-        assert r["confidence"] + r["unknown"] + r["runner_up"] <= 1.0 + 1e-9
+        assert r["joint"] + r["unknown"] <= 1.0 + 1e-9 and r["joint"] <= r["confidence"] + 1e-12
     top = [r for r in rows if r["lo"] >= 0.9]                    # the accepted answers: the object terms alone calibrated
     assert sum(r["n"] for r in top) > 0.95 * n
-    assert all(r["closed_set"] > 0.98 and r["runner_up"] < 0.01 and r["accuracy"] == 1.0 for r in top)
+    assert all(r["confidence"] > 0.98 and r["runner_up"] < 0.01 and r["accuracy"] == 1.0 for r in top)
     assert b["groups"]["poor_fit"]["n"] == int(poor.sum()) and b["groups"]["stated_u"]["n"] == n - int(poor.sum())
     lines = breakdown_lines({"1.0": {"confidence_breakdown": b}})
     assert any(line.startswith("| poor_fit") for line in lines) and "1 s" in lines[1]

@@ -34,10 +34,10 @@ def test_names_the_object_among_the_file(capsys, tmp_path, glass_record):
     assert [c["name"] for c in d["candidates"]][0] == "window" and len(d["candidates"]) == 3
     assert all(set(c) == {"name", "posterior"} for c in d["candidates"])
     # The one result shape states a probability to P_DIGITS significant digits (issue #33's Estimate):
-    # the four stated posteriors sum to one within their rounding.
+    # the three stated candidates (the file's three objects, closed-set) sum to one within their rounding.
     from edge.estimation.result import P_DIGITS
 
-    stated = [c["posterior"] for c in d["candidates"]] + [d["unknown_posterior"]]
+    stated = [c["posterior"] for c in d["candidates"]]
     assert sum(stated) == pytest.approx(1.0, abs=sum(0.5 * 10.0 ** (1 - P_DIGITS) * p for p in stated))
 
 
