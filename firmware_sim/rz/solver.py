@@ -394,11 +394,14 @@ class Solver:
         """``T`` is uniform over the active cells at a rest temperature, and nothing heats."""
         if amplitude != 0.0:
             return False
-        rng = self._rest_range()
-        if rng is None:
-            return False
+        # The field's uniformity first: it costs a comparison, where the rest range costs a step of
+        # the scheme (and the factor, if no solve needed it yet), and most unheated fields (a
+        # touch's contact transient, a probe cooling after a lift) are not uniform.
         T_u = float(T.flat[self._first_active])
-        return rng[0] <= T_u <= rng[1] and np.array_equal(T, T_u * self.grid.active)
+        if not np.array_equal(T, T_u * self.grid.active):
+            return False
+        rng = self._rest_range()
+        return rng is not None and rng[0] <= T_u <= rng[1]
 
     # -- fields
     def initial_field(self, T_probe_K: float, T_object_K: float | None = None) -> np.ndarray:
