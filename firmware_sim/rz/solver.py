@@ -46,7 +46,8 @@ from firmware_sim.rz.footprint import depth_weights, off_axis_weights
 from firmware_sim.rz.grid import Grid
 from firmware_sim.rz.stepmemo import clear_step_memo, keep, recall
 
-__all__ = ["BlockTridiagonal", "clear_factor_cache", "Probes", "Record", "Solver", "steady_state", "axis_value", "SCHEMES"]
+__all__ = ["BlockTridiagonal", "clear_factor_cache", "Probes", "Record", "Solver", "steady_state", "axis_value",
+           "axis_weights", "SCHEMES"]
 
 SCHEMES = ("be", "cn", "trbdf2")
 _GAMMA = 2.0 - math.sqrt(2.0)
@@ -183,9 +184,17 @@ def _axis_weights(grid: Grid) -> tuple[float, float]:
     return rho[1] / (rho[1] - rho[0]), -rho[0] / (rho[1] - rho[0])
 
 
-def axis_value(grid: Grid, values: np.ndarray) -> float | np.ndarray:
-    """Axis value of a radial profile (last axis indexed by r), from its first two cells."""
-    c0, c1 = _axis_weights(grid)
+def axis_weights(grid: Grid) -> tuple[float, float]:
+    """The weights :func:`axis_value` gives the first two cells (for a caller that reads many profiles)."""
+    return _axis_weights(grid)
+
+
+def axis_value(grid: Grid, values: np.ndarray, weights: tuple[float, float] | None = None) -> float | np.ndarray:
+    """Axis value of a radial profile (last axis indexed by r), from its first two cells.
+
+    ``weights``: :func:`axis_weights` of ``grid`` if already taken.
+    """
+    c0, c1 = _axis_weights(grid) if weights is None else weights
     v = np.asarray(values, float)
     return c0 * v[..., 0] + c1 * v[..., 1]
 
