@@ -134,9 +134,15 @@ class BlockTridiagonal:
         Off-diagonal inside each block (entry ``[j, i]`` couples i, i+1).
     off_between : ndarray, (n - 1, m)
         Coupling between block rows j and j+1 (entry ``[j, i]``).
+    shared_rows : int, optional
+        How many leading block rows another factor may share (:data:`_ROW_CACHE`): those are
+        taken from it and kept in it; the rest are eliminated here only.  Default: every row.
+        A hint that spends the cache on the rows other matrices have (the probe's, above any
+        object); the factor is the same whatever it says.
     """
 
-    def __init__(self, diag: np.ndarray, off_in: np.ndarray, off_between: np.ndarray) -> None:
+    def __init__(self, diag: np.ndarray, off_in: np.ndarray, off_between: np.ndarray,
+                 shared_rows: int | None = None) -> None:
         n, m = diag.shape
         if np.any(diag <= 0):
             raise ValueError("matrix diagonal must be positive (SPD system)")
@@ -164,21 +170,23 @@ class BlockTridiagonal:
         # eliminated (another configuration of the same probe), its inverse is taken as it is.
         h = hashlib.blake2b(digest_size=20)
         update = h.update
+        n_shared = n if shared_rows is None else max(0, min(int(shared_rows), n))
         for j in range(n):
             w = int(width[j])
             c = min(w, w_prev) if j else 0
-            update(w.to_bytes(4, "little"))
-            update(diag[j, :w])
-            update(off_in[j, : max(w - 1, 0)])
-            if c:
-                update(diag[j - 1, :c])
-                update(off_between[j - 1, :c])
-            key = h.digest()
-            hit = _cached_row(key)
-            if hit is not None:
-                prev, w_prev = hit, w
-                G.append(prev)
-                continue
+            if j < n_shared:
+                update(w.to_bytes(4, "little"))
+                update(diag[j, :w])
+                update(off_in[j, : max(w - 1, 0)])
+                if c:
+                    update(diag[j - 1, :c])
+                    update(off_between[j - 1, :c])
+                key = h.digest()
+                hit = _cached_row(key)
+                if hit is not None:
+                    prev, w_prev = hit, w
+                    G.append(prev)
+                    continue
             # The scaled row: unit diagonal, its in-row couplings either side of it.
             S = np.zeros((w, w))
             flat = S.reshape(-1)
@@ -201,7 +209,8 @@ class BlockTridiagonal:
                 prev *= 0.5
             else:
                 prev = S
-            _keep_row(key, prev)
+            if j < n_shared:
+                _keep_row(key, prev)
             w_prev = w
             G.append(prev)
         self.n, self.m = n, m

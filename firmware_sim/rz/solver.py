@@ -74,11 +74,13 @@ def clear_factor_cache() -> None:
     clear_step_memo()
 
 
-def _factor(diag: np.ndarray, off_in: np.ndarray, off_between: np.ndarray) -> BlockTridiagonal:
+def _factor(diag: np.ndarray, off_in: np.ndarray, off_between: np.ndarray,
+            shared_rows: int | None = None) -> BlockTridiagonal:
     """:class:`BlockTridiagonal` of these arrays, from the cache when the very same matrix was factored.
 
     The key is a digest of the arrays' shapes and exact bytes, so a hit is the factor the
-    arrays would give (the factor is read-only once built).
+    arrays would give (the factor is read-only once built; ``shared_rows``, which rows it may
+    share with other factors, does not change it).
     """
     h = hashlib.blake2b(digest_size=20)
     for a in (diag, off_in, off_between):
@@ -90,7 +92,7 @@ def _factor(diag: np.ndarray, off_in: np.ndarray, off_between: np.ndarray) -> Bl
     if fac is not None:
         _FACTOR_CACHE.move_to_end(key)
         return fac
-    fac = BlockTridiagonal(diag, off_in, off_between)
+    fac = BlockTridiagonal(diag, off_in, off_between, shared_rows)
     _FACTOR_CACHE[key] = fac
     total = sum(f.nbytes for f in _FACTOR_CACHE.values())
     while total > _FACTOR_CACHE_BYTES and len(_FACTOR_CACHE) > 1:
@@ -116,6 +118,17 @@ class _Operator:
         self.k_diag = kd
         # Inactive cells are decoupled; give them a unit diagonal so the system stays SPD.
         self.inactive = ~grid.active
+        # Block rows another configuration can share (blocktri._ROW_CACHE): a probe's rows above its
+        # object, the same on every object it touches at the same step.  An object's rows belong to
+        # one configuration (its whole factor is cached as such), and blocks across the layers (the
+        # transposed orientation) hold every layer's cells: none of those is kept for sharing.
+        names = [layer.name for layer in grid.layers]
+        if "object" not in names:
+            self.shared_rows = None
+        elif self.transpose:
+            self.shared_rows = 0
+        else:
+            self.shared_rows = int(np.argmax(grid.layer_of_row == names.index("object")))
 
     def apply_K(self, T: np.ndarray) -> np.ndarray:
         """``K @ T`` for a field of the grid's shape (conduction out of each cell + surface loss)."""
@@ -132,8 +145,8 @@ class _Operator:
         d = np.where(self.inactive, 1.0, d)
         off_r, off_z = -self.gr, -self.gz
         if self.transpose:
-            return _factor(d.T.copy(), off_z.T.copy(), off_r.T.copy())
-        return _factor(d, off_r, off_z)
+            return _factor(d.T.copy(), off_z.T.copy(), off_r.T.copy(), self.shared_rows)
+        return _factor(d, off_r, off_z, self.shared_rows)
 
     def solve(self, fac: BlockTridiagonal, rhs: np.ndarray) -> np.ndarray:
         if self.transpose:
