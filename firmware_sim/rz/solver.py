@@ -180,9 +180,10 @@ class Probes:
 
     def read(self, T: np.ndarray, g_t: np.ndarray) -> np.ndarray:
         """Values for field ``T`` (flattened or not) and ambient term vector ``g_t`` (=sum g T_inf)."""
-        flat = T.reshape(-1)
-        return np.array([flat[i] @ w for i, w in zip(self.idx[::2], self.w[::2])]) + np.array(
-            [g_t.reshape(-1)[i] @ w for i, w in zip(self.idx[1::2], self.w[1::2])])
+        flat, g = T.reshape(-1), g_t.reshape(-1)
+        idx, w = self.idx, self.w
+        # Per output its dot on T plus its dot on the forcing (the same scalar sums an array add makes).
+        return np.array([flat[i] @ a + g[k] @ b for i, a, k, b in zip(idx[::2], w[::2], idx[1::2], w[1::2])])
 
 
 def _axis_weights(grid: Grid) -> tuple[float, float]:
