@@ -11,7 +11,9 @@ block row), both keyed by the exact bytes that determine what they hold:
   rows up to ``j``, and the probe's rows come first in every contact configuration
   of a probe, so a factor on a new object takes the probe's rows and eliminates
   its object's -- the same arithmetic on the same numbers, so the same bits (in
-  air the probe's rows are narrower: nothing to share there).
+  air the probe's rows are narrower: nothing to share there).  A factor keeps and takes
+  only the rows it is told others can share (``shared_rows``: the probe's, above its
+  object), so the cache holds those and not the object rows no other matrix has.
 """
 
 from __future__ import annotations
