@@ -11,7 +11,9 @@ block row), both keyed by the exact bytes that determine what they hold:
   rows up to ``j``, and the probe's rows come first in every contact configuration
   of a probe, so a factor on a new object takes the probe's rows and eliminates
   its object's -- the same arithmetic on the same numbers, so the same bits (in
-  air the probe's rows are narrower: nothing to share there).
+  air the probe's rows are narrower: nothing to share there).  A factor keeps and takes
+  only the rows it is told others can share (``shared_rows``: the probe's, above its
+  object), so the cache holds those and not the object rows no other matrix has.
 """
 
 from __future__ import annotations
@@ -67,7 +69,25 @@ def _keep_row(key: bytes, G: np.ndarray) -> None:
 #: Widths above which a block's inverse is taken in two halves (:func:`_inverse`).
 _SPLIT_WIDTH = 48
 
+try:
+    # The gufunc behind ``np.linalg.inv`` (the same LAPACK call on the same numbers, so the same
+    # bits), called directly: the wrapper's checks and conversions cost ~10 % of a 47-wide inverse,
+    # and a factor takes two per block row.  :func:`_inverse` sets the same error state once.
+    from numpy.linalg import _umath_linalg
 
+    def _inv(a: np.ndarray) -> np.ndarray:
+        return _umath_linalg.inv(a, signature="d->d")
+except ImportError:  # pragma: no cover - a NumPy without the private module
+    _inv = np.linalg.inv
+
+
+def _singular(err: str, flag: int) -> None:
+    raise np.linalg.LinAlgError("Singular matrix")
+
+
+# The error state ``np.linalg.inv`` sets around its gufunc (a singular block raises), once per block
+# (as a decorator: a fresh state per call, so threads factoring at once do not share one).
+@np.errstate(call=_singular, invalid="call", over="ignore", divide="ignore", under="ignore")
 def _inverse(S: np.ndarray) -> np.ndarray:
     """Inverse of a symmetric positive definite block, in two halves when it is wide.
 
@@ -75,16 +95,17 @@ def _inverse(S: np.ndarray) -> np.ndarray:
     complement ``C = D - B^T A^-1 B`` (positive definite too, so no pivoting is needed) and
     ``X = -A^-1 B C^-1``.  LAPACK's inverse of a 75-wide block costs as much as fifteen of its
     matrix products here; two half-width inverses and four products cost 30-45 % less on the
-    75- and 95-wide blocks (one thread), the same to round-off.
+    75- and 95-wide blocks (one thread), the same to round-off.  A singular block raises
+    ``LinAlgError``, as ``np.linalg.inv`` would.
     """
     n = S.shape[0]
     if n <= _SPLIT_WIDTH:
-        return np.linalg.inv(S)
+        return _inv(S)
     k = n // 2
-    Ai = np.linalg.inv(S[:k, :k])
+    Ai = _inv(S[:k, :k])
     B = S[:k, k:]
     AiB = Ai @ B
-    Ci = np.linalg.inv(S[k:, k:] - B.T @ AiB)
+    Ci = _inv(S[k:, k:] - B.T @ AiB)
     X = -(AiB @ Ci)
     out = np.empty_like(S)
     out[:k, :k] = Ai - X @ AiB.T
@@ -115,9 +136,15 @@ class BlockTridiagonal:
         Off-diagonal inside each block (entry ``[j, i]`` couples i, i+1).
     off_between : ndarray, (n - 1, m)
         Coupling between block rows j and j+1 (entry ``[j, i]``).
+    shared_rows : int, optional
+        How many leading block rows another factor may share (:data:`_ROW_CACHE`): those are
+        taken from it and kept in it; the rest are eliminated here only.  Default: every row.
+        A hint that spends the cache on the rows other matrices have (the probe's, above any
+        object); the factor is the same whatever it says.
     """
 
-    def __init__(self, diag: np.ndarray, off_in: np.ndarray, off_between: np.ndarray) -> None:
+    def __init__(self, diag: np.ndarray, off_in: np.ndarray, off_between: np.ndarray,
+                 shared_rows: int | None = None) -> None:
         n, m = diag.shape
         if np.any(diag <= 0):
             raise ValueError("matrix diagonal must be positive (SPD system)")
@@ -135,6 +162,8 @@ class BlockTridiagonal:
         coupled[:-1] |= b != 0
         coupled[1:] |= b != 0
         width = np.where(coupled.any(axis=1), m - np.argmax(coupled[:, ::-1], axis=1), 0)
+        # Contiguous float64 rows: the digest reads their bytes in place.
+        diag, off_in, off_between = (np.ascontiguousarray(a, dtype=float) for a in (diag, off_in, off_between))
         G = []
         prev, w_prev = None, 0
         # Row j's inverse is a function of the rows up to j as far as they are coupled: their
@@ -142,38 +171,48 @@ class BlockTridiagonal:
         # running digest of exactly those numbers names it; where the prefix is one already
         # eliminated (another configuration of the same probe), its inverse is taken as it is.
         h = hashlib.blake2b(digest_size=20)
+        update = h.update
+        n_shared = n if shared_rows is None else max(0, min(int(shared_rows), n))
         for j in range(n):
             w = int(width[j])
             c = min(w, w_prev) if j else 0
-            h.update(w.to_bytes(4, "little"))
-            h.update(np.ascontiguousarray(diag[j, :w], dtype=float).tobytes())
-            h.update(np.ascontiguousarray(off_in[j, : max(w - 1, 0)], dtype=float).tobytes())
-            if c:
-                h.update(np.ascontiguousarray(diag[j - 1, :c], dtype=float).tobytes())
-                h.update(np.ascontiguousarray(off_between[j - 1, :c], dtype=float).tobytes())
-            key = h.digest()
-            hit = _cached_row(key)
-            if hit is not None:
-                prev, w_prev = hit, w
-                G.append(prev)
-                continue
-            idx = np.arange(w)
+            if j < n_shared:
+                update(w.to_bytes(4, "little"))
+                update(diag[j, :w])
+                update(off_in[j, : max(w - 1, 0)])
+                if c:
+                    update(diag[j - 1, :c])
+                    update(off_between[j - 1, :c])
+                key = h.digest()
+                hit = _cached_row(key)
+                if hit is not None:
+                    prev, w_prev = hit, w
+                    G.append(prev)
+                    continue
+            # The scaled row: unit diagonal, its in-row couplings either side of it.
             S = np.zeros((w, w))
-            S[idx, idx] = 1.0
-            S[idx[:-1], idx[1:]] = a_in[j, : max(w - 1, 0)]
-            S[idx[1:], idx[:-1]] = a_in[j, : max(w - 1, 0)]
-            if prev is not None:
-                # Only the leading min(w, w_prev) unknowns of the two rows can be coupled.
-                c = min(w, w_prev)
+            flat = S.reshape(-1)
+            flat[:: w + 1] = 1.0
+            if w > 1:
+                a = a_in[j, : w - 1]
+                flat[1:: w + 1] = a
+                flat[w:: w + 1] = a
+            if prev is not None and c:
+                # Only the leading min(w, w_prev) unknowns of the two rows can be coupled:
+                # S -= diag(b) G_prev diag(b), the products in the order written.
                 bj = b[j - 1, :c]
-                S[:c, :c] -= bj[:, None] * prev[:c, :c] * bj[None, :]
+                t = bj[:, None] * prev[:c, :c]
+                t *= bj
+                S[:c, :c] -= t
             if w:
                 prev = _inverse(S)
                 # Symmetrise: S_j is symmetric, its computed inverse only to round-off.
-                prev = 0.5 * (prev + prev.T)
+                prev = prev + prev.T
+                prev *= 0.5
             else:
                 prev = S
-            _keep_row(key, prev)
+            if j < n_shared:
+                _keep_row(key, prev)
             w_prev = w
             G.append(prev)
         self.n, self.m = n, m

@@ -18,7 +18,7 @@ from edge.physics.geometry import PROBES, ProbeGeometry
 from edge.physics.solids import Solid
 from firmware_sim.rz.footprint import SquareSensor
 from firmware_sim.rz.grid import ADIABATIC, PU_FOAM, SENSOR_AREA_m2, Boundary, Grid, Layer, Mesh
-from firmware_sim.rz.solver import Solver
+from firmware_sim.rz.solver import Solver, axis_weights
 from firmware_sim.scene.model import Scene
 
 __all__ = ["AsBuilt", "Geometry", "GridConfig", "SQUARE_SENSOR_PROBES", "geometry_for_probe", "build_config"]
@@ -193,6 +193,11 @@ class GridConfig:
         if self.has_object:
             self.obj_rows = slice(n_probe_rows, grid.nz)
             self.k_obj = float(grid.k_cell_W_mK[n_probe_rows, 0])
+            #: What the object-side face temperature reads of the grid (FaithfulWorld._record, every
+            #: record): the axial conductances and areas of the first two rings across the interface,
+            #: the object's top cell height and the axis weights (grid properties rebuilt per call).
+            self.face_terms = (grid.g_z_W_K[n_probe_rows - 1, :2], grid.ring_area_m2[:2],
+                               grid.dz_m[n_probe_rows], axis_weights(grid))
 
     def solver(self, dt: float, scheme: str = "trbdf2") -> Solver:
         key = (round(dt, 12), scheme)

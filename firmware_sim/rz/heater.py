@@ -64,7 +64,11 @@ class FilmHeater:
 
     def _nominal_energy(self, t_a: float, t_b: float, switches: np.ndarray) -> float:
         """Integral of duty * V^2 over [t_a, t_b) (J ohm), exact over the switching instants."""
-        i0, i1 = np.searchsorted(switches, [t_a, t_b], side="right")
+        i0 = switches.searchsorted(t_a, side="right")
+        i1 = switches.searchsorted(t_b, side="right")
+        if i0 == i1:
+            # No switch inside the step (nearly every step): the one piece, summed as below.
+            return 0 + self._dv2(t_a) * (t_b - t_a)
         edges = [t_a] + [float(x) for x in switches[i0:i1] if t_a < x < t_b] + [t_b]
         return sum(self._dv2(a) * (b - a) for a, b in zip(edges[:-1], edges[1:]))
 

@@ -480,9 +480,9 @@ class FaithfulWorld(SensorSignals, FilmHeater):
         if cfg.has_object:
             # Object-side face temperature on the axis: top object cells + half-cell drop, r^2 fit.
             j = cfg.n_probe_rows
-            A = cfg.grid.ring_area_m2[:2]
-            q_ax = cfg.grid.g_z_W_K[j - 1, :2] * (st.T[j - 1, :2] - st.T[j, :2]) / A
-            h["T_obj_face"][i] = float(axis_value(cfg.grid, st.T[j, :2] + q_ax * cfg.grid.dz_m[j] / (2 * cfg.k_obj)))
+            gz, A, dz, c = cfg.face_terms    # the grid's arrays, taken once per configuration
+            q_ax = gz * (st.T[j - 1, :2] - st.T[j, :2]) / A
+            h["T_obj_face"][i] = float(axis_value(cfg.grid, st.T[j, :2] + q_ax * dz / (2 * cfg.k_obj), c))
         else:
             h["T_obj_face"][i] = np.nan
         h["y"][i] = T_tc if y is None else y

@@ -46,7 +46,8 @@ from firmware_sim.rz.footprint import depth_weights, off_axis_weights
 from firmware_sim.rz.grid import Grid
 from firmware_sim.rz.stepmemo import clear_step_memo, keep, recall
 
-__all__ = ["BlockTridiagonal", "clear_factor_cache", "Probes", "Record", "Solver", "steady_state", "axis_value", "SCHEMES"]
+__all__ = ["BlockTridiagonal", "clear_factor_cache", "Probes", "Record", "Solver", "steady_state", "axis_value",
+           "axis_weights", "SCHEMES"]
 
 SCHEMES = ("be", "cn", "trbdf2")
 _GAMMA = 2.0 - math.sqrt(2.0)
@@ -73,11 +74,13 @@ def clear_factor_cache() -> None:
     clear_step_memo()
 
 
-def _factor(diag: np.ndarray, off_in: np.ndarray, off_between: np.ndarray) -> BlockTridiagonal:
+def _factor(diag: np.ndarray, off_in: np.ndarray, off_between: np.ndarray,
+            shared_rows: int | None = None) -> BlockTridiagonal:
     """:class:`BlockTridiagonal` of these arrays, from the cache when the very same matrix was factored.
 
     The key is a digest of the arrays' shapes and exact bytes, so a hit is the factor the
-    arrays would give (the factor is read-only once built).
+    arrays would give (the factor is read-only once built; ``shared_rows``, which rows it may
+    share with other factors, does not change it).
     """
     h = hashlib.blake2b(digest_size=20)
     for a in (diag, off_in, off_between):
@@ -89,7 +92,7 @@ def _factor(diag: np.ndarray, off_in: np.ndarray, off_between: np.ndarray) -> Bl
     if fac is not None:
         _FACTOR_CACHE.move_to_end(key)
         return fac
-    fac = BlockTridiagonal(diag, off_in, off_between)
+    fac = BlockTridiagonal(diag, off_in, off_between, shared_rows)
     _FACTOR_CACHE[key] = fac
     total = sum(f.nbytes for f in _FACTOR_CACHE.values())
     while total > _FACTOR_CACHE_BYTES and len(_FACTOR_CACHE) > 1:
@@ -115,6 +118,17 @@ class _Operator:
         self.k_diag = kd
         # Inactive cells are decoupled; give them a unit diagonal so the system stays SPD.
         self.inactive = ~grid.active
+        # Block rows another configuration can share (blocktri._ROW_CACHE): a probe's rows above its
+        # object, the same on every object it touches at the same step.  An object's rows belong to
+        # one configuration (its whole factor is cached as such), and blocks across the layers (the
+        # transposed orientation) hold every layer's cells: none of those is kept for sharing.
+        names = [layer.name for layer in grid.layers]
+        if "object" not in names:
+            self.shared_rows = None
+        elif self.transpose:
+            self.shared_rows = 0
+        else:
+            self.shared_rows = int(np.argmax(grid.layer_of_row == names.index("object")))
 
     def apply_K(self, T: np.ndarray) -> np.ndarray:
         """``K @ T`` for a field of the grid's shape (conduction out of each cell + surface loss)."""
@@ -131,8 +145,8 @@ class _Operator:
         d = np.where(self.inactive, 1.0, d)
         off_r, off_z = -self.gr, -self.gz
         if self.transpose:
-            return _factor(d.T.copy(), off_z.T.copy(), off_r.T.copy())
-        return _factor(d, off_r, off_z)
+            return _factor(d.T.copy(), off_z.T.copy(), off_r.T.copy(), self.shared_rows)
+        return _factor(d, off_r, off_z, self.shared_rows)
 
     def solve(self, fac: BlockTridiagonal, rhs: np.ndarray) -> np.ndarray:
         if self.transpose:
@@ -166,9 +180,10 @@ class Probes:
 
     def read(self, T: np.ndarray, g_t: np.ndarray) -> np.ndarray:
         """Values for field ``T`` (flattened or not) and ambient term vector ``g_t`` (=sum g T_inf)."""
-        flat = T.reshape(-1)
-        return np.array([flat[i] @ w for i, w in zip(self.idx[::2], self.w[::2])]) + np.array(
-            [g_t.reshape(-1)[i] @ w for i, w in zip(self.idx[1::2], self.w[1::2])])
+        flat, g = T.reshape(-1), g_t.reshape(-1)
+        idx, w = self.idx, self.w
+        # Per output its dot on T plus its dot on the forcing (the same scalar sums an array add makes).
+        return np.array([flat[i] @ a + g[k] @ b for i, a, k, b in zip(idx[::2], w[::2], idx[1::2], w[1::2])])
 
 
 def _axis_weights(grid: Grid) -> tuple[float, float]:
@@ -183,9 +198,17 @@ def _axis_weights(grid: Grid) -> tuple[float, float]:
     return rho[1] / (rho[1] - rho[0]), -rho[0] / (rho[1] - rho[0])
 
 
-def axis_value(grid: Grid, values: np.ndarray) -> float | np.ndarray:
-    """Axis value of a radial profile (last axis indexed by r), from its first two cells."""
-    c0, c1 = _axis_weights(grid)
+def axis_weights(grid: Grid) -> tuple[float, float]:
+    """The weights :func:`axis_value` gives the first two cells (for a caller that reads many profiles)."""
+    return _axis_weights(grid)
+
+
+def axis_value(grid: Grid, values: np.ndarray, weights: tuple[float, float] | None = None) -> float | np.ndarray:
+    """Axis value of a radial profile (last axis indexed by r), from its first two cells.
+
+    ``weights``: :func:`axis_weights` of ``grid`` if already taken.
+    """
+    c0, c1 = _axis_weights(grid) if weights is None else weights
     v = np.asarray(values, float)
     return c0 * v[..., 0] + c1 * v[..., 1]
 
@@ -394,11 +417,14 @@ class Solver:
         """``T`` is uniform over the active cells at a rest temperature, and nothing heats."""
         if amplitude != 0.0:
             return False
-        rng = self._rest_range()
-        if rng is None:
-            return False
+        # The field's uniformity first: it costs a comparison, where the rest range costs a step of
+        # the scheme (and the factor, if no solve needed it yet), and most unheated fields (a
+        # touch's contact transient, a probe cooling after a lift) are not uniform.
         T_u = float(T.flat[self._first_active])
-        return rng[0] <= T_u <= rng[1] and np.array_equal(T, T_u * self.grid.active)
+        if not np.array_equal(T, T_u * self.grid.active):
+            return False
+        rng = self._rest_range()
+        return rng is not None and rng[0] <= T_u <= rng[1]
 
     # -- fields
     def initial_field(self, T_probe_K: float, T_object_K: float | None = None) -> np.ndarray:

@@ -153,6 +153,21 @@ def test_heat_a_different_field_or_a_second_surface_temperature_are_solved():
     assert T3.min() < 300.0
 
 
+def test_an_unheated_field_that_is_not_uniform_is_solved_without_a_rest_check():
+    # The rest check costs a step of the scheme (and the factor): a field that cannot be at rest
+    # (a touch's contact transient) is told by its values alone, and solves to the same bits.
+    s = S.Solver(_air_probe(), 0.01, factor_now=False)
+    T0 = s.initial_field(300.0)
+    T0.flat[int(np.flatnonzero(s.grid.active)[50])] += 0.5
+    assert not s._at_rest(T0, 0.0) and s._rest_key is None and s._fac is None
+    T1, _, _ = s.step(T0, s.heater_source_W(), 0.0)
+    assert s._rest_key is None
+    ref = S.Solver(_air_probe(), 0.01).run(T0, 1, keep_field=True).T_final_K
+    assert np.array_equal(T1, ref)
+    # A uniform field still asks (and is at rest at the surfaces' temperature).
+    assert s._at_rest(s.initial_field(300.0), 0.0) and s._rest_key is s.g_t
+
+
 def test_the_rest_state_follows_the_forcing_a_step_response_swaps_in():
     # step_response zeroes the ambient forcing for its run; the rest state must not outlive it.
     s = S.Solver(_air_probe(), 0.01)
