@@ -36,6 +36,7 @@ Flags: ``uncalibrated`` (the datasheet chain), ``contact_not_recorded``,
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 from functools import lru_cache
@@ -47,6 +48,7 @@ from edge.estimation.contact import find_contact
 from edge.estimation.sensor_chain import (DiskFitter, SensorChainCalibration, chain_point, chain_theta, chain_with_theta,
                                           face_flux, fit_sensor_chain, refine_factor)
 from edge.physics.geometry import PROBES
+from edge.physics.memo import BoundedMemo
 from edge.physics.probe import (FLUX_SENSITIVITY_U_REL, SENSING_K_U_REL, SENSING_THICKNESS_U_REL,
                                THERMOCOUPLE_TAU_U_s)
 from edge.status import Flag
@@ -389,6 +391,55 @@ def contact_fraction(tt, TT, qq, chain, breaks, noise_T: float) -> tuple[float, 
     return got[best][0], u
 
 
+#: Whole answers of :func:`estimate_from_contact` by their exact inputs.  A touch is estimated more than once
+#: on the same numbers: the device's answer repeats the running decision's last refit when that refit saw the
+#: whole record, and ``thermotouch estimate`` of an exported touch (in the same process: the CLI's tests, the
+#: demo) repeats the device's.  Kept per record bytes, the calibration's and the library's content and this
+#: module's tunables; a hit returns a copy, the same numbers a recomputation gives.
+_ESTIMATES = BoundedMemo(32)
+
+
+def _calibration_key(cal: Any) -> tuple | None:
+    """The calibration's content as a key (None: no content key known -- the estimate is not kept)."""
+    if cal is None or type(cal) is DatasheetChain:
+        return ("datasheet", cal)                       # frozen, compared by its fields
+    # A ProbeCalibration's sha256 is the SHA-256 of its whole content (recomputed, never stored).
+    if isinstance(getattr(type(cal), "sha256", None), property):
+        return ("sha256", type(cal).__module__, type(cal).__qualname__, cal.sha256)
+    return None
+
+
+def _library_key(library: Any) -> tuple | None:
+    """The prior's library as a key: its tables and widths (None: not a Library -- not kept)."""
+    if library is None:
+        return ("csv",)
+    from edge.estimation.identification import Library  # noqa: PLC0415
+
+    if type(library) is not Library:
+        return None
+    lib = library
+    return ("library", lib.effusivity.tobytes(), lib.k.tobytes(), lib.rho_c.tobytes(), lib._ln_e.tobytes(),
+            lib._ln_rc.tobytes(), tuple(lib.names), tuple(lib.classes), lib.kernel_floor_ln, lib.rho_c_intrinsic_ln,
+            lib.material_spread_ln)
+
+
+def _tunables() -> tuple:
+    """This module's and the sensor chain's constants as they are now (a test may change one)."""
+    from edge.estimation import sensor_chain  # noqa: PLC0415
+
+    return tuple((name, v) for mod in (globals(), vars(sensor_chain)) for name, v in mod.items()
+                 if name[:1].isupper() and isinstance(v, (int, float, tuple)))
+
+
+def _estimate_key(t_s, T_C, q_W_m2, calibration: Any, heater_radius_m: float | None, library: Any) -> tuple | None:
+    cal_key, lib_key = _calibration_key(calibration), _library_key(library)
+    if cal_key is None or lib_key is None:
+        return None
+    arrays = [np.asarray(x, dtype=np.float64) for x in (t_s, T_C, q_W_m2)]
+    return (*((a.shape, a.tobytes()) for a in arrays), cal_key, lib_key,
+            None if heater_radius_m is None else float(heater_radius_m), _tunables())
+
+
 def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
                           heater_radius_m: float | None = None, library=None) -> dict[str, Any]:
     """e, R_c and T_obj0 of one touch, with their uncertainties, flags and the fit's quality.
@@ -420,8 +471,21 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
         ``normalised_residual``, ``flags``, ``determined``, ``calibration_sha256``; with a finite
         heater also ``alpha_m2_s``, ``k_W_mK`` (+ ``_u``; measured when ``determined`` lists them,
         otherwise the prior's) and ``alpha_prior_ln`` (mean, sd of ln alpha).  Flags are
-        :class:`edge.status.Flag` words.
+        :class:`edge.status.Flag` words.  The same inputs give the same answer, kept (:data:`_ESTIMATES`).
     """
+    key = _estimate_key(t_s, T_C, q_W_m2, calibration, heater_radius_m, library)
+    hit = None if key is None else _ESTIMATES.get(key)
+    if hit is not None:
+        return copy.deepcopy(hit)
+    d = _estimate_from_contact(t_s, T_C, q_W_m2, calibration, heater_radius_m=heater_radius_m, library=library)
+    if key is not None:
+        _ESTIMATES.put(key, copy.deepcopy(d))
+    return d
+
+
+def _estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
+                           heater_radius_m: float | None = None, library=None) -> dict[str, Any]:
+    """:func:`estimate_from_contact`, computed."""
     cal = DatasheetChain() if calibration is None else calibration
     t, T, q = uniform_record(t_s, T_C, q_W_m2)
     c = find_contact(t, T, q)
