@@ -440,6 +440,37 @@ def _estimate_key(t_s, T_C, q_W_m2, calibration: Any, heater_radius_m: float | N
             None if heater_radius_m is None else float(heater_radius_m), _tunables())
 
 
+#: One fit window's 1-D fit and lateral profile (:func:`_window_profile`) by their exact inputs.  A running
+#: decision refits the growing record every ``CHAIN_EVERY_s``: the windows that end before the record does
+#: (heater-on + 1 s, + 2 s, ...) hold the same samples at every later refit (59 of 91 windows of a replayed
+#: round trip's refits were repeats).
+_WINDOWS = BoundedMemo(64)
+
+
+def _window_profile(tt: np.ndarray, TT: np.ndarray, qq: np.ndarray, chain: SensorChainCalibration, noise_T: float,
+                    breaks: tuple, frac: float, a: float, library: Any) -> tuple[Any, LateralProfile | None]:
+    """The 1-D disk-free fit of one window and its lateral profile (None when that fit is unusable), kept."""
+    lib_key = _library_key(library)
+    key = None if lib_key is None else (tt.tobytes(), TT.tobytes(), qq.tobytes(), chain, float(noise_T), breaks,
+                                        float(frac), float(a), lib_key, _tunables())
+    hit = None if key is None else _WINDOWS.get(key)
+    if hit is not None:
+        return hit
+    F = DiskFitter(tt, TT, qq, calibration=chain, fit_start_s=FIT_START_s, noise_T_K=noise_T, breaks_s=breaks,
+                   contact_frac=frac)
+    c1 = F(None)
+    p = None
+    if math.isfinite(c1.e_W_s05_m2K) and c1.e_W_s05_m2K > 0:
+        p = lateral_profile(lambda al: F((a, al)), c1.e_W_s05_m2K, noise_T, point=lambda al: F.point((a, al)),
+                            library=library)
+    if key is not None:
+        for res in (c1, None if p is None else p.fit):   # shared from here on: read-only
+            if res is not None:
+                res.correlation.flags.writeable = False
+        _WINDOWS.put(key, (c1, p))
+    return c1, p
+
+
 def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
                           heater_radius_m: float | None = None, library=None) -> dict[str, Any]:
     """e, R_c and T_obj0 of one touch, with their uncertainties, flags and the fit's quality.
@@ -542,14 +573,8 @@ def _estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
             if n_keep < 16 or (cands and n_keep >= full[0].size and extra != math.inf):
                 continue
             tt, TT, qq = (x[:n_keep] for x in full)
-            F = DiskFitter(tt, TT, qq, calibration=cal.chain, fit_start_s=FIT_START_s, noise_T_K=noise_T,
-                           breaks_s=breaks, contact_frac=frac)
-            c1 = F(None)
-            if bad(c1):
-                continue
-            p = lateral_profile(lambda al, F=F: F((a, al)), c1.e_W_s05_m2K, noise_T,
-                                point=lambda al, F=F: F.point((a, al)), library=library)
-            if p is None or bad(p.fit):
+            c1, p = _window_profile(tt, TT, qq, cal.chain, noise_T, breaks, frac, a, library)
+            if bad(c1) or p is None or bad(p.fit):
                 continue
             cands.append([n_keep, c1, p, math.hypot(p.fit.u_e_W_s05_m2K / p.fit.e_W_s05_m2K, p.u_ln_e), 0.0])
         for k, cnd in enumerate(cands):

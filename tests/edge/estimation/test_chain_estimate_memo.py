@@ -81,3 +81,38 @@ def test_inputs_without_a_content_key_are_not_kept(record, computed):
     for _ in range(2):
         ce.estimate_from_contact(t, T, q, Chain())
     assert len(computed) == 2 and len(ce._ESTIMATES) == 0
+
+
+def test_a_growing_record_reuses_its_earlier_windows_and_answers_as_computed_afresh(monkeypatch):
+    """A running decision's refits: each window ending before the record does is fitted and profiled once."""
+    t = np.round(np.arange(-1.0, 3.0001, 0.05), 10)
+    rng = np.random.default_rng(2)
+    on = t > 0
+    q = np.where(on, 1500.0, 0.0) + rng.normal(0, 5, t.size)
+    T = 25.0 + np.where(on, 2.0 * np.sqrt(np.clip(t, 0, None) / np.pi), 0.0) + rng.normal(0, 0.005, t.size)
+    built = []
+
+    class Counting(ce.DiskFitter):
+        def __init__(self, *args, **kw):
+            built.append(args[0].size)
+            super().__init__(*args, **kw)
+    monkeypatch.setattr(ce, "DiskFitter", Counting)
+    ends = (2.0, 2.5, 3.0)                                   # heater-on + 1 s is a window of every prefix
+
+    def answers(fresh: bool) -> list[str]:
+        out = []
+        for end in ends:
+            if fresh:
+                monkeypatch.setattr(ce, "_WINDOWS", ce.BoundedMemo(64))
+            monkeypatch.setattr(ce, "_ESTIMATES", ce.BoundedMemo(32))
+            keep = t <= end + 1e-9
+            out.append(repr(ce.estimate_from_contact(t[keep], T[keep], q[keep], sample_calibration())))
+        return out
+    monkeypatch.setattr(ce, "_WINDOWS", ce.BoundedMemo(64))
+    growing = answers(False)
+    n_growing = len(built)
+    built.clear()
+    assert answers(True) == growing
+    assert "effusivity_W_s05_m2K': None" not in growing[0]
+    # Afresh every prefix fits its earlier windows again (here 8 windows of 4 lengths); growing, each length once.
+    assert n_growing == len(set(built)) < len(built)
