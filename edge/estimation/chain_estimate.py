@@ -38,13 +38,16 @@ from __future__ import annotations
 
 import copy
 import math
+import sys
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any, Callable
 
 import numpy as np
 
+from edge.estimation import sensor_chain
 from edge.estimation.contact import find_contact
+from edge.estimation.content_keys import calibration_content, library_key, object_key, tunables
 from edge.estimation.sensor_chain import (DiskFitter, SensorChainCalibration, chain_point, chain_theta, chain_with_theta,
                                           face_flux, fit_sensor_chain, refine_factor)
 from edge.physics.geometry import PROBES
@@ -399,71 +402,20 @@ def contact_fraction(tt, TT, qq, chain, breaks, noise_T: float) -> tuple[float, 
 _ESTIMATES = BoundedMemo(32)
 
 
-#: Content keys of the calibrations and libraries last seen, by id (the object kept, so its id is not reused):
-#: a calibration's SHA-256 and a library's tables cost ~0.2 ms each to key, and a touch's refits pass the same two.
-_OBJECT_KEYS: dict[int, tuple[Any, tuple | None]] = {}
-_OBJECT_KEYS_MAX = 16
-
-
-def _object_key(obj: Any, make: Callable[[Any], tuple | None]) -> tuple | None:
-    hit = _OBJECT_KEYS.get(id(obj))
-    if hit is not None and hit[0] is obj:
-        return hit[1]
-    key = make(obj)
-    if len(_OBJECT_KEYS) >= _OBJECT_KEYS_MAX:
-        _OBJECT_KEYS.clear()
-    _OBJECT_KEYS[id(obj)] = (obj, key)
-    return key
-
-
-def _calibration_content(cal: Any) -> tuple | None:
-    # A ProbeCalibration (frozen) is its content's SHA-256 (recomputed from it, never stored).
-    if isinstance(getattr(type(cal), "sha256", None), property):
-        return ("sha256", type(cal).__module__, type(cal).__qualname__, cal.sha256)
-    return None
-
-
 def _calibration_key(cal: Any) -> tuple | None:
     """The calibration's content as a key (None: no content key known -- the estimate is not kept)."""
     if cal is None or type(cal) is DatasheetChain:
         return ("datasheet", cal)                       # frozen, compared by its fields
-    return _object_key(cal, _calibration_content)
-
-
-def _library_content(lib: Any) -> tuple | None:
-    from edge.estimation.identification import Library  # noqa: PLC0415
-
-    if type(lib) is not Library:
-        return None
-    return ("library", lib.effusivity.tobytes(), lib.k.tobytes(), lib.rho_c.tobytes(), lib._ln_e.tobytes(),
-            lib._ln_rc.tobytes(), tuple(lib.names), tuple(lib.classes), lib.kernel_floor_ln, lib.rho_c_intrinsic_ln,
-            lib.material_spread_ln)
-
-
-def _library_key(library: Any) -> tuple | None:
-    """The prior's library as a key: its tables and widths (None: not a Library -- not kept)."""
-    return ("csv",) if library is None else _object_key(library, _library_content)
-
-
-#: Names of the constants :func:`_tunables` reads, per module (found once; their values are read at each call).
-_TUNABLE_NAMES: list[tuple[Any, tuple[str, ...]]] = []
+    return object_key(cal, calibration_content)
 
 
 def _tunables() -> tuple:
     """This module's and the sensor chain's constants as they are now (a test may change one)."""
-    if not _TUNABLE_NAMES:
-        import sys  # noqa: PLC0415
-
-        from edge.estimation import sensor_chain  # noqa: PLC0415
-
-        for mod in (sys.modules[__name__], sensor_chain):
-            _TUNABLE_NAMES.append((mod, tuple(name for name, v in vars(mod).items()
-                                              if name[:1].isupper() and isinstance(v, (int, float, tuple)))))
-    return tuple(getattr(mod, name) for mod, names in _TUNABLE_NAMES for name in names)
+    return tunables(sys.modules[__name__], sensor_chain)
 
 
 def _estimate_key(t_s, T_C, q_W_m2, calibration: Any, heater_radius_m: float | None, library: Any) -> tuple | None:
-    cal_key, lib_key = _calibration_key(calibration), _library_key(library)
+    cal_key, lib_key = _calibration_key(calibration), library_key(library)
     if cal_key is None or lib_key is None:
         return None
     arrays = [np.asarray(x, dtype=np.float64) for x in (t_s, T_C, q_W_m2)]
@@ -481,7 +433,7 @@ _WINDOWS = BoundedMemo(64)
 def _window_profile(tt: np.ndarray, TT: np.ndarray, qq: np.ndarray, chain: SensorChainCalibration, noise_T: float,
                     breaks: tuple, frac: float, a: float, library: Any) -> tuple[Any, LateralProfile | None]:
     """The 1-D disk-free fit of one window and its lateral profile (None when that fit is unusable), kept."""
-    lib_key = _library_key(library)
+    lib_key = library_key(library)
     key = None if lib_key is None else (tt.tobytes(), TT.tobytes(), qq.tobytes(), chain, float(noise_T), breaks,
                                         float(frac), float(a), lib_key, _tunables())
     hit = None if key is None else _WINDOWS.get(key)
