@@ -36,17 +36,22 @@ Flags: ``uncalibrated`` (the datasheet chain), ``contact_not_recorded``,
 
 from __future__ import annotations
 
+import copy
 import math
+import sys
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any, Callable
 
 import numpy as np
 
+from edge.estimation import sensor_chain
 from edge.estimation.contact import find_contact
+from edge.estimation.content_keys import calibration_content, library_key, object_key, tunables
 from edge.estimation.sensor_chain import (DiskFitter, SensorChainCalibration, chain_point, chain_theta, chain_with_theta,
                                           face_flux, fit_sensor_chain, refine_factor)
 from edge.physics.geometry import PROBES
+from edge.physics.memo import BoundedMemo
 from edge.physics.probe import (FLUX_SENSITIVITY_U_REL, SENSING_K_U_REL, SENSING_THICKNESS_U_REL,
                                THERMOCOUPLE_TAU_U_s)
 from edge.status import Flag
@@ -389,6 +394,66 @@ def contact_fraction(tt, TT, qq, chain, breaks, noise_T: float) -> tuple[float, 
     return got[best][0], u
 
 
+#: Whole answers of :func:`estimate_from_contact` by their exact inputs.  A touch is estimated more than once
+#: on the same numbers: the device's answer repeats the running decision's last refit when that refit saw the
+#: whole record, and ``thermotouch estimate`` of an exported touch (in the same process: the CLI's tests, the
+#: demo) repeats the device's.  Kept per record bytes, the calibration's and the library's content and this
+#: module's tunables; a hit returns a copy, the same numbers a recomputation gives.
+_ESTIMATES = BoundedMemo(32)
+
+
+def _calibration_key(cal: Any) -> tuple | None:
+    """The calibration's content as a key (None: no content key known -- the estimate is not kept)."""
+    if cal is None or type(cal) is DatasheetChain:
+        return ("datasheet", cal)                       # frozen, compared by its fields
+    return object_key(cal, calibration_content)
+
+
+def _tunables() -> tuple:
+    """This module's and the sensor chain's constants as they are now (a test may change one)."""
+    return tunables(sys.modules[__name__], sensor_chain)
+
+
+def _estimate_key(t_s, T_C, q_W_m2, calibration: Any, heater_radius_m: float | None, library: Any) -> tuple | None:
+    cal_key, lib_key = _calibration_key(calibration), library_key(library)
+    if cal_key is None or lib_key is None:
+        return None
+    arrays = [np.asarray(x, dtype=np.float64) for x in (t_s, T_C, q_W_m2)]
+    return (*((a.shape, a.tobytes()) for a in arrays), cal_key, lib_key,
+            None if heater_radius_m is None else float(heater_radius_m), _tunables())
+
+
+#: One fit window's 1-D fit and lateral profile (:func:`_window_profile`) by their exact inputs.  A running
+#: decision refits the growing record every ``CHAIN_EVERY_s``: the windows that end before the record does
+#: (heater-on + 1 s, + 2 s, ...) hold the same samples at every later refit (59 of 91 windows of a replayed
+#: round trip's refits were repeats).
+_WINDOWS = BoundedMemo(64)
+
+
+def _window_profile(tt: np.ndarray, TT: np.ndarray, qq: np.ndarray, chain: SensorChainCalibration, noise_T: float,
+                    breaks: tuple, frac: float, a: float, library: Any) -> tuple[Any, LateralProfile | None]:
+    """The 1-D disk-free fit of one window and its lateral profile (None when that fit is unusable), kept."""
+    lib_key = library_key(library)
+    key = None if lib_key is None else (tt.tobytes(), TT.tobytes(), qq.tobytes(), chain, float(noise_T), breaks,
+                                        float(frac), float(a), lib_key, _tunables())
+    hit = None if key is None else _WINDOWS.get(key)
+    if hit is not None:
+        return hit
+    F = DiskFitter(tt, TT, qq, calibration=chain, fit_start_s=FIT_START_s, noise_T_K=noise_T, breaks_s=breaks,
+                   contact_frac=frac)
+    c1 = F(None)
+    p = None
+    if math.isfinite(c1.e_W_s05_m2K) and c1.e_W_s05_m2K > 0:
+        p = lateral_profile(lambda al: F((a, al)), c1.e_W_s05_m2K, noise_T, point=lambda al: F.point((a, al)),
+                            library=library)
+    if key is not None:
+        for res in (c1, None if p is None else p.fit):   # shared from here on: read-only
+            if res is not None:
+                res.correlation.flags.writeable = False
+        _WINDOWS.put(key, (c1, p))
+    return c1, p
+
+
 def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
                           heater_radius_m: float | None = None, library=None) -> dict[str, Any]:
     """e, R_c and T_obj0 of one touch, with their uncertainties, flags and the fit's quality.
@@ -420,8 +485,21 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
         ``normalised_residual``, ``flags``, ``determined``, ``calibration_sha256``; with a finite
         heater also ``alpha_m2_s``, ``k_W_mK`` (+ ``_u``; measured when ``determined`` lists them,
         otherwise the prior's) and ``alpha_prior_ln`` (mean, sd of ln alpha).  Flags are
-        :class:`edge.status.Flag` words.
+        :class:`edge.status.Flag` words.  The same inputs give the same answer, kept (:data:`_ESTIMATES`).
     """
+    key = _estimate_key(t_s, T_C, q_W_m2, calibration, heater_radius_m, library)
+    hit = None if key is None else _ESTIMATES.get(key)
+    if hit is not None:
+        return copy.deepcopy(hit)
+    d = _estimate_from_contact(t_s, T_C, q_W_m2, calibration, heater_radius_m=heater_radius_m, library=library)
+    if key is not None:
+        _ESTIMATES.put(key, copy.deepcopy(d))
+    return d
+
+
+def _estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
+                           heater_radius_m: float | None = None, library=None) -> dict[str, Any]:
+    """:func:`estimate_from_contact`, computed."""
     cal = DatasheetChain() if calibration is None else calibration
     t, T, q = uniform_record(t_s, T_C, q_W_m2)
     c = find_contact(t, T, q)
@@ -478,14 +556,8 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
             if n_keep < 16 or (cands and n_keep >= full[0].size and extra != math.inf):
                 continue
             tt, TT, qq = (x[:n_keep] for x in full)
-            F = DiskFitter(tt, TT, qq, calibration=cal.chain, fit_start_s=FIT_START_s, noise_T_K=noise_T,
-                           breaks_s=breaks, contact_frac=frac)
-            c1 = F(None)
-            if bad(c1):
-                continue
-            p = lateral_profile(lambda al, F=F: F((a, al)), c1.e_W_s05_m2K, noise_T,
-                                point=lambda al, F=F: F.point((a, al)), library=library)
-            if p is None or bad(p.fit):
+            c1, p = _window_profile(tt, TT, qq, cal.chain, noise_T, breaks, frac, a, library)
+            if bad(c1) or p is None or bad(p.fit):
                 continue
             cands.append([n_keep, c1, p, math.hypot(p.fit.u_e_W_s05_m2K / p.fit.e_W_s05_m2K, p.u_ln_e), 0.0])
         for k, cnd in enumerate(cands):

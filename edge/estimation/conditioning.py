@@ -51,6 +51,29 @@ def duhamel_m(t_eval: float, t_q: np.ndarray, q: np.ndarray) -> float:
     return float(_TWO_OVER_SQRT_PI * np.sum(q * (np.sqrt(t_eval - a) - np.sqrt(t_eval - b))))
 
 
+#: Rows x columns of one block of :func:`_duhamel_m_at` (bounds its memory on a long record: ~2 MB).
+_BLOCK_ELEMENTS = 1 << 18
+
+
+def _duhamel_m_at(t_eval: np.ndarray, t_q: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """:func:`duhamel_m` at each of ``t_eval`` (all > 0 and none past ``t_q[-1]``), the same numbers.
+
+    One row of intervals per time, a block of rows at a time: the same element-wise terms, and each
+    row's sum is NumPy's pairwise sum over the same values, as the 1-D call's (a Python loop of
+    :func:`duhamel_m` calls was most of :func:`contact_effusivity`'s cost, twice per touch).
+    """
+    b = np.asarray(t_q, float)
+    q = np.asarray(q, float)
+    q = np.concatenate((q[:1], 0.5 * (q[1:] + q[:-1])))
+    a = np.concatenate(([0.0], b[:-1]))
+    out = np.empty(t_eval.size)
+    step = max(1, _BLOCK_ELEMENTS // max(1, b.size))
+    for i in range(0, t_eval.size, step):
+        x = t_eval[i:i + step, None]
+        out[i:i + step] = np.sum(q * (np.sqrt(x - np.minimum(a, x)) - np.sqrt(x - np.minimum(b, x))), axis=1)
+    return _TWO_OVER_SQRT_PI * out
+
+
 def baseline_mask(t_s: np.ndarray, heated: bool, arm_s: float, baseline_s: float) -> np.ndarray:
     """The samples that make the baseline: before heater-on (all when the heater never went on).
 
@@ -158,7 +181,8 @@ def contact_effusivity(t_s: np.ndarray, dT_K: np.ndarray, q_W_m2: np.ndarray, T_
     ok = tT > 0
     if not ok.any():
         return None
-    m = np.array([duhamel_m(x, t, q) for x in tT[ok]])
+    x = tT[ok]
+    m = _duhamel_m_at(x, t, q) if float(x.max()) <= float(t[-1]) else np.array([duhamel_m(v, t, q) for v in x])
     d = dT[ok]
     s_dd = float(d @ d)
     if not s_dd > 0 or float(np.mean(d[-max(1, d.size // 3):])) <= min_rise_K:

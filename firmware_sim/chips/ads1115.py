@@ -189,7 +189,8 @@ class ADS1115Emulator(Freezable):
         elif self._pointer == 0x00 and self.regs[0x01] & 0x0004 and self.regs[0x01] & 0x3 != 3:
             self._alert = False          # latched alert clears on a conversion read
         raw = value.to_bytes(2, "big")
-        return bytes(raw[i % 2] for i in range(n))
+        # The register repeats past its two bytes (a driver's read is two: no loop then).
+        return raw if n == 2 else bytes(raw[i % 2] for i in range(n))
 
     def register(self, name: str) -> int:
         """Register value as the chip would send it (OS computed for CONFIG)."""

@@ -267,7 +267,8 @@ class MCP9600Emulator(Freezable):
             return b"\xff" * n
         reg = REGISTERS.at(self._pointer)
         raw = reg.to_bytes(self.regs[reg.address])
-        return bytes(raw[i % len(raw)] for i in range(n))
+        # The register repeats past its width (a driver's read is its width: no loop then).
+        return raw if n == len(raw) else bytes(raw[i % len(raw)] for i in range(n))
 
     # -- convenience for tests / the world ----------------------------------------------
     def register(self, name: str) -> int:
