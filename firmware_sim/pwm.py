@@ -317,6 +317,8 @@ class SimPwmTree:
         self._owns_root = root is None
         self.root = Path(tempfile.mkdtemp(prefix="sim-pwm-")) if root is None else Path(root)
         self.root.mkdir(parents=True, exist_ok=True)
+        self._root_resolved: Path | None = None
+        self._parts_of: dict[str, tuple[str, ...] | None] = {}
         # A tree nobody closed (a simulator dropped mid-test, a session ended by an exception) is
         # still removed when the object is collected or the interpreter exits: ten thousand
         # leaked trees had piled up in /tmp before this.  Only by the process that made it: a forked
@@ -437,13 +439,32 @@ class SimPwmTree:
             if not (changed_only and self._mirror.get(p) == text[name]):
                 self._put(p, text[name])
 
+    def _relative_parts(self, path: Path) -> tuple[str, ...] | None:
+        """``path``'s parts below the tree's root (symlinks resolved), None outside it; kept per path.
+
+        Resolving walks every component with a system call, twice (the path and the root), on each
+        of a touch's hundreds of duty writes and reads: it was most of the simulated PWM's cost in the
+        suite.  The tree holds no symlinks of its own, and the answer for a path is kept only while
+        the tree lives (a user's symlink to it is resolved once, as the kernel's sysfs links are fixed).
+        """
+        key = str(path)
+        parts = self._parts_of.get(key, False)
+        if parts is False:
+            if self._root_resolved is None:
+                self._root_resolved = self.root.resolve()
+            try:
+                parts = path.resolve().relative_to(self._root_resolved).parts
+            except ValueError:
+                parts = None
+            if len(self._parts_of) < 4096:
+                self._parts_of[key] = parts
+        return parts
+
     def _resolve(self, path: Path) -> tuple[int, int | None, str]:
         """Map a path to (chip, channel or None, attribute name)."""
-        try:
-            rel = path.resolve().relative_to(self.root.resolve())
-        except ValueError:
-            raise _err(_errno.ENOENT, path, f"not inside the simulated PWM tree {self.root}") from None
-        parts = rel.parts
+        parts = self._relative_parts(path)
+        if parts is None:
+            raise _err(_errno.ENOENT, path, f"not inside the simulated PWM tree {self.root}")
         try:
             if len(parts) == 2 and parts[0].startswith("pwmchip"):
                 chip = int(parts[0][7:])

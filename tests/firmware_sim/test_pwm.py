@@ -53,6 +53,23 @@ def test_layout_and_export_unexport(tree):
     assert errno_of(lambda: tree.io.read(ch(tree, "period"))) == errno.ENOENT
 
 
+def test_paths_are_resolved_once_and_outside_paths_still_refused(tree, tmp_path):
+    """A path's place in the tree is kept (resolving was most of the simulated PWM's cost): a symlink to
+    the tree reaches the same channel, a path outside it or climbing out with '..' is refused every time."""
+    exported(tree)
+    link = tmp_path / "class_pwm"
+    link.symlink_to(tree.root, target_is_directory=True)
+    tree.io.write(link / "pwmchip0" / "pwm0" / "period", "1000\n")
+    assert tree.io.read(ch(tree, "period")) == "1000\n" == tree.io.read(link / "pwmchip0" / "pwm0" / "period")
+    outside = tmp_path / "period"
+    climbing = tree.channel_dir(0, 0) / ".." / ".." / ".." / "period"
+    for _ in range(2):   # the second time from what was kept
+        assert errno_of(lambda: tree.io.read(outside)) == errno.ENOENT
+        assert errno_of(lambda: tree.io.read(climbing)) == errno.ENOENT
+    tree.io.write(tree.chip_dir(0) / "unexport", "0")   # a kept path of an unexported channel is not an attribute
+    assert errno_of(lambda: tree.io.read(link / "pwmchip0" / "pwm0" / "period")) == errno.ENOENT
+
+
 def test_temporary_root_is_removed_on_close():
     t = SimPwmTree(VirtualClock())
     root = t.root
