@@ -152,14 +152,31 @@ def pytest_collection(session):
             or str(config.getoption("importmode")) != "prepend"
             or getattr(config, "args_source", None) is not pytest.Config.ArgsSource.TESTPATHS):
         return None
+    from tests.support.static_marks import excluded_by
+
     worker = os.environ.get("PYTEST_XDIST_WORKER", "")
     n = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1") or 1)
-    for name in modules_to_warm(Path(__file__).resolve().parent, worker, n):
+    for name in modules_to_warm(Path(__file__).resolve().parent, worker, n,
+                                skip=excluded_by(config.option.markexpr)):
         try:
             importlib.import_module(name)
         except (Exception, pytest.skip.Exception, pytest.fail.Exception):
             pass  # collection imports it again and reports the error or the skip
     return None
+
+
+def pytest_ignore_collect(collection_path, config):
+    """Leave out a test module whose every test ``-m`` would deselect, known from its ``pytestmark`` line.
+
+    The fast tier (``-m "not slow"``) then neither imports nor, on a fresh clone, assertion-rewrites
+    the modules that are slow as a whole (tests/support/static_marks.py); the tests that run are
+    the same. None (no opinion) for everything else, so pytest's own rules still apply.
+    """
+    if not (collection_path.name.startswith("test_") and collection_path.suffix == ".py"):
+        return None
+    from tests.support.static_marks import excluded_module
+
+    return True if excluded_module(collection_path, config.option.markexpr) else None
 
 
 @pytest.hookimpl(trylast=True)  # after -m/-k deselection: the slices are sized on what runs

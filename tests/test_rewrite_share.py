@@ -23,6 +23,9 @@ def test_the_slices_cover_every_module_once_and_gw0_imports_nothing(tmp_path):
     assert modules_to_warm(pkg, "gw2", 3) == ["tests.test_a"]
     # Two workers: gw0's first three (its share rounded up), gw1 the rest; helpers are never imported.
     assert modules_to_warm(pkg, "gw1", 2) == ["tests.host.test_d", "tests.test_a"]
+    # Modules collection leaves out (a -m expression's, tests/support/static_marks.py) are in no slice.
+    assert modules_to_warm(pkg, "gw1", 2, skip=lambda p: p.name == "test_a.py") == ["tests.host.cli.test_e",
+                                                                               "tests.host.test_d"]
     # No sharing without workers, or with one, or for a name that is not a worker's.
     assert modules_to_warm(pkg, "", 1) == modules_to_warm(pkg, "gw1", 1) == modules_to_warm(pkg, "main", 2) == []
 
