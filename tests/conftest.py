@@ -32,7 +32,7 @@ set_blas_env()  # before NumPy loads OpenBLAS, and for the suite's child process
 # 700: a worker of the fast tier spent 1.2 CPU-s in ~1 000-2 600 collections (gc.callbacks), most
 # of them finding nothing, since reference counting frees the suite's objects; at 20 000 it spent
 # 0.8 s in ~280. Cyclic garbage still goes, a little later (a test that needs it gone at once
-# calls gc.collect(), as tests/firmware_sim/test_pwm.py does). Child processes keep the default.
+# calls gc.collect(), as tests/firmware_sim/test_pwm.py does). Forked children inherit it; started ones don't.
 gc.set_threshold(20_000, 20, 20)
 
 
@@ -70,6 +70,10 @@ def _scratch_in_memory(root: Path = Path("/dev/shm"), need_bytes: int = 2 * 2**3
 _scratch_in_memory()
 
 import pytest  # noqa: E402
+
+from tests.support.rewrite_share import quicker_location_fix  # noqa: E402
+
+quicker_location_fix()  # before collection rewrites the test modules
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -36,3 +36,47 @@ def test_this_suites_second_half_is_gw1s_and_importable_by_those_names():
     every = sorted(root.rglob("test_*.py"))
     assert len(names) == len(every) // 2 > 50
     assert __name__ == "tests.test_rewrite_share" and __name__ in names   # importable as collection names it
+
+
+
+def _every_node(node):
+    """pytest 9's ``traverse_node``: every node, depth-first."""
+    import ast
+
+    yield node
+    for child in ast.iter_child_nodes(node):
+        yield from _every_node(child)
+
+
+def test_the_quicker_location_fix_rewrites_this_suites_modules_to_the_same_code():
+    import ast
+    import marshal
+
+    import _pytest.assertion.rewrite as rewrite
+
+    from tests.support.rewrite_share import _located_candidates
+
+    root = Path(__file__).resolve().parent
+    sample = [root / "test_rewrite_share.py", root / "edge" / "protocol" / "test_messages.py",
+              root / "firmware_sim" / "test_pwm.py", root / "host" / "cli" / "test_report.py"]
+    before = rewrite.traverse_node
+    try:
+        outs = []
+        for walk in (_every_node, _located_candidates):
+            rewrite.traverse_node = walk
+            out = []
+            for path in sample:
+                source = path.read_bytes()
+                tree = ast.parse(source, filename=str(path))
+                rewrite.rewrite_asserts(tree, source, str(path), None)
+                out.append((ast.dump(tree, include_attributes=True),
+                            marshal.dumps(compile(tree, str(path), "exec", dont_inherit=True))))
+            outs.append(out)
+    finally:
+        rewrite.traverse_node = before
+    assert outs[0] == outs[1]
+    # What the fix visits: only nodes that take a location and have none yet.
+    tree = ast.parse("assert f(x) == [y for y in z]")
+    fresh = ast.BinOp(ast.Name("a", ast.Load()), ast.Add(), ast.Constant(1))
+    tree.body.append(ast.Expr(fresh))
+    assert [type(n).__name__ for n in _located_candidates(tree)] == ["Expr", "BinOp", "Name", "Constant"]
