@@ -212,6 +212,11 @@ def pytest_configure(config):
     config.addinivalue_line(
         "markers", "shares_import(name): the test imports a library that costs ~0.5 s or more of CPU (scikit-learn, scipy.stats, "
         "matplotlib); the xdist schedule gives all such modules to one worker (tests/support/schedule.py)")
+    from tests.support.hypothesis_summary import summary_only_with_news
+
+    summary_only_with_news(config.pluginmanager)
+
+
 
 
 def pytest_collection_finish(session):
