@@ -44,6 +44,7 @@ docs/results.md.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import multiprocessing
 import os
@@ -59,6 +60,7 @@ from _common import ROOT, write_block, write_json
 from _ece_growth import growth, growth_lines
 import _asbuilt_grow as G
 from _asbuilt_estimate import estimate_head
+from _confidence_breakdown import breakdown, breakdown_lines
 import _asbuilt_touches as A
 from _objects import HELD_OUT_FAR, IN_SET
 from _recognition import (bayes_ceiling, confusion_matrix, debiased_ece, diagnosis, ece_floor, ece_interval,
@@ -349,7 +351,7 @@ def recognise_at(task) -> tuple[dict, dict]:
            "other_likelihood": {**{k: alt[k] for k in keys}, "ece": alt["rel_object"]["ece"]}, "low_bin": low,
            "object_held_out": {**{k: strict[k] for k in keys}, "ece": strict["rel_object"]["ece"]},
            "ece_floor": ece_floor(ev["rel_object"]),
-           "diagnosis": diagnosis(oset, t, recs),
+           "diagnosis": diagnosis(oset, t, recs), "confidence_breakdown": breakdown(oset, t, recs),
            "refused": int(sum(not math.isfinite(r["e"]) and not r.get("poor_fit") for r in rows)),
            "poor_fit_named": int(sum(bool(r.get("poor_fit")) for r in rows)),
            "calibration_refused": int(broad.sum()),
@@ -453,7 +455,7 @@ def head_lines(head: str, h: dict) -> list[str]:
         row = [R[c]["rel_object"]["rows"][b] for c in R]
         L.append(f"| {row[0]['lo']:.2f}-{row[0]['hi']:.2f} | " + " | ".join(
             f"{x['n']} | {pct(x['confidence'])} | {pct(x['accuracy'])}" for x in row) + " |")
-    L += diagnosis_lines(R)
+    L += breakdown_lines(R) + diagnosis_lines(R)
     for ct in ("1.0", "2.0"):
         cm = R[ct]["confusion"]
         short = [str(i + 1) for i in range(len(cm["cols"]) - 2)] + ["u", "r"]
@@ -586,6 +588,8 @@ def main() -> None:
     ap.add_argument("--temper-spread", action="store_true",
                     help="T on every variance, the specimen spread too (the ablation of SPREAD_FIXED)")
     ap.add_argument("--no-growth", action="store_true", help="skip the ECE-interval-against-size analysis")
+    ap.add_argument("--answers", default=None, help="with --reuse: a previous run's JSON; its estimated rows are "
+                    "recognised again instead of re-estimating the records (development of the recognition fit)")
     ap.add_argument("--jobs", type=int, default=1, help="processes estimating (per probe) and recognising (per time)")
     ap.add_argument("--folds", type=int, default=0, help="group the probes into this many folds (0: one per probe)")
     ap.add_argument("--strict-folds", type=int, default=0, help="the same for the object-held-out split")
@@ -628,7 +632,8 @@ def main() -> None:
         for table, k_folds in ((FOLD_OF, args.folds), (STRICT_FOLD_OF, args.strict_folds)):
             table.clear()   # per head; fewer probes than folds: one probe per fold, as without --folds
             table.update({p: 1 + k % k_folds for k, p in enumerate(ps)} if 0 < k_folds < len(ps) else {})
-        est = estimate_head(head, recs, meta, set(CONTACTS_S) | set(DECIDE_GRID_S), args.jobs)
+        est = estimate_head(head, recs, meta, set(CONTACTS_S) | set(DECIDE_GRID_S), args.jobs) if not args.answers \
+            else {k: json.loads(open(args.answers).read())["heads"][head][k] for k in ("calibrations", "rows", "estimate_s")}
         present = [o for o in objects if any(m.get("name") == o.name for m in meta)]
         per_obj = {o.name: sum(m.get("kind") == "touch" and m.get("name") == o.name for m in meta) for o in present}
         h = {"touches_per_object": per_obj, "n_probes": len({m["probe"] for m in meta}), "calibrations": {str(k): v for k, v in est["calibrations"].items()},

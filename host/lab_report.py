@@ -226,10 +226,12 @@ def calibration_of(doc: dict):
 
 
 def series_report_html(doc: dict, *, source_name: str, generated_utc: str, software_version: str,
-                       figures: tuple[list[tuple[dict, bytes, str]], str] | None = None) -> str:
+                       figures: tuple[list[tuple[dict, bytes, str]], str] | None = None,
+                       summary_png: bytes | None = None) -> str:
     """The report page of a loaded series file (:func:`host.lab_series.load_series`).
 
-    ``figures``: :func:`touch_figures` of ``doc`` when the caller drew them already (the PDF uses the same).
+    ``figures``: :func:`touch_figures` of ``doc`` when the caller drew them already (the PDF uses the same);
+    ``summary_png``: :func:`series_plot_png` of ``doc``, likewise.
     """
     summary = doc["summary"]
     title = report_title(doc)
@@ -245,7 +247,7 @@ def series_report_html(doc: dict, *, source_name: str, generated_utc: str, softw
         "<h2>Result</h2>",
         _results_table(summary),
         f"<p class=\"note\">{esc(SPREAD_NOTE)}</p>",
-        png_img(series_plot_png(doc), "each touch's value with its u, the mean and the ±sd band"),
+        png_img(series_plot_png(doc) if summary_png is None else summary_png, "each touch's value with its u, the mean and the ±sd band"),
         "<h2>Touch figures</h2>",
         f"<p>{esc(fig_text)}</p>",
         *(png_img(png, title) for _, png, title in pngs),
@@ -267,8 +269,11 @@ def series_report_html(doc: dict, *, source_name: str, generated_utc: str, softw
 
 
 def report_blocks(doc: dict, *, source_name: str, generated_utc: str, software_version: str,
-                  figures: tuple[list[tuple[dict, bytes, str]], str]) -> list[tuple]:
-    """The report as :mod:`host.lab_pdf` blocks: the HTML page's content in its order (tables as text)."""
+                  figures: tuple[list[tuple[dict, bytes, str]], str], summary_png: bytes | None = None) -> list[tuple]:
+    """The report as :mod:`host.lab_pdf` blocks: the HTML page's content in its order (tables as text).
+
+    ``summary_png``: :func:`series_plot_png` of ``doc`` when the caller drew it already (the HTML page's).
+    """
     from host.flag_docs import describe_flag  # noqa: PLC0415
     from host.lab_pdf import from_html  # noqa: PLC0415
 
@@ -284,7 +289,7 @@ def report_blocks(doc: dict, *, source_name: str, generated_utc: str, software_v
         ("h2", "Sample"), ("kv", sample_pairs(doc, source_name)),
         ("h2", "Device and probe"), ("kv", device_pairs(doc)),
         ("h2", "Result"), ("table", RESULT_HEADER, results_rows(summary)), ("note", SPREAD_NOTE),
-        ("png", series_plot_png(doc)),
+        ("png", series_plot_png(doc) if summary_png is None else summary_png),
         ("h2", "Touch figures"), ("p", fig_text),
         *(b for _, png, title in pngs for b in (("png", png), ("note", title))),
         ("h2", "What determined each quantity"),

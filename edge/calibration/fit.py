@@ -49,6 +49,7 @@ added to every later measurement.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -59,8 +60,10 @@ from edge.calibration.model import N_PARAMETERS as NP, CalibrationError, ProbeCa
 from edge.estimation.chain_estimate import contact_fraction
 from edge.estimation.contact import find_contact
 from edge.estimation.sensor_chain import chain_design, fit_sensor_chain, simulate_chain
+from edge.physics.memo import BoundedMemo
 
-__all__ = ["DEFAULT_REFERENCES", "REFERENCE_U_REL", "ReferenceTouch", "check_reference", "fit_calibration"]
+__all__ = ["DEFAULT_REFERENCES", "REFERENCE_U_REL", "ReferenceTouch", "check_reference", "clear_fit_memo",
+           "fit_calibration"]
 
 #: The references a user is walked through by default (one polymer, one ceramic, one metal).
 DEFAULT_REFERENCES = ("pmma", "pyroceram", "aisi_304")
@@ -371,6 +374,54 @@ def fit_calibration(touches: list[ReferenceTouch], *, probe: str = "paper",
         e_lib.setdefault(tc.name, tc.e_W_s05_m2K)
         if not math.isclose(e_lib[tc.name], tc.e_W_s05_m2K, rel_tol=1e-12):
             raise CalibrationError(f"reference {tc.name}: touches disagree on its effusivity")
+    key = _fit_key(touches, probe, noise_bias_draws)
+    fitted = _FITS.get(key)
+    if fitted is None:
+        fitted = _FITS.put(key, _fit(touches, names, e_lib, probe, noise_bias_draws))
+    chain, cov, floor, refs = fitted
+    stamp = created_utc or datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    return ProbeCalibration(probe=probe, chain=chain, covariance=cov, u_rel_floor=floor,
+                            calibrated=True, created_utc=stamp, references=refs)
+
+
+#: Fits already made, by their exact inputs (:func:`_fit_key`): a calibration's leave-one-reference-out
+#: self-check refits subsets of its references, and a refused calibration run again with ``--force``, a
+#: walk-through's touches refitted from their exports, two calibrations sharing references fit the same
+#: touches again (a third of the suite's fits were repeats).  The values hold no array a caller can
+#: change (:class:`ProbeCalibration` copies the covariance).
+_FITS = BoundedMemo(16)
+
+
+def clear_fit_memo() -> None:
+    """Forget the fits kept (:data:`_FITS`): the next :func:`fit_calibration` of any input computes afresh."""
+    global _FITS
+    _FITS = BoundedMemo(_FITS.max_entries)
+
+
+def _fit_key(touches, probe: str, noise_bias_draws: int) -> tuple:
+    """The exact inputs of a fit: the touches (digest of their records), the probe, the draws, and what
+    the fit reads of this module when it runs -- its settings and the functions it calls, so that a
+    setting changed or a function replaced (a bench's ``--cal-smooth-growth``, a test's stand-in) is
+    another key."""
+    h = hashlib.sha256()
+    for tc in touches:
+        h.update(repr((tc.name, float(tc.e_W_s05_m2K))).encode())
+        for x in (tc.t_s, tc.T_C, tc.q_W_m2):
+            a = np.ascontiguousarray(x, dtype=np.float64)
+            h.update(repr(a.shape).encode())
+            h.update(a.tobytes())
+    settings = (FIT_START_s, CAL_SMOOTH_GROWTH, tuple(_STEPS), NOISE_BIAS_SEED, NOISE_FLOOR_T_K, NOISE_FLOOR_q_W_m2,
+                _MAX_ITER, FIT_CONTACT_INSTANT, _STEP_TOL_SIGMA, _MAX_PRIOR_SIGMAS, SWAP_RATIO, SWAP_SIGMAS,
+                tuple(sorted(REFERENCE_U_REL.items())), OTHER_REFERENCE_U_REL)
+    # The functions themselves (kept alive by the key, so a replaced one's id cannot come back as another's).
+    calls = (fit_sensor_chain, simulate_chain, chain_design, contact_fraction, find_contact, check_reference, _solve,
+             _noise_bias, _from_contact)
+    return (h.hexdigest(), probe, int(noise_bias_draws), settings, calls, ProbeCalibration.nominal(probe).sha256)
+
+
+def _fit(touches: list[ReferenceTouch], names: list[str], e_lib: dict[str, float], probe: str,
+         noise_bias_draws: int) -> tuple:
+    """:func:`fit_calibration`'s fit: (chain, covariance, transfer floor, references)."""
     prior = ProbeCalibration.nominal(probe)
     th0 = prior.theta
     u_th0 = prior.u_theta
@@ -446,6 +497,4 @@ def fit_calibration(touches: list[ReferenceTouch], *, probe: str = "paper",
     n = len(excess)
     floor = float(math.sqrt(max(float(np.mean(excess)), 0.0) * n / max(n - NP, 1)))
     refs = tuple(ReferenceFit(nm, e_lib[nm], float(u_ln_e[m_index[nm]]), len(rel[nm]), tuple(rel[nm])) for nm in names)
-    stamp = created_utc or datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
-    return ProbeCalibration(probe=probe, chain=fitted.chain, covariance=cov, u_rel_floor=min(floor, 1.0),
-                            calibrated=True, created_utc=stamp, references=refs)
+    return fitted.chain, cov, min(floor, 1.0), refs

@@ -334,6 +334,15 @@ def _keep_transforms(key: tuple | None, parts: tuple, out: tuple) -> None:
             _TRANSFORMS.popitem(last=False)
 
 
+#: Terms of the (p, zeta) grid by its numbers and one material's (read-only, the same bits): an object's or
+#: the sensing layer's gamma (its complex square root is most of a transform), a substrate's admittance, the
+#: heater film's terms.  A calibration's
+#: finite-difference columns of the probe's own parameters and of a reference's k or contact build other
+#: models on the same grid for the same objects: 55 % of the small-heater tests' transforms and 70 % of
+#: their substrate set-ups were of a grid and material seen before.  ~0.2 MB an entry on the small heater
+#: (the film's four terms 0.9 MB); at most 8 MB in all (a calibration's iteration uses about 15 entries).
+_GRID_TERMS = BoundedMemo(48, max_bytes=8 * 2**20)
+
 #: Substrate variants kept per model (:meth:`AxisymModel.with_substrate`): the point and its two substrate
 #: columns and a trial; ~0.65 MB each on the small-heater probe.
 _VARIANTS_MAX = 4
@@ -399,18 +408,22 @@ class AxisymModel:
 
         # Heater film (material h): gamma, k gamma, tanh, sech.
         hm = g.heater_material
-        gh = np.sqrt(p / hm.alpha_m2_s + z2)
-        kgh = hm.k_W_mK * gh
-        Th = _tanh(gh * g.heater_thickness_m)
-        Sh = _sech(gh * g.heater_thickness_m)
-        theta_p = q_v / (p * hm.k_W_mK * gh * gh)     # particular solution (per unit source shape)
-        self._heater = (kgh, Th, Sh, theta_p)
+
+        def heater() -> tuple[np.ndarray, ...]:
+            gh = np.sqrt(p / hm.alpha_m2_s + z2)
+            kgh = hm.k_W_mK * gh
+            Th = _tanh(gh * g.heater_thickness_m)
+            Sh = _sech(gh * g.heater_thickness_m)
+            theta_p = q_v / (p * hm.k_W_mK * gh * gh)     # particular solution (per unit source shape)
+            return kgh, Th, Sh, theta_p
+        # The same film on the same grid for every sensing layer a calibration tries (_GRID_TERMS).
+        self._heater = _GRID_TERMS(("heater", *self._grid_key(), hm, float(g.heater_thickness_m), q_v), heater)
         self._set_substrate(g.substrate, g.substrate_thickness_m)
 
         # Sensing layer (material s), thickness L; sensor depths u = L - z.
         sm = g.sensing
         L = g.sensing_thickness_m
-        gs = np.sqrt(p / sm.alpha_m2_s + z2)
+        gs = self._object_gamma_kept(sm.alpha_m2_s)[1]    # sqrt(p / alpha_s + zeta^2), kept by the grid
         self._kgs = sm.k_W_mK * gs
         self._Ts = _tanh(gs * L)
         self._Ss = _sech(gs * L)
@@ -425,7 +438,7 @@ class AxisymModel:
         (ch0, sh0), (ch1, sh1) = _ch_sh_ratios(gs, u0, L, den), _ch_sh_ratios(gs, u1, L, den)
         self._qa = sm.k_W_mK * (ch0 - ch1) / dz
         self._qb = (sh0 - sh1) / (gs * dz)
-        self.n_nodes = int(gh.size)
+        self.n_nodes = int(self._heater[0].size)
         _keep_parts(key, self)
 
     def _set_substrate(self, substrate: Solid | None, thickness_m: float) -> None:
@@ -434,8 +447,10 @@ class AxisymModel:
         if substrate is None:
             Yup = np.zeros_like(kgh)
         else:
-            gf = np.sqrt(self._p / substrate.alpha_m2_s + self._z2)
-            Yup = insulated_layer_admittance(substrate.k_W_mK, gf, thickness_m)
+            def admittance() -> np.ndarray:
+                gf = np.sqrt(self._p / substrate.alpha_m2_s + self._z2)
+                return insulated_layer_admittance(substrate.k_W_mK, gf, thickness_m)
+            Yup = _GRID_TERMS(("substrate", *self._grid_key(), substrate, float(thickness_m)), admittance)
         # theta at the heater's bottom = theta_p * num / (B + C Ydn)  (see module docstring).
         self._num = theta_p * (kgh * Th + Yup * (1.0 - Sh))
         self._B = Yup + kgh * Th
@@ -482,6 +497,22 @@ class AxisymModel:
         m.t_s = m.inversion.t_s
         return m
 
+    def _grid_key(self) -> tuple[bytes, bytes]:
+        """The (p, zeta) grid by value: a neighbouring probe's model (a calibration's finite difference, its
+        Hankel nodes shared) has its own arrays of the same numbers."""
+        key = self.__dict__.get("_grid_bytes")
+        if key is None:
+            key = self._grid_bytes = (self._p.tobytes(), self._z2.tobytes())
+        return key
+
+    def _object_gamma_kept(self, alpha_m2_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """(p / alpha, gamma = sqrt(p / alpha + zeta^2)) of a layer or object of diffusivity ``alpha_m2_s``
+        (read-only, kept: :data:`_GRID_TERMS`)."""
+        def compute() -> tuple[np.ndarray, np.ndarray]:
+            p_a = self._p / alpha_m2_s
+            return p_a, np.sqrt(p_a + self._z2)
+        return _GRID_TERMS(("gamma", *self._grid_key(), float(alpha_m2_s)), compute)
+
     # -- object
     def object_admittance(self, k_W_mK: float, alpha_m2_s: float, thickness_m: float | None = None,
                           back: str = "infinite") -> np.ndarray:
@@ -514,8 +545,7 @@ class AxisymModel:
     def _transforms(self, k_W_mK: float, alpha_m2_s: float, thickness_m: float | None, back: str,
                     contact_resistance_m2K_W: float, derivatives: bool):
         """:meth:`transforms`, computed."""
-        p_a = self._p / alpha_m2_s
-        go = np.sqrt(p_a + self._z2)
+        p_a, go = self._object_gamma_kept(alpha_m2_s)
         Y = k_W_mK * go
         fin = not (back == "infinite" or thickness_m is None)
         if fin:

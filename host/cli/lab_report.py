@@ -82,18 +82,20 @@ def run(args) -> int:
         if args.operator is not None or args.notes is not None:
             raise CliError("--operator and --notes are for a certificate (--calibration); a series file carries "
                            "its own (thermotouch series --operator ... --notes ...)")
-        from host.lab_report import report_blocks, report_title, series_report_html, touch_figures  # noqa: PLC0415
+        from host.lab_report import (report_blocks, report_title, series_plot_png, series_report_html,  # noqa: PLC0415
+                                     touch_figures)
 
         try:
             doc = load_series(args.series)
         except SeriesFileError as exc:
             raise CliError(f"{args.series}: {exc}") from None
-        figures = touch_figures(doc)  # drawn once: the HTML and the PDF show the same PNGs
+        # Drawn once: the HTML and the PDF show the same PNGs (the summary plot was drawn for each, 0.1 s).
+        figures, summary_png = touch_figures(doc), series_plot_png(doc)
         text = series_report_html(doc, source_name=args.series.name, generated_utc=now, software_version=ver,
-                                  figures=figures)
+                                  figures=figures, summary_png=summary_png)
         title = report_title(doc)
         blocks = (lambda: report_blocks(doc, source_name=args.series.name, generated_utc=now,
-                                        software_version=ver, figures=figures))
+                                        software_version=ver, figures=figures, summary_png=summary_png))
         footer = f"series {args.series.name}"
         s = doc["summary"]
         what = f"measurement report of {s['n_requested']} touches ({s['n_answered']} answered)"

@@ -76,3 +76,35 @@ def test_the_ece_interval_covers_the_truth_and_resamples_by_probe():
     lo, hi = over["interval"]["probes_and_touches"]["debiased"]
     assert lo < 0.15 < hi + 0.01 and lo > 0.06        # a 0.15 gap is told from 0.03 at 400 touches
     assert over["plug_in"] >= over["debiased"]
+
+
+def test_the_breakdown_tells_the_background_mass_from_the_objects_terms():
+    """Objects far apart, wide u: every answer right, its printed confidence short by the `unknown` mass alone."""
+    from _confidence_breakdown import breakdown, breakdown_lines
+    from edge.recognition import KnownObject, ObjectSet
+    from host.recognition import Touches, classify_touches
+
+    s = ObjectSet([KnownObject("foam", "foam", 40.0), KnownObject("steel", "alloy", 8000.0)])
+    rng = np.random.default_rng(6)
+    n = 200
+    ti = rng.integers(0, 2, n)
+    u = np.full(n, 0.6)                      # a short touch's wide u: the objects' density is low, the background's flat
+    e = np.exp(s.ln_e[ti] + np.hypot(0.6, 0.05) * rng.standard_normal(n))
+    poor = np.arange(n) % 4 == 0
+    t = Touches(ti, np.full(n, "x"), np.full(n, 1.0), e, e, u, s.names, poor_fit=poor)
+    s = s.with_calibration(poor_fit_ln=0.6)  # poor_fit touches named at the same width: the groups compare alike
+    recs = classify_touches(s, t)
+    b = breakdown(s, t, recs)
+    rows = [r for r in b["groups"]["all"]["rows"] if r["n"]]
+    right = sum(r["accuracy"] * r["n"] for r in rows) / n
+    conf = sum(r["confidence"] * r["n"] for r in rows) / n
+    assert right > 0.98 and conf < right - 0.02                  # under-confident as printed ...
+    assert b["unknown_share"] == pytest.approx(right - conf, abs=0.02)   # ... by the background's mass
+    for r in rows:
+        assert r["confidence"] + r["unknown"] + r["runner_up"] <= 1.0 + 1e-9
+    top = [r for r in rows if r["lo"] >= 0.9]                    # the accepted answers: the object terms alone calibrated
+    assert sum(r["n"] for r in top) > 0.95 * n
+    assert all(r["closed_set"] > 0.98 and r["runner_up"] < 0.01 and r["accuracy"] == 1.0 for r in top)
+    assert b["groups"]["poor_fit"]["n"] == int(poor.sum()) and b["groups"]["stated_u"]["n"] == n - int(poor.sum())
+    lines = breakdown_lines({"1.0": {"confidence_breakdown": b}})
+    assert any(line.startswith("| poor_fit") for line in lines) and "1 s" in lines[1]

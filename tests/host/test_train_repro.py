@@ -12,7 +12,7 @@ NAMES = ("pmma", "tempered_glass", "aisi_304", "cork_board", "granite", "oak_cro
 @pytest.mark.slow  # two retrains
 @pytest.mark.filterwarnings("ignore:lbfgs failed to converge")
 def test_same_seed_same_arrays_even_with_the_training_set_regenerated(tmp_path, monkeypatch):
-    from host.train import train_bundle  # scikit-learn, 1.2 s: not at collection in every worker
+    from host.train import clear_fit_memo, train_bundle  # scikit-learn, 1.2 s: not at collection in every worker
 
     lib = load_materials()
     small = MaterialLibrary([lib.get(n) for n in NAMES])
@@ -20,6 +20,7 @@ def test_same_seed_same_arrays_even_with_the_training_set_regenerated(tmp_path, 
     for run in ("a", "b"):
         # A cache of its own per run: the training set is generated twice, not read back.
         monkeypatch.setenv("THERMOTOUCH_CACHE", str(tmp_path / f"cache-{run}"))
+        clear_fit_memo()  # each run fits afresh (host.train keeps fits by their exact inputs)
         b, _ = train_bundle(tmp_path / run, quick=True, seed=3, lib=small, log=lambda s: None)
         arrays.append(b.arrays)
     a, b = arrays

@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from edge.calibration.fit import ReferenceTouch, fit_calibration
+from edge.calibration.fit import ReferenceTouch, clear_fit_memo, fit_calibration
 from edge.calibration.model import CalibrationError, ProbeCalibration
 from edge.estimation.chain_estimate import estimate_from_contact
 from edge.estimation.sensor_chain import SensorChainCalibration, simulate_chain
@@ -158,8 +158,14 @@ def test_noise_free_records_come_back_unbiased_with_or_without_the_noise_bias_co
 def test_a_calibration_is_reproducible_and_the_correction_is_optional():
     # Seeded noise: the same touches give the same calibration, byte for byte (one pair is enough to see it).
     refs = _refs()
-    a, b = (fit_calibration(refs, created_utc="t", noise_bias_draws=1) for _ in range(2))
+    a = fit_calibration(refs, created_utc="t", noise_bias_draws=1)
+    # The second fit computed afresh, not taken from the fits kept (edge.calibration.fit._FITS) ...
+    clear_fit_memo()
+    b = fit_calibration(refs, created_utc="t", noise_bias_draws=1)
     assert a.sha256 == b.sha256
+    # ... and a kept fit answers with the same calibration (another stamp, another file).
+    assert fit_calibration(refs, created_utc="t", noise_bias_draws=1).sha256 == a.sha256
+    assert fit_calibration(refs, created_utc="u", noise_bias_draws=1).created_utc == "u"
     assert fit_calibration(refs, created_utc="t", noise_bias_draws=0).sha256 != a.sha256
     for bad in (-1, 1.5, "3", True):
         with pytest.raises(ValueError, match="noise_bias_draws"):

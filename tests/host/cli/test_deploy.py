@@ -36,7 +36,9 @@ def test_deploy_quick_seeded_retrain_on_the_simulator(tmp_path, capsys, monkeypa
     assert "evaluation set: 90 simulated touches through the ads122c04" in stdout
     assert "self-check on glass_15V_precision" in stdout and "PASS" in stdout
     assert f"deployed {out} (sha256 {new.sha256})" in stdout
-    # Seeded: the quick recipe with seed 0 gives these arrays again (the manifest differs: timings, date).
+    # Seeded: the quick recipe with seed 0 gives these arrays again (the manifest differs: timings, date): deploy
+    # trains the recipe train does.  In one process the second fit is the first's, kept by its exact inputs
+    # (host.train.fit_paper_model); a fresh refit's reproducibility is tests/host/test_train_repro.py's.
     again = tmp_path / "again"
     code = main(["train", "--quick", "--seed", "0", "--out", str(again)])
     capsys.readouterr()
