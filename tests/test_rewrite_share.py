@@ -23,6 +23,9 @@ def test_the_slices_cover_every_module_once_and_gw0_imports_nothing(tmp_path):
     assert modules_to_warm(pkg, "gw2", 3) == ["tests.test_a"]
     # Two workers: gw0's first three (its share rounded up), gw1 the rest; helpers are never imported.
     assert modules_to_warm(pkg, "gw1", 2) == ["tests.host.test_d", "tests.test_a"]
+    # Modules collection leaves out (a -m expression's, tests/support/static_marks.py) are in no slice.
+    assert modules_to_warm(pkg, "gw1", 2, skip=lambda p: p.name == "test_a.py") == ["tests.host.cli.test_e",
+                                                                               "tests.host.test_d"]
     # No sharing without workers, or with one, or for a name that is not a worker's.
     assert modules_to_warm(pkg, "", 1) == modules_to_warm(pkg, "gw1", 1) == modules_to_warm(pkg, "main", 2) == []
 
@@ -33,3 +36,47 @@ def test_this_suites_second_half_is_gw1s_and_importable_by_those_names():
     every = sorted(root.rglob("test_*.py"))
     assert len(names) == len(every) // 2 > 50
     assert __name__ == "tests.test_rewrite_share" and __name__ in names   # importable as collection names it
+
+
+
+def _every_node(node):
+    """pytest 9's ``traverse_node``: every node, depth-first."""
+    import ast
+
+    yield node
+    for child in ast.iter_child_nodes(node):
+        yield from _every_node(child)
+
+
+def test_the_quicker_location_fix_rewrites_this_suites_modules_to_the_same_code():
+    import ast
+    import marshal
+
+    import _pytest.assertion.rewrite as rewrite
+
+    from tests.support.rewrite_share import _located_candidates
+
+    root = Path(__file__).resolve().parent
+    # This module, and the one with the most rewritten asserts (84: compares, calls, attributes, msgs).
+    sample = [root / "test_rewrite_share.py", root / "edge" / "protocol" / "test_messages.py"]
+    before = rewrite.traverse_node
+    try:
+        outs = []
+        for walk in (_every_node, _located_candidates):
+            rewrite.traverse_node = walk
+            out = []
+            for path in sample:
+                source = path.read_bytes()
+                tree = ast.parse(source, filename=str(path))
+                rewrite.rewrite_asserts(tree, source, str(path), None)
+                # The code object carries every instruction's line and column span (co_positions).
+                out.append(marshal.dumps(compile(tree, str(path), "exec", dont_inherit=True)))
+            outs.append(out)
+    finally:
+        rewrite.traverse_node = before
+    assert outs[0] == outs[1]
+    # What the fix visits: only nodes that take a location and have none yet.
+    tree = ast.parse("assert f(x) == [y for y in z]")
+    fresh = ast.BinOp(ast.Name("a", ast.Load()), ast.Add(), ast.Constant(1))
+    tree.body.append(ast.Expr(fresh))
+    assert [type(n).__name__ for n in _located_candidates(tree)] == ["Expr", "BinOp", "Name", "Constant"]

@@ -68,11 +68,18 @@ def _check(est: Estimate, record: TouchRecord) -> dict:
     return d
 
 
+@pytest.fixture(scope="module")
+def library_set():
+    """The library's object set, read once for the module's 48 paths (the seam only reads it)."""
+    return ObjectSet.from_library()
+
+
 @pytest.mark.parametrize("rec_name, calibrated, method, thickness", list(_paths()))
-def test_every_path_answers_with_the_same_contract(estimator, records, rec_name, calibrated, method, thickness):
+def test_every_path_answers_with_the_same_contract(estimator, records, library_set, rec_name, calibrated, method,
+                                                    thickness):
     record = dataclasses.replace(records[rec_name], method=method)
     cal = sample_calibration(probe=record.probe) if calibrated else None
-    ctx = SeamContext(estimator=estimator, calibration=cal, object_set=ObjectSet.from_library(),
+    ctx = SeamContext(estimator=estimator, calibration=cal, object_set=library_set,
                       object_set_name="library", thresholds=Config().measurement, thickness_m=thickness,
                       back="insulated" if thickness else "infinite")
     if method == "paper" and not estimator.has_paper:
