@@ -214,5 +214,6 @@ def load_all(path, names, *, extension: bool = True, probes: bool = True) -> tup
         else:
             info["sim_s"] = (info.get("sim_s") or 0.0) + (i2.get("sim_s") or 0.0)
         info["files"].append(f.name)
-    info["incomplete_probes"] = sorted(dropped)
+    # A probe cut short in one file may be complete in another (a later run drew the same probe again).
+    info["incomplete_probes"] = sorted(dropped - {m["probe"] for m in meta})
     return recs, meta, info

@@ -1,0 +1,29 @@
+"""Growing the tactile as-built bench (bench/_asbuilt_grow.py): which drawn probes a run reads."""
+
+from __future__ import annotations
+
+
+
+def _meta(probe, names, kind="touch"):
+    return [{"probe": probe, "kind": "reference", "name": "pmma", "j": None}] + \
+        [{"probe": probe, "kind": kind, "name": n, "j": 1000 * probe} for n in names]
+
+
+def test_a_probe_cut_short_in_one_file_but_complete_in_another_is_read_and_not_called_incomplete(tmp_path):
+    import _asbuilt_grow as G  # bench/ is on the path: tests/bench/conftest.py
+    import _asbuilt_touches as A
+
+    names = ["a", "b"]
+    base = tmp_path / "tactile_asbuilt_paper.npz"
+    A.save_records(base, [None] * 3, _meta(1, names), {"sim_s": 1.0})
+    # An earlier run cut short: probe 5 touched only "a"; probe 6 complete.
+    m_old = _meta(5, ["a"]) + _meta(6, names)
+    A.save_records(G.probes_path(base, 4, 9), [None] * len(m_old), m_old, {"cpu_s": 2.0})
+    # A later run drew probe 5 again and finished it; probe 7 it cut short.
+    m_new = _meta(5, names) + _meta(7, ["b"])
+    A.save_records(G.probes_path(base, 5, 7), [None] * len(m_new), m_new, {"cpu_s": 3.0})
+    recs, meta, info = G.load_all(base, names)
+    assert {m["probe"] for m in meta} == {1, 5, 6}
+    assert sum(m["probe"] == 5 and m["kind"] == "touch" for m in meta) == 2   # each touch once
+    assert info["incomplete_probes"] == [7]
+    assert info["probes_cpu_s"] == 5.0 and len(recs) == len(meta)
