@@ -167,7 +167,8 @@ def merge_probes(base) -> list:
                     seen.add(key)
                     recs.append(r)
                     meta.append(m)
-            info = {"sim_s": (info.get("sim_s") or 0.0) + (i2.get("sim_s") or 0.0),
+            # The parts ran side by side: the merged run's wall is the longest part's, its CPU their sum.
+            info = {"sim_s": max(info.get("sim_s") or 0.0, i2.get("sim_s") or 0.0),
                     "cpu_s": (info.get("cpu_s") or 0.0) + (i2.get("cpu_s") or 0.0),
                     "parts": info.get("parts", []) + [{"file": part.name, **i2}]}
         A.save_records(target, recs, meta, info)

@@ -27,3 +27,17 @@ def test_a_probe_cut_short_in_one_file_but_complete_in_another_is_read_and_not_c
     assert sum(m["probe"] == 5 and m["kind"] == "touch" for m in meta) == 2   # each touch once
     assert info["incomplete_probes"] == [7]
     assert info["probes_cpu_s"] == 5.0 and len(recs) == len(meta)
+
+
+def test_parts_run_side_by_side_merge_to_the_longest_wall_and_the_summed_cpu(tmp_path):
+    import _asbuilt_grow as G
+    import _asbuilt_touches as A
+
+    base = tmp_path / "tactile_asbuilt_paper.npz"
+    for i, (wall, cpu, probe) in enumerate(((100.0, 60.0, 4), (120.0, 70.0, 5)), 1):
+        m = _meta(probe, ["a"])
+        A.save_records(G.probes_path(base, 4, 5, (i, 2)), [None] * len(m), m, {"sim_s": wall, "cpu_s": cpu})
+    (merged,) = G.merge_probes(base)
+    _, meta, info = A.load_records(merged)
+    assert info["sim_s"] == 120.0 and info["cpu_s"] == 130.0 and {m["probe"] for m in meta} == {4, 5}
+    assert not list(tmp_path.glob("*_part*"))
