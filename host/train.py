@@ -57,6 +57,7 @@ from host.dataset import Dataset, DatasetSpec, generate
 from host.export import export_paper_model, pca_arrays_from_sklearn
 from host.malloc import large_blocks_on_heap
 from edge.physics.materials import MaterialLibrary, load_materials
+from edge.physics.memo import BoundedMemo
 
 
 @dataclass
@@ -80,8 +81,7 @@ class PaperModel:
 #: Fits already made, by their exact inputs (:func:`_fit_key`), at most this many: the quick recipe with
 #: seed 0 is trained by ``deploy --quick`` and again by ``train --quick`` (the suite's deploy test checks the
 #: two agree), and by several of the suite's fixtures in one worker.  Each caller gets its own copy.
-_FITS_MAX = 4
-_FITS: dict[tuple, PaperModel] = {}
+_FITS = BoundedMemo(4)
 
 
 def clear_fit_memo() -> None:
@@ -104,13 +104,7 @@ def _fit_key(ds: Dataset, seed: int, max_iter: int) -> tuple:
 def fit_paper_model(ds: Dataset, *, seed: int = 0, max_iter: int = 3000) -> PaperModel:
     """Fit the paper's pipeline on a training set (kept by its exact inputs: :func:`clear_fit_memo`)."""
     key = _fit_key(ds, seed, max_iter)
-    kept = _FITS.get(key)
-    if kept is None:
-        kept = _fit_paper_model(ds, seed=seed, max_iter=max_iter)
-        while len(_FITS) >= _FITS_MAX:
-            del _FITS[next(iter(_FITS))]
-        _FITS[key] = kept
-    return copy.deepcopy(kept)
+    return copy.deepcopy(_FITS(key, lambda: _fit_paper_model(ds, seed=seed, max_iter=max_iter)))
 
 
 def _fit_paper_model(ds: Dataset, *, seed: int, max_iter: int) -> PaperModel:

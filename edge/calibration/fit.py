@@ -394,8 +394,7 @@ _FITS = BoundedMemo(16)
 
 def clear_fit_memo() -> None:
     """Forget the fits kept (:data:`_FITS`): the next :func:`fit_calibration` of any input computes afresh."""
-    global _FITS
-    _FITS = BoundedMemo(_FITS.max_entries)
+    _FITS.clear()
 
 
 def _fit_key(touches, probe: str, noise_bias_draws: int) -> tuple:
