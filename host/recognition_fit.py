@@ -46,7 +46,7 @@ def fit_bias(object_set: ObjectSet, touches) -> tuple[float, float]:
 def fit_poor_fit_ln(object_set: ObjectSet, touches, true_index) -> float:
     """``poor_fit_ln``: the scatter of poorly fitted chain e's about what their objects read, at the set's T.
 
-    ``sqrt(mean(d²) / T - mean(spread²))``, at least :data:`POOR_FIT_LN_FLOOR`, over the ``poor_fit``
+    ``sqrt(mean(d²) / T - mean(spread²) - calibration_ln²)``, at least :data:`POOR_FIT_LN_FLOOR`, over the ``poor_fit``
     touches (d: ln e minus the true object's expected reading, its bias included), divided by
     ``sqrt(k)`` (the set's ``u_var_scale``: the device scales this width as any stated u); 0 (such
     touches name nothing) when there are none.
@@ -56,5 +56,7 @@ def fit_poor_fit_ln(object_set: ObjectSet, touches, true_index) -> float:
         return 0.0
     ti = np.asarray(true_index, int)[m]
     d2 = (np.log(touches.e[m]) - object_set.ln_e[ti]) ** 2
-    v = float(np.mean(d2)) / object_set.temperature - float(np.mean(object_set.spread[ti] ** 2))
+    # The device's variance of such a touch is T (k w² + spread² + calibration_ln²): w from the rest.
+    v = (float(np.mean(d2)) / object_set.temperature - float(np.mean(object_set.spread[ti] ** 2))
+         - object_set.calibration_ln ** 2)
     return float(max(POOR_FIT_LN_FLOOR, math.sqrt(max(v, 0.0))) / math.sqrt(object_set.u_var_scale))

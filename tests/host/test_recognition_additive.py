@@ -3,6 +3,7 @@
 import math
 
 import numpy as np
+import pytest
 
 from edge.recognition import KnownObject, ObjectSet
 from host.recognition import Touches, calibrate_by_contact, fit_u_var_scale, reliability
@@ -67,3 +68,16 @@ def test_calibrate_by_contact_stores_the_term_and_the_rule_per_contact_time_and_
     back = ObjectSet.from_csv_text(cal.to_csv_text())
     assert back.at_contact(1.0).calibration_ln == table[1.0]["calibration_ln"]
     assert back.at_contact(1.0).unknown_min_odds == 1.0
+
+
+def test_the_poor_fit_width_leaves_out_the_additive_term_the_device_adds_to_it():
+    from host.recognition import fit_poor_fit_ln
+
+    ti = np.repeat(np.arange(len(OSET)), 50)
+    d = np.tile([-0.4, 0.4], ti.size // 2)                      # poorly fitted chains 0.4 off in ln e
+    e = np.exp(OSET.ln_e[ti] + d)
+    sim = Touches(ti, np.array(["b"] * e.size), np.ones(e.size), e, e, np.full(e.size, np.nan), OSET.names,
+                  poor_fit=np.ones(e.size, bool))
+    w0 = fit_poor_fit_ln(OSET, sim, ti)
+    w1 = fit_poor_fit_ln(OSET.with_calibration(calibration_ln=0.2), sim, ti)
+    assert w0 == pytest.approx(math.sqrt(0.16 - 0.05 ** 2)) and w1 == pytest.approx(math.sqrt(0.16 - 0.05 ** 2 - 0.04))
