@@ -66,7 +66,7 @@ from _objects import HELD_OUT_FAR, IN_SET
 from _recognition import (bayes_ceiling, confusion_matrix, debiased_ece, diagnosis, ece_floor, ece_interval,
                           in_set_answers, in_set_reliability)
 from edge.recognition import ObjectSet
-from host.recognition import Touches, calibrate, classify_touches
+from host.recognition import DECISION_FIT, Touches, calibrate, classify_touches
 
 CONTACTS_S = (0.5, 1.0, 2.0)
 HEAT_S = 2.0
@@ -79,10 +79,10 @@ OUTLIER = True
 #: variance, the objects' 5 % specimen spread with it (``--temper-spread``: the latter, the ablation).
 #: ISSUE #37: T < 1 narrowed the spread and 1-s answers below 0.5 (46 %) were right 21 % of 38.
 SPREAD_FIXED = True
-#: The decision rule and the additive term the fitted sets carry (``--test-alone``: 0, the open-set test alone, and
-#: no additive term: the ablation).  ISSUE #37: the test alone answered in-set touches from the spread's tail
-#: "unknown" at the background's 0.16-0.42, every one wrong (30 of the < 0.5 bin's 107 at 2 s).
-FIT = {"unknown_min_odds": 1.0, "additive": True}
+#: The decision rule and the additive term the fitted sets carry: host.recognition.DECISION_FIT, as
+#: ``thermotouch objects calibrate`` (``--test-alone``: 0, the open-set test alone, and no additive term:
+#: the ablation; 30 of the < 0.5 bin's 107 at 2 s were in-set touches it answered "unknown").
+FIT = dict(DECISION_FIT)
 #: Probe -> fold of the evaluation split (``--folds K``: the probes dealt round-robin into K groups, each
 #: group's touches named by the set fitted on the others'); empty: leave-one-probe-out.  Set once by main.
 FOLD_OF: dict = {}
