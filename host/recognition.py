@@ -41,7 +41,7 @@ from edge.measure.instrument import INSTRUMENTS
 from edge.physics.materials import load_materials
 from edge.physics.solids import Solid
 from host.evaluate import TouchSimulator
-from host.recognition_fit import BIAS_U_FLOOR_LN, POOR_FIT_LN_FLOOR, fit_bias, fit_poor_fit_ln
+from host.recognition_fit import fit_bias, fit_poor_fit_ln
 
 __all__ = [
     "DEFAULT_Q_V_W_M3",
