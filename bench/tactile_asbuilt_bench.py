@@ -87,9 +87,6 @@ STRICT_FOLD_OF: dict = {}
 #: Measure how the ECE interval narrows with the number of probes (bench/_ece_growth.py); ``--no-growth``: skip.
 GROWTH = True
 DEFAULT_OUT = ("ldpe_squeeze_bottle", "concrete_step", "ti_bike_frame", "cast_iron_pan")
-#: Noise (1 sigma) of T (K) and q (W/m^2) per board for the attainable u: the precision board's, and the
-#: reference board's converter steps (MCP9600 0.0625 K, ADS1115 ~14 W/m^2) as uniform rounding, step / sqrt(12).
-BOARD_NOISE = {"precision": (0.01, 0.5), "reference": (0.0625 / math.sqrt(12.0), 14.0 / math.sqrt(12.0))}
 #: Until-decided emulation: the running answer is checked at these heating times (s) ...
 DECIDE_GRID_S = (0.5, 0.75, 1.0, 1.25, 1.5, 2.0)
 #: ... and heating stops at the first where the accepted object's calibrated posterior reaches this.
@@ -317,8 +314,9 @@ def recognise_at(task) -> tuple[dict, dict]:
     fold = np.array([FOLD_OF.get(p, p) for p in probe])
     broad = np.array([r.get("u_ln_e_stated") is not None and r["u_ln_e"] != r["u_ln_e_stated"] for r in rows])
     recs, (ci, crecs), fits, sets = cross_fit(oset, t, fold, broad)
-    sT, sq = BOARD_NOISE[board]
-    u_fisher = attainable_u_ln_e(oset, ct, probe=head, sigma_T_K=sT, sigma_q_W_m2=sq)
+    # The attainable u with the noise the simulated touches carry (_asbuilt_touches.scene_noise).
+    sT, sq, dt = A.scene_noise(head, board)
+    u_fisher = attainable_u_ln_e(oset, ct, probe=head, sigma_T_K=sT, sigma_q_W_m2=sq, dt_s=dt)
     ev = evaluate(oset, t, recs, out_names, u_fisher)
     cal_split = evaluate(oset, t.select(ci), crecs, out_names, u_fisher)
     plain, _, _, _ = cross_fit(oset, t, fold, broad, bias=False)
