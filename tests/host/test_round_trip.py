@@ -9,7 +9,7 @@ one; an armed touch on that calibrated probe (the issue's example) round-trips t
 Every command runs through ``host.cli.main`` against a simulated probe on a pseudo-terminal
 (:func:`host.device.simulated_probe`), as a user's would.
 
-The faithful world marches at :data:`ROUND_TRIP_DT_s` here, twice the suite's step: what these tests
+The faithful world marches at ``DEVICE_DT_s`` (tests/support/faithful.py) here, twice the suite's step: what these tests
 assert is that the device and the offline estimate answer the same record alike, whatever record the
 world gives, and the world's touches were most of their CPU (14.3 -> 12.3 CPU-s for the module, serial).
 At 40 ms every scene's device answer has the flags, the kind of answer (a value or none), the method
@@ -31,13 +31,11 @@ from host.cli.report import pm
 from host.device import simulated_probe
 from host.records import read_touch
 from tests.support.calibrations import sample_calibration
-from tests.support.faithful import world_step
+from tests.support.faithful import DEVICE_DT_s, world_step
 
 pytestmark = [pytest.mark.hil, pytest.mark.slow]
 
 SCENES = scene_names()
-#: The faithful world's step in this module (see the module docstring).
-ROUND_TRIP_DT_s = 0.04
 #: What the device and the offline estimate must agree on (the object's fields included).
 SAME = ("flags", "object", "object_set", "class", "material", "method", "probe", "calibration_sha256",
         "model_sha256", "determined", "from_prior")
@@ -45,8 +43,8 @@ SAME = ("flags", "object", "object_set", "class", "material", "method", "probe",
 
 @pytest.fixture(scope="module", autouse=True)
 def _coarser_world_step(faithful_world_test_step):
-    """Worlds built by this module's simulated probes march at :data:`ROUND_TRIP_DT_s`."""
-    with world_step(ROUND_TRIP_DT_s):
+    """Worlds built by this module's simulated probes march at ``DEVICE_DT_s`` (see the module docstring)."""
+    with world_step(DEVICE_DT_s):
         yield
 
 

@@ -13,6 +13,11 @@ import pytest
 #: costs about a third less CPU in the suite's faithful-world tests.  The benches keep the
 #: simulator's own step.  ``tests/conftest.py`` applies it to every test.
 TEST_DT_s = 0.02
+#: The step of the faithful world under a simulated device in tests that assert what the device does with
+#: the record it gets (round trip, the daemon unchanged on a faithful scene), not the world's accuracy:
+#: twice :data:`TEST_DT_s`, half the steps.  One value for those modules, so that the same scene's
+#: touch, simulated by two of them in one process, is marched once (firmware_sim/rz/stepmemo.py).
+DEVICE_DT_s = 0.04
 
 
 @contextlib.contextmanager
@@ -21,7 +26,7 @@ def world_step(dt_s: float) -> Iterator[None]:
 
     ``tests/conftest.py`` sets :data:`TEST_DT_s` for the session this way; a module whose assertions
     do not depend on the world's accuracy in time (a property of the record, whatever the record)
-    may take a coarser step for its block (``tests/host/test_round_trip.py``).  Worlds built in
+    may take a coarser step for its block (:data:`DEVICE_DT_s`).  Worlds built in
     other threads meanwhile (a simulated probe's daemon) take it too.
     """
     from firmware_sim.rz.probe_world import FaithfulWorld  # noqa: PLC0415
