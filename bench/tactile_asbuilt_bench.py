@@ -581,6 +581,8 @@ def main() -> None:
                     help="with --add-probes: the first new probe's number (default: after every cached probe)")
     ap.add_argument("--part", default="1/1", help="with --add-probes: i/n, every n-th new probe from the i-th")
     ap.add_argument("--merge-probes", action="store_true", help="join the --add-probes part files")
+    ap.add_argument("--fill-references", action="store_true",
+                    help="touch again the reference touches an older merge dropped (_asbuilt_grow.fill_references)")
     ap.add_argument("--without-probes", action="store_true",
                     help="with --reuse: leave out the --add-probes probes (the numbers before them)")
     ap.add_argument("--temper-spread", action="store_true",
@@ -610,6 +612,9 @@ def main() -> None:
             continue
         if args.merge_probes:
             print("merged:", [p.name for p in G.merge_probes(path)])
+            continue
+        if args.fill_references:
+            print("filled:", G.fill_references(head, path, args.board))
             continue
         if args.add_probes:
             first = args.first_probe or 1 + max(m["probe"] for f in [path, *(f for f in G.probe_files(path) if "_part" not in f.stem)]
