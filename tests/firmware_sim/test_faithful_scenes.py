@@ -214,7 +214,7 @@ def device_world_step(faithful_world_test_step):
     """The simulated device's world marches at ``DEVICE_DT_s``: these tests assert what the daemon does
     (heating when and as long as configured, the film's energy, the contact found), none of which
     needs the world's 20-ms accuracy; the same scene's touch as tests/host/test_round_trip.py's, once
-    per process (0.52 + 0.40 + 0.35 -> 0.42 + 0.37 + 0.24 CPU-s alone)."""
+    per process (0.51 + 0.47 + 0.39 -> 0.42 + 0.37 + 0.24 CPU-s, the three alone)."""
     with world_step(DEVICE_DT_s):
         yield
 
