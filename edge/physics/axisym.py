@@ -544,7 +544,17 @@ class AxisymModel:
 
     def _transforms(self, k_W_mK: float, alpha_m2_s: float, thickness_m: float | None, back: str,
                     contact_resistance_m2K_W: float, derivatives: bool):
-        """:meth:`transforms`, computed."""
+        """:meth:`transforms`, computed.
+
+        Each operation of the formulas in the comments, on the same operands in the same order, written into
+        a temporary of this call that is no longer needed (``out=``): a touch's running refits make ~7 of
+        these per refit on the (p, zeta) grid, and a fresh array for every intermediate was a third of their
+        cost.  Operand order is kept to the last bit: NumPy's complex multiply (FMA) is not commutative in
+        its rounding, and on grids over 256 KiB NumPy itself evaluates ``x * (temporary)`` as
+        ``temporary *= x`` (temporary elision), so products of that form keep their expression form here
+        (``dkq``, :meth:`_under_heater`).  tests/edge/physics/test_axisym_inplace.py holds the formulas'
+        plain form and checks both grids against it bit for bit.
+        """
         p_a, go = self._object_gamma_kept(alpha_m2_s)
         Y = k_W_mK * go
         fin = not (back == "infinite" or thickness_m is None)
@@ -555,22 +565,31 @@ class AxisymModel:
         Yo = series_contact(Y, R)
         kgs = self._kgs
         TsYo, dd, Ydn = self._under_heater(Yo)
-        den = 1.0 + TsYo / kgs                          # sensing layer seen from below
-        hd = self._B + self._C * Ydn
+        den = np.divide(TsYo, kgs, out=TsYo)            # 1 + Ts Yo / kgs: the sensing layer seen from below
+        np.add(1.0, den, out=den)
+        hd = np.multiply(self._C, Ydn, out=Ydn)         # B + C Ydn
+        np.add(self._B, hd, out=hd)
         # The heater's transform of the same object divides by the same hd: kept for it (the droop's
         # column asks right after, heater_tcr.droop_transforms).
         self._last_hd = ((k_W_mK, alpha_m2_s, thickness_m, back, contact_resistance_m2K_W), hd)
-        r = self._num / (hd * den)                      # heater-bottom temperature / den
+        r = np.multiply(hd, den)                        # heater-bottom temperature / den: num / (hd den)
+        np.divide(self._num, r, out=r)
         kT = r * self._Ss
-        kq_base = self._qa + Yo * self._qb
+        kq_base = np.multiply(Yo, self._qb)             # qa + Yo qb
+        np.add(self._qa, kq_base, out=kq_base)
         T = kT @ self._w_T                              # interface (probe side)
-        q = (r * kq_base) @ self._w_q
+        buf = np.multiply(r, kq_base)
+        q = buf @ self._w_q
         if not derivatives:
             return T, q
-        # d/dYo of the kernels.
-        dYdn = self._dYdn_num / (dd * dd)
-        dlnr = -(self._C * dYdn / hd + self._Ts_kgs / den)
-        dkT = kT * dlnr
+        # d/dYo of the kernels: dlnr = -(C dYdn / hd + (Ts / kgs) / den), dYdn = dYdn_num / dd^2.
+        dlnr = np.multiply(dd, dd, out=dd)
+        np.divide(self._dYdn_num, dlnr, out=dlnr)
+        np.multiply(self._C, dlnr, out=dlnr)
+        np.divide(dlnr, hd, out=dlnr)
+        np.add(dlnr, np.divide(self._Ts_kgs, den, out=den), out=dlnr)
+        np.negative(dlnr, out=dlnr)
+        dkT = np.multiply(kT, dlnr, out=kT)
         dkq = r * (dlnr * kq_base + self._qb)
         # dYo/dtheta for theta = ln k, ln alpha, R_c.
         dYo_dY = 1.0 / (1.0 + R * Y) ** 2 if R != 0.0 else 1.0
@@ -581,9 +600,12 @@ class AxisymModel:
             dY_dgo = k_W_mK / t - k_W_mK * go * thickness_m * (1.0 - t * t) / (t * t)
         else:
             dY_dgo = k_W_mK * t + k_W_mK * go * thickness_m * (1.0 - t * t)
-        dtheta = (Y * dYo_dY, dY_dgo * dgo * dYo_dY, -Yo * Yo)
-        dT = np.stack([(dkT * d) @ self._w_T for d in dtheta])
-        dq = np.stack([(dkq * d) @ self._w_q for d in dtheta])
+        d_ln_alpha = np.multiply(dY_dgo, dgo, out=dgo)
+        np.multiply(d_ln_alpha, dYo_dY, out=d_ln_alpha)
+        d_R = np.negative(Yo, out=dlnr)
+        dtheta = (Y * dYo_dY, d_ln_alpha, np.multiply(d_R, Yo, out=d_R))
+        dT = np.stack([np.multiply(dkT, d, out=buf) @ self._w_T for d in dtheta])
+        dq = np.stack([np.multiply(dkq, d, out=buf) @ self._w_q for d in dtheta])
         return T, q, dT, dq
 
     def heater_transform(self, k_W_mK: float, alpha_m2_s: float, *, thickness_m: float | None = None,
