@@ -510,14 +510,15 @@ class AxisymModel:
         (read-only, kept: :data:`_GRID_TERMS`)."""
         def compute() -> tuple[np.ndarray, np.ndarray]:
             p_a = self._p / alpha_m2_s
-            return p_a, np.sqrt(p_a + self._z2)
+            g2 = p_a + self._z2
+            return p_a, np.sqrt(g2, out=g2)
         return _GRID_TERMS(("gamma", *self._grid_key(), float(alpha_m2_s)), compute)
 
     # -- object
     def object_admittance(self, k_W_mK: float, alpha_m2_s: float, thickness_m: float | None = None,
                           back: str = "infinite") -> np.ndarray:
         """Surface admittance q/theta of the object on the (p, zeta) grid."""
-        go = np.sqrt(self._p / alpha_m2_s + self._z2)
+        go = self._object_gamma_kept(alpha_m2_s)[1]      # the transforms' gamma (kept): the same numbers
         Y = k_W_mK * go
         if back == "infinite" or thickness_m is None:
             return Y
@@ -637,8 +638,9 @@ class AxisymModel:
         if last is not None and last[0] == (k_W_mK, alpha_m2_s, thickness_m, back, contact_resistance_m2K_W):
             return (self._num / last[1]) @ w
         Yo = series_contact(self.object_admittance(k_W_mK, alpha_m2_s, thickness_m, back), contact_resistance_m2K_W)
-        Ydn = self._under_heater(Yo)[2]
-        return (self._num / (self._B + self._C * Ydn)) @ w
+        hd = np.multiply(self._C, self._under_heater(Yo)[2])   # num / (B + C Ydn), in one temporary
+        np.add(self._B, hd, out=hd)
+        return np.divide(self._num, hd, out=hd) @ w
 
     def _under_heater(self, Yo):
         """(Ts Yo, kgs + Ts Yo, Ydn): the admittance under the heater through the sensing layer onto ``Yo``."""

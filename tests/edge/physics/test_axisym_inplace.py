@@ -96,3 +96,13 @@ def test_in_place_transforms_leave_the_models_parts_untouched(model):
         model._transforms(*obj, True)
     for name, a in before.items():
         assert np.array_equal(bits(getattr(model, name)), bits(a)), name
+
+
+@pytest.mark.parametrize("obj", OBJECTS)
+def test_a_cold_heater_transform_is_the_plain_formula_bit_for_bit(model, obj):
+    """Without the transforms' kept denominator (another object asked last): the film's mean from scratch."""
+    model._transforms(*OBJECTS[(OBJECTS.index(obj) + 1) % len(OBJECTS)], False)   # another object's hd kept
+    hd = plain_transforms(model, *obj)[4]
+    got = model._heater_transform(*obj)
+    want = (model._num / hd) @ model._w_h      # the film's read-out weights, set by the call above
+    assert np.array_equal(bits(got), bits(want))
