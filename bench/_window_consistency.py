@@ -1,0 +1,256 @@
+"""Window self-consistency of each drawn probe's reference touches vs its objects' short-window level error.
+
+ISSUE #37 (CAL44).  Each drawn as-built paper probe of the tactile bench is calibrated on its own
+reference touches (as the bench does: :func:`_asbuilt_touches.calibrate_records`); each reference touch
+is then re-estimated through the one estimate path at short heating windows and at its full 8 s.
+``delta_T = ln e(T) - ln e(8 s)`` of the SAME touch needs no true e: it is the window's own level
+error on that probe.  Per probe it is interpolated in ln e (between the references) to each object's
+e and compared with the probe's mean object error ln(e / e_true) at T (rows of
+bench/results/tactile_asbuilt.json).  Printed: the between/within split of the object errors, how
+much of the between-probe variance delta_T predicts, and (the four woods pooled per probe) how much
+the calibration's own parameter error predicts: fitted theta minus the drawn probe's as-built chain
+(:func:`true_theta`, known here because the bench draws the probe).
+
+    python bench/_window_consistency.py --probes 55 --jobs 2 --out /tmp/cal44/wc.json   # ~400 CPU-s
+    python bench/_window_consistency.py --analyse /tmp/cal44/wc.json                      # tables again
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import multiprocessing
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import _asbuilt_grow as G  # noqa: E402
+import _asbuilt_touches as A  # noqa: E402
+from _common import RESULTS  # noqa: E402
+
+WINDOWS_s = (0.5, 1.0, 2.0)
+#: ln e of each object (its median specimen, W s^0.5 / m^2 K): where delta_T is read between the references.
+OBJ_LN_E = {"pine_shelf": math.log(323.0), "natural_rubber_mat": math.log(363.0), "mdf_board": math.log(377.0),
+            "oak_worktop": math.log(450.0), "soda_lime_bottle": math.log(1372.0)}
+OBJECTS = ("pine_shelf", "natural_rubber_mat", "mdf_board", "oak_worktop", "soda_lime_bottle")
+
+
+def reference_windows(task) -> tuple:
+    """(probe, [(name, {T: ln e}) per reference touch]) for one probe: calibrated, references re-estimated."""
+    from edge.estimation.seam import estimate_touch
+    from host.cli.common import seam_context
+
+    p, refs, times = task
+    cal, _ = A.calibrate_records("paper", refs)
+    ctx = seam_context(None, calibration=cal)
+    out = []
+    for name, r in refs:
+        if r is None:
+            continue
+        lne = {}
+        for T in (*times, None):
+            rec = r if T is None else A.truncated(r, T)
+            try:
+                d = estimate_touch(rec, ctx).to_dict()
+                e = d["effusivity_W_s05_m2K"] or (d.get("sensor_chain") or {}).get("effusivity_W_s05_m2K")
+                lne["full" if T is None else T] = math.log(e) if e else math.nan
+            except ValueError:
+                lne["full" if T is None else T] = math.nan
+        out.append((name, lne))
+    return p, {"touches": out, "theta": [float(x) for x in cal.theta], "u_theta": [float(x) for x in cal.u_theta],
+               "u_rel_floor": float(cal.u_rel_floor), "forced": bool(cal.forced),
+               "model_form_wood": float(cal.model_form_u_rel(380.0)),
+               "misses": (cal.self_check or {}).get("misses")}
+
+
+def object_errors(times) -> dict:
+    """{probe: {T: {object: [ln(e / e_true)...]}}} from the committed bench rows."""
+    d = json.loads((RESULTS / "tactile_asbuilt.json").read_text())
+    out: dict = {}
+    for r in d["heads"]["paper"]["rows"]:
+        if r["kind"] != "touch" or r["contact_s"] not in times or not (r.get("e") or 0) > 0:
+            continue
+        if not math.isfinite(r["e"]):
+            continue
+        out.setdefault(r["probe"], {}).setdefault(r["contact_s"], {}).setdefault(r["name"], []).append(
+            math.log(r["e"] / r["e_true"]))
+    return out
+
+
+def predicted_offsets(refs, T) -> tuple[np.ndarray, np.ndarray]:
+    """(ln e at the full window, mean delta_T) per reference material of one probe, sorted by ln e."""
+    by: dict = {}
+    for name, lne in refs:
+        full, short = lne.get("full", math.nan), lne.get(str(T), lne.get(T, math.nan))
+        if math.isfinite(full) and math.isfinite(short):
+            by.setdefault(name, []).append((full, short - full))
+    pts = sorted((float(np.mean([a for a, _ in v])), float(np.mean([b for _, b in v]))) for v in by.values())
+    return np.array([a for a, _ in pts]), np.array([b for _, b in pts])
+
+
+def analyse(ref_windows: dict, times=WINDOWS_s, objects=OBJECTS) -> dict:
+    """Between / within split of the objects' errors and what the references' delta_T predicts of it."""
+    errs = object_errors(set(times))
+    out: dict = {}
+    for T in times:
+        per_obj: dict = {}
+        for name in objects:
+            m, d, w, n = [], [], [], []
+            for p, refs in ref_windows.items():
+                x = errs.get(int(p), {}).get(T, {}).get(name)
+                if not x:
+                    continue
+                le, dl = predicted_offsets(refs, T)
+                if le.size == 0:
+                    continue
+                ln_e_true = OBJ_LN_E[name]
+                d.append(float(np.interp(ln_e_true, le, dl)))   # nearest reference outside their span
+                m.append(float(np.mean(x)))
+                w.extend(np.asarray(x) - np.mean(x))
+                n.append(len(x))
+            m, d = np.array(m), np.array(d)
+            within = float(np.sqrt(np.sum(np.square(w)) / max(len(w) - len(m), 1)))
+            between = float(np.std(m, ddof=1))
+            noise = within / math.sqrt(float(np.mean(n)))     # a probe mean's own sampling scatter
+            r = float(np.corrcoef(m, d)[0, 1])
+            b = float(np.polyfit(d, m, 1)[0])
+            after = float(np.std(m - d, ddof=1))
+            per_obj[name] = {"probes": len(m), "between": between, "within": within, "mean_noise": noise,
+                             "between_excess": math.sqrt(max(between ** 2 - noise ** 2, 0.0)), "r": r, "slope": b,
+                             "r2": r * r, "between_after_subtracting": after, "mean_err": float(np.mean(m)),
+                             "mean_delta": float(np.mean(d))}
+        out[str(T)] = per_obj
+    return out
+
+
+WOODS = ("pine_shelf", "natural_rubber_mat", "mdf_board", "oak_worktop")
+#: Where the references' linear fit of delta_T in ln e is read for the pooled woods (their median e ~ 380).
+WOOD_LN_E = math.log(380.0)
+
+
+def _r2(m: np.ndarray, X: np.ndarray) -> tuple[float, np.ndarray]:
+    """R^2 of the least-squares fit of m on the columns of X (plus a constant), and its coefficients."""
+    A_ = np.column_stack([X, np.ones(len(m))])
+    b = np.linalg.lstsq(A_, m, rcond=None)[0]
+    return float(1.0 - np.var(m - A_ @ b) / np.var(m)), b[:-1]
+
+
+def true_theta(probe: int) -> np.ndarray:
+    """The drawn probe's own chain parameters (ln flux_scale, ln depth, bead lag, ln layer k), as-built."""
+    from firmware_sim.asbuilt import draw_as_built, draw_factors
+
+    ab, f = draw_as_built("paper", probe), draw_factors("paper", probe)
+    return np.array([-math.log1p(f["flux_sensitivity_rel"]), math.log(ab.sensing_thickness_m),
+                     ab.thermocouple_time_constant_s, math.log(ab.sensing_k_W_mK)])
+
+
+def pooled(data: dict, times=WINDOWS_s) -> dict:
+    """Per probe, the four woods pooled (24 touches): what the references' delta_T and the calibration's
+    own parameter error (fitted theta - the drawn probe's) predict of the probe's mean error at T."""
+    refs, cals = data["references"], data.get("calibrations") or {}
+    errs = object_errors(set(times))
+
+    def mean_err(p, T):
+        x = [v for n in WOODS for v in errs.get(int(p), {}).get(T, {}).get(n, [])]
+        return float(np.mean(x)) if x else math.nan
+    ps = [p for p in sorted(refs, key=int) if all(math.isfinite(mean_err(p, T)) for T in times)]
+    dth = (np.array([np.array(cals[p]["theta"]) - true_theta(int(p)) for p in ps]) if cals else None)
+    out: dict = {"probes": len(ps)}
+    if dth is not None:
+        out["theta_error_sd"] = [float(x) for x in np.std(dth, axis=0, ddof=1)]
+        out["u_theta_median"] = [float(x) for x in np.median([cals[p]["u_theta"] for p in ps], axis=0)]
+    for T in times:
+        m = np.array([mean_err(p, T) for p in ps])
+        row = {"between": float(np.std(m, ddof=1))}
+        for mat in ("pmma", "pyroceram", "aisi_304"):   # the references' own window error, per probe
+            d = [np.mean([l[str(T)] - l["full"] for n, l in refs[p] if n == mat]) for p in ps]
+            row[f"ref_delta_sd_{mat}"] = float(np.nanstd(d, ddof=1))
+        d_pm = np.array([np.mean([l[str(T)] - l["full"] for n, l in refs[p] if n == "pmma"]) for p in ps])
+        lin = []
+        for p in ps:   # offset + slope in ln e over the six touches, read at the woods' e
+            pts = [(l["full"], l[str(T)] - l["full"]) for n, l in refs[p] if math.isfinite(l[str(T)])]
+            X = np.array([[1.0, a - WOOD_LN_E] for a, _ in pts])
+            lin.append(float(np.linalg.lstsq(X, np.array([b for _, b in pts]), rcond=None)[0][0]))
+        lin = np.array(lin)
+        for key, d in (("pmma", d_pm), ("linear", lin)):
+            r2, b = _r2(m, d[:, None])
+            row[key] = {"r2": r2, "slope": float(b[0]), "after_subtracting": float(np.std(m - d, ddof=1)),
+                        "after_regression": float(np.std(m, ddof=1) * math.sqrt(1.0 - r2))}
+        if dth is not None:
+            r2, b = _r2(m, dth)
+            row["theta_error"] = {"r2": r2, "coef": [float(x) for x in b],
+                                  "r": [float(np.corrcoef(m, dth[:, i])[0, 1]) for i in range(dth.shape[1])]}
+        out[str(T)] = row
+    return out
+
+
+def print_pooled(a: dict) -> None:
+    print(f"four woods pooled per probe ({a['probes']} probes)")
+    if "theta_error_sd" in a:
+        print("  calibration's theta error (fitted - as built) sd: " + ", ".join(
+            f"{n} {x:.4f} (stated u median {u:.4f})" for n, x, u in
+            zip(("ln_flux", "ln_depth", "tau_s", "ln_k"), a["theta_error_sd"], a["u_theta_median"])))
+    for T in WINDOWS_s:
+        v = a[str(T)]
+        line = (f"  T {T} s: between {100 * v['between']:.2f} %; references' own delta_T spread over probes "
+                f"pmma {100 * v['ref_delta_sd_pmma']:.2f} / pyroceram {100 * v['ref_delta_sd_pyroceram']:.2f} / "
+                f"aisi_304 {100 * v['ref_delta_sd_aisi_304']:.2f} %")
+        for key in ("pmma", "linear"):
+            x = v[key]
+            line += (f"\n    delta_T {key}: R2 {x['r2']:.2f} slope {x['slope']:.2f}; between after subtracting "
+                     f"{100 * x['after_subtracting']:.2f} %, after the regression {100 * x['after_regression']:.2f} %")
+        if "theta_error" in v:
+            x = v["theta_error"]
+            line += (f"\n    theta error (4 regressors): R2 {x['r2']:.2f}; r " +
+                     " ".join(f"{n} {r:+.2f}" for n, r in zip(("ln_flux", "ln_depth", "tau", "ln_k"), x["r"])) +
+                     "; d ln e / d theta " + " ".join(f"{c:+.2f}" for c in x["coef"]))
+        print(line)
+
+
+def print_table(a: dict) -> None:
+    for T, per in a.items():
+        print(f"T = {T} s: object  probes  between / within  (mean noise)  mean err  mean delta  r  slope  R2  "
+              "between after m - delta")
+        for name, v in per.items():
+            print(f"  {name:20s} {v['probes']:3d}  {100 * v['between']:.1f} / {100 * v['within']:.1f} %  "
+                  f"({100 * v['mean_noise']:.1f})  {100 * v['mean_err']:+.1f}  {100 * v['mean_delta']:+.1f}  "
+                  f"{v['r']:+.2f}  {v['slope']:.2f}  {v['r2']:.2f}  {100 * v['between_after_subtracting']:.1f} %")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--probes", type=int, default=20)
+    ap.add_argument("--jobs", type=int, default=1)
+    ap.add_argument("--out", default=None)
+    ap.add_argument("--analyse", default=None, help="analyse a saved --out JSON (no re-estimation)")
+    args = ap.parse_args()
+    if args.analyse:
+        data = json.loads(Path(args.analyse).read_text())
+        print_table(analyse(data["references"]))
+        print_pooled(pooled(data))
+        return
+    t0 = time.process_time()
+    recs, meta, _ = G.load_all(A.CACHE / "tactile_asbuilt_paper.npz", [], extension=False, probes=True)
+    probes = sorted({m["probe"] for m in meta if m["kind"] == "reference"})[:args.probes]
+    tasks = [(p, [(m["name"], r) for r, m in zip(recs, meta) if m["kind"] == "reference" and m["probe"] == p],
+              WINDOWS_s) for p in probes]
+    if args.jobs > 1:
+        with multiprocessing.get_context("fork").Pool(args.jobs) as pool:
+            res = dict(pool.map(reference_windows, tasks, chunksize=1))
+    else:
+        res = dict(reference_windows(t) for t in tasks)
+    out = {"probes": probes, "references": {str(p): v["touches"] for p, v in res.items()},
+           "calibrations": {str(p): {k: x for k, x in v.items() if k != "touches"} for p, v in res.items()}}
+    if args.out:
+        Path(args.out).write_text(json.dumps(out, indent=1))
+    print_table(analyse(out["references"]))
+    print_pooled(pooled(out))
+    print(f"{len(probes)} probes, {time.process_time() - t0:.0f} CPU-s (parent)")
+
+
+if __name__ == "__main__":
+    main()
