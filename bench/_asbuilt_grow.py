@@ -23,6 +23,7 @@ from __future__ import annotations
 import re
 import sys
 import time
+from collections import Counter
 
 import numpy as np
 
@@ -37,6 +38,25 @@ PROBES_SEED = 200_000
 #: A new probe's touch ``k`` of an object carries ``j = PROBE_J * p + k``: unique per object across
 #: probes (the until-decided emulation keys a touch by (object, j)).
 PROBE_J = 1000
+
+
+def record_keys(meta) -> list[tuple]:
+    """One key per record of one cache file: (probe, kind, name, j).
+
+    A reference touch carries no ``j`` and each reference is touched more than once
+    (:data:`_objects.REFERENCES`: two hands per material): its key is its order among the same
+    probe's touches of that material in the file.  Keyed by name alone, a merge kept the first touch
+    of each material and dropped the second (probes 4-63 were calibrated on 3 touches, not 6).
+    """
+    seen: Counter = Counter()
+    out = []
+    for m in meta:
+        j = m.get("j")
+        if m["kind"] == "reference" and j is None:
+            j = seen[(m["probe"], m["name"])]
+            seen[(m["probe"], m["name"])] += 1
+        out.append((m["probe"], m["kind"], m["name"], j))
+    return out
 
 
 def _store():
@@ -158,11 +178,10 @@ def merge_probes(base) -> list:
     for (a, b), parts in groups.items():
         target = probes_path(base, a, b)
         recs, meta, info = A.load_records(target) if target.exists() else ([], [], {"parts": []})
-        seen = {(m["probe"], m["kind"], m["name"], m.get("j")) for m in meta}
+        seen = set(record_keys(meta))
         for part in parts:
             r2, m2, i2 = A.load_records(part)
-            for r, m in zip(r2, m2):
-                key = (m["probe"], m["kind"], m["name"], m.get("j"))
+            for r, m, key in zip(r2, m2, record_keys(m2)):
                 if key not in seen:
                     seen.add(key)
                     recs.append(r)
@@ -197,14 +216,13 @@ def load_all(path, names, *, extension: bool = True, probes: bool = True) -> tup
     info = {**info, "files": [path.name]}
     ext = path.with_name(path.stem + "_ext.npz")
     more = ([ext] if extension and ext.exists() else []) + (probe_files(path) if probes else [])
-    seen = {(m["probe"], m["kind"], m["name"], m.get("j")) for m in meta}
+    seen = set(record_keys(meta))
     dropped: set = set()
     for f in more:
         r2, m2, i2 = A.load_records(f)
         keep = complete_probes(m2, names) if "_probes" in f.stem else {m["probe"] for m in m2}
         dropped |= {m["probe"] for m in m2} - keep
-        for r, m in zip(r2, m2):
-            key = (m["probe"], m["kind"], m["name"], m.get("j"))
+        for r, m, key in zip(r2, m2, record_keys(m2)):
             if m["probe"] in keep and key not in seen:
                 seen.add(key)
                 recs.append(r)
@@ -218,3 +236,52 @@ def load_all(path, names, *, extension: bool = True, probes: bool = True) -> tup
     # A probe cut short in one file may be complete in another (a later run drew the same probe again).
     info["incomplete_probes"] = sorted(dropped - {m["probe"] for m in meta})
     return recs, meta, info
+
+
+def fill_references(head: str, base, board: str = "precision") -> list[tuple[str, int]]:
+    """Touch again the references a merge dropped; (file, probe) of each probe filled.
+
+    For every cache file of ``base`` (the first pass's and the ``--add-probes`` files) and every probe
+    in it with fewer reference touches than :data:`_objects.REFERENCES`: the probe's references are
+    simulated again (:func:`_asbuilt_touches.reference_records`: the same scenes and seeds), the
+    touches the file kept must come out bit-identical -- the proof that the simulation is the one
+    that made them -- and the probe's references are replaced by the full set, in order.  Saved per file.
+    """
+    import tempfile
+
+    from _objects import REFERENCES
+
+    store, wd, out = None, tempfile.mkdtemp(prefix="tactile-asbuilt-refs-"), []
+    for path in [base] + probe_files(base):
+        recs, meta, info = A.load_records(path)
+        per_probe = Counter(m["probe"] for m in meta if m["kind"] == "reference")
+        short = sorted(p for p, n in per_probe.items() if n < len(REFERENCES))
+        if not short:
+            continue
+        for p in short:
+            store = store or _store()
+            fresh = A.reference_records(head, p, store, wd, board)
+            kept = [(m["name"], r) for m, r in zip(meta, recs) if m["probe"] == p and m["kind"] == "reference"]
+            for name, r in kept:
+                if not any(n == name and _same(r, f) for n, f in fresh):
+                    raise RuntimeError(f"{path.name}: probe {p}'s {name} touch is not what the simulation makes "
+                                       "again: the cache was made by other code; not filled")
+            first = next(i for i, m in enumerate(meta) if m["probe"] == p and m["kind"] == "reference")
+            keep = [i for i, m in enumerate(meta) if not (m["probe"] == p and m["kind"] == "reference")]
+            at = sum(1 for i in keep if i < first)
+            recs = [recs[i] for i in keep]
+            meta = [meta[i] for i in keep]
+            recs[at:at] = [r for _, r in fresh]
+            meta[at:at] = [{"kind": "reference", "probe": p, "name": n} for n, _ in fresh]
+            out.append((path.name, p))
+            print(f"{head}: {path.name}: probe {p}: {len(kept)} reference touches -> {len(fresh)}", flush=True)
+        A.save_records(path, recs, meta, {**info, "references_filled": sorted(set(info.get("references_filled", []))
+                                                                              | set(short))})
+    return out
+
+
+def _same(a, b) -> bool:
+    """Two records bit-identical in their samples (None: no record)."""
+    if a is None or b is None:
+        return a is b
+    return all(np.array_equal(getattr(a, n), getattr(b, n)) for n in ("t_s", "T_C", "q_W_m2"))

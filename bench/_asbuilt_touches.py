@@ -191,6 +191,30 @@ def calibrate_records(head: str, refs: list[tuple[str, TouchRecord | None]]):
     return cal, check.to_dict()
 
 
+def scene_noise(head: str, board: str = "precision") -> tuple[float, float, float]:
+    """(sigma_T_K, sigma_q_W_m2, dt_s) the simulated touches of :func:`hand_scene` carry: one sample's noise.
+
+    What the attainable u of the bench's Bayes rate is computed with: the scene's ``[sensors]`` input
+    noise of the chip playing each role on ``board`` (:data:`edge.hw.chips.BOARDS`), in K and W/m^2 at the nominal
+    sensitivities, and each converter's step as uniform rounding (step / sqrt 12), in quadrature; the
+    interval of the board's samples (:func:`host.objects.board_noise`).  Not the registry's instrument
+    model, whose flux noise adds a cable's pick-up the scenes do not simulate.
+    """
+    from edge.hw.chips import BOARDS, CHIPS, FLUX, THERMOCOUPLE, TYPE_K_SEEBECK_V_per_K  # noqa: PLC0415
+    from host.objects import board_noise  # noqa: PLC0415
+
+    sc = hand_scene(head, Solid(k_W_mK=0.2, rho_kg_m3=1190.0, c_J_kgK=1470.0), None, 0, rc_m2K_W=0.0,
+                    offset_K=0.0, lead_s=0.0, heat_s=1.0, board=board)
+    if any(sc.board.address_of(c) is None for c in BOARDS[board].values()):
+        raise ValueError(f"scene {sc.name} does not fit the {board} board's chips {dict(BOARDS[board])}")
+    out = []
+    for role, per_V in ((THERMOCOUPLE, TYPE_K_SEEBECK_V_per_K), (FLUX, sc.sensors.flux_sensitivity_V_per_W_m2)):
+        spec = CHIPS[BOARDS[board][role]]
+        noise_V = getattr(sc.sensors, spec.setting_key(spec.input_noise.key))
+        out.append(math.hypot(noise_V / per_V, spec.models[role].lsb / math.sqrt(12.0)))
+    return out[0], out[1], board_noise(board)[2]
+
+
 def hand_draw(rng: np.random.Generator, rc_max_m2K_W: float) -> dict:
     """One hand touch: R_c uniform in [0, rc_max], object - probe uniform in +-2 K, contact 0.5-3 s before heating."""
     return {"rc_m2K_W": float(rng.uniform(0.0, rc_max_m2K_W)), "offset_K": float(rng.uniform(-2.0, 2.0)),

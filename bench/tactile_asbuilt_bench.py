@@ -87,9 +87,6 @@ STRICT_FOLD_OF: dict = {}
 #: Measure how the ECE interval narrows with the number of probes (bench/_ece_growth.py); ``--no-growth``: skip.
 GROWTH = True
 DEFAULT_OUT = ("ldpe_squeeze_bottle", "concrete_step", "ti_bike_frame", "cast_iron_pan")
-#: Noise (1 sigma) of T (K) and q (W/m^2) per board for the attainable u: the precision board's, and the
-#: reference board's converter steps (MCP9600 0.0625 K, ADS1115 ~14 W/m^2) as uniform rounding, step / sqrt(12).
-BOARD_NOISE = {"precision": (0.01, 0.5), "reference": (0.0625 / math.sqrt(12.0), 14.0 / math.sqrt(12.0))}
 #: Until-decided emulation: the running answer is checked at these heating times (s) ...
 DECIDE_GRID_S = (0.5, 0.75, 1.0, 1.25, 1.5, 2.0)
 #: ... and heating stops at the first where the accepted object's calibrated posterior reaches this.
@@ -317,8 +314,9 @@ def recognise_at(task) -> tuple[dict, dict]:
     fold = np.array([FOLD_OF.get(p, p) for p in probe])
     broad = np.array([r.get("u_ln_e_stated") is not None and r["u_ln_e"] != r["u_ln_e_stated"] for r in rows])
     recs, (ci, crecs), fits, sets = cross_fit(oset, t, fold, broad)
-    sT, sq = BOARD_NOISE[board]
-    u_fisher = attainable_u_ln_e(oset, ct, probe=head, sigma_T_K=sT, sigma_q_W_m2=sq)
+    # The attainable u with the noise the simulated touches carry (_asbuilt_touches.scene_noise).
+    sT, sq, dt = A.scene_noise(head, board)
+    u_fisher = attainable_u_ln_e(oset, ct, probe=head, sigma_T_K=sT, sigma_q_W_m2=sq, dt_s=dt)
     ev = evaluate(oset, t, recs, out_names, u_fisher)
     cal_split = evaluate(oset, t.select(ci), crecs, out_names, u_fisher)
     plain, _, _, _ = cross_fit(oset, t, fold, broad, bias=False)
@@ -583,6 +581,8 @@ def main() -> None:
                     help="with --add-probes: the first new probe's number (default: after every cached probe)")
     ap.add_argument("--part", default="1/1", help="with --add-probes: i/n, every n-th new probe from the i-th")
     ap.add_argument("--merge-probes", action="store_true", help="join the --add-probes part files")
+    ap.add_argument("--fill-references", action="store_true",
+                    help="touch again the reference touches an older merge dropped (_asbuilt_grow.fill_references)")
     ap.add_argument("--without-probes", action="store_true",
                     help="with --reuse: leave out the --add-probes probes (the numbers before them)")
     ap.add_argument("--temper-spread", action="store_true",
@@ -612,6 +612,9 @@ def main() -> None:
             continue
         if args.merge_probes:
             print("merged:", [p.name for p in G.merge_probes(path)])
+            continue
+        if args.fill_references:
+            print("filled:", G.fill_references(head, path, args.board))
             continue
         if args.add_probes:
             first = args.first_probe or 1 + max(m["probe"] for f in [path, *(f for f in G.probe_files(path) if "_part" not in f.stem)]

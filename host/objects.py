@@ -15,7 +15,7 @@ from edge.protocol.commands import Command
 from edge.protocol.messages import SESSION_CHUNK_HEADER_SIZE
 
 __all__ = ["set_name_of", "stamp_version", "upload_object_set", "list_object_sets", "remove_object_set",
-           "select_object_set", "SEPARATION_SIGMAS", "attainable_u_ln_e", "inseparable_pairs"]
+           "select_object_set", "SEPARATION_SIGMAS", "board_noise", "attainable_u_ln_e", "inseparable_pairs"]
 
 
 def set_name_of(path: str | Path) -> str:
@@ -131,14 +131,37 @@ def select_object_set(client: Any, name: str) -> dict:
 SEPARATION_SIGMAS = 2.0
 
 
-def attainable_u_ln_e(objects: Any, contact_time_s: float, *, probe: str = "paper", sigma_T_K: float = 0.01,
-                      sigma_q_W_m2: float = 0.5) -> dict[str, float]:
+def board_noise(board: str = "precision") -> tuple[float, float, float]:
+    """(sigma_T_K, sigma_q_W_m2, dt_s) of one sample of a board (:data:`edge.hw.chips.BOARDS`).
+
+    From the chip registry's instrument models (:data:`edge.measure.instrument.INSTRUMENTS`): each
+    role's input-referred noise and its converter step as uniform rounding (step / sqrt 12), in
+    quadrature; the sample interval is the device's default rate capped by the thermocouple
+    converter's (50 Hz on the precision board, 12.5 Hz on the reference board's MCP9600).
+    """
+    import math  # noqa: PLC0415
+
+    from edge.hw.chips import BOARDS, THERMOCOUPLE  # noqa: PLC0415
+    from edge.measure.instrument import INSTRUMENTS  # noqa: PLC0415
+    from edge.service.config import MeasurementConfig  # noqa: PLC0415
+
+    if board not in BOARDS:
+        raise ValueError(f"unknown board {board!r}; boards: {sorted(BOARDS)}")
+    ins = INSTRUMENTS[BOARDS[board][THERMOCOUPLE]]
+    rate_Hz = min(float(MeasurementConfig().sample_rate_Hz), ins.T_rate_Hz)
+    return (math.hypot(ins.T_noise_K, ins.T_lsb_K / math.sqrt(12.0)),
+            math.hypot(ins.q_noise_W_m2, ins.q_lsb_W_m2 / math.sqrt(12.0)), 1.0 / rate_Hz)
+
+
+def attainable_u_ln_e(objects: Any, contact_time_s: float, *, probe: str = "paper", board: str = "precision",
+                      sigma_T_K: float | None = None, sigma_q_W_m2: float | None = None,
+                      dt_s: float | None = None) -> dict[str, float]:
     """Each object's attainable u(e)/e at ``contact_time_s`` (Fisher bound, :func:`edge.estimation.design.attainable`).
 
     The hand touch's unknown contact resistance is among the fitted quantities (``fit_contact``):
     what a touch by hand can resolve at best, before calibration and specimen spread.  An object
-    given by e alone is taken with the library's ρc prior (its α then follows from e).  Default noise:
-    the precision board's.
+    given by e alone is taken with the library's rho c prior (its alpha then follows from e).  Noise and
+    sample interval: ``board``'s (:func:`board_noise`), unless given.
     """
     import math  # noqa: PLC0415
 
@@ -150,7 +173,10 @@ def attainable_u_ln_e(objects: Any, contact_time_s: float, *, probe: str = "pape
     from edge.physics.solids import Solid  # noqa: PLC0415
     from host.recognition import library_estimator  # noqa: PLC0415
 
-    dt = 0.02
+    bT, bq, bdt = board_noise(board)
+    sigma_T_K = bT if sigma_T_K is None else sigma_T_K
+    sigma_q_W_m2 = bq if sigma_q_W_m2 is None else sigma_q_W_m2
+    dt = bdt if dt_s is None else dt_s
     t = dt * np.arange(1, int(math.floor(contact_time_s / dt + 1e-9)) + 1)
     model = AxisymModel(PROBES[probe], t)   # its probe part is the costly setup: once for every object
     lib = None

@@ -41,3 +41,22 @@ def test_parts_run_side_by_side_merge_to_the_longest_wall_and_the_summed_cpu(tmp
     _, meta, info = A.load_records(merged)
     assert info["sim_s"] == 120.0 and info["cpu_s"] == 130.0 and {m["probe"] for m in meta} == {4, 5}
     assert not list(tmp_path.glob("*_part*"))
+
+
+def test_both_touches_of_each_reference_survive_a_merge_and_a_load(tmp_path):
+    """Each reference is touched twice (two hands): keyed by name alone, the second touch was dropped."""
+    import _asbuilt_grow as G
+    import _asbuilt_touches as A
+
+    names = ["a"]
+    base = tmp_path / "tactile_asbuilt_paper.npz"
+    A.save_records(base, [None] * 2, _meta(1, names), {"sim_s": 1.0})
+    refs = [{"probe": 4, "kind": "reference", "name": n} for n in ("pmma", "pmma", "steel", "steel")]
+    m = refs + [{"probe": 4, "kind": "touch", "name": "a", "j": 4000}]
+    A.save_records(G.probes_path(base, 4, 5, (1, 2)), [None] * len(m), m, {"sim_s": 1.0, "cpu_s": 1.0})
+    (merged,) = G.merge_probes(base)
+    _, meta, _ = A.load_records(merged)
+    assert [x["name"] for x in meta if x["kind"] == "reference"] == ["pmma", "pmma", "steel", "steel"]
+    _, meta, _ = G.load_all(base, names)
+    assert sum(x["probe"] == 4 and x["kind"] == "reference" for x in meta) == 4
+    assert G.record_keys(refs)[1] == (4, "reference", "pmma", 1)

@@ -48,3 +48,21 @@ def test_a_specimen_keeps_its_objects_e_and_alpha_within_the_spread(A):
     ln_e = np.log([s.effusivity_W_s05_m2K / o.e_W_s05_m2K for s in sp])
     ln_a = np.log([s.alpha_m2_s / o.alpha_m2_s for s in sp])
     assert abs(ln_e.mean()) < 0.01 and 0.04 < ln_e.std() < 0.06 and 0.04 < ln_a.std() < 0.06
+
+
+def test_the_bayes_rates_noise_is_the_simulated_scenes(A):
+    """The attainable u is computed with the noise the simulated touches carry, read from their scene."""
+    import math
+
+    from edge.hw.chips import TYPE_K_SEEBECK_V_per_K
+
+    sT, sq, dt = A.scene_noise("paper", "precision")
+    sc = A.hand_scene("paper", A.Solid(k_W_mK=0.2, rho_kg_m3=1190.0, c_J_kgK=1470.0), None, 0, rc_m2K_W=0.0,
+                      offset_K=0.0, lead_s=0.0, heat_s=1.0)
+    v = sc.sensors.ads122c04_noise_rms_V
+    assert v > 0 and sT == pytest.approx(v / TYPE_K_SEEBECK_V_per_K, rel=1e-3)   # the 24-bit step is negligible
+    assert sq == pytest.approx(v / sc.sensors.flux_sensitivity_V_per_W_m2, rel=1e-3) and dt == pytest.approx(0.02)
+    rT, rq, rdt = A.scene_noise("paper", "reference")
+    # The reference board: the MCP9600's 16-bit step and the ADS1115's 14 W/m^2 step dominate, at 12.5 Hz.
+    assert rT > 10 * sT and rq > 10 * sq and rdt == pytest.approx(0.08)
+    assert rT > 0.197 / math.sqrt(12.0)

@@ -34,3 +34,27 @@ def test_a_catalogue_is_not_checked_pair_by_pair():
     big = ObjectSet([P(f"o{i}", "glass", 1.0, 2500, 800, 0.05) for i in range(MAX_SEPARATION_OBJECTS + 1)])
     (line,) = separation_warnings(big, 1.0)
     assert "not checked" in line
+
+
+def test_the_bound_takes_the_boards_noise_from_the_chip_registry():
+    import math
+
+    import pytest
+
+    from edge.hw.chips import BOARDS, CHIPS, FLUX, THERMOCOUPLE
+    from host.objects import board_noise
+
+    for board, roles in BOARDS.items():
+        sT, sq, dt = board_noise(board)
+        T, q = CHIPS[roles[THERMOCOUPLE]].models[THERMOCOUPLE], CHIPS[roles[FLUX]].models[FLUX]
+        assert sT == pytest.approx(math.hypot(T.noise, T.lsb / math.sqrt(12.0)))
+        assert sq == pytest.approx(math.hypot(q.noise, q.lsb / math.sqrt(12.0)))
+        assert dt == pytest.approx(1.0 / min(50.0, T.rate_Hz))   # the MCP9600 converts at 12.5 Hz
+    with pytest.raises(ValueError, match="unknown board"):
+        board_noise("breadboard")
+    # A noisier, slower board resolves less: the reference board's bound is wider on every object.
+    precise, coarse = attainable_u_ln_e(SET, 1.0), attainable_u_ln_e(SET, 1.0, board="reference")
+    assert all(coarse[n] > precise[n] for n in SET.names)
+    # Given noise overrides the board's.
+    quiet = attainable_u_ln_e(SET, 1.0, sigma_T_K=1e-4, sigma_q_W_m2=1e-2)
+    assert all(quiet[n] < precise[n] for n in SET.names)
