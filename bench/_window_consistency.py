@@ -57,9 +57,9 @@ def reference_windows(task) -> tuple:
             try:
                 d = estimate_touch(rec, ctx).to_dict()
                 e = d["effusivity_W_s05_m2K"] or (d.get("sensor_chain") or {}).get("effusivity_W_s05_m2K")
-                lne["full" if T is None else T] = math.log(e) if e else math.nan
+                lne["full" if T is None else str(T)] = math.log(e) if e else math.nan
             except ValueError:
-                lne["full" if T is None else T] = math.nan
+                lne["full" if T is None else str(T)] = math.nan
         out.append((name, lne))
     return p, {"touches": out, "theta": [float(x) for x in cal.theta], "u_theta": [float(x) for x in cal.u_theta],
                "u_rel_floor": float(cal.u_rel_floor), "forced": bool(cal.forced),
@@ -67,12 +67,13 @@ def reference_windows(task) -> tuple:
                "misses": (cal.self_check or {}).get("misses")}
 
 
-def object_errors(times) -> dict:
-    """{probe: {T: {object: [ln(e / e_true)...]}}} from the committed bench rows."""
-    d = json.loads((RESULTS / "tactile_asbuilt.json").read_text())
+def object_errors(times, rows=None) -> dict:
+    """{probe: {T: {object: [ln(e / e_true)...]}}} from ``rows`` (default: the committed bench rows)."""
+    if rows is None:
+        rows = json.loads((RESULTS / "tactile_asbuilt.json").read_text())["heads"]["paper"]["rows"]
     out: dict = {}
-    for r in d["heads"]["paper"]["rows"]:
-        if r["kind"] != "touch" or r["contact_s"] not in times or not (r.get("e") or 0) > 0:
+    for r in rows:
+        if r.get("kind", "touch") != "touch" or r["contact_s"] not in times or not (r.get("e") or 0) > 0:
             continue
         if not math.isfinite(r["e"]):
             continue
@@ -92,9 +93,9 @@ def predicted_offsets(refs, T) -> tuple[np.ndarray, np.ndarray]:
     return np.array([a for a, _ in pts]), np.array([b for _, b in pts])
 
 
-def analyse(ref_windows: dict, times=WINDOWS_s, objects=OBJECTS) -> dict:
+def analyse(ref_windows: dict, times=WINDOWS_s, objects=OBJECTS, rows=None) -> dict:
     """Between / within split of the objects' errors and what the references' delta_T predicts of it."""
-    errs = object_errors(set(times))
+    errs = object_errors(set(times), rows)
     out: dict = {}
     for T in times:
         per_obj: dict = {}
@@ -152,7 +153,7 @@ def pooled(data: dict, times=WINDOWS_s) -> dict:
     """Per probe, the four woods pooled (24 touches): what the references' delta_T and the calibration's
     own parameter error (fitted theta - the drawn probe's) predict of the probe's mean error at T."""
     refs, cals = data["references"], data.get("calibrations") or {}
-    errs = object_errors(set(times))
+    errs = object_errors(set(times), data.get("rows"))
 
     def mean_err(p, T):
         x = [v for n in WOODS for v in errs.get(int(p), {}).get(T, {}).get(n, [])]
@@ -221,13 +222,123 @@ def print_table(a: dict) -> None:
                   f"{v['r']:+.2f}  {v['slope']:.2f}  {v['r2']:.2f}  {100 * v['between_after_subtracting']:.1f} %")
 
 
+# -- the six reference touches ----------------------------------------------------------------------
+#: Where --six keeps the re-simulated second touches of each reference (outside bench/results/cache).
+SIX_CACHE = Path("/tmp/cal44/refs6")
+
+
+def six_references(p: int, refs: list) -> list:
+    """The probe's six reference touches of :data:`_objects.REFERENCES`: the cached ones, and the second
+    touch of each material re-simulated where the cache kept one (same scene and seed as
+    :func:`_asbuilt_touches.reference_records`: a re-simulated first touch equals the cached one)."""
+    import tempfile
+
+    from _objects import REFERENCES
+    from asbuilt_bench import solid
+    from host.calibration import HEAT_s
+
+    if len(refs) == len(REFERENCES):
+        return refs
+    path = SIX_CACHE / f"probe{p}.npz"
+    if path.exists():
+        recs, meta, _ = A.load_records(path)
+        return [(m["name"], r) for r, m in zip(recs, meta)]
+    have = {n: r for n, r in refs}
+    store, wd = G._store(), tempfile.mkdtemp(prefix="cal44-refs-")
+    out, seen = [], set()
+    for j, (name, rc, off) in enumerate(REFERENCES):
+        if name in have and name not in seen:   # the cache kept each material's first touch (R_c 0)
+            seen.add(name)
+            out.append((name, have[name]))
+            continue
+        sc = A.hand_scene("paper", solid(name), p, 7000 + 13 * p + j, rc_m2K_W=rc, offset_K=off, lead_s=1.0,
+                          heat_s=HEAT_s, label=name)
+        out.append((name, A.simulate(sc, store, wd, HEAT_s)))
+    A.save_records(path, [r for _, r in out], [{"kind": "reference", "probe": p, "name": n} for n, _ in out], {})
+    return out
+
+
+def six_probe(task) -> tuple:
+    """One probe calibrated on its six reference touches: its references' windows and its objects' rows."""
+    from edge.estimation.seam import estimate_touch
+    from host.cli.common import seam_context
+
+    p, refs, touches, times = task
+    refs6 = six_references(p, refs)
+    _, ref_out = reference_windows((p, refs6, times))
+    cal, _ = A.calibrate_records("paper", refs6)
+    ctx = seam_context(None, calibration=cal)
+    rows = []
+    for r, m in touches:
+        for T in times:
+            row = {"probe": p, "name": m["name"], "e_true": m["e_true"], "contact_s": T, "e": math.nan}
+            try:
+                d = estimate_touch(A.truncated(r, T), ctx).to_dict()
+                if d["effusivity_W_s05_m2K"]:
+                    row.update(e=d["effusivity_W_s05_m2K"], u_ln_e=d["effusivity_W_s05_m2K_u"] / d["effusivity_W_s05_m2K"])
+            except ValueError:
+                pass
+            rows.append(row)
+    return p, ref_out, rows
+
+
+def six_data(probes, res) -> dict:
+    """The --six run's output in the shape :func:`analyse` and :func:`pooled` read (``rows``: its own)."""
+    return {"probes": probes, "references": {str(p): v["touches"] for p, v, _ in res},
+            "calibrations": {str(p): {k: x for k, x in v.items() if k != "touches"} for p, v, _ in res},
+            "rows": [x for *_, rs in res for x in rs]}
+
+
+def split(rows, probes, T, name) -> dict:
+    """Between / within of ln(e / e_true) and rms z (stated u) of one object at T over ``probes``."""
+    by: dict = {}
+    z = []
+    for r in rows:
+        if r["probe"] in probes and r["contact_s"] == T and r["name"] == name and (r.get("e") or 0) > 0 \
+                and math.isfinite(r["e"]):
+            x = math.log(r["e"] / r["e_true"])
+            by.setdefault(r["probe"], []).append(x)
+            if r.get("u_ln_e") and math.isfinite(r["u_ln_e"]):
+                z.append(x / r["u_ln_e"])
+    means = np.array([np.mean(v) for v in by.values()])
+    w = [x - np.mean(v) for v in by.values() for x in v]
+    return {"between": float(np.std(means, ddof=1)), "within": float(np.sqrt(np.sum(np.square(w)) /
+            max(len(w) - len(means), 1))), "bias": float(np.mean([x for v in by.values() for x in v])),
+            "rms_z": float(np.sqrt(np.mean(np.square(z)))) if z else math.nan, "n": len(w)}
+
+
+def print_six(six: dict, times=WINDOWS_s, objects=OBJECTS) -> None:
+    """The objects' split on the same probes: calibrated on three reference touches (the committed rows)
+    and on six (re-estimated)."""
+    d = json.loads((RESULTS / "tactile_asbuilt.json").read_text())
+    rows3 = [r for r in d["heads"]["paper"]["rows"] if r["kind"] == "touch"]
+    probes = {int(p) for p in six["probes"]}
+    print(f"three vs six reference touches, same {len(probes)} probes: between / within %, bias %, rms z")
+    for T in times:
+        for name in objects:
+            a, b = split(rows3, probes, T, name), split(six["rows"], probes, T, name)
+            print(f"  {T} s {name:20s} 3 refs {100 * a['between']:.1f} / {100 * a['within']:.1f}, "
+                  f"{100 * a['bias']:+.1f}, z {a['rms_z']:.2f}   6 refs {100 * b['between']:.1f} / "
+                  f"{100 * b['within']:.1f}, {100 * b['bias']:+.1f}, z {b['rms_z']:.2f}   (n {a['n']}, {b['n']})")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--probes", type=int, default=20)
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--out", default=None)
     ap.add_argument("--analyse", default=None, help="analyse a saved --out JSON (no re-estimation)")
+    ap.add_argument("--six", action="store_true",
+                    help="calibrate on all six reference touches (the second of each re-simulated where the cache "
+                         "kept one) and re-estimate the objects' touches: the split on 3 vs 6 touches")
+    ap.add_argument("--first", type=int, default=0, help="skip this many probes (with --probes: a slice)")
     args = ap.parse_args()
+    if args.analyse and args.six:
+        six = json.loads(Path(args.analyse).read_text())
+        print_six(six)
+        print_table(analyse(six["references"], rows=six["rows"]))
+        print_pooled(pooled(six))
+        return
     if args.analyse:
         data = json.loads(Path(args.analyse).read_text())
         print_table(analyse(data["references"]))
@@ -235,7 +346,21 @@ def main() -> None:
         return
     t0 = time.process_time()
     recs, meta, _ = G.load_all(A.CACHE / "tactile_asbuilt_paper.npz", [], extension=False, probes=True)
-    probes = sorted({m["probe"] for m in meta if m["kind"] == "reference"})[:args.probes]
+    probes = sorted({m["probe"] for m in meta if m["kind"] == "reference"})[args.first:args.first + args.probes]
+    if args.six:
+        tasks = [(p, [(m["name"], r) for r, m in zip(recs, meta) if m["kind"] == "reference" and m["probe"] == p],
+                  [(r, m) for r, m in zip(recs, meta) if m["kind"] == "touch" and m["probe"] == p
+                   and m["name"] in OBJECTS and r is not None], WINDOWS_s) for p in probes]
+        with multiprocessing.get_context("fork").Pool(max(args.jobs, 1)) as pool:
+            res = pool.map(six_probe, tasks, chunksize=1)
+        six = six_data(probes, res)
+        if args.out:
+            Path(args.out).write_text(json.dumps(six, indent=1))
+        print_six(six)
+        print_table(analyse(six["references"], rows=six["rows"]))
+        print_pooled(pooled(six))
+        print(f"{len(probes)} probes, {time.process_time() - t0:.0f} CPU-s (parent)")
+        return
     tasks = [(p, [(m["name"], r) for r, m in zip(recs, meta) if m["kind"] == "reference" and m["probe"] == p],
               WINDOWS_s) for p in probes]
     if args.jobs > 1:
