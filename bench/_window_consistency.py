@@ -258,13 +258,37 @@ def six_references(p: int, refs: list) -> list:
     return out
 
 
+#: An extra reference's two touches (R_c, object - probe), as the walk-through's pairs.
+EXTRA_HANDS = ((0.0, 1.0), (1e-5, -1.0))
+
+
+def extra_references(p: int, name: str) -> list:
+    """Two hand touches of library material ``name`` on probe ``p`` (kept in /tmp/cal44/refs_<name>)."""
+    import tempfile
+
+    from asbuilt_bench import solid
+    from host.calibration import HEAT_s
+
+    path = SIX_CACHE.with_name(f"refs_{name}") / f"probe{p}.npz"
+    if path.exists():
+        recs, meta, _ = A.load_records(path)
+        return [(m["name"], r) for r, m in zip(recs, meta)]
+    store, wd = G._store(), tempfile.mkdtemp(prefix="cal44-extra-")
+    out = [(name, A.simulate(A.hand_scene("paper", solid(name), p, 9000 + 13 * p + j, rc_m2K_W=rc, offset_K=off,
+                                           lead_s=1.0, heat_s=HEAT_s, label=name), store, wd, HEAT_s))
+           for j, (rc, off) in enumerate(EXTRA_HANDS)]
+    A.save_records(path, [r for _, r in out], [{"kind": "reference", "probe": p, "name": n} for n, _ in out], {})
+    return out
+
+
 def six_probe(task) -> tuple:
-    """One probe calibrated on its six reference touches: its references' windows and its objects' rows."""
+    """One probe calibrated on its six reference touches (and an extra reference's two, if named): its
+    references' windows and its objects' rows."""
     from edge.estimation.seam import estimate_touch
     from host.cli.common import seam_context
 
-    p, refs, touches, times = task
-    refs6 = six_references(p, refs)
+    p, refs, touches, times, *extra = task
+    refs6 = six_references(p, refs) + (extra_references(p, extra[0]) if extra and extra[0] else [])
     _, ref_out = reference_windows((p, refs6, times))
     cal, _ = A.calibrate_records("paper", refs6)
     ctx = seam_context(None, calibration=cal)
@@ -307,18 +331,22 @@ def split(rows, probes, T, name) -> dict:
             "rms_z": float(np.sqrt(np.mean(np.square(z)))) if z else math.nan, "n": len(w)}
 
 
-def print_six(six: dict, times=WINDOWS_s, objects=OBJECTS) -> None:
-    """The objects' split on the same probes: calibrated on three reference touches (the committed rows)
-    and on six (re-estimated)."""
-    d = json.loads((RESULTS / "tactile_asbuilt.json").read_text())
-    rows3 = [r for r in d["heads"]["paper"]["rows"] if r["kind"] == "touch"]
+def print_six(six: dict, times=WINDOWS_s, objects=OBJECTS, baseline: dict | None = None) -> None:
+    """The objects' split on the same probes: calibrated on three reference touches (the committed rows,
+    or ``baseline``: an earlier --six run's) and on this run's references (re-estimated)."""
+    if baseline is None:
+        d = json.loads((RESULTS / "tactile_asbuilt.json").read_text())
+        rows3 = [r for r in d["heads"]["paper"]["rows"] if r["kind"] == "touch"]
+    else:
+        rows3 = baseline["rows"]
     probes = {int(p) for p in six["probes"]}
-    print(f"three vs six reference touches, same {len(probes)} probes: between / within %, bias %, rms z")
+    print(f"{'three' if baseline is None else 'baseline'} vs this run's reference touches, same {len(probes)} "
+          "probes: between / within %, bias %, rms z")
     for T in times:
         for name in objects:
             a, b = split(rows3, probes, T, name), split(six["rows"], probes, T, name)
-            print(f"  {T} s {name:20s} 3 refs {100 * a['between']:.1f} / {100 * a['within']:.1f}, "
-                  f"{100 * a['bias']:+.1f}, z {a['rms_z']:.2f}   6 refs {100 * b['between']:.1f} / "
+            print(f"  {T} s {name:20s} {'3 refs' if baseline is None else 'base'} {100 * a['between']:.1f} / "
+                  f"{100 * a['within']:.1f}, {100 * a['bias']:+.1f}, z {a['rms_z']:.2f}   this {100 * b['between']:.1f} / "
                   f"{100 * b['within']:.1f}, {100 * b['bias']:+.1f}, z {b['rms_z']:.2f}   (n {a['n']}, {b['n']})")
 
 
@@ -331,11 +359,14 @@ def main() -> None:
     ap.add_argument("--six", action="store_true",
                     help="calibrate on all six reference touches (the second of each re-simulated where the cache "
                          "kept one) and re-estimate the objects' touches: the split on 3 vs 6 touches")
+    ap.add_argument("--extra-reference", default=None,
+                    help="with --six: also two touches of this library material (e.g. cork_board) in the calibration")
+    ap.add_argument("--baseline", default=None, help="with --six: compare with this earlier --six --out JSON")
     ap.add_argument("--first", type=int, default=0, help="skip this many probes (with --probes: a slice)")
     args = ap.parse_args()
     if args.analyse and args.six:
         six = json.loads(Path(args.analyse).read_text())
-        print_six(six)
+        print_six(six, baseline=json.loads(Path(args.baseline).read_text()) if args.baseline else None)
         print_table(analyse(six["references"], rows=six["rows"]))
         print_pooled(pooled(six))
         return
@@ -350,13 +381,13 @@ def main() -> None:
     if args.six:
         tasks = [(p, [(m["name"], r) for r, m in zip(recs, meta) if m["kind"] == "reference" and m["probe"] == p],
                   [(r, m) for r, m in zip(recs, meta) if m["kind"] == "touch" and m["probe"] == p
-                   and m["name"] in OBJECTS and r is not None], WINDOWS_s) for p in probes]
+                   and m["name"] in OBJECTS and r is not None], WINDOWS_s, args.extra_reference) for p in probes]
         with multiprocessing.get_context("fork").Pool(max(args.jobs, 1)) as pool:
             res = pool.map(six_probe, tasks, chunksize=1)
         six = six_data(probes, res)
         if args.out:
             Path(args.out).write_text(json.dumps(six, indent=1))
-        print_six(six)
+        print_six(six, baseline=json.loads(Path(args.baseline).read_text()) if args.baseline else None)
         print_table(analyse(six["references"], rows=six["rows"]))
         print_pooled(pooled(six))
         print(f"{len(probes)} probes, {time.process_time() - t0:.0f} CPU-s (parent)")
