@@ -66,7 +66,7 @@ from _objects import HELD_OUT_FAR, IN_SET
 from _recognition import (bayes_ceiling, confusion_matrix, debiased_ece, diagnosis, ece_floor, ece_interval,
                           in_set_answers, in_set_reliability)
 from edge.recognition import ObjectSet
-from host.recognition import Touches, calibrate, classify_touches
+from host.recognition import DECISION_FIT, Touches, calibrate, classify_touches
 
 CONTACTS_S = (0.5, 1.0, 2.0)
 HEAT_S = 2.0
@@ -79,6 +79,10 @@ OUTLIER = True
 #: variance, the objects' 5 % specimen spread with it (``--temper-spread``: the latter, the ablation).
 #: ISSUE #37: T < 1 narrowed the spread and 1-s answers below 0.5 (46 %) were right 21 % of 38.
 SPREAD_FIXED = True
+#: The decision rule and the additive term the fitted sets carry: host.recognition.DECISION_FIT, as
+#: ``thermotouch objects calibrate`` (``--test-alone``: 0, the open-set test alone, and no additive term:
+#: the ablation; 30 of the < 0.5 bin's 107 at 2 s were in-set touches it answered "unknown").
+FIT = dict(DECISION_FIT)
 #: Probe -> fold of the evaluation split (``--folds K``: the probes dealt round-robin into K groups, each
 #: group's touches named by the set fitted on the others'); empty: leave-one-probe-out.  Set once by main.
 FOLD_OF: dict = {}
@@ -158,11 +162,11 @@ def cross_fit(oset: ObjectSet, t: Touches, fold: np.ndarray, broad: np.ndarray, 
     in_set = np.array([t.names[i] in oset for i in t.obj])
     for f in sorted(set(fold.tolist())):
         fit_on = in_set & (fold != f) & t.ok & ~broad
-        cal, rep = calibrate(oset, BOARD, sim=t.select(fit_on), bias=bias, outlier=OUTLIER, spread_fixed=sf)
+        cal, rep = calibrate(oset, BOARD, sim=t.select(fit_on), bias=bias, outlier=OUTLIER, spread_fixed=sf, **FIT)
         sets[f] = cal
         fits.append({"held_out_probe": f, **{k: rep.get(k) for k in (
             "temperature", "z_crit", "touches", "bias_ln", "bias_slope", "poor_fit_ln", "poor_fit_touches",
-            "outlier_weight", "outlier_ln", "u_var_scale")}})
+            "outlier_weight", "outlier_ln", "u_var_scale", "calibration_ln", "unknown_min_odds")}})
         for k, rec in zip(np.flatnonzero(fold == f), classify_touches(cal, t.select(fold == f))):
             recs[k] = rec
         own = np.flatnonzero(fold != f)
@@ -182,7 +186,8 @@ def strict_fit(oset: ObjectSet, t: Touches, fold: np.ndarray, broad: np.ndarray)
         # Out-of-set touches (o = -1) by the set fitted on every in-set object of the other probes.
         for o in [-1] + sorted(set(t.obj[in_set].tolist())):
             fit_on = in_set & (fold != f) & (t.obj != o) & t.ok & ~broad
-            cal, _ = calibrate(oset, BOARD, sim=t.select(fit_on), bias=True, outlier=OUTLIER, spread_fixed=SPREAD_FIXED)
+            cal, _ = calibrate(oset, BOARD, sim=t.select(fit_on), bias=True, outlier=OUTLIER, spread_fixed=SPREAD_FIXED,
+                           **FIT)
             ans = (fold == f) & ((t.obj == o) if o >= 0 else ~in_set)
             for k, rec in zip(np.flatnonzero(ans), classify_touches(cal, t.select(ans))):
                 recs[k] = rec
@@ -281,7 +286,7 @@ def installable_set(est: dict, objects, path) -> dict:
     rows = [r for r in est["rows"] if r["contact_s"] in CONTACTS_S and r["name"] in oset
             and not (r.get("u_ln_e_stated") is not None and r["u_ln_e"] != r["u_ln_e_stated"])]
     cal, rep = calibrate_by_contact(oset, BOARD, sim=touches_of(rows, [o.name for o in objects]), bias=True,
-                                    outlier=OUTLIER, spread_fixed=SPREAD_FIXED)
+                                    outlier=OUTLIER, spread_fixed=SPREAD_FIXED, **FIT)
     path.write_text(cal.to_csv_text())
     return {"path": str(path.relative_to(ROOT)), "by_contact_s": rep["by_contact_s"]}
 
@@ -330,6 +335,7 @@ def recognise_at(task) -> tuple[dict, dict]:
         m = c2 < 0.5
         low[label] = {"n": int(m.sum()), "confidence": float(c2[m].mean()) if m.any() else None,
                       "accuracy": float(ok2[m].mean()) if m.any() else None,
+                      "unknown_answers": int(sum(not rr[k].accepted for k in i2[m])),
                       "objects": dict(Counter(t.names[t.obj[k]] for k in i2[m]).most_common(4)),
                       "ece_debiased": debiased_ece(c2, ok2)["debiased"] if c2.size else None}
     sfold = np.array([STRICT_FOLD_OF.get(p, p) for p in probe])
@@ -418,7 +424,9 @@ def head_lines(head: str, h: dict) -> list[str]:
     L += ["", "Fitted terms per contact time (`host.recognition.calibrate(bias=True)`, on the probes other than "
           "the one named; per held-out probe: T / z_crit / bias of ln e at e = 1000 / its slope per unit ln e / "
           "poor_fit_ln (a stated u); with an outlier component, / its weight ε @ σ_out in ln e; / k, the scale on "
-          "the stated u² (`host.recognition.fit_u_var_scale`, its bounds 0.02-100)):", ""]
+          "the stated u² (`host.recognition.fit_u_var_scale`, its bounds 0.02-100), + c, the additive sd of ln e where "
+          "fitted (kept when it beats none by AIC); 'unknown' only when the background is also the most probable "
+          f"hypothesis: unknown_min_odds {FIT['unknown_min_odds']:g}):", ""]
     for ct, r in R.items():
         L.append(f"* {float(ct):g} s: " + "; ".join(
             f"{'fold' if h.get('folds') else 'probe'} {x['held_out_probe']}: {x['temperature']:.2f} / {x['z_crit']:.2f} / "
@@ -426,6 +434,7 @@ def head_lines(head: str, h: dict) -> list[str]:
             f"{100 * (x['bias_slope'] or 0):+.1f} % / {x['poor_fit_ln'] or 0:.2f}"
             + (f" / {x['outlier_weight']:.2f} @ {x['outlier_ln']:.1f}" if x.get("outlier_weight") else "")
             + (f" / k {x['u_var_scale']:.2f}" if x.get("u_var_scale", 1.0) != 1.0 else "")
+            + (f" + c {100 * x['calibration_ln']:.1f} %" if x.get("calibration_ln") else "")
             for x in r["fits"]))
     L += ["", "Answers below 0.5 (in-set, evaluation split): this likelihood against the other (" + (
         "T on every variance" if SPREAD_FIXED else "the stated u scaled alone") + "): n, mean confidence, right, "
@@ -433,7 +442,7 @@ def head_lines(head: str, h: dict) -> list[str]:
     for ct, r in R.items():
         lb = r.get("low_bin") or {}
         L.append(f"* {float(ct):g} s: " + "; against ".join(
-            f"{x['n']} at {pct(x['confidence'])} % right {pct(x['accuracy'])} % ("
+            f"{x['n']} at {pct(x['confidence'])} % right {pct(x['accuracy'])} % ({x.get('unknown_answers', '–')} 'unknown'; "
             + ", ".join(f"{n} {c}" for n, c in x["objects"].items()) + f"), ECE {pct(x['ece_debiased'], 1)} %"
             for x in (lb.get("adopted"), lb.get("other")) if x))
     L += ["", "Bayes rate with the u the calibrated probe states (median per object): "
@@ -587,6 +596,8 @@ def main() -> None:
                     help="with --reuse: leave out the --add-probes probes (the numbers before them)")
     ap.add_argument("--temper-spread", action="store_true",
                     help="T on every variance, the specimen spread too (the ablation of SPREAD_FIXED)")
+    ap.add_argument("--test-alone", action="store_true", help="the open-set test alone decides 'unknown' and no "
+                    "additive term is fitted (the ablation of FIT)")
     ap.add_argument("--no-growth", action="store_true", help="skip the ECE-interval-against-size analysis")
     ap.add_argument("--answers", default=None, help="with --reuse: a previous run's JSON; its estimated rows are "
                     "recognised again instead of re-estimating the records (development of the recognition fit)")
@@ -596,6 +607,8 @@ def main() -> None:
     args = ap.parse_args()
     global OUTLIER, GROWTH, SPREAD_FIXED
     OUTLIER, GROWTH, SPREAD_FIXED = not args.no_outlier, not args.no_growth, not args.temper_spread
+    if args.test_alone:
+        FIT.update(unknown_min_odds=0.0, additive=False)
     objects, out_objs = _objects(args.out)
     if args.objects:
         objects = IN_SET[:args.objects] + out_objs

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from types import MappingProxyType
 from typing import Mapping, Optional, Sequence
 
 import numpy as np
@@ -40,6 +41,7 @@ from edge.measure.instrument import INSTRUMENTS
 from edge.physics.materials import load_materials
 from edge.physics.solids import Solid
 from host.evaluate import TouchSimulator
+from host.recognition_fit import fit_bias, fit_poor_fit_ln
 
 __all__ = [
     "DEFAULT_Q_V_W_M3",
@@ -59,9 +61,17 @@ __all__ = [
     "classify_touches",
     "calibrate",
     "calibrate_by_contact",
+    "DECISION_FIT",
     "reliability",
     "recognise",
 ]
+
+#: The decision rule and the additive term a set is calibrated with, wherever it is (``thermotouch objects
+#: calibrate``, bench/tactile_asbuilt_bench.py): a touch the open-set test rejects is answered ``unknown``
+#: only when the background is also more probable than the best object, and an additive sd of ln e is
+#: fitted beside the scale k when it earns its parameter.  ISSUE #37: the test alone answered in-set
+#: touches from the specimen spread's tail "unknown" at the background's 0.16-0.42, every one wrong.
+DECISION_FIT = MappingProxyType({"unknown_min_odds": 1.0, "additive": True})
 
 #: Heater power density of the simulated touches (as bench identification).
 DEFAULT_Q_V_W_M3 = 7.7e7
@@ -403,33 +413,52 @@ def fit_outlier(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, alpha: Mappi
     return {**best, "nll_gaussian": nll0}
 
 
+#: Grid of the additive sd of ln e, ``calibration_ln``, fitted with k (fit_u_var_scale(additive=True)): a
+#: level every touch shares whatever its stated u (a probe's calibration error).
+CALIBRATION_LNS = (0.005, 0.01, 0.015, 0.02, 0.03, 0.05, 0.08)
+
+
 def fit_u_var_scale(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, alpha: Mapping | None = None,
-                    outlier: bool = False, bounds=(0.02, 100.0)) -> dict:
+                    outlier: bool = False, additive: bool = False, bounds=(0.02, 100.0)) -> dict:
     """The scale k on the stated u² of ln e alone (T = 1) minimising the true objects' NLL; with the outlier mixture.
 
     T scales every variance, the objects' specimen spread too: where the spread dominates (a wood's
     5 % against a 1-s touch's 3 %) a T < 1 narrows it, and touches between two close objects are
     named over-confidently (ISSUE #37: 1-s answers at 0.46 right 21 %).  ``k u² = (sqrt(k) u)²``.
     ``outlier``: k with ε, σ_out on the grids, kept only when it beats the Gaussian by AIC's ``2 / n``
-    (as :func:`fit_outlier`).  Returns ``u_var_scale``, ``outlier_weight``, ``outlier_ln``, ``nll``.
+    (as :func:`fit_outlier`).  ``additive``: then, on top of the best, an additive sd of ln e
+    ``calibration_ln`` c (variance ``k u² + spread² + c²``) with k refitted, on the grid
+    :data:`CALIBRATION_LNS`, kept only when it beats c = 0 by AIC's ``1 / n``: a level common to a
+    probe's touches that the stated u does not carry, which a k fitted alone would trade between the
+    objects with a large u and those with a small one.  Returns ``u_var_scale``, ``outlier_weight``,
+    ``outlier_ln``, ``calibration_ln``, ``nll``.
     """
-    base = object_set.with_calibration(u_var_scale=1.0, temperature=1.0)
+    # additive: c fitted from 0; otherwise the set's own c (a user's, or 0) is kept as it is.
+    base = object_set.with_calibration(u_var_scale=1.0, temperature=1.0, **({"calibration_ln": 0.0} if additive else {}))
     ln_e, u, ti, kw = np.asarray(ln_e, float), np.asarray(u_ln_e, float), np.asarray(true_index, int), alpha or {}
     if ti.size == 0:
         raise ValueError("no touches to fit on")
 
-    def fit(eps: float, s: float, rounds: int) -> dict:
+    def fit(eps: float, s: float, rounds: int, c: float | None = None) -> dict:
+        b = base if c is None else base.with_calibration(calibration_ln=c)
+
         def nll(log_k: float) -> float:
             us = u * math.exp(0.5 * log_k)
-            q, hld, _ = base.log_terms(ln_e, us, **kw)
-            return _mixture_nll(base, q, hld, ln_e, us, ti, 1.0, eps, s, kw)
+            q, hld, _ = b.log_terms(ln_e, us, **kw)
+            return _mixture_nll(b, q, hld, ln_e, us, ti, 1.0, eps, s, kw)
         lk = _golden_min(nll, math.log(bounds[0]), math.log(bounds[1]), rounds=rounds)
-        return dict(u_var_scale=float(math.exp(lk)), outlier_weight=float(eps), outlier_ln=float(s), nll=nll(lk))
+        return dict(u_var_scale=float(math.exp(lk)), outlier_weight=float(eps), outlier_ln=float(s),
+                    calibration_ln=float(b.calibration_ln), nll=nll(lk))
 
     gauss = fit(0.0, float(base.outlier_ln), 50)
     best = min([fit(e, s, 30) for e in OUTLIER_WEIGHTS for s in OUTLIER_LNS] if outlier else [gauss],
                key=lambda c: c["nll"])
-    return {**(best if gauss["nll"] - best["nll"] > 2.0 / max(ti.size, 1) else gauss), "nll_gaussian": gauss["nll"]}
+    best = best if gauss["nll"] - best["nll"] > 2.0 / max(ti.size, 1) else gauss
+    if additive:
+        with_c = min((fit(best["outlier_weight"], best["outlier_ln"], 40, c) for c in CALIBRATION_LNS),
+                     key=lambda r: r["nll"])
+        best = with_c if best["nll"] - with_c["nll"] > 1.0 / max(ti.size, 1) else best
+    return {**best, "nll_gaussian": gauss["nll"]}
 
 
 def scatter_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, alpha: Mapping | None = None) -> float:
@@ -546,56 +575,11 @@ def classify_touches(object_set: ObjectSet, touches: Touches) -> list[Recognitio
     return out
 
 
-#: Floor on a touch's u(ln e) in the bias fit's weights: a metal's 2 % or a glass's 1.6 % should not
-#: let a handful of touches set the line for everything.
-BIAS_U_FLOOR_LN = 0.02
-#: Smallest ``poor_fit_ln`` a fit returns: a few poorly fitted touches that happen to sit on their
-#: object must not make the next one look precise.
-POOR_FIT_LN_FLOOR = 0.1
-
-
-def fit_bias(object_set: ObjectSet, touches: Touches) -> tuple[float, float]:
-    """The probe's bias of ln e, ``(bias_ln, bias_slope)``: weighted least squares of ln(e / e_true) on ln e_true.
-
-    Against each touch's own specimen (``e_true``), so the specimen spread is not in it; weights
-    ``1 / (u² + BIAS_U_FLOOR_LN²)``.  Only touches answered with their stated u (not ``poor_fit``).
-    The line is about :data:`edge.recognition.objects.BIAS_REF_E_W_s05_m2K`: ``bias_ln`` is the bias there.
-    """
-    from edge.recognition.objects import BIAS_REF_E_W_s05_m2K  # noqa: PLC0415
-
-    m = touches.ok & ~touches.poor_fit & np.isfinite(touches.u_ln_e)
-    if int(m.sum()) < 3:
-        return 0.0, 0.0
-    x = np.log(touches.e_true[m]) - math.log(BIAS_REF_E_W_s05_m2K)
-    y = np.log(touches.e[m] / touches.e_true[m])
-    sw = 1.0 / np.sqrt(touches.u_ln_e[m] ** 2 + BIAS_U_FLOOR_LN ** 2)
-    if np.ptp(x) < 0.5:   # one object (or a tight cluster): a level, no slope
-        return float(np.sum(sw ** 2 * y) / np.sum(sw ** 2)), 0.0
-    coef = np.linalg.lstsq(np.column_stack([sw, sw * x]), sw * y, rcond=None)[0]
-    return float(coef[0]), float(coef[1])
-
-
-def fit_poor_fit_ln(object_set: ObjectSet, touches: Touches, true_index) -> float:
-    """``poor_fit_ln``: the scatter of poorly fitted chain e's about what their objects read, at the set's T.
-
-    ``sqrt(mean(d²) / T - mean(spread²))``, at least :data:`POOR_FIT_LN_FLOOR`, over the ``poor_fit``
-    touches (d: ln e minus the true object's expected reading, its bias included), divided by
-    ``sqrt(k)`` (the set's ``u_var_scale``: the device scales this width as any stated u); 0 (such
-    touches name nothing) when there are none.
-    """
-    m = touches.poor_fit & touches.ok
-    if not m.any():
-        return 0.0
-    ti = np.asarray(true_index, int)[m]
-    d2 = (np.log(touches.e[m]) - object_set.ln_e[ti]) ** 2
-    v = float(np.mean(d2)) / object_set.temperature - float(np.mean(object_set.spread[ti] ** 2))
-    return float(max(POOR_FIT_LN_FLOOR, math.sqrt(max(v, 0.0))) / math.sqrt(object_set.u_var_scale))
-
-
 def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequence[float] = CONTACT_TIMES_S,
               touches: int = 10, seed: int = 1000, acceptance: float | None = None,
               sim: Touches | None = None, bias: bool = False, outlier: bool = False,
-              spread_fixed: bool = False) -> tuple[ObjectSet, dict]:
+              spread_fixed: bool = False, additive: bool = False,
+              unknown_min_odds: float | None = None) -> tuple[ObjectSet, dict]:
     """Fit the temperature and z_crit of ``object_set`` on held-out simulated touches of its own objects.
 
     Returns the calibrated set (same objects) and a report: the fitted scalars, and the closed-set
@@ -606,7 +590,10 @@ def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequen
     then T and z_crit about the biased centres, and ``poor_fit_ln`` on the ``poor_fit`` touches.
     ``outlier``: T jointly with the likelihood's outlier component (:func:`fit_outlier`; its
     ``outlier_weight`` is 0 where the mixture does not earn its parameters).  ``spread_fixed``: T = 1 and
-    the scale on the stated u alone fitted instead (:func:`fit_u_var_scale`; the spread is the objects').
+    the scale on the stated u alone fitted instead (:func:`fit_u_var_scale`; the spread is the objects'),
+    with ``additive`` jointly with an additive sd of ln e, ``calibration_ln``.  ``unknown_min_odds``: the
+    decision rule stored with the set (:class:`edge.recognition.ObjectSet`; 1: "unknown" only when the
+    background is the most probable hypothesis too); None keeps the set's.
     """
     sim = sim or simulate_touches(object_set.objects, instruments=(instrument,), contact_times_s=contact_times_s,
                                   touches=touches, seed=seed)
@@ -622,9 +609,9 @@ def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequen
     object_set = object_set.with_calibration(**changes)
     before = object_set        # the likelihood as the set had it: the reliability 'before' is judged with it
     if spread_fixed:   # T = 1: only what the probe states is rescaled
-        fu = fit_u_var_scale(object_set, ln_e, u, ti, alpha=alpha, outlier=outlier)
+        fu = fit_u_var_scale(object_set, ln_e, u, ti, alpha=alpha, outlier=outlier, additive=additive)
         t, mix = 1.0, {k: fu[k] for k in ("u_var_scale", "outlier_weight", "outlier_ln")}
-        object_set = object_set.with_calibration(u_var_scale=fu["u_var_scale"])
+        object_set = object_set.with_calibration(u_var_scale=fu["u_var_scale"], calibration_ln=fu["calibration_ln"])
     else:
         fo = fit_outlier(object_set, ln_e, u, ti, alpha=alpha) if outlier else {
             "temperature": fit_temperature(object_set, ln_e, u, ti, alpha=alpha)}
@@ -635,14 +622,16 @@ def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequen
                   alpha_u_growth=growth, alpha_touches=int(np.isfinite(sim.alpha).sum()),
                   bias_ln=object_set.bias_ln, bias_slope=object_set.bias_slope,
                   outlier_weight=mix.get("outlier_weight", object_set.outlier_weight),
-                  outlier_ln=mix.get("outlier_ln", object_set.outlier_ln), u_var_scale=object_set.u_var_scale)
+                  outlier_ln=mix.get("outlier_ln", object_set.outlier_ln), u_var_scale=object_set.u_var_scale,
+                  calibration_ln=object_set.calibration_ln,
+                  unknown_min_odds=object_set.unknown_min_odds if unknown_min_odds is None else unknown_min_odds)
     for label, s_, temp, eps, w in (("before", before, before.temperature, before.outlier_weight, before.outlier_ln),
                                     ("after", object_set, t, report["outlier_weight"], report["outlier_ln"])):
         q, hld, _ = s_.log_terms(ln_e, u, **alpha)
         out_terms = s_.outlier_terms(ln_e, u, temperature=temp, outlier_ln=w, **alpha)[:2] if eps > 0 else None
         p = s_.posteriors(q, hld, temperature=temp, outlier=out_terms, outlier_weight=eps)
         report[f"reliability_{label}"] = reliability(p.max(axis=1), p.argmax(axis=1) == ti)
-    out = object_set.with_calibration(temperature=t, z_crit=z, **mix)
+    out = object_set.with_calibration(temperature=t, z_crit=z, unknown_min_odds=report["unknown_min_odds"], **mix)
     if bias:
         pf = fit_poor_fit_ln(out, poor, _true_index(out, poor.names, poor.obj))
         report.update(poor_fit_ln=pf, poor_fit_touches=int(poor.e.size))
@@ -657,7 +646,8 @@ MIN_CONTACT_TOUCHES = 20
 def calibrate_by_contact(object_set: ObjectSet, instrument: str, *,
                          contact_times_s: Sequence[float] = CONTACT_TIMES_S, touches: int = 10, seed: int = 1000,
                          sim: Touches | None = None, bias: bool = False,
-                         outlier: bool = False, spread_fixed: bool = False) -> tuple[ObjectSet, dict]:
+                         outlier: bool = False, spread_fixed: bool = False, additive: bool = False,
+                         unknown_min_odds: float | None = None) -> tuple[ObjectSet, dict]:
     """:func:`calibrate` over all contact times (the set's scalars) and at each one (its ``contact_calibration``).
 
     A short touch's stated u understates its scatter by another factor than a long one's (ISSUE
@@ -667,19 +657,22 @@ def calibrate_by_contact(object_set: ObjectSet, instrument: str, *,
     with fewer than :data:`MIN_CONTACT_TOUCHES` answered touches gets no entry.  ``bias``: each entry
     carries the probe's bias of ln e at that contact time and ``poor_fit_ln`` too (:func:`calibrate`);
     ``outlier``: and the likelihood's outlier component (``outlier_weight``, ``outlier_ln``);
-    ``spread_fixed``: T = 1 and the scale on the stated u, ``u_var_scale``, fitted instead.
+    ``spread_fixed``: T = 1 and the scale on the stated u, ``u_var_scale``, fitted instead (``additive``: with
+    ``calibration_ln``); ``unknown_min_odds``: stored in the scalars (the same rule at every contact time).
     """
     sim = sim or simulate_touches(object_set.objects, instruments=(instrument,), contact_times_s=contact_times_s,
                                   touches=touches, seed=seed)
-    cal, report = calibrate(object_set, instrument, sim=sim, bias=bias, outlier=outlier, spread_fixed=spread_fixed)
+    opts = dict(bias=bias, outlier=outlier, spread_fixed=spread_fixed, additive=additive)
+    cal, report = calibrate(object_set, instrument, sim=sim, unknown_min_odds=unknown_min_odds, **opts)
     keys = (("temperature", "z_crit") + (("bias_ln", "bias_slope", "poor_fit_ln") if bias else ())
-            + (("outlier_weight", "outlier_ln") if outlier else ()) + (("u_var_scale",) if spread_fixed else ()))
+            + (("outlier_weight", "outlier_ln") if outlier else ()) + (("u_var_scale",) if spread_fixed else ())
+            + (("calibration_ln",) if spread_fixed and additive else ()))
     table, per = {}, {}
     for ct in sorted({float(c) for c in sim.contact_time_s}):
         sub = sim.select(np.isclose(sim.contact_time_s, ct))
         if int(sub.ok.sum()) < MIN_CONTACT_TOUCHES:
             continue
-        _, rep = calibrate(cal, instrument, sim=sub, bias=bias, outlier=outlier, spread_fixed=spread_fixed)
+        _, rep = calibrate(cal, instrument, sim=sub, **opts)
         table[ct] = {k: rep[k] for k in keys}
         per[str(ct)] = {k: rep[k] for k in ("touches", "acceptance") + keys}
         per[str(ct)]["ece_after"] = rep["reliability_after"]["ece"]

@@ -190,6 +190,12 @@ def pytest_ignore_collect(collection_path, config):
     return True if excluded_module(collection_path, config.option.markexpr) else None
 
 
+def _shares_with_another_module(item) -> bool:
+    """Whether the schedule keeps ``item``'s module on the worker of the others that share with it: a costly
+    import (``shares_import``) or work a process-wide memo keeps for another module (``shares_memo``)."""
+    return item.get_closest_marker("shares_import") is not None or item.get_closest_marker("shares_memo") is not None
+
+
 @pytest.hookimpl(trylast=True)  # after -m/-k deselection: the slices are sized on what runs
 def pytest_collection_modifyitems(session, config, items):
     """Each xdist worker's first share of the tests starts with its share of the slow modules.
@@ -205,13 +211,17 @@ def pytest_collection_modifyitems(session, config, items):
     n = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1") or 1)
     items[:] = long_first_slices(items, n, module_of=lambda item: item.module,
                                  is_slow=lambda item: item.get_closest_marker("slow") is not None,
-                                 shares_import=lambda item: item.get_closest_marker("shares_import") is not None)
+                                 shares_import=_shares_with_another_module)
 
 
 def pytest_configure(config):
     config.addinivalue_line(
         "markers", "shares_import(name): the test imports a library that costs ~0.5 s or more of CPU (scikit-learn, scipy.stats, "
         "matplotlib); the xdist schedule gives all such modules to one worker (tests/support/schedule.py)")
+    config.addinivalue_line(
+        "markers", "shares_memo(name): the test repeats work of another module's tests on the same inputs (a calibration "
+        "fit), which a process-wide memo keeps (edge.physics.memo.BoundedMemo): the xdist schedule gives such modules to "
+        "one worker, as for shares_import, so that the work is done once")
     from tests.support.hypothesis_summary import summary_only_with_news
 
     summary_only_with_news(config.pluginmanager)

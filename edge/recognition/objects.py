@@ -11,7 +11,7 @@ CSV format
 Lines whose first non-blank character is ``#`` and blank lines are comments,
 except *directives* ``#@ key = value`` (``temperature``, ``z_crit``,
 ``calibration_ln``, ``prior_unknown``, ``alpha_u_growth``, ``bias_ln``, ``bias_slope``, ``poor_fit_ln``,
-``outlier_weight``, ``outlier_ln``, ``u_var_scale``:
+``outlier_weight``, ``outlier_ln``, ``u_var_scale``, ``unknown_min_odds``:
 the calibration stored with the set; all but ``prior_unknown`` and ``alpha_u_growth`` may also be given
 per contact time, ``#@ bias_ln@1s = 0.05``). The first
 other line is the header: ``name``, ``class``, and either ``k_W_mK``,
@@ -91,6 +91,9 @@ DIRECTIVES: dict[str, Field] = {
     "u_var_scale": Field("float", 1.0, "scale on the measurement's variance u^2 of ln e alone, the specimen "
                          "spread left as stated (fitted on held-out touches; 1: the stated u)", lo=0.0, lo_open=True,
                          hi=1e4),
+    "unknown_min_odds": Field("float", 0.0, "odds the 'unknown' background must hold over the most probable "
+                              "object for a touch the open-set test rejects to be answered unknown (0: the test "
+                              "alone; 1: unknown only when it is the most probable hypothesis)", lo=0.0, hi=1e6),
 }
 #: Effusivity (W s^0.5/(m^2 K)) at which ``bias_ln`` is the bias: mid-range (the polymers and woods a
 #: short touch reads worst lie a unit of ln e below it, the metals three above).
@@ -245,7 +248,7 @@ def parse_csv(text: str, label: str) -> tuple[list[KnownObject], dict]:
 
 #: Directives that may be given per contact time (``#@ temperature@0.5s = ...``).
 CONTACT_DIRECTIVES = ("temperature", "z_crit", "calibration_ln", "bias_ln", "bias_slope", "poor_fit_ln",
-                      "outlier_weight", "outlier_ln", "u_var_scale")
+                      "outlier_weight", "outlier_ln", "u_var_scale", "unknown_min_odds")
 _CONTACT_KEY = re.compile(r"^(" + "|".join(CONTACT_DIRECTIVES) + r")@([0-9]*\.?[0-9]+)s$")
 
 

@@ -182,7 +182,7 @@ def run_calibrate(args) -> int:
 
     from host.atomic import write_text_atomic  # noqa: PLC0415
     from edge.estimation.methods import method_class  # noqa: PLC0415
-    from host.recognition import calibrate_by_contact, simulate_probe_touches  # noqa: PLC0415
+    from host.recognition import DECISION_FIT, calibrate_by_contact, simulate_probe_touches  # noqa: PLC0415
 
     src = Path(args.file)
     out = Path(args.out) if args.out else src.with_name(src.stem + "_calibrated.csv")
@@ -204,7 +204,7 @@ def run_calibrate(args) -> int:
         # spread, which a temperature would temper with the rest (ISSUE #37: the as-built bench's weakest
         # answers at 1 s, given 0.46, were right 21 % of the time; 44 % with the spread kept).
         cal, rep = calibrate_by_contact(objects, args.board, touches=args.touches, seed=args.seed, sim=sim,
-                                        spread_fixed=True)
+                                        spread_fixed=True, **DECISION_FIT)
     except ValueError as exc:  # e.g. every simulated touch refused (metals on the reference board)
         raise CliError(f"{args.file}: cannot calibrate on {args.board}: {exc}") from None
     write_text_atomic(out, cal.to_csv_text())

@@ -48,7 +48,10 @@ from host.deploy import DeployRefused, train_and_deploy
 from host.device import open_device
 from host.flash import flash_bundle, load_verified
 
-pytestmark = [pytest.mark.hil, pytest.mark.slow]
+# shares_import: the module fixture trains through host.train, which imports scikit-learn (~1 CPU-s with
+# scipy.stats): the schedule runs it on the worker that imports it for the other trainers
+# (tests/support/schedule.py), so the other worker need not.
+pytestmark = [pytest.mark.hil, pytest.mark.slow, pytest.mark.shares_import("sklearn")]
 
 SMALL_LIBRARY = ("tempered_glass", "pmma", "aluminium_alloy", "polystyrene_extruded_foam", "cork_board", "plywood",
                  "ptfe", "polycarbonate", "fused_silica", "granite", "aisi_304", "copper")

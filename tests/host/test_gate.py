@@ -98,6 +98,7 @@ def test_broken_bundles_are_refused(tmp_path, shipped_eval, how, refused_on):
 
 @slow
 @pytest.mark.filterwarnings("ignore:lbfgs failed to converge")
+@pytest.mark.shares_import("sklearn")  # host.train: with the suite's other trainers on one worker
 def test_a_seeded_retrain_of_the_shipped_recipe_passes_the_gate(tmp_path, monkeypatch, shipped_eval):
     from host.train import train_bundle
 

@@ -9,7 +9,8 @@ import pytest
 
 from host.plots import PlotError, PlotProcess, TouchFigure, plot_touch
 
-pytestmark = pytest.mark.slow
+# The in-process figures import matplotlib: one worker pays for it (tests/support/schedule.py).
+pytestmark = [pytest.mark.slow, pytest.mark.shares_import("matplotlib")]
 
 
 @pytest.fixture(autouse=True, scope="module")

@@ -10,6 +10,7 @@ NAMES = ("pmma", "tempered_glass", "aisi_304", "cork_board", "granite", "oak_cro
 
 
 @pytest.mark.slow  # two retrains
+@pytest.mark.shares_import("sklearn")  # with the suite's other trainers on one worker (tests/support/schedule.py)
 @pytest.mark.filterwarnings("ignore:lbfgs failed to converge")
 def test_same_seed_same_arrays_even_with_the_training_set_regenerated(tmp_path, monkeypatch):
     from host.train import clear_fit_memo, train_bundle  # scikit-learn, 1.2 s: not at collection in every worker

@@ -16,7 +16,7 @@ from host.evaluate import TouchSimulator, q_v_for_voltage
 from edge.physics.materials import load_materials
 from host.records import RecordError, read_record, write_record
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.shares_import("sklearn")]  # quick_bundle trains (host.train)
 
 GLASS = Solid(1.097, 2458.4, 809.0)
 PMMA = Solid(0.185, 1178.35, 1429.0)

@@ -99,12 +99,15 @@ def test_the_memo_stays_within_its_bytes(cold, monkeypatch):
 
 
 def _touch(name: str) -> dict:
-    """A scene's touch with 1 s of heating, read at 5-ms ticks as the chips would (everything in the past)."""
+    """A scene's touch with 1 s of heating, read at 5-ms ticks as the chips would (everything in the past).
+
+    40-ms steps: the recall is bit for bit at any step, and half the steps halve the first march.
+    """
     sc = read_scene(name)
     clock = VirtualClock()
     clock.advance(100.0)
     on = sc.touch.heater_on_s
-    w = FaithfulWorld.for_scene(sc, clock, ScheduleDrive([on, on + 1.0], [1.0, 0.0]))
+    w = FaithfulWorld.for_scene(sc, clock, ScheduleDrive([on, on + 1.0], [1.0, 0.0]), dt_s=0.04)
     t = np.arange(0.0, sc.touch.end_s + 0.3, 0.005)
     return w.series(t)
 

@@ -61,6 +61,9 @@ def record_files(tmp_path_factory):
 
 
 @pytest.mark.slow
+# The same three records and references as test_calibrate_selfcheck.py's calibration: on one worker its fits are
+# made once (edge.calibration.fit keeps them by their exact inputs).
+@pytest.mark.shares_memo("calibration of the as-built records")
 def test_fit_then_estimate_with_the_calibration_beats_the_datasheet(capsys, records, tmp_path):
     cal = tmp_path / "cal.json"
     args = []

@@ -22,7 +22,9 @@ from host.records import write_series
 from tests.support.records import recorded_touch
 from tests.support.cli import run, run_captured
 
-pytestmark = pytest.mark.slow
+# Its calibration of the three records is test_calibrate.py's (same records, references): on one worker the fits
+# are made once (edge.calibration.fit keeps them by their exact inputs; tests/support/schedule.py).
+pytestmark = [pytest.mark.slow, pytest.mark.shares_memo("calibration of the as-built records")]
 
 AS_BUILT = AsBuilt(sensing_thickness_m=0.424e-3, flux_sensitivity_V_per_W_m2=0.56e-6 * 1.04,
                    thermocouple_time_constant_s=0.06)

@@ -15,7 +15,8 @@ from host.flash import load_verified
 from thermotouch_models import DEFAULT_BUNDLE
 
 # About 6.5 s on the shared 2-core machine (a quick train, two evaluations, a flash, a touch, a second train).
-pytestmark = [pytest.mark.hil, pytest.mark.slow, pytest.mark.filterwarnings("ignore:lbfgs failed to converge")]
+pytestmark = [pytest.mark.hil, pytest.mark.slow, pytest.mark.filterwarnings("ignore:lbfgs failed to converge"),
+              pytest.mark.shares_import("sklearn")]  # trains (host.train): with the other trainers (tests/support/schedule.py)
 
 
 def test_deploy_quick_seeded_retrain_on_the_simulator(tmp_path, capsys, monkeypatch):

@@ -21,7 +21,8 @@ from host.client import DeviceClient
 from host.device import DeviceUnavailable, describe_error, open_device, simulated_probe
 from tests.support.cli import run
 
-pytestmark = [pytest.mark.hil, pytest.mark.slow]
+# measure --plot draws in this process (matplotlib): one worker pays for its import (tests/support/schedule.py).
+pytestmark = [pytest.mark.hil, pytest.mark.slow, pytest.mark.shares_import("matplotlib")]
 
 RESULT_KEYS = {"effusivity_W_s05_m2K", "effusivity_W_s05_m2K_u", "k_W_mK", "k_W_mK_u", "alpha_m2_s",
                "alpha_m2_s_u", "material", "material_confidence", "method", "model_sha256", "flags"}

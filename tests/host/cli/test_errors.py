@@ -19,7 +19,9 @@ import pytest
 
 from host.cli.main import main
 
-pytestmark = pytest.mark.slow
+# measure --plot imports matplotlib in this process (the plot, and host.plots.preload while the touch runs):
+# the schedule gives this module to the worker that imports it for the reports (tests/support/schedule.py).
+pytestmark = [pytest.mark.slow, pytest.mark.shares_import("matplotlib")]
 
 GLASS = ("--k", "1.097", "--rho", "2458.4", "--c", "809")
 
