@@ -22,6 +22,7 @@ import json
 import math
 import multiprocessing
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -223,39 +224,23 @@ def print_table(a: dict) -> None:
 
 
 # -- the six reference touches ----------------------------------------------------------------------
-#: Where --six keeps the re-simulated second touches of each reference (outside bench/results/cache).
-SIX_CACHE = Path("/tmp/cal44/refs6")
+#: Where --extra-reference keeps the extra material's simulated touches (outside bench/results/cache).
+EXTRA_CACHE = Path(tempfile.gettempdir()) / "thermotouch-window-consistency"
 
 
 def six_references(p: int, refs: list) -> list:
-    """The probe's six reference touches of :data:`_objects.REFERENCES`: the cached ones, and the second
-    touch of each material re-simulated where the cache kept one (same scene and seed as
-    :func:`_asbuilt_touches.reference_records`: a re-simulated first touch equals the cached one)."""
-    import tempfile
+    """The probe's six reference touches of :data:`_objects.REFERENCES`, as the cache holds them.
 
+    An older merge kept one touch per material; ``python bench/tactile_asbuilt_bench.py --heads paper
+    --fill-references`` touches the dropped ones again (what this module first did into a scratch
+    directory: one place now, :func:`_asbuilt_grow.fill_references`).
+    """
     from _objects import REFERENCES
-    from asbuilt_bench import solid
-    from host.calibration import HEAT_s
 
-    if len(refs) == len(REFERENCES):
-        return refs
-    path = SIX_CACHE / f"probe{p}.npz"
-    if path.exists():
-        recs, meta, _ = A.load_records(path)
-        return [(m["name"], r) for r, m in zip(recs, meta)]
-    have = {n: r for n, r in refs}
-    store, wd = G._store(), tempfile.mkdtemp(prefix="cal44-refs-")
-    out, seen = [], set()
-    for j, (name, rc, off) in enumerate(REFERENCES):
-        if name in have and name not in seen:   # the cache kept each material's first touch (R_c 0)
-            seen.add(name)
-            out.append((name, have[name]))
-            continue
-        sc = A.hand_scene("paper", solid(name), p, 7000 + 13 * p + j, rc_m2K_W=rc, offset_K=off, lead_s=1.0,
-                          heat_s=HEAT_s, label=name)
-        out.append((name, A.simulate(sc, store, wd, HEAT_s)))
-    A.save_records(path, [r for _, r in out], [{"kind": "reference", "probe": p, "name": n} for n, _ in out], {})
-    return out
+    if len(refs) != len(REFERENCES):
+        raise SystemExit(f"probe {p}: {len(refs)} reference touches cached, not {len(REFERENCES)}: run "
+                         "python bench/tactile_asbuilt_bench.py --heads paper --fill-references")
+    return refs
 
 
 #: An extra reference's two touches (R_c, object - probe), as the walk-through's pairs.
@@ -263,13 +248,11 @@ EXTRA_HANDS = ((0.0, 1.0), (1e-5, -1.0))
 
 
 def extra_references(p: int, name: str) -> list:
-    """Two hand touches of library material ``name`` on probe ``p`` (kept in /tmp/cal44/refs_<name>)."""
-    import tempfile
-
+    """Two hand touches of library material ``name`` on probe ``p`` (kept in :data:`EXTRA_CACHE`)."""
     from asbuilt_bench import solid
     from host.calibration import HEAT_s
 
-    path = SIX_CACHE.with_name(f"refs_{name}") / f"probe{p}.npz"
+    path = EXTRA_CACHE / f"refs_{name}" / f"probe{p}.npz"
     if path.exists():
         recs, meta, _ = A.load_records(path)
         return [(m["name"], r) for r, m in zip(recs, meta)]
@@ -357,8 +340,8 @@ def main() -> None:
     ap.add_argument("--out", default=None)
     ap.add_argument("--analyse", default=None, help="analyse a saved --out JSON (no re-estimation)")
     ap.add_argument("--six", action="store_true",
-                    help="calibrate on all six reference touches (the second of each re-simulated where the cache "
-                         "kept one) and re-estimate the objects' touches: the split on 3 vs 6 touches")
+                    help="calibrate on all six cached reference touches and re-estimate the objects' touches (against "
+                         "the bench JSON's rows, made before --fill-references: the split on 3 vs 6 touches)")
     ap.add_argument("--extra-reference", default=None,
                     help="with --six: also two touches of this library material (e.g. cork_board) in the calibration")
     ap.add_argument("--baseline", default=None, help="with --six: compare with this earlier --six --out JSON")
