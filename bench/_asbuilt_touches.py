@@ -211,7 +211,7 @@ def scene_noise(head: str, board: str = "precision") -> tuple[float, float, floa
     for role, per_V in ((THERMOCOUPLE, TYPE_K_SEEBECK_V_per_K), (FLUX, sc.sensors.flux_sensitivity_V_per_W_m2)):
         spec = CHIPS[BOARDS[board][role]]
         noise_V = getattr(sc.sensors, spec.setting_key(spec.input_noise.key))
-        out.append(math.hypot(noise_V / per_V, spec.models[role].lsb / math.sqrt(12.0)))
+        out.append(spec.models[role].reading_sd(noise_V / per_V))
     return out[0], out[1], board_noise(board)[2]
 
 

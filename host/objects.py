@@ -134,23 +134,19 @@ SEPARATION_SIGMAS = 2.0
 def board_noise(board: str = "precision") -> tuple[float, float, float]:
     """(sigma_T_K, sigma_q_W_m2, dt_s) of one sample of a board (:data:`edge.hw.chips.BOARDS`).
 
-    From the chip registry's instrument models (:data:`edge.measure.instrument.INSTRUMENTS`): each
-    role's input-referred noise and its converter step as uniform rounding (step / sqrt 12), in
-    quadrature; the sample interval is the device's default rate capped by the thermocouple
-    converter's (50 Hz on the precision board, 12.5 Hz on the reference board's MCP9600).
+    From the chip registry's noise models of the chip playing each role (:meth:`edge.hw.chips.NoiseModel.reading_sd`:
+    input-referred noise and the converter's step as uniform rounding); the sample interval is the
+    device's default rate capped by the thermocouple converter's (50 Hz on the precision board,
+    12.5 Hz on the reference board's MCP9600).
     """
-    import math  # noqa: PLC0415
-
-    from edge.hw.chips import BOARDS, THERMOCOUPLE  # noqa: PLC0415
-    from edge.measure.instrument import INSTRUMENTS  # noqa: PLC0415
+    from edge.hw.chips import BOARDS, CHIPS, FLUX, THERMOCOUPLE  # noqa: PLC0415
     from edge.service.config import MeasurementConfig  # noqa: PLC0415
 
     if board not in BOARDS:
         raise ValueError(f"unknown board {board!r}; boards: {sorted(BOARDS)}")
-    ins = INSTRUMENTS[BOARDS[board][THERMOCOUPLE]]
-    rate_Hz = min(float(MeasurementConfig().sample_rate_Hz), ins.T_rate_Hz)
-    return (math.hypot(ins.T_noise_K, ins.T_lsb_K / math.sqrt(12.0)),
-            math.hypot(ins.q_noise_W_m2, ins.q_lsb_W_m2 / math.sqrt(12.0)), 1.0 / rate_Hz)
+    T, q = (CHIPS[BOARDS[board][role]].models[role] for role in (THERMOCOUPLE, FLUX))
+    rate_Hz = min(float(MeasurementConfig().sample_rate_Hz), T.rate_Hz)
+    return T.reading_sd(), q.reading_sd(), 1.0 / rate_Hz
 
 
 def attainable_u_ln_e(objects: Any, contact_time_s: float, *, probe: str = "paper", board: str = "precision",

@@ -35,6 +35,8 @@ Adding a chip: its register map in :mod:`edge.hw.regmaps`, its driver in
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 from types import MappingProxyType, ModuleType
 from typing import Any, Callable, Mapping
@@ -132,6 +134,11 @@ class NoiseModel:
     rate_Hz: float
     lsb: float
     noise: float
+
+    def reading_sd(self, noise: float | None = None) -> float:
+        """One reading's standard deviation: ``noise`` (default this model's) and the step as uniform
+        rounding, ``lsb / sqrt(12)``, in quadrature (same unit)."""
+        return math.hypot(self.noise if noise is None else noise, self.lsb / math.sqrt(12.0))
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,13 @@
 """``objects add`` names the pairs the probe cannot separate at the user's contact time (ISSUE #37 item 5)."""
 
+import math
+
+import pytest
+
+from edge.hw.chips import BOARDS, CHIPS, FLUX, THERMOCOUPLE
 from edge.recognition import KnownObject, ObjectSet
 from host.cli.objects import separation_warnings
-from host.objects import attainable_u_ln_e, inseparable_pairs
+from host.objects import attainable_u_ln_e, board_noise, inseparable_pairs
 
 P = KnownObject.from_properties
 SET = ObjectSet((P("foam", "foam", 0.035, 30, 1400, 0.05), P("oak", "wood", 0.18, 700, 1600, 0.05),
@@ -37,13 +42,6 @@ def test_a_catalogue_is_not_checked_pair_by_pair():
 
 
 def test_the_bound_takes_the_boards_noise_from_the_chip_registry():
-    import math
-
-    import pytest
-
-    from edge.hw.chips import BOARDS, CHIPS, FLUX, THERMOCOUPLE
-    from host.objects import board_noise
-
     for board, roles in BOARDS.items():
         sT, sq, dt = board_noise(board)
         T, q = CHIPS[roles[THERMOCOUPLE]].models[THERMOCOUPLE], CHIPS[roles[FLUX]].models[FLUX]
