@@ -149,13 +149,13 @@ def rng():
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection(session):
-    """On a fresh checkout, share pytest's assertion rewriting between the xdist workers.
+    """On a fresh checkout, share pytest's assertion rewriting and the project's compiling between the xdist workers.
 
     See tests/support/rewrite_share.py.  A module imported here is the one collection uses (same
     name, same file); one that fails to import is left to collection to import again and report.
     Only for the whole suite (the configured ``testpaths``) and where pytest rewrites and caches.
     """
-    from tests.support.rewrite_share import modules_to_warm
+    from tests.support.rewrite_share import compile_missing, modules_to_warm, sources_to_compile
 
     config = session.config
     if (config.getoption("assertmode") != "rewrite" or sys.dont_write_bytecode
@@ -167,6 +167,7 @@ def pytest_collection(session):
 
     worker = os.environ.get("PYTEST_XDIST_WORKER", "")
     n = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1") or 1)
+    compile_missing(sources_to_compile(Path(__file__).resolve().parents[1], worker, n))
     for name in modules_to_warm(Path(__file__).resolve().parent, worker, n,
                                 skip=excluded_by(config.option.markexpr)):
         try:

@@ -80,3 +80,45 @@ def test_the_quicker_location_fix_rewrites_this_suites_modules_to_the_same_code(
     fresh = ast.BinOp(ast.Name("a", ast.Load()), ast.Add(), ast.Constant(1))
     tree.body.append(ast.Expr(fresh))
     assert [type(n).__name__ for n in _located_candidates(tree)] == ["Expr", "BinOp", "Name", "Constant"]
+
+
+def test_the_project_sources_are_cut_into_disjoint_slices_of_about_equal_bytes(tmp_path):
+    from tests.support.rewrite_share import sources_to_compile
+
+    for name, size in (("edge/a.py", 100), ("edge/b.py", 300), ("host/c.py", 100), ("host/test_d.py", 50),
+                       ("tests/conftest.py", 10), ("tests/support/e.py", 100), ("bench/f.py", 10)):
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text("x = 1\n" + "#" * (size - 6) + "\n")
+    pkgs = ("edge", "host", "tests")
+    shares = [sources_to_compile(tmp_path, f"gw{i}", 2, pkgs) for i in range(2)]
+    names = [[p.relative_to(tmp_path).as_posix() for p in s] for s in shares]
+    # Test modules and conftest files are pytest's to rewrite; bench/ is not a package named here.
+    assert names == [["edge/a.py", "edge/b.py"], ["host/c.py", "tests/support/e.py"]]
+    assert sources_to_compile(tmp_path, "gw0", 1, pkgs) == sources_to_compile(tmp_path, "main", 2, pkgs) == []
+    # This suite's own: both shares together are every helper and package module, once.
+    root = Path(__file__).resolve().parents[1]
+    ours = [sources_to_compile(root, f"gw{i}", 2) for i in range(2)]
+    assert not set(ours[0]) & set(ours[1]) and root / "edge" / "__init__.py" in ours[0]
+    assert root / "tests" / "support" / "rewrite_share.py" in ours[0] + ours[1]
+
+
+def test_a_missing_bytecode_file_is_written_as_import_would_and_an_existing_one_is_left(tmp_path, monkeypatch):
+    import importlib.util
+    import sys
+
+    from tests.support.rewrite_share import compile_missing
+
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1")   # py_compile's default would then be a hash-checked file
+    src = tmp_path / "shared_mod_s45.py"
+    src.write_text("VALUE = 41 + 1\n")
+    bad = tmp_path / "broken_mod_s45.py"
+    bad.write_text("def (:\n")
+    assert compile_missing([src, bad]) == 1
+    cfile = Path(importlib.util.cache_from_source(str(src)))
+    data = cfile.read_bytes()
+    assert data[:4] == importlib.util.MAGIC_NUMBER and int.from_bytes(data[4:8], "little") == 0   # timestamp-checked
+    assert compile_missing([src]) == 0 and cfile.read_bytes() == data
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "shared_mod_s45", raising=False)
+    mod = importlib.import_module("shared_mod_s45")
+    assert mod.VALUE == 42 and mod.__cached__ == str(cfile) and cfile.read_bytes() == data   # import took it as is
