@@ -36,10 +36,14 @@ def _written_tags() -> dict[str, set[str]]:
     out = {"readme": set(), "results": set(), "science": set()}
     for path in BENCH.glob("*.py"):
         for node in ast.walk(ast.parse(path.read_text())):
-            if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
-                    and node.func.id in ("write_block", "update_readme") and node.args):
+            if not isinstance(node, ast.Call):
+                continue
+            fn = getattr(node.func, "id", getattr(node.func, "attr", None))     # write_block or _common.write_block
+            if fn not in ("write_block", "update_readme") or not node.args:
                 continue
             first = node.args[0]
+            while isinstance(first, ast.BinOp):      # "tag" + suffix: its left part
+                first = first.left
             if isinstance(first, ast.JoinedStr):     # an f-string: its literal prefix
                 first = first.values[0] if first.values else None
             if not (isinstance(first, ast.Constant) and isinstance(first.value, str) and first.value):
@@ -47,7 +51,7 @@ def _written_tags() -> dict[str, set[str]]:
             tag = re.match(r"[\w-]+", first.value).group(0)
             target = node.args[2] if len(node.args) > 2 else next(
                 (k.value for k in node.keywords if k.arg == "path"), None)
-            if node.func.id == "update_readme":
+            if fn == "update_readme":
                 out["readme"].add(tag)
             else:
                 const = target.id if isinstance(target, ast.Name) else None
