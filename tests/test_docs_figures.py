@@ -32,6 +32,7 @@ from edge.service.config import BoardConfig, HeaterConfig, MeasurementConfig
 from edge.storage.objects_store import MAX_SET_BYTES
 from host.calibration import HEAT_s
 from host.demo import REFERENCE_HEAT_s
+from host.gate import BOOTSTRAP_RESAMPLES, HELDOUT_SOLIDS, HELDOUT_VOLTAGES_V, MARGINS, NOISE_SEEDS
 from host.lab_metadata import MAX_CHARS
 from host.lab_series import MAX_TOUCHES
 
@@ -143,6 +144,22 @@ def _quotes() -> list[tuple[str, str, float]]:
         (ug, r"armed (\d+(?:\.\d+)?)-s touches of pmma", REFERENCE_HEAT_s),
         (ug, r"a χ² test \(p = (\d+(?:\.\d+)?)\)", CHI2_ACCEPT_P),
     ]
+    heldout_e = [solid.effusivity_W_s05_m2K for _, solid in HELDOUT_SOLIDS]
+    q += [  # the deploy gate's evaluation set and margins
+        (ops, r"fixed and seeded: (\d+) simulated touches", (len(HELDOUT_SOLIDS) * len(HELDOUT_VOLTAGES_V) + 9)
+         * len(NOISE_SEEDS)),
+        (ops, r"touches, (\d+) materials that are not in the", len(HELDOUT_SOLIDS)),
+        (ops, r"training library \(e from (\d+) to", round(min(heldout_e))),
+        (ops, r"training library \(e from \d+ to (\d+ \d+) W", round(max(heldout_e), -2)),
+        (ops, r"at (\d+)/\d+/\d+ V and the paper's three", HELDOUT_VOLTAGES_V[0]),
+        (ops, r"at \d+/(\d+)/\d+ V and the paper's three", HELDOUT_VOLTAGES_V[1]),
+        (ops, r"at \d+/\d+/(\d+) V and the paper's three", HELDOUT_VOLTAGES_V[2]),
+        (ops, r"samples at their voltages, (\d+) noise seeds each", len(NOISE_SEEDS)),
+        (ops, r"seeded paired bootstrap \((\d+) resamples", BOOTSTRAP_RESAMPLES),
+        (ops, r"practical margin \((\d+) points of relative e", MARGINS["paper_e"] * 100),
+        (ops, r"relative e; (\d+(?:\.\d+)?) in ln k", MARGINS["paper_k_vs_prior"]),
+        (ops, r"in ln k; (\d+(?:\.\d+)?) in ln e\)", MARGINS["name_e"]),
+    ]
     for doc in (readme, ops):  # the wiring table, twice
         q += [
             (doc, r"MCP9600 thermocouple converter \| I2C-1 \(GPIO2 SDA / GPIO3 SCL\), address (0x[0-9A-Fa-f]+)",
@@ -166,7 +183,7 @@ def _number(text: str) -> float:
     words = {"fifth": 0.2, "quarter": 0.25, "half": 0.5, "third": 1 / 3}
     if text in words:
         return words[text]
-    return float(int(text, 16)) if text.lower().startswith("0x") else float(text)
+    return float(int(text, 16)) if text.lower().startswith("0x") else float(text.replace(" ", ""))
 
 
 def test_quoted_constants_are_the_codes():
