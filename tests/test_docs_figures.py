@@ -18,6 +18,7 @@ them, and the prose should cite their block rather than retype them.
 from __future__ import annotations
 
 import functools
+import math
 import re
 from pathlib import Path
 
@@ -27,6 +28,8 @@ from edge.calibration.selfcheck import CHI2_ACCEPT_P
 from edge.estimation.running import CHAIN_EVERY_s, ESTIMATOR_EVERY_s, REFIT_MAX_SHARE
 from edge.hw.chips import CHIPS
 from edge.measure.profiles import PROBE_PROFILES, PROFILES
+from edge.physics.geometry import PROBES
+from edge.physics.probe import FLUX_SENSITIVITY_V_per_W_m2, HEATER_THICKNESS_m
 from edge.recognition.objects import DEFAULT_SPREAD_REL, DEFAULT_Z_CRIT
 from edge.service.config import BoardConfig, HeaterConfig, MeasurementConfig
 from edge.storage.objects_store import MAX_SET_BYTES
@@ -144,6 +147,16 @@ def _quotes() -> list[tuple[str, str, float]]:
         (ug, r"armed (\d+(?:\.\d+)?)-s touches of pmma", REFERENCE_HEAT_s),
         (ug, r"a χ² test \(p = (\d+(?:\.\d+)?)\)", CHI2_ACCEPT_P),
     ]
+    paper, small = PROBES["paper"], PROBES["small-heater"]
+    sci = "docs/science.md"
+    q += [  # the probe heads
+        (readme, r"supported: the paper's (\d+ × \d+) mm heater", math.pi * paper.heater_radius_m ** 2 * 1e6),
+        (readme, r"and a (\d+(?:\.\d+)?) mm-radius small heater", small.heater_radius_m * 1e3),
+        (sci, r"A heater \((\d+ × \d+) mm, \d+ µm\)", math.pi * paper.heater_radius_m ** 2 * 1e6),
+        (sci, r"A heater \(\d+ × \d+ mm, (\d+) µm\)", HEATER_THICKNESS_m * 1e6),
+        (sci, r"FHF05 class, (\d+(?:\.\d+)?) µV per W/m²", FLUX_SENSITIVITY_V_per_W_m2 * 1e6),
+        (sci, r"small-heater probe \((\d+(?:\.\d+)?) mm-radius heater disk", small.heater_radius_m * 1e3),
+    ]
     heldout_e = [solid.effusivity_W_s05_m2K for _, solid in HELDOUT_SOLIDS]
     q += [  # the deploy gate's evaluation set and margins
         (ops, r"fixed and seeded: (\d+) simulated touches", (len(HELDOUT_SOLIDS) * len(HELDOUT_VOLTAGES_V) + 9)
@@ -183,6 +196,8 @@ def _number(text: str) -> float:
     words = {"fifth": 0.2, "quarter": 0.25, "half": 0.5, "third": 1 / 3}
     if text in words:
         return words[text]
+    if "×" in text:  # a rectangle's sides: its area
+        return math.prod(float(x) for x in text.split("×"))
     return float(int(text, 16)) if text.lower().startswith("0x") else float(text.replace(" ", ""))
 
 
