@@ -213,3 +213,23 @@ def test_quoted_constants_are_the_codes():
         if bad:
             wrong.append(f"{doc}: /{pattern}/ prints {bad}, the code says {value}")
     assert not wrong, "quoted constants differ from the code:\n" + "\n".join(wrong)
+
+
+def test_the_results_index_names_each_blocks_bench():
+    """docs/results.md's table of blocks lists every block of the file with a command of the bench that writes it."""
+    text = (ROOT / "docs" / "results.md").read_text(encoding="utf-8")
+    rows = dict(re.findall(r"^\| `([A-Za-z0-9_-]+)` \| `python (bench/\w+\.py[^`]*)` \|$", text, re.M))
+    in_file = {t for t, where in _doc_tags().items() if where == ["docs/results.md"]}
+    assert set(rows) == in_file, (f"index without a block: {sorted(set(rows) - in_file)}; "
+                                  f"blocks missing from the index: {sorted(in_file - set(rows))}")
+    wrong = []
+    for tag, cmd in rows.items():
+        script, *args = cmd.split()
+        writers = [w for w in _writers() if w[0] == script and (w[1] == tag or (w[2] and tag.startswith(w[1])))]
+        if not writers:
+            wrong.append(f"{tag}: {script} does not write it")
+            continue
+        src = (ROOT / script).read_text(encoding="utf-8")
+        wrong += [f"{tag}: {script} has no option {a}" for a in args
+                  if a.startswith("--") and f'"{a}"' not in src]
+    assert not wrong, "\n".join(wrong)
