@@ -18,6 +18,7 @@ them, and the prose should cite their block rather than retype them.
 from __future__ import annotations
 
 import functools
+import gc
 import math
 import re
 from pathlib import Path
@@ -28,6 +29,7 @@ from edge.calibration.selfcheck import CHI2_ACCEPT_P
 from edge.estimation.running import CHAIN_EVERY_s, ESTIMATOR_EVERY_s, REFIT_MAX_SHARE
 from edge.hw.chips import CHIPS
 from edge.measure.profiles import PROBE_PROFILES, PROFILES
+from edge.measure.signal import MIN_HEAT_s, MIN_HEAT_SAMPLES
 from edge.physics.geometry import PROBES
 from edge.physics.probe import FLUX_SENSITIVITY_V_per_W_m2, HEATER_THICKNESS_m
 from edge.recognition.objects import DEFAULT_SPREAD_REL, DEFAULT_Z_CRIT
@@ -38,6 +40,7 @@ from host.demo import REFERENCE_HEAT_s
 from host.gate import BOOTSTRAP_RESAMPLES, HELDOUT_SOLIDS, HELDOUT_VOLTAGES_V, MARGINS, NOISE_SEEDS
 from host.lab_metadata import MAX_CHARS
 from host.lab_series import MAX_TOUCHES
+from tests.support.static_marks import excluded_module
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -156,6 +159,15 @@ def _quotes() -> list[tuple[str, str, float]]:
         (sci, r"A heater \(\d+ × \d+ mm, (\d+) µm\)", HEATER_THICKNESS_m * 1e6),
         (sci, r"FHF05 class, (\d+(?:\.\d+)?) µV per W/m²", FLUX_SENSITIVITY_V_per_W_m2 * 1e6),
         (sci, r"small-heater probe \((\d+(?:\.\d+)?) mm-radius heater disk", small.heater_radius_m * 1e3),
+    ]
+    contrib = "docs/contributing.md"
+    slow_modules = sum(excluded_module(f, "not slow") for f in (ROOT / "tests").rglob("test_*.py"))
+    q += [  # the device's shortest touch; the test tiers
+        (ops, r"a touch shorter than max\((\d+(?:\.\d+)?) s, \d+ samples\)", MIN_HEAT_s),
+        (ops, r"a touch shorter than max\([\d.]+ s, (\d+) samples\)", MIN_HEAT_SAMPLES),
+        (contrib, r"neither imports nor rewrites the (\d+) modules that are slow as a whole", slow_modules),
+        # tests/conftest.py sets it in every test process, this one included
+        (contrib, r"garbage collector every (\d+ \d+) net allocations", gc.get_threshold()[0]),
     ]
     heldout_e = [solid.effusivity_W_s05_m2K for _, solid in HELDOUT_SOLIDS]
     q += [  # the deploy gate's evaluation set and margins
