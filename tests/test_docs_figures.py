@@ -32,6 +32,8 @@ from edge.measure.profiles import PROBE_PROFILES, PROFILES
 from edge.measure.signal import MIN_HEAT_s, MIN_HEAT_SAMPLES
 from edge.physics.geometry import PROBES
 from edge.physics.probe import FLUX_SENSITIVITY_V_per_W_m2, HEATER_THICKNESS_m
+from edge.protocol.commands import MAX_EVENT_SAMPLES
+from edge.service.events import EVENT_PERIOD_s
 from edge.recognition.objects import DEFAULT_SPREAD_REL, DEFAULT_Z_CRIT
 from edge.service.config import BoardConfig, HeaterConfig, MeasurementConfig
 from edge.storage.objects_store import MAX_SET_BYTES
@@ -168,6 +170,13 @@ def _quotes() -> list[tuple[str, str, float]]:
         (contrib, r"neither imports nor rewrites the (\d+) modules that are slow as a whole", slow_modules),
         # tests/conftest.py sets it in every test process, this one included
         (contrib, r"garbage collector every (\d+ \d+) net allocations", gc.get_threshold()[0]),
+    ]
+    api, ros = "docs/python-api.md", "docs/ros.md"
+    q += [  # the events a touch streams
+        (api, r"a batch of raw readings, at most every (\d+(?:\.\d+)?) s", EVENT_PERIOD_s),
+        (api, r"a batch of raw readings, at most every [\d.]+ s \((\d+) at most\)", MAX_EVENT_SAMPLES),
+        (api, r"the running answer changed, at most every (\d+(?:\.\d+)?) s", EVENT_PERIOD_s),
+        (ros, r"while the probe heats \(at most every (\d+(?:\.\d+)?) s of the touch\)", EVENT_PERIOD_s),
     ]
     heldout_e = [solid.effusivity_W_s05_m2K for _, solid in HELDOUT_SOLIDS]
     q += [  # the deploy gate's evaluation set and margins
