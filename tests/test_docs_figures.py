@@ -42,6 +42,7 @@ from host.demo import REFERENCE_HEAT_s
 from host.gate import BOOTSTRAP_RESAMPLES, HELDOUT_SOLIDS, HELDOUT_VOLTAGES_V, MARGINS, NOISE_SEEDS
 from host.lab_metadata import MAX_CHARS
 from host.lab_series import MAX_TOUCHES
+from host.recognition import IN_SET_ACCEPTANCE_GOAL, MIN_ACCEPTANCE
 from tests.support.static_marks import excluded_module
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -177,6 +178,11 @@ def _quotes() -> list[tuple[str, str, float]]:
         (api, r"a batch of raw readings, at most every [\d.]+ s \((\d+) at most\)", MAX_EVENT_SAMPLES),
         (api, r"the running answer changed, at most every (\d+(?:\.\d+)?) s", EVENT_PERIOD_s),
         (ros, r"while the probe heats \(at most every (\d+(?:\.\d+)?) s of the touch\)", EVENT_PERIOD_s),
+    ]
+    res = "docs/results.md"
+    q += [  # the open-set test's acceptance
+        (res, r"`z_crit` is fitted so that (\d+) % of in-set touches are accepted", IN_SET_ACCEPTANCE_GOAL * 100),
+        (res, r"issue #12 asks for at least (\d+) %", MIN_ACCEPTANCE * 100),
     ]
     heldout_e = [solid.effusivity_W_s05_m2K for _, solid in HELDOUT_SOLIDS]
     q += [  # the deploy gate's evaluation set and margins
