@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import functools
 import gc
+import json
 import math
 import re
 from pathlib import Path
@@ -183,6 +184,13 @@ def _quotes() -> list[tuple[str, str, float]]:
     q += [  # the open-set test's acceptance
         (res, r"`z_crit` is fitted so that (\d+) % of in-set touches are accepted", IN_SET_ACCEPTANCE_GOAL * 100),
         (res, r"issue #12 asks for at least (\d+) %", MIN_ACCEPTANCE * 100),
+    ]
+    shipped = json.loads((ROOT / "models" / "default" / "manifest.json").read_text(encoding="utf-8"))["metrics"]
+    q += [  # the shipped bundle's own metrics (its manifest)
+        (sci, r"on those p1 and p2 explain (\d+(?:\.\d+)?) %", round(100 * shipped["pca_explained_variance_2"], 1)),
+        (sci, r"left out in turn — (\d+(?:\.\d+)?) in the shipped bundle", round(shipped["prior_rho_c_intrinsic_ln"], 2)),
+        (sci, r"in the shipped bundle, where a fixed (\d+(?:\.\d+)?) covered", shipped["prior_rho_c_intrinsic_ln_before"]),
+        (sci, r"by leave-one-out \((\d+(?:\.\d+)?) in ln ρc", round(shipped["prior_rho_c_intrinsic_ln"], 2)),
     ]
     heldout_e = [solid.effusivity_W_s05_m2K for _, solid in HELDOUT_SOLIDS]
     q += [  # the deploy gate's evaluation set and margins
