@@ -34,9 +34,9 @@ from edge.measure.signal import MIN_HEAT_s, MIN_HEAT_SAMPLES
 from edge.physics.geometry import PROBES
 from edge.physics.probe import FLUX_SENSITIVITY_V_per_W_m2, HEATER_THICKNESS_m
 from edge.protocol.commands import MAX_EVENT_SAMPLES
-from edge.service.events import EVENT_PERIOD_s
 from edge.recognition.objects import DEFAULT_SPREAD_REL, DEFAULT_Z_CRIT
 from edge.service.config import BoardConfig, HeaterConfig, MeasurementConfig
+from edge.service.events import EVENT_PERIOD_s
 from edge.storage.objects_store import MAX_SET_BYTES
 from host.calibration import HEAT_s
 from host.demo import REFERENCE_HEAT_s
