@@ -28,12 +28,12 @@ def test_write_block_replaces_its_block_only(tmp_path):
 
 
 def _written_tags() -> dict[str, set[str]]:
-    """Literal block tags (or f-string prefixes) each bench writes, by target: README or docs/results.md."""
-    out = {"readme": set(), "results": set()}
+    """Literal block tags (or f-string prefixes) each bench writes, by target: README, docs/results.md or docs/science.md."""
+    out = {"readme": set(), "results": set(), "science": set()}
     for path in BENCH.glob("*.py"):
         src = path.read_text()
-        for fn, tag in re.findall(r"\b(write_block|update_readme)\(\s*f?[\"']([\w-]+)", src):
-            out["readme" if fn == "update_readme" else "results"].add(tag)
+        for fn, tag, rest in re.findall(r"\b(write_block|update_readme)\(\s*f?[\"']([\w-]+)([^\n]*)", src):
+            out["readme" if fn == "update_readme" else "science" if "SCIENCE_MD" in rest else "results"].add(tag)
     return out
 
 
@@ -45,6 +45,9 @@ def test_every_block_a_bench_writes_exists_where_it_writes_it():
     assert len(tags["results"]) >= 15
     for tag in tags["readme"]:
         assert f"<!-- {tag}:begin -->" in readme, f"README.md has no {tag} block"
+    science = (ROOT / "docs" / "science.md").read_text()
+    for tag in tags["science"]:
+        assert f"<!-- {tag}:begin -->" in science, f"docs/science.md has no {tag} block"
     for tag in tags["results"]:
         # calibration_bench writes calibration-bench and calibration-bench-reference (an f-string suffix)
         assert re.search(rf"<!-- {re.escape(tag)}[\w-]*:begin -->", results), f"docs/results.md has no {tag} block"
