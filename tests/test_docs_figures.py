@@ -268,3 +268,21 @@ def test_the_results_index_names_each_blocks_bench():
         wrong += [f"{tag}: {script} has no option {a}" for a in args
                   if a.startswith("--") and f'"{a}"' not in src]
     assert not wrong, "\n".join(wrong)
+
+
+def test_every_bench_command_in_the_docs_names_a_bench_and_its_options():
+    """``python bench/NAME.py --opt ...`` in the docs: the script exists and has each option it is shown with."""
+    wrong, seen = [], 0
+    for path in DOCS:
+        for m in re.finditer(r"python (bench/\w+\.py)([^`\n]*)", path.read_text(encoding="utf-8")):
+            seen += 1
+            script = ROOT / m.group(1)
+            if not script.exists():
+                wrong.append(f"{_rel(path)}: {m.group(1)} does not exist")
+                continue
+            src = script.read_text(encoding="utf-8")
+            wrong += [f"{_rel(path)}: {m.group(1)} has no option {opt}"
+                      for opt in re.findall(r"(?<![\w-])(--[\w-]+)", m.group(2))
+                      if f'"{opt}"' not in src and f"'{opt}'" not in src]
+    assert seen >= 50, f"only {seen} bench commands found in the docs: has the pattern gone stale?"
+    assert not wrong, "\n".join(wrong)
