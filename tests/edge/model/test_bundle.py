@@ -7,8 +7,6 @@ import zipfile
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
 from tests.support.bundles import (
     make_arrays,
@@ -506,28 +504,45 @@ def test_blob_declared_oversize_entry(good):
         B.parse_blob(b"\0" * 5000, limits=B.Limits(max_manifest_bytes=10, max_npz_bytes=10))
 
 
-_settings = settings(max_examples=60, derandomize=True, deadline=None,
-                     suppress_health_check=[HealthCheck.function_scoped_fixture])
+def _settings():
+    # Hypothesis imported where these run, not at collection in every xdist worker (see tests/edge/protocol/test_fuzz.py).
+    from hypothesis import HealthCheck, settings
+
+    return settings(max_examples=60, derandomize=True, deadline=None,
+                    suppress_health_check=[HealthCheck.function_scoped_fixture])
 
 
-@_settings
-@given(pos=st.integers(min_value=0), val=st.integers(1, 255))
-def test_fuzzed_arrays_npz_only_raises_bundle_errors(good, tmp_path, pos, val):
-    # Corrupt one byte of a validly-hashed npz: the loader must refuse cleanly (or, if the byte
-    # was irrelevant, load) -- never crash with another exception type.
-    work = tmp_path / f"f{pos}_{val}"
-    data = bytearray((good / "arrays.npz").read_bytes())
-    data[pos % len(data)] ^= val
-    write_raw_bundle(work, bytes(data), (good / "golden.npz").read_bytes())
-    try:
-        B.load_bundle(work, golden_check=mlp_golden_check)
-    except B.BundleError:
-        pass
+@pytest.mark.shares_import("hypothesis")
+def test_fuzzed_arrays_npz_only_raises_bundle_errors(good, tmp_path):
+    from hypothesis import given, strategies as st
+
+    @_settings()
+    @given(pos=st.integers(min_value=0), val=st.integers(1, 255))
+    def prop(pos, val):
+        # Corrupt one byte of a validly-hashed npz: the loader must refuse cleanly (or, if the byte
+        # was irrelevant, load) -- never crash with another exception type.
+        work = tmp_path / f"f{pos}_{val}"
+        data = bytearray((good / "arrays.npz").read_bytes())
+        data[pos % len(data)] ^= val
+        write_raw_bundle(work, bytes(data), (good / "golden.npz").read_bytes())
+        try:
+            B.load_bundle(work, golden_check=mlp_golden_check)
+        except B.BundleError:
+            pass
+
+    prop()
 
 
-@_settings
-@given(cut=st.integers(min_value=0, max_value=40_000))
-def test_fuzzed_blob_truncation(good, cut):
+@pytest.mark.shares_import("hypothesis")
+def test_fuzzed_blob_truncation(good):
+    from hypothesis import given, strategies as st
+
     blob = B.bundle_to_bytes(good)
-    with pytest.raises(B.BundleError):
-        B.parse_blob(blob[: cut % len(blob)])
+
+    @_settings()
+    @given(cut=st.integers(min_value=0, max_value=40_000))
+    def prop(cut):
+        with pytest.raises(B.BundleError):
+            B.parse_blob(blob[: cut % len(blob)])
+
+    prop()

@@ -6,8 +6,6 @@ import json
 import threading
 
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from edge.protocol.commands import EVENT_PHASES, EVENTS, MAX_EVENT_SAMPLES, Command, EventKind, MsgType
 from edge.protocol.endpoint import SerialEndpoint
@@ -128,19 +126,27 @@ def test_an_event_not_taken_in_time_drops_the_events_behind_it_but_not_the_reply
     ep.close(timeout_s=0.5)
 
 
-@settings(max_examples=80, deadline=None, derandomize=True)
-@given(payload=st.one_of(st.binary(max_size=200), st.builds(
-           lambda kind, seq, extra: json.dumps({"kind": kind, "seq": seq, **extra}).encode(),
-           st.sampled_from(["phase", "samples", "answer", "x", ""]), st.integers(-2, 3),
-           st.dictionaries(st.sampled_from(["t_s", "phase", "sample_t_s", "T_C", "q_W_m2", "answer"]),
-                           st.one_of(st.none(), st.floats(allow_nan=False), st.text(max_size=5),
-                                     st.lists(st.floats(allow_nan=False, allow_infinity=False), max_size=3)),
-                           max_size=6))),
-       rid=st.integers(0, 2**32 - 1))
-def test_decode_event_on_arbitrary_payload_raises_only_protocol_error(payload, rid):
-    try:
-        ev = decode_event(Frame(MsgType.EVENT, rid, payload))
-    except ProtocolError as exc:
-        assert exc.request_id == rid
-    else:
-        assert ev.request_id == rid and ev.kind in set(EventKind)
+@pytest.mark.shares_import("hypothesis")
+def test_decode_event_on_arbitrary_payload_raises_only_protocol_error():
+    # Hypothesis imported where this runs, not at collection in every xdist worker (see tests/edge/protocol/test_fuzz.py).
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    @settings(max_examples=80, deadline=None, derandomize=True)
+    @given(payload=st.one_of(st.binary(max_size=200), st.builds(
+               lambda kind, seq, extra: json.dumps({"kind": kind, "seq": seq, **extra}).encode(),
+               st.sampled_from(["phase", "samples", "answer", "x", ""]), st.integers(-2, 3),
+               st.dictionaries(st.sampled_from(["t_s", "phase", "sample_t_s", "T_C", "q_W_m2", "answer"]),
+                               st.one_of(st.none(), st.floats(allow_nan=False), st.text(max_size=5),
+                                         st.lists(st.floats(allow_nan=False, allow_infinity=False), max_size=3)),
+                               max_size=6))),
+           rid=st.integers(0, 2**32 - 1))
+    def prop(payload, rid):
+        try:
+            ev = decode_event(Frame(MsgType.EVENT, rid, payload))
+        except ProtocolError as exc:
+            assert exc.request_id == rid
+        else:
+            assert ev.request_id == rid and ev.kind in set(EventKind)
+
+    prop()
