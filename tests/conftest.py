@@ -207,12 +207,18 @@ def pytest_collection_modifyitems(session, config, items):
     ends on both workers together.  The order is the same on every worker (a function of the
     collection and the worker count), as xdist requires.
     """
-    from tests.support.schedule import long_first_slices
+    from tests.support.schedule import long_first_slices, read_module_costs
 
     n = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1") or 1)
-    items[:] = long_first_slices(items, n, module_of=lambda item: item.module,
-                                 is_slow=lambda item: item.get_closest_marker("slow") is not None,
-                                 shares_import=_shares_with_another_module)
+    is_slow = lambda item: item.get_closest_marker("slow") is not None  # noqa: E731
+    # A module's recorded CPU seconds for the tiers of its selected tests (tests/support/module_costs.tsv).
+    table, cost = read_module_costs(Path(__file__).resolve().parent / "support" / "module_costs.tsv"), {}
+    for item in items:
+        fast_s, slow_s = table.get(item.nodeid.split("::", 1)[0], (0.0, 0.0))
+        cost[item.module] = max(cost.get(item.module, 0.0), fast_s + (slow_s if is_slow(item) else 0.0))
+    items[:] = long_first_slices(items, n, module_of=lambda item: item.module, is_slow=is_slow,
+                                 shares_import=_shares_with_another_module,
+                                 module_cost=lambda module: cost.get(module, 0.0))
 
 
 def pytest_configure(config):

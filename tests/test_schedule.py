@@ -60,3 +60,29 @@ def test_modules_sharing_a_costly_import_lead_the_first_slice_together():
     # One worker: nothing to share, the order is the one without them.
     assert long_first_slices(items, 1, module_of=lambda it: it[0], is_slow=lambda it: it[2],
                              shares_import=lambda it: it[0].startswith("h")) == _order(items, 1)
+
+
+def test_each_slice_runs_its_quick_modules_costliest_first_and_holds_the_same_tests():
+    items = _items("s1:2s a:2 b:3 c:2 d:3 e:2")
+    cost = {"a": 0.1, "b": 2.0, "d": 0.5, "e": 2.0}.get                 # c: unknown, free
+    plain = _order(items, 2)
+    order = long_first_slices(items, 2, module_of=lambda it: it[0], is_slow=lambda it: it[2],
+                              module_cost=lambda m: cost(m, 0.0))
+    # Slices of 7: the same tests in each, only their order differs.
+    assert sorted(order[:7]) == sorted(plain[:7]) and sorted(order[7:]) == sorted(plain[7:])
+    # The first: its slow module, then b (2.0 s) before a (0.1 s); the second: e (2.0) and d (0.5) before c (free).
+    assert [m for m, _, _ in order] == ["s1"] * 2 + ["b"] * 3 + ["a"] * 2 + ["e"] * 2 + ["d"] * 3 + ["c"] * 2
+    assert [i for m, i, _ in order if m == "d"] == [0, 1, 2]            # a module's tests keep their order
+
+
+def test_the_recorded_costs_are_read_and_a_missing_table_leaves_collection_order(tmp_path):
+    from pathlib import Path
+
+    from tests.support.schedule import read_module_costs
+
+    p = tmp_path / "costs.tsv"
+    p.write_text("# header\ntests/a/test_x.py\t0.50\t2.00\nbroken line\ntests/test_y.py\tx\t1\n")
+    assert read_module_costs(p) == {"tests/a/test_x.py": (0.5, 2.0)}
+    assert read_module_costs(tmp_path / "none.tsv") == {}
+    ours = read_module_costs(Path(__file__).resolve().parent / "support" / "module_costs.tsv")
+    assert len(ours) > 100 and all(k.startswith("tests/") and k.endswith(".py") for k in ours)

@@ -99,10 +99,23 @@ def startup(prefix: str) -> dict[str, float]:
     return out
 
 
+def module_costs_text(prefix: str) -> str:
+    """The schedule's table (tests/support/module_costs.tsv): per test file its fast and slow tests' CPU seconds."""
+    fast, slow = per_file(prefix, "fast"), per_file(prefix, "slow")
+    lines = [f"# CPU seconds per test file of its fast and its slow tests (python -m tests.support.cpu_times "
+             f"{Path(prefix).name} --module-costs): what tests/support/schedule.py orders each worker's quick modules by"]
+    lines += [f"{name}\t{fast.get(name, 0.0):.2f}\t{slow.get(name, 0.0):.2f}" for name in sorted(set(fast) | set(slow))]
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: list[str]) -> int:
     if not argv or argv[0].startswith("-"):
-        print("usage: python -m tests.support.cpu_times PREFIX [--tier fast|slow] [--top N]", file=sys.stderr)
+        print("usage: python -m tests.support.cpu_times PREFIX [--tier fast|slow] [--top N] [--module-costs]",
+              file=sys.stderr)
         return 2
+    if "--module-costs" in argv:
+        sys.stdout.write(module_costs_text(argv[0]))
+        return 0
     tier = argv[argv.index("--tier") + 1] if "--tier" in argv else None
     top = int(argv[argv.index("--top") + 1]) if "--top" in argv else 30
     sums = per_file(argv[0], tier)

@@ -14,6 +14,12 @@ cuts a quick module.  ``tests/conftest.py`` (``pytest_collection_modifyitems``) 
 Modules that import a costly library no other test needs (``shares_import``: scikit-learn, about
 1 s of CPU to import; matplotlib, about 0.5 s) go together at the front of the first slice, so that
 one worker pays for the import, not each of them (a steal takes from a queue's back).
+
+Within a slice the quick modules go costliest first when their cost is known (``module_cost``: the
+CPU seconds a module's selected tests took in a recorded run, tests/support/module_costs.tsv), so
+that a queue ends on its cheapest modules: what a steal takes, and what a worker runs last while the
+other has nothing left, are then milliseconds, not a 0.6-s test. Which tests a slice holds is the
+same; an unknown module counts as free (it goes last).
 """
 
 from __future__ import annotations
@@ -33,14 +39,28 @@ def slice_sizes(n_items: int, n_workers: int) -> list[int]:
     return sizes
 
 
+def _costliest_first(part: list[T], module_of: Callable[[T], Hashable],
+                     module_cost: Callable[[Hashable], float] | None) -> list[T]:
+    """``part``'s modules by ``module_cost`` descending (ties and unknown costs: their order in ``part``), tests in order."""
+    if module_cost is None:
+        return part
+    groups: dict[Hashable, list[T]] = {}
+    for item in part:
+        groups.setdefault(module_of(item), []).append(item)
+    ranked = sorted(enumerate(groups), key=lambda im: (-module_cost(im[1]), im[0]))
+    return [item for _, m in ranked for item in groups[m]]
+
+
 def long_first_slices(items: Sequence[T], n_workers: int, module_of: Callable[[T], Hashable],
                       is_slow: Callable[[T], bool],
-                      shares_import: Callable[[T], bool] = lambda item: False) -> list[T]:
+                      shares_import: Callable[[T], bool] = lambda item: False,
+                      module_cost: Callable[[Hashable], float] | None = None) -> list[T]:
     """``items`` reordered: slice i holds every n-th slow module, then quick modules up to its size.
 
     Modules (``module_of``) keep their collection order and their tests' order; a module is slow if
     one of its tests is (``is_slow``).  With one worker (or none) the slow modules simply go first.
     Modules one of whose tests ``shares_import`` lead the first slice, ahead of its slow modules.
+    ``module_cost`` (CPU seconds, 0 where unknown): each slice's quick modules costliest first.
     The same input gives the same order, as xdist requires of every worker's collection.
     """
     modules: dict[Hashable, list[T]] = {}
@@ -59,6 +79,24 @@ def long_first_slices(items: Sequence[T], n_workers: int, module_of: Callable[[T
         for m in slow[w::n_workers]:
             out.extend(modules[m])
         take = max(0, boundary - len(out))   # a slice already past its size (slow modules) takes none
-        out.extend(quick[:take])
+        out.extend(_costliest_first(quick[:take], module_of, module_cost))
         del quick[:take]
-    return out + quick
+    return out + _costliest_first(quick, module_of, module_cost)
+
+
+def read_module_costs(path) -> dict[str, tuple[float, float]]:
+    """``{test file: (fast-tier CPU-s, slow-tier CPU-s)}`` from a table ``python -m tests.support.cpu_times PREFIX
+    --module-costs`` wrote; empty where the file is missing or unreadable (the order is then collection's)."""
+    out: dict[str, tuple[float, float]] = {}
+    try:
+        lines = open(path, encoding="utf-8").read().splitlines()
+    except OSError:
+        return out
+    for line in lines:
+        parts = line.split("\t")
+        if len(parts) == 3 and not line.startswith("#"):
+            try:
+                out[parts[0]] = (float(parts[1]), float(parts[2]))
+            except ValueError:
+                continue
+    return out
