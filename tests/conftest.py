@@ -9,6 +9,7 @@ measures both). Both pass on a loaded machine: a test waits for what it needs (a
 a wall-time bound it asserts is a deadline with room for a machine several times slower.
 """
 
+import atexit
 import gc
 import importlib
 import os
@@ -68,6 +69,13 @@ def _scratch_in_memory(root: Path = Path("/dev/shm"), need_bytes: int = 2 * 2**3
 
 
 _scratch_in_memory()
+
+
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    from tests.support.worker_exit import exit_without_teardown
+
+    # Registered first, so it runs last of the exit handlers (they run in reverse): tests/support/worker_exit.py.
+    atexit.register(exit_without_teardown, os.getpid())
 
 import pytest  # noqa: E402
 
