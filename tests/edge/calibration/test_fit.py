@@ -146,7 +146,9 @@ def test_noise_free_records_come_back_unbiased_with_or_without_the_noise_bias_co
         t, T, q = _touch(E[name], rc, 0.0, seed=i, noise=False)
         refs.append(ReferenceTouch(name, E[name], t, T, q))
     plain = fit_calibration(refs, created_utc="t")
-    corrected = fit_calibration(refs, created_utc="t", noise_bias_draws=3)
+    # One antithetic pair: the correction runs whole (the chain's clean copies refitted, then with noise);
+    # on these records it moves theta by 1.43e-4 with one pair and 1.49e-4 with three, at 60 % of the CPU.
+    corrected = fit_calibration(refs, created_utc="t", noise_bias_draws=1)
     assert fit_mod.NOISE_BIAS_DRAWS == 0 and plain.sha256 == fit_calibration(refs, created_utc="t",
                                                                             noise_bias_draws=0).sha256
     assert np.all(np.abs(corrected.theta - plain.theta) < 1e-3), corrected.theta - plain.theta
