@@ -147,8 +147,8 @@ def test_walk_through_on_the_simulator_touches_each_reference_fits_writes_and_in
     # alu_20V_faithful: an as-built probe (thermopile +3 %, layer 3 % thinner, 4 % more conductive, a
     # 20-ms bead) on the precision board, dry contact.  Its world at DEVICE_DT_s: the walk-through's steps on
     # whatever records the device gets (the references re-measure -0.2 / +0.0 % at 40 ms, +0.1 / +0.3 % at the
-    # suite's 20 ms; self-check passed at both) for 80 % of the test's CPU. Each reference is that scene with the reference
-    # as its object; the device is armed, finds the contact, heats; the host fits its raw records.
+    # suite's 20 ms; self-check passed at both) for 80 % of the test's CPU.  Each reference is that scene with
+    # the reference as its object; the device is armed, finds the contact, heats; the host fits its raw records.
     out, work = tmp_path / "cal.json", tmp_path / "probe"
     code, text, err = run(capsys, "calibrate", "--sim", "alu_20V_faithful", "--workdir", str(work), "--reference",
                           "pmma", "--reference", "pyroceram", "--time", "2", "--out", str(out))
