@@ -99,7 +99,8 @@ def test_broken_bundles_are_refused(tmp_path, shipped_eval, how, refused_on):
 @slow
 @pytest.mark.filterwarnings("ignore:lbfgs failed to converge")
 @pytest.mark.shares_import("sklearn")  # host.train: with the suite's other trainers on one worker
-def test_a_seeded_retrain_of_the_shipped_recipe_passes_the_gate(tmp_path, monkeypatch, shipped_eval):
+def test_a_seeded_retrain_of_the_shipped_recipe_on_half_its_power_levels_passes_the_gate(tmp_path, monkeypatch,
+                                                                                     shipped_eval):
     # The gate's decision on an honest retrain: another network (its own seed, training set and fits), as good
     # as the device's, is let through.  The shipped recipe (noisy copies, both fits at their iterations) on
     # every other of its 21 power levels: half the training's CPU, and no verdict moves near a refusal
@@ -112,7 +113,8 @@ def test_a_seeded_retrain_of_the_shipped_recipe_passes_the_gate(tmp_path, monkey
     monkeypatch.setenv("THERMOTOUCH_CACHE", str(tmp_path / "cache"))
     b, metrics = train_bundle(tmp_path / "retrain", seed=0, levels_W_m3=DatasetSpec.levels_W_m3[::2],
                               log=lambda s: None)
-    assert metrics["n_series"] == metrics["n_materials"] * 11 * 2 and b.model_version == "paper-mlp-full-seed0-11levels"
+    assert metrics["n_series"] == metrics["n_materials"] * 11 * 2
+    assert b.model_version == "paper-mlp-full-seed0-11levels"
     new = evaluate(b, "mcp9600")
     cmp = compare(new, shipped_eval)
     assert not any(c.verdict == "worse" for c in cmp), format_report(cmp)

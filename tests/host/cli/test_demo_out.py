@@ -65,6 +65,7 @@ def plots_in_process(monkeypatch):
 
     def here(self):
         self._paths, self._closed, self._proc = [], False, _PlotServerHere()
+
     monkeypatch.setattr(PlotProcess, "__init__", here)
 
 
