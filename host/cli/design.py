@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import math
 
+from edge.hw.chips import BOARDS
 from host.cli.args import bounded_float, positive_float
 from host.cli.errors import CliError
 from host.cli.report import dumps
@@ -44,12 +45,15 @@ def add_parser(sub, parents):
     p.add_argument("--table", action="store_true",
                    help=f"the grid: radii {', '.join(f'{r:g}' for r in TABLE_RADII_MM)} mm x times "
                         f"{', '.join(f'{t:g}' for t in TABLE_TIMES_S)} s x {', '.join(TABLE_MATERIALS)}")
-    p.add_argument("--noise-T", type=positive_float, default=0.01, metavar="K",
-                   help="thermocouple noise per sample, K (default 0.01)")
-    p.add_argument("--noise-q", type=positive_float, default=0.5, metavar="W_M2",
-                   help="flux-sensor noise per sample, W/m^2 (default 0.5)")
-    p.add_argument("--dt", type=bounded_float(1e-3, 1.0), default=0.02, metavar="S",
-                   help="sample interval, s (default 0.02)")
+    p.add_argument("--board", choices=sorted(BOARDS), default="precision",
+                   help="the board whose noise and sample interval the bound takes (default precision); "
+                        "--noise-T, --noise-q and --dt override it")
+    p.add_argument("--noise-T", type=positive_float, default=None, metavar="K",
+                   help="thermocouple noise per sample, K (default: the board's)")
+    p.add_argument("--noise-q", type=positive_float, default=None, metavar="W_M2",
+                   help="flux-sensor noise per sample, W/m^2 (default: the board's)")
+    p.add_argument("--dt", type=bounded_float(1e-3, 1.0), default=None, metavar="S",
+                   help="sample interval, s (default: the board's)")
     p.add_argument("--hand", action="store_true",
                    help="a hand touch: the contact resistance and the object's temperature are unknowns too "
                         "(ISSUE #34: what a touch can attain when it does not know them)")
@@ -76,8 +80,8 @@ def _material(name: str):
         raise CliError(f"--material: {exc.args[0]}") from None
 
 
-def compute(material: str, radius_mm: float, time_s: float, *, noise_T_K: float = 0.01,
-            noise_q_W_m2: float = 0.5, dt_s: float = 0.02, model=None, hand: bool = False,
+def compute(material: str, radius_mm: float, time_s: float, *, noise_T_K: float,
+            noise_q_W_m2: float, dt_s: float, model=None, hand: bool = False,
             contact_resistance_m2K_W: float = 3e-5, lead_s: float = 1.0) -> dict:
     """One design point as a JSON-able dict (see the module docstring).
 
@@ -99,7 +103,7 @@ def compute(material: str, radius_mm: float, time_s: float, *, noise_T_K: float 
     return out
 
 
-def table(*, noise_T_K: float = 0.01, noise_q_W_m2: float = 0.5, dt_s: float = 0.02, **hand) -> list[dict]:
+def table(*, noise_T_K: float, noise_q_W_m2: float, dt_s: float, **hand) -> list[dict]:
     """Every point of the ``--table`` grid (one model per radius and time, shared by the materials)."""
     import numpy as np  # noqa: PLC0415
 
@@ -134,7 +138,19 @@ def table_lines(rows: list[dict]) -> list[str]:
     return lines
 
 
+def noise_of(args) -> tuple[float, float, float]:
+    """(noise_T_K, noise_q_W_m2, dt_s): the board's one-sample noise and interval, each overridden when given."""
+    from host.objects import board_noise  # noqa: PLC0415
+
+    board = board_noise(args.board)
+    given = (args.noise_T, args.noise_q, args.dt)
+    return tuple(float(b if g is None else g) for g, b in zip(given, board))
+
+
 def run(args) -> int:
+    # The board is named in the answer only when its noise is what was used.
+    board = args.board if (args.noise_T, args.noise_q, args.dt) == (None, None, None) else None
+    args.noise_T, args.noise_q, args.dt = noise_of(args)
     one = (args.heater_radius, args.time, args.material)
     if args.table:
         if any(v is not None for v in one):
@@ -151,16 +167,17 @@ def run(args) -> int:
     if args.table:
         rows = table(**kw)
         if args.json:
-            print(dumps({"rows": rows}))
+            print(dumps({"board": board, "rows": rows}))
         else:
             print("\n".join(table_lines(rows)))
         return 0
-    d = compute(args.material, args.heater_radius, args.time, **kw)
+    d = {**compute(args.material, args.heater_radius, args.time, **kw), "board": board}
     if args.json:
         print(dumps(d))
         return 0
     print(f"{d['material']}, heater radius {d['heater_radius_mm']:g} mm ({d['power_W']:.3g} W), "
-          f"{d['contact_time_s']:g} s touch; noise {args.noise_T:g} K / {args.noise_q:g} W/m^2 every {args.dt:g} s")
+          f"{d['contact_time_s']:g} s touch; noise {args.noise_T:.2g} K / {args.noise_q:.2g} W/m^2 every {args.dt:g} s"
+          + (f" ({board} board)" if board else ""))
     if args.hand:
         print(f"hand touch: R_c ({args.contact_resistance:g} m^2K/W) and the object's temperature unknown, contact "
               f"{args.lead:g} s before heating")

@@ -22,7 +22,12 @@ def test_design_json_matches_the_library_function(capsys):
                          "--json")
     assert code == 0, err
     d = json.loads(out)
-    ref = attainable(load_materials().get("tempered_glass").solid, 2.0, heater_radius_m=5e-3)
+    from host.objects import board_noise
+
+    sT, sq, dt = board_noise("precision")      # the default board's noise, not a typed pair
+    assert (d["noise_T_K"], d["noise_q_W_m2"], d["dt_s"], d["board"]) == (sT, sq, dt, "precision")
+    ref = attainable(load_materials().get("tempered_glass").solid, 2.0, heater_radius_m=5e-3, sigma_T_K=sT,
+                     sigma_q_W_m2=sq, dt_s=dt)
     assert d["u_rel_alpha"] == pytest.approx(ref.u_rel_alpha, rel=1e-9)
     assert d["u_rel_k"] == pytest.approx(ref.u_rel_k, rel=1e-9)
     assert d["determined"] == ["e", "k", "alpha"] and d["heater_radius_mm"] == 5.0
@@ -75,7 +80,28 @@ def test_design_hand_counts_contact_resistance_and_object_temperature(capsys):
     assert code == 0, err
     d = json.loads(out)
     ref = attainable(load_materials().get("copper").solid, 1.0, heater_radius_m=32e-3, fit_contact=True,
-                     contact_resistance_m2K_W=5e-5, fit_object_temperature=True, contact_lead_s=2.0)
+                     contact_resistance_m2K_W=5e-5, fit_object_temperature=True, contact_lead_s=2.0,
+                     sigma_T_K=d["noise_T_K"], sigma_q_W_m2=d["noise_q_W_m2"], dt_s=d["dt_s"])
     assert d["u_rel_effusivity"] == pytest.approx(ref.u_rel_effusivity, rel=1e-9)
     assert d["u_rel_effusivity"] > plain["u_rel_effusivity"] and d["hand"] == {"contact_resistance_m2K_W": 5e-5,
                                                                                "lead_s": 2.0}
+
+
+def test_design_board_sets_the_noise_and_a_given_noise_overrides_it(capsys):
+    from host.objects import board_noise
+
+    base = ["design", "--heater-radius-mm", "5", "--time", "2", "--material", "pmma", "--json"]
+    answers = {}
+    for extra in ([], ["--board", "reference"], ["--board", "reference", "--noise-T", "0.004"]):
+        code, out, err = run(capsys, *base, *extra)
+        assert code == 0, err
+        answers[tuple(extra)] = json.loads(out)
+    prec, ref, mixed = answers.values()
+    assert ref["board"] == "reference" and mixed["board"] is None      # an override is no longer the board's
+    assert (ref["noise_T_K"], ref["noise_q_W_m2"], ref["dt_s"]) == board_noise("reference")
+    assert (mixed["noise_T_K"], mixed["noise_q_W_m2"]) == (0.004, board_noise("reference")[1])
+    # The reference board's converter is ~15 times noisier and 4 times slower: a wider bound.
+    assert ref["u_rel_effusivity"] > 5 * prec["u_rel_effusivity"]
+    assert prec["u_rel_effusivity"] < mixed["u_rel_effusivity"] < ref["u_rel_effusivity"]
+    code, out, err = run(capsys, *base, "--board", "bench")
+    assert code == 2 and "--board" in err and len(err.strip().splitlines()) == 1
