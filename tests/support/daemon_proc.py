@@ -140,6 +140,9 @@ def _serve_forks(ctl_fd: int) -> dict:
         if "prepare" in job:
             try:
                 _function(job["prepare"])(job["arg"])
+                # What the preparation left as cyclic garbage (a warmed-up daemon's) is freed now, before the
+                # next fork freezes it for good; the walk covers only what was made since that freeze.
+                gc.collect()
                 reply = {"ok": True}
             except BaseException:  # noqa: BLE001 - the test process reports it
                 import traceback
