@@ -194,17 +194,26 @@ def calibrate_records(head: str, refs: list[tuple[str, TouchRecord | None]]):
 def scene_noise(head: str, board: str = "precision") -> tuple[float, float, float]:
     """(sigma_T_K, sigma_q_W_m2, dt_s) the simulated touches of :func:`hand_scene` carry: one sample's noise.
 
-    What the attainable u of the bench's Bayes rate is computed with: the scene's ``[sensors]`` input
-    noise of the chip playing each role on ``board`` (:data:`edge.hw.chips.BOARDS`), in K and W/m^2 at the nominal
-    sensitivities, and each converter's step as uniform rounding (step / sqrt 12), in quadrature; the
-    interval of the board's samples (:func:`host.objects.board_noise`).  Not the registry's instrument
-    model, whose flux noise adds a cable's pick-up the scenes do not simulate.
+    What the attainable u of the bench's Bayes rate is computed with (:func:`sensor_noise` of the
+    head's hand scene on ``board``).
+    """
+    sc = hand_scene(head, Solid(k_W_mK=0.2, rho_kg_m3=1190.0, c_J_kgK=1470.0), None, 0, rc_m2K_W=0.0,
+                    offset_K=0.0, lead_s=0.0, heat_s=1.0, board=board)
+    return sensor_noise(sc, board)
+
+
+def sensor_noise(sc, board: str = "precision") -> tuple[float, float, float]:
+    """(sigma_T_K, sigma_q_W_m2, dt_s) of one sample of scene ``sc`` on ``board``.
+
+    The scene's ``[sensors]`` input noise of the chip playing each role on ``board``
+    (:data:`edge.hw.chips.BOARDS`), in K and W/m^2 at the nominal sensitivities, and each
+    converter's step as uniform rounding (step / sqrt 12), in quadrature; the interval of the
+    board's samples (:func:`host.objects.board_noise`).  Not the registry's instrument model, whose
+    flux noise adds a cable's pick-up the scenes do not simulate.
     """
     from edge.hw.chips import BOARDS, CHIPS, FLUX, THERMOCOUPLE, TYPE_K_SEEBECK_V_per_K  # noqa: PLC0415
     from host.objects import board_noise  # noqa: PLC0415
 
-    sc = hand_scene(head, Solid(k_W_mK=0.2, rho_kg_m3=1190.0, c_J_kgK=1470.0), None, 0, rc_m2K_W=0.0,
-                    offset_K=0.0, lead_s=0.0, heat_s=1.0, board=board)
     if any(sc.board.address_of(c) is None for c in BOARDS[board].values()):
         raise ValueError(f"scene {sc.name} does not fit the {board} board's chips {dict(BOARDS[board])}")
     out = []

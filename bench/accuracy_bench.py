@@ -217,7 +217,8 @@ def table() -> str:
           "hand (R_c up to 1e-4 m²K/W, the object up to 3 K off the probe, contact 0.5-3 s before heating).",
           "", "The paper probe's calibrated hand touches by class of solid and heating time: median |error| of e "
           "(in brackets the attainable u: the Fisher limit of that touch alone from `thermotouch design`, R_c and "
-          "the object's temperature unknown, at the record's sample rate; the last columns add the calibration's "
+          "the object's temperature unknown, at the sample rate and one sample's noise the simulated touches carry "
+          "(`_asbuilt_touches.sensor_noise`); the last columns add the calibration's "
           "own u -- its covariance and model-form floor as the calibrated chain states them -- which no touch "
           "through that calibration can beat; \"no answer\": the chain gave none):", "", short_window_table(ac)]
     return "\n".join(L)

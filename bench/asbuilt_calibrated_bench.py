@@ -67,6 +67,7 @@ import sys
 import tempfile
 import time
 
+from _asbuilt_touches import sensor_noise
 from _common import write_block, write_json
 from _objects import SOLIDS
 from asbuilt_bench import scene_for, solid
@@ -309,15 +310,17 @@ def attribution_table(res: dict) -> str:
 
 
 def attainable_u(head: str, obj, window_s: float, power_W: float, dt_s: float, R_c: float, lead_s: float,
-                 nuisances: bool = True) -> float | None:
+                 nuisances: bool = True, *, sigma_T_K: float, sigma_q_W_m2: float) -> float | None:
     """``thermotouch design --hand``'s attainable u(e): R_c (at the touch's) and the object's temperature unknown.
 
-    ``nuisances=False``: both known (the touch-only bound without the hand touch's unknowns).
+    ``nuisances=False``: both known (the touch-only bound without the hand touch's unknowns).  The
+    noise is one sample's of the touch's own scene (:func:`_asbuilt_touches.sensor_noise`).
     """
     from edge.estimation.design import attainable
 
     d = attainable(obj, window_s, probe=head, power_W=power_W, dt_s=dt_s, fit_contact=nuisances,
-                   contact_resistance_m2K_W=R_c, fit_object_temperature=nuisances, contact_lead_s=lead_s)
+                   contact_resistance_m2K_W=R_c, fit_object_temperature=nuisances, contact_lead_s=lead_s,
+                   sigma_T_K=sigma_T_K, sigma_q_W_m2=sigma_q_W_m2)
     return d.u_rel_effusivity if math.isfinite(d.u_rel_effusivity) else None
 
 
@@ -387,11 +390,12 @@ def run(n_probes: int, n_solids: int, n_touches: int, seeds: list[int] | None = 
                     e, u = d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u")
                     key = (name, w, h["R_c"], h["lead_s"])
                     if key not in att_cache:
+                        noise = dict(zip(("sigma_T_K", "sigma_q_W_m2"), sensor_noise(sc)[:2]))
                         att_cache[key] = attainable_u(head, obj.solid, w, rec.power_W, 1.0 / rec.sample_rate_Hz,
-                                                      h["R_c"], h["lead_s"])
+                                                      h["R_c"], h["lead_s"], **noise)
                         att_cache[key + ("known",)] = attainable_u(head, obj.solid, w, rec.power_W,
                                                                    1.0 / rec.sample_rate_Hz, h["R_c"], h["lead_s"],
-                                                                   nuisances=False)
+                                                                   nuisances=False, **noise)
                     rows.append({"head": head, "probe": draw_seed, "solid": name, "class": obj.cls, **h,
                                  "status": str(out.status), "window_s": w, "e_true": e_true, "e": e, "u_e": u,
                                  "err": None if e is None else e / e_true - 1.0, "flags": d.get("flags"),
@@ -667,10 +671,12 @@ def main() -> None:
     if args.update_readme:
         write_block("asbuilt-calibrated-bench",
                     f"{args.probes} drawn probes per head x {args.solids} solids, {args.touches} touches per reference, "
-                    f"{res['wall_s']:.0f} s wall (`python bench/asbuilt_calibrated_bench.py --update-readme`; "
+                    f"{res['wall_s']:.0f} s wall at a load of {res['load_avg_1min']:.1f} "
+                    "(`python bench/asbuilt_calibrated_bench.py --update-readme`; "
                     "run here as two processes over seeds 1-4 and 5-8, `--seeds ... --tag ...`, then "
                     "`--merge TAG TAG --update-readme`). "
-                    f"{res['conditions']}.\n\n" + text + _attribution_block())
+                    f"{res['conditions']}; attainable u at one sample's noise of the touch's own scene "
+                    "(`_asbuilt_touches.sensor_noise`).\n\n" + text + _attribution_block())
 
 
 if __name__ == "__main__":

@@ -27,13 +27,35 @@ def test_write_block_replaces_its_block_only(tmp_path):
         _common.write_block("a:b", "x", doc)
 
 
+#: Where a bench's write_block sends a block, by the path constant it passes (default docs/results.md).
+_DOC_OF_CONSTANT = {"SCIENCE_MD": "science"}
+
+
 def _written_tags() -> dict[str, set[str]]:
-    """Literal block tags (or f-string prefixes) each bench writes, by target: README or docs/results.md."""
-    out = {"readme": set(), "results": set()}
+    """Literal block tags (or f-string prefixes) each bench writes, by target: README, docs/results.md, docs/science.md."""
+    out = {"readme": set(), "results": set(), "science": set()}
     for path in BENCH.glob("*.py"):
-        src = path.read_text()
-        for fn, tag in re.findall(r"\b(write_block|update_readme)\(\s*f?[\"']([\w-]+)", src):
-            out["readme" if fn == "update_readme" else "results"].add(tag)
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, ast.Call):
+                continue
+            fn = getattr(node.func, "id", getattr(node.func, "attr", None))     # write_block or _common.write_block
+            if fn not in ("write_block", "update_readme") or not node.args:
+                continue
+            first = node.args[0]
+            while isinstance(first, ast.BinOp):      # "tag" + suffix: its left part
+                first = first.left
+            if isinstance(first, ast.JoinedStr):     # an f-string: its literal prefix
+                first = first.values[0] if first.values else None
+            if not (isinstance(first, ast.Constant) and isinstance(first.value, str) and first.value):
+                continue
+            tag = re.match(r"[\w-]+", first.value).group(0)
+            target = node.args[2] if len(node.args) > 2 else next(
+                (k.value for k in node.keywords if k.arg == "path"), None)
+            if fn == "update_readme":
+                out["readme"].add(tag)
+            else:
+                const = target.id if isinstance(target, ast.Name) else None
+                out[_DOC_OF_CONSTANT.get(const, "results")].add(tag)
     return out
 
 
@@ -41,13 +63,17 @@ def test_every_block_a_bench_writes_exists_where_it_writes_it():
     tags = _written_tags()
     readme = (ROOT / "README.md").read_text()
     results = (ROOT / "docs" / "results.md").read_text()
+    science = (ROOT / "docs" / "science.md").read_text()
     assert {"suite-bench", "demo-bench", "accuracy"} <= tags["readme"]
     assert len(tags["results"]) >= 15
+    assert "design-table" in tags["science"]
     for tag in tags["readme"]:
         assert f"<!-- {tag}:begin -->" in readme, f"README.md has no {tag} block"
     for tag in tags["results"]:
         # calibration_bench writes calibration-bench and calibration-bench-reference (an f-string suffix)
         assert re.search(rf"<!-- {re.escape(tag)}[\w-]*:begin -->", results), f"docs/results.md has no {tag} block"
+    for tag in tags["science"]:
+        assert f"<!-- {tag}:begin -->" in science, f"docs/science.md has no {tag} block"
 
 
 def test_shared_bench_modules_import_no_bench():
