@@ -166,7 +166,7 @@ def cross_fit(oset: ObjectSet, t: Touches, fold: np.ndarray, broad: np.ndarray, 
         sets[f] = cal
         fits.append({"held_out_probe": f, **{k: rep.get(k) for k in (
             "temperature", "z_crit", "touches", "bias_ln", "bias_slope", "poor_fit_ln", "poor_fit_touches",
-            "outlier_weight", "outlier_ln", "u_var_scale", "calibration_ln", "unknown_min_odds")}})
+            "outlier_weight", "outlier_ln", "u_var_scale", "calibration_ln", "unknown_min_odds", "u_shrink")}})
         for k, rec in zip(np.flatnonzero(fold == f), classify_touches(cal, t.select(fold == f))):
             recs[k] = rec
         own = np.flatnonzero(fold != f)
@@ -425,7 +425,8 @@ def head_lines(head: str, h: dict) -> list[str]:
           "the one named; per held-out probe: T / z_crit / bias of ln e at e = 1000 / its slope per unit ln e / "
           "poor_fit_ln (a stated u); with an outlier component, / its weight ε @ σ_out in ln e; / k, the scale on "
           "the stated u² (`host.recognition.fit_u_var_scale`, its bounds 0.02-100), + c, the additive sd of ln e where "
-          "fitted (kept when it beats none by AIC); 'unknown' only when the background is also the most probable "
+          "fitted (kept when it beats none by AIC); / b, the stated u shrunk toward each object's typical u as "
+          "u_typ^(1-b) u^b (kept when it beats b = 1 by AIC); 'unknown' only when the background is also the most probable "
           f"hypothesis: unknown_min_odds {FIT['unknown_min_odds']:g}):", ""]
     for ct, r in R.items():
         L.append(f"* {float(ct):g} s: " + "; ".join(
@@ -434,8 +435,8 @@ def head_lines(head: str, h: dict) -> list[str]:
             f"{100 * (x['bias_slope'] or 0):+.1f} % / {x['poor_fit_ln'] or 0:.2f}"
             + (f" / {x['outlier_weight']:.2f} @ {x['outlier_ln']:.1f}" if x.get("outlier_weight") else "")
             + (f" / k {x['u_var_scale']:.2f}" if x.get("u_var_scale", 1.0) != 1.0 else "")
-            + (f" + c {100 * x['calibration_ln']:.1f} %" if x.get("calibration_ln") else "")
-            for x in r["fits"]))
+            + (f" + c {100 * x['calibration_ln']:.1f} %" if x.get("calibration_ln") else "") + (
+                f" / u shrunk b {x['u_shrink']:.2f}" if x.get("u_shrink", 1.0) != 1.0 else "") for x in r["fits"]))
     L += ["", "Answers below 0.5 (in-set, evaluation split): this likelihood against the other (" + (
         "T on every variance" if SPREAD_FIXED else "the stated u scaled alone") + "): n, mean confidence, right, "
           "the objects touched most, and the debiased ECE of all answers:", ""]

@@ -41,7 +41,7 @@ from edge.measure.instrument import INSTRUMENTS
 from edge.physics.materials import load_materials
 from edge.physics.solids import Solid
 from host.evaluate import TouchSimulator
-from host.recognition_fit import fit_bias, fit_poor_fit_ln
+from host.recognition_fit import SHRINK_KEYS, U_SHRINKS, fit_alpha_u_growth, fit_bias, fit_poor_fit_ln, fit_u_typ
 
 __all__ = [
     "DEFAULT_Q_V_W_M3",
@@ -70,8 +70,10 @@ __all__ = [
 #: calibrate``, bench/tactile_asbuilt_bench.py): a touch the open-set test rejects is answered ``unknown``
 #: only when the background is also more probable than the best object, and an additive sd of ln e is
 #: fitted beside the scale k when it earns its parameter.  ISSUE #37: the test alone answered in-set
-#: touches from the specimen spread's tail "unknown" at the background's 0.16-0.42, every one wrong.
-DECISION_FIT = MappingProxyType({"unknown_min_odds": 1.0, "additive": True})
+#: touches from the specimen spread's tail "unknown" at the background's 0.16-0.42, every one wrong.  And the
+#: stated u shrunk toward each object's typical u where that earns its four parameters (fit_u_var_scale): on
+#: the tactile as-built bench it wins 10-19 nats per fold at 1 s and 80-100 at 0.5 s (bench/_likelihood_form.py).
+DECISION_FIT = MappingProxyType({"unknown_min_odds": 1.0, "additive": True, "shrink": True})
 
 #: Heater power density of the simulated touches (as bench identification).
 DEFAULT_Q_V_W_M3 = 7.7e7
@@ -419,7 +421,8 @@ CALIBRATION_LNS = (0.005, 0.01, 0.015, 0.02, 0.03, 0.05, 0.08)
 
 
 def fit_u_var_scale(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, alpha: Mapping | None = None,
-                    outlier: bool = False, additive: bool = False, bounds=(0.02, 100.0)) -> dict:
+                    outlier: bool = False, additive: bool = False, shrink: bool = False,
+                    bounds=(0.02, 100.0)) -> dict:
     """The scale k on the stated u² of ln e alone (T = 1) minimising the true objects' NLL; with the outlier mixture.
 
     T scales every variance, the objects' specimen spread too: where the spread dominates (a wood's
@@ -430,8 +433,11 @@ def fit_u_var_scale(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, alpha: M
     ``calibration_ln`` c (variance ``k u² + spread² + c²``) with k refitted, on the grid
     :data:`CALIBRATION_LNS`, kept only when it beats c = 0 by AIC's ``1 / n``: a level common to a
     probe's touches that the stated u does not carry, which a k fitted alone would trade between the
-    objects with a large u and those with a small one.  Returns ``u_var_scale``, ``outlier_weight``,
-    ``outlier_ln``, ``calibration_ln``, ``nll``.
+    objects with a large u and those with a small one.  ``shrink``: before the additive term, the stated u
+    shrunk toward the u typical of each object, ``u_typ_j^(1-b) u^b`` (:meth:`ObjectSet.likelihood_u`; the
+    curve u_typ(ln e) by :func:`fit_u_typ`, b on :data:`U_SHRINKS` with k refitted), kept only when it beats
+    the stated u by AIC's ``4 / n`` (b and the curve's three coefficients).  Returns ``u_var_scale``,
+    ``outlier_weight``, ``outlier_ln``, ``calibration_ln``, ``u_shrink`` and the curve's ``u_typ_ln0/1/2``, ``nll``.
     """
     # additive: c fitted from 0; otherwise the set's own c (a user's, or 0) is kept as it is.
     base = object_set.with_calibration(u_var_scale=1.0, temperature=1.0, **({"calibration_ln": 0.0} if additive else {}))
@@ -439,23 +445,36 @@ def fit_u_var_scale(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, alpha: M
     if ti.size == 0:
         raise ValueError("no touches to fit on")
 
-    def fit(eps: float, s: float, rounds: int, c: float | None = None) -> dict:
-        b = base if c is None else base.with_calibration(calibration_ln=c)
+    def fit(eps: float, s: float, rounds: int, c: float | None = None, on: ObjectSet | None = None) -> dict:
+        b = on or base
+        b = b if c is None else b.with_calibration(calibration_ln=c)
 
         def nll(log_k: float) -> float:
+            if b.u_shrink != 1.0:   # k on the shrunk u's variance: the set's own scale (the stated u's would enter as k^b)
+                bk = b.with_calibration(u_var_scale=math.exp(log_k))
+                q, hld, _ = bk.log_terms(ln_e, u, **kw)
+                return _mixture_nll(bk, q, hld, ln_e, u, ti, 1.0, eps, s, kw)
             us = u * math.exp(0.5 * log_k)
             q, hld, _ = b.log_terms(ln_e, us, **kw)
             return _mixture_nll(b, q, hld, ln_e, us, ti, 1.0, eps, s, kw)
         lk = _golden_min(nll, math.log(bounds[0]), math.log(bounds[1]), rounds=rounds)
         return dict(u_var_scale=float(math.exp(lk)), outlier_weight=float(eps), outlier_ln=float(s),
-                    calibration_ln=float(b.calibration_ln), nll=nll(lk))
+                    calibration_ln=float(b.calibration_ln), nll=nll(lk),
+                    **{k: float(getattr(b, k)) for k in SHRINK_KEYS})
 
     gauss = fit(0.0, float(base.outlier_ln), 50)
     best = min([fit(e, s, 30) for e in OUTLIER_WEIGHTS for s in OUTLIER_LNS] if outlier else [gauss],
                key=lambda c: c["nll"])
     best = best if gauss["nll"] - best["nll"] > 2.0 / max(ti.size, 1) else gauss
+    on = None
+    if shrink:
+        curve = fit_u_typ(base, u, ti)
+        shrunk = min((fit(best["outlier_weight"], best["outlier_ln"], 40, on=base.with_calibration(u_shrink=b, **curve))
+                      for b in U_SHRINKS), key=lambda r: r["nll"])
+        if best["nll"] - shrunk["nll"] > 4.0 / max(ti.size, 1):
+            best, on = shrunk, base.with_calibration(**{k: shrunk[k] for k in SHRINK_KEYS})
     if additive:
-        with_c = min((fit(best["outlier_weight"], best["outlier_ln"], 40, c) for c in CALIBRATION_LNS),
+        with_c = min((fit(best["outlier_weight"], best["outlier_ln"], 40, c, on) for c in CALIBRATION_LNS),
                      key=lambda r: r["nll"])
         best = with_c if best["nll"] - with_c["nll"] > 1.0 / max(ti.size, 1) else best
     return {**best, "nll_gaussian": gauss["nll"]}
@@ -470,37 +489,6 @@ def scatter_temperature(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, alph
 def _scatter(q: np.ndarray, dof: np.ndarray, ti: np.ndarray) -> float:
     rows = np.arange(ti.size)
     return float(np.mean(q[rows, ti] / dof[rows, ti]))
-
-
-def fit_alpha_u_growth(object_set: ObjectSet, touches: Touches, true_index, *, hi: float = 100.0) -> float:
-    """The growth a with which measured α's scatter about their objects matches ``u (1 + a u)`` (mean z² = 1).
-
-    Over the touches that measured α of objects with k, ρ, c (each object's
-    specimen spread included): ``mean((ln α - ln α_i)² / (u_eff(a)² + spread_i²)) = 1``, solved by
-    bisection (it falls monotonically with a); 0 when the stated u already
-    covers the scatter. See :data:`edge.recognition.DEFAULT_ALPHA_U_GROWTH`.
-    """
-    ti = np.asarray(true_index, int)
-    m = np.isfinite(touches.alpha) & object_set.has_props[ti]
-    if not m.any():
-        return float(object_set.alpha_u_growth)
-    d2 = (np.log(touches.alpha[m]) - object_set.ln_alpha[ti[m]]) ** 2
-    s2 = object_set.spread[ti[m]] ** 2
-    u = touches.u_ln_alpha[m]
-
-    def excess(a: float) -> float:
-        ue = effective_u_ln_alpha(u, a)
-        return float(np.mean(d2 / (ue ** 2 + s2))) - 1.0
-
-    if excess(0.0) <= 0.0:
-        return 0.0
-    if excess(hi) > 0.0:
-        return hi
-    lo_a, hi_a = 0.0, hi
-    for _ in range(60):
-        mid = 0.5 * (lo_a + hi_a)
-        lo_a, hi_a = (mid, hi_a) if excess(mid) > 0.0 else (lo_a, mid)
-    return 0.5 * (lo_a + hi_a)
 
 
 def fit_z_crit(object_set: ObjectSet, ln_e, u_ln_e, *, acceptance: float = 0.975, floor: float = 1.96,
@@ -578,7 +566,7 @@ def classify_touches(object_set: ObjectSet, touches: Touches) -> list[Recognitio
 def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequence[float] = CONTACT_TIMES_S,
               touches: int = 10, seed: int = 1000, acceptance: float | None = None,
               sim: Touches | None = None, bias: bool = False, outlier: bool = False,
-              spread_fixed: bool = False, additive: bool = False,
+              spread_fixed: bool = False, additive: bool = False, shrink: bool = False,
               unknown_min_odds: float | None = None) -> tuple[ObjectSet, dict]:
     """Fit the temperature and z_crit of ``object_set`` on held-out simulated touches of its own objects.
 
@@ -591,7 +579,8 @@ def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequen
     ``outlier``: T jointly with the likelihood's outlier component (:func:`fit_outlier`; its
     ``outlier_weight`` is 0 where the mixture does not earn its parameters).  ``spread_fixed``: T = 1 and
     the scale on the stated u alone fitted instead (:func:`fit_u_var_scale`; the spread is the objects'),
-    with ``additive`` jointly with an additive sd of ln e, ``calibration_ln``.  ``unknown_min_odds``: the
+    with ``additive`` jointly with an additive sd of ln e, ``calibration_ln``, and with ``shrink`` the stated
+    u shrunk toward each object's typical u (``u_shrink``, ``u_typ_ln0/1/2``).  ``unknown_min_odds``: the
     decision rule stored with the set (:class:`edge.recognition.ObjectSet`; 1: "unknown" only when the
     background is the most probable hypothesis too); None keeps the set's.
     """
@@ -609,9 +598,10 @@ def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequen
     object_set = object_set.with_calibration(**changes)
     before = object_set        # the likelihood as the set had it: the reliability 'before' is judged with it
     if spread_fixed:   # T = 1: only what the probe states is rescaled
-        fu = fit_u_var_scale(object_set, ln_e, u, ti, alpha=alpha, outlier=outlier, additive=additive)
+        fu = fit_u_var_scale(object_set, ln_e, u, ti, alpha=alpha, outlier=outlier, additive=additive, shrink=shrink)
         t, mix = 1.0, {k: fu[k] for k in ("u_var_scale", "outlier_weight", "outlier_ln")}
-        object_set = object_set.with_calibration(u_var_scale=fu["u_var_scale"], calibration_ln=fu["calibration_ln"])
+        object_set = object_set.with_calibration(u_var_scale=fu["u_var_scale"], calibration_ln=fu["calibration_ln"],
+                                                 **{k: fu[k] for k in SHRINK_KEYS})
     else:
         fo = fit_outlier(object_set, ln_e, u, ti, alpha=alpha) if outlier else {
             "temperature": fit_temperature(object_set, ln_e, u, ti, alpha=alpha)}
@@ -623,7 +613,7 @@ def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequen
                   bias_ln=object_set.bias_ln, bias_slope=object_set.bias_slope,
                   outlier_weight=mix.get("outlier_weight", object_set.outlier_weight),
                   outlier_ln=mix.get("outlier_ln", object_set.outlier_ln), u_var_scale=object_set.u_var_scale,
-                  calibration_ln=object_set.calibration_ln,
+                  calibration_ln=object_set.calibration_ln, **{k: getattr(object_set, k) for k in SHRINK_KEYS},
                   unknown_min_odds=object_set.unknown_min_odds if unknown_min_odds is None else unknown_min_odds)
     for label, s_, temp, eps, w in (("before", before, before.temperature, before.outlier_weight, before.outlier_ln),
                                     ("after", object_set, t, report["outlier_weight"], report["outlier_ln"])):
@@ -647,7 +637,7 @@ def calibrate_by_contact(object_set: ObjectSet, instrument: str, *,
                          contact_times_s: Sequence[float] = CONTACT_TIMES_S, touches: int = 10, seed: int = 1000,
                          sim: Touches | None = None, bias: bool = False,
                          outlier: bool = False, spread_fixed: bool = False, additive: bool = False,
-                         unknown_min_odds: float | None = None) -> tuple[ObjectSet, dict]:
+                         shrink: bool = False, unknown_min_odds: float | None = None) -> tuple[ObjectSet, dict]:
     """:func:`calibrate` over all contact times (the set's scalars) and at each one (its ``contact_calibration``).
 
     A short touch's stated u understates its scatter by another factor than a long one's (ISSUE
@@ -658,15 +648,15 @@ def calibrate_by_contact(object_set: ObjectSet, instrument: str, *,
     carries the probe's bias of ln e at that contact time and ``poor_fit_ln`` too (:func:`calibrate`);
     ``outlier``: and the likelihood's outlier component (``outlier_weight``, ``outlier_ln``);
     ``spread_fixed``: T = 1 and the scale on the stated u, ``u_var_scale``, fitted instead (``additive``: with
-    ``calibration_ln``); ``unknown_min_odds``: stored in the scalars (the same rule at every contact time).
+    ``calibration_ln``; ``shrink``: with the shrunk u's ``u_shrink``, ``u_typ_ln0/1/2``); ``unknown_min_odds``: stored in the scalars (the same rule at every contact time).
     """
     sim = sim or simulate_touches(object_set.objects, instruments=(instrument,), contact_times_s=contact_times_s,
                                   touches=touches, seed=seed)
-    opts = dict(bias=bias, outlier=outlier, spread_fixed=spread_fixed, additive=additive)
+    opts = dict(bias=bias, outlier=outlier, spread_fixed=spread_fixed, additive=additive, shrink=shrink)
     cal, report = calibrate(object_set, instrument, sim=sim, unknown_min_odds=unknown_min_odds, **opts)
     keys = (("temperature", "z_crit") + (("bias_ln", "bias_slope", "poor_fit_ln") if bias else ())
             + (("outlier_weight", "outlier_ln") if outlier else ()) + (("u_var_scale",) if spread_fixed else ())
-            + (("calibration_ln",) if spread_fixed and additive else ()))
+            + (("calibration_ln",) if spread_fixed and additive else ()) + (SHRINK_KEYS if spread_fixed and shrink else ()))
     table, per = {}, {}
     for ct in sorted({float(c) for c in sim.contact_time_s}):
         sub = sim.select(np.isclose(sim.contact_time_s, ct))

@@ -10,10 +10,16 @@ import math
 
 import numpy as np
 
-from edge.recognition import ObjectSet
+from edge.recognition import ObjectSet, effective_u_ln_alpha
 from edge.recognition.objects import BIAS_REF_E_W_s05_m2K
 
-__all__ = ["BIAS_U_FLOOR_LN", "POOR_FIT_LN_FLOOR", "fit_bias", "fit_poor_fit_ln"]
+__all__ = ["BIAS_U_FLOOR_LN", "POOR_FIT_LN_FLOOR", "SHRINK_KEYS", "U_SHRINKS", "fit_bias", "fit_poor_fit_ln",
+           "fit_u_typ", "fit_alpha_u_growth"]
+
+#: The set's scalars of the shrunk u (edge.recognition.ObjectSet.likelihood_u).
+SHRINK_KEYS = ("u_shrink", "u_typ_ln0", "u_typ_ln1", "u_typ_ln2")
+#: Grid of the power b on the stated u (host.recognition.fit_u_var_scale(shrink=True)); 1 is the stated u.
+U_SHRINKS = (0.75, 0.5, 0.25)
 
 
 #: Floor on a touch's u(ln e) in the bias fit's weights: a metal's 2 % or a glass's 1.6 % should not
@@ -43,6 +49,22 @@ def fit_bias(object_set: ObjectSet, touches) -> tuple[float, float]:
     return float(coef[0]), float(coef[1])
 
 
+def fit_u_typ(object_set: ObjectSet, u_ln_e, true_index) -> dict:
+    """The curve of the u a touch of each object typically states: least squares of ln u on x_j and x_j².
+
+    ``x_j = ln(e_j / e_ref)`` of the touch's true object (its nominal e); returns ``u_typ_ln0/1/2``
+    (:meth:`edge.recognition.ObjectSet.typical_u`).  A U in ln e: the polymers' and the metals' u are
+    large at a short touch, the glasses' and woods' small.  Fewer than three distinct objects: a level.
+    """
+    ti = np.asarray(true_index, int)
+    y = np.log(np.asarray(u_ln_e, float))
+    x = object_set.ln_e_nominal[ti] - math.log(BIAS_REF_E_W_s05_m2K)
+    if np.unique(ti).size < 3:
+        return {"u_typ_ln0": float(np.mean(y)), "u_typ_ln1": 0.0, "u_typ_ln2": 0.0}
+    a = np.linalg.lstsq(np.column_stack([np.ones_like(x), x, x * x]), y, rcond=None)[0]
+    return {"u_typ_ln0": float(a[0]), "u_typ_ln1": float(a[1]), "u_typ_ln2": float(a[2])}
+
+
 def fit_poor_fit_ln(object_set: ObjectSet, touches, true_index) -> float:
     """``poor_fit_ln``: the scatter of poorly fitted chain e's about what their objects read, at the set's T.
 
@@ -59,4 +81,41 @@ def fit_poor_fit_ln(object_set: ObjectSet, touches, true_index) -> float:
     # The device's variance of such a touch is T (k w² + spread² + calibration_ln²): w from the rest.
     v = (float(np.mean(d2)) / object_set.temperature - float(np.mean(object_set.spread[ti] ** 2))
          - object_set.calibration_ln ** 2)
-    return float(max(POOR_FIT_LN_FLOOR, math.sqrt(max(v, 0.0))) / math.sqrt(object_set.u_var_scale))
+    w = float(max(POOR_FIT_LN_FLOOR, math.sqrt(max(v, 0.0))) / math.sqrt(object_set.u_var_scale))
+    if object_set.u_shrink in (0.0, 1.0):   # 0: the device names with u_typ alone, whatever the width
+        return w
+    # The device shrinks this width as any stated u, u_typ_j^(1-b) w^b: the w whose shrunk width has that
+    # mean variance over these touches' objects.
+    b = object_set.u_shrink
+    return float(math.exp((math.log(w ** 2 / np.mean(object_set.u_typ[ti] ** (2 * (1 - b))))) / (2 * b)))
+
+
+def fit_alpha_u_growth(object_set: ObjectSet, touches: Touches, true_index, *, hi: float = 100.0) -> float:
+    """The growth a with which measured α's scatter about their objects matches ``u (1 + a u)`` (mean z² = 1).
+
+    Over the touches that measured α of objects with k, ρ, c (each object's
+    specimen spread included): ``mean((ln α - ln α_i)² / (u_eff(a)² + spread_i²)) = 1``, solved by
+    bisection (it falls monotonically with a); 0 when the stated u already
+    covers the scatter. See :data:`edge.recognition.DEFAULT_ALPHA_U_GROWTH`.
+    """
+    ti = np.asarray(true_index, int)
+    m = np.isfinite(touches.alpha) & object_set.has_props[ti]
+    if not m.any():
+        return float(object_set.alpha_u_growth)
+    d2 = (np.log(touches.alpha[m]) - object_set.ln_alpha[ti[m]]) ** 2
+    s2 = object_set.spread[ti[m]] ** 2
+    u = touches.u_ln_alpha[m]
+
+    def excess(a: float) -> float:
+        ue = effective_u_ln_alpha(u, a)
+        return float(np.mean(d2 / (ue ** 2 + s2))) - 1.0
+
+    if excess(0.0) <= 0.0:
+        return 0.0
+    if excess(hi) > 0.0:
+        return hi
+    lo_a, hi_a = 0.0, hi
+    for _ in range(60):
+        mid = 0.5 * (lo_a + hi_a)
+        lo_a, hi_a = (mid, hi_a) if excess(mid) > 0.0 else (lo_a, mid)
+    return 0.5 * (lo_a + hi_a)

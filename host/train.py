@@ -136,19 +136,23 @@ def library_arrays(lib: MaterialLibrary) -> dict:
 
 
 def train_bundle(out: str | Path, *, quick: bool = False, seed: int = 0, lib: MaterialLibrary | None = None,
-                 progress=None, overwrite: bool = False, log=print, step=None):
+                 progress=None, overwrite: bool = False, log=print, step=None,
+                 levels_W_m3: tuple | None = None):
     """Generate the training set, fit, evaluate on held-back materials and write a bundle.
 
     ``progress(i, n)`` follows the training set; ``step(desc)`` is a context
     manager around each network fit (e.g. :class:`host.progress.Ticker`), the
-    steps without a known length. Returns the written
-    :class:`edge.model.bundle.Bundle` and the metrics dict.
+    steps without a known length. ``levels_W_m3``: the training set's heating
+    power levels instead of the recipe's (all of :attr:`DatasetSpec.levels_W_m3`,
+    every 4th with ``quick``); the model version then names their number.
+    Returns the written :class:`edge.model.bundle.Bundle` and the metrics dict.
     """
     step = step or (lambda desc: contextlib.nullcontext())
     t0 = time.perf_counter()
     lib = lib or load_materials()
-    spec = DatasetSpec(noisy_copies=0 if quick else 1, levels_W_m3=DatasetSpec.levels_W_m3[::4] if quick
-                       else DatasetSpec.levels_W_m3)
+    recipe_levels = DatasetSpec.levels_W_m3[::4] if quick else DatasetSpec.levels_W_m3
+    levels = recipe_levels if levels_W_m3 is None else tuple(levels_W_m3)
+    spec = DatasetSpec(noisy_copies=0 if quick else 1, levels_W_m3=levels)
     log(f"training set: {len(lib)} materials x {len(spec.levels_W_m3)} power levels"
         f" x {1 + spec.noisy_copies} copies")
     ds = generate(spec, lib, progress=progress)
@@ -202,7 +206,8 @@ def train_bundle(out: str | Path, *, quick: bool = False, seed: int = 0, lib: Ma
     bundle = export_paper_model(
         out, pm.mlp, pre, p[gi], metrics, ds.sha256, extra,
         extra_golden={"pipeline_features": golden_u, "pipeline_k": pm.predict_k(golden_u)},
-        model_version=f"paper-mlp-{'quick' if quick else 'full'}-seed{seed}",
+        model_version=f"paper-mlp-{'quick' if quick else 'full'}-seed{seed}"
+                      + ("" if levels == tuple(recipe_levels) else f"-{len(levels)}levels"),
         overwrite=overwrite, golden_check=pipeline_golden_check,
     )
     log(f"PCA explained variance (p1+p2): {evr.sum() * 100:.2f} %; held-out k median error "

@@ -26,6 +26,9 @@ a set calibrated with T = 1 and k fitted instead scales only what the probe stat
 the objects' specimen spread (a property of the objects, not of the probe) as the user gave it
 (ISSUE #37: T < 1 at 1 s narrowed the 5 % spread to 4.4 %, and the touches between two woods
 0.05 apart in ln e were named at 0.46 and right 21 % of the time); k = 1 (default): as stated.
+With ``u_shrink`` b < 1 the u in object j's likelihood is ``u_typ_j^(1-b) u^b``, the stated u shrunk
+toward the u a touch of that object typically states (a curve in ln e, ``u_typ_ln0/1/2``): the stated
+u's touch-to-touch variation is partly noise (ISSUE #37), so k scales ``k u_typ_j^(2(1-b)) u^(2b)``.
 With ``outlier_weight`` ε > 0 each object's likelihood is a two-component mixture,
 ``(1 - ε) N(core) + ε N(core with σ_out² added to the variance of ln e)`` (``outlier_ln`` σ_out,
 fitted per contact time beside T, host.recognition.fit_outlier): a short touch's estimator
@@ -219,6 +222,10 @@ class ObjectSet:
     u_var_scale : float
         Scale k on the measurement's variance of ln e alone (module docstring); 1 (default): the
         stated u.  ``poor_fit_ln`` is a stated u like any other and is scaled with it.
+    u_shrink, u_typ_ln0, u_typ_ln1, u_typ_ln2 : float
+        The likelihood of object j uses ``u_typ_j^(1-b) u^b`` for a touch stating u (:meth:`likelihood_u`):
+        b ``u_shrink`` (1, default: the stated u), ``u_typ_j`` the u a touch of object j typically states,
+        ``exp(a0 + a1 x + a2 x²)`` at x = ln(e_j / e_ref) (fitted on the host, host.recognition.fit_u_shrink).
     unknown_min_odds : float
         The odds r the "unknown" background must hold over the most probable object for a touch the
         open-set test rejects to be answered ``unknown`` (module docstring); 0 (default): the test alone.
@@ -236,7 +243,9 @@ class ObjectSet:
                  calibration_ln: float = 0.0, prior_unknown: float = DEFAULT_PRIOR_UNKNOWN,
                  alpha_u_growth: float = DEFAULT_ALPHA_U_GROWTH, bias_ln: float = 0.0, bias_slope: float = 0.0,
                  poor_fit_ln: float = 0.0, outlier_weight: float = 0.0, outlier_ln: float = DEFAULT_OUTLIER_LN,
-                 u_var_scale: float = 1.0, unknown_min_odds: float = 0.0, contact_calibration: Mapping[float, Mapping[str, float]] | None = None,
+                 u_var_scale: float = 1.0, u_shrink: float = 1.0, u_typ_ln0: float = DIRECTIVES["u_typ_ln0"].default,
+                 u_typ_ln1: float = 0.0, u_typ_ln2: float = 0.0,
+                 unknown_min_odds: float = 0.0, contact_calibration: Mapping[float, Mapping[str, float]] | None = None,
                  label: str = "<memory>") -> None:
         objs = tuple(objects)
         if not objs:
@@ -259,6 +268,10 @@ class ObjectSet:
         self.outlier_weight = check_value(DIRECTIVES["outlier_weight"], outlier_weight, "outlier_weight")
         self.outlier_ln = check_value(DIRECTIVES["outlier_ln"], outlier_ln, "outlier_ln")
         self.u_var_scale = check_value(DIRECTIVES["u_var_scale"], u_var_scale, "u_var_scale")
+        self.u_shrink = check_value(DIRECTIVES["u_shrink"], u_shrink, "u_shrink")
+        self.u_typ_ln0 = check_value(DIRECTIVES["u_typ_ln0"], u_typ_ln0, "u_typ_ln0")
+        self.u_typ_ln1 = check_value(DIRECTIVES["u_typ_ln1"], u_typ_ln1, "u_typ_ln1")
+        self.u_typ_ln2 = check_value(DIRECTIVES["u_typ_ln2"], u_typ_ln2, "u_typ_ln2")
         self.unknown_min_odds = check_value(DIRECTIVES["unknown_min_odds"], unknown_min_odds, "unknown_min_odds")
         self.contact_calibration = _contact_table(contact_calibration)
         self._at: dict[float, ObjectSet] = {}
@@ -272,12 +285,32 @@ class ObjectSet:
         #: What each object is expected to read (its ln e plus the probe's fitted bias): the likelihood's centre.
         self.ln_e = self.ln_e_nominal + self.bias_of(self.ln_e_nominal)
         self.spread = np.array([o.spread_rel for o in objs], float)
+        #: The u(ln e) a touch of each object typically states at this contact time (u_typ_ln0/1/2).
+        self.u_typ = self.typical_u(self.ln_e_nominal)
         self.has_props = np.array([o.has_properties for o in objs])
         self.ln_alpha = np.log([o.alpha_m2_s if o.has_properties else 1.0 for o in objs])
 
     def bias_of(self, ln_e):
         """The probe's fitted bias of ln e at these ln e (``bias_ln + bias_slope (ln e - ln e_ref)``)."""
         return self.bias_ln + self.bias_slope * (np.asarray(ln_e, float) - math.log(BIAS_REF_E_W_s05_m2K))
+
+    def typical_u(self, ln_e):
+        """The stated u(ln e) typical of a touch of an object of this ln e: ``exp(a0 + a1 x + a2 x²)``, x = ln(e / e_ref)."""
+        x = np.asarray(ln_e, float) - math.log(BIAS_REF_E_W_s05_m2K)
+        return np.exp(self.u_typ_ln0 + self.u_typ_ln1 * x + self.u_typ_ln2 * x ** 2)
+
+    def likelihood_u(self, u_ln_e):
+        """The u of ln e each object's likelihood uses for a touch stating ``u_ln_e``: ``u_typ^(1-b) u^b`` (shape ``(..., n)``).
+
+        With ``u_shrink`` b < 1 the stated u is shrunk toward the u a touch of that object typically
+        states: the stated u's touch-to-touch variation is partly noise (ISSUE #37, tactile as-built
+        bench: within one wood the lowest-u third of touches scatters by 1.0-1.3 u, the highest third by
+        0.6-0.85 u at 1 s).  b = 1: the stated u, bit for bit.
+        """
+        u = np.asarray(u_ln_e, float)[..., None]
+        if self.u_shrink == 1.0:
+            return u
+        return self.u_typ ** (1.0 - self.u_shrink) * u ** self.u_shrink
 
     # -- construction --------------------------------------------------------------
     @classmethod
@@ -348,6 +381,7 @@ class ObjectSet:
         # The outlier directives only when there is an outlier component: a set without one writes what it did.
         skip = (() if self.outlier_weight > 0 else ("outlier_weight", "outlier_ln")) + (
             () if self.u_var_scale != 1.0 else ("u_var_scale",)) + (
+            () if self.u_shrink != 1.0 else ("u_shrink", "u_typ_ln0", "u_typ_ln1", "u_typ_ln2")) + (
             () if self.unknown_min_odds != 0.0 else ("unknown_min_odds",))
         lines = ["# ThermoTouch object set"] + [f"#@ {k} = {v!r}" for k, v in self.calibration.items()
                                                 if k not in skip]
@@ -401,7 +435,7 @@ class ObjectSet:
             ``-0.5 q / T - half_logdet - dof' ln sqrt(2 pi T)`` (``dof'`` counting broad terms).
         """
         x = np.asarray(ln_e, float)[..., None]
-        u = np.asarray(u_ln_e, float)[..., None]
+        u = self.likelihood_u(u_ln_e)
         var_e = self.u_var_scale * u ** 2 + self.spread ** 2 + self.calibration_ln ** 2
         if extra_var_ln_e:
             var_e = var_e + extra_var_ln_e

@@ -11,7 +11,8 @@ CSV format
 Lines whose first non-blank character is ``#`` and blank lines are comments,
 except *directives* ``#@ key = value`` (``temperature``, ``z_crit``,
 ``calibration_ln``, ``prior_unknown``, ``alpha_u_growth``, ``bias_ln``, ``bias_slope``, ``poor_fit_ln``,
-``outlier_weight``, ``outlier_ln``, ``u_var_scale``, ``unknown_min_odds``:
+``outlier_weight``, ``outlier_ln``, ``u_var_scale``, ``u_shrink``, ``u_typ_ln0``, ``u_typ_ln1``, ``u_typ_ln2``,
+``unknown_min_odds``:
 the calibration stored with the set; all but ``prior_unknown`` and ``alpha_u_growth`` may also be given
 per contact time, ``#@ bias_ln@1s = 0.05``). The first
 other line is the header: ``name``, ``class``, and either ``k_W_mK``,
@@ -91,6 +92,13 @@ DIRECTIVES: dict[str, Field] = {
     "u_var_scale": Field("float", 1.0, "scale on the measurement's variance u^2 of ln e alone, the specimen "
                          "spread left as stated (fitted on held-out touches; 1: the stated u)", lo=0.0, lo_open=True,
                          hi=1e4),
+    "u_shrink": Field("float", 1.0, "power b on the stated u in the likelihood's u_j = u_typ_j^(1-b) u^b, u_typ_j "
+                      "the u a touch of object j typically states (u_typ_ln0/1/2); 1: the stated u as it is",
+                      lo=0.0, hi=1.0),
+    "u_typ_ln0": Field("float", math.log(0.03), "ln of the typical stated u(ln e) at BIAS_REF_E_W_s05_m2K",
+                       lo=-12.0, hi=2.0),
+    "u_typ_ln1": Field("float", 0.0, "slope of ln u_typ per unit ln e", lo=-5.0, hi=5.0),
+    "u_typ_ln2": Field("float", 0.0, "curvature of ln u_typ per unit (ln e)^2", lo=-5.0, hi=5.0),
     "unknown_min_odds": Field("float", 0.0, "odds the 'unknown' background must hold over the most probable "
                               "object for a touch the open-set test rejects to be answered unknown (0: the test "
                               "alone; 1: unknown only when it is the most probable hypothesis)", lo=0.0, hi=1e6),
@@ -248,7 +256,8 @@ def parse_csv(text: str, label: str) -> tuple[list[KnownObject], dict]:
 
 #: Directives that may be given per contact time (``#@ temperature@0.5s = ...``).
 CONTACT_DIRECTIVES = ("temperature", "z_crit", "calibration_ln", "bias_ln", "bias_slope", "poor_fit_ln",
-                      "outlier_weight", "outlier_ln", "u_var_scale", "unknown_min_odds")
+                      "outlier_weight", "outlier_ln", "u_var_scale", "u_shrink", "u_typ_ln0", "u_typ_ln1", "u_typ_ln2",
+                      "unknown_min_odds")
 _CONTACT_KEY = re.compile(r"^(" + "|".join(CONTACT_DIRECTIVES) + r")@([0-9]*\.?[0-9]+)s$")
 
 

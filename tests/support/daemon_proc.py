@@ -26,6 +26,7 @@ skips is only the re-import. Other test helpers use the same server for their ow
 inherit), :meth:`ForkServer.start_call` runs one in a child.
 """
 
+import gc
 import json
 import os
 import select
@@ -139,6 +140,9 @@ def _serve_forks(ctl_fd: int) -> dict:
         if "prepare" in job:
             try:
                 _function(job["prepare"])(job["arg"])
+                # What the preparation left as cyclic garbage (a warmed-up daemon's) is freed now, before the
+                # next fork freezes it for good; the walk covers only what was made since that freeze.
+                gc.collect()
                 reply = {"ok": True}
             except BaseException:  # noqa: BLE001 - the test process reports it
                 import traceback
@@ -148,6 +152,13 @@ def _serve_forks(ctl_fd: int) -> dict:
             continue
         sys.stdout.flush()
         sys.stderr.flush()
+        # Everything the server holds now goes to the cyclic collector's permanent generation (as Python's
+        # gc.freeze documentation advises before a fork): the child's collections, and above all the one
+        # at its interpreter's exit, then walk only what the child made, instead of touching -- and so
+        # copying, page by page -- the whole inherited heap (a daemon child's exit: ~90 -> ~55 ms of CPU).
+        # Only the collector's bookkeeping changes: the child's own objects are collected as before, and
+        # an inherited object the child drops is still freed by its reference count.
+        gc.freeze()
         pid = os.fork()
         if pid == 0:
             ctl.close()

@@ -35,3 +35,23 @@ def world_step(dt_s: float) -> Iterator[None]:
         mp.setitem(FaithfulWorld.__init__.__kwdefaults__, "dt_s", dt_s)
         mp.setitem(FaithfulWorld.for_scene.__func__.__kwdefaults__, "dt_s", dt_s)
         yield
+
+
+def cold_solver_caches(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Empty step memo, factor and row caches for one test; ``monkeypatch`` puts the process's own back after it.
+
+    A test of the caches themselves (what is shared, what is evicted, what a clear forgets) runs on these,
+    not on the process's: :func:`firmware_sim.rz.solver.clear_factor_cache` called on those would make the
+    worker's later faithful-world tests factor and step again what its earlier ones already had.
+    """
+    from collections import OrderedDict  # noqa: PLC0415
+
+    from edge.physics.memo import BoundedMemo  # noqa: PLC0415
+    from firmware_sim.rz import blocktri, solver, stepmemo  # noqa: PLC0415
+
+    monkeypatch.setattr(stepmemo, "_MEMO", BoundedMemo(2**31, stepmemo.MEMO_BYTES))
+    for name in ("_hits", "_misses"):
+        monkeypatch.setattr(stepmemo, name, 0)
+    monkeypatch.setattr(solver, "_FACTOR_CACHE", OrderedDict())
+    monkeypatch.setattr(blocktri, "_ROW_CACHE", OrderedDict())
+    monkeypatch.setattr(blocktri, "_row_bytes", 0)

@@ -10,8 +10,18 @@ from edge.service.daemon import Daemon
 from edge.service.requests import max_sample_rate_Hz, measure_params
 from firmware_sim.run import config_for_scene
 from firmware_sim.simulator import load_scene
+from tests.support.faithful import DEVICE_DT_s, world_step
 
 pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _device_world_step(faithful_world_test_step):
+    """The faithful worlds under these daemons march at ``DEVICE_DT_s`` (tests/support/faithful.py): these tests
+    assert what the daemon does with the record (decides, stops early, names the object, samples at the profile's
+    rate), not the world's accuracy; every assertion holds at 40 ms as at the suite's 20 ms."""
+    with world_step(DEVICE_DT_s):
+        yield
 
 P = KnownObject.from_properties
 SET = ObjectSet([P("foam", "foam", 0.035, 30, 1400), P("pmma", "polymer", 0.185, 1178.35, 1429),

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from firmware_sim.rz import solver as S
+from tests.support.faithful import cold_solver_caches
 
 
 def _dense(diag, off_in, off_between):
@@ -39,6 +40,13 @@ def _system(rng, n=7, m=6, empty_rows=(), short_rows=()):
     return diag, off_in, off_between
 
 
+@pytest.fixture
+def cold(monkeypatch):
+    """Empty factor, row and step caches for a test that clears or fills them; the process's own come back after
+    it (a clear of those made the worker's later faithful-world tests factor and step everything again)."""
+    cold_solver_caches(monkeypatch)
+
+
 @pytest.mark.parametrize("empty_rows, short_rows", [((), ()), ((), (1, 2, 5)), ((3,), (0, 6)), ((0, 6), ())])
 def test_block_solve_equals_the_dense_solve_with_uncoupled_cells(empty_rows, short_rows):
     rng = np.random.default_rng(3)
@@ -49,7 +57,7 @@ def test_block_solve_equals_the_dense_solve_with_uncoupled_cells(empty_rows, sho
     np.testing.assert_allclose(x, ref, rtol=1e-12, atol=1e-13)
 
 
-def test_the_same_matrix_shares_one_factor_and_the_cache_stays_within_its_bytes(monkeypatch):
+def test_the_same_matrix_shares_one_factor_and_the_cache_stays_within_its_bytes(cold, monkeypatch):
     rng = np.random.default_rng(4)
     a = _system(rng)
     b = _system(rng)
@@ -200,7 +208,7 @@ def _eliminated_afresh(system):
             blocktri._keep_row(k, v)
 
 
-def test_a_factor_that_takes_another_configurations_leading_rows_solves_bit_for_bit_as_a_fresh_one():
+def test_a_factor_that_takes_another_configurations_leading_rows_solves_bit_for_bit_as_a_fresh_one(cold):
     """Block rows shared between factors (a probe's rows, on another object or in air) are the very
     inverses the elimination would compute: the solve is the same to the last bit, and a change in
     any number a row depends on (a later row's, a row's width) is never answered from another."""

@@ -13,11 +13,11 @@ import pytest
 from firmware_sim.clock import VirtualClock
 from firmware_sim.rz import blocktri as B
 from firmware_sim.rz import solver as S
-from edge.physics.memo import BoundedMemo
 from firmware_sim.rz import stepmemo as M
 from firmware_sim.rz.probe_world import FaithfulWorld
 from firmware_sim.scene.files import read_scene
 from firmware_sim.world import ScheduleDrive
+from tests.support.faithful import cold_solver_caches
 
 
 def _solver(scheme="trbdf2", dt_s=0.01):
@@ -30,12 +30,7 @@ def _solver(scheme="trbdf2", dt_s=0.01):
 @pytest.fixture
 def cold(monkeypatch):
     """Empty memo, factor and row caches for the test; the process's own are put back after it."""
-    monkeypatch.setattr(M, "_MEMO", BoundedMemo(2**31, M.MEMO_BYTES))
-    for name in ("_hits", "_misses"):
-        monkeypatch.setattr(M, name, 0)
-    monkeypatch.setattr(S, "_FACTOR_CACHE", OrderedDict())
-    monkeypatch.setattr(B, "_ROW_CACHE", OrderedDict())
-    monkeypatch.setattr(B, "_row_bytes", 0)
+    cold_solver_caches(monkeypatch)
 
 
 @pytest.mark.parametrize("scheme", ["trbdf2", "be"])
