@@ -12,6 +12,7 @@ a wall-time bound it asserts is a deadline with room for a machine several times
 import atexit
 import gc
 import importlib
+import math
 import os
 import shutil
 import sys
@@ -219,10 +220,11 @@ def pytest_collection_modifyitems(session, config, items):
 
     n = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1") or 1)
     is_slow = lambda item: item.get_closest_marker("slow") is not None  # noqa: E731
-    # A module's recorded CPU seconds for the tiers of its selected tests (tests/support/module_costs.tsv).
+    # A module's recorded CPU seconds for the tiers of its selected tests (tests/support/module_costs.tsv); one the
+    # table does not know (a new module) could be long: it goes first rather than end a worker's queue.
     table, cost = read_module_costs(Path(__file__).resolve().parent / "support" / "module_costs.tsv"), {}
     for item in items:
-        fast_s, slow_s = table.get(item.nodeid.split("::", 1)[0], (0.0, 0.0))
+        fast_s, slow_s = table.get(item.nodeid.split("::", 1)[0], (math.inf, math.inf))
         cost[item.module] = max(cost.get(item.module, 0.0), fast_s + (slow_s if is_slow(item) else 0.0))
     items[:] = long_first_slices(items, n, module_of=lambda item: item.module, is_slow=is_slow,
                                  shares_import=_shares_with_another_module,

@@ -19,7 +19,7 @@ Within a slice the quick modules go costliest first when their cost is known (``
 CPU seconds a module's selected tests took in a recorded run, tests/support/module_costs.tsv), so
 that a queue ends on its cheapest modules: what a steal takes, and what a worker runs last while the
 other has nothing left, are then milliseconds, not a 0.6-s test. Which tests a slice holds is the
-same; an unknown module counts as free (it goes last).
+same; tests/conftest.py gives a module the table does not know an infinite cost (it goes first).
 """
 
 from __future__ import annotations
