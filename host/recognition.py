@@ -41,7 +41,8 @@ from edge.measure.instrument import INSTRUMENTS
 from edge.physics.materials import load_materials
 from edge.physics.solids import Solid
 from host.evaluate import TouchSimulator
-from host.recognition_fit import SHRINK_KEYS, U_SHRINKS, fit_alpha_u_growth, fit_bias, fit_poor_fit_ln, fit_u_typ
+from host.recognition_fit import (SHRINK_KEYS, U_SHRINK_RANGE, U_SHRINK_ROUNDS, U_SHRINK_STEP, fit_alpha_u_growth,
+                                  fit_bias, fit_poor_fit_ln, fit_u_typ)
 
 __all__ = [
     "DEFAULT_Q_V_W_M3",
@@ -435,7 +436,8 @@ def fit_u_var_scale(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, alpha: M
     probe's touches that the stated u does not carry, which a k fitted alone would trade between the
     objects with a large u and those with a small one.  ``shrink``: before the additive term, the stated u
     shrunk toward the u typical of each object, ``u_typ_j^(1-b) u^b`` (:meth:`ObjectSet.likelihood_u`; the
-    curve u_typ(ln e) by :func:`fit_u_typ`, b on :data:`U_SHRINKS` with k refitted), kept only when it beats
+    curve u_typ(ln e) by :func:`fit_u_typ`, b by maximum likelihood on :data:`U_SHRINK_RANGE` with k refitted at
+    each, to :data:`U_SHRINK_STEP`), kept only when it beats
     the stated u by AIC's ``4 / n`` (b and the curve's three coefficients).  Returns ``u_var_scale``,
     ``outlier_weight``, ``outlier_ln``, ``calibration_ln``, ``u_shrink`` and the curve's ``u_typ_ln0/1/2``, ``nll``.
     """
@@ -469,8 +471,14 @@ def fit_u_var_scale(object_set: ObjectSet, ln_e, u_ln_e, true_index, *, alpha: M
     on = None
     if shrink:
         curve = fit_u_typ(base, u, ti)
-        shrunk = min((fit(best["outlier_weight"], best["outlier_ln"], 40, on=base.with_calibration(u_shrink=b, **curve))
-                      for b in U_SHRINKS), key=lambda r: r["nll"])
+
+        def at(b: float) -> dict:
+            return fit(best["outlier_weight"], best["outlier_ln"], 40, on=base.with_calibration(u_shrink=b, **curve))
+
+        # b by maximum likelihood (k refitted at each b; the NLL is unimodal in b on the bench's touches and
+        # the synthetic ones), to U_SHRINK_STEP: a grid of three values left the 1-s fit between 0.25 and 0.5.
+        b_ml = _golden_min(lambda b: at(b)["nll"], *U_SHRINK_RANGE, rounds=U_SHRINK_ROUNDS)
+        shrunk = at(round(b_ml / U_SHRINK_STEP) * U_SHRINK_STEP)
         if best["nll"] - shrunk["nll"] > 4.0 / max(ti.size, 1):
             best, on = shrunk, base.with_calibration(**{k: shrunk[k] for k in SHRINK_KEYS})
     if additive:

@@ -13,13 +13,20 @@ import numpy as np
 from edge.recognition import ObjectSet, effective_u_ln_alpha
 from edge.recognition.objects import BIAS_REF_E_W_s05_m2K
 
-__all__ = ["BIAS_U_FLOOR_LN", "POOR_FIT_LN_FLOOR", "SHRINK_KEYS", "U_SHRINKS", "fit_bias", "fit_poor_fit_ln",
+__all__ = ["BIAS_U_FLOOR_LN", "POOR_FIT_LN_FLOOR", "SHRINK_KEYS", "U_SHRINK_RANGE", "U_SHRINK_ROUNDS", "U_SHRINK_STEP",
+           "fit_bias", "fit_poor_fit_ln",
            "fit_u_typ", "fit_alpha_u_growth"]
 
 #: The set's scalars of the shrunk u (edge.recognition.ObjectSet.likelihood_u).
 SHRINK_KEYS = ("u_shrink", "u_typ_ln0", "u_typ_ln1", "u_typ_ln2")
-#: Grid of the power b on the stated u (host.recognition.fit_u_var_scale(shrink=True)); 1 is the stated u.
-U_SHRINKS = (0.75, 0.5, 0.25)
+#: The power b on the stated u (host.recognition.fit_u_var_scale(shrink=True); 1 is the stated u): searched on
+#: this range by golden section (ROUNDS: the bracket narrows to 0.75 x 0.618^12 = 0.002) and kept to STEP, so a
+#: set's directive reads as the fit's resolution.  Not below 0.25: there the typical u decides nearly alone,
+#: and a poor_fit touch's width, shrunk like any stated u (fit_poor_fit_ln inverts u_typ^(1-b) w^b), needs a
+#: w of tens in ln e to reach its scatter.
+U_SHRINK_RANGE = (0.25, 1.0)
+U_SHRINK_ROUNDS = 12
+U_SHRINK_STEP = 0.01
 
 
 #: Floor on a touch's u(ln e) in the bias fit's weights: a metal's 2 % or a glass's 1.6 % should not

@@ -99,3 +99,22 @@ def test_calibrate_stores_the_shrink_and_a_poor_fit_width_the_device_shrinks_bac
     j = ti[poor]
     var = cal.u_var_scale * np.mean(cal.u_typ[j] ** (2 * (1 - cal.u_shrink))) * cal.poor_fit_ln ** (2 * cal.u_shrink)
     assert math.sqrt(var) == pytest.approx(math.sqrt(0.3 ** 2 - 0.05 ** 2), rel=0.15)
+
+
+def test_the_shrink_power_is_the_likelihoods_best_not_a_grid_point(monkeypatch):
+    import host.recognition as HR
+    from host.recognition_fit import U_SHRINK_RANGE, U_SHRINK_STEP
+
+    rng = np.random.default_rng(7)
+    x, u, ti = _synth(2000, rng)
+    best = fit_u_var_scale(OSET, x, u, ti, shrink=True)
+    b = best["u_shrink"]
+    assert U_SHRINK_RANGE[0] <= b < 1.0 and abs(b / U_SHRINK_STEP - round(b / U_SHRINK_STEP)) < 1e-9
+    # The same fit held at any other b (the range collapsed to it) has no smaller NLL, at the old grid's
+    # points and at the fitted b's neighbours alike.
+    for b0 in (0.25, 0.5, 0.75, round(b - 0.05, 2), round(b + 0.05, 2)):
+        if not U_SHRINK_RANGE[0] <= b0 < 1.0:
+            continue
+        monkeypatch.setattr(HR, "U_SHRINK_RANGE", (b0, b0))
+        held = fit_u_var_scale(OSET, x, u, ti, shrink=True)
+        assert held["u_shrink"] == pytest.approx(b0) and held["nll"] >= best["nll"] - 1e-9
