@@ -89,17 +89,17 @@ import csv
 import io
 import math
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Iterable, Mapping
 
 import numpy as np
 
 from edge.physics.materials import load_materials
+from edge.recognition.classify import Recognition, check_touch, classify_rows
 from edge.recognition.objects import (BIAS_REF_E_W_s05_m2K, CONTACT_DIRECTIVES, DEFAULT_OUTLIER_LN,
                                       DEFAULT_PRIOR_UNKNOWN,
                                       DEFAULT_SPREAD_REL, DEFAULT_Z_CRIT,
-                                      DIRECTIVES, UNKNOWN, UNKNOWN_LN_E_SPAN, KnownObject, contact_key, parse_csv)
-from edge.recognition.stats import p_crit_of, tail_p, z_of_p
+                                      DIRECTIVES, UNKNOWN, KnownObject, contact_key, parse_csv)
 from edge.recognition.touch import BROAD_LN, DEFAULT_ALPHA_U_GROWTH, effective_u_ln_alpha, measured_alpha
 from edge.schema import check_keys, check_value
 
@@ -109,7 +109,6 @@ __all__ = ["LIBRARY_CALIBRATION", "Recognition", "ConfusionPair", "Confusion", "
 #: ``python bench/tactile_bench.py`` (host.recognition.calibrate on simulated precision-board touches
 #: of every library material, 0.5-2 s contacts, 5 % spread); reported there with its reliability table.
 LIBRARY_CALIBRATION = {"temperature": 1.03, "z_crit": 1.96}
-_LN_SQRT_2PI = 0.5 * math.log(2 * math.pi)
 
 
 def _contact_table(table: Mapping[float, Mapping[str, float]] | None) -> dict[float, dict[str, float]]:
@@ -122,42 +121,6 @@ def _contact_table(table: Mapping[float, Mapping[str, float]] | None) -> dict[fl
         check_keys(dict(entry), {k: DIRECTIVES[k] for k in CONTACT_DIRECTIVES})
         out[t] = {k: check_value(DIRECTIVES[k], float(v), f"{k}@{t:g}s") for k, v in entry.items()}
     return out
-
-
-@dataclass
-class Recognition:
-    """What a touch was: the object (or ``"unknown"``), its class, and the posteriors."""
-
-    object: str
-    object_posterior: float
-    cls: str
-    class_posterior: float
-    candidates: list[tuple[str, float]]
-    unknown_posterior: float
-    class_posteriors: dict[str, float] = field(default_factory=dict)
-    #: Standardised distance (1-degree-of-freedom equivalent) to the best-fitting object.
-    z_min: float = 0.0
-    #: The best-fitting object by the open-set test (even when the answer is "unknown").
-    nearest: str = ""
-
-    @property
-    def accepted(self) -> bool:
-        """True when the touch was recognised as one of the set's objects."""
-        return self.object != UNKNOWN
-
-    def to_dict(self) -> dict:
-        """JSON-able dict (``class`` rather than ``cls``)."""
-        return {
-            "object": self.object,
-            "object_posterior": float(self.object_posterior),
-            "class": self.cls,
-            "class_posterior": float(self.class_posterior),
-            "candidates": [[n, float(p)] for n, p in self.candidates],
-            "unknown_posterior": float(self.unknown_posterior),
-            "class_posteriors": {c: float(p) for c, p in self.class_posteriors.items()},
-            "z_min": float(self.z_min),
-            "nearest": self.nearest,
-        }
 
 
 @dataclass(frozen=True)
@@ -501,75 +464,44 @@ class ObjectSet:
         ``alpha`` (with ``u_ln_alpha`` and ``corr``, the correlation of the ln e
         and ln α errors) sharpens the answer when a probe measures it (the
         small-heater probe's fit, :func:`measured_alpha`); do not pass the default
-        method's prior-based α (a function of e: it adds nothing).
+        method's prior-based α (a function of e: it adds nothing).  The batch of one of
+        :meth:`classify_many` (:func:`edge.recognition.classify.classify_rows`): one definition.
         """
-        if not (e > 0 and math.isfinite(e)):
-            raise ValueError(f"e must be a positive finite number, got {e!r}")
-        if not (u_ln_e >= 0 and math.isfinite(u_ln_e)):
-            raise ValueError(f"u_ln_e must be a non-negative finite number, got {u_ln_e!r}")
-        if alpha is not None:
-            if not (alpha > 0 and math.isfinite(alpha) and u_ln_alpha is not None and u_ln_alpha > 0
-                    and math.isfinite(u_ln_alpha)):
-                raise ValueError(f"alpha must be positive with a positive uncertainty, got {alpha!r} +- {u_ln_alpha!r}")
-            if not (math.isfinite(corr) and abs(corr) < 1.0):
-                raise ValueError(f"corr must lie in (-1, 1), got {corr!r}")
-        q, hld, dof = self.log_terms(
-            math.log(e), u_ln_e, ln_alpha=None if alpha is None else math.log(alpha), u_ln_alpha=u_ln_alpha,
-            corr=corr)
-        t = self.temperature
-        d2 = q / t
-        # Open-set test: the p-value of each object's distance (1 property: |z| > z_crit).
-        pvals = tail_p(d2, dof)
-        p_crit = p_crit_of(self.z_crit)
-        near = int(np.argmax(pvals))
-        accepted = bool(pvals[near] >= p_crit)
-        # Mixture: objects (Gaussians, prior (1 - prior_unknown) / n each) and the flat background.
-        n_terms = 1 + (alpha is not None)
-        lw_obj = (math.log((1.0 - self.prior_unknown) / len(self)) - 0.5 * d2 - hld
-                  - n_terms * (_LN_SQRT_2PI + 0.5 * math.log(t)))
-        if self.outlier_weight > 0:   # the core and a broad component with the same centre and prior
-            q_o, hld_o, _ = self.outlier_terms(
-                math.log(e), u_ln_e, ln_alpha=None if alpha is None else math.log(alpha), u_ln_alpha=u_ln_alpha,
-                corr=corr)
-            const = math.log((1.0 - self.prior_unknown) / len(self)) - n_terms * (_LN_SQRT_2PI + 0.5 * math.log(t))
-            lw_obj = self.mixture_log_weight(const - 0.5 * d2 - hld, const - 0.5 * q_o / t - hld_o,
-                                             self.outlier_weight)
-        lw_unk = math.log(self.prior_unknown) - math.log(UNKNOWN_LN_E_SPAN)
-        if alpha is not None:
-            ua = float(effective_u_ln_alpha(u_ln_alpha, self.alpha_u_growth))
-            lw_unk -= _LN_SQRT_2PI + 0.5 * math.log(ua ** 2 + BROAD_LN ** 2)
-        lw = np.append(lw_obj, lw_unk)
-        w = np.exp(lw - lw.max())
-        post = w / w.sum()
-        p_unknown = float(post[-1])
-        # With unknown_min_odds r > 0, "unknown" only when the background also holds at least r times the
-        # best object's posterior (r = 1: it is the most probable hypothesis).  ISSUE #37: with the test
-        # alone, at 2 s 30 in-set touches from the 5 % spread's tail (z 2.4-3.3) were answered "unknown" at
-        # 0.16-0.42 -- an answer the device's own posterior called less likely than an object, wrong every
-        # time -- and made the < 0.5 reliability bin read 39 % said, 29 % right.
-        if not accepted and self.unknown_min_odds > 0:
-            accepted = p_unknown < self.unknown_min_odds * float(post[:-1].max())
-        # The objects' posteriors printed are the closed-set ones (given the touched object is one of the
-        # set's): what the set's calibration fits (host.recognition minimises the true object's NLL over
-        # :meth:`posteriors`) and what its reliability is judged on.  The flat background's share is printed
-        # beside them (``unknown_posterior``) and the open-set test decides "unknown"; folding the background
-        # into every object's posterior made in-set answers read 2-5 points short (issue #37's bench).
-        w_obj = np.exp(lw_obj - np.max(lw_obj))   # its own maximum: a touch far from every object keeps them finite
-        p_obj = w_obj / w_obj.sum()
-        class_post = np.bincount(self._class_index, weights=p_obj, minlength=len(self.class_names))
-        order = np.argsort(-p_obj, kind="stable")[:top]
-        candidates = [(self.names[i], float(p_obj[i])) for i in order]
-        if accepted:
-            best = int(order[0])
-            obj, obj_p = self.names[best], float(p_obj[best])
-            ci = int(np.argmax(class_post))
-            cls, cls_p = self.class_names[ci], float(class_post[ci])
-        else:
-            obj, obj_p, cls, cls_p = UNKNOWN, p_unknown, UNKNOWN, p_unknown
-        pn = float(pvals[near])
-        z_min = math.sqrt(d2[near]) if dof[near] == 1 else (float(z_of_p(pn)) if pn > 0 else math.inf)
-        return Recognition(obj, obj_p, cls, cls_p, candidates, p_unknown,
-                           {c: float(p) for c, p in zip(self.class_names, class_post)}, z_min, self.names[near])
+        check_touch(e, u_ln_e, alpha, u_ln_alpha, corr)
+        return classify_rows(self, [e], [u_ln_e], [alpha], [u_ln_alpha], [corr], top)[0]
+
+    def classify_many(self, e, u_ln_e, *, alpha=None, u_ln_alpha=None, corr=0.0, top: int = 3) -> list[Recognition]:
+        """:meth:`classify` of many touches at once, every number the per-touch one to the bit.
+
+        Parameters
+        ----------
+        e, u_ln_e : array_like
+            Each touch's effusivity and relative standard uncertainty (1-D, or scalars broadcast).
+        alpha, u_ln_alpha, corr : array_like, optional
+            Each touch's measured α, its u(ln α) and correlation (as :meth:`classify`); NaN or None in
+            ``alpha`` marks a touch without α.
+        top : int
+            Number of candidates listed.
+
+        Returns
+        -------
+        list of Recognition
+            One per touch; ValueError (naming the touch) where :meth:`classify` would raise one.
+        """
+        e_t, u_t, a_t, ua_t, r_t = (np.broadcast_arrays(*(np.asarray(v if v is not None else np.nan, float)
+                                                          for v in (e, u_ln_e, alpha, u_ln_alpha, corr))))
+        if e_t.ndim > 1:
+            raise ValueError(f"classify_many takes 1-D arrays of touches, got shape {e_t.shape}")
+        es, us = np.atleast_1d(e_t).tolist(), np.atleast_1d(u_t).tolist()
+        alphas = [None if math.isnan(a) else a for a in np.atleast_1d(a_t).tolist()]
+        uas = [None if math.isnan(v) else v for v in np.atleast_1d(ua_t).tolist()]
+        rs = np.atleast_1d(r_t).tolist()
+        for k, touch in enumerate(zip(es, us, alphas, uas, rs)):
+            try:
+                check_touch(*touch)
+            except ValueError as exc:
+                raise ValueError(f"touch {k}: {exc}") from None
+        return classify_rows(self, es, us, alphas, uas, rs, top) if es else []
 
     def classify_estimate(self, estimate: Mapping, *, top: int = 3,
                           contact_time_s: float | None = None) -> Recognition | None:
