@@ -558,17 +558,17 @@ def classify_touches(object_set: ObjectSet, touches: Touches) -> list[Recognitio
     A ``poor_fit`` touch is named with the set's ``poor_fit_ln`` (None when the set has none), as
     :func:`edge.recognition.recognition_fields` names it on the device.
     """
-    out = []
-    for e, u, a, ua, r, poor in zip(touches.e, touches.u_ln_e, touches.alpha, touches.u_ln_alpha, touches.corr,
-                                    touches.poor_fit):
-        if poor:   # as recognition_fields names a withheld poor_fit chain e: at the set's width, or not at all
-            u = object_set.poor_fit_ln if object_set.poor_fit_ln > 0 else math.nan
-        if not (math.isfinite(e) and math.isfinite(u)):
-            out.append(None)
-            continue
-        kw = {"alpha": float(a), "u_ln_alpha": float(ua), "corr": float(r)} if math.isfinite(a) else {}
-        out.append(object_set.classify(float(e), float(u), **kw))
-    return out
+    e = np.asarray(touches.e, float)
+    u = np.where(np.asarray(touches.poor_fit, bool),   # as recognition_fields names a withheld poor_fit chain e:
+                 object_set.poor_fit_ln if object_set.poor_fit_ln > 0 else math.nan,   # at the set's width, or not
+                 np.asarray(touches.u_ln_e, float))
+    ok = np.isfinite(e) & np.isfinite(u)
+    # One batch (ObjectSet.classify_many: each answer classify's to the bit), α where the touch measured one.
+    a = np.asarray(touches.alpha, float)
+    recs = iter(object_set.classify_many(e[ok], u[ok], alpha=np.where(np.isfinite(a), a, math.nan)[ok],
+                                         u_ln_alpha=np.asarray(touches.u_ln_alpha, float)[ok],
+                                         corr=np.asarray(touches.corr, float)[ok]))
+    return [next(recs) if k else None for k in ok.tolist()]
 
 
 def calibrate(object_set: ObjectSet, instrument: str, *, contact_times_s: Sequence[float] = CONTACT_TIMES_S,
