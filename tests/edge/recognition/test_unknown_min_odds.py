@@ -46,8 +46,7 @@ def _answers(s, rng, n=1000, u=0.015):
     conf, ok = [], []
     for o in s.objects:
         x = math.log(o.e_W_s05_m2K) + rng.normal(0.0, 0.05, n) + rng.normal(0.0, u, n)
-        for v in x:
-            r = s.classify(math.exp(v), u)
+        for r in s.classify_many([math.exp(v) for v in x], u):   # classify, batched
             conf.append(r.object_posterior)
             ok.append(r.object == o.name)
     return np.array(conf), np.array(ok)
