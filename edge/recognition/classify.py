@@ -113,9 +113,8 @@ def classify_rows(s, e: Sequence[float], u_ln_e: Sequence[float], alpha: Sequenc
     d2 = q / t
     # Open-set test: the p-value of each object's distance (1 property: |z| > z_crit).
     pvals = tail_p(d2, dof)
-    rows = np.arange(n_t)
     near = np.argmax(pvals, axis=-1)
-    pn = pvals[rows, near]
+    pn = pvals.max(axis=-1)   # pvals at near (the maximum is one of the row's values)
     accepted = pn >= p_crit_of(s.z_crit)
     # Mixture: objects (Gaussians, prior (1 - prior_unknown) / n each) and the flat background.
     norm = (1 + np.array(has_a, int))[:, None] * (_LN_SQRT_2PI + 0.5 * math.log(t))
