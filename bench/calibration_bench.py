@@ -47,8 +47,9 @@ import numpy as np
 RC_SPLIT = 3e-5
 
 
-def _pct(x) -> str:
-    return "-" if x is None else f"{x:.0%}"
+def _pct(x, fmt: str = ".0%") -> str:
+    """A share or an error as a percentage; "-" where a group had no answer to take it over."""
+    return "-" if x is None else format(x, fmt)
 
 
 def main() -> None:
@@ -124,7 +125,8 @@ def main() -> None:
                 r = record_touch(ContactTouch(solid, rc, off, lead_s=lead, heat_s=args.heat), as_built=ab,
                                  geometry=geo, seed=2000 * pi + si, board=args.board)
                 for chain_name, c in (("datasheet", None), ("calibrated", cal)):
-                    d = estimate_from_contact(r["t_s"], r["T_C"], r["q_W_m2"], c, heater_radius_m=radius)
+                    d = estimate_from_contact(r["t_s"], r["T_C"], r["q_W_m2"], c, heater_radius_m=radius,
+                                              T_resolution_K=r["T_resolution_K"])   # as the device's record carries it
                     e, u = d["effusivity_W_s05_m2K"], d["effusivity_W_s05_m2K_u"]
                     rows.append({"geometry": geo_name, "probe": pi, "solid": name, "chain": chain_name,
                                  "R_c": rc, "offset_K": off, "lead_s": lead, "e_true": r["e_true"],
@@ -162,9 +164,10 @@ def main() -> None:
                 rs = [x for x in rows if x["geometry"] == g and x["chain"] == ch and sel(x)]
                 sm = summary(rs)
                 out["summary"][f"{g}/{ch}/{lo_name}"] = sm
-                lines.append(f"| {g} | {ch} | {lo_name} | {sm['n_accepted']} / {sm['n']} | {sm['median_abs_err']:.1%} | "
-                             f"{sm['p90_abs_err']:.1%} | {sm['coverage_95']:.0%} | {sm['R_c_determined']:.0%} | "
-                             f"{sm['R_c_in_95']:.0%} / {_pct(sm['R_c_in_95_determined'])} | "
+                lines.append(f"| {g} | {ch} | {lo_name} | {sm['n_accepted']} / {sm['n']} | "
+                             f"{_pct(sm['median_abs_err'], '.1%')} | {_pct(sm['p90_abs_err'], '.1%')} | "
+                             f"{_pct(sm['coverage_95'])} | {_pct(sm['R_c_determined'])} | "
+                             f"{_pct(sm['R_c_in_95'])} / {_pct(sm['R_c_in_95_determined'])} | "
                              f"{sm['flagged_uncalibrated']:.0%} |")
     for g in args.geometry:
         c = [v for k, v in cals.items() if k.startswith(f"{g}/")]

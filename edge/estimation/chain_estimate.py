@@ -414,13 +414,14 @@ def _tunables() -> tuple:
     return tunables(sys.modules[__name__], sensor_chain)
 
 
-def _estimate_key(t_s, T_C, q_W_m2, calibration: Any, heater_radius_m: float | None, library: Any) -> tuple | None:
+def _estimate_key(t_s, T_C, q_W_m2, calibration: Any, heater_radius_m: float | None, library: Any,
+                  T_resolution_K: float = 0.0) -> tuple | None:
     cal_key, lib_key = _calibration_key(calibration), library_key(library)
     if cal_key is None or lib_key is None:
         return None
     arrays = [np.asarray(x, dtype=np.float64) for x in (t_s, T_C, q_W_m2)]
     return (*((a.shape, a.tobytes()) for a in arrays), cal_key, lib_key,
-            None if heater_radius_m is None else float(heater_radius_m), _tunables())
+            None if heater_radius_m is None else float(heater_radius_m), float(T_resolution_K), _tunables())
 
 
 #: One fit window's 1-D fit and lateral profile (:func:`_window_profile`) by their exact inputs.  A running
@@ -455,7 +456,8 @@ def _window_profile(tt: np.ndarray, TT: np.ndarray, qq: np.ndarray, chain: Senso
 
 
 def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
-                          heater_radius_m: float | None = None, library=None) -> dict[str, Any]:
+                          heater_radius_m: float | None = None, library=None,
+                          T_resolution_K: float = 0.0) -> dict[str, Any]:
     """e, R_c and T_obj0 of one touch, with their uncertainties, flags and the fit's quality.
 
     Parameters
@@ -475,6 +477,11 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
         and the fit's change between windows going into u(e) (``u_e_parts["lateral"]``).
     library : Library, optional
         The prior on alpha given e (default: the CSV's; the seam passes the model bundle's).
+    T_resolution_K : float, optional
+        The thermometer's step (K; the record's ``T_resolution_K``).  A heating ramp read through it
+        errs by step / sqrt 12 per sample, which samples in air sitting on one code do not show: the
+        goodness of fit is judged against at least that (the reference board's 16-bit MCP9600, 0.197 K,
+        0.057 K; on the precision board's converter it is far below the noise and changes nothing).
 
     Returns
     -------
@@ -487,18 +494,23 @@ def estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
         otherwise the prior's) and ``alpha_prior_ln`` (mean, sd of ln alpha).  Flags are
         :class:`edge.status.Flag` words.  The same inputs give the same answer, kept (:data:`_ESTIMATES`).
     """
-    key = _estimate_key(t_s, T_C, q_W_m2, calibration, heater_radius_m, library)
+    T_resolution_K = float(T_resolution_K)
+    if not (math.isfinite(T_resolution_K) and T_resolution_K >= 0.0):
+        raise ValueError(f"T_resolution_K must be a non-negative finite number, got {T_resolution_K!r}")
+    key = _estimate_key(t_s, T_C, q_W_m2, calibration, heater_radius_m, library, T_resolution_K)
     hit = None if key is None else _ESTIMATES.get(key)
     if hit is not None:
         return copy.deepcopy(hit)
-    d = _estimate_from_contact(t_s, T_C, q_W_m2, calibration, heater_radius_m=heater_radius_m, library=library)
+    d = _estimate_from_contact(t_s, T_C, q_W_m2, calibration, heater_radius_m=heater_radius_m, library=library,
+                               T_resolution_K=T_resolution_K)
     if key is not None:
         _ESTIMATES.put(key, copy.deepcopy(d))
     return d
 
 
 def _estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
-                           heater_radius_m: float | None = None, library=None) -> dict[str, Any]:
+                           heater_radius_m: float | None = None, library=None,
+                           T_resolution_K: float = 0.0) -> dict[str, Any]:
     """:func:`estimate_from_contact`, computed."""
     cal = DatasheetChain() if calibration is None else calibration
     t, T, q = uniform_record(t_s, T_C, q_W_m2)
@@ -512,6 +524,10 @@ def _estimate_from_contact(t_s, T_C, q_W_m2, calibration: Any = None, *,
     # Air samples that hardly move (a quiet simulator, a converter sitting on one code) measure ~0:
     # the goodness of fit is judged against at least NOISE_FLOOR_K.
     noise_T = max(noise_T, NOISE_FLOOR_K)
+    # A coarse thermometer's step errs a ramp by step / sqrt 12 per sample, which air samples sitting on
+    # one code do not show (the 16-bit MCP9600: 0.197 K steps, 0.057 K; every reference-board touch was
+    # poor_fit without it).  max, not in quadrature: where the air samples dither they carry part of it.
+    noise_T = max(noise_T, T_resolution_K / math.sqrt(12.0))
     # The heater switched on at t = 0 of the record's clock: theta_b's slope jumps there.
     breaks = (-float(t[i0]),) if t[i0] < 0 else ()
     a = PROBES[cal.probe].heater_radius_m if heater_radius_m is None else float(heater_radius_m)

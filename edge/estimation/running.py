@@ -368,10 +368,11 @@ class ChainDecision(RefitDecision):
 
     def __init__(self, object_set: Any, threshold: float, min_time_s: float, *, calibration: Any,
                  library: Any = None, every_s: float = CHAIN_EVERY_s,
-                 timer: Callable[[], float] = time.perf_counter) -> None:
+                 timer: Callable[[], float] = time.perf_counter, T_resolution_K: float = 0.0) -> None:
         super().__init__(object_set, threshold, min_time_s, every_s=every_s, timer=timer)
         self.calibration = calibration
         self.library = library
+        self.T_resolution_K = float(T_resolution_K)   # the thermometer's step: as the final answer (seam) takes it
 
     def attach_record(self, t_s: list, T_C: list, q_W_m2: list, t_on_s: float, **_baseline: Any) -> None:
         """The sequence's record lists (appended in place; absolute clock times) and the heater-on time.
@@ -386,7 +387,8 @@ class ChainDecision(RefitDecision):
         n = min(len(ts), len(Ts), len(qs))
         try:
             d = estimate_from_contact(np.asarray(ts[:n], float) - t_on, np.asarray(Ts[:n], float),
-                                      np.asarray(qs[:n], float), self.calibration, library=self.library)
+                                      np.asarray(qs[:n], float), self.calibration, library=self.library,
+                                      T_resolution_K=self.T_resolution_K)
         except ValueError:  # a prefix the chain cannot fit yet (too few samples since contact)
             return self.answer
         u_ln_e = self.u_ln_e(d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u"))
@@ -503,5 +505,6 @@ def decision_for(kind: Any, object_set: Any, threshold: float, min_time_s: float
                                  power_W=params.power_W, method=params.method, T_age_s=T_age_s)
     if calibration is not None and kind.sensor_chain:
         # Calibrated: the running answer is the same estimate the result will be (seam.chain_answer).
-        return ChainDecision(object_set, threshold, min_time_s, calibration=calibration, library=library)
+        return ChainDecision(object_set, threshold, min_time_s, calibration=calibration, library=library,
+                             T_resolution_K=T_resolution_K)
     return SequentialDecision(object_set, threshold, min_time_s, T_age_s=T_age_s, T_resolution_K=T_resolution_K)

@@ -301,7 +301,8 @@ def _chain(record: TouchRecord, calibration: Any, estimator: Any) -> tuple[dict[
 
     library = getattr(estimator, "library", None)
     try:
-        d = estimate_from_contact(record.t_s, record.T_C, record.q_W_m2, calibration, library=library)
+        d = estimate_from_contact(record.t_s, record.T_C, record.q_W_m2, calibration, library=library,
+                                  T_resolution_K=record.T_resolution_K or 0.0)
         chain = {k: _plain(d[k]) for k in CHAIN_KEEP if d.get(k) is not None}   # absent: not given
         parts = dict(d.get("u_e_parts") or {})
         chain["flags"] = [str(f) for f in d.get("flags") or ()]

@@ -23,13 +23,28 @@ __all__ = ["ContactTouch", "record_touch", "one_d_geometry"]
 #: Precision-board noise of one sample: thermocouple (K) and flux reading (W/m^2).
 PRECISION_NOISE = (0.01, 0.5)
 
+
+
+def _reference_steps() -> tuple[float, float]:
+    """The reference board's converter steps (K, W/m^2) from the chip registry's instrument models.
+
+    The MCP9600 at 16 bit (80-ms conversions, 12.5 Hz) resolves 8 uV of EMF, 0.197 K of type K: its
+    register's 0.0625 K LSB only pays off at 18 bit (this table said 0.0625 K until issue #33's docs
+    audit); the ADS1115's 7.8 uV LSB (PGA +-0.256 V) over the thermopile's 0.56 uV per W/m^2 is 14 W/m^2.
+    """
+    from edge.hw.chips import BOARDS as CHIP_BOARDS, CHIPS, FLUX, THERMOCOUPLE  # noqa: PLC0415
+
+    chips = CHIP_BOARDS["reference"]
+    return (CHIPS[chips[THERMOCOUPLE]].models[THERMOCOUPLE].lsb, CHIPS[chips[FLUX]].models[FLUX].lsb)
+
+
 #: Per board: sample period (s), noise (K, W/m^2) and converter step (K, W/m^2; 0: none).  The
-#: reference board's MCP9600 converts at 12.5 Hz and reports 0.0625 K steps; its EMF noise of 1 uV
-#: is 0.025 K of type K (40.7 uV/K); the ADS1115's 2 uV noise and 7.8 uV LSB (PGA +-0.256 V) over the
-#: thermopile's 0.56 uV per W/m^2 are 3.6 and 14 W/m^2 (the shipped scenes' [noise] values).
+#: reference board's MCP9600 converts at 12.5 Hz; its EMF noise of 1 uV is 0.025 K of type K
+#: (40.7 uV/K), the ADS1115's 2 uV noise over the thermopile's 0.56 uV per W/m^2 3.6 W/m^2 (the shipped
+#: scenes' [noise] values); the steps are the registry's (:func:`_reference_steps`).
 BOARDS = {
     "precision": (0.05, PRECISION_NOISE, (0.0, 0.0)),
-    "reference": (0.08, (0.025, 3.6), (0.0625, 14.0)),
+    "reference": (0.08, (0.025, 3.6), _reference_steps()),
 }
 
 
@@ -101,6 +116,7 @@ def record_touch(touch: ContactTouch, *, as_built=None, geometry=None, scene_nam
             T = np.floor(T / lsb_T) * lsb_T      # the MCP9600 truncates to its step
         if lsb_q > 0:
             q_read = np.round(q_read / lsb_q) * lsb_q
-    return {"t_s": t_abs - t_on, "T_C": T, "q_W_m2": q_read, "e_true": touch.solid.effusivity_W_s05_m2K,
+    return {"t_s": t_abs - t_on, "T_C": T, "q_W_m2": q_read, "T_resolution_K": lsb_T if seed is not None else 0.0,
+            "e_true": touch.solid.effusivity_W_s05_m2K,
             "T_probe0_C": T_amb, "T_obj0_C": T_amb + touch.object_offset_K,
             "contact_t_s": t_contact - t_on, "R_c": touch.contact_resistance_m2K_W}

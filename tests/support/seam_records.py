@@ -21,8 +21,8 @@ def paper_record(effusivity: float, contact: bool = True) -> TouchRecord:
 
     from edge.service.config import Config  # noqa: PLC0415
 
-    # Pinned at 10 Hz: paper/glass is the record without its contact in air that the calibrated chain
-    # refuses (poor_fit); at the reference rig's 12.5 Hz the chain finds a contact at heater-on and answers.
+    # Pinned at 10 Hz: paper/glass is the record without its contact in air (the chain finds the contact at
+    # heater-on); the reference rig's 12.5 Hz records it in air first.
     cfg = Config({"measurement": {"sample_rate_Hz": 10.0}})
     _, _, seq, params = make_sequence(effusivity=effusivity, contact=contact, cfg=cfg)
     try:

@@ -138,3 +138,24 @@ def test_a_glass_touch_does_not_claim_alpha(lib):
     d = estimate_from_contact(r["t_s"], r["T_C"], r["q_W_m2"])
     assert "alpha" not in d["determined"] and "k" not in d["determined"]
     assert d["alpha_m2_s"] > 0 and d["u_e_parts"]["lateral"] < 0.01
+
+
+def test_a_coarse_thermometers_step_is_in_the_noise_the_fit_is_judged_against():
+    """A ramp read through 0.197-K steps (the 16-bit MCP9600) errs by step / sqrt 12 per sample, which air samples
+    on one code do not show: without it the chain called every such touch poor_fit; with it, it answers, right."""
+    from tests.support.seam_records import paper_record
+    from tests.support.calibrations import sample_calibration
+
+    rec = paper_record(570.0)
+    assert rec.T_resolution_K == pytest.approx(0.197, abs=1e-3)
+    cal = sample_calibration()
+    blind = estimate_from_contact(rec.t_s, rec.T_C, rec.q_W_m2, cal)
+    told = estimate_from_contact(rec.t_s, rec.T_C, rec.q_W_m2, cal, T_resolution_K=rec.T_resolution_K)
+    assert "poor_fit" in blind["flags"] and "poor_fit" not in told["flags"]
+    assert told["noise_T_K"] == pytest.approx(rec.T_resolution_K / 12 ** 0.5)
+    assert abs(told["effusivity_W_s05_m2K"] / 570.0 - 1.0) < 2 * told["effusivity_W_s05_m2K_u"] / 570.0
+    # A step below the measured noise changes nothing, bit for bit (the precision board's converter).
+    fine = estimate_from_contact(rec.t_s, rec.T_C, rec.q_W_m2, cal, T_resolution_K=1e-6)
+    assert fine["effusivity_W_s05_m2K"] == blind["effusivity_W_s05_m2K"] and fine["flags"] == blind["flags"]
+    with pytest.raises(ValueError, match="T_resolution_K"):
+        estimate_from_contact(rec.t_s, rec.T_C, rec.q_W_m2, cal, T_resolution_K=-0.1)

@@ -26,8 +26,15 @@ def test_calibration_refused_exactly_when_the_chain_did_not_answer(estimator, re
 def test_the_faithful_touch_is_answered_by_the_chain_and_a_1d_touch_is_refused(estimator, records):
     ctx = SeamContext(estimator=estimator, calibration=sample_calibration(probe="paper"),
                       object_set=ObjectSet.from_library(), object_set_name="library", thresholds=Config().measurement)
+    import dataclasses
+
     assert estimate_touch(records["paper/faithful_pmma"], ctx).method == "sensor_chain"
-    assert "calibration_refused" in estimate_touch(records["paper/glass"], ctx).to_dict()["flags"]
+    # The rig's glass touch through the MCP9600's 0.197-K steps: the chain judges its fit against the step's
+    # error and answers; the same record stating no step fits 6 times worse than its noise and is refused.
+    glass = records["paper/glass"]
+    assert estimate_touch(glass, ctx).method == "sensor_chain"
+    blind = dataclasses.replace(glass, T_resolution_K=0.0)
+    assert "calibration_refused" in estimate_touch(blind, ctx).to_dict()["flags"]
 
 
 def test_a_touch_made_during_the_record_that_the_chain_cannot_fit_gets_no_answer(estimator, records,
