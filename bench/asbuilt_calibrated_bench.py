@@ -382,6 +382,7 @@ def run(n_probes: int, n_solids: int, n_touches: int, seeds: list[int] | None = 
                 if ctx is None:
                     ctx = seam_context(None, method=rec.method, calibration=cal)
                 e_true = obj.solid.effusivity_W_s05_m2K
+                noise = dict(zip(("sigma_T_K", "sigma_q_W_m2"), sensor_noise(sc)[:2]))   # this touch's scene
                 for w in spec["windows_s"]:
                     try:
                         d = estimate_touch(cut(rec, w), ctx).to_dict()
@@ -390,7 +391,6 @@ def run(n_probes: int, n_solids: int, n_touches: int, seeds: list[int] | None = 
                     e, u = d.get("effusivity_W_s05_m2K"), d.get("effusivity_W_s05_m2K_u")
                     key = (name, w, h["R_c"], h["lead_s"])
                     if key not in att_cache:
-                        noise = dict(zip(("sigma_T_K", "sigma_q_W_m2"), sensor_noise(sc)[:2]))
                         att_cache[key] = attainable_u(head, obj.solid, w, rec.power_W, 1.0 / rec.sample_rate_Hz,
                                                       h["R_c"], h["lead_s"], **noise)
                         att_cache[key + ("known",)] = attainable_u(head, obj.solid, w, rec.power_W,

@@ -156,6 +156,16 @@ def main() -> None:
 
     out = {"heat_s": args.heat, "board": args.board, "probes": PROBES[:args.probes], "solids": SOLIDS[:args.solids], "calibrations": cals,
            "summary": {}, "rows": rows, "wall_s": time.perf_counter() - t0}
+    RESULTS.mkdir(exist_ok=True)
+    suffix = "" if args.board == "precision" else f"_{args.board}"
+    if args.cal_smooth_growth is not None:   # a comparison run: beside the shipped results, not over them
+        suffix += f"_growth{args.cal_smooth_growth}"
+    if args.noise_bias_draws is not None:
+        suffix += f"_draws{args.noise_bias_draws}"
+    path = RESULTS / f"calibration{suffix}.json"
+    # The simulation's rows kept before anything is summarised or printed (a table's formatting once lost
+    # 11 minutes of them); written again with the summary below.
+    path.write_text(json.dumps(out, indent=1, default=float))
     lines = [f"| geometry | chain | R_c | accepted / n | median \\|e error\\| | 90th pct | 95 % coverage | R_c determined | "
              "R_c in its 95 % (all / determined) | flagged uncalibrated |", "|---|---|---|---|---|---|---|---|---|---|"]
     for g in args.geometry:
@@ -180,13 +190,7 @@ def main() -> None:
                      f"sd {dz.std(ddof=1):.1%} over the {len(c)} probes; stated u {np.median(u):.1%} (median).")
     table = "\n".join(lines)
     print(table)
-    RESULTS.mkdir(exist_ok=True)
-    suffix = "" if args.board == "precision" else f"_{args.board}"
-    if args.cal_smooth_growth is not None:   # a comparison run: beside the shipped results, not over them
-        suffix += f"_growth{args.cal_smooth_growth}"
-    if args.noise_bias_draws is not None:
-        suffix += f"_draws{args.noise_bias_draws}"
-    (RESULTS / f"calibration{suffix}.json").write_text(json.dumps(out, indent=1, default=float))
+    path.write_text(json.dumps(out, indent=1, default=float))
     if args.update_readme:
         cmd = "python bench/calibration_bench.py" + ("" if args.board == "precision" else f" --board {args.board}")
         write_block(f"calibration-bench{suffix.replace('_', '-')}",
