@@ -83,10 +83,20 @@ class Operation:
         """The daemon of the child, as ``thermotouch-edge`` starts it on ``point_dir``."""
         if self.store_root is None:
             return child_daemon(point_dir)
+        return child_daemon(point_dir, model_store=self.shared_store())
+
+    def shared_store(self) -> Any:
+        """The verified store of :attr:`store_root` (one per directory and process, whichever operation
+        opened it first: these operations leave the model alone, and a daemon never closes a store it was
+        handed)."""
         if self._store is None:
-            self._store = open_model_store(Path(tempfile.mkdtemp(prefix="shared-store-", dir=self.store_root)))
-            self._store.current()
-        return child_daemon(point_dir, model_store=self._store)
+            key = str(self.store_root)
+            if key not in _SHARED_STORES:
+                store = open_model_store(Path(tempfile.mkdtemp(prefix="shared-store-", dir=self.store_root)))
+                store.current()
+                _SHARED_STORES[key] = store
+            self._store = _SHARED_STORES[key]
+        return self._store
 
     def spec(self) -> Path:
         """Write what a child needs (everything but ``check``) as JSON beside the template; return its path.
@@ -124,6 +134,9 @@ class PointResult:
     problems: list[str] = field(default_factory=list)
     seconds: float = 0.0
 
+
+#: Verified stores of :meth:`Operation.shared_store`, by their ``store_root``.
+_SHARED_STORES: dict[str, Any] = {}
 
 #: Uploads: the session their BEGIN's reply names goes into their CHUNKs and COMMIT.
 _BEGINS = (Command.MODEL_BEGIN, Command.OBJECTS_BEGIN)
@@ -179,10 +192,24 @@ def _child_process(op: Operation, point_dir: Path, n: int | None, trace_w: int, 
 _SERVER_OPS: dict[str, Operation] = {}
 
 
+#: Names of the operations the fork server has warmed up (:func:`_prepare_in_server`).
+_WARMED: set[str] = set()
+
+
 def _prepare_in_server(spec: str) -> None:
-    """Fork-server side of :func:`dry_run`: rebuild the operation and warm it up there, once."""
+    """Fork-server side of :func:`dry_run`: rebuild the operation and warm it up there, once per name.
+
+    An operation of a name already warmed up in this server (the harness's own tests run the same
+    operations again, with a fault in the children or fewer keys) takes the code paths that warm-up
+    took: what it imported and cached is here already, so only its shared store is made sure of.
+    """
     op = Operation.from_spec(Path(spec))
-    warm_up(op, op.template.parent)  # every builder makes its template in the operation's root
+    if op.name in _WARMED:
+        if op.store_root is not None:
+            op.shared_store()
+    else:
+        warm_up(op, op.template.parent)  # every builder makes its template in the operation's root
+        _WARMED.add(op.name)
     _SERVER_OPS[spec] = op
 
 

@@ -210,14 +210,6 @@ def test_enough_kill_points_in_all():
     assert sum(MIN_POINTS[k] for k in ("measure", "flash", "config")) >= 100
 
 
-def test_a_broken_operation_is_caught(root, server):
-    """The harness is not vacuous: an overrides file written in place (no temp, no rename) fails it."""
-    op = K.config_operation(root, keys=("heater.power_W",))
-    op.faults = ("tests.support.killpoint_faults:overrides_written_in_place",)
-    trace, results = K.run_all(op, root, server=server)
-    assert any(r.problems for r in results), trace
-
-
 def test_a_reply_before_the_commit_is_caught(root, server):
     """The harness is not vacuous for the history either: a daemon that answers from an uncommitted
     transaction (the reply goes out, the COMMIT never happens) loses a confirmed measurement."""
@@ -227,13 +219,14 @@ def test_a_reply_before_the_commit_is_caught(root, server):
         K.run_all(op, root, server=server)
 
 
-def test_a_fault_in_the_children_is_in_the_children_only(root, server):
-    """A fault named for an operation's children is not the fork server's: the same operation without it,
+def test_a_broken_operation_is_caught_and_its_fault_is_in_the_children_only(root, server):
+    """The harness is not vacuous: an overrides file written in place (no temp, no rename) fails it. And a
+    fault named for an operation's children is not the fork server's: the same operation without it,
     forked from the same server afterwards, survives every kill."""
     broken = K.config_operation(root, keys=("heater.power_W",))
     broken.faults = ("tests.support.killpoint_faults:overrides_written_in_place",)
-    _, results = K.run_all(broken, root, server=server)
-    assert any(r.problems for r in results)
+    trace, results = K.run_all(broken, root, server=server)
+    assert any(r.problems for r in results), trace
     trace, results = K.run_all(K.config_operation(root, keys=("heater.power_W",)), root, server=server)
     assert len(results) == len(trace) > 0 and not [r.problems for r in results if r.problems]
 
