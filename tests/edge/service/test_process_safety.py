@@ -26,6 +26,7 @@ from edge.protocol.commands import Command
 from edge.protocol.messages import encode_request
 from edge.service.config import Config
 from edge.service.main import install_signal_handlers
+from edge.storage.history import History
 from firmware_sim.gpiod.state import read_line
 from tests.support.daemon_proc import ForkServer
 from tests.support.killpoints import work_root
@@ -114,6 +115,28 @@ def test_every_catchable_signal_mid_heating_leaves_the_heater_off(forks, state_d
     assert _pwm(state_dir) == {"duty_cycle": "0", "enable": "0"}
 
 
+def test_sigint_mid_heating_is_an_asked_for_stop_that_keeps_the_record(forks, state_dir):
+    """SIGINT (Ctrl-C in a terminal), as test_safety.py's fresh process takes SIGTERM: exit 0, the touch stored
+    as aborted, the history closed, the heater off."""
+    proc, host_port = _start(forks, state_dir)
+    try:
+        host = _heat(proc, host_port)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+        host.close()
+    finally:
+        _kill(forks, proc)
+    assert proc.returncode == 0, err
+    report = json.loads(out.strip().splitlines()[-1])
+    inv = report["invariant"]
+    assert inv["off_now"] and inv["longest_on_s"] <= MAX_ON and inv["n_intervals"] == 1
+    assert report["history_closed"]
+    (rec,) = report["records"]
+    assert rec["status"] == "aborted" and rec["reason"] == "stopped"
+    with History(state_dir / "history.db") as h:
+        assert h.count() == 1
+
+
 def test_sigkill_mid_heating_the_released_enable_line_falls_inactive(forks, state_dir):
     proc, host_port = _start(forks, state_dir)
     try:
@@ -139,6 +162,7 @@ sys.path.insert(0, {root!r})
 from pathlib import Path
 from edge.hw.drivers.heater import Heater
 from edge.service.main import install_signal_handlers
+from edge.storage.history import History
 from firmware_sim.rigs.daemon_rig import make_rig
 tmp = Path({tmp!r})
 rig = make_rig(gpio_state_dir=tmp / "gpio", pwm_root=tmp / "pwm")

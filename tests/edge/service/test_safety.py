@@ -283,8 +283,9 @@ def test_signal_handler_stops_a_measurement_in_the_main_thread(tmp_path):
     assert inv["longest_on_s"] < 1.5
 
 
-@pytest.mark.slow  # a fresh daemon process per signal (every signal: test_process_safety.py)
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+@pytest.mark.slow  # a fresh interpreter running daemon_proc.py (SIGINT and every other signal, forked from
+# one that has done the imports: test_process_safety.py)
+@pytest.mark.parametrize("sig", [signal.SIGTERM])
 def test_real_signal_to_a_daemon_process_mid_heating(tmp_path, sig):
     script = Path(__file__).resolve().parents[2] / "support" / "daemon_proc.py"
     proc = subprocess.Popen([sys.executable, str(script), str(tmp_path)], stdout=subprocess.PIPE,
