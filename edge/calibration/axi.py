@@ -190,7 +190,7 @@ class _Problem:
         # The heater's self-heating droop (its TCR): P0 (1 - alpha_R P0 h(t)) into the same responses.
         xT, xq, _ = droop_transforms(m, k, a, T, q, contact_resistance_m2K_W=R)
         out = m.inversion.invert(np.stack([T, q, xT, xq]))
-        if len(self._resp_cache) >= 8 * len(self.touches):   # a point's and its columns' (bounded memory)
+        if len(self._resp_cache) >= 16 * len(self.touches):   # two Jacobians' worth (bounded memory)
             self._resp_cache.clear()
         self._resp_cache[key] = (base, out)
         return out
