@@ -453,8 +453,8 @@ def _solve_touches(touches: list[ReferenceTouch], names: list[str], e_lib: dict[
         chain1 = prior.chain_at(p[:NP])
         arrays = [(tt, TT, qq, w, br, contact_fraction(tt, TT, qq, chain1, br, c_T)[0])
                   for (tt, TT, qq, w, br, _), (c_T, _) in zip(arrays, noise)]
-        segs = [(tc, *a) for (tc, *_), a in zip(segs, arrays)]
         p, J = _solve(arrays, idx, prior, th0, u_th0, ln_e0, u_ln_e, p)
+    # Copies: a caller's arrays (the records from contact are views of them) may change after the fit is kept.
     arrays = [(np.array(tt), np.array(TT), np.array(qq), w, br, fr) for tt, TT, qq, w, br, fr in arrays]
     return (tuple(arrays), tuple(noise), tuple(idx), ln_e0, u_ln_e, p, J)
 
