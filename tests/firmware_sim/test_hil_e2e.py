@@ -9,8 +9,8 @@ seconds) and runs the user's flows on it:
   bundle against it (``baseline``) deploys: verified flash, the device
   reports the new sha256, a self-check touch on glass_15V passes;
 * the nine paper scenes touched with the quick-trained bundle on the device
-  (effusivity does not depend on the network) and, through ``thermotouch
-  demo --ideal``, with the shipped one (k and alpha bars).
+  (effusivity does not depend on the network) and with the shipped one (k and alpha bars):
+  ``thermotouch demo --ideal`` on one scene per sample, the six others by the demo's measure_scenes.
 
 Accuracy through the MCP9600 (16-bit, 10 Hz sampling, the daemon's
 defaults; readings placed one conversion time earlier, the converter's lag),
