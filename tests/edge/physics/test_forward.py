@@ -67,13 +67,16 @@ def _orders(errs):
     return np.log2(errs[:-1] / errs[1:])
 
 
-@pytest.mark.slow  # four grid refinements of three schemes
+@pytest.mark.slow  # grid refinements of three schemes
 def test_observed_convergence_orders():
     ref = simulate(GLASS, 1.0, 1.95, scheme="exact")
     paper, explicit, default = [], [], []
     for lev in range(4):
         dx = 0.42e-3 / (5 * 2 ** lev)  # exact halvings with the interface on a node
-        paper.append(rel_err(simulate(GLASS, 1.0, 1.95, scheme="paper", dx_m=dx).T_f_K, ref.T_f_K))
+        # The paper scheme is first order from the coarsest grid on (orders 1.02, 0.94): three levels show it;
+        # its fourth (a forward-Euler march of 23 400 steps, half this test's CPU) added a third, 1.02.
+        if lev < 3:
+            paper.append(rel_err(simulate(GLASS, 1.0, 1.95, scheme="paper", dx_m=dx).T_f_K, ref.T_f_K))
         explicit.append(rel_err(simulate(GLASS, 1.0, 1.95, scheme="explicit", dx_m=dx).T_f_K, ref.T_f_K))
     for lev in range(4):
         r = simulate(GLASS, 1.0, 1.95, scheme="default", n_probe=6 * 2 ** lev, growth=1.2 ** (1 / 2 ** lev))
