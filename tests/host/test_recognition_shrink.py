@@ -57,7 +57,10 @@ def test_a_noisy_stated_u_is_shrunk_and_the_answers_are_calibrated_where_the_sta
 
 def test_the_stated_u_when_it_carries_its_scatter_is_kept_bit_for_bit():
     rng = np.random.default_rng(33)
-    ti = rng.integers(0, len(OSET), 3000)
+    # 1000 touches (were 3000): with the stated u right, the shrink's NLL gain times n (a likelihood ratio, about
+    # chi2(4) / 2) does not grow with n -- seeds 30-39 at 1000 touches: 0.2-5.4, mean 2.2, against AIC's price 4;
+    # this seed 0.89, 3.11 at 3000 -- so refusing b < 1 is the same test on a third of the touches.
+    ti = rng.integers(0, len(OSET), 1000)
     u = TRUE_U[ti] * np.exp(rng.normal(0.0, 0.45, ti.size))    # each touch scatters by exactly what it states
     x = OSET.ln_e[ti] + rng.normal(0.0, 0.05, ti.size) + rng.normal(0.0, 1.0, ti.size) * u
     fu = fit_u_var_scale(OSET, x, u, ti, shrink=True)
