@@ -128,13 +128,17 @@ def test_linearity_and_superposition():
         assert rel_err(r.T_f_K, acc) < 1e-6 if scheme != "paper" else 2e-3
 
 
-@pytest.mark.slow  # every scheme marched over a stepped schedule: seconds
+@pytest.mark.slow  # every scheme marched over a stepped schedule
 def test_schemes_agree_on_stepped_power():
+    # On a stainless steel (errors 3.4e-4 and 4.7e-3): aluminium's diffusivity held the paper's explicit march to
+    # 115 000 steps (0.45 CPU-s; errors 3.5e-4 and 2.3e-3), steel's to 9 200; glass's interface error
+    # (2.0e-2) is the paper scheme's first-order bias that test_paper_interface_costs_percent_level_bias shows.
+    steel = Solid(16.0, 7900.0, 500.0)
     times = np.array([0.0, 0.7, 1.3])
     levels = np.array([6e7, 1.3e8, 2e7])
-    ex = simulate(ALU, levels, 1.95, q_v_times_s=times, scheme="exact")
-    de = simulate(ALU, levels, 1.95, q_v_times_s=times)
-    pa = simulate(ALU, levels, 1.95, q_v_times_s=times, scheme="paper")
+    ex = simulate(steel, levels, 1.95, q_v_times_s=times, scheme="exact")
+    de = simulate(steel, levels, 1.95, q_v_times_s=times)
+    pa = simulate(steel, levels, 1.95, q_v_times_s=times, scheme="paper")
     assert rel_err(de.T_f_K, ex.T_f_K) < 1e-3
     assert rel_err(pa.T_f_K, ex.T_f_K) < 1e-2
 
