@@ -379,9 +379,12 @@ def _mixture_nll(object_set: ObjectSet, q, hld, ln_e, u, ti, temperature: float,
     """:func:`mixture_nll` on the touches' Gaussian terms ``q, hld`` (:meth:`ObjectSet.log_terms`), made once.
 
     Those terms depend on neither T nor the outlier component: fit_outlier's ~3 000 evaluations
-    took them again each time (0.9 of its 2.5 s in tests/host/test_recognition_outlier.py).
+    took them again each time (0.9 of its 2.5 s in tests/host/test_recognition_outlier.py).  At weight 0
+    :meth:`ObjectSet.posteriors` ignores the outlier component, so its terms are not made (a Gaussian
+    fit's evaluations spent half their time on them; the same numbers).
     """
-    out = object_set.outlier_terms(ln_e, u, temperature=temperature, outlier_ln=outlier_ln, **kw)[:2]
+    out = (object_set.outlier_terms(ln_e, u, temperature=temperature, outlier_ln=outlier_ln, **kw)[:2]
+           if outlier_weight > 0 else None)
     p = object_set.posteriors(q, hld, temperature=temperature, outlier=out, outlier_weight=outlier_weight)
     return float(-np.mean(np.log(np.maximum(p[np.arange(ti.size), ti], 1e-300))))
 

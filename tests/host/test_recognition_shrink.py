@@ -57,7 +57,10 @@ def test_a_noisy_stated_u_is_shrunk_and_the_answers_are_calibrated_where_the_sta
 
 def test_the_stated_u_when_it_carries_its_scatter_is_kept_bit_for_bit():
     rng = np.random.default_rng(33)
-    ti = rng.integers(0, len(OSET), 3000)
+    # 1000 touches (were 3000): with the stated u right, the shrink's NLL gain times n (a likelihood ratio, about
+    # chi2(4) / 2) does not grow with n -- seeds 30-39 at 1000 touches: 0.2-5.4, mean 2.2, against AIC's price 4;
+    # this seed 0.89, 3.11 at 3000 -- so refusing b < 1 is the same test on a third of the touches.
+    ti = rng.integers(0, len(OSET), 1000)
     u = TRUE_U[ti] * np.exp(rng.normal(0.0, 0.45, ti.size))    # each touch scatters by exactly what it states
     x = OSET.ln_e[ti] + rng.normal(0.0, 0.05, ti.size) + rng.normal(0.0, 1.0, ti.size) * u
     fu = fit_u_var_scale(OSET, x, u, ti, shrink=True)
@@ -111,7 +114,9 @@ def test_the_shrink_power_is_the_likelihoods_best_not_a_grid_point(monkeypatch):
     b = best["u_shrink"]
     assert U_SHRINK_RANGE[0] <= b < 1.0 and abs(b / U_SHRINK_STEP - round(b / U_SHRINK_STEP)) < 1e-9
     # The same fit held at any other b (the range collapsed to it) has no smaller NLL: at the fitted b's
-    # neighbours and at the old grid's point nearest to it.
+    # neighbours and at the old grid's point nearest to it.  On a collapsed range the golden section returns b0
+    # whatever its rounds (every probe is b0): none are run, the same held fit with 3 refits of k at b0, not 15.
+    monkeypatch.setattr(HR, "U_SHRINK_ROUNDS", 0)
     for b0 in (round(b - 0.05, 2), round(b + 0.05, 2), min((0.25, 0.5, 0.75), key=lambda g: abs(g - b))):
         if not U_SHRINK_RANGE[0] <= b0 < 1.0:
             continue
