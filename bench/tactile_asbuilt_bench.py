@@ -234,7 +234,7 @@ def evaluate(oset: ObjectSet, t: Touches, recs, out_names, u_fisher: dict) -> di
 def _classify_row(s: ObjectSet, r: dict):
     """One row's recognition by a fitted set, as recognition_fields would name it (None: nothing to name by)."""
     if r.get("poor_fit"):
-        return s.classify(r["e_chain"], s.poor_fit_ln) if s.poor_fit_ln > 0 else None
+        return s.classify(r["e_chain"], s.poor_fit_ln, stated=False) if s.poor_fit_ln > 0 else None
     if not math.isfinite(r["e"]):
         return None
     return s.classify(r["e"], r["u_ln_e"])

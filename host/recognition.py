@@ -562,7 +562,8 @@ def classify_touches(object_set: ObjectSet, touches: Touches) -> list[Recognitio
     :func:`edge.recognition.recognition_fields` names it on the device.
     """
     e = np.asarray(touches.e, float)
-    u = np.where(np.asarray(touches.poor_fit, bool),   # as recognition_fields names a withheld poor_fit chain e:
+    poor = np.asarray(touches.poor_fit, bool)
+    u = np.where(poor,   # as recognition_fields names a withheld poor_fit chain e:
                  object_set.poor_fit_ln if object_set.poor_fit_ln > 0 else math.nan,   # at the set's width, or not
                  np.asarray(touches.u_ln_e, float))
     ok = np.isfinite(e) & np.isfinite(u)
@@ -570,7 +571,7 @@ def classify_touches(object_set: ObjectSet, touches: Touches) -> list[Recognitio
     a = np.asarray(touches.alpha, float)
     recs = iter(object_set.classify_many(e[ok], u[ok], alpha=np.where(np.isfinite(a), a, math.nan)[ok],
                                          u_ln_alpha=np.asarray(touches.u_ln_alpha, float)[ok],
-                                         corr=np.asarray(touches.corr, float)[ok]))
+                                         corr=np.asarray(touches.corr, float)[ok], stated=~poor[ok]))
     return [next(recs) if k else None for k in ok.tolist()]
 
 

@@ -100,8 +100,9 @@ def recognition_fields(object_set: ObjectSet, estimate: Mapping, *, set_name: st
                  "candidates": []}
     if BROAD_FLAGS & set(estimate.get("flags") or ()):
         estimate = _broadened(estimate)
-    estimate = _from_poor_fit_chain(object_set.at_contact(contact_time_s), estimate)
-    r = object_set.classify_estimate(estimate, top=top, contact_time_s=contact_time_s)
+    named = _from_poor_fit_chain(object_set.at_contact(contact_time_s), estimate)
+    # A poor_fit chain's e is named at the set's own width, which is not shrunk as a stated u would be.
+    r = object_set.classify_estimate(named, top=top, contact_time_s=contact_time_s, stated=named is estimate)
     if r is None:
         return out
     out.update({"object": r.object, "object_posterior": float(r.object_posterior), "class": r.cls,

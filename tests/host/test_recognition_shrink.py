@@ -97,11 +97,35 @@ def test_calibrate_stores_the_shrink_and_a_poor_fit_width_the_device_shrinks_bac
                   np.where(poor, np.nan, u), OSET.names, poor_fit=poor)
     cal, rep = calibrate(OSET, "precision", sim=sim, bias=True, spread_fixed=True, shrink=True)
     assert cal.u_shrink == rep["u_shrink"] < 1.0 and cal.u_typ_ln2 == rep["u_typ_ln2"]
-    # The width the device names a poor_fit touch with, k u_typ^(2(1-b)) w^(2b) averaged over the poor touches'
-    # objects, is the chain's scatter less the spread.
-    j = ti[poor]
-    var = cal.u_var_scale * np.mean(cal.u_typ[j] ** (2 * (1 - cal.u_shrink))) * cal.poor_fit_ln ** (2 * cal.u_shrink)
-    assert math.sqrt(var) == pytest.approx(math.sqrt(0.3 ** 2 - 0.05 ** 2), rel=0.15)
+    # The width the device names a poor_fit touch with, k w² (the set's own width: not shrunk as a stated u),
+    # is the chain's scatter less the spread.
+    assert math.sqrt(cal.u_var_scale) * cal.poor_fit_ln == pytest.approx(math.sqrt(0.3 ** 2 - 0.05 ** 2), rel=0.15)
+    j = int(np.flatnonzero(poor)[0])
+    e_j = math.exp(x[j])
+    q, hld, _ = cal.log_terms(np.log([e_j]), [cal.poor_fit_ln], stated=False)
+    var = np.exp(2 * hld[0])   # each object's variance of ln e for it: k w² + spread², whatever u_typ_j is
+    assert var == pytest.approx(cal.u_var_scale * cal.poor_fit_ln ** 2 + 0.05 ** 2, rel=1e-12)
+    # The device's path (recognition_fields on a poor_fit answer) names it with that width, unshrunk.
+    from edge.recognition import recognition_fields
+    est = {"effusivity_W_s05_m2K": None, "flags": ["poor_fit"], "sensor_chain": {"effusivity_W_s05_m2K": e_j}}
+    r = recognition_fields(cal, est)
+    want = cal.classify(e_j, cal.poor_fit_ln, stated=False)
+    assert r["object"] == want.object and r["object_posterior"] == want.object_posterior
+    assert want.object_posterior != cal.classify(e_j, cal.poor_fit_ln).object_posterior   # shrunk would differ
+
+
+def test_a_wide_poor_fit_scatter_at_a_small_shrink_power_is_stored_not_refused():
+    # Seeds 32-41 at 1500 touches put b near 0.25; the old inversion of the shrink made poor_fit_ln 3.7-7.2, over
+    # its bound 3, and calibrate raised SchemaError.  The width is the scatter now, whatever b is.
+    rng = np.random.default_rng(35)
+    x, u, ti = _synth(1500, rng)
+    poor = rng.random(ti.size) < 0.1
+    x = np.where(poor, OSET.ln_e[ti] + rng.normal(0.0, 0.3, ti.size), x)
+    sim = Touches(ti, np.array(["precision"] * ti.size), np.full(ti.size, 1.0), np.exp(OSET.ln_e[ti]), np.exp(x),
+                  np.where(poor, np.nan, u), OSET.names, poor_fit=poor)
+    cal, rep = calibrate(OSET, "precision", sim=sim, bias=True, spread_fixed=True, shrink=True)
+    assert cal.u_shrink < 0.5 and 0.1 < cal.poor_fit_ln < 0.6
+    assert ObjectSet.from_csv_text(cal.to_csv_text()).poor_fit_ln == cal.poor_fit_ln
 
 
 def test_the_shrink_power_is_the_likelihoods_best_not_a_grid_point(monkeypatch):
