@@ -118,13 +118,16 @@ class Touches:
     #: Touches whose ``e`` is a poorly fitted chain's (withheld from the answer): named with the set's
     #: ``poor_fit_ln`` instead of ``u_ln_e`` (:func:`classify_touches`), never fitted on as stated.
     poor_fit: Optional[np.ndarray] = None
+    #: Touches whose ``u_ln_e`` was widened to BROAD_LN (edge.recognition.BROAD_FLAGS): a width, not shrunk.
+    broad: Optional[np.ndarray] = None
 
     def __post_init__(self) -> None:
         for name in ("alpha", "u_ln_alpha", "corr"):
             if getattr(self, name) is None:
                 setattr(self, name, np.full(self.e.shape, np.nan))
-        if self.poor_fit is None:
-            self.poor_fit = np.zeros(self.e.shape, bool)
+        for name in ("poor_fit", "broad"):
+            if getattr(self, name) is None:
+                setattr(self, name, np.zeros(self.e.shape, bool))
 
     @property
     def ok(self) -> np.ndarray:
@@ -145,12 +148,13 @@ class Touches:
     def without_alpha(self) -> "Touches":
         """The same touches with their measured α dropped (recognition on e alone)."""
         return Touches(self.obj, self.instrument, self.contact_time_s, self.e_true, self.e, self.u_ln_e, self.names,
-                       poor_fit=self.poor_fit)
+                       poor_fit=self.poor_fit, broad=self.broad)
 
     def select(self, mask) -> "Touches":
         m = np.asarray(mask)
         return Touches(self.obj[m], self.instrument[m], self.contact_time_s[m], self.e_true[m], self.e[m],
-                       self.u_ln_e[m], self.names, self.alpha[m], self.u_ln_alpha[m], self.corr[m], self.poor_fit[m])
+                       self.u_ln_e[m], self.names, self.alpha[m], self.u_ln_alpha[m], self.corr[m], self.poor_fit[m],
+                       self.broad[m])
 
 
 def library_estimator() -> Estimator:
@@ -571,7 +575,8 @@ def classify_touches(object_set: ObjectSet, touches: Touches) -> list[Recognitio
     a = np.asarray(touches.alpha, float)
     recs = iter(object_set.classify_many(e[ok], u[ok], alpha=np.where(np.isfinite(a), a, math.nan)[ok],
                                          u_ln_alpha=np.asarray(touches.u_ln_alpha, float)[ok],
-                                         corr=np.asarray(touches.corr, float)[ok], stated=~poor[ok]))
+                                         corr=np.asarray(touches.corr, float)[ok],
+                                         stated=~(poor | np.asarray(touches.broad, bool))[ok]))
     return [next(recs) if k else None for k in ok.tolist()]
 
 

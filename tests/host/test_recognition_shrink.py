@@ -147,3 +147,21 @@ def test_the_shrink_power_is_the_likelihoods_best_not_a_grid_point(monkeypatch):
         monkeypatch.setattr(HR, "U_SHRINK_RANGE", (b0, b0))
         held = fit_u_var_scale(OSET, x, u, ti, shrink=True)
         assert held["u_shrink"] == pytest.approx(b0) and held["nll"] >= best["nll"] - 1e-9
+
+
+def test_a_broadened_answer_is_named_at_the_broad_width_not_shrunk_back_toward_the_typical_u():
+    from edge.recognition import BROAD_LN, recognition_fields
+
+    s = OSET.with_calibration(u_shrink=0.5, u_typ_ln0=math.log(0.03))
+    e = 350.0 * math.exp(0.07)   # between two woods
+    est = {"effusivity_W_s05_m2K": e, "effusivity_W_s05_m2K_u": 0.01 * e, "flags": ["calibration_refused"]}
+    r = recognition_fields(s, est)
+    broad = s.classify(e, BROAD_LN, stated=False)
+    # Shrunk, the factor-e width would be sqrt(0.03 x 1) = 0.17 and the answer sharper than the rule means.
+    assert r["object_posterior"] == broad.object_posterior != s.classify(e, BROAD_LN).object_posterior
+    # The host's batch names a broad touch the same way.
+    from host.recognition import classify_touches
+    t = Touches(np.array([0]), np.array(["precision"]), np.array([1.0]), np.array([e]), np.array([e]),
+                np.array([BROAD_LN]), OSET.names, broad=np.array([True]))
+    assert classify_touches(s, t)[0].object_posterior == broad.object_posterior
+    assert classify_touches(s, t.select(np.array([True])))[0].object_posterior == broad.object_posterior
