@@ -243,26 +243,20 @@ def test_a_reply_before_the_commit_is_caught(root, server):
         K.run_all(op, root, server=server)
 
 
-def test_a_broken_operation_is_caught_and_its_fault_is_in_the_children_only(root, server):
-    """The harness is not vacuous: an overrides file written in place (no temp, no rename) fails it. And a
-    fault named for an operation's children is not the fork server's: the same operation without it,
-    forked from the same server afterwards, survives every kill."""
+def test_a_broken_operation_is_caught_its_fault_is_in_the_children_only_and_a_failed_preparation_is_reported(
+        root, server):
+    """The harness is not vacuous: an overrides file written in place (no temp, no rename) fails it. A fault
+    named for an operation's children is not the fork server's, and the server runs a preparation in itself:
+    a failure comes back as the error it was, and the server keeps serving. So the same operation without the
+    fault, forked from the same server after both, survives every kill."""
     broken = K.config_operation(root, keys=("heater.power_W",))
     broken.faults = ("tests.support.killpoint_faults:overrides_written_in_place",)
     trace, results = K.run_all(broken, root, server=server)
     assert any(r.problems for r in results), trace
-    trace, results = K.run_all(K.config_operation(root, keys=("heater.power_W",)), root, server=server)
-    assert len(results) == len(trace) > 0 and not [r.problems for r in results if r.problems]
-
-
-def test_a_failed_preparation_on_the_fork_server_is_reported_and_the_server_still_serves(root, server):
-    """The server runs the preparation in itself: a failure comes back as the error it was, and the server
-    keeps serving (a later operation's children are forked from it as usual)."""
     missing = root / "no-such-operation.spec.json"
     with pytest.raises(RuntimeError, match=r"(?s)_prepare_in_server failed in the fork server.*no-such-operation"):
         server.prepare("tests.support.killpoint_runner:_prepare_in_server", str(missing))
-    op = K.config_operation(root, keys=("heater.power_W",))
-    trace, results = K.run_all(op, root, server=server)
+    trace, results = K.run_all(K.config_operation(root, keys=("heater.power_W",)), root, server=server)
     assert len(results) == len(trace) > 0 and not [r.problems for r in results if r.problems]
 
 
