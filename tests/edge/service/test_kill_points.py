@@ -23,7 +23,8 @@ the model store and the runtime overrides fresh, as the daemon does at start-up,
 
 The children are forked from a small interpreter (:class:`tests.support.daemon_proc.ForkServer`),
 not from the test worker (cheaper per point), two at a time; the tests that check the harness itself
-name their fault (:mod:`tests.support.killpoint_faults`) for the children to put in.
+name their fault (:mod:`tests.support.killpoint_faults`) for the children to put in (the old object-set
+store's changes only the restart: it checks copies of the new-set upload's own kill states).
 
 A few points also get a full restart: a daemon started on the dead child's state reports no
 fault, keeps the heater off and measures again (on the directory that point's kill left, kept
