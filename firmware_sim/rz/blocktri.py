@@ -287,50 +287,65 @@ class BlockTridiagonal:
         # solvers, and worlds may step in different threads).
         self._local = threading.local()
 
-    def _views(self) -> tuple[np.ndarray, list, list]:
+    def _views(self) -> tuple[np.ndarray, list, list, bool]:
         loc = self._local
         views = getattr(loc, "views", None)
         if views is None:
             buf = np.empty(self._size)
             # Bound methods: ``ndarray.dot`` skips ``np.dot``'s dispatch, a third of a small
-            # mat-vec's cost here (the same BLAS call, the same bits).
+            # mat-vec's cost here (the same BLAS call, the same bits).  Each row is a fixed pair of
+            # calls, without branches: a row not coupled to the one above subtracts empty slices
+            # (nothing), one not coupled to the one below subtracts the zeros an empty mat-vec
+            # writes (``x - 0.0`` is ``x``, bit for bit, -0.0 and NaN included).
+            masked = any(e[5] is not None for e in self._fwd)
             fwd = []
             for F, f, u, c, up, m in self._fwd:
                 w = u - f
-                coupled = (buf[f:f + c], buf[up:up + c]) if c else (None, None)
-                fwd.append((F.dot, buf[f:u], buf[u:u + w]) + coupled + (m, np.empty(c) if m is not None else None))
+                if masked:
+                    coupled = (buf[f:f + c], buf[up:up + c]) if c else (None, None)
+                    fwd.append((F.dot, buf[f:u], buf[u:u + w]) + coupled
+                               + (m, np.empty(c) if m is not None else None))
+                else:
+                    fwd.append((F.dot, buf[f:u], buf[u:u + w], buf[f:f + c], buf[up:up + c]))
             back = []
             for M, vn, u, f in self._back:
                 w = u - f
-                back.append((None if M is None else M.dot, None if M is None else buf[vn:vn + M.shape[1]],
-                             buf[u:u + w], buf[f:f + w], np.empty(w)))
-            views = loc.views = (buf, fwd, back)
+                if M is None:
+                    back.append((np.zeros((w, 0)).dot, np.zeros(0), buf[u:u + w], buf[f:f + w], np.empty(w)))
+                else:
+                    back.append((M.dot, buf[vn:vn + M.shape[1]], buf[u:u + w], buf[f:f + w], np.empty(w)))
+            views = loc.views = (buf, fwd, back, masked)
         return views
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve ``A x = rhs`` for ``rhs`` of shape (n, m); returns a new (n, m) array."""
-        buf, fwd, back = self._views()
+        buf, fwd, back, masked = self._views()
         if self._full:
             slots = buf.reshape(self.n, 2 * self.m)[:, :self.m]
             np.multiply(rhs, self.scale, out=slots)
         else:
             f = (rhs * self.scale).reshape(-1)
             buf[self._work_idx] = f[self._field_idx]
-        multiply, subtract = np.multiply, np.subtract
-        for F_dot, fj, uj, fj_c, u_prev, m, tmp in fwd:
-            if fj_c is not None:
-                if m is None:
-                    subtract(fj_c, u_prev, out=fj_c)
-                else:
-                    multiply(m, u_prev, out=tmp)
-                    subtract(fj_c, tmp, out=fj_c)
-            F_dot(fj, uj)
+        subtract = np.subtract
+        if masked:
+            multiply = np.multiply
+            for F_dot, fj, uj, fj_c, u_prev, m, tmp in fwd:
+                if fj_c is not None:
+                    if m is None:
+                        subtract(fj_c, u_prev, fj_c)
+                    else:
+                        multiply(m, u_prev, tmp)
+                        subtract(fj_c, tmp, fj_c)
+                F_dot(fj, uj)
+        else:
+            # The hot loop (every grid built here): two calls a row, positional ``out`` (a
+            # keyword costs a ufunc call a dict parse).
+            for F_dot, fj, uj, fj_c, u_prev in fwd:
+                subtract(fj_c, u_prev, fj_c)
+                F_dot(fj, uj)
         for M_dot, vn, u, out, tmp in back:
-            if M_dot is None:
-                out[:] = u
-            else:
-                M_dot(vn, tmp)
-                subtract(u, tmp, out=out)
+            M_dot(vn, tmp)
+            subtract(u, tmp, out)
         if self._full:
             return slots / self._beta.reshape(self.n, self.m) * self.scale
         # Uncoupled unknowns keep f (scaled twice: rhs / diag).
