@@ -239,23 +239,26 @@ class BlockTridiagonal:
         vector holds, per row, a slot ``F_j`` (the right-hand side, then ``v_j``) followed
         by ``U_j``.
         """
-        n = self.n
+        n, m = self.n, self.m
         w = [int(x) for x in width]
         f_at, pos = [], 0
         for j in range(n):
             f_at.append(pos)
             pos += 2 * w[j]
         self._size = pos
-        beta = [np.ones(w[j]) for j in range(n)]
+        # beta_j on the leading c_j = min(w_j, w_{j+1}) unknowns (1 where the coupling is zero,
+        # and past them), for every row at once: a row of the (n, m) table per block row.
+        wa = np.asarray(w, dtype=np.intp)
+        cols = np.arange(m)
+        in_c = cols < np.minimum(wa[:-1], wa[1:])[:, None]       # (n - 1, m)
+        zero = b == 0
+        table = np.ones((n, m))
+        if n > 1:
+            table[:-1] = np.where(in_c & ~zero, b, 1.0)
+        beta = [table[j, :w[j]] for j in range(n)]
         mask = [None] * n
-        for j in range(n - 1):
-            c = min(w[j], w[j + 1])
-            if c:
-                bj = b[j, :c]
-                zero = bj == 0
-                beta[j][:c] = np.where(zero, 1.0, bj)
-                if zero.any():
-                    mask[j + 1] = (~zero).astype(float)
+        for j in np.flatnonzero((in_c & zero).any(axis=1)):
+            mask[j + 1] = (~zero[j, :min(w[j], w[j + 1])]).astype(float)
         fwd, back = [], []
         F = [beta[j][:, None] * G[j] if w[j] else None for j in range(n)]
         for j in range(n):
@@ -276,8 +279,11 @@ class BlockTridiagonal:
                 back.append((None, 0, f_at[j] + w[j], f_at[j]))
         self._fwd, self._back = fwd, back
         # Where each row's coupled unknowns sit in the (n, m) field and in the work vector.
-        self._field_idx = np.concatenate([j * self.m + np.arange(w[j]) for j in range(n)]).astype(np.intp)
-        self._work_idx = np.concatenate([f_at[j] + np.arange(w[j]) for j in range(n)]).astype(np.intp)
+        # (Row-major: row j's leading w_j unknowns in order, as the rows' slots hold them.)
+        field_idx = np.flatnonzero(cols < wa[:, None]).astype(np.intp)
+        self._field_idx = field_idx
+        self._work_idx = (np.repeat(np.asarray(f_at, dtype=np.intp) - np.arange(n, dtype=np.intp) * m, wa)
+                          + field_idx).astype(np.intp)
         self._beta = np.concatenate(beta) if n else np.zeros(0)
         # Every row as wide as the field (a probe on an object): the rows' slots are a strided
         # view of the work vector, a plain copy where the general layout gathers and scatters.

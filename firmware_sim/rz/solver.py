@@ -364,7 +364,7 @@ class Solver:
         # (array, digest) pairs, each replaced whole (worlds may step in other threads): what a step
         # reads for this forcing array, and the last read-only source pattern (_step_key).
         self._key_base: tuple = (None, b"")
-        self._src_key: tuple = (None, b"")
+        self._src_key: tuple = (None, b"", 0.0)    # (array, digest, float(np.sum(array)))
         if probes is None and grid.meta.get("sensor_radius_m") is not None:
             probes = _probes(grid)
         self.probes = probes
@@ -517,10 +517,18 @@ class Solver:
             lost = 0.5 * dt * (loss + loss_new)
         else:  # TR-BDF2
             # TR stage to t + gamma dt: (C/tau + K) T_g = (C/tau - K) T + 2 f.
-            T_g = op.solve(fac, Ct * T - op.apply_K(T) + 2.0 * f)
+            # (In place, the operations and their order as written: (Ct T - K T) + 2 f.)
+            rhs = Ct * T
+            rhs -= op.apply_K(T)
+            rhs += 2.0 * f
+            T_g = op.solve(fac, rhs)
             l_g = self._loss(T_g)
             # BDF2 stage: (C/tau + K) T1 = C/tau [T_g / (g (2-g)) - (1-g)^2 / (g (2-g)) T] + f.
-            T = op.solve(fac, Ct * (_BDF2_A * T_g - _BDF2_C * T) + f)
+            rhs = _BDF2_A * T_g
+            rhs -= _BDF2_C * T
+            rhs *= Ct
+            rhs += f
+            T = op.solve(fac, rhs)
             loss_new = self._loss(T)
             lost = dt * ((loss + l_g) / (2.0 * (2.0 - _GAMMA)) + _W * loss_new)
         return T, loss_new, lost
@@ -534,14 +542,15 @@ class Solver:
         taken before from the same field with the same inputs is recalled, not solved
         (:mod:`firmware_sim.rz.stepmemo`: the stored result of the same arithmetic, so the same bits).
         """
-        T = np.array(T_K, dtype=float) * self.grid.active
+        T = np.asarray(T_K, dtype=float) * self.grid.active    # (a new array: the product)
         key = self._step_key(T, source_W, float(amplitude))
         hit = recall(key)
         if hit is not None:
             return hit
         T1, _, lost = self._advance(T, amplitude * source_W + self.g_t, self._loss(T), False,
                                     self._at_rest(T, amplitude))
-        e_in = self.dt * amplitude * float(np.sum(source_W))
+        of, _, src_sum = self._src_key
+        e_in = self.dt * amplitude * (src_sum if source_W is of else float(np.sum(source_W)))
         keep(key, T1, e_in, lost)
         return T1, e_in, lost
 
@@ -565,12 +574,13 @@ class Solver:
                 h.update(a.data)
             base = h.digest()
             self._key_base = (g, base)
-        of, src_key = self._src_key
+        of, src_key, _ = self._src_key
         if source_W is not of:
             src = np.ascontiguousarray(source_W, dtype=float)
             src_key = hashlib.sha256(repr(src.shape).encode() + src.tobytes()).digest()
             if isinstance(source_W, np.ndarray) and not source_W.flags.writeable and source_W.base is None:
-                self._src_key = (source_W, src_key)
+                # Its sum too (the step's heat in): read-only, so the same bits each step.
+                self._src_key = (source_W, src_key, float(np.sum(source_W)))
         h = hashlib.sha256(base)
         h.update(src_key)
         h.update(struct.pack("<d", amplitude))
