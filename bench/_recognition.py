@@ -365,3 +365,75 @@ def ece_interval(confidence, correct, group=None, *, draws: int = 1000, seed: in
                       "debiased": [_signed_root(point["debiased_sq"] + float(x) - float(deb.mean()))
                                    for x in np.quantile(deb, q)]}
     return {**point, "interval": out, "level": level, "draws": draws}
+
+
+#: The reliability bar of issue #37: every bin with at least RELIABILITY_MIN_N touches within ±RELIABILITY_TOL.
+RELIABILITY_MIN_N = 20
+RELIABILITY_TOL = 0.05
+
+
+def reliability_sampling(confidence, correct, bins=RELIABILITY_BINS, *, min_n: int = RELIABILITY_MIN_N,
+                         tol: float = RELIABILITY_TOL, draws: int = 4000, seed: int = 13) -> dict:
+    """How far a perfectly calibrated answerer's bins land from its confidences on these touches.
+
+    The reliability bar asks every bin of ``min_n`` or more touches to be within ``tol`` of its
+    confidence, but a bin's accuracy is a sum of Bernoulli draws: on 175 touches near 0.5 its sd is
+    3.8 points, so even an answerer whose every confidence is exact misses ±5 about one time in
+    six.  Each draw makes touch i right with probability ``confidence[i]`` (exactly calibrated, the
+    same touches in the same bins) and bins the answers as :func:`host.recognition.reliability`.
+
+    Returns
+    -------
+    dict
+        ``bins``: per bin with ``n >= min_n``, ``lo``, ``hi``, ``n``, ``confidence``, ``accuracy``,
+        ``gap`` (accuracy - confidence), ``sd`` (the calibrated gap's sd, sqrt(Σ c(1-c)) / n),
+        ``p_off`` (share of draws with ``|gap| > tol``) and ``p_as_far`` (share with a gap at least
+        as large as the observed one: the two-sided p-value of "this bin is calibrated");
+        ``p_all_within`` (share of draws with every such bin within ``tol``: how often a calibrated
+        answerer meets the bar as written on these touches); ``draws``, ``seed``.
+    """
+    conf = np.asarray(confidence, float)
+    ok = np.asarray(correct, bool)
+    edges = np.asarray(bins, float)
+    which = np.clip(np.searchsorted(edges, conf, side="right") - 1, 0, edges.size - 2)
+    rng = np.random.default_rng(seed)
+    out, all_within = [], np.ones(draws, bool)
+    for b in range(edges.size - 1):
+        c = conf[which == b]
+        n = c.size
+        if n < min_n:
+            continue
+        # Draws of the number right: the touches' Bernoulli trials, summed (a Poisson-binomial).
+        right = (rng.random((draws, n)) < c).sum(axis=1)
+        gaps = right / n - c.mean()
+        gap = float(ok[which == b].mean() - c.mean())
+        within = np.abs(gaps) <= tol
+        all_within &= within
+        out.append(dict(lo=float(edges[b]), hi=float(edges[b + 1]), n=int(n), confidence=float(c.mean()),
+                        accuracy=float(ok[which == b].mean()), gap=gap,
+                        sd=float(math.sqrt(np.sum(c * (1.0 - c))) / n), p_off=float(np.mean(~within)),
+                        p_as_far=float(np.mean(np.abs(gaps) >= abs(gap) - 1e-12))))
+    return {"bins": out, "p_all_within": float(np.mean(all_within)), "draws": draws, "seed": seed,
+            "min_n": min_n, "tol": tol}
+
+
+def reliability_judged(s: dict, level: float = 0.05) -> str:
+    """The bar's verdict on :func:`reliability_sampling`'s figures, with what a calibrated answerer would show.
+
+    "met": every bin within ``tol``.  Otherwise each bin outside is named with its sd and p-value; the
+    verdict is "NOT met" when some bin is further off than a calibrated answerer is in ``level`` of
+    draws (its miscalibration is shown), else "NOT met as written, consistent with calibration" (the
+    gap is of the size a calibrated answerer shows on as many touches).
+    """
+    off = [b for b in s["bins"] if abs(b["gap"]) > s["tol"]]
+    tail = (f"; a perfectly calibrated answerer on these touches meets it in {100 * s['p_all_within']:.0f} % of "
+            f"{s['draws']} draws ({len(s['bins'])} such bins)")
+    if not off:
+        return "met" + tail
+    shown = [b for b in off if b["p_as_far"] < level]
+    parts = ", ".join(f"{b['lo']:.2f}-{b['hi']:.2f}: confidence {100 * b['confidence']:.1f} %, right "
+                      f"{100 * b['accuracy']:.1f} % of {b['n']} (sd {100 * b['sd']:.1f} points; a calibrated "
+                      f"answerer is this far off in {100 * b['p_as_far']:.0f} % of draws, beyond ±"
+                      f"{100 * s['tol']:.0f} in {100 * b['p_off']:.0f} %)" for b in off)
+    verdict = "NOT met" if shown else "NOT met as written, consistent with calibration"
+    return f"{verdict} ({parts})" + tail

@@ -63,8 +63,9 @@ from _asbuilt_estimate import estimate_head
 from _confidence_breakdown import breakdown, breakdown_lines
 import _asbuilt_touches as A
 from _objects import HELD_OUT_FAR, IN_SET
-from _recognition import (bayes_ceiling, confusion_matrix, debiased_ece, diagnosis, ece_floor, ece_interval,
-                          in_set_answers, in_set_reliability)
+from _recognition import (RELIABILITY_MIN_N, RELIABILITY_TOL, bayes_ceiling, confusion_matrix, debiased_ece,
+                          diagnosis, ece_floor, ece_interval, in_set_answers, in_set_reliability,
+                          reliability_judged, reliability_sampling)
 from edge.recognition import ObjectSet
 from host.recognition import DECISION_FIT, Touches, calibrate, classify_touches
 
@@ -550,18 +551,11 @@ def bar_lines(res: dict) -> list[str]:
              "is above, else undecided at this size): "
              + ", ".join(f"{float(c):g} s ({R[c]['rel_object']['n']} touches) {pct(R[c]['rel_object']['ece'], 1)} / "
                          f"{pct((R[c].get('ece_floor') or {}).get('median'), 1)} / {ece_judged(R[c])}" for c in R))
-    for c in R:
-        big = [b for b in R[c]["rel_object"]["rows"] if b["n"] >= 20]
-        off = [b for b in big if abs(b["accuracy"] - b["confidence"]) > 0.05]
-        # A bin's accuracy is binomial: its sd sqrt(p (1 - p) / n) is what ±5 points must be read against.
-        L.append(f"* reliability at {float(c):g} s, bins with ≥ 20 touches within ±5 points: "
-                 + ("met" if not off else "NOT met (" + ", ".join(
-                     f"{b['lo']:.2f}-{b['hi']:.2f}: confidence {pct(b['confidence'])} %, right {pct(b['accuracy'])} %"
-                     f" of {b['n']}, binomial sd "
-                     f"{pct(math.sqrt(b['confidence'] * (1 - b['confidence']) / b['n']))} points"
-                     + (", beyond 2 sd" if abs(b["accuracy"] - b["confidence"])
-                        > 2 * math.sqrt(b["confidence"] * (1 - b["confidence"]) / b["n"]) else "")
-                     for b in off) + ")") + f" ({len(big)} such bins)")
+    for c in R:   # a bin's accuracy is binomial: ±5 points is read against what a calibrated answerer shows
+        a = R[c].get("answers") or {}
+        L.append(f"* reliability at {float(c):g} s, bins with ≥ {RELIABILITY_MIN_N} touches within "
+                 f"±{100 * RELIABILITY_TOL:.0f} points: "
+                 + reliability_judged(reliability_sampling(a.get("confidence", []), a.get("correct", []))))
     return L
 
 
@@ -668,6 +662,7 @@ def main() -> None:
     res["bench_s"] = time.perf_counter() - t0
     res["load_avg_1min"] = os.getloadavg()[0]
     res["board"] = args.board
+    res["command"] = "python bench/tactile_asbuilt_bench.py " + " ".join(sys.argv[1:])
     write_json("tactile_asbuilt" + ("" if args.board == "precision" else f"_{args.board}"), res)
     cmd = "python bench/tactile_asbuilt_bench.py " + " ".join(sys.argv[1:])
     sims = ", ".join(f"{hd} {h['sim_s'] / 60:.0f} min" + (

@@ -150,18 +150,18 @@ def noise_of(args) -> tuple[float, float, float]:
 def run(args) -> int:
     # The board is named in the answer only when its noise is what was used.
     board = args.board if (args.noise_T, args.noise_q, args.dt) == (None, None, None) else None
-    args.noise_T, args.noise_q, args.dt = noise_of(args)
+    noise_T, noise_q, dt = noise_of(args)   # the parsed arguments stay as the user gave them
     one = (args.heater_radius, args.time, args.material)
     if args.table:
         if any(v is not None for v in one):
             raise CliError("--table computes its own grid; drop --heater-radius-mm, --time and --material")
     elif any(v is None for v in one):
         raise CliError("give --heater-radius-mm MM, --time S and --material NAME (or --table)")
-    if not args.table and args.time / args.dt < MIN_SAMPLES:
-        raise CliError(f"--time {args.time:g} s holds fewer than {MIN_SAMPLES} samples of --dt {args.dt:g} s")
-    if args.table and min(TABLE_TIMES_S) / args.dt < MIN_SAMPLES:
-        raise CliError(f"--dt {args.dt:g} s leaves fewer than {MIN_SAMPLES} samples in a {min(TABLE_TIMES_S):g}-s touch")
-    kw = {"noise_T_K": args.noise_T, "noise_q_W_m2": args.noise_q, "dt_s": args.dt}
+    if not args.table and args.time / dt < MIN_SAMPLES:
+        raise CliError(f"--time {args.time:g} s holds fewer than {MIN_SAMPLES} samples of --dt {dt:g} s")
+    if args.table and min(TABLE_TIMES_S) / dt < MIN_SAMPLES:
+        raise CliError(f"--dt {dt:g} s leaves fewer than {MIN_SAMPLES} samples in a {min(TABLE_TIMES_S):g}-s touch")
+    kw = {"noise_T_K": noise_T, "noise_q_W_m2": noise_q, "dt_s": dt}
     if args.hand:
         kw.update(hand=True, contact_resistance_m2K_W=args.contact_resistance, lead_s=args.lead)
     if args.table:
@@ -176,7 +176,7 @@ def run(args) -> int:
         print(dumps(d))
         return 0
     print(f"{d['material']}, heater radius {d['heater_radius_mm']:g} mm ({d['power_W']:.3g} W), "
-          f"{d['contact_time_s']:g} s touch; noise {args.noise_T:.2g} K / {args.noise_q:.2g} W/m^2 every {args.dt:g} s"
+          f"{d['contact_time_s']:g} s touch; noise {noise_T:.2g} K / {noise_q:.2g} W/m^2 every {dt:g} s"
           + (f" ({board} board)" if board else ""))
     if args.hand:
         print(f"hand touch: R_c ({args.contact_resistance:g} m^2K/W) and the object's temperature unknown, contact "

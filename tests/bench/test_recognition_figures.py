@@ -110,3 +110,32 @@ def test_the_breakdown_tells_the_background_mass_from_the_objects_terms():
     assert b["groups"]["poor_fit"]["n"] == int(poor.sum()) and b["groups"]["stated_u"]["n"] == n - int(poor.sum())
     lines = breakdown_lines({"1.0": {"confidence_breakdown": b}})
     assert any(line.startswith("| poor_fit") for line in lines) and "1 s" in lines[1]
+
+
+def test_reliability_is_judged_against_what_a_calibrated_answerer_shows_on_the_same_touches():
+    from _recognition import reliability_judged, reliability_sampling
+
+    rng = np.random.default_rng(3)
+    conf = np.concatenate([rng.uniform(0.3, 0.5, 175), rng.uniform(0.5, 1.0, 4000)])
+    ok = rng.random(conf.size) < conf   # calibrated answers
+    big = reliability_sampling(conf[175:], ok[175:], draws=500)
+    assert reliability_judged(big).startswith("met") and big["p_all_within"] > 0.9
+    low = (conf < 0.5).nonzero()[0]
+    # The low bin made 15 points over-confident: shown (p far below 5 %), NOT met.
+    bad = ok.copy()
+    bad[low] = rng.random(low.size) < conf[low] - 0.15
+    s = reliability_sampling(conf, bad, draws=500)
+    b0 = s["bins"][0]
+    assert b0["n"] == 175 and abs(b0["sd"] - 0.037) < 0.005 and b0["p_as_far"] < 0.01
+    assert reliability_judged(s).startswith("NOT met (0.00-0.50")
+    # Six points off on 175 touches: what a calibrated answerer shows often -> consistent with calibration.
+    mild = ok.copy()
+    k = int(round((conf[low].mean() - 0.06) * low.size))
+    mild[low] = np.arange(low.size) < k
+    s = reliability_sampling(conf, mild, draws=500)
+    assert 0.05 < s["bins"][0]["p_as_far"] < 0.3 and s["bins"][0]["p_off"] > 0.1
+    assert reliability_judged(s).startswith("NOT met as written, consistent with calibration")
+    # The bar as written is a gamble on a small bin: a calibrated answerer passes less often than on big ones.
+    assert s["p_all_within"] < big["p_all_within"]
+    # Bins under min_n are not judged.
+    assert reliability_sampling(conf[:10], ok[:10], draws=50)["bins"] == []

@@ -105,3 +105,14 @@ def test_design_board_sets_the_noise_and_a_given_noise_overrides_it(capsys):
     assert prec["u_rel_effusivity"] < mixed["u_rel_effusivity"] < ref["u_rel_effusivity"]
     code, out, err = run(capsys, *base, "--board", "bench")
     assert code == 2 and "--board" in err and len(err.strip().splitlines()) == 1
+
+
+def test_design_leaves_the_parsed_arguments_as_given(capsys):
+    from host.cli.main import build_parser
+
+    args = build_parser().parse_args(["design", "--heater-radius-mm", "5", "--time", "2", "--material", "pmma",
+                                      "--board", "reference", "--json"])
+    assert design_cli.run(args) == 0
+    capsys.readouterr()
+    # The board's noise was used, not written back: a caller re-running with these args still names the board.
+    assert (args.noise_T, args.noise_q, args.dt) == (None, None, None)
