@@ -141,9 +141,10 @@ def touches_of(rows, names, ct=None) -> Touches:
     col = lambda k: np.array([r[k] for r in rs], float)  # noqa: E731
     poor = np.array([bool(r.get("poor_fit")) for r in rs])
     e = np.array([r["e_chain"] if r.get("poor_fit") else r["e"] for r in rs], float)
+    broad = np.array([r.get("u_ln_e_stated") is not None and r["u_ln_e"] != r["u_ln_e_stated"] for r in rs])
     return Touches(np.array([names.index(r["name"]) for r in rs], int), np.array([BOARD] * len(rs)),
                    col("contact_s"), col("e_true"), e, col("u_ln_e"), tuple(names),
-                   col("alpha"), col("u_ln_alpha"), col("corr"), poor)
+                   col("alpha"), col("u_ln_alpha"), col("corr"), poor, broad)
 
 
 def cross_fit(oset: ObjectSet, t: Touches, fold: np.ndarray, broad: np.ndarray, *, bias: bool = True,
@@ -234,10 +235,10 @@ def evaluate(oset: ObjectSet, t: Touches, recs, out_names, u_fisher: dict) -> di
 def _classify_row(s: ObjectSet, r: dict):
     """One row's recognition by a fitted set, as recognition_fields would name it (None: nothing to name by)."""
     if r.get("poor_fit"):
-        return s.classify(r["e_chain"], s.poor_fit_ln) if s.poor_fit_ln > 0 else None
+        return s.classify(r["e_chain"], s.poor_fit_ln, stated=False) if s.poor_fit_ln > 0 else None
     if not math.isfinite(r["e"]):
         return None
-    return s.classify(r["e"], r["u_ln_e"])
+    return s.classify(r["e"], r["u_ln_e"], stated=r["u_ln_e"] == r.get("u_ln_e_stated", r["u_ln_e"]))
 
 
 def until_decided(oset, rows, names, sets_by_ct) -> dict:

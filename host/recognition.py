@@ -118,13 +118,16 @@ class Touches:
     #: Touches whose ``e`` is a poorly fitted chain's (withheld from the answer): named with the set's
     #: ``poor_fit_ln`` instead of ``u_ln_e`` (:func:`classify_touches`), never fitted on as stated.
     poor_fit: Optional[np.ndarray] = None
+    #: Touches whose ``u_ln_e`` was widened to BROAD_LN (edge.recognition.BROAD_FLAGS): a width, not shrunk.
+    broad: Optional[np.ndarray] = None
 
     def __post_init__(self) -> None:
         for name in ("alpha", "u_ln_alpha", "corr"):
             if getattr(self, name) is None:
                 setattr(self, name, np.full(self.e.shape, np.nan))
-        if self.poor_fit is None:
-            self.poor_fit = np.zeros(self.e.shape, bool)
+        for name in ("poor_fit", "broad"):
+            if getattr(self, name) is None:
+                setattr(self, name, np.zeros(self.e.shape, bool))
 
     @property
     def ok(self) -> np.ndarray:
@@ -145,12 +148,13 @@ class Touches:
     def without_alpha(self) -> "Touches":
         """The same touches with their measured α dropped (recognition on e alone)."""
         return Touches(self.obj, self.instrument, self.contact_time_s, self.e_true, self.e, self.u_ln_e, self.names,
-                       poor_fit=self.poor_fit)
+                       poor_fit=self.poor_fit, broad=self.broad)
 
     def select(self, mask) -> "Touches":
         m = np.asarray(mask)
         return Touches(self.obj[m], self.instrument[m], self.contact_time_s[m], self.e_true[m], self.e[m],
-                       self.u_ln_e[m], self.names, self.alpha[m], self.u_ln_alpha[m], self.corr[m], self.poor_fit[m])
+                       self.u_ln_e[m], self.names, self.alpha[m], self.u_ln_alpha[m], self.corr[m], self.poor_fit[m],
+                       self.broad[m])
 
 
 def library_estimator() -> Estimator:
@@ -379,9 +383,12 @@ def _mixture_nll(object_set: ObjectSet, q, hld, ln_e, u, ti, temperature: float,
     """:func:`mixture_nll` on the touches' Gaussian terms ``q, hld`` (:meth:`ObjectSet.log_terms`), made once.
 
     Those terms depend on neither T nor the outlier component: fit_outlier's ~3 000 evaluations
-    took them again each time (0.9 of its 2.5 s in tests/host/test_recognition_outlier.py).
+    took them again each time (0.9 of its 2.5 s in tests/host/test_recognition_outlier.py).  At weight 0
+    :meth:`ObjectSet.posteriors` ignores the outlier component, so its terms are not made (a Gaussian
+    fit's evaluations spent half their time on them; the same numbers).
     """
-    out = object_set.outlier_terms(ln_e, u, temperature=temperature, outlier_ln=outlier_ln, **kw)[:2]
+    out = (object_set.outlier_terms(ln_e, u, temperature=temperature, outlier_ln=outlier_ln, **kw)[:2]
+           if outlier_weight > 0 else None)
     p = object_set.posteriors(q, hld, temperature=temperature, outlier=out, outlier_weight=outlier_weight)
     return float(-np.mean(np.log(np.maximum(p[np.arange(ti.size), ti], 1e-300))))
 
@@ -559,7 +566,8 @@ def classify_touches(object_set: ObjectSet, touches: Touches) -> list[Recognitio
     :func:`edge.recognition.recognition_fields` names it on the device.
     """
     e = np.asarray(touches.e, float)
-    u = np.where(np.asarray(touches.poor_fit, bool),   # as recognition_fields names a withheld poor_fit chain e:
+    poor = np.asarray(touches.poor_fit, bool)
+    u = np.where(poor,   # as recognition_fields names a withheld poor_fit chain e:
                  object_set.poor_fit_ln if object_set.poor_fit_ln > 0 else math.nan,   # at the set's width, or not
                  np.asarray(touches.u_ln_e, float))
     ok = np.isfinite(e) & np.isfinite(u)
@@ -567,7 +575,8 @@ def classify_touches(object_set: ObjectSet, touches: Touches) -> list[Recognitio
     a = np.asarray(touches.alpha, float)
     recs = iter(object_set.classify_many(e[ok], u[ok], alpha=np.where(np.isfinite(a), a, math.nan)[ok],
                                          u_ln_alpha=np.asarray(touches.u_ln_alpha, float)[ok],
-                                         corr=np.asarray(touches.corr, float)[ok]))
+                                         corr=np.asarray(touches.corr, float)[ok],
+                                         stated=~(poor | np.asarray(touches.broad, bool))[ok]))
     return [next(recs) if k else None for k in ok.tolist()]
 
 

@@ -88,13 +88,8 @@ def fit_poor_fit_ln(object_set: ObjectSet, touches, true_index) -> float:
     # The device's variance of such a touch is T (k w² + spread² + calibration_ln²): w from the rest.
     v = (float(np.mean(d2)) / object_set.temperature - float(np.mean(object_set.spread[ti] ** 2))
          - object_set.calibration_ln ** 2)
-    w = float(max(POOR_FIT_LN_FLOOR, math.sqrt(max(v, 0.0))) / math.sqrt(object_set.u_var_scale))
-    if object_set.u_shrink in (0.0, 1.0):   # 0: the device names with u_typ alone, whatever the width
-        return w
-    # The device shrinks this width as any stated u, u_typ_j^(1-b) w^b: the w whose shrunk width has that
-    # mean variance over these touches' objects.
-    b = object_set.u_shrink
-    return float(math.exp((math.log(w ** 2 / np.mean(object_set.u_typ[ti] ** (2 * (1 - b))))) / (2 * b)))
+    # The device names such a touch with this width as it is (not shrunk as a stated u: ObjectSet.likelihood_u).
+    return float(max(POOR_FIT_LN_FLOOR, math.sqrt(max(v, 0.0))) / math.sqrt(object_set.u_var_scale))
 
 
 def fit_alpha_u_growth(object_set: ObjectSet, touches: Touches, true_index, *, hi: float = 100.0) -> float:

@@ -144,6 +144,8 @@ class _Problem:
         self.p0, self.sd = p0, sd
         self._sub_cache: dict = {}
         self._fd_from: tuple[float, float] | None = None
+        #: Each touch's inverted responses by the physics they depend on (see :meth:`_responses`).
+        self._resp_cache: dict = {}
 
     def _touch_model(self, j: int, p: np.ndarray):
         tc, t, yT, yq = self.touches[j]
@@ -159,20 +161,39 @@ class _Problem:
                 ref = self._nodes_from._sub_cache.get(key)
             base = self._sub_cache[key] = AxisymModel(geometry_at(self.g, p), t,
                                                       nodes=None if ref is None else ref.nodes)
-        m = base.with_substrate(geometry_at(self.g, p).substrate, None) if self.g.substrate is not None else base
         i = self.refs.index(tc.name)
         k = math.exp(p[self.n_glob + 2 * i])
         a = math.exp(p[self.n_glob + 2 * i + 1])
         R = max(p[self.n_glob + self.n_ref + j], 0.0) * _RC_UNIT
-        T, q = m.transforms(k, a, contact_resistance_m2K_W=R)
+        mT, mq, dT, dq = self._responses(j, p, base, k, a, R)
         P0 = self.g.nominal_power_W
-        # The heater's self-heating droop (its TCR): P0 (1 - alpha_R P0 h(t)) into the same responses.
-        xT, xq, _ = droop_transforms(m, k, a, T, q, contact_resistance_m2K_W=R)
-        mT, mq, dT, dq = m.inversion.invert(np.stack([T, q, xT, xq]))
         wT, wq = P0 / self.est.sigma_T_K, P0 / self.est.sigma_q_W_m2 / math.exp(p[0])
         # Per unit power scale (touch_residual multiplies the droop by the scale once more: power squared).
         c = P0 * p[len(GLOBALS)] * _TCR_UNIT
         return wT * mT, wq * mq, -c * wT * dT, -c * wq * dq
+
+    def _responses(self, j: int, p: np.ndarray, base: AxisymModel, k: float, a: float, R: float):
+        """Touch ``j``'s inverted temperature and flux responses and their droop terms, per unit power.
+
+        They depend on the probe's geometry (``p[1:len(GLOBALS)]``, ``base`` built for it), the object's k and
+        alpha and the contact resistance, not on the flux scale or the heater's TCR (``p[0]``,
+        ``p[len(GLOBALS)]``), which only weight them: the Jacobian's columns of those two reuse the point's
+        responses -- the same arrays, so the same residuals to the bit -- instead of inverting them again.
+        A response is reused only with the very model it was computed on (``base``: the nodes it was built with).
+        """
+        key = (j, p[1:len(GLOBALS)].tobytes(), k, a, R)
+        got = self._resp_cache.get(key)
+        if got is not None and got[0] is base:
+            return got[1]
+        m = base.with_substrate(geometry_at(self.g, p).substrate, None) if self.g.substrate is not None else base
+        T, q = m.transforms(k, a, contact_resistance_m2K_W=R)
+        # The heater's self-heating droop (its TCR): P0 (1 - alpha_R P0 h(t)) into the same responses.
+        xT, xq, _ = droop_transforms(m, k, a, T, q, contact_resistance_m2K_W=R)
+        out = m.inversion.invert(np.stack([T, q, xT, xq]))
+        if len(self._resp_cache) >= 16 * len(self.touches):   # two Jacobians' worth (bounded memory)
+            self._resp_cache.clear()
+        self._resp_cache[key] = (base, out)
+        return out
 
     def touch_residual(self, j: int, p: np.ndarray) -> tuple[np.ndarray, float]:
         """Weighted residual of touch ``j`` with its power scale projected out, and that scale."""

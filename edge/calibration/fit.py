@@ -390,11 +390,15 @@ def fit_calibration(touches: list[ReferenceTouch], *, probe: str = "paper",
 #: touches again (a third of the suite's fits were repeats).  The values hold no array a caller can
 #: change (:class:`ProbeCalibration` copies the covariance).
 _FITS = BoundedMemo(16)
+#: Solutions before the noise-bias correction (:func:`_solve_touches`), by the fit's inputs but its draws: a fit
+#: with the correction repeats the one without (the same touches, the same solves) before it corrects.
+_SOLVED = BoundedMemo(8)
 
 
 def clear_fit_memo() -> None:
     """Forget the fits kept (:data:`_FITS`): the next :func:`fit_calibration` of any input computes afresh."""
     _FITS.clear()
+    _SOLVED.clear()
 
 
 def _fit_key(touches, probe: str, noise_bias_draws: int) -> tuple:
@@ -418,10 +422,9 @@ def _fit_key(touches, probe: str, noise_bias_draws: int) -> tuple:
     return (h.hexdigest(), probe, int(noise_bias_draws), settings, calls, ProbeCalibration.nominal(probe).sha256)
 
 
-def _fit(touches: list[ReferenceTouch], names: list[str], e_lib: dict[str, float], probe: str,
-         noise_bias_draws: int) -> tuple:
-    """:func:`fit_calibration`'s fit: (chain, covariance, transfer floor, references)."""
-    prior = ProbeCalibration.nominal(probe)
+def _solve_touches(touches: list[ReferenceTouch], names: list[str], e_lib: dict[str, float], prior) -> tuple:
+    """The fit's solution before any noise-bias correction: the touches' arrays from contact (copies), their
+    noises in air, reference indices, the references' ln e and u, the solution p and its Jacobian."""
     th0 = prior.theta
     u_th0 = prior.u_theta
     segs, noise = [], []
@@ -450,8 +453,28 @@ def _fit(touches: list[ReferenceTouch], names: list[str], e_lib: dict[str, float
         chain1 = prior.chain_at(p[:NP])
         arrays = [(tt, TT, qq, w, br, contact_fraction(tt, TT, qq, chain1, br, c_T)[0])
                   for (tt, TT, qq, w, br, _), (c_T, _) in zip(arrays, noise)]
-        segs = [(tc, *a) for (tc, *_), a in zip(segs, arrays)]
         p, J = _solve(arrays, idx, prior, th0, u_th0, ln_e0, u_ln_e, p)
+    # Copies: a caller's arrays (the records from contact are views of them) may change after the fit is kept.
+    arrays = [(np.array(tt), np.array(TT), np.array(qq), w, br, fr) for tt, TT, qq, w, br, fr in arrays]
+    return (tuple(arrays), tuple(noise), tuple(idx), ln_e0, u_ln_e, p, J)
+
+
+def _fit(touches: list[ReferenceTouch], names: list[str], e_lib: dict[str, float], probe: str,
+         noise_bias_draws: int) -> tuple:
+    """:func:`fit_calibration`'s fit: (chain, covariance, transfer floor, references)."""
+    prior = ProbeCalibration.nominal(probe)
+    th0 = prior.theta
+    u_th0 = prior.u_theta
+    # The solution without the noise-bias correction is the same whatever the draws: a fit with the correction
+    # of touches fitted without it (or with other draws) starts from that one (_SOLVED).
+    key = _fit_key(touches, probe, 0)
+    solved = _SOLVED.get(key)
+    if solved is None:
+        solved = _SOLVED.put(key, _solve_touches(touches, names, e_lib, prior))
+    arrays, noise, idx, ln_e0, u_ln_e, p, J = solved
+    p = p.copy()
+    segs = [(tc, *a) for tc, a in zip(touches, arrays)]
+    m_index = {n: i for i, n in enumerate(names)}
     if not np.all(np.isfinite(p)):
         raise CalibrationError("the fit did not converge (non-finite parameters)")
     cov_bias = np.zeros((NP, NP))

@@ -79,7 +79,8 @@ def check_touch(e: float, u_ln_e: float, alpha: float | None, u_ln_alpha: float 
 
 
 def classify_rows(s, e: Sequence[float], u_ln_e: Sequence[float], alpha: Sequence[float | None],
-                  u_ln_alpha: Sequence[float | None], corr: Sequence[float], top: int = 3) -> list[Recognition]:
+                  u_ln_alpha: Sequence[float | None], corr: Sequence[float], top: int = 3,
+                  stated: Sequence[bool] | None = None) -> list[Recognition]:
     """The :class:`Recognition` of each touch (checked by :func:`check_touch`) by the object set ``s``.
 
     Parameters
@@ -92,6 +93,9 @@ def classify_rows(s, e: Sequence[float], u_ln_e: Sequence[float], alpha: Sequenc
         Each touch's measured α (None: not measured), its u(ln α) and the ln e / ln α error correlation.
     top : int
         Number of candidates listed.
+    stated : sequence of bool, optional
+        Per touch, False where ``u_ln_e`` is a width the set fixed (``poor_fit_ln``: used as it is,
+        not shrunk, :meth:`ObjectSet.likelihood_u`); default every u a stated one.
 
     Returns
     -------
@@ -108,6 +112,8 @@ def classify_rows(s, e: Sequence[float], u_ln_e: Sequence[float], alpha: Sequenc
         kw = dict(ln_alpha=np.array([math.log(a) if h else math.nan for a, h in zip(alpha, has_a)]),
                   u_ln_alpha=np.array([ua if h else math.nan for ua, h in zip(u_ln_alpha, has_a)], float),
                   corr=np.array([c if h else 0.0 for c, h in zip(corr, has_a)], float))
+    if stated is not None and not all(stated):
+        kw["stated"] = np.array(stated, bool)
     q, hld, dof = s.log_terms(ln_e, u, **kw)
     t = s.temperature
     d2 = q / t

@@ -98,10 +98,13 @@ def recognition_fields(object_set: ObjectSet, estimate: Mapping, *, set_name: st
     out: dict = {"object_set": object_set.label if set_name is None else set_name, "object": None,
                  "object_posterior": None, "class": None, "class_posterior": None, "unknown_posterior": None,
                  "candidates": []}
-    if BROAD_FLAGS & set(estimate.get("flags") or ()):
+    broad = bool(BROAD_FLAGS & set(estimate.get("flags") or ()))
+    if broad:
         estimate = _broadened(estimate)
-    estimate = _from_poor_fit_chain(object_set.at_contact(contact_time_s), estimate)
-    r = object_set.classify_estimate(estimate, top=top, contact_time_s=contact_time_s)
+    named = _from_poor_fit_chain(object_set.at_contact(contact_time_s), estimate)
+    # A broadened u and a poor_fit chain's width are the rule's widths, not shrunk as a stated u would be.
+    r = object_set.classify_estimate(named, top=top, contact_time_s=contact_time_s,
+                                     stated=named is estimate and not broad)
     if r is None:
         return out
     out.update({"object": r.object, "object_posterior": float(r.object_posterior), "class": r.cls,

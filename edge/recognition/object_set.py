@@ -184,7 +184,8 @@ class ObjectSet:
         docstring); ε = 0 (default): the Gaussian alone.
     u_var_scale : float
         Scale k on the measurement's variance of ln e alone (module docstring); 1 (default): the
-        stated u.  ``poor_fit_ln`` is a stated u like any other and is scaled with it.
+        stated u.  ``poor_fit_ln`` is scaled with it as a stated u, but not shrunk by ``u_shrink``: it is
+        the set's fitted width, not a touch's noisy estimate of its own.
     u_shrink, u_typ_ln0, u_typ_ln1, u_typ_ln2 : float
         The likelihood of object j uses ``u_typ_j^(1-b) u^b`` for a touch stating u (:meth:`likelihood_u`):
         b ``u_shrink`` (1, default: the stated u), ``u_typ_j`` the u a touch of object j typically states,
@@ -262,18 +263,23 @@ class ObjectSet:
         x = np.asarray(ln_e, float) - math.log(BIAS_REF_E_W_s05_m2K)
         return np.exp(self.u_typ_ln0 + self.u_typ_ln1 * x + self.u_typ_ln2 * x ** 2)
 
-    def likelihood_u(self, u_ln_e):
+    def likelihood_u(self, u_ln_e, stated=True):
         """The u of ln e each object's likelihood uses for a touch stating ``u_ln_e``: ``u_typ^(1-b) u^b`` (shape ``(..., n)``).
 
         With ``u_shrink`` b < 1 the stated u is shrunk toward the u a touch of that object typically
         states: the stated u's touch-to-touch variation is partly noise (ISSUE #37, tactile as-built
         bench: within one wood the lowest-u third of touches scatters by 1.0-1.3 u, the highest third by
-        0.6-0.85 u at 1 s).  b = 1: the stated u, bit for bit.
+        0.6-0.85 u at 1 s).  b = 1: the stated u, bit for bit.  ``stated`` (bool, or one per touch):
+        False for a width the set itself fixed (``poor_fit_ln``), which is not a noisy estimate and is
+        used as it is.
         """
         u = np.asarray(u_ln_e, float)[..., None]
         if self.u_shrink == 1.0:
             return u
-        return self.u_typ ** (1.0 - self.u_shrink) * u ** self.u_shrink
+        shrunk = self.u_typ ** (1.0 - self.u_shrink) * u ** self.u_shrink
+        if stated is True:
+            return shrunk
+        return np.where(np.asarray(stated, bool)[..., None], shrunk, u)
 
     # -- construction --------------------------------------------------------------
     @classmethod
@@ -372,7 +378,8 @@ class ObjectSet:
         return f"ObjectSet({len(self)} objects from {self.label}, T={self.temperature:.3g}, z_crit={self.z_crit:.3g})"
 
     # -- likelihood ----------------------------------------------------------------
-    def log_terms(self, ln_e, u_ln_e, *, ln_alpha=None, u_ln_alpha=None, corr=None, extra_var_ln_e=0.0):
+    def log_terms(self, ln_e, u_ln_e, *, ln_alpha=None, u_ln_alpha=None, corr=None, extra_var_ln_e=0.0,
+                  stated=True):
         """Untempered terms of every object's log-likelihood, for one or many touches.
 
         Parameters
@@ -386,6 +393,9 @@ class ObjectSet:
         extra_var_ln_e : float
             Added to every object's (untempered) variance of ln e: the outlier component's
             ``outlier_ln² / T`` (:meth:`outlier_terms`).
+        stated : bool or array_like of bool
+            Whether ``u_ln_e`` is the touch's stated u (shrunk by :meth:`likelihood_u`) or a width the
+            set fixed (used as it is); one per touch or one for all.
 
         Returns
         -------
@@ -398,7 +408,7 @@ class ObjectSet:
             ``-0.5 q / T - half_logdet - dof' ln sqrt(2 pi T)`` (``dof'`` counting broad terms).
         """
         x = np.asarray(ln_e, float)[..., None]
-        u = self.likelihood_u(u_ln_e)
+        u = self.likelihood_u(u_ln_e, stated)
         var_e = self.u_var_scale * u ** 2 + self.spread ** 2 + self.calibration_ln ** 2
         if extra_var_ln_e:
             var_e = var_e + extra_var_ln_e
@@ -458,7 +468,7 @@ class ObjectSet:
 
     # -- recognition ---------------------------------------------------------------
     def classify(self, e: float, u_ln_e: float, *, alpha: float | None = None, u_ln_alpha: float | None = None,
-                 corr: float = 0.0, top: int = 3) -> Recognition:
+                 corr: float = 0.0, top: int = 3, stated: bool = True) -> Recognition:
         """Which object a touch with effusivity ``e`` (relative standard uncertainty ``u_ln_e``) was.
 
         ``alpha`` (with ``u_ln_alpha`` and ``corr``, the correlation of the ln e
@@ -466,11 +476,13 @@ class ObjectSet:
         small-heater probe's fit, :func:`measured_alpha`); do not pass the default
         method's prior-based α (a function of e: it adds nothing).  The batch of one of
         :meth:`classify_many` (:func:`edge.recognition.classify.classify_rows`): one definition.
+        ``stated`` False: ``u_ln_e`` is a width the set fixed (``poor_fit_ln``), not shrunk (:meth:`likelihood_u`).
         """
         check_touch(e, u_ln_e, alpha, u_ln_alpha, corr)
-        return classify_rows(self, [e], [u_ln_e], [alpha], [u_ln_alpha], [corr], top)[0]
+        return classify_rows(self, [e], [u_ln_e], [alpha], [u_ln_alpha], [corr], top, [stated])[0]
 
-    def classify_many(self, e, u_ln_e, *, alpha=None, u_ln_alpha=None, corr=0.0, top: int = 3) -> list[Recognition]:
+    def classify_many(self, e, u_ln_e, *, alpha=None, u_ln_alpha=None, corr=0.0, top: int = 3,
+                      stated=True) -> list[Recognition]:
         """:meth:`classify` of many touches at once, every number the per-touch one to the bit.
 
         Parameters
@@ -482,6 +494,8 @@ class ObjectSet:
             ``alpha`` marks a touch without α.
         top : int
             Number of candidates listed.
+        stated : bool or array_like of bool
+            As :meth:`classify`, per touch or for all.
 
         Returns
         -------
@@ -501,17 +515,18 @@ class ObjectSet:
                 check_touch(*touch)
             except ValueError as exc:
                 raise ValueError(f"touch {k}: {exc}") from None
-        return classify_rows(self, es, us, alphas, uas, rs, top) if es else []
+        st = np.broadcast_to(np.asarray(stated, bool), np.shape(np.atleast_1d(e_t))).tolist()
+        return classify_rows(self, es, us, alphas, uas, rs, top, st) if es else []
 
     def classify_estimate(self, estimate: Mapping, *, top: int = 3,
-                          contact_time_s: float | None = None) -> Recognition | None:
+                          contact_time_s: float | None = None, stated: bool = True) -> Recognition | None:
         """:meth:`classify` of an estimate's dict (``Estimate.to_dict()`` or the small heater's), None without e.
 
         e and its u (a missing u counts as 0: the objects' spreads still set
         the widths), and α where the probe measured it (:func:`measured_alpha`).
         One definition for every output (:func:`recognition_fields`) and the host.
         ``contact_time_s`` (the touch's heating time) picks the set's calibration at that contact
-        time (:meth:`at_contact`).
+        time (:meth:`at_contact`).  ``stated`` False: the estimate's u is a width the set fixed (:meth:`classify`).
         """
         e = estimate.get("effusivity_W_s05_m2K")
         if e is None or not (math.isfinite(float(e)) and float(e) > 0):
@@ -521,7 +536,7 @@ class ObjectSet:
         a = measured_alpha(estimate)
         kw = {} if a is None else {"alpha": a[0], "u_ln_alpha": a[1], "corr": a[2]}
         # A tiny floor: an object with zero spread and a zero uncertainty would divide by zero.
-        return self.at_contact(contact_time_s).classify(float(e), max(u_ln_e, 1e-9), top=top, **kw)
+        return self.at_contact(contact_time_s).classify(float(e), max(u_ln_e, 1e-9), top=top, stated=stated, **kw)
 
     # -- open-set design rates -----------------------------------------------------
     def acceptance_intervals(self, u_ln_e: float) -> np.ndarray:

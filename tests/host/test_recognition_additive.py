@@ -30,9 +30,14 @@ def _low_bin_gap_and_ece(s, x, u, ti):
     return low["confidence"] - low["accuracy"], rel["ece"]
 
 
+#: The fits' sizes (2000, 1500 and 2 x 800 touches; were 4000, 4000, 2 x 1500) hold every assertion on each seed
+#: 10-17: c 0.05, k 0.21-0.25, the low bin's gap 0.035-0.062 with k alone and |0.001-0.015| with c, ECE 0.06-0.21 x
+#: k alone's; no level: c = 0; by contact: 0.05 at 1 s and 0 at 2 s.
+
+
 def test_the_additive_term_is_found_and_calibrates_the_low_bin_where_k_alone_cannot():
     rng = np.random.default_rng(11)
-    x, u, ti = _synth(4000, rng)
+    x, u, ti = _synth(2000, rng)
     xe, ue, te = _synth(8000, rng)
     alone = fit_u_var_scale(OSET, x, u, ti)
     joint = fit_u_var_scale(OSET, x, u, ti, additive=True)
@@ -48,7 +53,7 @@ def test_the_additive_term_is_found_and_calibrates_the_low_bin_where_k_alone_can
 
 def test_without_a_level_the_term_does_not_earn_its_parameter():
     rng = np.random.default_rng(12)
-    x, u, ti = _synth(4000, rng, c=0.0)
+    x, u, ti = _synth(1500, rng, c=0.0)
     assert fit_u_var_scale(OSET, x, u, ti, additive=True)["calibration_ln"] == 0.0
 
 
@@ -56,7 +61,7 @@ def test_calibrate_by_contact_stores_the_term_and_the_rule_per_contact_time_and_
     rng = np.random.default_rng(13)
     xs, us, ts, cts = [], [], [], []
     for ct, c in ((1.0, C_TRUE), (2.0, 0.0)):
-        x, u, ti = _synth(1500, rng, c=c)
+        x, u, ti = _synth(800, rng, c=c)
         xs.append(x), us.append(u), ts.append(ti), cts.append(np.full(x.size, ct))
     x, u, ti, ct = (np.concatenate(a) for a in (xs, us, ts, cts))
     e = np.exp(x)

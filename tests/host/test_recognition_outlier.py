@@ -8,7 +8,9 @@ import pytest
 from edge.recognition import KnownObject, ObjectSet
 from host.recognition import Touches, calibrate, fit_outlier, fit_temperature, reliability
 
-#: slow: each test fits the mixture over thousands of drawn touches (0.7-1.1 s).
+#: slow: each test fits the mixture over the 25 (ε, σ_out) grid points, on hundreds of drawn touches (0.3-0.5 s).
+#: The sizes hold their margins on every seed 3-11 (fit set 700, no-outlier fit 600, calibrate 500): ε 0.05-0.1,
+#: T 0.92-1.09 against a Gaussian T 5.3-8.5, ECE 0.010-0.036 < 0.04 against 0.31-0.38; after < before on all.
 pytestmark = pytest.mark.slow
 
 OSET = ObjectSet([KnownObject(f"o{i}", "polymer", 300.0 * math.exp(0.25 * i)) for i in range(8)])
@@ -32,7 +34,7 @@ def _ece(s, x, u, ti):
 
 def test_with_ten_percent_outliers_the_mixture_is_calibrated_where_the_gaussian_is_not():
     rng = np.random.default_rng(3)
-    x, u, ti = _synth(1500, rng, 0.10)      # calibration split
+    x, u, ti = _synth(700, rng, 0.10)       # calibration split
     xe, ue, te = _synth(4000, rng, 0.10)    # evaluation split
     t_gauss = fit_temperature(OSET, x, u, ti)
     fo = fit_outlier(OSET, x, u, ti)
@@ -47,11 +49,11 @@ def test_with_ten_percent_outliers_the_mixture_is_calibrated_where_the_gaussian_
 
 def test_without_outliers_the_fit_keeps_the_gaussian_and_calibrate_stores_the_mixture():
     rng = np.random.default_rng(5)
-    x, u, ti = _synth(1500, rng, 0.0)
+    x, u, ti = _synth(600, rng, 0.0)    # no Gaussian-only draw of seeds 3-11 kept a mixture (at 600 or 1500)
     fo = fit_outlier(OSET, x, u, ti)
     assert fo["outlier_weight"] == 0.0 and fo["temperature"] == fit_temperature(OSET, x, u, ti)
     # calibrate(outlier=True) on touches with a tail: the set carries ε, σ_out and the mixture's T.
-    x, u, ti = _synth(800, rng, 0.1)
+    x, u, ti = _synth(500, rng, 0.1)
     sim = Touches(ti, np.array(["precision"] * ti.size), np.full(ti.size, 0.5), np.exp(OSET.ln_e[ti]), np.exp(x), u,
                   OSET.names)
     cal, rep = calibrate(OSET, "precision", sim=sim, outlier=True)

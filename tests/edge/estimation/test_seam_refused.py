@@ -49,10 +49,11 @@ def test_a_touch_made_during_the_record_that_the_chain_cannot_fit_gets_no_answer
                       object_set=ObjectSet.from_library(), object_set_name="library", thresholds=Config().measurement)
     from edge.estimation.record import TouchRecord
     from edge.physics.materials import load_materials
-    from firmware_sim.rigs.contact_record import ContactTouch, record_touch
+    from firmware_sim.rigs.contact_record import ContactTouch
+    from tests.support.records import recorded_touch
 
     touch = ContactTouch(load_materials().get("pmma").solid, 1e-5, 2.0, lead_s=1.0, heat_s=3.0)   # object 2 K off
-    r = record_touch(touch, seed=3)
+    r = recorded_touch(touch, seed=3)   # test_seam_refused's and test_poor_fit_seam's touch, once a session
     record = TouchRecord(probe="paper", t_s=r["t_s"], T_C=r["T_C"], q_W_m2=r["q_W_m2"], power_W=5.0,
                          heater_on_s=touch.heat_s, sample_rate_Hz=1.0 / float(r["t_s"][1] - r["t_s"][0]),
                          baseline_s=0.5, arm_s=touch.pre_s + touch.lead_s)

@@ -67,13 +67,16 @@ def _orders(errs):
     return np.log2(errs[:-1] / errs[1:])
 
 
-@pytest.mark.slow  # four grid refinements of three schemes
+@pytest.mark.slow  # grid refinements of three schemes
 def test_observed_convergence_orders():
     ref = simulate(GLASS, 1.0, 1.95, scheme="exact")
     paper, explicit, default = [], [], []
     for lev in range(4):
         dx = 0.42e-3 / (5 * 2 ** lev)  # exact halvings with the interface on a node
-        paper.append(rel_err(simulate(GLASS, 1.0, 1.95, scheme="paper", dx_m=dx).T_f_K, ref.T_f_K))
+        # The paper scheme is first order from the coarsest grid on (orders 1.02, 0.94): three levels show it;
+        # its fourth (a forward-Euler march of 23 400 steps, half this test's CPU) added a third, 1.02.
+        if lev < 3:
+            paper.append(rel_err(simulate(GLASS, 1.0, 1.95, scheme="paper", dx_m=dx).T_f_K, ref.T_f_K))
         explicit.append(rel_err(simulate(GLASS, 1.0, 1.95, scheme="explicit", dx_m=dx).T_f_K, ref.T_f_K))
     for lev in range(4):
         r = simulate(GLASS, 1.0, 1.95, scheme="default", n_probe=6 * 2 ** lev, growth=1.2 ** (1 / 2 ** lev))
@@ -125,13 +128,17 @@ def test_linearity_and_superposition():
         assert rel_err(r.T_f_K, acc) < 1e-6 if scheme != "paper" else 2e-3
 
 
-@pytest.mark.slow  # every scheme marched over a stepped schedule: seconds
+@pytest.mark.slow  # every scheme marched over a stepped schedule
 def test_schemes_agree_on_stepped_power():
+    # On a stainless steel (errors 3.4e-4 and 4.7e-3): aluminium's diffusivity held the paper's explicit march to
+    # 115 000 steps (0.45 CPU-s; errors 3.5e-4 and 2.3e-3), steel's to 9 200; glass's interface error
+    # (2.0e-2) is the paper scheme's first-order bias that test_paper_interface_costs_percent_level_bias shows.
+    steel = Solid(16.0, 7900.0, 500.0)
     times = np.array([0.0, 0.7, 1.3])
     levels = np.array([6e7, 1.3e8, 2e7])
-    ex = simulate(ALU, levels, 1.95, q_v_times_s=times, scheme="exact")
-    de = simulate(ALU, levels, 1.95, q_v_times_s=times)
-    pa = simulate(ALU, levels, 1.95, q_v_times_s=times, scheme="paper")
+    ex = simulate(steel, levels, 1.95, q_v_times_s=times, scheme="exact")
+    de = simulate(steel, levels, 1.95, q_v_times_s=times)
+    pa = simulate(steel, levels, 1.95, q_v_times_s=times, scheme="paper")
     assert rel_err(de.T_f_K, ex.T_f_K) < 1e-3
     assert rel_err(pa.T_f_K, ex.T_f_K) < 1e-2
 

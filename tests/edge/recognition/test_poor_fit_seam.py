@@ -12,10 +12,11 @@ def test_a_poor_fit_touch_is_named_from_the_chains_e_by_a_set_that_carries_poor_
     import edge.estimation.chain_estimate as chain_estimate
     from edge.estimation.record import TouchRecord
     from edge.physics.materials import load_materials
-    from firmware_sim.rigs.contact_record import ContactTouch, record_touch
+    from firmware_sim.rigs.contact_record import ContactTouch
+    from tests.support.records import recorded_touch
 
     touch = ContactTouch(load_materials().get("pmma").solid, 1e-5, 2.0, lead_s=1.0, heat_s=3.0)   # object 2 K off
-    r = record_touch(touch, seed=3)
+    r = recorded_touch(touch, seed=3)   # test_seam_refused's and test_poor_fit_seam's touch, once a session
     record = TouchRecord(probe="paper", t_s=r["t_s"], T_C=r["T_C"], q_W_m2=r["q_W_m2"], power_W=5.0,
                          heater_on_s=touch.heat_s, sample_rate_Hz=1.0 / float(r["t_s"][1] - r["t_s"][0]),
                          baseline_s=0.5, arm_s=touch.pre_s + touch.lead_s)

@@ -28,6 +28,8 @@ pytestmark = [pytest.mark.slow, pytest.mark.shares_memo("calibration of the as-b
 
 AS_BUILT = AsBuilt(sensing_thickness_m=0.424e-3, flux_sensitivity_V_per_W_m2=0.56e-6 * 1.04,
                    thermocouple_time_constant_s=0.06)
+#: test_calibrate.py's touches (its HEAT_s: why 4 s), simulated once per session (tests/support/records.py).
+HEAT_s = 4.0
 DEVICE = "tt-0123456789abcdef"
 
 
@@ -43,7 +45,7 @@ def records(tmp_path_factory):
     lib = load_materials()
     out = {}
     for i, (name, rc, off) in enumerate((("pmma", 0.0, -1.0), ("pyroceram", 1e-5, 1.0), ("aisi_304", 0.0, 1.0))):
-        r = recorded_touch(ContactTouch(lib.get(name).solid, rc, off, lead_s=1.0, heat_s=6.0), as_built=AS_BUILT,
+        r = recorded_touch(ContactTouch(lib.get(name).solid, rc, off, lead_s=1.0, heat_s=HEAT_s), as_built=AS_BUILT,
                          geometry=one_d_geometry(), seed=i)
         p = d / f"{name}.csv"
         write_series(p, r["t_s"], r["T_C"] + 273.15, r["q_W_m2"])
