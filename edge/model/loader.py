@@ -156,10 +156,12 @@ def load_bundle(
 #: SHA-256s pin (each load still reads and hashes every file against its manifest first), so a hit is what
 #: parsing and checking again would give; the arrays are read-only, so bundles may share them.  Only what
 #: passed is kept (a refusal is found again, in the same order); bounded because bundles come from uploads.
-#: The golden check runs at every load.
+#: The golden check runs at every load.  Four entries: the active bundle's two files and one other bundle's
+#: (an install's, a rollback's) -- on the device the active bundle's arrays are held anyway, the memo adds at
+#: most one more bundle's.
 _PARSED: dict[tuple, dict[str, np.ndarray]] = {}
 _DIMS: dict[tuple, Mapping[str, int]] = {}
-_KEEP_MAX = 8
+_KEEP_MAX = 4
 #: Stores load bundles from several threads (a daemon's boot, an upload's install).
 _KEEP_LOCK = threading.Lock()
 
