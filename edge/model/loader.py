@@ -10,6 +10,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import threading
 from collections.abc import Mapping
 from pathlib import Path
 from types import MappingProxyType
@@ -123,26 +124,55 @@ def load_bundle(
     for label in HASHED_FILES:
         data = read_regular_file(root / label, label, limits.max_npz_bytes)
         verify_file(data, label, manifest["files"][label])
-        parsed[label] = parse_npz(data, label, limits)
+        # The bytes are the ones the manifest's SHA-256 names: a kept parse of that hash is theirs (_PARSED).
+        key = (label, manifest["files"][label]["sha256"], len(data), limits)
+        hit = _PARSED.get(key)
+        if hit is None:
+            hit = _keep(_PARSED, key, parse_npz(data, label, limits))
+        parsed[label] = hit
     total = sum(a.nbytes for d in parsed.values() for a in d.values())
     if total > limits.max_total_array_bytes:
         raise SizeLimitError(f"bundle arrays total {total} bytes, above the limit of {limits.max_total_array_bytes}")
-    src: dict[str, str] = {}
-    dims = validate_arrays(
-        parsed[ARRAYS_FILE], schema.arrays, families=schema.families, where=ARRAYS_FILE, dim_sources=src
-    )
-    dims = validate_arrays(parsed[GOLDEN_FILE], schema.golden, dims=dims, where=GOLDEN_FILE, dim_sources=src)
-    bundle = Bundle(
-        root,
-        parsed[ARRAYS_FILE],
-        parsed[GOLDEN_FILE],
-        manifest,
-        hashlib.sha256(raw_manifest).hexdigest(),
-        dims,
-    )
+    # The manifest's bytes pin both files' hashes (just verified) and the schema version: the checks' outcome.
+    key = (raw_manifest, limits)
+    dims = _DIMS.get(key)
+    if dims is None:
+        src: dict[str, str] = {}
+        dims = validate_arrays(
+            parsed[ARRAYS_FILE], schema.arrays, families=schema.families, where=ARRAYS_FILE, dim_sources=src
+        )
+        dims = validate_arrays(parsed[GOLDEN_FILE], schema.golden, dims=dims, where=GOLDEN_FILE, dim_sources=src)
+        dims = _keep(_DIMS, key, MappingProxyType(dict(dims)))
+    sha = hashlib.sha256(raw_manifest).hexdigest()
+    bundle = Bundle(root, parsed[ARRAYS_FILE], parsed[GOLDEN_FILE], manifest, sha, dims)
     if golden_check is not None:
         _run_golden_check(bundle, golden_check, golden_rtol)
     return bundle
+
+
+#: Parsed arrays of a hashed file by (label, its verified SHA-256, size, limits), and a bundle's resolved dims by
+#: (manifest bytes, limits).  The daemon loads the same bundle at every start (and every store check and
+#: rollback): the npz parse and the schema checks were most of a load.  Both are pure functions of bytes the
+#: SHA-256s pin (each load still reads and hashes every file against its manifest first), so a hit is what
+#: parsing and checking again would give; the arrays are read-only, so bundles may share them.  Only what
+#: passed is kept (a refusal is found again, in the same order); bounded because bundles come from uploads.
+#: The golden check runs at every load.  Four entries: the active bundle's two files and one other bundle's
+#: (an install's, a rollback's) -- on the device the active bundle's arrays are held anyway, the memo adds at
+#: most one more bundle's.
+_PARSED: dict[tuple, dict[str, np.ndarray]] = {}
+_DIMS: dict[tuple, Mapping[str, int]] = {}
+_KEEP_MAX = 4
+#: Stores load bundles from several threads (a daemon's boot, an upload's install).
+_KEEP_LOCK = threading.Lock()
+
+
+def _keep(memo: dict, key: tuple, value: Any) -> Any:
+    """``memo[key] = value``, dropping the oldest entries beyond :data:`_KEEP_MAX`; returns ``value``."""
+    with _KEEP_LOCK:
+        memo[key] = value
+        while len(memo) > _KEEP_MAX:
+            del memo[next(iter(memo))]
+    return value
 
 
 def _run_golden_check(bundle: Bundle, check: GoldenCheck, rtol: float) -> None:

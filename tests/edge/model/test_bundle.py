@@ -546,3 +546,21 @@ def test_fuzzed_blob_truncation(good):
             B.parse_blob(blob[: cut % len(blob)])
 
     prop()
+
+
+def test_a_kept_parse_serves_only_bytes_that_verify(good, arrays):
+    """The loader keeps a verified file's parse (edge.model.loader._PARSED): a second load gives the same values,
+    read-only; a file changed in place after that load (same size) is still refused on its hash, and the kept
+    arrays are not handed out for it."""
+    first = B.load_bundle(good, golden_check=mlp_golden_check)
+    again = B.load_bundle(good, golden_check=mlp_golden_check)
+    assert again.sha256 == first.sha256 and dict(again.dims) == dict(first.dims)
+    for k, v in arrays.items():
+        np.testing.assert_array_equal(again.arrays[k], v)
+        assert not again.arrays[k].flags.writeable
+    path = good / "arrays.npz"
+    data = bytearray(path.read_bytes())
+    data[-30] ^= 0xFF
+    path.write_bytes(bytes(data))
+    with pytest.raises(B.HashMismatchError, match="arrays.npz"):
+        B.load_bundle(good, golden_check=mlp_golden_check)

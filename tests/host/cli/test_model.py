@@ -1,8 +1,6 @@
 """``thermotouch model``: the calculator's output and its errors."""
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -56,10 +54,6 @@ def test_bad_arguments_one_line_exit_2(capsys, argv, needle):
     assert len(err.strip().splitlines()) == 1 and needle in err
 
 
-def test_console_script_runs():
-    r = subprocess.run(
-        [sys.executable, "-m", "host.cli", "model", "--k", "1.097", "--rho", "2458.4", "--c", "809", "--json"],
-        capture_output=True, text=True, timeout=120,
-    )
-    assert r.returncode == 0, r.stderr
-    assert json.loads(r.stdout)["T_f_K"][-1] > 0.5
+# The console entry (``python -m host.cli model ... --json`` in a fresh process) is run by
+# tests/host/test_blas.py::test_the_console_entry_runs_and_limits_blas_threads, which checks its JSON and the
+# BLAS limit it sets in one process.

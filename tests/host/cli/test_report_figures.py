@@ -22,9 +22,11 @@ from host.lab_series import SeriesFileError, load_series
 pytestmark = pytest.mark.shares_import("matplotlib")
 
 SAMPLE = "Glass <B33>"
-N = 3
+#: Two touches: enough to show one figure per touch, in order, each with its own identification (one touch
+#: could not tell that from "the first touch only"), and a spread for the summary; a third added 0.45 CPU-s.
+N = 2
 #: The tests on the module's simulated series are slow (its N simulated touches, and their report drawing a
-#: figure per touch and a PDF: 1.5 s); the figure and PDF tests on hand-made input stay in the fast tier.
+#: figure per touch and a PDF: 1.2 s); the figure and PDF tests on hand-made input stay in the fast tier.
 ON_SIM_SERIES = pytest.mark.slow
 
 
@@ -76,7 +78,7 @@ def pdf_pages(raw: bytes) -> int:
 
 @pytest.fixture(scope="module")
 def sim_series(tmp_path_factory):
-    """A 3-touch series of glass on a simulated probe (each answered touch keeps its series and fit)."""
+    """An N-touch series of glass on a simulated probe (each answered touch keeps its series and fit)."""
     d = tmp_path_factory.mktemp("series")
     path = d / "s.json"
     assert main(["series", "--sim", "glass_15V", "--repeat", str(N), "--sample", SAMPLE, "--operator", "A. Smith",
@@ -128,7 +130,7 @@ def sim_report(sim_series):
 @ON_SIM_SERIES
 def test_a_report_from_a_simulated_series(sim_series, sim_report):
     """The report of a series a simulated probe measured (moved here from test_report.py: the module's series
-    and report serve it, instead of simulating and reporting another 3-touch series)."""
+    and report serve it, instead of simulating and reporting another series)."""
     assert sim_report["code"] == 0, sim_report["err"]
     html = sim_report["html"].read_text()
     doc = json.loads(sim_series.read_text())

@@ -3,7 +3,7 @@
 One simulated series (4 touches of glass_15V, the second made to miss the
 object with an injected ``no_contact`` window) is run once for the module;
 its printed lines, its file and its statistics are checked against a
-recomputation with the standard library and scipy.
+recomputation with the standard library alone (the chi-square tail in closed form).
 """
 
 from __future__ import annotations
@@ -23,9 +23,6 @@ from host.cli.main import main, version
 from host.lab_metadata import MAX_CHARS
 from host.lab_stats import TAIL, summarize
 from tests.support.cli import run, one_line_error
-
-# scipy.stats (0.8 s of CPU to import, as scikit-learn imports it too): one worker pays (tests/support/schedule.py).
-pytestmark = pytest.mark.shares_import("scipy.stats")
 
 SAMPLE = "Borofloat <B33> & co"
 N = 4
@@ -93,9 +90,32 @@ def test_a_touch_without_an_answer_is_counted_and_named(series_run, printed):
     assert f"touch 2/{N} (measurement {t2['measurement_id']}): no answer" in printed
 
 
-def test_the_statistics_agree_with_a_recomputation(series_run):
-    from scipy.stats import chi2  # 0.7 s to import: here, not at every worker's collection
+def _chi2_sf(c2: float, dof: int) -> float:
+    """P(chi2_dof >= c2) for an integer ``dof``, in closed form (an independent check of host.lab_stats, which
+    takes SciPy's): even dof, e^(-x/2) sum_{j<dof/2} (x/2)^j / j!; odd, erfc(sqrt(x/2)) plus
+    sqrt(2x/pi) e^(-x/2) sum_{j<(dof-1)/2} x^j / (1 3 5 ... (2j+1))."""
+    h = c2 / 2
+    if dof % 2 == 0:
+        term, total = 1.0, 0.0
+        for j in range(dof // 2):
+            total += term
+            term *= h / (j + 1)
+        return math.exp(-h) * total
+    term, total = 1.0, 0.0
+    for j in range((dof - 1) // 2):
+        total += term
+        term *= c2 / (2 * j + 3)
+    return math.erfc(math.sqrt(h)) + math.sqrt(2 * c2 / math.pi) * math.exp(-h) * total
 
+
+def test_the_closed_form_chi2_tail_has_its_known_values():
+    # The 95th percentiles of chi2 with 1, 2, 3 and 10 degrees of freedom (standard tables), and the exact forms.
+    for dof, q95 in ((1, 3.841458820694124), (2, 5.991464547107979), (3, 7.814727903251179), (10, 18.307038053275146)):
+        assert _chi2_sf(q95, dof) == pytest.approx(0.05, rel=1e-12)
+    assert _chi2_sf(3.0, 2) == math.exp(-1.5) and _chi2_sf(0.0, 5) == 1.0
+
+
+def test_the_statistics_agree_with_a_recomputation(series_run):
     doc = series_run.doc
     answers = [t["answer"] for t in doc["touches"] if t["answered"]]
     for key in ("effusivity_W_s05_m2K", "k_W_mK", "alpha_m2_s"):
@@ -109,10 +129,11 @@ def test_the_statistics_agree_with_a_recomputation(series_run):
         xw = sum(xi / ui**2 for xi, ui in zip(x, u)) / sum(1 / ui**2 for ui in u)
         c2 = sum(((xi - xw) / ui) ** 2 for xi, ui in zip(x, u))
         assert s["chi2"] == pytest.approx(c2, rel=1e-9) and s["dof"] == len(x) - 1
-        assert s["p_value"] == pytest.approx(chi2.sf(c2, len(x) - 1), rel=1e-9)
+        p_upper = _chi2_sf(c2, len(x) - 1)
+        assert s["p_value"] == pytest.approx(p_upper, rel=1e-9) and s["p_lower"] == pytest.approx(1 - p_upper, abs=1e-12)
         rms = math.sqrt(statistics.fmean(ui**2 for ui in u))
         assert s["sd_over_u_rms"] == pytest.approx(sd / rms, rel=1e-12)
-        lo, hi = chi2.sf(c2, len(x) - 1) < TAIL, chi2.cdf(c2, len(x) - 1) < TAIL
+        lo, hi = p_upper < TAIL, 1 - p_upper < TAIL
         assert s["verdict"] == ("spread_exceeds_u" if lo else "spread_below_u" if hi else "agrees")
     e = doc["summary"]["quantities"]["effusivity_W_s05_m2K"]
     assert 1000 < e["mean"] < 2200  # glass: the right decade, not a unit slip
