@@ -64,11 +64,7 @@ _BDF2_C = (1.0 - _GAMMA) ** 2 / (_GAMMA * (2.0 - _GAMMA))
 #: Factors shared by every solver of the same matrix (worlds rebuilt for the same probe, scene and
 #: step: a session's touches, a simulator per measurement), least recently used dropped first.
 _FACTOR_CACHE: OrderedDict[bytes, BlockTridiagonal] = OrderedDict()
-# ~60 factors of 6.6 MB (the paper probe's 121 x 75 grid), ~40 of the small-heater probe's: a test process
-# meets each configuration's five (the main step, four start-up sub-steps) again modules later, and at
-# 128 MB it factored 81 of 370 twice (tests/firmware_sim + round trip, demo, calibrate: 0.36 CPU-s more;
-# 54 at 384 MB, 22 of them the cache tests' own cold starts).
-_FACTOR_CACHE_BYTES = 384 * 2**20
+_FACTOR_CACHE_BYTES = 128 * 2**20  # ~20 factors of 6.6 MB (the paper probe's 121 x 75 grid), 13 of the small-heater probe's
 
 
 def clear_factor_cache() -> None:
