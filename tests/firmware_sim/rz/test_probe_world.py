@@ -291,9 +291,10 @@ def test_energy_ledger_closes_across_touches_lifts_and_gaps():
     sc = scene(T_obj=22.0, touch=(1.0, 1.5), rc=2e-4)
     clk = VirtualClock()
     drive = ScheduleDrive([0.2, 0.6, 1.5, 2.0, 4.2, 5.2], [1.0, 0.0, 0.5, 0.0, 1.0, 0.0])
-    # 40-ms steps: the ledger closes to round-off at any step (each step books the scheme's own
-    # quadrature of the heat in and lost), so the suite's 20 ms would only double the march.
-    w = FaithfulWorld(sc, clk, drive, dt_s=0.04)
+    # 80-ms steps: the ledger closes to round-off at any step (each step books the scheme's own
+    # quadrature of the heat in and lost, and steps end at every drive, touch and fault switch), so the
+    # suite's 20 ms would only quadruple the march.
+    w = FaithfulWorld(sc, clk, drive, dt_s=0.08)
     w.add_touch(4.0, 2.0, contact_resistance_m2K_W=1e-3, object_temperature_C=28.0)
     w.add_fault(Fault("no_contact", 4.5, 4.7, {}))
     clk.advance(8.0)
