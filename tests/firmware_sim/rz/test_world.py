@@ -143,12 +143,14 @@ def test_observed_order_in_space():
 @pytest.mark.parametrize("scheme, lo, hi", [("be", 0.9, 1.1), ("cn", 1.9, 2.1), ("trbdf2", 1.9, 2.1)])
 def test_observed_order_in_time(scheme, lo, hi):
     # Contact transient (25 on 22) plus 5 W from t = 0: both the jump at the interface and the
-    # heater step are started from rest, the hard case for the order of CN.
+    # heater step are started from rest, the hard case for the order of CN.  Read at 1 s (25-100 steps): the
+    # orders there are be 0.95-1.02, cn 1.93-2.01, trbdf2 2.004-2.007 (at 2 s: 1.00-1.02, 2.00-2.03, 2.005), in
+    # their bands either way, for half the steps; the jump's start-up is if anything a larger share of 1 s.
     g = probe_grid(GLASS, contact_resistance_m2K_W=1e-4, mesh=Mesh(growth=1.3))
     vals = []
     for dt in (0.04, 0.02, 0.01):
         s = Solver(g, dt, scheme)
-        rec = s.run(s.initial_field(25.0, 22.0), int(round(2.0 / dt)), s.heater_source_W(), 5.0)
+        rec = s.run(s.initial_field(25.0, 22.0), int(round(1.0 / dt)), s.heater_source_W(), 5.0)
         vals.append((rec.T_tc_K[-1], rec.q_sensor_W_m2[-1], rec.q_face_W_m2[-1]))
     vals = np.array(vals)
     for i in range(3):
@@ -205,14 +207,16 @@ def test_contact_transient(solid):
     T_p, T_o = 25.0, 22.0
     dt = 0.002
     s = Solver(probe_grid(solid), dt)
-    rec = s.free_response(100, T_p, T_o)
+    # 50 steps: the checks below run over 20-100 ms (41 values), where both sides are as semi-infinite as
+    # over the 20-200 ms of 100 steps; the first steps' damping, the contact value and the 1-D flux are the same.
+    rec = s.free_response(50, T_p, T_o)
     e_p, e_o = PROBE_MATERIAL.effusivity_W_s05_m2K, solid.effusivity_W_s05_m2K
     T_c = (e_p * T_p + e_o * T_o) / (e_p + e_o)
     q = rec.q_face_W_m2[1:]
     assert np.all(q > 0)
     assert np.all(np.diff(q[9:]) < 0)  # decaying once the first steps have damped the jump
     assert np.all((rec.T_tc_K[1:] > T_o) & (rec.T_tc_K[1:] < T_p))
-    late = rec.t_s >= 10 * dt  # 20 ms .. 0.2 s: both sides still look semi-infinite
+    late = rec.t_s >= 10 * dt  # 20 ms .. 0.1 s: both sides look semi-infinite
     assert np.max(np.abs(rec.T_tc_K[late] - T_c)) < 0.01 * (T_p - T_o)
     q_1d = (T_p - T_o) * e_p * e_o / (e_p + e_o) / np.sqrt(np.pi * rec.t_s[late])
     assert np.max(np.abs(rec.q_face_W_m2[late] / q_1d - 1)) < 0.01
@@ -228,7 +232,7 @@ def test_superposition_equals_direct_run():
     g = probe_grid(PMMA, contact_resistance_m2K_W=1e-4, top=Boundary(5.0, 21.0), side=Boundary(5.0, 21.0),
                    mesh=Mesh(growth=1.3))
     s = Solver(g, 0.02)
-    n = 100
+    n = 50   # linearity is exact at any length: 50 steps hold 5 switchings of the PWM
     power = np.where((np.arange(n) // 10) % 2 == 0, 4.0, 1.0)  # a slow PWM
     direct = s.run(s.initial_field(25.0, 22.0), n, s.heater_source_W(), power)
     sup = Solver.superpose(s.free_response(n, 25.0, 22.0), s.step_response(n), power)
