@@ -22,6 +22,7 @@ def device_world_step(faithful_world_test_step):
     with world_step(DEVICE_DT_s):
         yield
 
+
 KITCHEN = "name,class,k_W_mK,rho_kg_m3,c_J_kgK,e_W_s05_m2K\nwindow,glass,1.1,2450,810,\nlid,polymer,0.19,1180,1430,\n" \
           "pan,alloy,,,,8200\n"
 
