@@ -27,6 +27,17 @@ def _needs_matplotlib():
     pytest.importorskip("matplotlib")
 
 
+def _content_only(fig: TouchFigure, monkeypatch) -> TouchFigure:
+    """``fig`` whose draws set its artists and write an empty file instead of rendering the PNG.
+
+    These tests read the figure's artists (data, labels, limits), never its pixels: rendering is
+    tests/host/test_plots.py's and the report tests' (PNG written, same size in and out of process), and
+    the calibrated chain's figure below is rendered once.  A render is ~0.1 CPU-s a draw here.
+    """
+    monkeypatch.setattr(fig.fig, "savefig", lambda *args, **kwargs: None)
+    return fig
+
+
 IDENT = {"measurement_id": 17, "started_utc": "2026-11-27T12:34:56.789+00:00", "power_W": 4.5,
          "contact_time_s": 2.0, "model_sha256": "8e9c1c83d364" + "0" * 52, "calibration_sha256": None}
 
@@ -48,9 +59,9 @@ def _method_touch(step_K: float = 0.0):
 
 
 @slow
-def test_the_figure_shows_data_fit_band_residuals_phases_and_the_touch_identity(tmp_path):
+def test_the_figure_shows_data_fit_band_residuals_phases_and_the_touch_identity(tmp_path, monkeypatch):
     series, result, fit = _method_touch()
-    with TouchFigure() as fig:
+    with _content_only(TouchFigure(), monkeypatch) as fig:
         fig.draw(tmp_path / "a.png", series, result, fit, "glass sample")
         title = fig._title.get_text()
         assert title.splitlines()[0] == ("measurement 17, 2026-11-27 12:34:56 UTC, 4.5 W, 2 s, model 8e9c1c83d364, "
@@ -82,21 +93,21 @@ def test_the_figure_shows_data_fit_band_residuals_phases_and_the_touch_identity(
 
 
 @slow
-def test_on_quantised_data_the_fit_is_shown_against_the_samples_it_fitted(tmp_path):
+def test_on_quantised_data_the_fit_is_shown_against_the_samples_it_fitted(tmp_path, monkeypatch):
     step = 0.0625   # the reference board's converter step
     series, result, fit = _method_touch(step)
     d = touch_plot_data(series, result, fit)
     r = d["residual"]["r_K"]
     # The curve runs through the steps: every residual within half a step, none systematically off.
     assert np.all(np.abs(r) <= step / 2 + 1e-12) and abs(float(np.mean(r))) < step / 4
-    with TouchFigure() as fig:
+    with _content_only(TouchFigure(), monkeypatch) as fig:
         fig.draw(tmp_path / "q.png", series, result, fit)
         lo, hi = fig.ax_r.get_ylim()
         assert hi - lo < 4 * step      # the residual axis scales to the residuals, not to the signal
 
 
 @slow
-def test_a_calibrated_chain_answer_is_drawn_with_the_chains_own_curve(tmp_path):
+def test_a_calibrated_chain_answer_is_drawn_with_the_chains_own_curve(tmp_path, monkeypatch):
     from edge.estimation.chain_estimate import estimate_from_contact
     from edge.physics.materials import load_materials
     from firmware_sim.rigs.contact_record import ContactTouch, record_touch
@@ -127,8 +138,9 @@ def test_a_calibrated_chain_answer_is_drawn_with_the_chains_own_curve(tmp_path):
         t_c = d["pre_contact"][1]
         assert t_c == pytest.approx(chain["contact_t_s"], abs=0.051)
         assert d["window"][0] == pytest.approx(t_c + 0.3, abs=0.051)
+        assert (tmp_path / "c.png").read_bytes()[:4] == b"\x89PNG"   # a chain's figure renders
         # Without the device's calibration the plot says what it lacks instead of a wrong curve.
-        fig.draw(tmp_path / "d.png", series, result, None)
+        _content_only(fig, monkeypatch).draw(tmp_path / "d.png", series, result, None)
         assert fig.data["curve"] is None and "needs the device's calibration" in fig._note.get_text()
 
 

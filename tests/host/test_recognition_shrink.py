@@ -88,13 +88,19 @@ def test_the_shrink_round_trips_through_the_csv_per_contact_time_and_bad_values_
         assert len(exc.value.issues) == 1 and exc.value.issues[0].line == 1 and col in exc.value.issues[0].column
 
 
-def test_calibrate_stores_the_shrink_and_a_poor_fit_width_the_device_shrinks_back_to_the_chains_scatter():
-    rng = np.random.default_rng(35)
-    x, u, ti = _synth(3000, rng)
+def _with_poor_fits(n, seed):
+    """:func:`_synth` touches, a tenth of them poor_fit chains scattering by 0.3 about their object."""
+    rng = np.random.default_rng(seed)
+    x, u, ti = _synth(n, rng)
     poor = rng.random(ti.size) < 0.1
     x = np.where(poor, OSET.ln_e[ti] + rng.normal(0.0, 0.3, ti.size), x)
     sim = Touches(ti, np.array(["precision"] * ti.size), np.full(ti.size, 1.0), np.exp(OSET.ln_e[ti]), np.exp(x),
                   np.where(poor, np.nan, u), OSET.names, poor_fit=poor)
+    return sim, x, poor
+
+
+def test_calibrate_stores_the_shrink_and_a_poor_fit_width_the_device_shrinks_back_to_the_chains_scatter():
+    sim, x, poor = _with_poor_fits(3000, 35)
     cal, rep = calibrate(OSET, "precision", sim=sim, bias=True, spread_fixed=True, shrink=True)
     assert cal.u_shrink == rep["u_shrink"] < 1.0 and cal.u_typ_ln2 == rep["u_typ_ln2"]
     # The width the device names a poor_fit touch with, k w² (the set's own width: not shrunk as a stated u),
@@ -117,12 +123,7 @@ def test_calibrate_stores_the_shrink_and_a_poor_fit_width_the_device_shrinks_bac
 def test_a_wide_poor_fit_scatter_at_a_small_shrink_power_is_stored_not_refused():
     # Seeds 32-41 at 1500 touches put b near 0.25; the old inversion of the shrink made poor_fit_ln 3.7-7.2, over
     # its bound 3, and calibrate raised SchemaError.  The width is the scatter now, whatever b is.
-    rng = np.random.default_rng(35)
-    x, u, ti = _synth(1500, rng)
-    poor = rng.random(ti.size) < 0.1
-    x = np.where(poor, OSET.ln_e[ti] + rng.normal(0.0, 0.3, ti.size), x)
-    sim = Touches(ti, np.array(["precision"] * ti.size), np.full(ti.size, 1.0), np.exp(OSET.ln_e[ti]), np.exp(x),
-                  np.where(poor, np.nan, u), OSET.names, poor_fit=poor)
+    sim, _, _ = _with_poor_fits(1500, 35)
     cal, rep = calibrate(OSET, "precision", sim=sim, bias=True, spread_fixed=True, shrink=True)
     assert cal.u_shrink < 0.5 and 0.1 < cal.poor_fit_ln < 0.6
     assert ObjectSet.from_csv_text(cal.to_csv_text()).poor_fit_ln == cal.poor_fit_ln

@@ -97,7 +97,7 @@ def _assert_same_answer(capsys, device: dict, path: Path, *extra) -> None:
         assert u is not None and offline["object_posterior"] == device["object_posterior"]
 
 
-def _assert_the_daemon_ran_unchanged_on_the_faithful_world(capsys, port: str, path: Path, daemon, sim) -> None:
+def _assert_the_daemon_ran_unchanged_on_the_faithful_world(capsys, port: str, touch, daemon, sim) -> None:
     """The unchanged daemon on a faithful or small-heater scene: a record, one safe heating, the as-built film's energy.
 
     (Moved here from tests/firmware_sim/test_faithful_scenes.py, which touched glass_15V_faithful and
@@ -111,7 +111,7 @@ def _assert_the_daemon_ran_unchanged_on_the_faithful_world(capsys, port: str, pa
     assert rec["status"] == "ok" and rec["measurement_id"] == 1, rec
     if sim.scene.name in ("glass_15V_faithful", "pmma_15V_small"):   # (an alu touch on the small heater may refuse)
         assert rec["result"]["effusivity_W_s05_m2K"] > 0
-    t = read_touch(path).t_s
+    t = touch.t_s
     assert t.size > 10 and t.min() < 0 < t.max()   # baseline before heater-on, then the heating
     # One heating, contact_lead_s after the touch began, as long as configured, and safe.
     (a, b), = sim.heater_intervals()
@@ -133,9 +133,10 @@ def test_exported_touch_re_estimated_gives_the_devices_answer(capsys, tmp_path, 
     workdir = tmp_path / "probe"
     with simulated_probe(scene, workdir) as (port, daemon, sim):
         plain = _measure_and_export(capsys, port, tmp_path / "plain.csv")
-        _assert_the_daemon_ran_unchanged_on_the_faithful_world(capsys, port, tmp_path / "plain.csv", daemon, sim)
+        exported = read_touch(tmp_path / "plain.csv")   # (read once: the daemon's check and the calibration's probe)
+        _assert_the_daemon_ran_unchanged_on_the_faithful_world(capsys, port, exported, daemon, sim)
         cal = tmp_path / "cal.json"
-        cal.write_text(sample_calibration(probe=read_touch(tmp_path / "plain.csv").probe).to_json())
+        cal.write_text(sample_calibration(probe=exported.probe).to_json())
         code, _, err = run(capsys, "calibrate", "--port", port, "--install", cal)
         assert code == 0, err
     # The installed calibration stays in the probe's directory: the next session's touch is calibrated.
