@@ -16,6 +16,7 @@ import os
 import select
 import shutil
 import signal
+import stat
 import tempfile
 import time
 import traceback
@@ -339,12 +340,65 @@ def _run_child(op: Operation, point_dir: Path, n: int | None, server: Any = None
     return run.finish()
 
 
+#: Each template's directories and files as read once: (directories top-down, files), see :func:`_snapshot`.
+#: Keyed by the template's path (each a fresh ``mkdtemp``, complete before its operation runs); this process only.
+_TEMPLATES: dict[Path, tuple[list, list] | None] = {}
+
+
+def _snapshot(template: Path) -> tuple[list, list] | None:
+    """The template's directories (relative path, mode, atime, mtime) top-down and its regular files (relative
+    path, bytes, mode, atime, mtime); None if it holds anything else (a link), which :func:`shutil.copytree`
+    then copies."""
+    dirs, files = [], []
+    for dirpath, dirnames, filenames in os.walk(template):
+        st = os.stat(dirpath)
+        dirs.append((os.path.relpath(dirpath, template), st.st_mode, st.st_atime_ns, st.st_mtime_ns))
+        for name in dirnames + filenames:
+            path = os.path.join(dirpath, name)
+            st = os.lstat(path)
+            if name in filenames:
+                if not stat.S_ISREG(st.st_mode):
+                    return None
+                with open(path, "rb") as fh:
+                    files.append((os.path.relpath(path, template), fh.read(), st.st_mode, st.st_atime_ns,
+                                  st.st_mtime_ns))
+            elif stat.S_ISLNK(st.st_mode):
+                return None
+    return dirs, files
+
+
+def _copy_template(op: Operation, point: Path) -> None:
+    """What ``shutil.copytree(op.template, point)`` makes (the bytes, modes and times of every file and
+    directory), from the template read once: a point's copy was ~1 ms of copytree's per-file stat, sendfile,
+    copystat and xattr calls, ~350 times a run."""
+    if op.template not in _TEMPLATES:
+        _TEMPLATES[op.template] = _snapshot(op.template)
+    snap = _TEMPLATES[op.template]
+    if snap is None:
+        shutil.copytree(op.template, point)
+        return
+    dirs, files = snap
+    point.parent.mkdir(parents=True, exist_ok=True)
+    for rel, *_ in dirs:
+        os.mkdir(os.path.join(point, rel) if rel != "." else point)
+    for rel, data, mode, atime_ns, mtime_ns in files:
+        path = os.path.join(point, rel)
+        with open(path, "xb") as fh:
+            fh.write(data)
+        os.chmod(path, stat.S_IMODE(mode))
+        os.utime(path, ns=(atime_ns, mtime_ns))
+    for rel, mode, atime_ns, mtime_ns in reversed(dirs):  # innermost first, as copytree's copystat after the contents
+        path = os.path.join(point, rel) if rel != "." else str(point)
+        os.chmod(path, stat.S_IMODE(mode))
+        os.utime(path, ns=(atime_ns, mtime_ns))
+
+
 def _fresh_point(op: Operation, root: Path, tag: str) -> Path:
     # The same base name at every point: step labels name it (``mkdir state``), and the dry run's must match.
     point = root / f"{op.name}-{tag}" / "state"
     if point.parent.exists():
         shutil.rmtree(point.parent)
-    shutil.copytree(op.template, point)
+    _copy_template(op, point)
     return point
 
 
