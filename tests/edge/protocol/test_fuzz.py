@@ -14,6 +14,7 @@ from edge.protocol.commands import Command
 from edge.protocol.frame import Frame, FrameDecoder, encode_frame, max_encoded_size
 from edge.protocol.errors import ProtocolError
 from edge.protocol.messages import decode_reply, decode_request
+from tests.support.fuzz_text import text as fuzz_text
 
 pytestmark = pytest.mark.shares_import("hypothesis")
 
@@ -157,7 +158,7 @@ def test_decode_request_on_json_like_text():
     from hypothesis import given, strategies as st
 
     @_fuzz()
-    @given(text=st.text(max_size=60), rid=st.integers(1, 1000),
+    @given(text=fuzz_text(max_size=60), rid=st.integers(1, 1000),
            command=st.sampled_from([c for c in Command if c != Command.MODEL_CHUNK]))
     def prop(text, rid, command):
         for payload in (text, '{"' + text + '":1}', '{"limit":' + text + "}"):

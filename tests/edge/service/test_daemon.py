@@ -16,6 +16,7 @@ from tests.support.bundles import (
     write_raw_bundle,
 )
 from tests.support.daemons import FakeEstimator, assert_heater_safe, sim_config, sim_daemon
+from tests.support.fuzz_text import text as fuzz_text
 from edge.estimation.estimate import mlp_golden_check
 from edge.model import bundle as B
 from edge.service.config import Config
@@ -354,7 +355,7 @@ def test_fuzzed_requests_get_a_reply_or_a_clean_error(tmp_path):
     d = Daemon(sim_config(tmp_path, measurement={"cooldown_s": 0.0, "baseline_s": 0.2}), rig.board,
                estimator=FakeEstimator())
     scalars = st.one_of(st.none(), st.booleans(), st.integers(-2**40, 2**40),
-                        st.floats(allow_nan=False, allow_infinity=False), st.text(max_size=20))
+                        st.floats(allow_nan=False, allow_infinity=False), fuzz_text(max_size=20))
     keys = st.sampled_from(["offset", "limit", "keys", "values", "measurement_id", "power_W", "voltage_V",
                             "contact_time_s", "echo", "size", "sha256", "version", "heater.power_W",
                             "measurement.sample_rate_Hz", "x"])
