@@ -14,12 +14,12 @@ import gc
 import importlib
 import math
 import os
-import shutil
 import sys
 import tempfile
 from pathlib import Path
 
 from host.blas import limit_blas_threads, set_blas_env
+from tests.support.scratch import MEMORY_ROOT, NEED_BYTES, memory_scratch_root
 
 # The suite starts dozens of daemon and CLI processes. Where PYTHONDONTWRITEBYTECODE is set (some
 # sandboxes and CI images set it) each of them would compile edge/ from source again, and pytest
@@ -38,7 +38,7 @@ set_blas_env()  # before NumPy loads OpenBLAS, and for the suite's child process
 gc.set_threshold(20_000, 20, 20)
 
 
-def _scratch_in_memory(root: Path = Path("/dev/shm"), need_bytes: int = 2 * 2**30) -> str | None:
+def _scratch_in_memory(root: Path = MEMORY_ROOT, need_bytes: int = NEED_BYTES) -> str | None:
     """Put the suite's ``tmp_path`` directories on a RAM file system when the machine has one.
 
     The suite writes ~5 400 scratch files (44 MB: histories, bundles, calibrations, the kill-point
@@ -51,13 +51,7 @@ def _scratch_in_memory(root: Path = Path("/dev/shm"), need_bytes: int = 2 * 2**3
     a RAM file system with less than ``need_bytes`` free is left alone (a container's 64-MB
     /dev/shm). Returns the root chosen, or None.
     """
-    if os.environ.get("PYTEST_DEBUG_TEMPROOT"):
-        return None
-    try:
-        free = shutil.disk_usage(root).free
-    except OSError:
-        return None
-    if free < need_bytes or not os.access(root, os.W_OK):
+    if os.environ.get("PYTEST_DEBUG_TEMPROOT") or memory_scratch_root(root, need_bytes) is None:
         return None
     os.environ["PYTEST_DEBUG_TEMPROOT"] = str(root)  # read when the first tmp_path is made; workers inherit it
     # What the code under test makes with ``tempfile`` (each simulated device's PWM sysfs tree, the
