@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import json
 import math
 import threading
 import time
@@ -73,6 +74,22 @@ def assert_heater_safe(parts, max_on_time_s: float) -> dict:
     assert inv["off_now"], f"heater still on: {inv}"
     assert inv["longest_on_s"] <= max_on_time_s + 1e-9, f"heater on too long: {inv}"
     return inv
+
+
+def assert_stopped_by_signal(returncode: int, out: str, err: str, history_db: Path, max_on_time_s: float) -> None:
+    """A daemon process signalled mid-heating (tests/support/daemon_proc.py's report on its last line): it exited
+    0, the heater went off once within its limit, the history closed holding the one record, aborted as stopped."""
+    from edge.storage.history import History  # noqa: PLC0415
+
+    assert returncode == 0, err
+    report = json.loads(out.strip().splitlines()[-1])
+    inv = report["invariant"]
+    assert inv["off_now"] and inv["longest_on_s"] <= max_on_time_s and inv["n_intervals"] == 1
+    assert report["history_closed"]
+    (rec,) = report["records"]
+    assert rec["status"] == "aborted" and rec["reason"] == "stopped"
+    with History(history_db) as h:
+        assert h.count() == 1
 
 
 def make_sequence(rig=None, *, cfg: Config | None = None, estimator=None, sensors=None, **rig_kw):

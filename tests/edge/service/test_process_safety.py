@@ -26,9 +26,9 @@ from edge.protocol.commands import Command
 from edge.protocol.messages import encode_request
 from edge.service.config import Config
 from edge.service.main import install_signal_handlers
-from edge.storage.history import History
 from firmware_sim.gpiod.state import read_line
 from tests.support.daemon_proc import ForkServer
+from tests.support.daemons import assert_stopped_by_signal
 from tests.support.killpoints import work_root
 from tests.support.waiting import wait_until
 
@@ -126,15 +126,7 @@ def test_sigint_mid_heating_is_an_asked_for_stop_that_keeps_the_record(forks, st
         host.close()
     finally:
         _kill(forks, proc)
-    assert proc.returncode == 0, err
-    report = json.loads(out.strip().splitlines()[-1])
-    inv = report["invariant"]
-    assert inv["off_now"] and inv["longest_on_s"] <= MAX_ON and inv["n_intervals"] == 1
-    assert report["history_closed"]
-    (rec,) = report["records"]
-    assert rec["status"] == "aborted" and rec["reason"] == "stopped"
-    with History(state_dir / "history.db") as h:
-        assert h.count() == 1
+    assert_stopped_by_signal(proc.returncode, out, err, state_dir / "history.db", MAX_ON)
 
 
 def test_sigkill_mid_heating_the_released_enable_line_falls_inactive(forks, state_dir):
@@ -162,7 +154,6 @@ sys.path.insert(0, {root!r})
 from pathlib import Path
 from edge.hw.drivers.heater import Heater
 from edge.service.main import install_signal_handlers
-from edge.storage.history import History
 from firmware_sim.rigs.daemon_rig import make_rig
 tmp = Path({tmp!r})
 rig = make_rig(gpio_state_dir=tmp / "gpio", pwm_root=tmp / "pwm")

@@ -4,7 +4,6 @@ Each test reads the heater invariant (on-time <= limit, off at the end) from
 the simulated GPIO/PWM history, not from the driver's bookkeeping.
 """
 
-import json
 import signal
 import subprocess
 import sys
@@ -20,13 +19,13 @@ from tests.support.daemons import (
     FakeEstimator,
     HookedSensors,
     assert_heater_safe,
+    assert_stopped_by_signal,
     make_sequence,
     sim_config,
 )
 from edge.service.config import Config
 from edge.service.daemon import Daemon
 from edge.service.main import install_signal_handlers
-from edge.storage.history import History
 from edge.protocol.commands import Command
 from edge.protocol.errors import CommandError, ErrorCode
 from edge.protocol.messages import encode_request
@@ -303,15 +302,7 @@ def test_real_signal_to_a_daemon_process_mid_heating(tmp_path, sig):
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    assert proc.returncode == 0, err
-    report = json.loads(out.strip().splitlines()[-1])
-    inv = report["invariant"]
-    assert inv["off_now"] and inv["longest_on_s"] <= MAX_ON and inv["n_intervals"] == 1
-    assert report["history_closed"]
-    (rec,) = report["records"]
-    assert rec["status"] == "aborted" and rec["reason"] == "stopped"
-    with History(tmp_path / "history.db") as h:
-        assert h.count() == 1
+    assert_stopped_by_signal(proc.returncode, out, err, tmp_path / "history.db", MAX_ON)
 
 
 def test_both_heater_channels_failing_still_stores_the_record(tmp_path):
