@@ -17,6 +17,11 @@ from edge.recognition import BROAD_LN, measured_alpha
 from edge.recognition.fields import BROAD_FLAGS, POOR_FIT_FLAG
 
 
+def widened(row: dict) -> bool:
+    """Whether a row's u(ln e) was widened to BROAD_LN (a BROAD_FLAGS answer): the rule's width, not the stated u."""
+    return row.get("u_ln_e_stated") is not None and row["u_ln_e"] != row["u_ln_e_stated"]
+
+
 def _row(r, m, ct, ctx) -> dict:
     """One touch's estimate at contact time ``ct`` through the one estimate path, as the device names it."""
     from edge.estimation.seam import estimate_touch

@@ -132,8 +132,7 @@ def report(answers_path: str, contacts: Sequence[float]) -> list[str]:
         rows = [r for r in head["rows"] if r["contact_s"] == ct]
         t = B.touches_of(rows, names, ct)
         fold = np.array([fold_of[r["probe"]] for r in rows])
-        broad = np.array([r.get("u_ln_e_stated") is not None and r["u_ln_e"] != r["u_ln_e_stated"] for r in rows])
-        use = np.array([n in oset for n in np.array(names)[t.obj]]) & t.ok & ~t.poor_fit & ~broad
+        use = np.array([n in oset for n in np.array(names)[t.obj]]) & t.ok & ~t.poor_fit & ~t.broad
         sets = _fold_sets(oset, R["fits"])
         ti = np.array([oset.names.index(names[i]) if names[i] in oset else -1 for i in t.obj])
         disp: dict = {}

@@ -59,7 +59,7 @@ import numpy as np
 from _common import ROOT, write_block, write_json
 from _ece_growth import growth, growth_lines
 import _asbuilt_grow as G
-from _asbuilt_estimate import estimate_head
+from _asbuilt_estimate import estimate_head, widened
 from _confidence_breakdown import breakdown, breakdown_lines
 import _asbuilt_touches as A
 from _objects import HELD_OUT_FAR, IN_SET
@@ -141,19 +141,19 @@ def touches_of(rows, names, ct=None) -> Touches:
     col = lambda k: np.array([r[k] for r in rs], float)  # noqa: E731
     poor = np.array([bool(r.get("poor_fit")) for r in rs])
     e = np.array([r["e_chain"] if r.get("poor_fit") else r["e"] for r in rs], float)
-    broad = np.array([r.get("u_ln_e_stated") is not None and r["u_ln_e"] != r["u_ln_e_stated"] for r in rs])
+    broad = np.array([widened(r) for r in rs], bool)
     return Touches(np.array([names.index(r["name"]) for r in rs], int), np.array([BOARD] * len(rs)),
                    col("contact_s"), col("e_true"), e, col("u_ln_e"), tuple(names),
                    col("alpha"), col("u_ln_alpha"), col("corr"), poor, broad)
 
 
-def cross_fit(oset: ObjectSet, t: Touches, fold: np.ndarray, broad: np.ndarray, *, bias: bool = True,
+def cross_fit(oset: ObjectSet, t: Touches, fold: np.ndarray, *, bias: bool = True,
               spread_fixed: bool | None = None):
     """Leave-one-probe-out: the set fitted on the in-set touches of the other drawn probes answers this probe's.
 
     No touch is answered by a set fitted on its own probe (the evaluation split); the same sets
     also answer the touches they were fitted on (the calibration split, reported beside it).
-    Touches named with a widened u (``broad``: the calibrated path refused them, BROAD_FLAGS) are
+    Touches named with a widened u (``t.broad``: the calibrated path refused them, BROAD_FLAGS) are
     answered but not fitted on: their width is fixed by the rule, not by the probe's stated u.
     ``bias``: the fit includes the probe's bias of ln e and poor_fit_ln (host.recognition.calibrate);
     ``spread_fixed`` (default SPREAD_FIXED): T = 1 and the scale on the stated u fitted instead.
@@ -163,7 +163,7 @@ def cross_fit(oset: ObjectSet, t: Touches, fold: np.ndarray, broad: np.ndarray, 
     cal_idx, cal_recs, fits, sets = [], [], [], {}
     in_set = np.array([t.names[i] in oset for i in t.obj])
     for f in sorted(set(fold.tolist())):
-        fit_on = in_set & (fold != f) & t.ok & ~broad
+        fit_on = in_set & (fold != f) & t.ok & ~t.broad
         cal, rep = calibrate(oset, BOARD, sim=t.select(fit_on), bias=bias, outlier=OUTLIER, spread_fixed=sf, **FIT)
         sets[f] = cal
         fits.append({"held_out_probe": f, **{k: rep.get(k) for k in (
@@ -177,7 +177,7 @@ def cross_fit(oset: ObjectSet, t: Touches, fold: np.ndarray, broad: np.ndarray, 
     return recs, (np.array(cal_idx, int), cal_recs), fits, sets
 
 
-def strict_fit(oset: ObjectSet, t: Touches, fold: np.ndarray, broad: np.ndarray) -> list:
+def strict_fit(oset: ObjectSet, t: Touches, fold: np.ndarray) -> list:
     """The evaluation split made stricter: a touch is named by a set fitted on other probes *and* other objects.
 
     Does the bias line generalise to an object it was not fitted on (a user's new object)?
@@ -187,7 +187,7 @@ def strict_fit(oset: ObjectSet, t: Touches, fold: np.ndarray, broad: np.ndarray)
     for f in sorted(set(fold.tolist())):
         # Out-of-set touches (o = -1) by the set fitted on every in-set object of the other probes.
         for o in [-1] + sorted(set(t.obj[in_set].tolist())):
-            fit_on = in_set & (fold != f) & (t.obj != o) & t.ok & ~broad
+            fit_on = in_set & (fold != f) & (t.obj != o) & t.ok & ~t.broad
             cal, _ = calibrate(oset, BOARD, sim=t.select(fit_on), bias=True, outlier=OUTLIER, spread_fixed=SPREAD_FIXED,
                            **FIT)
             ans = (fold == f) & ((t.obj == o) if o >= 0 else ~in_set)
@@ -238,7 +238,7 @@ def _classify_row(s: ObjectSet, r: dict):
         return s.classify(r["e_chain"], s.poor_fit_ln, stated=False) if s.poor_fit_ln > 0 else None
     if not math.isfinite(r["e"]):
         return None
-    return s.classify(r["e"], r["u_ln_e"], stated=r["u_ln_e"] == r.get("u_ln_e_stated", r["u_ln_e"]))
+    return s.classify(r["e"], r["u_ln_e"], stated=not widened(r))
 
 
 def until_decided(oset, rows, names, sets_by_ct) -> dict:
@@ -286,7 +286,7 @@ def installable_set(est: dict, objects, path) -> dict:
 
     oset = ObjectSet(IN_SET, label="tactile")
     rows = [r for r in est["rows"] if r["contact_s"] in CONTACTS_S and r["name"] in oset
-            and not (r.get("u_ln_e_stated") is not None and r["u_ln_e"] != r["u_ln_e_stated"])]
+            and not widened(r)]
     cal, rep = calibrate_by_contact(oset, BOARD, sim=touches_of(rows, [o.name for o in objects]), bias=True,
                                     outlier=OUTLIER, spread_fixed=SPREAD_FIXED, **FIT)
     path.write_text(cal.to_csv_text())
@@ -319,17 +319,16 @@ def recognise_at(task) -> tuple[dict, dict]:
     t = touches_of(rows, names, ct)
     probe = np.array([r["probe"] for r in rows])
     fold = np.array([FOLD_OF.get(p, p) for p in probe])
-    broad = np.array([r.get("u_ln_e_stated") is not None and r["u_ln_e"] != r["u_ln_e_stated"] for r in rows])
-    recs, (ci, crecs), fits, sets = cross_fit(oset, t, fold, broad)
+    recs, (ci, crecs), fits, sets = cross_fit(oset, t, fold)
     # The attainable u with the noise the simulated touches carry (_asbuilt_touches.scene_noise).
     sT, sq, dt = A.scene_noise(head, board)
     u_fisher = attainable_u_ln_e(oset, ct, probe=head, sigma_T_K=sT, sigma_q_W_m2=sq, dt_s=dt)
     ev = evaluate(oset, t, recs, out_names, u_fisher)
     cal_split = evaluate(oset, t.select(ci), crecs, out_names, u_fisher)
-    plain, _, _, _ = cross_fit(oset, t, fold, broad, bias=False)
+    plain, _, _, _ = cross_fit(oset, t, fold, bias=False)
     no_bias = evaluate(oset, t, plain, out_names, u_fisher)
     # The other likelihood (T on every variance, or on the stated u alone): the < 0.5 bin's make-up in both.
-    other = cross_fit(oset, t, fold, broad, spread_fixed=not SPREAD_FIXED)[0]
+    other = cross_fit(oset, t, fold, spread_fixed=not SPREAD_FIXED)[0]
     alt = evaluate(oset, t, other, out_names, u_fisher)
     low = {}
     for label, rr in (("adopted", recs), ("other", other)):
@@ -341,7 +340,7 @@ def recognise_at(task) -> tuple[dict, dict]:
                       "objects": dict(Counter(t.names[t.obj[k]] for k in i2[m]).most_common(4)),
                       "ece_debiased": debiased_ece(c2, ok2)["debiased"] if c2.size else None}
     sfold = np.array([STRICT_FOLD_OF.get(p, p) for p in probe])
-    strict = evaluate(oset, t, strict_fit(oset, t, sfold, broad), out_names, u_fisher)
+    strict = evaluate(oset, t, strict_fit(oset, t, sfold), out_names, u_fisher)
     keys = ("object_accuracy", "class_accuracy", "in_set_accepted", "out_rejected")
     # The ECE judged: plug-in, debiased, bootstrap interval over probes and touches (evaluation split).
     idx, conf, right = in_set_answers(oset, t, recs)
@@ -360,7 +359,7 @@ def recognise_at(task) -> tuple[dict, dict]:
            "diagnosis": diagnosis(oset, t, recs), "confidence_breakdown": breakdown(oset, t, recs),
            "refused": int(sum(not math.isfinite(r["e"]) and not r.get("poor_fit") for r in rows)),
            "poor_fit_named": int(sum(bool(r.get("poor_fit")) for r in rows)),
-           "calibration_refused": int(broad.sum()),
+           "calibration_refused": int(t.broad.sum()),
            "methods": {m: sum(r["method"] == m for r in rows) for m in {r["method"] for r in rows}}}
     return res, sets
 
@@ -663,9 +662,8 @@ def main() -> None:
     res["bench_s"] = time.perf_counter() - t0
     res["load_avg_1min"] = os.getloadavg()[0]
     res["board"] = args.board
-    res["command"] = "python bench/tactile_asbuilt_bench.py " + " ".join(sys.argv[1:])
+    res["command"] = cmd = "python bench/tactile_asbuilt_bench.py " + " ".join(sys.argv[1:])
     write_json("tactile_asbuilt" + ("" if args.board == "precision" else f"_{args.board}"), res)
-    cmd = "python bench/tactile_asbuilt_bench.py " + " ".join(sys.argv[1:])
     sims = ", ".join(f"{hd} {h['sim_s'] / 60:.0f} min" + (
         f" + the added probes {h['probes_cpu_s'] / 60:.0f} CPU-min (parallel parts at nice 19, "
         f"{h['probes_wall_s'] / 60:.0f} min wall on a shared machine)" if h.get("probes_cpu_s") else "")

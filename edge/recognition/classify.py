@@ -94,8 +94,8 @@ def classify_rows(s, e: Sequence[float], u_ln_e: Sequence[float], alpha: Sequenc
     top : int
         Number of candidates listed.
     stated : sequence of bool, optional
-        Per touch, False where ``u_ln_e`` is a width the set fixed (``poor_fit_ln``: used as it is,
-        not shrunk, :meth:`ObjectSet.likelihood_u`); default every u a stated one.
+        Per touch, False where ``u_ln_e`` is a width the rule fixed (``poor_fit_ln``, or a ``BROAD_LN``
+        widening): used as it is, not shrunk (:meth:`ObjectSet.likelihood_u`); default every u a stated one.
 
     Returns
     -------
